@@ -1,0 +1,1 @@
+"""Metrics, paper tables, plots, sweeps, rerun logs, and the ``merge-irl`` command line."""

@@ -1,0 +1,55 @@
+"""The ``merge-irl`` command line.
+
+Every subcommand lives in its own module under ``analysis/commands/`` and is a thin layer over
+the Python API. A command module defines ``register(subparsers)``, which adds its parser and
+sets ``func`` (called with the parsed arguments; returns the exit status). Modules are found
+automatically, so adding a command never edits this file.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import pkgutil
+import sys
+
+from irl.errors import IRLError
+from scenarios.errors import ScenarioError
+from sim.errors import SimError
+
+import analysis.commands as _commands
+
+#: Errors that are the user's input at fault: printed as one line, exit status 2.
+USER_ERRORS: tuple[type[BaseException], ...] = (IRLError, ScenarioError, SimError, FileNotFoundError)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="merge-irl",
+        description="Learn merge-driving reward weights with model-free IRL and test them in SUMO.",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+    for info in sorted(pkgutil.iter_modules(_commands.__path__), key=lambda m: m.name):
+        if info.name.startswith("_"):
+            continue
+        module = importlib.import_module(f"{_commands.__name__}.{info.name}")
+        module.register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except USER_ERRORS as e:
+        print(f"merge-irl {args.command}: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"merge-irl {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""One module per ``merge-irl`` subcommand; each defines ``register(subparsers)``."""

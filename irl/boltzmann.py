@@ -1,0 +1,60 @@
+"""Boltzmann policies and the demonstration log-likelihood, all in log space.
+
+``pi(a|s) = softmax_a(beta Q(s, a))``; ``L = sum_traj sum_t log pi(a_t | s_t)`` (paper Eq. 5
+without the ``log Pr(s_1)`` term, which does not depend on theta). Every function here uses
+log-sum-exp with max subtraction, so large ``beta`` or large ``Q`` never overflows.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.special import logsumexp
+
+
+def log_policy(q: np.ndarray, beta: float) -> np.ndarray:
+    """``log pi(a|s)`` for ``q`` of shape ``[S, A]``; returns ``[S, A]``."""
+    z = beta * np.asarray(q, dtype=np.float64)
+    return z - logsumexp(z, axis=1, keepdims=True)
+
+
+def policy(q: np.ndarray, beta: float) -> np.ndarray:
+    """``pi(a|s)`` for ``q`` of shape ``[S, A]``; returns ``[S, A]``, rows sum to 1."""
+    return np.exp(log_policy(q, beta))
+
+
+def step_counts(states: np.ndarray, actions: np.ndarray, n_states: int, n_actions: int) -> np.ndarray:
+    """How often each (s, a) occurs among the steps: ``[S, A]`` float64."""
+    counts = np.zeros((n_states, n_actions))
+    np.add.at(counts, (states, actions), 1.0)
+    return counts
+
+
+def loglik_from_counts(q: np.ndarray, beta: float, counts: np.ndarray) -> float:
+    """``sum_{s,a} counts[s,a] log pi(a|s)``; ``q, counts`` are ``[S, A]``."""
+    lp = log_policy(q, beta)
+    mask = counts > 0
+    return float(np.sum(counts[mask] * lp[mask]))
+
+
+def loglik_grad_from_counts(
+    q: np.ndarray, dq: np.ndarray, beta: float, counts: np.ndarray
+) -> tuple[float, np.ndarray]:
+    """Log-likelihood and its gradient with respect to theta.
+
+    Args:
+        q: ``[S, A]`` Q values at theta.
+        dq: ``[S, A, K]``, ``dQ(s, a) / dtheta``.
+        beta: inverse temperature.
+        counts: ``[S, A]`` step counts of the demonstrations.
+
+    Returns:
+        ``(L, dL/dtheta [K])`` with ``d log pi(a|s) = beta (dQ(s,a) - sum_b pi(b|s) dQ(s,b))``.
+    """
+    lp = log_policy(q, beta)
+    pi = np.exp(lp)
+    mask = counts > 0
+    ll = float(np.sum(counts[mask] * lp[mask]))
+    n_s = counts.sum(axis=1)  # [S] steps per state
+    expected_dq = np.einsum("sa,sak->sk", pi, dq)  # [S, K]
+    grad = beta * (np.einsum("sa,sak->k", counts, dq) - n_s @ expected_dq)
+    return ll, grad

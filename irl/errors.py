@@ -1,0 +1,17 @@
+"""Exceptions raised by ``irl``. Every message names the file, line or field at fault."""
+
+
+class IRLError(Exception):
+    """Base class of every error raised by the ``irl`` package."""
+
+
+class DemonstrationError(IRLError, ValueError):
+    """Demonstrations (a file or arrays) are malformed."""
+
+
+class ConfigError(IRLError, ValueError):
+    """An IRL configuration value is invalid."""
+
+
+class ModelFileError(IRLError, ValueError):
+    """A saved model file is malformed."""

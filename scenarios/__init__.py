@@ -1,0 +1,1 @@
+"""On-ramp merge scenarios: frozen specs loaded from TOML, presets, and SUMO networks."""

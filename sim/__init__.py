@@ -1,0 +1,1 @@
+"""SUMO runs through libsumo, the NGSIM-schema trajectory table, and merge encounters."""

@@ -1,0 +1,73 @@
+"""Resumable result storage: one JSON file per finished task, written atomically."""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Any
+
+
+def _canonical(value: Any) -> Any:
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {"__type__": type(value).__qualname__, **{
+            f.name: _canonical(getattr(value, f.name)) for f in dataclasses.fields(value)}}
+    if isinstance(value, dict):
+        return {str(k): _canonical(v) for k, v in sorted(value.items(), key=lambda kv: str(kv[0]))}
+    if isinstance(value, (list, tuple)):
+        return [_canonical(v) for v in value]
+    if isinstance(value, Path):
+        return str(value)
+    if hasattr(value, "tolist"):  # numpy scalars and arrays
+        return value.tolist()
+    return value
+
+
+def task_digest(func_name: str, config: Any, seed: int) -> str:
+    """Hex digest identifying a task by its function, full config and seed."""
+    payload = json.dumps(
+        {"func": func_name, "config": _canonical(config), "seed": int(seed)},
+        sort_keys=True, default=str,
+    )
+    return hashlib.sha256(payload.encode("utf-8")).hexdigest()[:32]
+
+
+class ResultStore:
+    """A directory of finished task results, ``<digest>.json``.
+
+    A file is only ever created by an atomic rename of a complete temporary file, so a sweep
+    killed midway never leaves a truncated result that reads as complete; a file that does not
+    parse is treated as missing (and reported by :meth:`get` returning ``None``).
+    """
+
+    def __init__(self, root: str | os.PathLike) -> None:
+        self.root = Path(root)
+        self.root.mkdir(parents=True, exist_ok=True)
+
+    def path(self, digest: str) -> Path:
+        return self.root / f"{digest}.json"
+
+    def get(self, digest: str) -> dict[str, Any] | None:
+        p = self.path(digest)
+        try:
+            data = json.loads(p.read_text())
+        except (FileNotFoundError, json.JSONDecodeError, UnicodeDecodeError):
+            return None
+        if not isinstance(data, dict) or "result" not in data:
+            return None
+        return data
+
+    def put(self, digest: str, record: dict[str, Any]) -> Path:
+        p = self.path(digest)
+        fd, tmp = tempfile.mkstemp(prefix=p.name + ".", suffix=".tmp", dir=self.root)
+        try:
+            with os.fdopen(fd, "w") as f:
+                json.dump(record, f)
+            os.replace(tmp, p)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+        return p

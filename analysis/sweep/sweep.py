@@ -1,0 +1,278 @@
+"""The sweep driver: derive seeds, skip finished tasks, run the rest, retry, report."""
+
+from __future__ import annotations
+
+import multiprocessing
+import sys
+import time
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Iterable, Sequence
+
+from tqdm import tqdm
+
+from analysis.sweep.executors import ExecutorSpec, parse_executor
+from analysis.sweep.seeds import derive_seed
+from analysis.sweep.store import ResultStore, task_digest
+from analysis.sweep.worker import call_task
+
+
+@dataclass(frozen=True)
+class Task:
+    """One unit of work.
+
+    Attributes:
+        key: unique, human-readable name within the sweep (also feeds the task's seed).
+        func: a top-level (importable, picklable) function ``func(config, seed) -> dict``.
+        config: the task's full configuration (a frozen dataclass or JSON-like value).
+    """
+
+    key: str
+    func: Callable[[Any, int], dict]
+    config: Any
+
+    @property
+    def func_name(self) -> str:
+        return f"{self.func.__module__}:{self.func.__qualname__}"
+
+
+@dataclass(frozen=True)
+class TaskFailure:
+    """A task that failed on every attempt: its key, the last error and the attempt count."""
+
+    key: str
+    error: str
+    attempts: int
+    traceback: str = ""
+
+
+@dataclass(frozen=True)
+class SweepReport:
+    """Results of a sweep, in task order.
+
+    Attributes:
+        results: ``key -> result dict`` for every task that succeeded (now or earlier).
+        seeds: ``key -> seed`` used for each task.
+        failures: tasks that failed after their retry.
+        n_cached: tasks skipped because a stored result existed.
+        n_run: tasks run in this call (successful or not).
+        wall_time_s: duration of this call.
+        task_times_s: ``key -> wall time`` of each task run in this call.
+    """
+
+    results: dict[str, dict]
+    seeds: dict[str, int]
+    failures: tuple[TaskFailure, ...]
+    n_cached: int
+    n_run: int
+    wall_time_s: float
+    task_times_s: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return not self.failures
+
+    def summary(self) -> str:
+        lines = [
+            f"{len(self.results)} task(s) done ({self.n_cached} from the store, {self.n_run} run) "
+            f"in {self.wall_time_s:.1f} s; {len(self.failures)} failed"
+        ]
+        for f in self.failures:
+            lines.append(f"  FAILED {f.key} after {f.attempts} attempt(s): {f.error}")
+        return "\n".join(lines)
+
+
+@dataclass
+class _Pending:
+    task: Task
+    seed: int
+    digest: str
+    attempts: int = 0
+    last: dict = field(default_factory=dict)
+
+
+def run_sweep(
+    tasks: Iterable[Task],
+    *,
+    seed: int = 0,
+    executor: str | ExecutorSpec = "process",
+    store: ResultStore | str | Path | None = None,
+    retries: int = 1,
+    progress: bool = True,
+    desc: str = "sweep",
+) -> SweepReport:
+    """Run ``tasks`` and return their results.
+
+    Each task's seed is ``derive_seed(seed, task.key)``: identical whichever executor runs it
+    and in whatever order. With a ``store``, a task whose result (keyed by its function, full
+    config and seed) is stored is skipped, and each result is stored as soon as it arrives, so
+    a sweep killed midway loses only the tasks in flight. A task that raises, or kills its
+    worker process, is retried ``retries`` times and then reported in ``failures``; the other
+    tasks go on.
+    """
+    spec = parse_executor(executor) if isinstance(executor, str) else executor
+    if store is not None and not isinstance(store, ResultStore):
+        store = ResultStore(store)
+    task_list = list(tasks)
+    keys = [t.key for t in task_list]
+    if len(set(keys)) != len(keys):
+        dupes = sorted({k for k in keys if keys.count(k) > 1})
+        raise ValueError(f"task keys must be unique; repeated: {dupes}")
+    t0 = time.perf_counter()
+    seeds: dict[str, int] = {}
+    done: dict[str, dict] = {}
+    todo: list[_Pending] = []
+    for t in task_list:
+        s = derive_seed(seed, t.key)
+        seeds[t.key] = s
+        digest = task_digest(t.func_name, t.config, s)
+        record = store.get(digest) if store is not None else None
+        if record is not None:
+            done[t.key] = record["result"]
+        else:
+            todo.append(_Pending(t, s, digest))
+    n_cached = len(done)
+    failures: list[TaskFailure] = []
+    times: dict[str, float] = {}
+    bar = tqdm(total=len(task_list), initial=n_cached, desc=desc, unit="task",
+               disable=not progress, file=sys.stderr)
+
+    def finish(p: _Pending, record: dict) -> bool:
+        """Record an attempt's outcome; return True if the task should be retried."""
+        p.attempts += 1
+        p.last = record
+        times[p.task.key] = float(record.get("wall_time_s", 0.0))
+        if record.get("ok"):
+            done[p.task.key] = record["result"]
+            if store is not None:
+                store.put(p.digest, {"key": p.task.key, "func": p.task.func_name,
+                                     "seed": p.seed, "result": record["result"]})
+            bar.update(1)
+            return False
+        if p.attempts <= retries:
+            return True
+        failures.append(TaskFailure(p.task.key, record.get("error", "unknown error"), p.attempts,
+                                    record.get("traceback", "")))
+        bar.update(1)
+        return False
+
+    try:
+        if spec.kind == "serial":
+            _run_serial(todo, finish)
+        elif spec.kind == "process":
+            _run_process_pool(todo, finish, spec.workers)
+        else:
+            _run_dask(todo, finish, spec)
+    finally:
+        bar.close()
+    ordered = {k: done[k] for k in keys if k in done}
+    order = {k: i for i, k in enumerate(keys)}
+    return SweepReport(
+        results=ordered,
+        seeds=seeds,
+        failures=tuple(sorted(failures, key=lambda f: order[f.key])),
+        n_cached=n_cached,
+        n_run=len(todo),
+        wall_time_s=time.perf_counter() - t0,
+        task_times_s=times,
+    )
+
+
+def _run_serial(todo: Sequence[_Pending], finish) -> None:
+    for p in todo:
+        while finish(p, call_task(p.task.func, p.task.config, p.seed)):
+            pass
+
+
+def _crash_record(e: BaseException) -> dict:
+    return {"ok": False, "error": f"worker process died ({type(e).__name__}: {e})", "wall_time_s": 0.0}
+
+
+def _run_isolated(p: _Pending, finish) -> None:
+    """Run one task alone in a fresh process until it succeeds or runs out of retries."""
+    ctx = multiprocessing.get_context("spawn")
+    while True:
+        with ProcessPoolExecutor(1, mp_context=ctx) as pool:
+            try:
+                record = pool.submit(call_task, p.task.func, p.task.config, p.seed).result()
+            except BrokenProcessPool as e:
+                record = _crash_record(e)
+        if not finish(p, record):
+            return
+
+
+def _run_process_pool(todo: Sequence[_Pending], finish, workers: int) -> None:
+    """At most ``workers`` tasks in flight; a worker crash only affects those in flight.
+
+    When a worker dies the pool is broken and we cannot tell which in-flight task killed it,
+    so each in-flight task is re-run alone in its own process (the culprit crashes again and
+    uses up its retry; the others just finish), then a fresh pool continues with the rest.
+    """
+    ctx = multiprocessing.get_context("spawn")
+    queue = list(todo)
+    while queue:
+        in_flight: dict[Future, _Pending] = {}
+        crashed: list[_Pending] = []
+        with ProcessPoolExecutor(workers, mp_context=ctx) as pool:
+            while queue or in_flight:
+                while queue and len(in_flight) < workers:
+                    p = queue.pop(0)
+                    in_flight[pool.submit(call_task, p.task.func, p.task.config, p.seed)] = p
+                finished, _ = wait(in_flight, return_when=FIRST_COMPLETED)
+                for fut in finished:
+                    p = in_flight.pop(fut)
+                    try:
+                        record = fut.result()
+                    except BrokenProcessPool:
+                        crashed.append(p)
+                        continue
+                    if finish(p, record):
+                        queue.append(p)
+                if crashed:
+                    crashed.extend(in_flight.values())
+                    in_flight.clear()
+                    break
+        for p in crashed:  # the pool-wide crash is not counted: it cannot be attributed
+            _run_isolated(p, finish)
+
+
+def _run_dask(todo: Sequence[_Pending], finish, spec: ExecutorSpec) -> None:
+    try:
+        from distributed import Client, LocalCluster, as_completed
+    except ImportError as e:  # pragma: no cover - depends on the install
+        raise RuntimeError(
+            "the dask executors need Dask distributed: pip install 'merge-irl[dask]'"
+        ) from e
+    cluster = None
+    if spec.kind == "dask-local":
+        cluster = LocalCluster(n_workers=spec.workers, threads_per_worker=1, processes=True,
+                               host="127.0.0.1", dashboard_address=None)
+        client = Client(cluster)
+    else:
+        client = Client(spec.address)
+    futures: dict[str, _Pending] = {}
+
+    def submit(p: _Pending):
+        # Dask itself reschedules a task whose worker died (up to its allowed-failures);
+        # an exception or KilledWorker comes back here and is retried once like elsewhere.
+        fut = client.submit(call_task, p.task.func, p.task.config, p.seed,
+                            key=f"{p.task.key}-{p.digest[:12]}-{p.attempts}", pure=False)
+        futures[fut.key] = p
+        return fut
+
+    try:
+        ac = as_completed([submit(p) for p in todo])
+        for fut in ac:
+            p = futures[fut.key]
+            try:
+                record = fut.result()
+            except Exception as e:  # noqa: BLE001 - KilledWorker and friends
+                record = _crash_record(e)
+            if finish(p, record):
+                ac.add(submit(p))
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()

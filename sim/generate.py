@@ -1,0 +1,80 @@
+"""``generate``: simulate a scenario and write trajectories, encounters and the spec used.
+
+Files written into the output folder (each atomically; see ``sim.outputs``):
+
+* ``trajectories.parquet``  the NGSIM-schema trajectory table;
+* ``encounters.parquet``    per-frame merge encounters (``sim.encounters.ENCOUNTER_COLUMNS``);
+* ``merges.parquet``        one row per merging vehicle (``sim.encounters.MERGE_COLUMNS``);
+* ``scenario.toml``         the spec simulated, with the seed and duration actually used;
+* ``trajectories.csv``      on request, in NGSIM's text format (``sim.ngsim_io``).
+
+Before simulating, these names are removed from the folder, so an aborted rerun never leaves
+the previous run's files looking like the result of this one.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from scenarios.spec import ScenarioSpec
+from sim.encounters import Encounters, EncounterWindow, extract
+from sim.hooks import StepHook
+from sim.outputs import write_parquet, write_text
+from sim.run import SimulationResult, run_scenario
+
+TRAJECTORIES = "trajectories.parquet"
+ENCOUNTERS = "encounters.parquet"
+MERGES = "merges.parquet"
+SCENARIO = "scenario.toml"
+CSV = "trajectories.csv"
+OUTPUT_FILES = (TRAJECTORIES, ENCOUNTERS, MERGES, SCENARIO, CSV)
+
+
+@dataclass(frozen=True)
+class GenerateResult:
+    """What :func:`generate` simulated and wrote."""
+
+    out_dir: Path
+    files: tuple[Path, ...]
+    simulation: SimulationResult
+    encounters: Encounters
+
+
+def default_out_dir(spec: ScenarioSpec, seed: int | None = None) -> Path:
+    """``./runs/<scenario>-<seed>``."""
+    return Path("runs") / f"{spec.name}-{spec.simulation.seed if seed is None else seed}"
+
+
+def generate(
+    spec: ScenarioSpec,
+    out_dir: str | Path | None = None,
+    *,
+    seed: int | None = None,
+    duration_s: float | None = None,
+    csv: bool = False,
+    progress: bool = False,
+    window: EncounterWindow = EncounterWindow(),
+    hooks: Sequence[StepHook] = (),
+) -> GenerateResult:
+    """Simulate ``spec`` (optionally with another seed / duration) and write the output files."""
+    if seed is not None or duration_s is not None:
+        spec = spec.with_overrides(seed=seed, duration_s=duration_s)
+    out = Path(out_dir) if out_dir is not None else default_out_dir(spec)
+    out.mkdir(parents=True, exist_ok=True)
+    for name in OUTPUT_FILES:
+        (out / name).unlink(missing_ok=True)
+    result = run_scenario(spec, hooks=hooks, progress=progress)
+    enc = extract(result.table, window=window)
+    files = [
+        write_parquet(result.table, out / TRAJECTORIES),
+        write_parquet(enc.frames, out / ENCOUNTERS),
+        write_parquet(enc.merges, out / MERGES),
+        write_text(spec.to_toml(), out / SCENARIO),
+    ]
+    if csv:
+        from sim.ngsim_io import write_ngsim_csv
+
+        files.append(Path(write_ngsim_csv(result.table, out / CSV)))
+    return GenerateResult(out_dir=out, files=tuple(files), simulation=result, encounters=enc)

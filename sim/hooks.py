@@ -1,0 +1,107 @@
+"""Step hooks: user code called by :func:`sim.run.run_scenario` at every recorded frame.
+
+A hook sees the frame just recorded (NGSIM units: ft, ft/s, ft/s^2) and may call ``libsumo``
+to control vehicles (for example ``libsumo.vehicle.setSpeedMode(sid, 0)`` then
+``setAcceleration``); the commands take effect in the next simulation step.
+
+Call order for one run::
+
+    hook.on_start(ctx)                 # once, after SUMO started and the network is loaded
+    hook.on_step(ctx, frame)           # once per recorded frame (after warm-up), in order
+    hook.on_end(ctx)                   # once, before the SUMO session is closed (also on errors)
+
+Hooks are called in the order given. Frames of the warm-up period are neither recorded nor
+passed to hooks.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class RunContext:
+    """What a run knows that does not change from frame to frame.
+
+    Attributes:
+        spec: the :class:`scenarios.spec.ScenarioSpec` being simulated.
+        seed: the SUMO random seed of this run.
+        step_length_s: SUMO's simulation step (s).
+        frame_s: time between two recorded frames (s), 0.1 (the NGSIM frame).
+        lane_shapes: I-80 lane number as str ("1".."7") -> float64[P, 2] polyline of the lane
+            centre, (Global_X, Global_Y) in ft. Lane "7" is the ramp followed by the
+            auxiliary lane.
+        lane_width_ft: width of one lane (ft).
+        main_lanes: I-80 numbers of the main-road lanes, leftmost first (e.g. (1, ..., 6)).
+        section_length_ft: length of the main road (ft); Local_Y runs over [0, this].
+        vehicle_id_of: callable, SUMO id -> Vehicle_ID (int), or None if not yet assigned.
+        sumo_id_of: callable, Vehicle_ID -> SUMO id, or None if unknown.
+        work_dir: folder with the network and route files of this run (str).
+    """
+
+    spec: Any
+    seed: int
+    step_length_s: float
+    frame_s: float
+    lane_shapes: Mapping[str, np.ndarray]
+    lane_width_ft: float
+    main_lanes: tuple[int, ...]
+    section_length_ft: float
+    vehicle_id_of: Callable[[str], int | None] = field(repr=False)
+    sumo_id_of: Callable[[int], str | None] = field(repr=False)
+    work_dir: str = ""
+
+
+@dataclass(frozen=True)
+class FrameState:
+    """Every vehicle in the network at one recorded frame; V = number of vehicles.
+
+    Arrays are aligned: entry i of every array is vehicle ``sumo_ids[i]``. Units: ft, ft/s,
+    ft/s^2. ``lane_id`` uses I-80 numbering (1 leftmost .. 6 rightmost main lane, 7 ramp /
+    auxiliary lane). ``v_class`` is NGSIM's (2 auto, 3 truck). The arrays are read-only views
+    of the run's buffers: copy them if you keep them.
+
+    Attributes:
+        frame: Frame_ID (int, 0.1 s units since the start of the simulation).
+        time_s: simulated time (s).
+        sumo_ids: tuple[str] of length V.
+        vehicle_id: int64[V]  Vehicle_ID of the trajectory table.
+        local_x, local_y, global_x, global_y: float64[V]  positions of the front bumper centre.
+        speed: float64[V]; acc: float64[V]; length, width: float64[V].
+        lane_id: int64[V]; v_class: int64[V].
+    """
+
+    frame: int
+    time_s: float
+    sumo_ids: tuple[str, ...]
+    vehicle_id: np.ndarray
+    local_x: np.ndarray
+    local_y: np.ndarray
+    global_x: np.ndarray
+    global_y: np.ndarray
+    speed: np.ndarray
+    acc: np.ndarray
+    length: np.ndarray
+    width: np.ndarray
+    lane_id: np.ndarray
+    v_class: np.ndarray
+
+    def index_of(self, vehicle_id: int) -> int | None:
+        """Row of ``vehicle_id`` in this frame's arrays, or None if it is not in the network."""
+        hits = np.flatnonzero(self.vehicle_id == vehicle_id)
+        return int(hits[0]) if hits.size else None
+
+
+@runtime_checkable
+class StepHook(Protocol):
+    """Called by :func:`sim.run.run_scenario`; see the module docstring for the call order."""
+
+    def on_start(self, ctx: RunContext) -> None: ...
+
+    def on_step(self, ctx: RunContext, frame: FrameState) -> None: ...
+
+    def on_end(self, ctx: RunContext) -> None: ...

@@ -1,0 +1,278 @@
+"""Run a scenario headless through libsumo and record the NGSIM-schema trajectory table.
+
+Recording: every vehicle is subscribed at departure (position, speed, acceleration, lane id);
+each recorded frame (every 0.1 s of simulated time after the warm-up) is turned into numpy
+arrays, passed to the step hooks, and appended to a chunk list; the DataFrame is built once at
+the end, with Preceding/Following/headways computed vectorised (``sim.table``).
+
+Coordinates: ``Local_Y`` = SUMO x (distance along the main road from the section start),
+``Local_X`` = -SUMO y (lateral distance from the left road edge), ``Global_X/Global_Y`` = SUMO
+x/y; all in feet, of the front bumper centre. Lanes: SUMO lane -> I-80 number by the lane's
+lateral position (main lanes 7 - n .. 6 from left to right, ramp and auxiliary lane 7).
+Vehicle_ID: consecutive from 1 in insertion order, assigned when a vehicle first appears in
+a recorded frame. Frame_ID = simulated time / 0.1 s; Global_Time = Frame_ID * 100 (ms since
+the simulation started). Frames before ``warmup_s`` are not recorded and not passed to hooks.
+
+libsumo allows one simulation per process at a time; ``run_scenario`` always closes it
+(``try/finally``, also on Ctrl-C), so runs can follow each other in one process.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import tempfile
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from scenarios.network import build_network
+from scenarios.routes import type_class_map, write_routes
+from scenarios.spec import ScenarioSpec
+from sim.errors import SimulationError
+from sim.hooks import FrameState, RunContext, StepHook
+from sim.recorder import TrajectoryRecorder
+from sim.schema import FRAME_S, FT_PER_M, RAMP_LANE, RIGHTMOST_MAIN_LANE, V_CLASS_AUTO, V_CLASS_TRUCK
+
+
+@dataclass(frozen=True)
+class SimulationResult:
+    """Outcome of :func:`run_scenario`.
+
+    Attributes:
+        table: trajectory table (NGSIM schema, sorted by Vehicle_ID, Frame_ID).
+        spec: the spec simulated (with the seed and duration actually used).
+        seed: SUMO seed.
+        wall_time_s: wall-clock time of the whole run (network, SUMO, recording, table).
+        sumo_time_s: wall-clock time spent inside ``simulationStep``.
+        n_vehicle_steps: number of rows of the table (vehicle x recorded frame).
+        sumo_ids: SUMO id of Vehicle_ID k at index k - 1.
+    """
+
+    table: pd.DataFrame
+    spec: ScenarioSpec
+    seed: int
+    wall_time_s: float
+    sumo_time_s: float
+    n_vehicle_steps: int
+    sumo_ids: tuple[str, ...]
+
+    @property
+    def n_vehicles(self) -> int:
+        return len(self.sumo_ids)
+
+
+def sumo_binary(name: str = "sumo") -> str:
+    """Path of a SUMO binary (``sumo``, ``netconvert``) via sumolib."""
+    import sumolib
+
+    return sumolib.checkBinary(name)
+
+
+def prepare_inputs(spec: ScenarioSpec, work_dir: Path) -> tuple[Path, Path]:
+    """Network (cached) and route file of ``spec``; returns (net.net.xml, routes.rou.xml)."""
+    net = build_network(spec.road)
+    routes = write_routes(spec, work_dir)
+    return net, routes
+
+
+def sumo_args(spec: ScenarioSpec, net: Path, routes: Path) -> list[str]:
+    """Command-line options shared by the libsumo run and the bare-binary benchmark."""
+    sim = spec.simulation
+    return [
+        "-n", str(net), "-r", str(routes),
+        "--step-length", f"{sim.step_s:g}",
+        "--begin", "0", "--end", f"{sim.duration_s:g}",
+        "--seed", str(sim.seed),
+        "--no-step-log", "true", "--no-warnings", "true",
+        "--collision.action", "warn",
+    ]
+
+
+def i80_lane_of(y_m: float, n_main: int, lane_width_m: float) -> int:
+    """I-80 lane number of a lateral SUMO position y (m, negative to the right of the left edge)."""
+    idx = int(math.floor(-y_m / lane_width_m))
+    idx = min(max(idx, 0), n_main)
+    return RAMP_LANE if idx >= n_main else RIGHTMOST_MAIN_LANE - n_main + 1 + idx
+
+
+def lane_numbers(local_x_ft: np.ndarray, n_main: int, lane_width_ft: float) -> np.ndarray:
+    """I-80 lane numbers (int64[V]) of lateral positions from the left road edge (float64[V], ft)."""
+    idx = np.clip(np.floor(local_x_ft / lane_width_ft).astype(np.int64), 0, n_main)
+    return np.where(idx >= n_main, RAMP_LANE, RIGHTMOST_MAIN_LANE - n_main + 1 + idx)
+
+
+def _lane_tables(ls, spec: ScenarioSpec) -> tuple[dict[str, int], dict[str, np.ndarray]]:
+    """SUMO lane id -> I-80 lane number, and I-80 lane (str) -> centre polyline float64[P, 2] ft."""
+    n, w = spec.road.main_lanes, spec.road.lane_width_m
+    lane_map: dict[str, int] = {}
+    pieces: dict[int, list[np.ndarray]] = {}
+    for lid in ls.lane.getIDList():
+        shape = np.asarray(ls.lane.getShape(lid), dtype=np.float64)
+        num = i80_lane_of(float(shape[:, 1].mean()), n, w)
+        lane_map[lid] = num
+        if not lid.startswith(":"):
+            pieces.setdefault(num, []).append(shape)
+    shapes = {}
+    for num, parts in pieces.items():
+        pts = np.concatenate(sorted(parts, key=lambda p: p[0, 0]))
+        shapes[str(num)] = pts * FT_PER_M
+    return lane_map, shapes
+
+
+def run_scenario(
+    spec: ScenarioSpec,
+    *,
+    seed: int | None = None,
+    duration_s: float | None = None,
+    hooks: Sequence[StepHook] = (),
+    progress: bool = False,
+    work_dir: Path | None = None,
+) -> SimulationResult:
+    """Simulate ``spec`` and record every vehicle at every 0.1 s frame after the warm-up.
+
+    ``seed`` / ``duration_s`` override the spec's. ``hooks`` are called at every recorded
+    frame (see :mod:`sim.hooks`). ``progress`` shows a tqdm bar of simulated time on stderr.
+    Raises ``SimulationError`` if SUMO fails.
+    """
+    if seed is not None or duration_s is not None:
+        spec = spec.with_overrides(seed=seed, duration_s=duration_s)
+    sim = spec.simulation
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="merge-irl-run-") as tmp:
+        wd = Path(work_dir) if work_dir is not None else Path(tmp)
+        wd.mkdir(parents=True, exist_ok=True)
+        net, routes = prepare_inputs(spec, wd)
+        table, sumo_time, sumo_ids = _simulate(spec, net, routes, hooks, progress, str(wd))
+    return SimulationResult(
+        table=table, spec=spec, seed=sim.seed, wall_time_s=time.perf_counter() - t0,
+        sumo_time_s=sumo_time, n_vehicle_steps=len(table), sumo_ids=sumo_ids,
+    )
+
+
+def _simulate(spec, net, routes, hooks, progress, work_dir):
+    import libsumo as ls
+    from libsumo import constants as tc
+
+    sim = spec.simulation
+    record_every = int(round(FRAME_S / sim.step_s))
+    n_steps = int(round(sim.duration_s / sim.step_s))
+    warmup_frame = int(math.ceil(sim.warmup_s / FRAME_S - 1e-9))
+    cls_of_type = type_class_map(spec)
+    # lane numbers come from the lateral position (SUMO without sublanes keeps every vehicle on
+    # its lane's centre line), which saves a fourth subscribed variable per vehicle
+    vars_ = (tc.VAR_POSITION, tc.VAR_SPEED, tc.VAR_ACCELERATION)
+    VP, VS, VA = vars_
+    n_main = spec.road.main_lanes
+    lane_w = spec.road.lane_width_m * FT_PER_M
+
+    try:
+        ls.start(["sumo", *sumo_args(spec, net, routes)])
+    except Exception as e:  # libsumo raises its own TraCIException / FatalTraCIError
+        _safe_close(ls)
+        raise SimulationError(f"SUMO failed to start scenario {spec.name!r}: {e}") from e
+
+    recorder = TrajectoryRecorder()
+    vid_of: dict[str, int] = {}
+    sumo_ids: list[str] = []
+    depart_seq: dict[str, int] = {}
+    static: dict[str, tuple[float, float, int]] = {}  # sid -> (length ft, width ft, v_class)
+    sumo_time = 0.0
+    ctx: RunContext | None = None
+    bar = None
+    started_hooks: list[StepHook] = []
+    try:
+        _, lane_shapes = _lane_tables(ls, spec)
+        ctx = RunContext(
+            spec=spec, seed=sim.seed, step_length_s=sim.step_s, frame_s=FRAME_S,
+            lane_shapes=lane_shapes, lane_width_ft=spec.road.lane_width_m * FT_PER_M,
+            main_lanes=tuple(range(RIGHTMOST_MAIN_LANE - spec.road.main_lanes + 1, RIGHTMOST_MAIN_LANE + 1)),
+            section_length_ft=spec.road.main_length_m * FT_PER_M,
+            vehicle_id_of=vid_of.get,
+            sumo_id_of=lambda v: sumo_ids[v - 1] if 1 <= v <= len(sumo_ids) else None,
+            work_dir=work_dir,
+        )
+        for h in hooks:
+            h.on_start(ctx)
+            started_hooks.append(h)
+        if progress:
+            from tqdm import tqdm
+
+            bar = tqdm(total=round(sim.duration_s), unit="sim s", file=sys.stderr,
+                       disable=not sys.stderr.isatty(), desc=f"simulating {spec.name}")
+        shown = 0
+        type_static: dict[str, tuple[float, float, int]] = {}
+        for step in range(1, n_steps + 1):
+            ts = time.perf_counter()
+            ls.simulationStep()
+            sumo_time += time.perf_counter() - ts
+            for sid in ls.simulation.getDepartedIDList():
+                ls.vehicle.subscribe(sid, vars_)
+                depart_seq[sid] = len(depart_seq)
+                tid = ls.vehicle.getTypeID(sid)
+                if tid not in type_static:
+                    cls = cls_of_type.get(tid, "car")
+                    type_static[tid] = (ls.vehicletype.getLength(tid) * FT_PER_M,
+                                        ls.vehicletype.getWidth(tid) * FT_PER_M,
+                                        V_CLASS_TRUCK if cls == "truck" else V_CLASS_AUTO)
+                static[sid] = type_static[tid]
+            if bar is not None and int(step * sim.step_s) > shown:
+                bar.update(int(step * sim.step_s) - shown)
+                shown = int(step * sim.step_s)
+            if step % record_every:
+                continue
+            frame = step // record_every
+            if frame < warmup_frame:
+                continue
+            res = ls.vehicle.getAllSubscriptionResults()
+            sids = tuple(res)
+            new = [s for s in sids if s not in vid_of]
+            if new:
+                new.sort(key=depart_seq.__getitem__)
+                for s in new:
+                    sumo_ids.append(s)
+                    vid_of[s] = len(sumo_ids)
+            vals = list(res.values())
+            pos = np.array([v[VP] for v in vals], dtype=np.float64).reshape(-1, 2) * FT_PER_M
+            st = np.array([static[s] for s in sids], dtype=np.float64).reshape(-1, 3)
+            fs = FrameState(
+                frame=frame, time_s=step * sim.step_s, sumo_ids=sids,
+                vehicle_id=np.array([vid_of[s] for s in sids], dtype=np.int64),
+                local_x=-pos[:, 1], local_y=pos[:, 0].copy(), global_x=pos[:, 0], global_y=pos[:, 1],
+                speed=np.array([v[VS] for v in vals], dtype=np.float64) * FT_PER_M,
+                acc=np.array([v[VA] for v in vals], dtype=np.float64) * FT_PER_M,
+                length=st[:, 0], width=st[:, 1],
+                lane_id=lane_numbers(-pos[:, 1], n_main, lane_w),
+                v_class=st[:, 2].astype(np.int64),
+            )
+            for arr in (fs.vehicle_id, fs.local_x, fs.local_y, fs.global_x, fs.global_y, fs.speed,
+                        fs.acc, fs.length, fs.width, fs.lane_id, fs.v_class):
+                arr.flags.writeable = False
+            recorder.add(fs)
+            for h in hooks:
+                h.on_step(ctx, fs)
+    except (KeyboardInterrupt, SimulationError):
+        raise
+    except (ls.TraCIException, ls.FatalTraCIError) as e:
+        raise SimulationError(f"SUMO error in scenario {spec.name!r}: {e}") from e
+    finally:
+        try:
+            if ctx is not None:
+                for h in started_hooks:
+                    h.on_end(ctx)
+        finally:
+            if bar is not None:
+                bar.close()
+            _safe_close(ls)
+    return recorder.table(), sumo_time, tuple(sumo_ids)
+
+
+def _safe_close(ls) -> None:
+    try:
+        ls.close()
+    except Exception:
+        pass

@@ -1,1 +1,38 @@
-"""On-ramp merge scenarios: frozen specs loaded from TOML, presets, and SUMO networks."""
+"""On-ramp merge scenarios: frozen specs loaded from TOML, presets, and SUMO networks.
+
+    from scenarios import load_scenario
+    spec = load_scenario("synthetic")          # a preset, or a path to a .toml file
+    spec = spec.with_overrides(seed=3, duration_s=120)
+"""
+
+from scenarios.errors import ScenarioError, SpecError
+from scenarios.loader import DEFAULT_SCENARIO, load_preset, load_scenario, preset_names
+from scenarios.spec import (
+    DemandSpec,
+    DriversSpec,
+    RoadSpec,
+    ScenarioSpec,
+    SimulationSpec,
+    VTypeSpec,
+    spec_from_dict,
+    spec_from_file,
+    spec_from_toml,
+)
+
+__all__ = [
+    "DEFAULT_SCENARIO",
+    "DemandSpec",
+    "DriversSpec",
+    "RoadSpec",
+    "ScenarioError",
+    "ScenarioSpec",
+    "SimulationSpec",
+    "SpecError",
+    "VTypeSpec",
+    "load_preset",
+    "load_scenario",
+    "preset_names",
+    "spec_from_dict",
+    "spec_from_file",
+    "spec_from_toml",
+]

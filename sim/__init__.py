@@ -1,1 +1,42 @@
-"""SUMO runs through libsumo, the NGSIM-schema trajectory table, and merge encounters."""
+"""SUMO runs through libsumo, the NGSIM-schema trajectory table, and merge encounters.
+
+    from scenarios import load_scenario
+    from sim import run_scenario, extract_encounters
+    result = run_scenario(load_scenario("synthetic"), seed=1, duration_s=120)
+    encounters = extract_encounters(result.table)
+
+Names are imported lazily, so ``import sim`` (e.g. for ``extract_encounters`` on real NGSIM
+data) does not start or even load SUMO.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+_EXPORTS = {
+    "run_scenario": "sim.run",
+    "SimulationResult": "sim.run",
+    "generate": "sim.generate",
+    "GenerateResult": "sim.generate",
+    "extract": "sim.encounters",
+    "extract_encounters": "sim.encounters",
+    "find_merges": "sim.encounters",
+    "EncounterWindow": "sim.encounters",
+    "Encounters": "sim.encounters",
+    "RunContext": "sim.hooks",
+    "FrameState": "sim.hooks",
+    "StepHook": "sim.hooks",
+    "SimError": "sim.errors",
+    "SimulationError": "sim.errors",
+    "TrajectoryFormatError": "sim.errors",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'sim' has no attribute {name!r}")
+    return getattr(importlib.import_module(module), name)

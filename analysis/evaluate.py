@@ -1,0 +1,283 @@
+"""Evaluate driving policies in closed loop: learned IRL models against SUMO and random.
+
+Example::
+
+    from analysis.evaluate import evaluate
+
+    report = evaluate(["runs/demo/models/qavg.json"], "synthetic", episodes=4, seed=1,
+                      out_dir="runs/eval", demos="runs/demo/heldout_encounters.parquet")
+    print(report.report_md)          # report.md: one row per policy
+    print(report.aggregates["qavg"].b_ahead_rate)
+
+Every policy runs the same episodes (seeds ``seed .. seed + episodes - 1``: the same traffic
+for every policy). Episodes run in a process pool (one libsumo simulation per process at a
+time). Outputs in ``out_dir``: ``report.md``, ``metrics.json``, ``action_histograms.png``,
+``gap_acceptance.png``, ``speed_profiles.png`` and, with ``rrd=True``, one rerun recording of
+the first episode of each policy under ``rerun/``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+import tempfile
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import multiprocessing as mp
+
+import numpy as np
+import pandas as pd
+
+from analysis.episode import EpisodeResult, run_episode
+from analysis.metrics import AggregateMetrics, MetricsConfig, aggregate, heldout_loglik
+from irl.result import SavedModel
+from sim.controller import ControllerConfig
+from sim.observe import NO_LEAD_GAP_FT, ObservationError, StateEncoder
+from sim.policy import N_ACTIONS, LearnedPolicy, Policy, PolicyError, SumoPolicy, UniformPolicy, action_of_acc
+
+
+@dataclass(frozen=True)
+class HeldOut:
+    """Demonstrations used for the divergence and the held-out log-likelihood.
+
+    Attributes:
+        encounters: encounter frames (``sim.encounters`` columns; NaN d_AC/v_AC = no lead car,
+            filled as in the closed loop: ``NO_LEAD_GAP_FT`` and 0).
+        action_counts: ``[5]`` counts of the binned ``acc_A``.
+        source: where they came from.
+    """
+
+    encounters: pd.DataFrame
+    action_counts: np.ndarray
+    source: str = ""
+
+
+def prepare_encounters(frames: pd.DataFrame) -> pd.DataFrame:
+    """Encounter frames ready to discretize: rows with A and B only; missing C -> open road."""
+    df = frames.copy()
+    df = df[np.isfinite(df["d_AB"]) & np.isfinite(df["v_AB"]) & np.isfinite(df["acc_A"])]
+    no_c = ~np.isfinite(df["d_AC"].to_numpy(float)) | ~np.isfinite(df["v_AC"].to_numpy(float))
+    df.loc[no_c, "d_AC"] = NO_LEAD_GAP_FT
+    df.loc[no_c, "v_AC"] = 0.0
+    return df.reset_index(drop=True)
+
+
+def load_heldout(demos: str | os.PathLike | pd.DataFrame) -> HeldOut:
+    """Held-out demonstrations from an encounter table (Parquet/CSV path or DataFrame)."""
+    if isinstance(demos, pd.DataFrame):
+        df, src = demos, "encounters"
+    else:
+        from irl.merge_mdp import read_encounters
+
+        df, src = read_encounters(demos), str(demos)
+    df = prepare_encounters(df)
+    counts = np.bincount(action_of_acc(df["acc_A"].to_numpy(float)), minlength=N_ACTIONS)
+    return HeldOut(df, counts.astype(np.int64), src)
+
+
+def policy_heldout_loglik(policy: Policy, heldout: HeldOut) -> tuple[float, float]:
+    """``(sum, per step)`` log-likelihood of the held-out steps under ``policy`` (NaN for SUMO)."""
+    if not policy.controls:
+        return float("nan"), float("nan")
+    df = heldout.encounters
+    actions = action_of_acc(df["acc_A"].to_numpy(float))
+    if isinstance(policy, LearnedPolicy):
+        enc = policy.encoder
+        states = enc.states(df[["d_AC", "d_AB", "v_AC", "v_AB"]].to_numpy(float), df["B_is_truck"].to_numpy(bool))
+        return heldout_loglik(policy.log_pi, states, actions)
+    # state-independent policies (uniform, constant): log p(a)
+    from sim.observe import MergeObservation
+
+    p = np.asarray(policy.probs(MergeObservation(0, 0, 0, 0, False, 0)), dtype=float)
+    with np.errstate(divide="ignore"):
+        lp = np.log(p)[actions]
+    return float(lp.sum()), float(lp.mean()) if lp.size else float("nan")
+
+
+def learned_policy(model: SavedModel | str | os.PathLike, name: str = "") -> LearnedPolicy:
+    """A :class:`LearnedPolicy` from a saved model (path or object) with its bin edges."""
+    where = "model"
+    if not isinstance(model, SavedModel):
+        path = Path(model)
+        model = SavedModel.load(path)
+        name = name or path.stem
+        where = str(path)
+    try:
+        return LearnedPolicy.from_model(model, encoder=StateEncoder(model.bin_edges) if model.bin_edges else None,
+                                        name=name or model.method)
+    except (PolicyError, ObservationError) as e:
+        raise type(e)(f"{where}: {e}") from None
+
+
+@dataclass(frozen=True)
+class EvaluationReport:
+    """Result of :func:`evaluate`.
+
+    Attributes:
+        out_dir: where the files are.
+        aggregates: policy name -> aggregated metrics.
+        episodes: policy name -> per-episode results (metrics, controls, decisions, profiles).
+        report_md, metrics_json: paths of the written report and metrics.
+        plots: paths of the PNG plots.
+        rrd: policy name -> rerun recording (first episode), if written.
+    """
+
+    out_dir: Path
+    aggregates: dict[str, AggregateMetrics]
+    episodes: dict[str, list[EpisodeResult]] = field(repr=False)
+    report_md: Path
+    metrics_json: Path
+    plots: tuple[Path, ...] = ()
+    rrd: dict[str, Path] = field(default_factory=dict)
+
+
+def _episode_task(args) -> EpisodeResult:
+    scenario, policy, seed, kw = args
+    return run_episode(scenario, policy, seed, **kw)
+
+
+def run_episodes(tasks: Sequence[tuple], *, workers: int = 2, progress: bool = True) -> list[EpisodeResult]:
+    """Run ``(scenario, policy, seed, kwargs)`` tasks, each in a worker process, in order.
+
+    ``workers`` processes (spawned; one libsumo simulation per process at a time).
+    """
+    from tqdm import tqdm
+
+    bar = tqdm(total=len(tasks), desc="episodes", unit="ep", file=sys.stderr,
+               disable=not (progress and sys.stderr.isatty()))
+    try:
+        with ProcessPoolExecutor(max_workers=max(1, int(workers)), mp_context=mp.get_context("spawn")) as ex:
+            futures = [ex.submit(_episode_task, t) for t in tasks]
+            out = []
+            for f in futures:
+                out.append(f.result())
+                bar.update(1)
+        return out
+    finally:
+        bar.close()
+
+
+def evaluate(
+    models: Sequence[SavedModel | str | os.PathLike],
+    scenario,
+    episodes: int,
+    seed: int,
+    out_dir: str | os.PathLike,
+    *,
+    duration_s: float | None = None,
+    demos: str | os.PathLike | pd.DataFrame | None = None,
+    baselines: Sequence[str] = ("sumo", "uniform"),
+    policies: Sequence[Policy] = (),
+    controller: ControllerConfig = ControllerConfig(),
+    metrics: MetricsConfig = MetricsConfig(),
+    workers: int = 2,
+    rrd: bool = True,
+    progress: bool = True,
+) -> EvaluationReport:
+    """Closed-loop evaluation of each model (and the baselines) over ``episodes`` seeds.
+
+    Args:
+        models: saved models (``model.json`` paths or objects) of the merge domain.
+        scenario: preset name, TOML path or ScenarioSpec.
+        episodes: episodes per policy; seeds ``seed + i``.
+        out_dir: output folder (created).
+        duration_s: override the scenario's duration.
+        demos: held-out encounters (Parquet/CSV/DataFrame) for the action divergence and the
+            held-out log-likelihood; None: both are NaN.
+        baselines: any of ``"sumo"`` (not taken over) and ``"uniform"`` (random actions).
+        policies: further policies to evaluate (e.g. ``ConstantPolicy(0)``).
+        workers: processes.
+        rrd: write a rerun recording of each policy's first episode.
+    """
+    if episodes < 1:
+        from sim.errors import SimError
+
+        raise SimError(f"evaluate: episodes must be >= 1, got {episodes}")
+    from scenarios.loader import load_scenario
+
+    spec = load_scenario(scenario) if isinstance(scenario, (str, Path)) else scenario  # validate before SUMO
+    pols: list[Policy] = [learned_policy(m) for m in models]
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    for b in baselines:
+        pols.append({"sumo": SumoPolicy, "uniform": UniformPolicy}[b]())
+    pols.extend(policies)
+    names = [p.name for p in pols]
+    dup = {n for n in names if names.count(n) > 1}
+    if dup:
+        seen: dict[str, int] = {}
+        renamed = []
+        for p in pols:
+            k = seen.get(p.name, 0)
+            seen[p.name] = k + 1
+            renamed.append(_renamed(p, f"{p.name}-{k + 1}") if p.name in dup else p)
+        pols = renamed
+    held = load_heldout(demos) if demos is not None else None
+    counts = held.action_counts if held is not None else None
+    tasks = []
+    for p in pols:
+        for i in range(episodes):
+            kw = dict(duration_s=duration_s, controller=controller, metrics=metrics, demo_action_counts=counts,
+                      rrd_path=str(out / "rerun" / f"{p.name}.rrd") if (rrd and i == 0) else None)
+            tasks.append((spec, p, seed + i, kw))
+    results = run_episodes(tasks, workers=workers, progress=progress)
+    by_policy: dict[str, list[EpisodeResult]] = {p.name: [] for p in pols}
+    for (_, p, _, _), r in zip(tasks, results):
+        by_policy[p.name].append(r)
+    aggs = {}
+    for p in pols:
+        ho = policy_heldout_loglik(p, held) if held is not None else None
+        aggs[p.name] = aggregate([r.metrics for r in by_policy[p.name]], demo_action_counts=counts, heldout=ho)
+    from analysis.evaluate_report import write_outputs
+
+    scen_name = scenario if isinstance(scenario, (str, Path)) else spec.name
+    report_md, metrics_json, plots = write_outputs(
+        out, aggs, by_policy, held, scenario=str(scen_name), seed=seed, episodes=episodes,
+        duration_s=duration_s, controller=controller, metrics=metrics,
+    )
+    rrds = {name: Path(rs[0].rrd) for name, rs in by_policy.items() if rs and rs[0].rrd}
+    return EvaluationReport(out, aggs, by_policy, report_md, metrics_json, plots, rrds)
+
+
+def _renamed(p: Policy, name: str) -> Policy:
+    from dataclasses import replace
+
+    return replace(p, name=name)
+
+
+def write_text_atomic(path: Path, text: str) -> Path:
+    """Write ``text`` to ``path`` via a temporary file and rename."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def metrics_to_json(obj) -> str:
+    """JSON text with NaN/inf written as null."""
+    def clean(x):
+        if isinstance(x, float):
+            return x if math.isfinite(x) else None
+        if isinstance(x, dict):
+            return {str(k): clean(v) for k, v in x.items()}
+        if isinstance(x, (list, tuple)):
+            return [clean(v) for v in x]
+        if isinstance(x, (np.integer,)):
+            return int(x)
+        if isinstance(x, (np.floating,)):
+            return clean(float(x))
+        if isinstance(x, np.bool_):
+            return bool(x)
+        return x
+    return json.dumps(clean(obj), indent=1)

@@ -1,0 +1,210 @@
+"""The whole pipeline on one scenario, in one call (``merge-irl demo``).
+
+:func:`run_demo`:
+
+1. **generate** merges: simulate the scenario with SUMO's own drivers for the training seeds and
+   one held-out seed (in worker processes), extract the merge encounters (``sim.encounters``);
+2. **discretize**: quantile bin edges fitted on the training encounters (``irl.merge_mdp``);
+   encounter frames without a lead car C get the closed loop's open-road values;
+3. **learn** Q-Avg, Q-SM, MLIRL and REIRL (``analysis.learn``), one ``model.json`` each;
+4. **re-inject and evaluate**: every model drives the lag cars A of new episodes (other seeds),
+   against SUMO's own driver and uniform random (``analysis.evaluate``), with the held-out
+   encounters for the action divergence and the held-out log-likelihood;
+5. **log**: ``demo.rrd`` holds the IRL training traces of every method and one closed-loop
+   episode driven by Q-Avg (vehicles, policy, metrics); the evaluation adds one ``.rrd`` per
+   policy.
+
+Everything goes under ``out_dir`` (default ``./runs/demo``)::
+
+    data/train_encounters.parquet, data/heldout_encounters.parquet, data/bins.json
+    models/<method>.json
+    evaluation/report.md, metrics.json, *.png, rerun/<policy>.rrd
+    demo.rrd
+    summary.md
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from analysis.evaluate import EvaluationReport, evaluate, prepare_encounters, write_text_atomic
+
+METHODS = ("qavg", "qsm", "mlirl", "reirl")
+
+
+@dataclass(frozen=True)
+class DemoConfig:
+    """Sizes of the demo (defaults: a few minutes on 2 cores).
+
+    Attributes:
+        scenario: preset name or TOML path.
+        train_seeds: SUMO seeds of the training runs; heldout_seed: of the held-out run.
+        data_duration_s: simulated seconds of each data run (None: the scenario's).
+        eval_seed: first seed of the evaluation episodes; eval_episodes: episodes per policy.
+        eval_duration_s: simulated seconds per evaluation episode.
+        methods: IRL methods to learn.
+        fit_seed: seed of the IRL fits.
+        workers: processes.
+    """
+
+    scenario: str = "synthetic"
+    train_seeds: tuple[int, ...] = (101, 102, 103)
+    heldout_seed: int = 201
+    data_duration_s: float | None = None
+    eval_seed: int = 1
+    eval_episodes: int = 3
+    eval_duration_s: float | None = 240.0
+    methods: tuple[str, ...] = METHODS
+    fit_seed: int = 0
+    workers: int = 2
+
+
+@dataclass(frozen=True)
+class DemoResult:
+    """Where everything is, plus the evaluation."""
+
+    out_dir: Path
+    models: dict[str, Path]
+    evaluation: EvaluationReport
+    demo_rrd: Path
+    summary_md: Path
+    n_train_encounters: int
+    n_train_steps: int
+    wall_time_s: float
+    fit_messages: dict[str, str] = field(default_factory=dict)
+
+    def format(self) -> str:
+        from analysis.evaluate_report import report_table
+
+        lines = [
+            f"merge-irl demo -> {self.out_dir}  ({self.wall_time_s:.0f} s)",
+            f"  training data: {self.n_train_encounters} encounters, {self.n_train_steps} steps",
+            "  models: " + ", ".join(f"{k} {v}" for k, v in self.models.items()),
+            *[f"  left out: {k} ({v})" for k, v in self.fit_messages.items() if k not in self.models],
+            "",
+            report_table(self.evaluation.aggregates),
+            "",
+            f"  report:  {self.evaluation.report_md}",
+            f"  metrics: {self.evaluation.metrics_json}",
+            f"  rerun:   {self.demo_rrd}   (merge-irl view {self.out_dir})",
+            f"  summary: {self.summary_md}",
+        ]
+        return "\n".join(lines)
+
+
+def _encounters_task(args) -> pd.DataFrame:
+    scenario, seed, duration = args
+    from scenarios.loader import load_scenario
+    from sim.encounters import extract_encounters
+    from sim.run import run_scenario
+
+    spec = load_scenario(scenario) if isinstance(scenario, (str, Path)) else scenario
+    res = run_scenario(spec, seed=seed, duration_s=duration)
+    frames = extract_encounters(res.table)
+    frames["encounter_id"] = frames["encounter_id"].astype("int64") + 1_000_000 * int(seed)
+    return frames
+
+
+def generate_encounters(scenario, seeds: Sequence[int], duration_s: float | None, *, workers: int = 2) -> list[pd.DataFrame]:
+    """Encounter frames of one SUMO run per seed (worker processes), ids made unique per seed."""
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(max_workers=max(1, workers), mp_context=mp.get_context("spawn")) as ex:
+        return list(ex.map(_encounters_task, [(scenario, s, duration_s) for s in seeds]))
+
+
+def _say(msg: str, quiet: bool) -> None:
+    if not quiet:
+        print(msg, file=sys.stderr, flush=True)
+
+
+def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(), *, quiet: bool = False,
+             progress: bool = True) -> DemoResult:
+    """Run the whole pipeline (see the module docstring) and return where the outputs are."""
+    from analysis.learn import fit_problem, saved_model
+    from analysis.problem import load_problem
+    from analysis.rerun_log import RerunLogger, close_recording, log_training, open_recording
+    from irl.config import IRLConfig
+    from irl.merge_mdp import fit_quantile_bins
+
+    t0 = time.perf_counter()
+    out = Path(out_dir) if out_dir is not None else Path("runs") / "demo"
+    (out / "data").mkdir(parents=True, exist_ok=True)
+
+    _say(f"[1/5] simulating {len(config.train_seeds)} training runs + 1 held-out run of {config.scenario}", quiet)
+    frames = generate_encounters(config.scenario, (*config.train_seeds, config.heldout_seed),
+                                 config.data_duration_s, workers=config.workers)
+    train = prepare_encounters(pd.concat(frames[:-1], ignore_index=True))
+    heldout = prepare_encounters(frames[-1])
+    train_path = out / "data" / "train_encounters.parquet"
+    held_path = out / "data" / "heldout_encounters.parquet"
+    for df, path in ((train, train_path), (heldout, held_path)):
+        tmp = path.with_name(path.name + ".tmp")
+        df.to_parquet(tmp, index=False)
+        tmp.replace(path)
+
+    _say("[2/5] discretizing (quantile bins fitted on the training encounters)", quiet)
+    bins = fit_quantile_bins(train, where=str(train_path))
+    bins.save(out / "data" / "bins.json")
+    problem = load_problem("merge", train_path, bins=bins, name=f"{config.scenario} training encounters")
+
+    _say(f"[3/5] learning {', '.join(config.methods)}", quiet)
+    rec, tmp_rrd = open_recording(out / "demo.rrd", recording_id=f"merge-irl-demo-{config.scenario}")
+    models: dict[str, Path] = {}
+    messages: dict[str, str] = {}
+    cfg = IRLConfig.paper()
+    for method in config.methods:
+        fit = fit_problem(problem, method, cfg, config.fit_seed, progress=False)
+        messages[method] = fit.message
+        log_training(rec, method, fit.loglik_trace, fit.theta_trace, problem.feature_names)
+        usable = math.isfinite(fit.loglik) and np.all(np.isfinite(fit.q)) and np.all(np.isfinite(fit.theta))
+        _say(f"      {method}: loglik {fit.loglik:.2f}, theta {[round(float(x), 3) for x in fit.theta]} "
+             f"({fit.wall_time_s:.2f} s){'' if usable else ' -- not usable, left out: ' + fit.message}", quiet)
+        if usable:
+            model = saved_model(fit, problem, seed=config.fit_seed, source=str(train_path))
+            models[method] = model.save(out / "models" / f"{method}.json")
+    if not models:
+        from irl.errors import IRLError
+
+        raise IRLError("demo: no IRL method produced a usable model: " + "; ".join(f"{k}: {v}" for k, v in messages.items()))
+
+    _say("[4/5] one closed-loop episode with Q-Avg, logged to demo.rrd", quiet)
+    from analysis.evaluate import learned_policy
+
+    first = "qavg" if "qavg" in models else next(iter(models))
+    pol = learned_policy(models[first])
+    logger = RerunLogger(out / "demo.rrd", recording=(rec, tmp_rrd))
+    # the logger needs the episode's controller: run_episode builds it, so attach via extra hook
+    _run_logged_episode(config, pol, logger)
+    close_recording(rec, tmp_rrd, out / "demo.rrd")
+
+    _say(f"[5/5] evaluating {len(models)} models + sumo + uniform, {config.eval_episodes} episodes each", quiet)
+    report = evaluate(list(models.values()), config.scenario, config.eval_episodes, config.eval_seed,
+                      out / "evaluation", duration_s=config.eval_duration_s, demos=held_path,
+                      workers=config.workers, progress=progress)
+    wall = time.perf_counter() - t0
+    result = DemoResult(out, models, report, out / "demo.rrd", out / "summary.md", int(train["encounter_id"].nunique()),
+                        problem.demos.n_steps, wall, messages)
+    write_text_atomic(out / "summary.md", "# merge-irl demo\n\n```\n" + result.format() + "\n```\n")
+    return result
+
+
+def _run_logged_episode(config: DemoConfig, policy, logger) -> None:
+    """One episode in this process, with ``logger`` attached to the episode's controller."""
+    from scenarios.loader import load_scenario
+    from sim.controller import Controller
+    from sim.run import run_scenario
+
+    ctl = Controller(policy)
+    logger.controller = ctl
+    spec = load_scenario(config.scenario)
+    run_scenario(spec, seed=config.eval_seed, duration_s=config.eval_duration_s, hooks=[ctl, logger])

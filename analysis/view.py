@@ -1,0 +1,52 @@
+"""Find rerun recordings and open them in the viewer (the API behind ``merge-irl view``)."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+from sim.errors import SimError
+
+
+def find_recordings(target: str | os.PathLike) -> list[Path]:
+    """``target`` itself if it is an ``.rrd`` file, else every ``.rrd`` under the folder, sorted.
+
+    Raises ``SimError`` naming ``target`` if there is nothing to open.
+    """
+    p = Path(target)
+    if p.is_file():
+        if p.suffix != ".rrd":
+            raise SimError(f"{p}: not a rerun recording (expected a .rrd file or a run folder)")
+        return [p]
+    if p.is_dir():
+        files = sorted(p.rglob("*.rrd"))
+        if not files:
+            raise SimError(f"{p}: no .rrd recordings in this folder (run with rerun logging on)")
+        return files
+    raise SimError(f"{p}: no such file or folder")
+
+
+def has_display() -> bool:
+    """Whether a GUI can open here (always assumed on macOS/Windows)."""
+    if sys.platform.startswith("linux"):
+        return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+    return True
+
+
+def viewer_command(files: list[Path]) -> list[str] | None:
+    """The command that opens ``files`` in the rerun viewer, or None when none can run here."""
+    exe = shutil.which("rerun")
+    if exe is None:
+        cand = Path(sys.executable).parent / "rerun"
+        exe = str(cand) if cand.exists() else None
+    if exe is None or not has_display():
+        return None
+    return [exe, *map(str, files)]
+
+
+def open_viewer(cmd: list[str]) -> subprocess.Popen:
+    """Start the viewer detached (it outlives this command)."""
+    return subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)

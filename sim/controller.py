@@ -1,0 +1,373 @@
+"""The closed-loop controller: a step hook that hands merge lag cars A to a policy.
+
+Selection (default): every vehicle B on the ramp / auxiliary lane (lane 7) that reaches the
+take-over zone (``Local_Y >= zone_start_ft``) gets, once, a lag car A: the nearest lane-6
+vehicle at or behind B's ``Local_Y`` within ``max_lag_ft`` that is not already controlled.
+From then on, every ``decision_s`` seconds the controller observes A, B and C (C = nearest
+lane-6 vehicle ahead of B, other than A), encodes the state, asks the policy for its action
+distribution, samples an action (or takes its mode, ``mode=True``) and applies the action's
+acceleration with ``vehicle.setSpeedMode(A, 0)`` + ``setLaneChangeMode(A, 0)`` +
+``setAcceleration``: SUMO neither changes A's lane nor its speed on its own. A policy with
+``controls = False`` (the SUMO baseline) is observed and logged the same way but never
+commanded.
+
+Release: the controller restores A's speed mode and lane-change mode (and hands the speed
+back to SUMO) and records why, in :class:`Control.reason`:
+
+``merge_done``  B merged (first lane-6 frame) and ``hold_after_merge_s`` has passed;
+``left_section`` A's ``Local_Y`` passed the end of the section (or A's route ended there);
+``collision``   A was in a collision (``simulation.getCollidingVehiclesIDList``);
+``teleported``  SUMO teleported A;
+``arrived``     A reached the end of its route elsewhere;
+``removed``     A vanished from the network for any other reason;
+``b_lost``      B vanished before merging;
+``timeout``     A was controlled for ``max_control_s``;
+``end_of_run``  the run ended first.
+
+The run continues after every release. Decisions are kept in :attr:`Controller.decisions`
+(one row per decision) and control episodes in :attr:`Controller.controls`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sim.errors import SimError
+from sim.hooks import FrameState, RunContext
+from sim.observe import MergeObservation, lag_of, lead_of, observe
+from sim.policy import ACTION_ACC_FT_S2, Policy, action_of_acc, choose_action
+from sim.schema import RAMP_LANE, RIGHTMOST_MAIN_LANE
+
+M_PER_FT = 0.3048
+#: A that reaches the end of its route within this of the section end has left the section (ft).
+EXIT_MARGIN_FT = 150.0
+
+RELEASE_REASONS = (
+    "merge_done", "left_section", "collision", "teleported", "arrived", "removed", "b_lost",
+    "timeout", "end_of_run",
+)
+
+
+class ControllerError(SimError, ValueError):
+    """Bad controller settings."""
+
+
+@dataclass(frozen=True)
+class ControllerConfig:
+    """Settings of :class:`Controller`.
+
+    Attributes:
+        decision_s: time between two decisions (s); rounded to whole frames.
+        mode: take the most likely action instead of sampling.
+        zone_start_ft: B is taken into account once its ``Local_Y`` is at least this (ft);
+            None = ``zone_margin_ft`` before the start of the auxiliary lane (from the lane
+            shapes of the run).
+        zone_margin_ft: see ``zone_start_ft``.
+        max_lag_ft: A must be at most this far behind B (ft).
+        hold_after_merge_s: keep controlling A this long after B merged (s).
+        max_control_s: release A after this long under control (s).
+        seed: seed of the action-sampling generator (None: the run's seed).
+    """
+
+    decision_s: float = 0.3
+    mode: bool = False
+    zone_start_ft: float | None = None
+    zone_margin_ft: float = 100.0
+    max_lag_ft: float = 250.0
+    hold_after_merge_s: float = 3.0
+    max_control_s: float = 60.0
+    seed: int | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("decision_s", "max_lag_ft", "max_control_s"):
+            v = getattr(self, name)
+            if not (v > 0 and math.isfinite(v)):
+                raise ControllerError(f"controller.{name}: must be a positive number, got {v}")
+        if not self.hold_after_merge_s >= 0:
+            raise ControllerError(f"controller.hold_after_merge_s: must be >= 0, got {self.hold_after_merge_s}")
+
+
+@dataclass
+class Control:
+    """One control episode of a lag car A for a merging car B (mutable while it runs).
+
+    Attributes:
+        a_id, b_id: Vehicle_IDs of A and B; a_sumo: A's SUMO id.
+        start_frame: frame of the take-over; end_frame: frame of the release (-1 while active).
+        reason: why A was released (one of ``RELEASE_REASONS``; "" while active).
+        merge_frame: B's first lane-6 frame (-1 if B had not merged at release).
+        b_ahead: at B's merge frame, B's Local_Y > A's (None if B had not merged).
+        commanded: whether the policy actually drove A (False for the SUMO baseline).
+        gap_AB_start_ft: d_AB at the take-over (ft).
+        n_decisions: decisions taken.
+    """
+
+    a_id: int
+    b_id: int
+    a_sumo: str
+    start_frame: int
+    commanded: bool
+    gap_AB_start_ft: float
+    end_frame: int = -1
+    reason: str = ""
+    merge_frame: int = -1
+    b_ahead: bool | None = None
+    n_decisions: int = 0
+    speed_mode: int = -1
+    lane_change_mode: int = -1
+    last_y: float = 0.0
+
+    @property
+    def active(self) -> bool:
+        return self.end_frame < 0
+
+
+_DECISION_FIELDS = (
+    "frame", "time_s", "a_id", "b_id", "c_id", "state", "action", "acc_cmd", "speed_A",
+    "d_AC", "d_AB", "v_AC", "v_AB", "b_is_truck", "p0", "p1", "p2", "p3", "p4",
+)
+
+
+@dataclass
+class DecisionLog:
+    """Column buffers, one row per decision (units ft, ft/s, ft/s^2; ``acc_cmd`` is the
+    commanded acceleration, or for the SUMO baseline A's measured one; ``action`` likewise).
+    """
+
+    rows: list[tuple] = field(default_factory=list)
+
+    def append(self, row: tuple) -> None:
+        self.rows.append(row)
+
+    def to_frame(self):
+        import pandas as pd
+
+        if not self.rows:
+            return pd.DataFrame({k: pd.Series(dtype="float64") for k in _DECISION_FIELDS})
+        return pd.DataFrame(self.rows, columns=list(_DECISION_FIELDS))
+
+
+class Controller:
+    """A :class:`sim.hooks.StepHook` that drives merge lag cars with ``policy``.
+
+    After the run, :attr:`controls` lists every control episode and :meth:`decision_table`
+    gives the decisions. :attr:`last` maps A's Vehicle_ID to its latest
+    ``(observation, probs [5], action)`` for loggers that run after this hook in the same
+    frame; :attr:`decided` holds the As that decided in the current frame; :attr:`roles` maps Vehicle_ID -> role char ("A", "B", "C") for the current frame.
+    """
+
+    def __init__(self, policy: Policy, config: ControllerConfig = ControllerConfig()):
+        self.policy = policy
+        self.config = config
+        self.controls: list[Control] = []
+        self.decisions = DecisionLog()
+        self.last: dict[int, tuple[MergeObservation, np.ndarray, int]] = {}
+        self.roles: dict[int, str] = {}
+        self.decided: set[int] = set()  # As that took a decision in the current frame
+        self.rows: dict[int, int] = {}  # Vehicle_ID -> row of the current frame
+        self.role_rows: dict[int, str] = {}  # row of the current frame -> role
+        self._active: dict[int, Control] = {}  # a_id -> control
+        self._handled_b: set[int] = set()
+        self._b_seen_ramp: set[int] = set()
+        self._rng: np.random.Generator | None = None
+        self._every = 1
+        self._zone_start = 0.0
+        self._section_end = math.inf
+        self._traci = None
+        self._collision_pairs: set[tuple[str, str]] = set()
+        self.n_teleports = 0  # teleports in the whole run, all vehicles
+
+    # -- hook protocol -------------------------------------------------------------------
+    def on_start(self, ctx: RunContext) -> None:
+        import libsumo
+
+        self._traci = libsumo
+        cfg = self.config
+        self._every = max(1, int(round(cfg.decision_s / ctx.frame_s)))
+        self._hold_frames = int(round(cfg.hold_after_merge_s / ctx.frame_s))
+        self._max_frames = int(round(cfg.max_control_s / ctx.frame_s))
+        self._frame_s = ctx.frame_s
+        self._section_end = float(ctx.section_length_ft)
+        self._zone_start = cfg.zone_start_ft if cfg.zone_start_ft is not None else aux_lane_start_ft(ctx) - cfg.zone_margin_ft
+        seed = cfg.seed if cfg.seed is not None else int(ctx.seed)
+        self._rng = np.random.default_rng(seed)
+
+    def on_step(self, ctx: RunContext, frame: FrameState) -> None:
+        sim = self._traci.simulation
+        self._last_frame = frame.frame
+        colliding = set(sim.getCollidingVehiclesIDList())
+        teleported = set(sim.getStartingTeleportIDList())
+        arrived = set(sim.getArrivedIDList()) if self._active else set()
+        if colliding:
+            for col in sim.getCollisions():
+                self._collision_pairs.add((col.collider, col.victim))
+        self.n_teleports += len(teleported)
+        rows = self._rows_of(frame) if self._active else {}
+        self.rows = rows
+        self.roles = {}
+        self.role_rows = {}
+        self.decided = set()
+        # 1. track B's merge, release what must be released
+        for a_id, c in list(self._active.items()):
+            ib = rows.get(c.b_id)
+            ia = rows.get(a_id)
+            if c.merge_frame < 0 and ib is not None and frame.lane_id[ib] == RIGHTMOST_MAIN_LANE:
+                c.merge_frame = frame.frame
+                c.b_ahead = bool(ia is not None and frame.local_y[ib] > frame.local_y[ia])
+            reason = self._release_reason(c, frame, ia, ib, colliding, teleported, arrived)
+            if reason:
+                self._release(c, frame.frame, reason, present=ia is not None and reason != "teleported")
+        # 2. new take-overs
+        self._take_over_new(frame, rows)
+        if self._active and not rows:
+            rows = self.rows = self._rows_of(frame)
+        # 3. decisions
+        for a_id, c in self._active.items():
+            ia, ib = rows[a_id], rows[c.b_id]
+            c.last_y = float(frame.local_y[ia])
+            ic = lead_of(frame, float(frame.local_y[ib]), exclude=(ia, ib))
+            self.roles[a_id] = "A"
+            self.roles[c.b_id] = "B"
+            self.role_rows[ia] = "A"
+            self.role_rows[ib] = "B"
+            if ic is not None:
+                self.roles.setdefault(int(frame.vehicle_id[ic]), "C")
+                self.role_rows.setdefault(ic, "C")
+            if (frame.frame - c.start_frame) % self._every == 0:
+                self._decide(c, frame, ia, ib, ic)
+
+    def on_end(self, ctx: RunContext) -> None:
+        for c in list(self._active.values()):
+            self._release(c, self._last_frame, "end_of_run", present=True)
+
+    @property
+    def n_collisions(self) -> int:
+        """Distinct (collider, victim) pairs that collided in the whole run, all vehicles."""
+        return len(self._collision_pairs)
+
+    # -- internals ----------------------------------------------------------------------
+    _last_frame = -1
+
+    @staticmethod
+    def _rows_of(frame: FrameState) -> dict[int, int]:
+        return dict(zip(frame.vehicle_id.tolist(), range(len(frame.sumo_ids))))
+
+    def _release_reason(self, c, frame, ia, ib, colliding, teleported, arrived) -> str:
+        sid = c.a_sumo
+        if sid in colliding:
+            return "collision"
+        if sid in teleported:
+            return "teleported"
+        if ia is None:
+            if sid in arrived:  # the route ends where the section ends: a normal exit
+                return "left_section" if c.last_y >= self._section_end - EXIT_MARGIN_FT else "arrived"
+            return "removed"
+        if frame.local_y[ia] > self._section_end:
+            return "left_section"
+        if c.merge_frame < 0 and ib is None:
+            return "b_lost"
+        if c.merge_frame >= 0 and frame.frame - c.merge_frame >= self._hold_frames:
+            return "merge_done"
+        if ib is None:  # B left after merging, before the hold ended
+            return "merge_done"
+        if frame.frame - c.start_frame >= self._max_frames:
+            return "timeout"
+        return ""
+
+    def _release(self, c: Control, frame_no: int, reason: str, *, present: bool) -> None:
+        c.end_frame = frame_no
+        c.reason = reason
+        self._active.pop(c.a_id, None)
+        self.last.pop(c.a_id, None)
+        if not (c.commanded and present):
+            return
+        v = self._traci.vehicle
+        try:
+            v.setSpeed(c.a_sumo, -1.0)
+            v.setSpeedMode(c.a_sumo, c.speed_mode)
+            v.setLaneChangeMode(c.a_sumo, c.lane_change_mode)
+        except self._traci.TraCIException:  # the vehicle is gone after all
+            pass
+
+    def _take_over_new(self, frame: FrameState, rows: dict[int, int]) -> None:
+        ramp = np.flatnonzero((frame.lane_id == RAMP_LANE) & (frame.local_y >= self._zone_start))
+        for ib in ramp:
+            b_id = int(frame.vehicle_id[ib])
+            if b_id in self._handled_b:
+                continue
+            yb = float(frame.local_y[ib])
+            ia = lag_of(frame, yb, max_gap_ft=self.config.max_lag_ft)
+            if ia is None:
+                continue
+            a_id = int(frame.vehicle_id[ia])
+            if a_id in self._active or any(c.b_id == a_id for c in self._active.values()):
+                continue
+            self._handled_b.add(b_id)
+            c = Control(
+                a_id=a_id, b_id=b_id, a_sumo=frame.sumo_ids[ia], start_frame=frame.frame,
+                commanded=bool(self.policy.controls), gap_AB_start_ft=yb - float(frame.local_y[ia]),
+            )
+            if c.commanded:
+                v = self._traci.vehicle
+                c.speed_mode = v.getSpeedMode(c.a_sumo)
+                c.lane_change_mode = v.getLaneChangeMode(c.a_sumo)
+                v.setSpeedMode(c.a_sumo, 0)
+                v.setLaneChangeMode(c.a_sumo, 0)
+            self.controls.append(c)
+            self._active[a_id] = c
+
+    def _decide(self, c: Control, frame: FrameState, ia: int, ib: int, ic: int | None) -> None:
+        d_ac, d_ab, v_ac, v_ab, truck = observe(frame, ia, ib, ic)
+        encoder = getattr(self.policy, "encoder", None)
+        state = encoder.state(d_ac, d_ab, v_ac, v_ab, truck) if encoder is not None else -1
+        obs = MergeObservation(d_ac, d_ab, v_ac, v_ab, truck, state, float(frame.speed[ia]))
+        probs = np.asarray(self.policy.probs(obs), dtype=np.float64)
+        if c.commanded:
+            action = choose_action(probs, self._rng, mode=self.config.mode)
+            acc = ACTION_ACC_FT_S2[action]
+            self._traci.vehicle.setAcceleration(c.a_sumo, acc * M_PER_FT, self._every * self._frame_s)
+        else:
+            acc = float(frame.acc[ia])
+            action = int(action_of_acc(acc))
+        c.n_decisions += 1
+        self.decided.add(c.a_id)
+        c_id = int(frame.vehicle_id[ic]) if ic is not None else 0
+        self.last[c.a_id] = (obs, probs, action)
+        self.decisions.append((
+            frame.frame, frame.time_s, c.a_id, c.b_id, c_id, state, action, acc, obs.speed_A,
+            d_ac, d_ab, v_ac, v_ab, truck, *probs.tolist(),
+        ))
+
+    # -- results ------------------------------------------------------------------------
+    def decision_table(self):
+        """Decisions as a DataFrame (columns ``frame, time_s, a_id, b_id, c_id, state, action,
+        acc_cmd, speed_A, d_AC, d_AB, v_AC, v_AB, b_is_truck, p0..p4``)."""
+        return self.decisions.to_frame()
+
+    def control_table(self):
+        """Control episodes as a DataFrame, one row per A (fields of :class:`Control`)."""
+        import pandas as pd
+
+        cols = ("a_id", "b_id", "a_sumo", "start_frame", "end_frame", "reason", "merge_frame",
+                "b_ahead", "commanded", "gap_AB_start_ft", "n_decisions")
+        return pd.DataFrame([{k: getattr(c, k) for k in cols} for c in self.controls], columns=list(cols))
+
+
+def aux_lane_start_ft(ctx: RunContext) -> float:
+    """``Local_Y`` (ft) where lane 7 first runs beside lane 6 (the auxiliary lane's start).
+
+    Taken from the lane shapes: the first point of lane 7 whose distance to lane 6's polyline
+    is at most 1.5 lane widths. Local_Y is measured from the first point of lane 6 along +x.
+    """
+    l6 = np.asarray(ctx.lane_shapes[str(RIGHTMOST_MAIN_LANE)], dtype=np.float64)
+    l7 = np.asarray(ctx.lane_shapes[str(RAMP_LANE)], dtype=np.float64)
+    x0 = float(l6[0, 0])
+    # lateral distance of each lane-7 point to lane 6 (interpolated in x; the main road runs along +x)
+    y6 = np.interp(l7[:, 0], l6[:, 0], l6[:, 1], left=np.nan, right=np.nan)
+    close = np.flatnonzero(np.abs(l7[:, 1] - y6) <= 1.5 * ctx.lane_width_ft)
+    if close.size == 0:
+        return 0.0
+    return float(l7[close[0], 0] - x0)

@@ -1,0 +1,187 @@
+"""Driving policies for a controlled vehicle: observation -> distribution over the 5 actions.
+
+A policy maps the merge observation of car A (:class:`sim.observe.MergeObservation`: the four
+continuous variables, B's truck flag and the discrete state) to probabilities over the merge
+domain's five acceleration actions (High Brake, Low Brake, Zero, Low Accel, High Accel). The
+controller samples an action (or takes the mode) and applies :data:`ACTION_ACC_FT_S2`, the
+representative acceleration of each action bin.
+
+Policies in the same harness:
+
+* :class:`LearnedPolicy`: ``softmax(beta Q(s, .))`` of a saved IRL model (Q-Avg, Q-SM, MLIRL,
+  REIRL), discretising with the model's own bin edges.
+* :class:`SumoPolicy`: the baseline; the vehicle is *not* taken over, SUMO's car-following
+  model drives it (``controls = False``); the controller still observes it.
+* :class:`UniformPolicy`: uniform random over the 5 actions.
+* :class:`ConstantPolicy`: always the same action (e.g. always brake hard, for tests).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
+
+import numpy as np
+
+from sim.errors import SimError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from irl.result import SavedModel
+    from sim.observe import MergeObservation
+
+N_ACTIONS = 5
+ACTION_NAMES = ("High Brake", "Low Brake", "Zero", "Low Accel", "High Accel")
+#: Action bin edges in ft/s^2 (paper section 4.2): [-11.2,-4.8], (-4.8,-0.6], (-0.6,0.6),
+#: [0.6,4.8), [4.8,11.2]. Values outside [-11.2, 11.2] fall in the end bins.
+ACTION_EDGES_FT_S2 = (-11.2, -4.8, -0.6, 0.6, 4.8, 11.2)
+#: The acceleration (ft/s^2) applied for each action: the midpoint of its bin.
+ACTION_ACC_FT_S2 = (-8.0, -2.7, 0.0, 2.7, 8.0)
+
+
+class PolicyError(SimError, ValueError):
+    """A policy cannot be built from its inputs (e.g. a model that is not a merge model)."""
+
+
+def action_of_acc(acc_ft_s2: np.ndarray | float) -> np.ndarray:
+    """Action index (0..4) of accelerations in ft/s^2, any shape -> int64 of the same shape.
+
+    Bins as in the paper: a <= -4.8 -> 0; -4.8 < a <= -0.6 -> 1; -0.6 < a < 0.6 -> 2;
+    0.6 <= a < 4.8 -> 3; a >= 4.8 -> 4.
+    """
+    a = np.asarray(acc_ft_s2, dtype=np.float64)
+    out = np.full(a.shape, 2, dtype=np.int64)
+    out[a <= -0.6] = 1
+    out[a <= -4.8] = 0
+    out[a >= 0.6] = 3
+    out[a >= 4.8] = 4
+    return out
+
+
+@runtime_checkable
+class Policy(Protocol):
+    """Observation -> action distribution.
+
+    Attributes:
+        name: label used in reports and logs.
+        controls: False when the vehicle is left to SUMO (the baseline); the controller then
+            only observes it.
+    """
+
+    name: str
+    controls: bool
+
+    def probs(self, obs: "MergeObservation") -> np.ndarray:
+        """``[5]`` action probabilities (sum to 1)."""
+        ...
+
+
+def choose_action(probs: np.ndarray, rng: np.random.Generator, *, mode: bool = False) -> int:
+    """Sample an action from ``probs [A]`` with ``rng`` (or take the most likely one)."""
+    p = np.asarray(probs, dtype=np.float64)
+    if mode:
+        return int(np.argmax(p))
+    cdf = np.cumsum(p)
+    u = rng.random() * cdf[-1]
+    return int(min(np.searchsorted(cdf, u, side="right"), p.size - 1))
+
+
+@dataclass(frozen=True)
+class UniformPolicy:
+    """Every action with probability 1/5."""
+
+    name: str = "uniform"
+    controls: bool = True
+
+    def probs(self, obs: "MergeObservation") -> np.ndarray:
+        return np.full(N_ACTIONS, 1.0 / N_ACTIONS)
+
+
+@dataclass(frozen=True)
+class ConstantPolicy:
+    """Always ``action`` (0 = High Brake ... 4 = High Accel)."""
+
+    action: int = 0
+    name: str = ""
+    controls: bool = True
+
+    def __post_init__(self) -> None:
+        if not 0 <= int(self.action) < N_ACTIONS:
+            raise PolicyError(f"ConstantPolicy.action must be in 0..{N_ACTIONS - 1}, got {self.action}")
+        if not self.name:
+            object.__setattr__(self, "name", f"constant-{ACTION_NAMES[int(self.action)].lower().replace(' ', '-')}")
+
+    def probs(self, obs: "MergeObservation") -> np.ndarray:
+        p = np.zeros(N_ACTIONS)
+        p[int(self.action)] = 1.0
+        return p
+
+
+@dataclass(frozen=True)
+class SumoPolicy:
+    """The baseline: SUMO's own car-following model drives A (the controller only observes).
+
+    ``probs`` returns the distribution implied by nothing (uniform) and is never used to act.
+    """
+
+    name: str = "sumo"
+    controls: bool = False
+
+    def probs(self, obs: "MergeObservation") -> np.ndarray:
+        return np.full(N_ACTIONS, 1.0 / N_ACTIONS)
+
+
+class StateEncoderLike(Protocol):
+    def state(self, d_AC: float, d_AB: float, v_AC: float, v_AB: float, truck: bool) -> int: ...
+
+
+@dataclass(frozen=True)
+class LearnedPolicy:
+    """``pi(a|s) = softmax(beta Q(s, .))`` of a learned IRL model.
+
+    Attributes:
+        log_pi: ``[S, 5]`` log-policy table (``SavedModel.log_policy()``).
+        encoder: maps the continuous observation to the model's discrete state with the bin
+            edges the model was trained with (:class:`sim.observe.StateEncoder` or
+            ``irl.merge_mdp``'s; see :meth:`from_model`).
+        name: label (e.g. the method).
+    """
+
+    log_pi: np.ndarray
+    encoder: StateEncoderLike
+    name: str = "learned"
+    controls: bool = True
+
+    def __post_init__(self) -> None:
+        lp = np.asarray(self.log_pi, dtype=np.float64)
+        if lp.ndim != 2 or lp.shape[1] != N_ACTIONS or not np.all(np.isfinite(lp)):
+            raise PolicyError(f"policy {self.name!r}: log_pi must be a finite [S, {N_ACTIONS}] table, got {lp.shape}")
+        object.__setattr__(self, "log_pi", lp)
+
+    @classmethod
+    def from_model(cls, model: "SavedModel", *, encoder: StateEncoderLike | None = None, name: str = "") -> "LearnedPolicy":
+        """From a saved merge model (``q [S, 5]``, ``bin_edges``, ``config.beta``)."""
+        from sim.observe import StateEncoder
+
+        q = np.asarray(model.q)
+        if q.ndim != 2 or q.shape[1] != N_ACTIONS:
+            raise PolicyError(
+                f"model {model.method!r}: q must be [S, {N_ACTIONS}] for the merge domain, got {q.shape}"
+            )
+        if encoder is None:
+            if not model.bin_edges:
+                raise PolicyError(
+                    f"model {model.method!r} has no 'bin_edges': the closed loop needs the state bin "
+                    "edges the model was trained with (learn it from encounters, not from pre-binned "
+                    "data, or add bin_edges to model.json)"
+                )
+            encoder = StateEncoder(model.bin_edges)
+        return cls(log_pi=model.log_policy(), encoder=encoder, name=name or model.method)
+
+    @property
+    def n_states(self) -> int:
+        return int(self.log_pi.shape[0])
+
+    def probs(self, obs: "MergeObservation") -> np.ndarray:
+        if not 0 <= obs.state < self.n_states:
+            raise PolicyError(f"state {obs.state} out of range [0, {self.n_states}) for policy {self.name!r}")
+        return np.exp(self.log_pi[obs.state])

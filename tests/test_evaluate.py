@@ -1,0 +1,126 @@
+"""Evaluation API and CLI: report, metrics.json, plots, held-out likelihood (real SUMO, short)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from irl import merge_mdp
+from irl.config import IRLConfig
+from irl.result import SavedModel
+from sim.observe import StateEncoder
+
+EDGES = merge_mdp.MergeBins.assumed_authors()
+
+
+def _model(seed=0, beta=1.0) -> SavedModel:
+    rng = np.random.default_rng(seed)
+    return SavedModel(method="qavg", theta=np.array([1.0, 0.5, -0.2]), loglik=-1.0,
+                      q=rng.normal(size=(1250, 5)) * 2, config=IRLConfig(beta=beta), domain="merge",
+                      feature_names=merge_mdp.FEATURE_NAMES,
+                      bin_edges={k: tuple(v) for k, v in EDGES.to_dict().items()})
+
+
+def _encounters(n=60, seed=1) -> pd.DataFrame:
+    rng = np.random.default_rng(seed)
+    d_ac = rng.uniform(10, 200, n)
+    d_ac[:5] = np.nan  # no lead car: open road
+    return pd.DataFrame({
+        "encounter_id": np.repeat(np.arange(n // 10), 10), "Frame_ID": np.arange(n),
+        "d_AC": d_ac, "d_AB": rng.uniform(-20, 120, n), "v_AC": rng.normal(0, 5, n), "v_AB": rng.normal(0, 5, n),
+        "B_is_truck": rng.random(n) < 0.2, "acc_A": rng.normal(0, 4, n),
+    })
+
+
+def test_state_encoder_matches_merge_mdp():
+    rng = np.random.default_rng(0)
+    n = 2000
+    df = pd.DataFrame({"d_AC": rng.uniform(0, 200, n), "d_AB": rng.uniform(-50, 150, n),
+                       "v_AC": rng.normal(0, 8, n), "v_AB": rng.normal(0, 8, n), "B_is_truck": rng.random(n) < 0.5})
+    # values exactly on edges too
+    df.loc[:3, "d_AC"] = [35.0, 60.0, 90.0, 130.0]
+    df.loc[:3, "v_AB"] = [-7.5, -2.5, 2.5, 7.5]
+    enc = StateEncoder(EDGES.to_dict())
+    ours = enc.states(df[["d_AC", "d_AB", "v_AC", "v_AB"]].to_numpy(), df.B_is_truck.to_numpy())
+    np.testing.assert_array_equal(ours, merge_mdp.discretize_states(df, EDGES))
+    assert enc.state(20.0, 5.0, 0.0, 0.0, True) == int(merge_mdp.discretize_states(
+        pd.DataFrame({"d_AC": [20.0], "d_AB": [5.0], "v_AC": [0.0], "v_AB": [0.0], "B_is_truck": [True]}), EDGES)[0])
+
+
+@pytest.mark.sumo
+def test_evaluate_writes_report_metrics_plots(tmp_path):
+    from analysis.evaluate import evaluate
+    from sim.policy import ConstantPolicy
+
+    model_path = _model().save(tmp_path / "m" / "qavg.json")
+    demos = _encounters()
+    rep = evaluate([model_path], "synthetic", 2, 3, tmp_path / "out", duration_s=110.0, demos=demos,
+                   policies=[ConstantPolicy(0)], workers=2, progress=False)
+    names = ["qavg", "sumo", "uniform", "constant-high-brake"]
+    assert list(rep.aggregates) == names
+    md = rep.report_md.read_text()
+    for n in names:
+        assert f"| {n} | 2 |" in md
+    data = json.loads(rep.metrics_json.read_text())
+    assert set(data["policies"]) == set(names)
+    assert all(len(v["episodes"]) == 2 for v in data["policies"].values())
+    assert [e["seed"] for e in data["policies"]["qavg"]["episodes"]] == [3, 4]
+    # held-out log-likelihood, recomputed through irl.merge_mdp's own discretisation
+    filled = demos.copy()
+    filled.loc[filled.d_AC.isna(), ["d_AC", "v_AC"]] = [1000.0, 0.0]
+    demo = merge_mdp.discretize(filled, EDGES)
+    s, a, _ = demo.flat()
+    lp = _model().log_policy()
+    expected = lp[s, a].mean()
+    assert data["policies"]["qavg"]["aggregate"]["heldout_loglik_per_step"] == pytest.approx(expected)
+    assert data["policies"]["uniform"]["aggregate"]["heldout_loglik_per_step"] == pytest.approx(np.log(0.2))
+    assert data["policies"]["sumo"]["aggregate"]["heldout_loglik_per_step"] is None
+    assert data["demos"]["action_counts"] == np.bincount(a, minlength=5).tolist()
+    # same traffic for every policy: the SUMO baseline never commands, the others do
+    for r in rep.episodes["sumo"]:
+        assert not r.controls.commanded.any()
+    for r in rep.episodes["qavg"]:
+        assert r.controls.commanded.all()
+    brake = rep.aggregates["constant-high-brake"]
+    assert brake.action_counts[1:] == (0, 0, 0, 0) and brake.action_counts[0] > 0
+    for p in rep.plots:
+        assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert set(rep.rrd) == set(names) and all(p.exists() for p in rep.rrd.values())
+
+
+@pytest.mark.sumo
+def test_evaluate_cli(tmp_path):
+    model_path = _model().save(tmp_path / "model.json")
+    out = tmp_path / "ev"
+    r = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--model", str(model_path), "--episodes", "1",
+                        "--duration", "100", "--baselines", "sumo", "--no-rrd", "--no-progress", "--seed", "5",
+                        "--out", str(out)], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert "| model | 1 |" in r.stdout and "| sumo | 1 |" in r.stdout
+    assert (out / "report.md").exists() and (out / "metrics.json").exists()
+    assert not (out / "rerun").exists()
+    bad = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--model", str(tmp_path / "nope.json"),
+                          "--out", str(tmp_path / "x")], capture_output=True, text=True, timeout=120)
+    assert bad.returncode == 2 and "nope.json" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
+    bad = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--baselines", "human",
+                          "--out", str(tmp_path / "x")], capture_output=True, text=True, timeout=120)
+    assert bad.returncode == 2 and "human" in bad.stderr
+
+
+def test_view_cli_prints_recordings(tmp_path):
+    from analysis.rerun_log import close_recording, log_training, open_recording
+
+    rec, tmp = open_recording(tmp_path / "run" / "a.rrd")
+    log_training(rec, "qavg", np.array([-3.0, -2.0]), np.zeros((2, 3)))
+    close_recording(rec, tmp, tmp_path / "run" / "a.rrd")
+    r = subprocess.run([sys.executable, "-m", "analysis", "view", str(tmp_path / "run"), "--print-only"],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0 and "a.rrd" in r.stdout and "rerun" in r.stdout
+    r = subprocess.run([sys.executable, "-m", "analysis", "view", str(tmp_path / "empty")],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and "empty" in r.stderr

@@ -1,0 +1,33 @@
+"""The whole pipeline (generate -> discretize -> learn -> re-inject -> evaluate -> .rrd), small."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from analysis.pipeline import DemoConfig, run_demo
+from analysis.rerun_log import read_entities
+from irl.result import SavedModel
+
+pytestmark = pytest.mark.sumo
+
+
+def test_run_demo_small(tmp_path):
+    cfg = DemoConfig(train_seeds=(11,), heldout_seed=12, data_duration_s=240.0, eval_episodes=1,
+                     eval_duration_s=110.0, methods=("qavg",))
+    res = run_demo(tmp_path / "demo", cfg, quiet=True, progress=False)
+    out = tmp_path / "demo"
+    model = SavedModel.load(res.models["qavg"])
+    assert set(model.bin_edges) == {"d_AC", "d_AB", "v_AC", "v_AB"}
+    assert res.n_train_steps > 100
+    data = json.loads(res.evaluation.metrics_json.read_text())
+    assert set(data["policies"]) == {"qavg", "sumo", "uniform"}
+    assert data["demos"]["n_steps"] > 0
+    ents = read_entities(res.demo_rrd)
+    assert "/train/qavg/loglik" in ents and "/train/qavg/theta/safe" in ents
+    assert "/world/vehicles" in ents and any(k.startswith("/policy/A_") for k in ents)
+    for name in ("summary.md", "data/train_encounters.parquet", "data/heldout_encounters.parquet", "data/bins.json",
+                 "evaluation/report.md", "evaluation/speed_profiles.png"):
+        assert (out / name).exists(), name
+    assert str(out) in res.format()

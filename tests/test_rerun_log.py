@@ -1,0 +1,127 @@
+"""The .rrd written by the closed loop, read back with rerun.chunk.RrdReader."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from analysis.episode import run_episode
+from analysis.rerun_log import ROLE_IDS, close_recording, log_training, open_recording, read_entities
+from scenarios.loader import load_scenario
+from sim.observe import StateEncoder
+from sim.policy import LearnedPolicy
+
+EDGES = {"d_AC": (35, 60, 90, 130), "d_AB": (10, 30, 60, 100), "v_AC": (-7.5, -2.5, 2.5, 7.5),
+         "v_AB": (-7.5, -2.5, 2.5, 7.5)}
+
+
+def _col(batches, name):
+    return [b.column(name) for b in batches]
+
+
+@pytest.fixture(scope="module")
+def logged(tmp_path_factory):
+    path = tmp_path_factory.mktemp("rrd") / "run.rrd"
+    rng = np.random.default_rng(7)
+    q = rng.normal(size=(1250, 5))
+    policy = LearnedPolicy(q - np.log(np.exp(q).sum(axis=1, keepdims=True)), StateEncoder(EDGES), name="random-q")
+    res = run_episode(load_scenario("synthetic"), policy, 3, duration_s=120.0, rrd_path=path, keep_table=True)
+    return path, res
+
+
+@pytest.mark.sumo
+def test_rrd_has_expected_entities(logged):
+    path, res = logged
+    assert path.exists() and not path.with_name(path.name + ".partial").exists()
+    ents = read_entities(path)
+    assert "/world/lanes" in ents and "/world/vehicles" in ents and "/world" in ents
+    a_ids = sorted(res.controls.a_id.unique())
+    assert a_ids
+    for a in a_ids:
+        for suffix in ("policy/A_{a}/probs", "policy/A_{a}/action", "policy/A_{a}/features/safe",
+                       "metrics/A_{a}/speed", "metrics/A_{a}/d_AC", "metrics/A_{a}/d_AB"):
+            assert "/" + suffix.format(a=a) in ents, suffix.format(a=a)
+    lanes = ents["/world/lanes"][0]
+    assert lanes.schema.metadata is not None
+    # static lanes: no timeline column
+    assert "step" not in lanes.schema.names
+    strips = lanes.column("LineStrips3D:strips")[0].as_py()
+    assert len(strips) == 4  # synthetic: 3 main lanes + lane 7
+
+
+@pytest.mark.sumo
+def test_vehicle_positions_and_roles_match_the_table(logged):
+    path, res = logged
+    table = res.table
+    batches = read_entities(path)["/world/vehicles"]
+    steps = np.concatenate([b.column("step").to_numpy() for b in batches])
+    frames = np.sort(table.Frame_ID.unique())
+    assert np.array_equal(np.sort(steps), frames)  # one row per recorded frame
+    # flatten: step, vehicle id, centre, half size, class id
+    rows = []
+    for b in batches:
+        st = b.column("step").to_numpy()
+        ids = b.column("vehicle_id").to_pylist()
+        cen = b.column("Boxes3D:centers").to_pylist()
+        half = b.column("Boxes3D:half_sizes").to_pylist()
+        cls = b.column("Boxes3D:class_ids").to_pylist()
+        for i, s in enumerate(st):
+            for v, c, h, k in zip(ids[i], cen[i], half[i], cls[i]):
+                rows.append((int(s), int(v), c[0] + h[0], c[1], k))
+    import pandas as pd
+
+    rr_df = pd.DataFrame(rows, columns=["Frame_ID", "Vehicle_ID", "front_x", "y", "role"])
+    assert len(rr_df) == len(table)  # every vehicle of every frame, in one entity
+    m = table.merge(rr_df, on=["Frame_ID", "Vehicle_ID"])
+    assert len(m) == len(table)
+    # float32 in the file: within 0.01 ft
+    np.testing.assert_allclose(m.front_x, m.Global_X, atol=0.01)
+    np.testing.assert_allclose(m.y, m.Global_Y, atol=0.01)
+    # the controlled cars are role A exactly in their control windows (decisions frames)
+    dec = res.decisions
+    ctl_rows = m.merge(dec[["frame", "a_id"]], left_on=["Frame_ID", "Vehicle_ID"], right_on=["frame", "a_id"])
+    assert len(ctl_rows) == len(dec)
+    assert (ctl_rows.role == ROLE_IDS["A"]).all()
+    b_rows = m.merge(dec[["frame", "b_id"]], left_on=["Frame_ID", "Vehicle_ID"], right_on=["frame", "b_id"])
+    assert (b_rows.role == ROLE_IDS["B"]).all()
+
+
+@pytest.mark.sumo
+def test_policy_values_match_decisions(logged):
+    path, res = logged
+    ents = read_entities(path)
+    dec = res.decisions
+    a = int(dec.a_id.iloc[0])
+    d = dec[dec.a_id == a]
+    act = ents[f"/policy/A_{a}/action"]
+    steps = np.concatenate([b.column("step").to_numpy() for b in act])
+    vals = np.concatenate([np.concatenate(b.column("Scalars:scalars").to_pylist()) for b in act])
+    np.testing.assert_array_equal(steps, d.frame.to_numpy())
+    np.testing.assert_array_equal(vals, d.action.to_numpy(float))
+    probs = [b for b in ents[f"/policy/A_{a}/probs"] if "step" in b.schema.names]
+    got = np.array([row for b in probs for row in b.column("Scalars:scalars").to_pylist()])
+    np.testing.assert_allclose(got, d[["p0", "p1", "p2", "p3", "p4"]].to_numpy(), rtol=0, atol=1e-12)
+    assert np.ptp(got[:, 0]) > 0  # the probabilities vary with the state
+    enc = StateEncoder(EDGES)
+    states = enc.states(d[["d_AC", "d_AB", "v_AC", "v_AB"]].to_numpy(float), d.b_is_truck.to_numpy(bool))
+    np.testing.assert_array_equal(states, d.state.to_numpy())
+    speed = ents[f"/metrics/A_{a}/speed"]
+    sp_steps = np.concatenate([b.column("step").to_numpy() for b in speed])
+    assert set(d.frame) <= set(sp_steps)
+
+
+def test_training_traces_are_logged(tmp_path):
+    path = tmp_path / "train.rrd"
+    rec, tmp = open_recording(path, recording_id="t")
+    ll = np.array([-50.0, -40.0, -35.5])
+    th = np.array([[0.1, 0.2, 0.3], [0.2, 0.3, 0.4], [0.3, 0.5, 0.1]])
+    log_training(rec, "qavg", ll, th, ("safe", "time_to_travel", "ahead_of_truck"))
+    close_recording(rec, tmp, path)
+    ents = read_entities(path)
+    b = ents["/train/qavg/loglik"]
+    vals = np.concatenate([np.concatenate(x.column("Scalars:scalars").to_pylist()) for x in b])
+    np.testing.assert_array_equal(vals, ll)
+    its = np.concatenate([x.column("iteration").to_numpy() for x in b])
+    np.testing.assert_array_equal(its, [0, 1, 2])
+    t = ents["/train/qavg/theta/time_to_travel"]
+    np.testing.assert_array_equal(np.concatenate([np.concatenate(x.column("Scalars:scalars").to_pylist()) for x in t]), th[:, 1])

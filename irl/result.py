@@ -133,51 +133,134 @@ class SavedModel:
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "SavedModel":
+        """Read a ``model.json``; every malformed file raises ``ModelFileError`` naming the field."""
         path = Path(path)
         try:
-            data = json.loads(path.read_text())
+            data = json.loads(path.read_text(encoding="utf-8"))
         except FileNotFoundError:
             raise ModelFileError(f"{path}: no such model file") from None
-        except (json.JSONDecodeError, UnicodeDecodeError) as e:
-            raise ModelFileError(f"{path}: not a JSON model file ({e})") from None
+        except OSError as e:
+            raise ModelFileError(f"{path}: cannot read model file ({e.strerror or e})") from None
+        except (ValueError, UnicodeDecodeError, RecursionError) as e:  # JSONDecodeError is a ValueError
+            raise ModelFileError(f"{path}: not a JSON model file ({type(e).__name__}: {str(e)[:200]})") from None
         if not isinstance(data, dict):
-            raise ModelFileError(f"{path}: expected a JSON object at top level")
+            raise ModelFileError(f"{path}: expected a JSON object at top level, got {_json_type(data)}")
         for key in ("method", "theta", "loglik", "settings", "q"):
             if key not in data:
                 raise ModelFileError(f"{path}: missing field {key!r}")
-        if data["method"] not in METHODS:
-            raise ModelFileError(f"{path}: field 'method' must be one of {METHODS}, got {data['method']!r}")
-        try:
-            theta = np.asarray(data["theta"], dtype=float)
-            q = np.asarray(data["q"], dtype=float)
-            loglik = float(data["loglik"])
-        except (TypeError, ValueError) as e:
-            raise ModelFileError(f"{path}: fields 'theta', 'q', 'loglik' must be numeric ({e})") from None
-        if theta.ndim != 1 or theta.size == 0 or not np.all(np.isfinite(theta)):
+        if not isinstance(data["method"], str) or data["method"] not in METHODS:
+            raise ModelFileError(f"{path}: field 'method' must be one of {METHODS}, got {_brief(data['method'])}")
+        theta = _number_array(path, "theta", data["theta"], 1)
+        q = _number_array(path, "q", data["q"], 2)
+        if not np.all(np.isfinite(theta)):
             raise ModelFileError(f"{path}: field 'theta' must be a non-empty list of finite numbers")
-        if q.ndim != 2 or q.size == 0 or not np.all(np.isfinite(q)):
+        if not np.all(np.isfinite(q)):
             raise ModelFileError(f"{path}: field 'q' must be a finite [S][A] table")
+        loglik = data["loglik"]
+        if isinstance(loglik, bool) or not isinstance(loglik, (int, float)):
+            raise ModelFileError(f"{path}: field 'loglik' must be a number, got {_json_type(loglik)}")
+        try:
+            loglik = float(loglik)
+        except OverflowError:
+            raise ModelFileError(f"{path}: field 'loglik' is out of range") from None
         if math.isnan(loglik):
             raise ModelFileError(f"{path}: field 'loglik' is NaN")
-        if not isinstance(data["settings"], dict):
-            raise ModelFileError(f"{path}: field 'settings' must be an object")
-        try:
-            config = IRLConfig.from_dict(data["settings"])
-        except (TypeError, ValueError) as e:
-            raise ModelFileError(f"{path}: field 'settings': {e}") from None
-        edges_raw = data.get("bin_edges", {}) or {}
+        config = _settings(path, data["settings"])
+        edges_raw = data.get("bin_edges", {})
+        if edges_raw is None:
+            edges_raw = {}
         if not isinstance(edges_raw, dict):
-            raise ModelFileError(f"{path}: field 'bin_edges' must be an object")
-        try:
-            edges = {str(k): tuple(float(x) for x in v) for k, v in edges_raw.items()}
-        except (TypeError, ValueError) as e:
-            raise ModelFileError(f"{path}: field 'bin_edges' must map names to number lists ({e})") from None
+            raise ModelFileError(f"{path}: field 'bin_edges' must be an object, got {_json_type(edges_raw)}")
+        edges = {}
+        for k, v in edges_raw.items():
+            arr = _number_array(path, f"bin_edges.{k}", v, 1, allow_empty=True)
+            if np.any(np.isnan(arr)):
+                raise ModelFileError(f"{path}: field 'bin_edges.{k}' holds NaN")
+            edges[str(k)] = tuple(float(x) for x in arr)
+        names = data.get("feature_names", [])
+        if names is None:
+            names = []
+        if not isinstance(names, list) or not all(isinstance(x, str) for x in names):
+            raise ModelFileError(f"{path}: field 'feature_names' must be a list of strings")
+        if names and len(names) != theta.size:
+            raise ModelFileError(
+                f"{path}: field 'feature_names' has {len(names)} names for {theta.size} weights in 'theta'")
+        domain = data.get("domain", "")
+        if not isinstance(domain, str):
+            raise ModelFileError(f"{path}: field 'domain' must be a string, got {_json_type(domain)}")
+        flags = {}
+        for key, default in (("converged", True), ("unbounded", False)):
+            flags[key] = data.get(key, default)
+            if not isinstance(flags[key], bool):
+                raise ModelFileError(f"{path}: field {key!r} must be true or false, got {_brief(flags[key])}")
+        info = data.get("info", {})
+        if info is None:
+            info = {}
+        if not isinstance(info, dict):
+            raise ModelFileError(f"{path}: field 'info' must be an object, got {_json_type(info)}")
         return cls(
             method=data["method"], theta=theta, loglik=loglik, q=q, config=config,
-            domain=str(data.get("domain", "")),
-            feature_names=tuple(str(x) for x in data.get("feature_names", []) or []),
-            bin_edges=edges,
-            converged=bool(data.get("converged", True)),
-            unbounded=bool(data.get("unbounded", False)),
-            info=dict(data.get("info", {}) or {}),
+            domain=domain, feature_names=tuple(names), bin_edges=edges,
+            converged=flags["converged"], unbounded=flags["unbounded"], info=dict(info),
         )
+
+
+def _json_type(value: Any) -> str:
+    return {dict: "an object", list: "a list", str: "a string", bool: "a boolean", int: "a number",
+            float: "a number", type(None): "null"}.get(type(value), type(value).__name__)
+
+
+def _brief(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:50] + "..."
+
+
+def _number_array(path: Path, name: str, value: Any, ndim: int, *, allow_empty: bool = False) -> np.ndarray:
+    """``value`` as a float array of ``ndim`` dims (a list, or a list of equal-length lists)."""
+    shape = "a list of numbers" if ndim == 1 else "a list of equal-length lists of numbers ([S][A])"
+
+    def flat(v: Any, depth: int) -> list:
+        if depth == 0:
+            if isinstance(v, bool) or not isinstance(v, (int, float)):
+                raise ModelFileError(f"{path}: field {name!r} must be {shape}; found {_brief(v)}")
+            return [v]
+        if not isinstance(v, list):
+            raise ModelFileError(f"{path}: field {name!r} must be {shape}; found {_json_type(v)}")
+        return [x for item in v for x in flat(item, depth - 1)]
+
+    flat(value, ndim)
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (ValueError, OverflowError) as e:
+        raise ModelFileError(f"{path}: field {name!r} must be {shape} ({e})") from None
+    if arr.ndim != ndim or (arr.size == 0 and not allow_empty):
+        raise ModelFileError(f"{path}: field {name!r} must be non-empty {shape}, got shape {arr.shape}")
+    return arr
+
+
+def _settings(path: Path, raw: Any) -> IRLConfig:
+    """``IRLConfig`` from the ``settings`` object, with each value's JSON type checked."""
+    if not isinstance(raw, dict):
+        raise ModelFileError(f"{path}: field 'settings' must be an object, got {_json_type(raw)}")
+    defaults = IRLConfig()
+    for key, value in raw.items():
+        if not hasattr(defaults, key):
+            continue  # reported by IRLConfig.from_dict below, with the known names
+        want = type(getattr(defaults, key))
+        ok = (isinstance(value, bool) if want is bool else
+              isinstance(value, str) if want is str else
+              isinstance(value, int) and not isinstance(value, bool) if want is int else
+              isinstance(value, (int, float)) and not isinstance(value, bool))
+        if not ok:
+            raise ModelFileError(
+                f"{path}: field 'settings.{key}' must be {'a number' if want in (int, float) else want.__name__}"
+                f"{' (integer)' if want is int else ''}, got {_brief(value)}")
+        if want is float:
+            try:
+                float(value)
+            except OverflowError:
+                raise ModelFileError(f"{path}: field 'settings.{key}' is out of range") from None
+    try:
+        return IRLConfig.from_dict(raw)
+    except (TypeError, ValueError, OverflowError) as e:
+        raise ModelFileError(f"{path}: field 'settings': {e}") from None

@@ -35,6 +35,7 @@ CAR_FOLLOW_MODELS = (
 LANE_CHANGE_MODELS = ("LC2013", "SL2015", "DK2008")
 VEHICLE_CLASSES = ("car", "truck")
 _PARAM_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
+_MAX_MAGNITUDE = 1e15  #: no field of a scenario is meaningful beyond this (seconds, metres, veh/h)
 
 
 @dataclass(frozen=True)
@@ -122,13 +123,25 @@ class ScenarioSpec:
     simulation: SimulationSpec = SimulationSpec()
     source: str = field(default="", compare=False)  #: file read from; not saved, not compared
 
-    def with_overrides(self, *, seed: int | None = None, duration_s: float | None = None) -> "ScenarioSpec":
-        """A copy with another seed and/or duration, validated again."""
+    def with_overrides(
+        self, *, seed: int | None = None, duration_s: float | None = None,
+        demand_scale: float | None = None,
+    ) -> "ScenarioSpec":
+        """A copy with another seed and/or duration, validated again.
+
+        ``demand_scale`` multiplies every demand flow (each ``main_veh_h`` entry and
+        ``ramp_veh_h``); it must be a positive finite number.
+        """
         data = self.to_dict()
         if seed is not None:
             data["simulation"]["seed"] = seed
         if duration_s is not None:
             data["simulation"]["duration_s"] = duration_s
+        if demand_scale is not None:
+            ctx = _Ctx(self.source or "<overrides>")
+            k = _positive(ctx, "demand_scale", demand_scale)
+            data["demand"]["main_veh_h"] = [x * k for x in data["demand"]["main_veh_h"]]
+            data["demand"]["ramp_veh_h"] = data["demand"]["ramp_veh_h"] * k
         return spec_from_dict(data, source=self.source or "<overrides>")
 
     def to_dict(self) -> dict[str, Any]:
@@ -189,9 +202,24 @@ def _num(ctx: _Ctx, path: str, v: Any, *, integer: bool = False) -> float | int:
     if isinstance(v, bool) or not isinstance(v, (int, float)) or (integer and not isinstance(v, int)):
         kind = "an integer" if integer else "a number"
         raise ctx.fail(path, f"must be {kind}, got {v!r} ({type(v).__name__})")
+    if abs(v) > _MAX_MAGNITUDE:  # also keeps huge TOML integers from overflowing float()
+        raise ctx.fail(path, f"must be at most {_MAX_MAGNITUDE:g} in magnitude, got {_short(v)}")
     if not integer and not math.isfinite(v):
         raise ctx.fail(path, f"must be finite, got {v!r}")
     return int(v) if integer else float(v)
+
+
+def _is_float(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _short(v: Any) -> str:
+    text = repr(v)
+    return text if len(text) <= 40 else text[:20] + "..." + text[-8:]
 
 
 def _positive(ctx: _Ctx, path: str, v: Any, *, integer: bool = False) -> float | int:
@@ -277,6 +305,8 @@ def _demand(ctx: _Ctx, data: Any, main_lanes: int) -> DemandSpec:
         kw["arrivals"] = _str(ctx, "demand.arrivals", d["arrivals"], ("poisson", "uniform"))
     if "depart_speed" in d:
         v = d["depart_speed"]
+        if isinstance(v, str) and _is_float(v):  # a speed written back as text by to_toml
+            v = float(v)
         if isinstance(v, (int, float)) and not isinstance(v, bool):
             kw["depart_speed"] = str(_nonneg(ctx, "demand.depart_speed", v))
         else:
@@ -301,6 +331,8 @@ def _params(ctx: _Ctx, path: str, v: Any, prefix: str = "") -> tuple[tuple[str, 
             raise ctx.fail(f"{path}.{k}", f"must be {need}, not one of the spec's own fields")
         if not isinstance(val, (int, float, str, bool)):
             raise ctx.fail(f"{path}.{k}", f"must be a number, string or boolean, got {type(val).__name__}")
+        if isinstance(val, (int, float)) and not isinstance(val, bool):
+            _num(ctx, f"{path}.{k}", val)  # finite, of sane magnitude
         out.append((k, val))
     return tuple(out)
 
@@ -367,7 +399,7 @@ def _simulation(ctx: _Ctx, data: Any) -> SimulationSpec:
     if "step_s" in d:
         kw["step_s"] = _positive(ctx, "simulation.step_s", d["step_s"])
         ratio = 0.1 / kw["step_s"]
-        if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+        if not ratio <= 1000 or abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
             raise ctx.fail("simulation.step_s", f"must divide the 0.1 s NGSIM frame (0.1, 0.05, 0.02, ...), got {d['step_s']!r}")
     if "duration_s" in d:
         kw["duration_s"] = _positive(ctx, "simulation.duration_s", d["duration_s"])
@@ -420,4 +452,6 @@ def spec_from_file(path: str | Path) -> ScenarioSpec:
         text = p.read_text(encoding="utf-8")
     except OSError as e:
         raise SpecError(f"{p}: cannot read scenario file: {e.strerror}") from e
+    except UnicodeDecodeError as e:
+        raise SpecError(f"{p}: not a UTF-8 text file (byte {e.start}); expected scenario TOML") from None
     return spec_from_toml(text, source=p.name)

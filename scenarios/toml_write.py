@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
+_ESCAPES = {"\\": "\\\\", '"': '\\"', "\n": "\\n", "\t": "\\t", "\r": "\\r", "\b": "\\b", "\f": "\\f"}
+
 
 def _scalar(v: Any) -> str:
     if isinstance(v, bool):
@@ -16,8 +18,9 @@ def _scalar(v: Any) -> str:
             raise ValueError(f"cannot write non-finite float {v!r} to TOML")
         return repr(v)
     if isinstance(v, str):
-        esc = v.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n")
-        return f'"{esc}"'
+        return '"' + "".join(_ESCAPES.get(c, c) if c in _ESCAPES or c.isprintable() or c == " "
+                             else f"\\u{ord(c):04X}" if ord(c) <= 0xFFFF else f"\\U{ord(c):08X}"
+                             for c in v) + '"'
     if isinstance(v, (list, tuple)):
         return "[" + ", ".join(_scalar(x) for x in v) + "]"
     if isinstance(v, dict):

@@ -53,10 +53,12 @@ def test_generate_bad_spec_fails_before_sumo_naming_the_field(tmp_path):
     assert not (tmp_path / "o").exists() and not (tmp_path / "cache").exists()
 
 
-def test_demo_prints_summary(tmp_path):
-    r = cli(["demo", "--out", str(tmp_path / "demo"), "--duration", "120", "--no-progress"], tmp_path / "cache")
-    assert r.returncode == 0, r.stderr
-    assert "vehicles:" in r.stdout and "merges (lane 7 -> 6):" in r.stdout and "lane 6:" in r.stdout
+def test_basic_demo_summary(tmp_path):
+    from analysis.demo_basic import run_basic_demo
+
+    summary = run_basic_demo(tmp_path / "demo", scenario="synthetic", seed=1, duration_s=120, progress=False)
+    text = summary.format()
+    assert "vehicles:" in text and "merges (lane 7 -> 6):" in text and "lane 6:" in text
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGKILL], ids=["SIGINT", "SIGKILL"])

@@ -1,26 +1,50 @@
-"""``merge-irl demo``: generate the default scenario, extract merge encounters, print a summary."""
+"""``merge-irl demo``: the whole pipeline on the default scenario, in one command.
+
+Generate synthetic merges, learn Q-Avg, Q-SM, MLIRL and REIRL, re-inject the learned drivers
+into SUMO, evaluate them against SUMO's own driver and a uniform-random one, write the report
+and the ``.rrd`` log, and print where they are. See :func:`analysis.pipeline.run_demo`.
+"""
 
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("demo", help="run the default scenario end to end and print a summary",
-                              description="Generate the default scenario (synthetic), extract merge "
-                                          "encounters, print vehicles, merges and mean speed per lane.")
-    p.add_argument("--out", default=None, metavar="DIR", help="output folder (default: ./runs/demo-synthetic)")
-    p.add_argument("--scenario", default="synthetic", metavar="NAME|FILE.toml", help="scenario (default synthetic)")
-    p.add_argument("--duration", type=float, default=None, metavar="S", help="simulated seconds")
-    p.add_argument("--seed", type=int, default=None, metavar="N", help="SUMO seed")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p = subparsers.add_parser(
+        "demo", help="the whole pipeline on the default scenario (generate, learn, evaluate, log)",
+        description="Generate synthetic merges, learn with Q-Avg, Q-SM, MLIRL and REIRL, re-inject "
+                    "the learned drivers into SUMO, evaluate against SUMO's driver and a random one, "
+                    "write report.md, metrics.json and a rerun .rrd; print where they are.")
+    p.add_argument("--out", default=None, metavar="DIR", help="output folder (default: ./runs/demo)")
+    p.add_argument("--scenario", default="synthetic", metavar="NAME|FILE.toml",
+                   help="scenario preset or TOML file (default: synthetic)")
+    p.add_argument("--duration", type=float, default=None, metavar="S",
+                   help="simulated seconds of each data run (default: the scenario's)")
+    p.add_argument("--episodes", type=int, default=None, metavar="N",
+                   help="evaluation episodes per policy (default 3)")
+    p.add_argument("--methods", default=None, metavar="LIST",
+                   help="comma-separated IRL methods (default: qavg,qsm,mlirl,reirl)")
+    p.add_argument("--workers", type=int, default=None, metavar="N", help="processes (default 2)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from analysis.demo_basic import run_basic_demo
+    from analysis.pipeline import DemoConfig, run_demo
 
-    summary = run_basic_demo(args.out, scenario=args.scenario, seed=args.seed, duration_s=args.duration,
-                             progress=not args.no_progress)
-    print(summary.format())
+    config = DemoConfig(scenario=args.scenario)
+    if args.duration is not None:
+        config = replace(config, data_duration_s=args.duration)
+    if args.episodes is not None:
+        if args.episodes < 1:
+            raise SystemExit("merge-irl demo: error: --episodes must be >= 1")
+        config = replace(config, eval_episodes=args.episodes)
+    if args.methods:
+        config = replace(config, methods=tuple(m.strip() for m in args.methods.split(",") if m.strip()))
+    if args.workers is not None:
+        config = replace(config, workers=max(1, args.workers))
+    result = run_demo(args.out, config, progress=not args.no_progress)
+    print(result.format())
     return 0

@@ -1,0 +1,233 @@
+"""Scenario generation over many seeds and demand levels, as one resumable sweep.
+
+``generate_many(spec, seeds, demand_scales, out_dir)`` runs :func:`sim.generate.generate` once
+per (seed, demand scale) through :func:`analysis.sweep.run_sweep` (default: a local process
+pool on every core, one libsumo simulation per worker process at a time) and writes::
+
+    OUT/<scenario>-seed<N>[-demand<X>]/   trajectories.parquet, encounters.parquet, merges.parquet,
+                                          scenario.toml (the spec actually simulated) [, trajectories.csv]
+    OUT/.sweep-store/<digest>.json        one record per finished run (what makes reruns skip it)
+    OUT/sweep.csv                         one line per finished run (counts, table checksum)
+
+The ``-demand<X>`` suffix is present when demand scales were given. Each run's SUMO seed is the
+one asked for (``seeds``), not the sweep-derived seed, so ``OUT/<scenario>-seed7`` is the same
+simulation as ``merge-irl generate --seed 7``. A finished run whose output folder has since lost
+a file is run again.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import pandas as pd
+
+from analysis.sweep import ResultStore, SweepReport, Task, derive_seed, run_sweep, task_digest
+from scenarios.spec import ScenarioSpec, spec_from_toml
+
+STORE_DIR = ".sweep-store"
+SUMMARY = "sweep.csv"
+SWEEP_SEED = 0  #: the runs use their own SUMO seeds; the sweep seed only feeds task digests
+
+
+@dataclass(frozen=True)
+class GenerateRun:
+    """One generation task (its full config: the digest of this decides reruns).
+
+    Attributes:
+        spec_toml: the base scenario as TOML (before the overrides below).
+        seed: SUMO seed of this run.
+        demand_scale: factor on every demand flow, or None for the spec's demand.
+        duration_s: simulated seconds, or None for the spec's.
+        csv: also write ``trajectories.csv``.
+        run_dir: absolute output folder of this run.
+    """
+
+    spec_toml: str
+    seed: int
+    demand_scale: float | None
+    duration_s: float | None
+    csv: bool
+    run_dir: str
+
+
+def run_name(scenario: str, seed: int, demand_scale: float | None) -> str:
+    """``<scenario>-seed<N>`` or ``<scenario>-seed<N>-demand<X>`` (X printed with ``%g``)."""
+    name = f"{scenario}-seed{int(seed)}"
+    return name if demand_scale is None else f"{name}-demand{float(demand_scale):g}"
+
+
+def table_checksum(table: pd.DataFrame) -> str:
+    """SHA-256 (hex, 16 chars) of a table's values, column names and dtypes."""
+    h = hashlib.sha256()
+    h.update(repr([(c, str(t)) for c, t in table.dtypes.items()]).encode())
+    h.update(pd.util.hash_pandas_object(table, index=False).to_numpy().tobytes())
+    return h.hexdigest()[:16]
+
+
+def generate_one(config: GenerateRun, seed: int) -> dict:
+    """Sweep task: simulate one run and write its folder. ``seed`` (sweep-derived) is unused.
+
+    Returns the run's summary (JSON-ready): name, folder, seed, demand scale, counts, the
+    files written (names) and the trajectory table's checksum.
+    """
+    from sim.generate import generate
+
+    spec = spec_from_toml(config.spec_toml, source="<sweep spec>").with_overrides(
+        seed=config.seed, duration_s=config.duration_s, demand_scale=config.demand_scale)
+    res = generate(spec, config.run_dir, csv=config.csv, progress=False)
+    sim = res.simulation
+    return {
+        "run": Path(config.run_dir).name,
+        "out_dir": str(res.out_dir),
+        "seed": int(config.seed),
+        "demand_scale": config.demand_scale,
+        "n_vehicles": int(sim.n_vehicles),
+        "n_rows": int(sim.n_vehicle_steps),
+        "n_merges": int(len(res.encounters.merges)),
+        "n_encounter_frames": int(len(res.encounters.frames)),
+        "files": [p.name for p in res.files],
+        "sim_wall_time_s": float(sim.wall_time_s),
+        "table_sha256": table_checksum(sim.table),
+    }
+
+
+def generate_tasks(
+    spec: ScenarioSpec,
+    seeds: Sequence[int],
+    demand_scales: Sequence[float] | None,
+    out_dir: str | Path,
+    *,
+    duration_s: float | None = None,
+    csv: bool = False,
+) -> list[Task]:
+    """The sweep's tasks, seeds outermost. Validates every override before anything runs."""
+    out = Path(out_dir).resolve()
+    if not seeds:
+        raise ValueError("generate_many: no seeds given")
+    scales: tuple[float | None, ...] = (None,) if demand_scales is None else tuple(demand_scales)
+    if not scales:
+        raise ValueError("generate_many: empty demand_scales (use None for the spec's demand)")
+    text = spec.to_toml()
+    tasks = []
+    for s in seeds:
+        for k in scales:
+            spec.with_overrides(seed=s, duration_s=duration_s, demand_scale=k)  # SpecError early
+            name = run_name(spec.name, s, k)
+            cfg = GenerateRun(spec_toml=text, seed=int(s), demand_scale=None if k is None else float(k),
+                              duration_s=None if duration_s is None else float(duration_s), csv=bool(csv),
+                              run_dir=str(out / name))
+            tasks.append(Task(key=name, func=generate_one, config=cfg))
+    return tasks
+
+
+def _forget_missing_outputs(tasks: Sequence[Task], store: ResultStore) -> int:
+    """Drop store records whose run folder lost a file, so those runs are done again."""
+    dropped = 0
+    for t in tasks:
+        digest = task_digest(t.func_name, t.config, derive_seed(SWEEP_SEED, t.key))
+        record = store.get(digest)
+        if record is None:
+            continue
+        files = record["result"].get("files", [])
+        if not files or not all((Path(t.config.run_dir) / f).is_file() for f in files):
+            store.path(digest).unlink(missing_ok=True)
+            dropped += 1
+    return dropped
+
+
+def write_summary(report: SweepReport, path: str | Path) -> Path:
+    """``sweep.csv``: one line per finished run, in task order (atomic write)."""
+    from sim.outputs import write_atomic
+
+    cols = ["run", "seed", "demand_scale", "n_vehicles", "n_rows", "n_merges", "n_encounter_frames",
+            "sim_wall_time_s", "table_sha256", "out_dir"]
+    rows = [{c: r.get(c) for c in cols} for r in report.results.values()]
+    table = pd.DataFrame(rows, columns=cols)
+    return write_atomic(path, lambda p: table.to_csv(p, index=False))
+
+
+def generate_many(
+    spec: ScenarioSpec,
+    seeds: Sequence[int],
+    demand_scales: Sequence[float] | None,
+    out_dir: str | Path,
+    *,
+    duration_s: float | None = None,
+    csv: bool = False,
+    executor: str = "process",
+    retries: int = 1,
+    progress: bool = True,
+) -> SweepReport:
+    """Generate ``spec`` for every seed x demand scale under ``out_dir``; resumable.
+
+    Args:
+        spec: the base scenario.
+        seeds: SUMO seeds, one run each (per demand scale).
+        demand_scales: factors on every demand flow, or None: the spec's demand, and run
+            folders without the ``-demand<X>`` suffix.
+        out_dir: the sweep's folder (runs, store and ``sweep.csv`` go there).
+        duration_s: simulated seconds per run (default: the spec's).
+        csv: also write each run's ``trajectories.csv``.
+        executor: ``"process[:N]"`` (default, every core), ``"serial"``, ``"dask-local[:N]"``
+            or ``"dask://HOST:PORT"`` (see :mod:`analysis.sweep.executors`).
+        retries: extra attempts of a failed run.
+        progress: one progress bar (runs done / total) on stderr.
+
+    Returns:
+        The :class:`SweepReport`: ``results[run_name]`` is :func:`generate_one`'s summary;
+        ``failures`` lists runs that failed on every attempt (the others are complete).
+
+    Raises:
+        SpecError: an override (seed, duration, demand scale) is invalid; nothing is run.
+    """
+    out = Path(out_dir)
+    tasks = generate_tasks(spec, seeds, demand_scales, out, duration_s=duration_s, csv=csv)
+    out.mkdir(parents=True, exist_ok=True)
+    store = ResultStore(out / STORE_DIR)
+    _forget_missing_outputs(tasks, store)
+    report = run_sweep(tasks, seed=SWEEP_SEED, executor=executor, store=store, retries=retries,
+                       progress=progress, desc=f"generate {spec.name}")
+    write_summary(report, out / SUMMARY)
+    return report
+
+
+def parse_seeds(text: str) -> tuple[int, ...]:
+    """``"1,2,3"``, ``"1-10"`` or a mix (``"1-3,7"``) -> distinct seeds in the order given."""
+    out: list[int] = []
+    for part in text.split(","):
+        part = part.strip()
+        lo, sep, hi = part.partition("-")
+        try:
+            if sep and lo:
+                a, b = int(lo), int(hi)
+                if b < a:
+                    raise ValueError
+                values = range(a, b + 1)
+            else:
+                values = [int(part)]
+        except ValueError:
+            raise ValueError(f"seeds {text!r}: {part!r} is not N or N-M (N <= M, integers >= 0)") from None
+        for v in values:
+            if v < 0:
+                raise ValueError(f"seeds {text!r}: {v} is negative")
+            if v not in out:
+                out.append(v)
+    return tuple(out)
+
+
+def parse_scales(text: str) -> tuple[float, ...]:
+    """``"0.5,1,2"`` -> distinct positive demand factors in the order given."""
+    out: list[float] = []
+    for part in text.split(","):
+        try:
+            v = float(part)
+        except ValueError:
+            raise ValueError(f"demand scales {text!r}: {part.strip()!r} is not a number") from None
+        if not (v > 0 and v != float("inf")):
+            raise ValueError(f"demand scales {text!r}: {part.strip()!r} must be a positive finite number")
+        if v not in out:
+            out.append(v)
+    return tuple(out)

@@ -99,8 +99,10 @@ def test_evaluate_cli(tmp_path):
     out = tmp_path / "ev"
     r = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--model", str(model_path), "--episodes", "1",
                         "--duration", "100", "--baselines", "sumo", "--no-rrd", "--no-progress", "--seed", "5",
-                        "--out", str(out)], capture_output=True, text=True, timeout=300)
+                        "--out", str(out), "--fail-if", "sumo.n_episodes<1"],
+                       capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
+    assert "ok: 1 threshold(s) pass" in r.stderr
     assert "| model | 1 |" in r.stdout and "| sumo | 1 |" in r.stdout
     assert (out / "report.md").exists() and (out / "metrics.json").exists()
     assert not (out / "rerun").exists()
@@ -110,6 +112,14 @@ def test_evaluate_cli(tmp_path):
     bad = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--baselines", "human",
                           "--out", str(tmp_path / "x")], capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and "human" in bad.stderr
+    bad = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--baselines", "sumo", "--fail-if",
+                          "collisions>>0", "--out", str(tmp_path / "y")], capture_output=True, text=True, timeout=120)
+    assert bad.returncode == 2 and "collisions>>0" in bad.stderr and not (tmp_path / "y").exists()
+    gate = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--baselines", "sumo", "--episodes", "1",
+                           "--duration", "100", "--no-rrd", "--no-progress", "--fail-if", "sumo.n_episodes>=1",
+                           "--out", str(tmp_path / "gate")], capture_output=True, text=True, timeout=300)
+    assert gate.returncode == 1, gate.stderr
+    assert "FAIL" in gate.stderr and "n_episodes" in gate.stderr
 
 
 def test_view_cli_prints_recordings(tmp_path):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 
@@ -28,13 +29,19 @@ def register(subparsers) -> None:
     p.add_argument("--no-rrd", action="store_true", help="do not write rerun recordings")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--out", default=None, help="output folder (default ./runs/evaluate-<scenario>-<seed>/)")
+    p.add_argument("--fail-if", action="append", default=[], metavar="EXPR",
+                   help="exit 1 if a metric threshold holds, e.g. 'collisions>0' or "
+                        "'qavg.min_ttc_s<1.5' (repeat, or separate with commas); checked on metrics.json")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from analysis.evaluate import evaluate
+    from analysis.thresholds import check_file, parse_thresholds
     from sim.controller import ControllerConfig
     from sim.errors import SimError
+
+    thresholds = parse_thresholds(args.fail_if) if args.fail_if else ()  # syntax errors before any work
 
     baselines = tuple(b.strip() for b in args.baselines.split(",") if b.strip())
     bad = [b for b in baselines if b not in ("sumo", "uniform")]
@@ -56,4 +63,11 @@ def run(args: argparse.Namespace) -> int:
     print(f"metrics: {report.metrics_json}")
     for name, path in report.rrd.items():
         print(f"rerun:   {path}  ({name}; open with: merge-irl view {path})")
+    if thresholds:
+        breaches = check_file(report.metrics_json, args.fail_if)
+        for b in breaches:
+            print(f"FAIL {b}", file=sys.stderr)
+        if breaches:
+            return 1
+        print(f"ok: {len(thresholds)} threshold(s) pass", file=sys.stderr)
     return 0

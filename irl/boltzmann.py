@@ -8,13 +8,13 @@ log-sum-exp with max subtraction, so large ``beta`` or large ``Q`` never overflo
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import logsumexp
 
 
 def log_policy(q: np.ndarray, beta: float) -> np.ndarray:
     """``log pi(a|s)`` for ``q`` of shape ``[S, A]``; returns ``[S, A]``."""
     z = beta * np.asarray(q, dtype=np.float64)
-    return z - logsumexp(z, axis=1, keepdims=True)
+    z = z - np.max(z, axis=1, keepdims=True)  # max subtraction: the largest term is exp(0)
+    return z - np.log(np.sum(np.exp(z), axis=1, keepdims=True))
 
 
 def policy(q: np.ndarray, beta: float) -> np.ndarray:

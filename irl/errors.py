@@ -15,3 +15,7 @@ class ConfigError(IRLError, ValueError):
 
 class ModelFileError(IRLError, ValueError):
     """A saved model file is malformed."""
+
+
+class ConvergenceError(IRLError, RuntimeError):
+    """A fixed point (Q of a given theta) could not be computed."""

@@ -61,7 +61,7 @@ def conform(table: pd.DataFrame) -> pd.DataFrame:
     missing = [c for c in COLUMNS if c not in table.columns]
     if missing:
         raise KeyError(f"trajectory table is missing columns {missing}")
-    return table.loc[:, list(COLUMNS)].astype(COLUMNS, copy=False).reset_index(drop=True)
+    return table.loc[:, list(COLUMNS)].astype(COLUMNS).reset_index(drop=True)
 
 
 def sort_table(table: pd.DataFrame) -> pd.DataFrame:

@@ -1,0 +1,284 @@
+"""Outer optimisers over theta: the paper's fixed-length steps, L-BFGS, and concave Newton.
+
+Each maximises ``f(theta) = L(theta) - l2/2 ||theta||^2`` given an ``evaluate(theta)`` that
+returns an :class:`Evaluation` (L, its gradient and the Q table at theta). Traces record
+``L`` (not the penalised ``f``) and theta after every outer iteration.
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+import scipy.optimize as so
+from tqdm import tqdm
+
+from irl.config import IRLConfig
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """``L``, ``dL/dtheta [K]`` and ``Q [S, A]`` at one theta; ``ok=False`` if Q failed."""
+
+    loglik: float
+    grad: np.ndarray
+    q: np.ndarray
+    ok: bool = True
+    message: str = ""
+    hess: np.ndarray | None = None  # [K, K] d2L/dtheta2 when available (Q-Avg)
+
+
+@dataclass(frozen=True)
+class AscentResult:
+    """Where an outer optimiser stopped.
+
+    Attributes:
+        theta: ``[K]`` final weights; ``evaluation`` is at exactly this theta.
+        loglik_trace: ``[n]``; theta_trace: ``[n, K]``.
+        converged: the stopping rule was met (not a cap, not an inner failure).
+        message: why it stopped.
+        extra: optimiser scalars (iterations, evaluations, gradient norm).
+    """
+
+    theta: np.ndarray
+    evaluation: Evaluation
+    loglik_trace: np.ndarray
+    theta_trace: np.ndarray
+    converged: bool
+    message: str
+    extra: dict[str, float] = field(default_factory=dict)
+
+
+def progress_bar(enabled: bool, total: int, desc: str) -> tqdm:
+    """tqdm on stderr, shown only when asked for and stderr is a terminal."""
+    return tqdm(total=total, desc=desc, file=sys.stderr, leave=False,
+                disable=not (enabled and sys.stderr.isatty()))
+
+
+def penalised(ev: Evaluation, theta: np.ndarray, l2: float) -> tuple[float, np.ndarray]:
+    """``(L - l2/2 |theta|^2, its gradient)``."""
+    return ev.loglik - 0.5 * l2 * float(theta @ theta), ev.grad - l2 * theta
+
+
+def unit_step_ascent(evaluate: Callable[[np.ndarray], Evaluation], theta0: np.ndarray,
+                     config: IRLConfig, *, progress: bool = False, desc: str = "") -> AscentResult:
+    """The paper's / reference code's outer loop.
+
+    Repeat: evaluate ``L`` and ``g`` at theta; stop when ``|f_n - f_{n-1}| <= config.outer_tol``
+    (``f`` the penalised objective, ``= L`` when ``l2 = 0``) or after ``config.max_outer``
+    evaluations; else ``theta += step_size * g / ||g||``. Returns the last evaluated theta.
+    """
+    theta = np.asarray(theta0, dtype=np.float64).copy()
+    lls, thetas = [], []
+    prev_f = None
+    converged, message = False, f"reached max_outer = {config.max_outer} outer steps"
+    ev = None
+    with progress_bar(progress, config.max_outer, desc) as bar:
+        for n in range(config.max_outer):
+            ev = evaluate(theta)
+            lls.append(ev.loglik)
+            thetas.append(theta.copy())
+            bar.update(1)
+            if not ev.ok:
+                message = f"inner iteration failed at outer step {n + 1}: {ev.message}"
+                break
+            f, g = penalised(ev, theta, config.l2)
+            if prev_f is not None and abs(f - prev_f) <= config.outer_tol:
+                converged, message = True, f"|dL| <= {config.outer_tol:.3g} after {n + 1} outer steps"
+                break
+            norm = float(np.linalg.norm(g))
+            if norm == 0.0:
+                converged, message = True, f"zero gradient after {n + 1} outer steps"
+                break
+            prev_f = f
+            if n + 1 < config.max_outer:
+                theta = theta + config.step_size * g / norm
+                if n % 64 == 0:
+                    bar.set_postfix(L=f"{ev.loglik:.4f}")
+    return AscentResult(theta, ev, np.array(lls), np.array(thetas).reshape(len(thetas), -1),
+                        converged, message, {"outer_steps": float(len(lls))})
+
+
+class _InnerFailure(Exception):
+    pass
+
+
+def lbfgs_ascent(evaluate: Callable[[np.ndarray], Evaluation], theta0: np.ndarray,
+                 config: IRLConfig, *, progress: bool = False, desc: str = "",
+                 gtol: float = 1e-7,
+                 on_accept: Callable[[np.ndarray, Evaluation], None] | None = None) -> AscentResult:
+    """L-BFGS (scipy, ``L-BFGS-B`` without bounds) on ``-f``; stops at ``|grad f|_inf <= gtol``,
+    a relative objective change below ``1e-13``, or ``config.max_outer`` iterations. An inner
+    failure (``ok=False``) at the start aborts with ``converged=False``; at a line-search trial
+    point it is a steep wall around the last accepted iterate. ``on_accept(theta, evaluation)`` is
+    called at the start and after every accepted iterate (used to anchor warm starts)."""
+    cache: dict[bytes, Evaluation] = {}
+    last: list = []
+    failures: list[str] = []
+
+    def ev_at(x: np.ndarray) -> Evaluation:
+        key = x.tobytes()
+        if key not in cache:
+            if len(cache) > 8:
+                cache.clear()
+            cache[key] = evaluate(x.copy())
+        return cache[key]
+
+    anchor: list = []  # [x, -f, -g] of the last accepted iterate
+
+    def fun(x):
+        ev = ev_at(x)
+        last[:] = [x.copy(), ev]
+        if not ev.ok:
+            if not anchor:
+                raise _InnerFailure(ev.message)
+            # a trial point without a fixed point: a steep wall around the last accepted
+            # iterate sends the line search back
+            failures.append(ev.message)
+            xa, fa, ga = anchor
+            d = x - xa
+            wall = 1e3 * (1.0 + abs(fa))
+            return fa + wall * (1.0 + float(d @ d)), 2.0 * wall * d
+        f, g = penalised(ev, x, config.l2)
+        return -f, -g
+
+    lls, thetas = [], []
+    theta = np.asarray(theta0, dtype=np.float64).copy()
+    bar = progress_bar(progress, config.max_outer, desc)
+
+    def remember(x, ev):
+        if ev.ok:
+            f, g = penalised(ev, x, config.l2)
+            anchor[:] = [np.array(x, dtype=float), -f, -g]
+        if on_accept is not None:
+            on_accept(np.asarray(x), ev)
+
+    def callback(x):
+        ev = ev_at(np.asarray(x))
+        remember(x, ev)
+        lls.append(ev.loglik)
+        thetas.append(np.array(x, dtype=float))
+        bar.update(1)
+        bar.set_postfix(L=f"{ev.loglik:.4f}")
+
+    remember(theta, ev_at(theta))
+    try:
+        res = so.minimize(fun, theta, jac=True, method="L-BFGS-B", callback=callback,
+                          options={"maxiter": config.max_outer, "gtol": gtol, "ftol": 1e-13,
+                                   "maxcor": 20, "maxls": 50})
+    except _InnerFailure as e:
+        bar.close()
+        x, ev = last
+        lls.append(ev.loglik)
+        thetas.append(x)
+        return AscentResult(x, ev, np.array(lls), np.array(thetas), False,
+                            f"inner fixed point failed: {e}", {"outer_steps": float(len(lls))})
+    bar.close()
+    x = np.asarray(res.x, dtype=float)
+    ev = ev_at(x)
+    if not thetas or not np.array_equal(thetas[-1], x):
+        lls.append(ev.loglik)
+        thetas.append(x.copy())
+    gnorm = float(np.max(np.abs(penalised(ev, x, config.l2)[1])))
+    ok = bool(res.success) and gnorm <= max(gtol * 100, 1e-5 * max(1.0, abs(ev.loglik)))
+    msg = f"L-BFGS: {res.message} after {res.nit} iterations, |grad|_inf = {gnorm:.3g}"
+    if failures:
+        msg += (f"; {len(failures)} trial points had no fixed point and were stepped back from "
+                f"(first: {failures[0]})")
+    return AscentResult(x, ev, np.array(lls), np.array(thetas).reshape(len(thetas), -1), ok, msg,
+                        {"outer_steps": float(res.nit), "evaluations": float(res.nfev),
+                         "grad_inf": gnorm})
+
+
+def newton_concave(evaluate: Callable[[np.ndarray], Evaluation], theta0: np.ndarray,
+                   config: IRLConfig, *, progress: bool = False, desc: str = "",
+                   max_iter: int = 500, theta_cap: float = 1e8, ftol: float = 0.0) -> AscentResult:
+    """Damped Newton for a concave ``f`` whose evaluation carries the Hessian of ``L``.
+
+    Step ``p = (-H_f)^+ g`` on the eigenvectors of ``-H_f`` (eigenvalues floored at
+    ``1e-12 * max eigenvalue``, so flat directions with a non-zero gradient, the signature of
+    unbounded weights, get long steps, capped at ``10 (1 + |theta|)``), then backtracking until
+    the Armijo condition holds.
+    Stops when the Newton decrement ``g.p`` is below ``1e-14 max(1, |f|)`` (the global
+    maximum to that precision, or the supremum when weights diverge), ``max|theta|`` exceeds
+    ``theta_cap``, when an accepted step gains less than ``ftol max(1, |f|)`` (use a positive
+    ``ftol`` when the weights are known to diverge, where the gains only shrink geometrically),
+    or after ``min(max_iter, config.max_outer)`` iterations.
+    """
+    theta = np.asarray(theta0, dtype=np.float64).copy()
+    l2 = config.l2
+    ev = evaluate(theta)
+    f, g = penalised(ev, theta, l2)
+    lls, thetas = [ev.loglik], [theta.copy()]
+    n_iter = min(max_iter, config.max_outer)
+    converged, message = False, f"Newton: reached {n_iter} iterations"
+    with progress_bar(progress, n_iter, desc) as bar:
+        for it in range(n_iter):
+            h = -(ev.hess - l2 * np.eye(theta.size))  # PSD
+            lam, vec = np.linalg.eigh(0.5 * (h + h.T))
+            radius = 10.0 * (1.0 + float(np.linalg.norm(theta)))  # |theta| grows at most 11x a step
+            lam_floor = max(float(lam.max(initial=0.0)) * 1e-12, 1e-300)
+            with np.errstate(over="ignore"):
+                coef = (vec.T @ g) / np.maximum(lam, lam_floor)
+            p = vec @ np.clip(coef, -radius, radius)
+            p_norm = float(np.linalg.norm(p))
+            if p_norm > radius:
+                p = p * (radius / p_norm)
+            decrement = float(g @ p)
+            if not np.all(np.isfinite(p)) or decrement <= 1e-14 * max(1.0, abs(f)):
+                converged, message = True, f"Newton: optimum reached after {it} iterations"
+                break
+            t, accepted = 1.0, False
+            for _ in range(80):
+                cand = theta + t * p
+                ev_c = evaluate(cand)
+                f_c, g_c = penalised(ev_c, cand, l2)
+                if np.isfinite(f_c) and f_c >= f + 1e-4 * t * decrement:
+                    accepted = True
+                    break
+                t *= 0.5
+            if not accepted:
+                converged, message = True, f"Newton: no further ascent possible after {it} iterations"
+                break
+            gain = f_c - f
+            theta, ev, f, g = cand, ev_c, f_c, g_c
+            lls.append(ev.loglik)
+            thetas.append(theta.copy())
+            bar.update(1)
+            if float(np.max(np.abs(theta))) > theta_cap:
+                converged, message = True, f"Newton: |theta| passed {theta_cap:.0e} (weights diverge)"
+                break
+            if gain < ftol * max(1.0, abs(f)):
+                converged, message = True, f"Newton: gains below {ftol:.0e} relative after {it + 1} iterations"
+                break
+    gnorm = float(np.max(np.abs(g)))
+    return AscentResult(theta, ev, np.array(lls), np.array(thetas).reshape(len(thetas), -1),
+                        converged, message, {"outer_steps": float(len(lls) - 1), "grad_inf": gnorm})
+
+
+def recession_direction(diffs: np.ndarray, rel_tol: float = 1e-9) -> np.ndarray | None:
+    """A direction along which the multinomial-logit likelihood never decreases and somewhere rises.
+
+    ``diffs [m, K]`` holds ``D(s, a_obs) - D(s, b)`` for every observed (s, a_obs) and every other
+    action b. The likelihood is unbounded above (no finite maximiser) iff some ``d`` has
+    ``diffs @ d >= 0`` everywhere and ``> 0`` somewhere. Solved as the LP
+    ``max sum(diffs @ d)  s.t.  diffs @ d >= 0, -1 <= d <= 1``. Returns ``d`` or None.
+    """
+    if diffs.size == 0:
+        return None
+    scale = float(np.max(np.abs(diffs)))
+    if scale == 0.0:
+        return None
+    a = diffs / scale
+    k = a.shape[1]
+    res = so.linprog(-a.sum(axis=0), A_ub=-a, b_ub=np.zeros(a.shape[0]),
+                     bounds=[(-1.0, 1.0)] * k, method="highs")
+    if res.status != 0:
+        return None
+    d = np.asarray(res.x)
+    gain = a @ d
+    if float(gain.max(initial=0.0)) > rel_tol * k and float(gain.min(initial=0.0)) >= -rel_tol * k:
+        return d
+    return None

@@ -1,0 +1,351 @@
+"""Exact fixed points of the Q backups, and their derivatives by implicit differentiation.
+
+Every backup here has the form (pairs flattened as ``i = s*A + a``, ``P`` a
+:class:`~irl.transitions.SuccessorModel`, terminal pairs having an all-zero ``P`` row)::
+
+    Q = R + gamma * P @ V(Q),       V(Q)(s') = sum_b w(b|s') Q(s', b)
+
+* **averaging** (Q-Avg): ``w = 1/A``. Linear: ``(I - gamma M) q = r`` with
+  ``M = P @ W``, ``W[s', s'*A+b] = 1/A``; one sparse LU factorisation serves every right-hand
+  side, so ``D = (I - gamma M)^-1 Phi`` (``[S, A, K]``) gives ``Q = D theta`` for every theta.
+* **Boltzmann** (Q-SM with the model-free ``P``; MLIRL with a full model ``T``):
+  ``w = softmax(beta Q(s', .))``. Nonlinear; solved by Newton's method with a backtracking line
+  search on the residual ``F(q) = q - r - gamma P V(q)``, whose Jacobian is
+  ``I - gamma P J`` with ``J[s', s'*A+b] = pi(b|s') (1 + beta (Q(s',b) - V(s')))``. The same
+  matrix gives ``dQ/dtheta``: ``(I - gamma P J) dQ = Phi`` (implicit differentiation).
+
+The Boltzmann backup is not a non-expansion. A fixed point always exists (``V`` lies between
+the smallest and largest ``Q(s', .)``, so the backup maps a bounded box into itself), but it may
+not be unique and may repel the damped iteration of the paper's Eq. 15. :func:`boltzmann_fixed_point`
+reports failure (iteration cap, stagnating residual, non-finite values, singular Jacobian) and
+:func:`iteration_stability` tells whether the damped iteration could converge to the point found.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from irl.transitions import SuccessorModel
+
+
+def mean_weights(q: np.ndarray, beta: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Boltzmann mean of each state and its derivative weights.
+
+    Args:
+        q: ``[S, A]``.
+    Returns:
+        ``(V [S], pi [S, A], c [S, A])`` with ``V = sum_b pi_b q_b`` and
+        ``c[s, b] = dV(s)/dq(s, b) = pi_b (1 + beta (q_b - V))``.
+    """
+    z = beta * q
+    e = np.exp(z - np.max(z, axis=1, keepdims=True))
+    pi = e / np.sum(e, axis=1, keepdims=True)
+    v = np.einsum("sa,sa->s", pi, q)
+    c = pi * (1.0 + beta * (q - v[:, None]))
+    return v, pi, c
+
+
+def weight_matrix(c: np.ndarray) -> sp.csr_matrix:
+    """``[S, S*A]`` sparse matrix ``W`` with ``W[s, s*A+b] = c[s, b]`` (``c`` is ``[S, A]``)."""
+    S, A = c.shape
+    rows = np.repeat(np.arange(S), A)
+    return sp.csr_matrix((c.ravel(), (rows, np.arange(S * A))), shape=(S, S * A))
+
+
+def backup_operator(succ: SuccessorModel, c: np.ndarray, gamma: float) -> sp.csr_matrix:
+    """``gamma P W(c)``, ``[S*A, S*A]`` sparse: the linear part of the backup with weights ``c``."""
+    return sp.csr_matrix(gamma * (succ.p @ weight_matrix(c)))
+
+
+def backup_jacobian(succ: SuccessorModel, c: np.ndarray, gamma: float) -> sp.csc_matrix:
+    """``I - gamma P W(c)``, ``[S*A, S*A]`` sparse (CSC, ready for ``splu``)."""
+    return succ.jacobian_pattern.matrix(np.asarray(c, dtype=np.float64), gamma)
+
+
+def factorize(matrix: sp.csc_matrix):
+    """Sparse LU of ``matrix``; raises ``RuntimeError`` when it is singular."""
+    return spla.splu(matrix)
+
+
+def solve_backup_system(succ: SuccessorModel, c: np.ndarray, gamma: float,
+                        rhs: np.ndarray) -> np.ndarray:
+    """Solve ``(I - gamma P W(c)) x = rhs`` (``rhs [S*A]`` or ``[S*A, K]``) by sparse LU.
+
+    (SuperLU is single-threaded: unlike dense LAPACK it does not slow down when other processes
+    share the cores.) Raises ``RuntimeError`` when the matrix is singular.
+    """
+    return factorize(backup_jacobian(succ, c, gamma)).solve(np.ascontiguousarray(rhs))
+
+
+def average_basis(succ: SuccessorModel, features: np.ndarray, gamma: float) -> np.ndarray:
+    """``D = (I - gamma M)^-1 Phi`` for the averaging backup: ``[S, A, K]``, ``Q_avg = D @ theta``.
+
+    ``I - gamma M`` is strictly diagonally dominant for ``gamma < 1`` (``M`` is sub-stochastic),
+    so the factorisation always exists.
+    """
+    S, A, K = features.shape
+    c = np.full((S, A), 1.0 / A)
+    return solve_backup_system(succ, c, gamma, features.reshape(S * A, K)).reshape(S, A, K)
+
+
+@dataclass(frozen=True)
+class FixedPoint:
+    """Outcome of :func:`boltzmann_fixed_point`.
+
+    Attributes:
+        q: ``[S, A]`` the last iterate (the fixed point when ``converged``).
+        converged: residual below tolerance with finite values.
+        iterations: Newton / fallback iterations used.
+        residual: final ``max |F(q)|``.
+        message: why it stopped.
+    """
+
+    q: np.ndarray
+    converged: bool
+    iterations: int
+    residual: float
+    message: str
+
+
+def _residual(q_flat, r_flat, succ, beta, gamma):
+    S, A = succ.n_states, succ.n_actions
+    v, _, c = mean_weights(q_flat.reshape(S, A), beta)
+    f = q_flat - r_flat - gamma * (succ.p @ v)
+    return f, c
+
+
+def fixed_point_tolerance(r: np.ndarray, gamma: float) -> float:
+    """Absolute residual tolerance of the exact solver: ``1e-13`` of the Q scale ``max|R|/(1-gamma)``."""
+    scale = max(1.0, float(np.max(np.abs(r))) / (1.0 - gamma))
+    return 1e-13 * scale
+
+
+def _newton(r_flat, succ, beta, gamma, q, max_iter, tol) -> FixedPoint:
+    """Plain Newton with Armijo backtracking on ``|F|^2``; gives up when a step makes no headway
+    or 10 iterations pass without halving the best residual."""
+    S, A = succ.n_states, succ.n_actions
+    f, c = _residual(q, r_flat, succ, beta, gamma)
+    res, merit = float(np.max(np.abs(f))), float(f @ f)
+    best, since = res, 0
+    for it in range(1, max_iter + 1):
+        if not np.isfinite(res):
+            return FixedPoint(q.reshape(S, A), False, it - 1, res, "non-finite Q values")
+        if res <= tol:
+            return FixedPoint(q.reshape(S, A), True, it - 1, res, "converged")
+        try:
+            step = solve_backup_system(succ, c.reshape(S, A), gamma, -f)
+        except RuntimeError:
+            return FixedPoint(q.reshape(S, A), False, it, res, "singular Jacobian (I - gamma P J)")
+        if not np.all(np.isfinite(step)):
+            return FixedPoint(q.reshape(S, A), False, it, res, "Newton step not finite")
+        t = 1.0
+        for _ in range(20):  # Armijo on the merit |F|^2 (Newton's step is a descent direction)
+            q_try = q + t * step
+            f_try, c_try = _residual(q_try, r_flat, succ, beta, gamma)
+            merit_try = float(f_try @ f_try)
+            if np.isfinite(merit_try) and merit_try <= (1.0 - 1e-4 * t) * merit:
+                break
+            t *= 0.5
+        else:
+            return FixedPoint(q.reshape(S, A), False, it, res, f"Newton stalls at residual {res:.3g}")
+        q, f, c, merit = q_try, f_try, c_try, merit_try
+        res = float(np.max(np.abs(f)))
+        if res < 0.5 * best:
+            best, since = res, 0
+        else:
+            since += 1
+            if since >= 10:
+                return FixedPoint(q.reshape(S, A), False, it, res,
+                                  f"Newton stagnates at residual {res:.3g}")
+    ok = bool(np.isfinite(res) and res <= tol)
+    return FixedPoint(q.reshape(S, A), ok, max_iter, res,
+                      "converged" if ok else f"Newton: residual {res:.3g} after {max_iter} iterations")
+
+
+def _damped_backups(r_flat, succ, beta, gamma, q, max_backups, settle):
+    """Damped backups ``q <- q - omega F(q)`` (the Eq. 15 iteration, synchronous) until
+    ``max|F| < settle`` or ``max_backups``. ``omega`` starts at 1/2 and halves (down to 1/16)
+    whenever 500 backups end with a larger residual than they started with.
+    Returns ``(q, backups used, settled)``."""
+    omega, used = 0.5, 0
+    f, _ = _residual(q, r_flat, succ, beta, gamma)
+    res = float(np.max(np.abs(f)))
+    window_start = res
+    while used < max_backups:
+        q = q - omega * f
+        f, _ = _residual(q, r_flat, succ, beta, gamma)
+        used += 1
+        res = float(np.max(np.abs(f)))
+        if not np.isfinite(res):
+            return q, used, False
+        if res < settle:
+            return q, used, True
+        if used % 500 == 0:
+            if res >= window_start and omega > 1.0 / 16:
+                omega *= 0.5
+            window_start = res
+    return q, used, False
+
+
+def _continuation(r_flat, succ, beta, gamma, scale, max_iter, tol) -> FixedPoint | None:
+    """Newton along ``beta_0 < 2 beta_0 < ... < beta``, each stage warm-started by the last.
+
+    At ``beta_0 * scale <= 0.1`` the backup is nearly the (linear) average and Newton converges
+    from ``R`` at once; doubling beta keeps each start close to its solution. None when
+    ``beta`` is already that small (plain Newton has then just failed for another reason).
+    """
+    betas = [beta]
+    while betas[-1] * scale > 0.1 and len(betas) < 60:
+        betas.append(betas[-1] / 2.0)
+    if len(betas) == 1:
+        return None
+    q, total = r_flat.copy(), 0
+    for b in reversed(betas):
+        fp = _newton(r_flat, succ, b, gamma, q, max_iter, tol)
+        total += fp.iterations
+        if not fp.converged:
+            return FixedPoint(fp.q, False, total, fp.residual,
+                              f"continuation failed at beta {b:.3g}: {fp.message}")
+        q = fp.q.ravel().copy()
+    return FixedPoint(fp.q, True, total, fp.residual, "converged")
+
+
+def boltzmann_fixed_point(
+    r: np.ndarray,
+    succ: SuccessorModel,
+    beta: float,
+    gamma: float,
+    *,
+    q0: np.ndarray | None = None,
+    max_iter: int = 200,
+    max_backups: int = 20000,
+    tol: float | None = None,
+    attracting: bool = True,
+    fallback: bool = True,
+) -> FixedPoint:
+    """Solve ``Q = R + gamma P V_beta(Q)``.
+
+    Args:
+        r: ``[S, A]`` rewards ``phi @ theta``.
+        succ: successor model (terminal pairs get ``Q = R``).
+        q0: ``[S, A]`` warm start (default: ``r``).
+        max_iter: cap on Newton iterations (per Newton run).
+        max_backups: cap on damped backups.
+        tol: absolute tolerance on ``max |F(q)|`` (default :func:`fixed_point_tolerance`).
+        fallback: when Newton from the start fails, try continuation and damped backups
+            (False: report Newton's failure at once).
+        attracting: only accept a fixed point that attracts the damped iteration of Eq. 15
+            (:func:`iteration_stability`). The Boltzmann backup can have several fixed points
+            and Newton alone may land on a repelling one.
+
+    Strategy: Newton (``(I - gamma P J) step = -F``, Armijo backtracking on ``|F|_2^2``) from the
+    start. If it fails, or (with ``attracting``) lands on a repelling point: Newton by
+    continuation in beta (from a beta small enough for the backup to be nearly linear, doubling
+    up to ``beta``, each stage warm-started by the previous one). If that fails too, damped backups
+    ``q <- q - omega F(q)`` run from the start (this is the Eq. 15 iteration, so it follows the
+    paper's path toward an attracting point; ``omega`` halves while the residual does not drop)
+    until ``max|F|`` is below ``1e-4`` of the Q scale, then Newton polishes (if Newton still
+    stalls, the backups continue to ``1e-8`` of the scale, then to ``tol``). ``converged`` is
+    False (with the reason in ``message``) on non-finite values, when the damped backups
+    oscillate at every damping, when only repelling points are found, or at the caps.
+    """
+    S, A = succ.n_states, succ.n_actions
+    r_flat = np.asarray(r, dtype=np.float64).ravel()
+    tol = fixed_point_tolerance(r, gamma) if tol is None else tol
+    start = (r_flat.copy() if q0 is None else np.asarray(q0, dtype=np.float64).ravel().copy())
+    fp = _newton(r_flat, succ, beta, gamma, start.copy(), max_iter, tol)
+    iterations = fp.iterations
+    lam = float("nan")
+    if fp.converged:
+        if not attracting:
+            return fp
+        stable, lam, _ = _stability(fp.q, succ, beta, gamma)
+        if stable is not False:
+            return fp
+    if not fallback:
+        if fp.converged:
+            return FixedPoint(fp.q, False, iterations, fp.residual,
+                              f"Newton found a repelling fixed point (eigenvalue real part {lam:.4g})")
+        return fp
+    scale = max(1.0, float(np.max(np.abs(r_flat))) / (1.0 - gamma))
+    cont = _continuation(r_flat, succ, beta, gamma, scale, max_iter, tol)
+    if cont is not None:
+        iterations += cont.iterations
+        if cont.converged:
+            stable, lam, _ = _stability(cont.q, succ, beta, gamma) if attracting else (True, 0, 0)
+            if stable is not False:
+                return FixedPoint(cont.q, True, iterations, cont.residual, "converged")
+    q, total = start, 0
+    for settle in (1e-4 * scale, 1e-8 * scale, tol):
+        q, used, settled = _damped_backups(r_flat, succ, beta, gamma, q, max_backups - total, settle)
+        total += used
+        if not settled:
+            f, _ = _residual(q, r_flat, succ, beta, gamma)
+            res = float(np.max(np.abs(f)))
+            why = "found only a repelling point" if fp.converged else "failed: " + fp.message
+            return FixedPoint(q.reshape(S, A), False, iterations + total, res,
+                              f"the damped backup does not settle (residual {res:.3g} after "
+                              f"{total} backups) and Newton {why}")
+        fp = _newton(r_flat, succ, beta, gamma, q, max_iter, tol)
+        iterations += fp.iterations
+        if fp.converged:
+            break
+    iterations += total
+    if not fp.converged:
+        return FixedPoint(fp.q, False, iterations, fp.residual, f"Newton after damped backups: {fp.message}")
+    if attracting:
+        stable, lam, _ = _stability(fp.q, succ, beta, gamma)
+        if stable is False:
+            return FixedPoint(fp.q, False, iterations, fp.residual,
+                              f"only fixed points that repel the damped iteration were found "
+                              f"(backup Jacobian eigenvalue real part {lam:.4g} >= 1)")
+    return FixedPoint(fp.q, True, iterations, fp.residual, "converged")
+
+
+def boltzmann_dq(q: np.ndarray, succ: SuccessorModel, features: np.ndarray, beta: float,
+                 gamma: float) -> np.ndarray:
+    """``dQ/dtheta [S, A, K]`` at a Boltzmann fixed point ``q [S, A]`` (implicit differentiation).
+
+    Raises ``RuntimeError`` if ``I - gamma P J`` is singular.
+    """
+    S, A, K = features.shape
+    _, _, c = mean_weights(q, beta)
+    return solve_backup_system(succ, c, gamma, features.reshape(S * A, K)).reshape(S, A, K)
+
+
+def _stability(q: np.ndarray, succ: SuccessorModel, beta: float, gamma: float,
+               max_dense: int = 2000) -> tuple[bool | None, float, None]:
+    """``(stable, x, None)``, see :func:`iteration_stability`."""
+    _, _, c = mean_weights(np.asarray(q).reshape(succ.n_states, succ.n_actions), beta)
+    jp = weight_matrix(c) @ succ.p  # [S, S]
+    used = np.unique(succ.p.indices)
+    if used.size == 0:
+        return True, 0.0, None
+    sub = jp[used][:, used]
+    bound = gamma * float(np.max(np.abs(sub).sum(axis=1)))
+    if bound < 1.0:
+        return True, bound, None
+    if used.size > max_dense:
+        return None, float("nan"), None
+    top = float(np.max(np.linalg.eigvals(gamma * sub.toarray()).real))
+    return top < 1.0, top, None
+
+
+def iteration_stability(q: np.ndarray, succ: SuccessorModel, beta: float, gamma: float,
+                        max_dense: int = 2000) -> tuple[bool | None, float]:
+    """Does the fixed point ``q [S, A]`` attract the damped iteration ``Q <- (1-alpha) Q + alpha T(Q)``?
+
+    For small ``alpha`` (synchronous or in-place sweeps alike) the iteration is locally
+    ``dQ/dt = T(Q) - Q``, which is attracted to ``q`` iff every eigenvalue ``lambda`` of the
+    backup's Jacobian ``gamma P J`` has ``Re lambda < 1``. The non-zero eigenvalues of ``P J`` are
+    those of ``J P`` restricted to the successor states, a small dense matrix. Returns
+    ``(stable, x)``: ``x`` is the row-sum bound ``gamma ||J P||_inf`` when that is < 1 (then
+    every ``|lambda| < 1``), else the largest ``Re lambda``. ``stable`` is None when the dense
+    check would exceed ``max_dense`` successor states.
+    """
+    stable, x, _ = _stability(q, succ, beta, gamma, max_dense)
+    return stable, x

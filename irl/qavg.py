@@ -1,0 +1,159 @@
+"""Q-Avg: model-free maximum-likelihood IRL with the averaging backup (paper Eq. 12/13).
+
+Model-free successors (see :mod:`irl.transitions`): the observed transitions only; pairs with
+no observed successor are terminal (``Q = R``). The fixed point of the damped sweep with
+averaged successors is ``Q = R + gamma P_hat (mean_b Q(s', b))``, linear in theta:
+``Q = D theta`` with ``D = (I - gamma M)^-1 Phi`` (:func:`irl.bellman.average_basis`).
+
+* ``exact`` solver: ``L(theta) = sum counts * log softmax(beta D theta)`` is a concave
+  multinomial-logit likelihood; damped Newton with the analytic ``K x K`` Hessian finds its
+  global maximum. A linear programme (:func:`irl.ascent.recession_direction`) checks first
+  whether the data let the weights grow without bound; then the reported ``loglik`` is the
+  supremum approached and ``unbounded=True`` (use ``l2 > 0`` for a finite answer).
+* ``faithful`` solver: the authors' damped in-place sweeps (:mod:`irl.sweeps`), Q then dQ each
+  to ``max change < inner_tol`` or ``max_inner`` sweeps, warm-started across outer steps, and
+  fixed-length unit-gradient outer steps (:func:`irl.ascent.unit_step_ascent`). Where a pair has
+  several different successors, the in-place sweep's fixed point depends on alpha and the data
+  order (it is not the averaged one) and, per REFERENCE.md, may oscillate.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from irl.ascent import Evaluation, newton_concave, recession_direction, unit_step_ascent
+from irl.bellman import average_basis
+from irl.boltzmann import log_policy, loglik_grad_from_counts, step_counts
+from irl.config import IRLConfig
+from irl.demonstrations import Demonstrations
+from irl.fit_common import finish_faithful, initial_theta, result_from_ascent
+from irl.result import FitResult
+from irl.sweeps import compose_sweep, iterate_affine, make_plan
+from irl.transitions import model_free_successors
+
+
+def qavg_basis(demos: Demonstrations, gamma: float) -> np.ndarray:
+    """``D [S, A, K]`` with ``Q_avg(theta) = D @ theta`` (exact model-free fixed point)."""
+    return average_basis(model_free_successors(demos), demos.features, gamma)
+
+
+def qavg_q(theta: np.ndarray, demos: Demonstrations, config: IRLConfig) -> np.ndarray:
+    """``[S, A]`` exact Q-Avg fixed point at ``theta [K]`` (for held-out likelihoods / policies)."""
+    return qavg_basis(demos, config.gamma) @ np.asarray(theta, dtype=np.float64)
+
+
+def logit_hessian(q: np.ndarray, basis: np.ndarray, beta: float, counts: np.ndarray) -> np.ndarray:
+    """``d2L/dtheta2 [K, K]`` when ``Q = basis @ theta`` (``basis [S, A, K]``, ``counts [S, A]``).
+
+    ``-beta^2 sum_s n_s Cov_{pi(.|s)}(basis[s])`` with ``n_s`` the steps at s: negative semidefinite.
+    """
+    n_s = counts.sum(axis=1)
+    vis = n_s > 0
+    pi = np.exp(log_policy(q[vis], beta))  # [V, A]
+    b = basis[vis]  # [V, A, K]
+    mean = np.einsum("sa,sak->sk", pi, b)
+    centred = b - mean[:, None, :]
+    cov = np.einsum("sa,sak,sal->skl", pi, centred, centred)
+    return -(beta ** 2) * np.einsum("s,skl->kl", n_s[vis], cov)
+
+
+def observed_differences(basis: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """``[m, K]`` rows ``basis[s, a] - basis[s, b]`` for every observed (s, a) and every b != a."""
+    ss, aa = np.nonzero(counts > 0)
+    A = basis.shape[1]
+    rows = basis[ss, aa][:, None, :] - basis[ss]  # [n_obs, A, K]
+    keep = np.ones((ss.size, A), dtype=bool)
+    keep[np.arange(ss.size), aa] = False
+    return rows[keep]
+
+
+def _fit_exact(demos: Demonstrations, config: IRLConfig, theta: np.ndarray, progress: bool):
+    basis = qavg_basis(demos, config.gamma)
+    states, actions, _ = demos.flat()
+    counts = step_counts(states, actions, demos.n_states, demos.n_actions)
+    beta = config.beta
+
+    def evaluate(th: np.ndarray) -> Evaluation:
+        q = basis @ th
+        ll, g = loglik_grad_from_counts(q, basis, beta, counts)
+        return Evaluation(ll, g, q, hess=logit_hessian(q, basis, beta, counts))
+
+    direction = recession_direction(observed_differences(basis, counts))
+    separable = direction is not None
+    unbounded = separable and config.l2 == 0.0
+    asc = newton_concave(evaluate, theta, config, progress=progress, desc="qavg exact",
+                         ftol=1e-12 if unbounded else 0.0)
+    message = asc.message
+    if unbounded:
+        d = direction / np.linalg.norm(direction)
+        message = (f"weights unbounded: the demonstrations are separable along direction "
+                   f"{np.array2string(d, precision=3)} (L never decreases along it), so L has no "
+                   f"finite maximiser; loglik {asc.evaluation.loglik:.6g} is the supremum approached. "
+                   f"Set l2 > 0 for finite weights. ({asc.message})")
+    elif separable:
+        message = f"{asc.message}; finite only thanks to l2 = {config.l2} (data are separable)"
+    return asc, unbounded, message, {"separable": float(separable)}
+
+
+class FaithfulQAvg:
+    """The reference code's inner loops for Q-Avg, with warm-started state across outer steps."""
+
+    def __init__(self, demos: Demonstrations, config: IRLConfig):
+        self.config = config
+        self.plan = make_plan(demos)
+        S, A = demos.n_states, demos.n_actions
+        self.shape = (S, A)
+        w = np.full((S, A), 1.0 / A)
+        self.gh = compose_sweep(self.plan, w, config.alpha, config.gamma)
+        phi = demos.features.reshape(S * A, -1)
+        self.phi_in, self.phi_out = phi[self.plan.active], phi[self.plan.outside]
+        k = phi.shape[1]
+        self.x = np.zeros(self.plan.n_active)
+        self.x_out = np.zeros(self.plan.outside.size)
+        self.dx = np.zeros((self.plan.n_active, k))
+        self.dx_out = np.zeros((self.plan.outside.size, k))
+        states, actions, _ = demos.flat()
+        self.counts = step_counts(states, actions, S, A)
+        self.inner_caps = 0
+        self.sweeps = 0
+        self.last_ok = True
+
+    def assemble(self, x_in: np.ndarray, x_out: np.ndarray) -> np.ndarray:
+        S, A = self.shape
+        full = np.zeros((S * A,) + x_in.shape[1:])
+        full[self.plan.active] = x_in
+        full[self.plan.outside] = x_out
+        return full.reshape((S, A) + x_in.shape[1:])
+
+    def evaluate(self, theta: np.ndarray) -> Evaluation:
+        c = self.config
+        S, A = self.shape
+        r = (self.phi_in @ theta), (self.phi_out @ theta)
+        self.x, self.x_out, n1, ok1 = iterate_affine(self.gh, self.x, r[0], self.x_out, r[1],
+                                                     c.alpha, c.max_inner, c.inner_tol)
+        self.dx, self.dx_out, n2, ok2 = iterate_affine(self.gh, self.dx, self.phi_in, self.dx_out,
+                                                       self.phi_out, c.alpha, c.max_inner, c.inner_tol)
+        self.sweeps += n1 + n2
+        self.inner_caps += (not ok1) + (not ok2)
+        self.last_ok = ok1 and ok2
+        q = self.assemble(self.x, self.x_out)
+        dq = self.assemble(self.dx, self.dx_out)
+        ll, g = loglik_grad_from_counts(q, dq, c.beta, self.counts)
+        finite = bool(np.isfinite(ll) and np.all(np.isfinite(g)))
+        return Evaluation(ll, g, q, ok=finite, message="" if finite else "non-finite Q or dQ")
+
+
+def fit_qavg(demos: Demonstrations, config: IRLConfig, rng: np.random.Generator, *,
+             theta0: np.ndarray | None = None, progress: bool = False) -> FitResult:
+    """Fit Q-Avg weights (``config.solver`` ``"exact"`` or ``"faithful"``); see the module doc."""
+    start = time.perf_counter()
+    theta = initial_theta(demos, config, rng, theta0)
+    if config.solver == "exact":
+        asc, unbounded, message, extra = _fit_exact(demos, config, theta, progress)
+        return result_from_ascent("qavg", config, asc, time.perf_counter() - start,
+                                  unbounded=unbounded, message=message, extra=extra)
+    solver = FaithfulQAvg(demos, config)
+    asc = unit_step_ascent(solver.evaluate, theta, config, progress=progress, desc="qavg faithful")
+    return finish_faithful("qavg", config, asc, solver, start)

@@ -1,0 +1,191 @@
+"""Successor models: which next states each (s, a) pair bootstraps from.
+
+Two sources, one representation (:class:`SuccessorModel`):
+
+* **model-free** (Q-Avg, Q-SM): only the demonstrations' observed transitions. For every step
+  but each trajectory's last, ``(s_t, a_t) -> s_{t+1}``; ``P_hat(s'|s,a)`` is the relative count
+  over the pair's non-final occurrences. A pair with no observed successor (never seen, or only
+  seen as a trajectory's final step) is **terminal**: its Q is its reward, ``Q(s,a) = R(s,a)``
+  (the authors' code pulls every such pair to ``R``; see REFERENCE.md).
+* **model-based** (MLIRL): a full row-stochastic transition model ``T [S, A, S]`` (the true one,
+  or :func:`estimate_transitions` with a domain-supplied fallback). No pair is terminal.
+
+Pairs are flattened as ``i = s * A + a``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+import scipy.sparse as sp
+
+from irl.demonstrations import Demonstrations
+from irl.errors import DemonstrationError
+
+
+@dataclass(frozen=True)
+class SuccessorModel:
+    """Sparse successor distribution over flattened (s, a) pairs.
+
+    Attributes:
+        p: ``[S*A, S]`` CSR matrix; row ``s*A + a`` is ``P(s'|s,a)`` (sums to 1) or all zero for a
+            terminal pair.
+        terminal: ``[S*A]`` bool, pairs that do not bootstrap (``Q = R``).
+        n_states, n_actions: ``S``, ``A``.
+    """
+
+    p: sp.csr_matrix
+    terminal: np.ndarray
+    n_states: int
+    n_actions: int
+
+    @property
+    def n_pairs(self) -> int:
+        return self.n_states * self.n_actions
+
+    @cached_property
+    def jacobian_pattern(self) -> "JacobianPattern":
+        """Precomputed sparsity of ``I - gamma P W(c)`` (see :func:`irl.bellman.backup_jacobian`)."""
+        return JacobianPattern.of(self)
+
+
+@dataclass(frozen=True)
+class JacobianPattern:
+    """CSC structure of ``I - gamma P W(c)`` for one successor model, so that building the matrix
+    for new weights ``c`` is one gather and one segmented sum.
+
+    Entry ``e`` of ``P W`` is ``P[i, s'] * c[s', b]`` at ``(i, s'*A + b)``; ``order`` sorts the
+    diagonal entries followed by these into CSC order and ``starts`` marks where duplicates
+    (same position) begin.
+    """
+
+    p_values: np.ndarray  # [E] P[i, s'] of each P W entry
+    c_index: np.ndarray  # [E] flat index s'*A + b into c
+    order: np.ndarray  # [n + E] permutation into CSC order
+    starts: np.ndarray  # [nnz] first sorted entry of each stored position
+    indices: np.ndarray  # [nnz] CSC row indices
+    indptr: np.ndarray  # [n + 1]
+    n: int
+
+    @classmethod
+    def of(cls, succ: "SuccessorModel") -> "JacobianPattern":
+        A, n = succ.n_actions, succ.n_pairs
+        p = succ.p.tocoo()
+        rows = np.repeat(p.row, A)
+        cols = (p.col[:, None] * A + np.arange(A)[None, :]).ravel()
+        vals = np.repeat(p.data, A)
+        all_rows = np.concatenate([np.arange(n), rows])
+        all_cols = np.concatenate([np.arange(n), cols])
+        order = np.lexsort((all_rows, all_cols))
+        r_sorted, c_sorted = all_rows[order], all_cols[order]
+        new = np.ones(order.size, dtype=bool)
+        new[1:] = (r_sorted[1:] != r_sorted[:-1]) | (c_sorted[1:] != c_sorted[:-1])
+        starts = np.flatnonzero(new)
+        indptr = np.searchsorted(c_sorted[starts], np.arange(n + 1))
+        return cls(vals, cols, order, starts, r_sorted[starts].astype(np.int32),
+                   indptr.astype(np.int32), n)
+
+    def matrix(self, c: np.ndarray, gamma: float) -> sp.csc_matrix:
+        """``I - gamma P W(c)`` as CSC, ``c`` of shape ``[S, A]``."""
+        data = np.concatenate([np.ones(self.n), -gamma * self.p_values * c.ravel()[self.c_index]])
+        summed = np.add.reduceat(data[self.order], self.starts)
+        return sp.csc_matrix((summed, self.indices, self.indptr), shape=(self.n, self.n))
+
+
+def successor_counts(demos: Demonstrations) -> np.ndarray:
+    """``[S, A, S]`` counts of observed transitions ``(s_t, a_t) -> s_{t+1}``."""
+    s, a, s2 = demos.transitions()
+    counts = np.zeros((demos.n_states, demos.n_actions, demos.n_states))
+    np.add.at(counts, (s, a, s2), 1.0)
+    return counts
+
+
+def model_free_successors(demos: Demonstrations) -> SuccessorModel:
+    """The demonstrations' empirical successor model (terminal where no successor was seen)."""
+    S, A = demos.n_states, demos.n_actions
+    s, a, s2 = demos.transitions()
+    rows = s * A + a
+    m = sp.coo_matrix((np.ones(rows.size), (rows, s2)), shape=(S * A, S)).tocsr()
+    m.sum_duplicates()
+    totals = np.asarray(m.sum(axis=1)).ravel()
+    terminal = totals == 0
+    scale = np.where(terminal, 0.0, 1.0 / np.where(terminal, 1.0, totals))
+    p = sp.diags(scale) @ m
+    return SuccessorModel(p=sp.csr_matrix(p), terminal=terminal, n_states=S, n_actions=A)
+
+
+def model_successors(transitions: np.ndarray, where: str = "transitions") -> SuccessorModel:
+    """Wrap a full model ``T [S, A, S]`` (rows must be probability distributions)."""
+    t = np.asarray(transitions, dtype=np.float64)
+    if t.ndim != 3 or t.shape[0] != t.shape[2]:
+        raise DemonstrationError(f"{where}: expected shape [S, A, S], got {t.shape}")
+    if not np.all(np.isfinite(t)) or np.any(t < 0):
+        raise DemonstrationError(f"{where}: entries must be finite and non-negative")
+    sums = t.sum(axis=2)
+    bad = np.argwhere(np.abs(sums - 1.0) > 1e-8)
+    if bad.size:
+        s, a = bad[0]
+        raise DemonstrationError(f"{where}: row T[{s}, {a}, :] sums to {sums[s, a]:.6g}, expected 1")
+    S, A = t.shape[:2]
+    p = sp.csr_matrix(t.reshape(S * A, S))
+    return SuccessorModel(p=p, terminal=np.zeros(S * A, dtype=bool), n_states=S, n_actions=A)
+
+
+def estimate_transitions(demos: Demonstrations, fallback: np.ndarray | None = None) -> np.ndarray:
+    """Relative-count transition model ``T [S, A, S]`` from the demonstrations.
+
+    ``T[s, a, :]`` is the distribution of observed successors of ``(s, a)`` (every step but each
+    trajectory's last). A pair never observed with a successor takes ``fallback[s, a, :]`` when
+    ``fallback`` (``[S, A, S]``, row-stochastic) is given, else stays in place
+    (``T[s, a, s] = 1``, a self-loop). The result is row-stochastic.
+    """
+    counts = successor_counts(demos)
+    S, A = demos.n_states, demos.n_actions
+    totals = counts.sum(axis=2, keepdims=True)
+    seen = totals[..., 0] > 0
+    t = np.divide(counts, totals, out=np.zeros_like(counts), where=totals > 0)
+    if fallback is not None:
+        fb = np.asarray(fallback, dtype=np.float64)
+        if fb.shape != (S, A, S):
+            raise DemonstrationError(f"fallback transitions: expected shape {(S, A, S)}, got {fb.shape}")
+        t[~seen] = fb[~seen]
+    else:
+        ss, aa = np.nonzero(~seen)
+        t[ss, aa, ss] = 1.0
+    return t
+
+
+def reachable_states(succ: SuccessorModel, start: np.ndarray) -> np.ndarray:
+    """Sorted states reachable from ``start`` (any action, any number of steps), ``start`` included.
+
+    Q at these states depends only on Q at these states, so a fixed point can be solved on them
+    alone (:meth:`restrict`).
+    """
+    S, A = succ.n_states, succ.n_actions
+    seen = np.zeros(S, dtype=bool)
+    frontier = np.unique(np.asarray(start, dtype=np.int64))
+    seen[frontier] = True
+    indptr, indices = succ.p.indptr, succ.p.indices
+    while frontier.size:
+        rows = (frontier[:, None] * A + np.arange(A)[None, :]).ravel()
+        nxt = np.unique(np.concatenate([indices[indptr[i]:indptr[i + 1]] for i in rows]))
+        frontier = nxt[~seen[nxt]]
+        seen[frontier] = True
+    return np.flatnonzero(seen)
+
+
+def restrict(succ: SuccessorModel, states: np.ndarray) -> SuccessorModel:
+    """The successor model on ``states`` only (closed: every successor must be among them)."""
+    states = np.asarray(states, dtype=np.int64)
+    A = succ.n_actions
+    rows = (states[:, None] * A + np.arange(A)[None, :]).ravel()
+    sub = succ.p[rows]
+    local = np.full(succ.n_states, -1, dtype=np.int64)
+    local[states] = np.arange(states.size)
+    cols = local[sub.indices]
+    if np.any(cols < 0):
+        raise ValueError("restrict: the state set is not closed under the successor model")
+    p = sp.csr_matrix((sub.data, cols, sub.indptr), shape=(rows.size, states.size))
+    return SuccessorModel(p=p, terminal=succ.terminal[rows], n_states=int(states.size), n_actions=A)

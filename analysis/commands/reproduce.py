@@ -1,0 +1,44 @@
+"""``merge-irl reproduce``: the paper's Tables 1-3 on the authors' data."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from analysis.commands.learn import add_config_arguments, config_from_args
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "reproduce", help="reproduce the paper's Table 1, 2 or 3 (all four methods, N trials)",
+        description="Run MLIRL, Q-Avg, Q-SM and REIRL over N random initialisations on the authors' data and "
+                    "print the paper's table: mean ± std of each weight and of the final log-likelihood, "
+                    "Wilcoxon p-values against MLIRL, and the leave-one-trajectory-out log-likelihood.")
+    p.add_argument("--table", type=int, choices=(1, 2, 3), required=True,
+                   help="1: gridworld no noise, 2: gridworld 10%% noise, 3: NGSIM merge")
+    p.add_argument("--data", required=True,
+                   help="the authors' data directory (holding gridworld/ and merge_ngsim/)")
+    p.add_argument("--trials", type=int, help="random initialisations per method (default 30, 30, 10)")
+    add_config_arguments(p)
+    p.add_argument("--seed", type=int, default=0, help="master seed of the trials")
+    p.add_argument("--epsilon", type=float, default=None, help="REIRL L1 weight of the dual (default 0.01)")
+    p.add_argument("--no-holdout", action="store_true", help="skip the leave-one-trajectory-out evaluation")
+    p.add_argument("--json", help="also write every trial and the summary to this JSON file")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from analysis.reproduce import format_report, reproduce
+    from irl.reirl import DEFAULT_EPSILON
+
+    report = reproduce(
+        args.table, args.data, trials=args.trials, config=config_from_args(args), seed=args.seed,
+        holdout=not args.no_holdout, epsilon=DEFAULT_EPSILON if args.epsilon is None else args.epsilon,
+        progress=not args.no_progress and sys.stderr.isatty(),
+    )
+    print(format_report(report))
+    if args.json:
+        report.save_json(args.json)
+        print(f"wrote {args.json}")
+    return 0

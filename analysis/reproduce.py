@@ -1,0 +1,268 @@
+"""Reproduce the paper's Tables 1-3 on the authors' data (the API behind ``merge-irl reproduce``).
+
+Table 1: gridworld without noise; Table 2: gridworld with 10 % slip; Table 3: the 12 NGSIM merge
+trajectories. Every method (MLIRL, Q-Avg, Q-SM, REIRL) runs over N random initialisations (the
+same N trial seeds for every method, so trials pair up); the report gives mean +- std of each
+weight and of the final log-likelihood, the Wilcoxon signed-rank p-value of each method's final
+log-likelihoods against MLIRL's, and what the paper lacks: the leave-one-trajectory-out
+log-likelihood (sum over folds of the held-out trajectory's log-likelihood, one fit per fold
+with the first trial seed).
+
+Example::
+
+    from analysis.reproduce import reproduce, format_report
+    report = reproduce(1, "/path/to/railusm", trials=5)
+    print(format_report(report))
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Iterable
+
+import numpy as np
+
+from analysis.problem import Problem, load_problem
+from analysis.trials import TrialOutcome, TrialTask, config_label, run_trials, trial_seeds
+from irl.config import IRLConfig
+from irl.errors import ConfigError, DemonstrationError
+from irl.reirl import DEFAULT_EPSILON
+
+#: Row order of the paper's tables.
+METHOD_ORDER = ("mlirl", "qavg", "qsm", "reirl")
+METHOD_LABELS = {"mlirl": "MLIRL", "qavg": "Q-Avg", "qsm": "Q-SM", "reirl": "REIRL"}
+DEFAULT_TRIALS = {1: 30, 2: 30, 3: 10}
+TITLES = {
+    1: "Table 1: gridworld, no transition noise",
+    2: "Table 2: gridworld, 10% transition noise",
+    3: "Table 3: NGSIM I-80 merge, 12 trajectories",
+}
+#: The paper's reported means (theta..., final LL) per table and method, for side-by-side reading.
+PAPER = {
+    1: {"mlirl": (43.04, 33.31, 54.23, 53.93, -49.09, -36.50), "qavg": (152.33, 92.06, 1526.06, 151.51, 0.03, -29.25),
+        "qsm": (17.92, 11.96, 109.88, 17.87, 0.02, -40.39), "reirl": (0.87, 28.27, 40.43, 44.62, -3.10, -43.58)},
+    2: {"mlirl": (94.00, 86.91, 93.26, 95.35, -71.57, -45.05), "qavg": (227.72, 89.83, 157.59, 3368.95, 151.43, -40.49),
+        "qsm": (30.37, 10.98, 18.40, 225.20, 11.33, -57.35), "reirl": (0.58, 0.13, 1.96, 0.31, -0.50, -72.11)},
+    3: {"mlirl": (0.28, 0.42, 0.45, -1927.09), "qavg": (2.01, 1.86, 0.15, -1891.34),
+        "qsm": (0.41, 0.80, -0.12, -1914.56), "reirl": (0.08, 0.01, 15.89, -1920.48)},
+}
+
+
+def resolve_data_dir(data_dir: str | os.PathLike) -> Path:
+    """``data_dir`` itself if it holds ``gridworld/`` or ``merge_ngsim/``, else its ``railusm/``."""
+    d = Path(data_dir)
+    if (d / "gridworld").is_dir() or (d / "merge_ngsim").is_dir():
+        return d
+    if (d / "railusm").is_dir():
+        return d / "railusm"
+    raise DemonstrationError(f"{d}: expected the authors' data layout (gridworld/, merge_ngsim/)")
+
+
+def table_problem(table: int, data_dir: str | os.PathLike) -> Problem:
+    """The data set of ``table`` (1, 2 or 3) under ``data_dir`` (the ``railusm`` layout)."""
+    d = resolve_data_dir(data_dir)
+    if table in (1, 2):
+        noise = 0.0 if table == 1 else 0.1
+        tag = f"noise_{noise:.1f}"
+        return load_problem("gridworld", d / "gridworld" / f"{tag}_expert_trajs", noise=noise,
+                            baseline_path=d / "gridworld" / f"{tag}_baseline_trajs",
+                            name=f"gridworld {int(noise * 100)}% noise")
+    if table == 3:
+        return load_problem("merge", d / "merge_ngsim", name="NGSIM merge")
+    raise ConfigError(f"table must be 1, 2 or 3, got {table}")
+
+
+@dataclass(frozen=True)
+class MethodSummary:
+    """One row of the table.
+
+    Attributes:
+        theta_mean, theta_std: ``[K]`` over trials (sample std, ddof 1).
+        loglik_mean, loglik_std: final in-sample log-likelihood over trials.
+        p_vs_mlirl: two-sided Wilcoxon signed-rank p-value of the paired final log-likelihoods
+            against MLIRL's (NaN for MLIRL itself or too few trials; 1.0 if all differences are 0).
+        heldout_loglik: leave-one-trajectory-out log-likelihood (NaN if not run).
+        n_converged, n_unbounded: trial counts.
+        time_mean_s: mean wall time per trial.
+    """
+
+    method: str
+    theta_mean: tuple[float, ...]
+    theta_std: tuple[float, ...]
+    loglik_mean: float
+    loglik_std: float
+    p_vs_mlirl: float
+    heldout_loglik: float
+    n_trials: int
+    n_converged: int
+    n_unbounded: int
+    time_mean_s: float
+
+
+@dataclass(frozen=True)
+class ReproductionReport:
+    table: int
+    title: str
+    config: IRLConfig
+    feature_names: tuple[str, ...]
+    rows: tuple[MethodSummary, ...]
+    trials: tuple[TrialOutcome, ...]
+    holdout: tuple[TrialOutcome, ...]
+    seed: int
+
+    def to_json_dict(self) -> dict:
+        def clean(x):
+            if isinstance(x, float) and not math.isfinite(x):
+                return None
+            if isinstance(x, (list, tuple)):
+                return [clean(v) for v in x]
+            return x
+
+        return {
+            "table": self.table, "title": self.title, "settings": self.config.to_dict(), "seed": self.seed,
+            "feature_names": list(self.feature_names),
+            "rows": [{k: clean(v) for k, v in r.__dict__.items()} for r in self.rows],
+            "trials": [t.to_dict() for t in self.trials],
+            "holdout": [t.to_dict() for t in self.holdout],
+            "paper": {m: list(v) for m, v in PAPER.get(self.table, {}).items()},
+        }
+
+    def save_json(self, path: str | os.PathLike) -> Path:
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
+        try:
+            with os.fdopen(fd, "w") as f:
+                json.dump(self.to_json_dict(), f, indent=1)
+            os.replace(tmp, path)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+        return path
+
+
+def wilcoxon_p(x: np.ndarray, y: np.ndarray) -> float:
+    """Two-sided Wilcoxon signed-rank p-value of paired samples; 1.0 when every difference is
+    zero (no evidence of a difference), NaN with fewer than 2 pairs."""
+    from scipy.stats import wilcoxon
+
+    d = np.asarray(x, dtype=float) - np.asarray(y, dtype=float)
+    d = d[np.isfinite(d)]
+    if d.size < 2:
+        return float("nan")
+    if np.all(np.abs(d) <= 1e-12 * max(1.0, float(np.max(np.abs(x))))):
+        return 1.0
+    try:
+        return float(wilcoxon(d).pvalue)
+    except ValueError:
+        return float("nan")
+
+
+def summarize(method: str, outcomes: list[TrialOutcome], mlirl: list[TrialOutcome] | None,
+              holdout: list[TrialOutcome]) -> MethodSummary:
+    theta = np.array([o.theta for o in outcomes])
+    ll = np.array([o.loglik for o in outcomes])
+    ddof = 1 if len(outcomes) > 1 else 0
+    p = float("nan")
+    if mlirl is not None and method != "mlirl":
+        p = wilcoxon_p(ll, np.array([o.loglik for o in mlirl]))
+    held = float(np.sum([o.heldout_loglik for o in holdout])) if holdout else float("nan")
+    return MethodSummary(
+        method=method, theta_mean=tuple(theta.mean(axis=0)), theta_std=tuple(theta.std(axis=0, ddof=ddof)),
+        loglik_mean=float(ll.mean()), loglik_std=float(ll.std(ddof=ddof)), p_vs_mlirl=p, heldout_loglik=held,
+        n_trials=len(outcomes), n_converged=sum(o.converged for o in outcomes),
+        n_unbounded=sum(o.unbounded for o in outcomes),
+        time_mean_s=float(np.mean([o.wall_time_s for o in outcomes])),
+    )
+
+
+def reproduce(
+    table: int,
+    data_dir: str | os.PathLike,
+    *,
+    trials: int | None = None,
+    settings: str = "paper",
+    config: IRLConfig | None = None,
+    seed: int = 0,
+    methods: tuple[str, ...] = METHOD_ORDER,
+    holdout: bool = True,
+    epsilon: float = DEFAULT_EPSILON,
+    progress: bool = False,
+    map_fn: Callable[[Callable, Iterable], Iterable] = map,
+) -> ReproductionReport:
+    """Run every method of ``table`` over ``trials`` initialisations (default 30, 30, 10).
+
+    Args:
+        settings: ``paper`` or ``reference`` base settings (ignored if ``config`` is given).
+        seed: master seed; trial ``j`` uses the same derived seed for every method.
+        holdout: also run the leave-one-trajectory-out evaluation.
+        epsilon: REIRL's L1 weight.
+        map_fn: order-preserving map used by :func:`analysis.trials.run_trials`.
+    """
+    if table not in DEFAULT_TRIALS:
+        raise ConfigError(f"table must be 1, 2 or 3, got {table}")
+    if settings not in ("paper", "reference"):
+        raise ConfigError(f"settings must be 'paper' or 'reference', got {settings!r}")
+    if config is None:
+        config = IRLConfig.reference() if settings == "reference" else IRLConfig.paper()
+    n = DEFAULT_TRIALS[table] if trials is None else int(trials)
+    if n < 1:
+        raise ConfigError(f"trials must be >= 1, got {trials}")
+    problem = table_problem(table, data_dir)
+    seeds = trial_seeds(seed, n)
+    tasks = [TrialTask(m, problem, config, s, epsilon=epsilon) for m in methods for s in seeds]
+    if holdout:
+        tasks += [TrialTask(m, problem, config, seeds[0], holdout=i, epsilon=epsilon)
+                  for m in methods for i in range(problem.demos.n_trajectories)]
+    outcomes = run_trials(tasks, progress=progress, map_fn=map_fn, description=f"table {table}")
+    main = [o for o in outcomes if o.holdout is None]
+    folds = [o for o in outcomes if o.holdout is not None]
+    by_method = {m: [o for o in main if o.method == m] for m in methods}
+    mlirl = by_method.get("mlirl")
+    rows = tuple(summarize(m, by_method[m], mlirl, [o for o in folds if o.method == m]) for m in methods)
+    return ReproductionReport(table, TITLES[table], config, tuple(problem.feature_names), rows,
+                              tuple(main), tuple(folds), int(seed))
+
+
+def _pm(mean: float, std: float) -> str:
+    return f"{mean:.2f} ± {std:.2f}"
+
+
+def _p(p: float) -> str:
+    if not math.isfinite(p):
+        return "-"
+    return f"{p:.3g}"
+
+
+def format_report(report: ReproductionReport) -> str:
+    """The paper's table layout plus p-values and held-out log-likelihood, and the paper's means."""
+    k = len(report.feature_names)
+    head = ["Method"] + [f"θ_{i + 1} ({n})" for i, n in enumerate(report.feature_names)] + \
+        ["Final log-likelihood", "p vs MLIRL", "LOO held-out LL", "conv/unb", "s/trial"]
+    lines = [[METHOD_LABELS[r.method]] + [_pm(m, s) for m, s in zip(r.theta_mean, r.theta_std)]
+             + [_pm(r.loglik_mean, r.loglik_std), _p(r.p_vs_mlirl),
+                f"{r.heldout_loglik:.2f}" if math.isfinite(r.heldout_loglik) else "-",
+                f"{r.n_converged}/{r.n_unbounded}", f"{r.time_mean_s:.3f}"] for r in report.rows]
+    paper = PAPER.get(report.table, {})
+    paper_lines = [[f"paper {METHOD_LABELS[m]}"] + [f"{v:.2f}" for v in paper[m][:k]] + [f"{paper[m][k]:.2f}", "", "",
+                                                                                        "", ""]
+                   for m in METHOD_ORDER if m in paper and len(paper[m]) == k + 1]
+    table = [head] + lines + paper_lines
+    widths = [max(len(row[c]) for row in table) for c in range(len(head))]
+    n_trials = report.rows[0].n_trials if report.rows else 0
+    out = [f"{report.title} ({n_trials} trials per method; {config_label(report.config)}; seed {report.seed})"]
+    for i, row in enumerate(table):
+        out.append("  ".join(cell.ljust(w) for cell, w in zip(row, widths)).rstrip())
+        if i == 0 or (paper_lines and i == len(lines)):
+            out.append("  ".join("-" * w for w in widths))
+    out.append("Final log-likelihood: Eq. 5 sum of log pi(a|s) over the training steps, without log Pr(s_1). "
+               "p: two-sided Wilcoxon signed-rank test of paired trials vs MLIRL. LOO held-out LL: sum over "
+               "trajectories of its log-likelihood under the policy fitted on the others (first trial seed). "
+               "conv/unb: trials converged / with unbounded weights.")
+    return "\n".join(out)
+

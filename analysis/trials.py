@@ -1,0 +1,124 @@
+"""Independent IRL trials: each a pure function of (method, data, config, seed).
+
+``run_trials`` is the one place a batch of trials is executed; it takes a ``map_fn`` so a
+process pool (or Dask) can replace the built-in serial ``map`` without touching the callers.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass
+from typing import Callable, Iterable, Sequence
+
+import numpy as np
+
+from analysis.learn import fit_problem
+from analysis.problem import Problem
+from irl.boltzmann import loglik_from_counts, step_counts
+from irl.config import IRLConfig
+from irl.reirl import DEFAULT_EPSILON
+
+
+@dataclass(frozen=True)
+class TrialTask:
+    """One trial.
+
+    Attributes:
+        method: ``qavg | qsm | mlirl | reirl``.
+        problem: the data set.
+        config: IRL settings.
+        seed: seed of the trial's ``numpy.random.Generator`` (theta's initialisation; REIRL's
+            generated baseline).
+        holdout: if set, the index of the trajectory left out: the fit uses the others and the
+            outcome reports that trajectory's log-likelihood under the learned policy.
+        epsilon: REIRL's L1 weight.
+    """
+
+    method: str
+    problem: Problem
+    config: IRLConfig
+    seed: int
+    holdout: int | None = None
+    epsilon: float = DEFAULT_EPSILON
+
+
+@dataclass(frozen=True)
+class TrialOutcome:
+    """What one trial produced (plain values: picklable and JSON-friendly)."""
+
+    method: str
+    seed: int
+    holdout: int | None
+    theta: tuple[float, ...]
+    loglik: float
+    heldout_loglik: float
+    wall_time_s: float
+    converged: bool
+    unbounded: bool
+    n_iterations: int
+    message: str
+
+    def to_dict(self) -> dict:
+        d = dict(self.__dict__)
+        d["theta"] = list(self.theta)
+        for key in ("loglik", "heldout_loglik"):
+            if not math.isfinite(d[key]):
+                d[key] = None
+        return d
+
+
+def run_trial(task: TrialTask) -> TrialOutcome:
+    """Fit one trial (top-level function, so process pools can pickle it)."""
+    problem = task.problem
+    heldout = float("nan")
+    if task.holdout is not None:
+        keep = [i for i in range(problem.demos.n_trajectories) if i != task.holdout]
+        train = problem.subset(keep)
+    else:
+        train = problem
+    fit = fit_problem(train, task.method, task.config, task.seed, epsilon=task.epsilon)
+    if task.holdout is not None:
+        s = problem.demos.states[task.holdout]
+        a = problem.demos.actions[task.holdout]
+        counts = step_counts(s, a, problem.demos.n_states, problem.demos.n_actions)
+        heldout = loglik_from_counts(fit.q, task.config.beta, counts)
+    return TrialOutcome(
+        method=task.method, seed=int(task.seed), holdout=task.holdout,
+        theta=tuple(float(x) for x in np.asarray(fit.theta)), loglik=float(fit.loglik),
+        heldout_loglik=float(heldout), wall_time_s=float(fit.wall_time_s), converged=bool(fit.converged),
+        unbounded=bool(fit.unbounded), n_iterations=int(fit.n_iterations), message=fit.message,
+    )
+
+
+def run_trials(
+    tasks: Sequence[TrialTask],
+    *,
+    progress: bool = False,
+    map_fn: Callable[[Callable, Iterable], Iterable] = map,
+    description: str = "trials",
+) -> list[TrialOutcome]:
+    """Run ``tasks`` with ``map_fn(run_trial, tasks)`` (default: serial ``map``), in task order.
+
+    Args:
+        progress: show a tqdm bar on stderr (only when stderr is a terminal).
+        map_fn: any order-preserving map, e.g. ``concurrent.futures.Executor.map``.
+    """
+    results = map_fn(run_trial, tasks)
+    if progress and sys.stderr.isatty():
+        from tqdm import tqdm
+
+        results = tqdm(results, total=len(tasks), desc=description, file=sys.stderr)
+    return list(results)
+
+
+def trial_seeds(seed: int, n: int) -> list[int]:
+    """``n`` independent trial seeds derived from one master ``seed`` (same for every method, so
+    trials pair up across methods)."""
+    children = np.random.SeedSequence(int(seed)).spawn(int(n))
+    return [int(c.generate_state(1, dtype=np.uint64)[0] >> np.uint64(1)) for c in children]
+
+
+def config_label(config: IRLConfig) -> str:
+    return (f"gamma {config.gamma}, beta {config.beta}, alpha {config.alpha}, solver {config.solver}"
+            + (f", l2 {config.l2}" if config.l2 else ""))

@@ -1,0 +1,282 @@
+"""Reading and writing tabular demonstrations.
+
+Two formats:
+
+* the authors' text format (RAILUSM/Model-free-IRL ``data/``): one file per trajectory, one
+  step per line, ``state<TAB>action<TAB>`` (any whitespace separates the two integers; blank
+  lines are ignored). A directory is read in natural file-name order (``traj_2`` before
+  ``traj_10``). The files carry no features: the caller passes ``features [S, A, K]``.
+* a generic ``.npz`` with arrays ``features [S, A, K]`` (float), ``states [N]``, ``actions [N]``
+  (integers; all trajectories concatenated), ``offsets [n_traj + 1]`` (trajectory ``i`` is
+  ``states[offsets[i]:offsets[i+1]]``) and optionally ``feature_names [K]`` (strings) and
+  ``names [n_traj]`` (trajectory names).
+
+Every malformed input raises :class:`irl.errors.DemonstrationError` naming the file (and the
+line or array) at fault and what was expected.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from irl.demonstrations import Demonstrations
+from irl.errors import DemonstrationError
+
+_DIGITS = re.compile(r"(\d+)")
+
+
+def natural_key(name: str) -> tuple:
+    """Sort key putting ``traj_2`` before ``traj_10``."""
+    return tuple(int(p) if p.isdigit() else p for p in _DIGITS.split(name))
+
+
+def trajectory_files(path: str | os.PathLike) -> list[Path]:
+    """The trajectory files a text-format path stands for, in natural order.
+
+    A file stands for itself; a directory for its ``*.txt`` files.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise DemonstrationError(f"{path}: no such file or directory")
+    if path.is_file():
+        return [path]
+    files = sorted((p for p in path.iterdir() if p.is_file() and p.suffix == ".txt"),
+                   key=lambda p: natural_key(p.name))
+    if not files:
+        raise DemonstrationError(f"{path}: directory holds no trajectory files (*.txt)")
+    return files
+
+
+def _parse_int(token: str, what: str, where: str, limit: int) -> int:
+    try:
+        value = int(token)
+    except ValueError:
+        raise DemonstrationError(f"{where}: {what} {token!r} is not an integer") from None
+    if not 0 <= value < limit:
+        raise DemonstrationError(f"{where}: {what} {value} out of range [0, {limit})")
+    return value
+
+
+def read_text_trajectory(path: Path, n_states: int, n_actions: int) -> tuple[np.ndarray, np.ndarray]:
+    """One text-format trajectory: ``states [T]``, ``actions [T]`` (int64)."""
+    try:
+        text = path.read_text()
+    except UnicodeDecodeError:
+        raise DemonstrationError(f"{path}: not a text file") from None
+    states: list[int] = []
+    actions: list[int] = []
+    for lineno, line in enumerate(text.splitlines(), start=1):
+        tokens = line.split()
+        if not tokens:
+            continue
+        where = f"{path}:{lineno}"
+        if len(tokens) != 2:
+            raise DemonstrationError(
+                f"{where}: expected 2 columns 'state<TAB>action', got {len(tokens)}: {line.strip()!r}"
+            )
+        states.append(_parse_int(tokens[0], "state", where, n_states))
+        actions.append(_parse_int(tokens[1], "action", where, n_actions))
+    if not states:
+        raise DemonstrationError(f"{path}: empty trajectory file (no 'state<TAB>action' lines)")
+    return np.asarray(states, dtype=np.int64), np.asarray(actions, dtype=np.int64)
+
+
+def load_railusm(
+    path_or_dir: str | os.PathLike, *, n_states: int, n_actions: int, features: np.ndarray
+) -> Demonstrations:
+    """Load the authors' text format.
+
+    Args:
+        path_or_dir: one trajectory file, or a directory of ``*.txt`` trajectory files.
+        n_states, n_actions: ``S``, ``A``; states/actions outside ``[0, S)``/``[0, A)`` are errors.
+        features: ``[S, A, K]`` reward features.
+
+    Returns:
+        Demonstrations with one trajectory per file, named by file name.
+    """
+    features = np.asarray(features, dtype=np.float64)
+    if features.ndim != 3 or features.shape[:2] != (n_states, n_actions):
+        raise DemonstrationError(
+            f"{path_or_dir}: features must have shape [S={n_states}, A={n_actions}, K], got {features.shape}"
+        )
+    files = trajectory_files(path_or_dir)
+    pairs = [read_text_trajectory(f, n_states, n_actions) for f in files]
+    return Demonstrations(
+        states=tuple(p[0] for p in pairs),
+        actions=tuple(p[1] for p in pairs),
+        features=features,
+        n_states=n_states,
+        n_actions=n_actions,
+        source=str(path_or_dir),
+        names=tuple(f.name for f in files),
+    )
+
+
+def save_railusm(demos: Demonstrations, directory: str | os.PathLike, prefix: str = "traj_") -> list[Path]:
+    """Write one ``state<TAB>action<TAB>`` file per trajectory (``prefix{i}.txt``)."""
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    out = []
+    for i, (s, a) in enumerate(zip(demos.states, demos.actions)):
+        text = "".join(f"{int(x)}\t{int(y)}\t\n" for x, y in zip(s, a))
+        out.append(_atomic_write_text(directory / f"{prefix}{i}.txt", text))
+    return out
+
+
+def _atomic_write_text(path: Path, text: str) -> Path:
+    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+_REQUIRED = ("features", "states", "actions", "offsets")
+
+
+def _int_array(arr: np.ndarray, name: str, where: str) -> np.ndarray:
+    if arr.ndim != 1:
+        raise DemonstrationError(f"{where}: array {name!r} must be 1-D, got shape {arr.shape}")
+    if np.issubdtype(arr.dtype, np.integer):
+        if arr.dtype == np.uint64 and arr.size and int(arr.max()) > 2**62:
+            j = int(np.argmax(arr))
+            raise DemonstrationError(f"{where}: array {name!r} entry {j} = {arr[j]} is out of range")
+        return arr.astype(np.int64)
+    if np.issubdtype(arr.dtype, np.floating):
+        with np.errstate(invalid="ignore"):
+            bad = np.flatnonzero(~np.isfinite(arr) | (arr != np.round(arr)) | (np.abs(arr) > 2.0**62))
+        if bad.size:
+            raise DemonstrationError(
+                f"{where}: array {name!r} entry {bad[0]} = {arr[bad[0]]} is not an integer"
+            )
+        return arr.astype(np.int64)
+    raise DemonstrationError(f"{where}: array {name!r} must hold integers, got dtype {arr.dtype}")
+
+
+def load_npz(path: str | os.PathLike) -> Demonstrations:
+    """Load the generic ``.npz`` format (see the module docstring)."""
+    path = Path(path)
+    where = str(path)
+    if not path.is_file():
+        raise DemonstrationError(f"{where}: no such file")
+    try:
+        loaded = np.load(path, allow_pickle=False)
+    except Exception as e:  # numpy/zipfile raise many types for a corrupt file
+        raise DemonstrationError(f"{where}: not a readable .npz file ({type(e).__name__}: {e})") from None
+    if not isinstance(loaded, np.lib.npyio.NpzFile):
+        raise DemonstrationError(f"{where}: holds a single .npy array, expected an .npz archive of named arrays")
+    try:
+        with loaded as data:
+            arrays = {k: data[k] for k in data.files}
+    except Exception as e:  # corrupt members: bad CRC, truncated data, unsupported compression
+        raise DemonstrationError(f"{where}: not a readable .npz file ({type(e).__name__}: {e})") from None
+    missing = [k for k in _REQUIRED if k not in arrays]
+    if missing:
+        raise DemonstrationError(f"{where}: missing array(s) {missing}; expected {list(_REQUIRED)}")
+    features = arrays["features"]
+    if features.ndim != 3 or 0 in features.shape:
+        raise DemonstrationError(f"{where}: array 'features' must have shape [S, A, K], got {features.shape}")
+    if not np.issubdtype(features.dtype, np.number) or np.issubdtype(features.dtype, np.complexfloating):
+        raise DemonstrationError(f"{where}: array 'features' must be real numbers, got dtype {features.dtype}")
+    features = features.astype(np.float64)
+    bad = np.argwhere(~np.isfinite(features))
+    if bad.size:
+        s, a, k = bad[0]
+        raise DemonstrationError(f"{where}: array 'features' entry [{s}, {a}, {k}] is {features[s, a, k]}")
+    n_states, n_actions, n_feat = features.shape
+    states = _int_array(arrays["states"], "states", where)
+    actions = _int_array(arrays["actions"], "actions", where)
+    offsets = _int_array(arrays["offsets"], "offsets", where)
+    if states.shape != actions.shape:
+        raise DemonstrationError(
+            f"{where}: arrays 'states' {states.shape} and 'actions' {actions.shape} differ in length"
+        )
+    if offsets.size < 2:
+        raise DemonstrationError(f"{where}: array 'offsets' needs at least 2 entries [0, ..., N]")
+    if offsets[0] != 0 or offsets[-1] != states.size:
+        raise DemonstrationError(
+            f"{where}: array 'offsets' must start at 0 and end at N = {states.size}, "
+            f"got {offsets[0]} ... {offsets[-1]}"
+        )
+    steps = np.diff(offsets)
+    if np.any(steps < 0):
+        i = int(np.flatnonzero(steps < 0)[0])
+        raise DemonstrationError(f"{where}: array 'offsets' not monotone at entry {i + 1}")
+    if np.any(steps == 0):
+        i = int(np.flatnonzero(steps == 0)[0])
+        raise DemonstrationError(f"{where}: trajectory {i} is empty (offsets[{i}] == offsets[{i + 1}])")
+    for arr, kind, n in ((states, "state", n_states), (actions, "action", n_actions)):
+        bad_i = np.flatnonzero((arr < 0) | (arr >= n))
+        if bad_i.size:
+            j = int(bad_i[0])
+            traj = int(np.searchsorted(offsets, j, side="right") - 1)
+            raise DemonstrationError(
+                f"{where}: array '{kind}s' entry {j} (trajectory {traj}, step {j - offsets[traj]}): "
+                f"{kind} {arr[j]} out of range [0, {n})"
+            )
+    names: tuple[str, ...] = ()
+    if "names" in arrays:
+        raw = arrays["names"]
+        if raw.ndim != 1 or raw.size != offsets.size - 1:
+            raise DemonstrationError(
+                f"{where}: array 'names' must hold {offsets.size - 1} trajectory names, got shape {raw.shape}"
+            )
+        names = tuple(str(x) for x in raw)
+    if "feature_names" in arrays:
+        fn = arrays["feature_names"]
+        if fn.ndim != 1 or fn.size != n_feat:
+            raise DemonstrationError(
+                f"{where}: array 'feature_names' must hold K = {n_feat} names, got shape {fn.shape}"
+            )
+    return Demonstrations(
+        states=tuple(states[offsets[i]:offsets[i + 1]] for i in range(offsets.size - 1)),
+        actions=tuple(actions[offsets[i]:offsets[i + 1]] for i in range(offsets.size - 1)),
+        features=features,
+        n_states=n_states,
+        n_actions=n_actions,
+        source=where,
+        names=names,
+    )
+
+
+def load_feature_names(path: str | os.PathLike) -> tuple[str, ...]:
+    """The optional ``feature_names`` array of a ``.npz`` demonstrations file (empty if absent)."""
+    with np.load(Path(path), allow_pickle=False) as data:
+        if "feature_names" not in data.files:
+            return ()
+        return tuple(str(x) for x in data["feature_names"])
+
+
+def save_npz(demos: Demonstrations, path: str | os.PathLike, feature_names: tuple[str, ...] = ()) -> Path:
+    """Write ``demos`` in the generic ``.npz`` format, atomically."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    states, actions, offsets = demos.flat()
+    arrays = {"features": np.asarray(demos.features), "states": states, "actions": actions,
+              "offsets": offsets}
+    if feature_names:
+        if len(feature_names) != demos.n_features:
+            raise DemonstrationError(
+                f"{path}: {len(feature_names)} feature names for K = {demos.n_features} features"
+            )
+        arrays["feature_names"] = np.asarray(feature_names, dtype=str)
+    if demos.names:
+        arrays["names"] = np.asarray(demos.names, dtype=str)
+    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            np.savez(f, **arrays)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path

@@ -1,0 +1,263 @@
+"""Relative-entropy IRL (Boularias, Kober and Peters 2011) through its convex dual.
+
+With baseline trajectories ``i = 1..n`` sampled by a uniform-random policy, discounted feature
+counts ``f_i = sum_t gamma^t phi(s_t, a_t)`` (``[n, K]``), importance weights ``w_i`` and the
+experts' mean counts ``f_E`` (``[K]``), the learned weights solve
+
+    min_theta  log sum_i w_i exp(theta . f_i)  -  theta . f_E  +  eps ||theta||_1 .
+
+Importance weights: the sampling policy is uniform, so the ratio between the trajectory
+distribution under the sampling policy and under the reference (uniform) policy is the same for
+every trajectory: the transition probabilities cancel and ``w_i = 1/n``.
+
+Padding (paper section 4.1): every trajectory, expert or baseline, is prolonged to the length
+of the longest one by repeating its last (state, action) pair; a caller may pass ``pad_step``
+instead (for the merge domain, constant-velocity motion: see ``irl.merge_mdp``).
+
+The problem is convex with one optimum: ``theta0`` and ``rng`` do not change the solution
+(``rng`` only draws the baseline trajectories when none are given). The final log-likelihood
+(Eq. 5 sum) is computed by solving the MDP for the learned theta with ``irl.mlirl.solve_q``
+under ``transitions``.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Callable
+
+import numpy as np
+
+from irl.boltzmann import loglik_from_counts, step_counts
+from irl.config import IRLConfig
+from irl.demonstrations import Demonstrations
+from irl.errors import ConfigError, DemonstrationError, IRLError
+from irl.result import FitResult
+
+#: Default L1 weight ``eps`` of the dual.
+DEFAULT_EPSILON = 0.01
+#: Default number of generated baseline trajectories.
+DEFAULT_N_BASELINE = 100
+#: Box bound on |theta_k| applied when the dual is unbounded below.
+THETA_CAP = 1e4
+
+PadStep = Callable[[int], tuple[int, int]]
+
+
+class REIRLError(IRLError):
+    """The REIRL dual could not be solved."""
+
+
+def pad_trajectories(
+    states: tuple[np.ndarray, ...], actions: tuple[np.ndarray, ...], length: int,
+    pad_step: PadStep | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Prolong every trajectory to ``length`` steps.
+
+    Args:
+        states, actions: ragged ``[T_i]`` arrays, ``T_i <= length``.
+        pad_step: ``last_state -> (next_state, action)`` for each added step; ``None`` repeats the
+            last (state, action) pair (the paper's gridworld rule).
+
+    Returns:
+        ``states [n, length]``, ``actions [n, length]``.
+    """
+    n = len(states)
+    out_s = np.empty((n, length), dtype=np.int64)
+    out_a = np.empty((n, length), dtype=np.int64)
+    for i, (s, a) in enumerate(zip(states, actions)):
+        t = s.size
+        if t > length:
+            raise DemonstrationError(f"trajectory {i} has {t} steps, more than the padding length {length}")
+        out_s[i, :t] = s
+        out_a[i, :t] = a
+        if pad_step is None:
+            out_s[i, t:] = s[-1]
+            out_a[i, t:] = a[-1]
+        else:
+            cur = int(s[-1])
+            for k in range(t, length):
+                cur, act = pad_step(cur)
+                out_s[i, k], out_a[i, k] = cur, act
+    return out_s, out_a
+
+
+def discounted_counts(states: np.ndarray, actions: np.ndarray, features: np.ndarray, gamma: float) -> np.ndarray:
+    """``[n, K]`` ``sum_t gamma^t phi(s_t, a_t)`` of padded ``states, actions [n, T]``."""
+    disc = gamma ** np.arange(states.shape[1])
+    return np.einsum("t,ntk->nk", disc, features[states, actions])
+
+
+def dual_objective(theta: np.ndarray, f_base: np.ndarray, f_expert: np.ndarray, log_w: np.ndarray, eps: float) -> float:
+    """The dual's value at ``theta [K]`` (``f_base [n, K]``, ``f_expert [K]``, ``log_w [n]``)."""
+    from scipy.special import logsumexp
+
+    return float(logsumexp(f_base @ theta + log_w) - f_expert @ theta + eps * np.abs(theta).sum())
+
+
+def dual_smooth_grad(theta: np.ndarray, f_base: np.ndarray, f_expert: np.ndarray, log_w: np.ndarray) -> np.ndarray:
+    """``[K]`` gradient of the smooth part ``log sum_i w_i exp(theta . f_i) - theta . f_E``."""
+    from scipy.special import softmax
+
+    p = softmax(f_base @ theta + log_w)
+    return f_base.T @ p - f_expert
+
+
+def solve_dual(
+    f_base: np.ndarray, f_expert: np.ndarray, log_w: np.ndarray, eps: float, theta_cap: float | None = None
+) -> tuple[np.ndarray, str, float]:
+    """Minimise the dual with cvxpy (Clarabel, then SCS if Clarabel fails).
+
+    Args:
+        f_base: ``[n, K]`` baseline feature counts; f_expert: ``[K]``; log_w: ``[n]`` log weights.
+        eps: L1 weight (>= 0).
+        theta_cap: if given, constrain ``|theta_k| <= theta_cap``.
+
+    Returns:
+        ``(theta [K], cvxpy status, optimal value)``; status ``"unbounded"`` when the dual has no
+        minimiser (only possible without ``theta_cap``).
+    """
+    import cvxpy as cp
+
+    k = f_base.shape[1]
+    theta = cp.Variable(k)
+    objective = cp.log_sum_exp(f_base @ theta + log_w) - f_expert @ theta + eps * cp.norm1(theta)
+    constraints = [cp.abs(theta) <= theta_cap] if theta_cap is not None else []
+    problem = cp.Problem(cp.Minimize(objective), constraints)
+    status = "solver_error"
+    for solver in ("CLARABEL", "SCS"):
+        try:
+            problem.solve(solver=solver)
+        except cp.error.SolverError:
+            continue
+        status = str(problem.status)
+        if status in (cp.OPTIMAL, cp.UNBOUNDED, cp.UNBOUNDED_INACCURATE, cp.OPTIMAL_INACCURATE):
+            break
+    if status in (cp.UNBOUNDED, cp.UNBOUNDED_INACCURATE):
+        return np.full(k, np.nan), "unbounded", -np.inf
+    if theta.value is None:
+        raise REIRLError(f"REIRL dual not solved by Clarabel or SCS (status {status})")
+    return np.asarray(theta.value, dtype=np.float64), status, float(problem.value)
+
+
+def uniform_baseline(
+    demos: Demonstrations, transitions: np.ndarray, n: int, length: int, rng: np.random.Generator
+) -> Demonstrations:
+    """``n`` uniform-random-policy trajectories of ``length`` steps under ``transitions [S, A, S]``,
+    each starting in a uniformly drawn expert start state."""
+    starts = np.array([s[0] for s in demos.states])
+    cum = np.cumsum(transitions, axis=2)
+    states, actions = [], []
+    for _ in range(int(n)):
+        s = int(rng.choice(starts))
+        ss = np.empty(length, dtype=np.int64)
+        aa = rng.integers(demos.n_actions, size=length)
+        for t in range(length):
+            ss[t] = s
+            row = cum[s, aa[t]]
+            s = int(min(np.searchsorted(row, rng.random() * row[-1], side="right"), demos.n_states - 1))
+        states.append(ss)
+        actions.append(aa.astype(np.int64))
+    return Demonstrations(tuple(states), tuple(actions), demos.features, demos.n_states, demos.n_actions,
+                          source="uniform-random baseline")
+
+
+def fit_reirl(
+    demos: Demonstrations,
+    config: IRLConfig,
+    rng: np.random.Generator,
+    *,
+    baseline: Demonstrations | None = None,
+    transitions: np.ndarray | None = None,
+    theta0: np.ndarray | None = None,
+    epsilon: float = DEFAULT_EPSILON,
+    n_baseline: int = DEFAULT_N_BASELINE,
+    pad_step: PadStep | None = None,
+    theta_cap: float = THETA_CAP,
+    progress: bool = False,
+) -> FitResult:
+    """Fit REIRL weights and evaluate them by the Eq. 5 log-likelihood of the solved MDP.
+
+    Args:
+        demos: expert demonstrations (features ``[S, A, K]``).
+        config: ``gamma`` discounts the feature counts and the MDP; ``beta`` the final policy.
+        rng: draws the baseline trajectories when ``baseline`` is None.
+        baseline: non-expert trajectories over the same MDP; default: ``n_baseline`` uniform-
+            random trajectories under ``transitions``, as long as the longest expert trajectory.
+        transitions: ``[S, A, S]`` model, for generating the baseline and for the final
+            log-likelihood; default: estimated from ``demos`` (``irl.transitions``).
+        theta0: ignored (the dual is convex with one optimum); accepted for the shared interface.
+        epsilon: L1 weight ``eps`` of the dual.
+        pad_step: how trajectories are prolonged (see ``pad_trajectories``).
+        theta_cap: bound on ``|theta_k|`` used only when the dual is unbounded below.
+        progress: unused (a single convex solve).
+
+    Returns:
+        FitResult with ``loglik_trace``/``theta_trace`` of length 1; ``unbounded`` when the dual
+        has no minimiser (theta is then the minimiser within ``|theta_k| <= theta_cap``).
+    """
+    del theta0, progress
+    start = time.perf_counter()
+    if not epsilon >= 0:
+        raise ConfigError(f"REIRL epsilon must be >= 0, got {epsilon}")
+    if not theta_cap > 0:
+        raise ConfigError(f"REIRL theta_cap must be positive, got {theta_cap}")
+    if transitions is None:
+        from irl.transitions import estimate_transitions
+
+        transitions = estimate_transitions(demos)
+    transitions = np.asarray(transitions, dtype=np.float64)
+    if transitions.shape != (demos.n_states, demos.n_actions, demos.n_states):
+        raise ConfigError(
+            f"transitions must have shape [S, A, S] = {(demos.n_states, demos.n_actions, demos.n_states)}, "
+            f"got {transitions.shape}"
+        )
+    longest = max(s.size for s in demos.states)
+    if baseline is None:
+        if int(n_baseline) < 1:
+            raise ConfigError(f"n_baseline must be >= 1, got {n_baseline}")
+        baseline = uniform_baseline(demos, transitions, int(n_baseline), longest, rng)
+    elif (baseline.n_states, baseline.n_actions) != (demos.n_states, demos.n_actions):
+        raise DemonstrationError(
+            f"baseline {baseline.source}: {baseline.n_states} states x {baseline.n_actions} actions, "
+            f"experts have {demos.n_states} x {demos.n_actions}"
+        )
+    length = max(longest, max(s.size for s in baseline.states))
+    phi = np.asarray(demos.features)
+    es, ea = pad_trajectories(demos.states, demos.actions, length, pad_step)
+    bs, ba = pad_trajectories(baseline.states, baseline.actions, length, pad_step)
+    f_expert = discounted_counts(es, ea, phi, config.gamma).mean(axis=0)
+    f_base = discounted_counts(bs, ba, phi, config.gamma)
+    log_w = np.full(f_base.shape[0], -np.log(f_base.shape[0]))
+    theta, status, value = solve_dual(f_base, f_expert, log_w, epsilon)
+    unbounded = status == "unbounded"
+    if unbounded:
+        theta, status, value = solve_dual(f_base, f_expert, log_w, epsilon, theta_cap=theta_cap)
+    from irl.mlirl import solve_q
+
+    message = f"cvxpy status {status}; dual value {value:.6g}"
+    converged = status == "optimal"
+    try:
+        q = np.asarray(solve_q(theta, phi, transitions, config))
+    except IRLError as e:  # the MDP for this theta has no computable Boltzmann fixed point
+        q = phi @ theta
+        converged = False
+        message += f"; solving the MDP for the learned theta failed ({e}): loglik uses Q = R"
+    ll = loglik_from_counts(q, config.beta, step_counts(*demos.flat()[:2], demos.n_states, demos.n_actions))
+    if unbounded:
+        message += (f"; the dual is unbounded below (experts' feature counts outside what eps={epsilon} "
+                    f"allows): theta bounded by |theta_k| <= {theta_cap:g}")
+    return FitResult(
+        method="reirl",
+        theta=theta,
+        loglik=ll,
+        q=q,
+        config=config,
+        loglik_trace=np.array([ll]),
+        theta_trace=theta[None, :].copy(),
+        converged=converged,
+        message=message,
+        wall_time_s=time.perf_counter() - start,
+        unbounded=unbounded,
+        extra={"dual_value": value, "epsilon": float(epsilon), "n_baseline": float(f_base.shape[0]),
+               "pad_length": float(length), "init_independent": 1.0},
+    )

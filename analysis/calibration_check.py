@@ -1,0 +1,185 @@
+"""Calibration check: the ``i80`` scenario's simulated traffic against the real NGSIM pairs.
+
+:func:`run_calibration_check` runs the scenario with its car drivers replaced by the calibrated
+driver distribution (:func:`scenarios.calibration.driver_members` of the params file; or with
+the scenario's own drivers, ``keep_drivers=True``: the ``i80`` preset already holds a
+calibrated distribution), takes the
+congested car-following states of the simulation (main lanes, a leader within 300 ft, speed
+between 1 and 45 ft/s) and of the real pairs (same filter), and compares per variable
+
+* speed (ft/s), bumper-to-bumper spacing (ft), time headway (front-to-front / speed, s):
+  the two-sample Kolmogorov-Smirnov statistic and the Jensen-Shannon divergence (base 2) of
+  histograms on common bins;
+
+plus the spacing RMSE of the calibrated population vs SUMO's defaults on the pairs
+(:func:`scenarios.calibration.evaluate`). :func:`compare_distributions` is the comparison alone,
+for any simulated table.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from scenarios.calibration import CarFollowingPair, evaluate, load_pairs, load_result
+from scenarios.calibration.pairs import M_PER_FT
+
+#: Congested car following: speed range (ft/s) and largest spacing (ft) kept.
+SPEED_RANGE_FT_S = (1.0, 45.0)
+MAX_SPACING_FT = 300.0
+HIST_BINS = 40
+VARIABLES = ("speed_ft_s", "spacing_ft", "time_headway_s")
+
+
+@dataclass(frozen=True)
+class VariableComparison:
+    """One variable: sample sizes, medians, KS statistic and Jensen-Shannon divergence."""
+
+    name: str
+    n_sim: int
+    n_real: int
+    median_sim: float
+    median_real: float
+    ks: float
+    js: float
+
+
+@dataclass(frozen=True)
+class CalibrationCheck:
+    """The report."""
+
+    scenario: str
+    seed: int
+    duration_s: float
+    model: str
+    variables: tuple[VariableComparison, ...]
+    median_rmse_m: float
+    default_median_rmse_m: float
+    mean_rmse_m: float
+    default_mean_rmse_m: float
+    n_pairs: int
+
+    def to_json_dict(self) -> dict:
+        d = asdict(self)
+        d["variables"] = {v.name: {k: x for k, x in asdict(v).items() if k != "name"} for v in self.variables}
+        return d
+
+    def to_markdown(self) -> str:
+        lines = [
+            f"# Calibration check: scenario `{self.scenario}` (seed {self.seed}, {self.duration_s:g} s) vs real NGSIM I-80 pairs",
+            "",
+            "Congested car following (main lanes, leader within 300 ft, 1-45 ft/s).",
+            "",
+            "| variable | n sim | n real | median sim | median real | KS | Jensen-Shannon |",
+            "|---|---:|---:|---:|---:|---:|---:|",
+        ]
+        for v in self.variables:
+            lines.append(f"| {v.name} | {v.n_sim} | {v.n_real} | {v.median_sim:.2f} | {v.median_real:.2f} | "
+                         f"{v.ks:.3f} | {v.js:.3f} |")
+        lines += [
+            "",
+            f"Spacing RMSE on {self.n_pairs} real pairs ({self.model}): calibrated median "
+            f"{self.median_rmse_m:.2f} m (mean {self.mean_rmse_m:.2f}) vs SUMO defaults median "
+            f"{self.default_median_rmse_m:.2f} m (mean {self.default_mean_rmse_m:.2f}).",
+            "",
+        ]
+        return "\n".join(lines)
+
+    def write_markdown(self, path: str | os.PathLike) -> Path:
+        path = Path(path)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        with os.fdopen(fd, "w") as fh:
+            fh.write(self.to_markdown())
+        os.replace(tmp, path)
+        return path
+
+
+def _congested(speed: np.ndarray, spacing: np.ndarray, headway_front: np.ndarray) -> dict[str, np.ndarray]:
+    ok = (speed >= SPEED_RANGE_FT_S[0]) & (speed <= SPEED_RANGE_FT_S[1]) & (spacing > 0) & (spacing <= MAX_SPACING_FT)
+    return {"speed_ft_s": speed[ok], "spacing_ft": spacing[ok], "time_headway_s": headway_front[ok] / speed[ok]}
+
+
+def table_states(table: pd.DataFrame) -> dict[str, np.ndarray]:
+    """Congested following states of a trajectory table (NGSIM units); float64[n] per variable."""
+    t = table[(table["Lane_ID"] <= 6) & (table["Preceding"] != 0)]
+    lengths = table.drop_duplicates("Vehicle_ID").set_index("Vehicle_ID")["v_Length"]
+    lead_len = t["Preceding"].map(lengths).to_numpy(dtype=float)
+    front = t["Space_Headway"].to_numpy(dtype=float)
+    spacing = front - np.nan_to_num(lead_len, nan=np.inf)
+    return _congested(t["v_Vel"].to_numpy(dtype=float), spacing, front)
+
+
+def pair_states(pairs: list[CarFollowingPair]) -> dict[str, np.ndarray]:
+    """The same variables from the real pairs (converted back to feet)."""
+    v = np.concatenate([p.v_follower for p in pairs]) / M_PER_FT
+    s = np.concatenate([p.spacing for p in pairs]) / M_PER_FT
+    front = np.concatenate([p.spacing + p.leader_length for p in pairs]) / M_PER_FT
+    return _congested(v, s, front)
+
+
+def _js(a: np.ndarray, b: np.ndarray) -> float:
+    lo, hi = np.quantile(np.concatenate([a, b]), [0.005, 0.995])
+    edges = np.linspace(lo, hi, HIST_BINS + 1)
+    p = np.histogram(np.clip(a, lo, hi), edges)[0].astype(float) + 1e-12
+    q = np.histogram(np.clip(b, lo, hi), edges)[0].astype(float) + 1e-12
+    p, q = p / p.sum(), q / q.sum()
+    m = 0.5 * (p + q)
+    return float(0.5 * np.sum(p * np.log2(p / m)) + 0.5 * np.sum(q * np.log2(q / m)))
+
+
+def compare_distributions(sim: dict[str, np.ndarray], real: dict[str, np.ndarray]) -> tuple[VariableComparison, ...]:
+    from scipy.stats import ks_2samp
+
+    out = []
+    for name in VARIABLES:
+        a, b = sim[name], real[name]
+        if len(a) == 0 or len(b) == 0:
+            out.append(VariableComparison(name, len(a), len(b), float("nan"), float("nan"), float("nan"), float("nan")))
+            continue
+        out.append(VariableComparison(
+            name=name, n_sim=len(a), n_real=len(b), median_sim=float(np.median(a)), median_real=float(np.median(b)),
+            ks=float(ks_2samp(a, b).statistic), js=_js(a, b),
+        ))
+    return tuple(out)
+
+
+def calibrated_spec(spec, result, *, n_members: int = 8, seed: int = 0):
+    """``spec`` with its car vTypes replaced by the calibrated driver distribution."""
+    from scenarios.calibration.vtypes import driver_members, to_vtype_specs
+
+    members = driver_members(result, n_members, seed=seed) if result.spread else driver_members(result, 1)
+    cars = to_vtype_specs(members, spec.drivers.car[0], result.model)
+    return replace(spec, drivers=replace(spec.drivers, car=cars))
+
+
+def run_calibration_check(
+    *, params_path: str | os.PathLike, pairs_dir: str | os.PathLike, scenario: str = "i80",
+    duration_s: float = 300.0, seed: int = 0, table: pd.DataFrame | None = None,
+    keep_drivers: bool = False,
+) -> CalibrationCheck:
+    """Simulate ``scenario`` with the calibrated drivers (the scenario's own with
+    ``keep_drivers``; nothing is simulated when ``table`` is given) and compare."""
+    from scenarios.loader import load_scenario
+
+    result = load_result(params_path)
+    pairs = list(load_pairs(pairs_dir))
+    spec = load_scenario(scenario)
+    if table is None:
+        from sim.run import run_scenario
+
+        if not keep_drivers:
+            spec = calibrated_spec(spec, result, seed=seed)
+        table = run_scenario(spec, seed=seed, duration_s=duration_s).table
+    ev = evaluate(result.population, pairs, model=result.model)
+    return CalibrationCheck(
+        scenario=str(scenario), seed=seed, duration_s=duration_s, model=result.model,
+        variables=compare_distributions(table_states(table), pair_states(pairs)),
+        median_rmse_m=ev.median_rmse_m, default_median_rmse_m=ev.default_median_rmse_m,
+        mean_rmse_m=ev.mean_rmse_m, default_mean_rmse_m=ev.default_mean_rmse_m, n_pairs=len(pairs),
+    )

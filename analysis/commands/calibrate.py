@@ -1,0 +1,119 @@
+"""``merge-irl calibrate``: fit SUMO car-following parameters to real leader-follower pairs.
+
+* ``calibrate fit --pairs DIR --out params.toml [--model idm|krauss]``
+* ``calibrate evaluate --params FILE --pairs DIR [--json]``
+* ``calibrate check --params FILE --pairs DIR [--out report.md] [--json]``
+
+Thin layer over :mod:`scenarios.calibration` and :mod:`analysis.calibration_check`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "calibrate", help="fit / evaluate / check car-following parameters on real NGSIM pairs",
+        description="Calibrate SUMO car-following models (IDM, Krauss) on real leader-follower pairs: "
+                    "the leader is replayed, the follower simulated, the spacing error minimised.",
+    )
+    sub = p.add_subparsers(dest="calibrate_command", metavar="ACTION")
+    sub.required = True
+
+    f = sub.add_parser("fit", help="population + per-pair fits, written as TOML")
+    f.add_argument("--pairs", required=True, metavar="DIR", help="folder of pair CSVs (or with a train/ subfolder)")
+    f.add_argument("--out", required=True, metavar="FILE", help="output params TOML")
+    f.add_argument("--model", choices=("idm", "krauss"), default="idm")
+    f.add_argument("--no-per-pair", action="store_true", help="population fit only (faster, no spread)")
+    f.add_argument("--holdout", type=float, default=0.0, metavar="FRACTION",
+                   help="leave this share of followers out of the fit (split by follower; see --seed)")
+    f.add_argument("--seed", type=int, default=0, help="seed of the held-out split (default 0)")
+    f.add_argument("--limit", type=int, default=None, metavar="N", help="use only the first N pair files")
+    f.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    f.set_defaults(func=run_fit)
+
+    e = sub.add_parser("evaluate", help="per-pair and median spacing RMSE vs SUMO's defaults")
+    e.add_argument("--params", required=True, metavar="FILE", help="params TOML from 'calibrate fit'")
+    e.add_argument("--pairs", required=True, metavar="DIR")
+    e.add_argument("--holdout", type=float, default=0.0, metavar="FRACTION",
+                   help="evaluate only the held-out followers of 'fit --holdout FRACTION --seed S'")
+    e.add_argument("--seed", type=int, default=0)
+    e.add_argument("--json", action="store_true", help="print one JSON object")
+    e.set_defaults(func=run_evaluate)
+
+    c = sub.add_parser("check", help="compare the i80 scenario's simulated traffic with the real pairs")
+    c.add_argument("--params", required=True, metavar="FILE", help="params TOML from 'calibrate fit'")
+    c.add_argument("--pairs", required=True, metavar="DIR")
+    c.add_argument("--scenario", default="i80", metavar="NAME|FILE", help="scenario preset or TOML (default i80)")
+    c.add_argument("--duration", type=float, default=300.0, metavar="S", help="simulated seconds (default 300)")
+    c.add_argument("--seed", type=int, default=0)
+    c.add_argument("--keep-drivers", action="store_true",
+                   help="simulate the scenario's own drivers (default: the params file's driver distribution)")
+    c.add_argument("--out", default=None, metavar="FILE", help="write the markdown report here")
+    c.add_argument("--json", action="store_true", help="print the report as one JSON object")
+    c.set_defaults(func=run_check)
+
+
+def _pairs(args: argparse.Namespace, *, held_out: bool):
+    from scenarios.calibration import load_pairs, split_by_follower
+
+    pairs = load_pairs(args.pairs, limit=getattr(args, "limit", None))
+    if args.holdout and args.holdout > 0:
+        if not 0 < args.holdout < 1:
+            from scenarios.errors import SpecError
+            raise SpecError(f"--holdout: expected a fraction in (0, 1), got {args.holdout}")
+        train, test = split_by_follower(pairs, args.holdout, args.seed)
+        return test if held_out else train
+    return pairs
+
+
+def run_fit(args: argparse.Namespace) -> int:
+    from scenarios.calibration import calibrate, save_result
+
+    pairs = _pairs(args, held_out=False)
+    print(f"fitting {args.model} on {len(pairs)} pairs ...", file=sys.stderr)
+    result = calibrate(pairs, model=args.model, per_pair=not args.no_per_pair, progress=not args.no_progress)
+    save_result(result, args.out)
+    p = result.population
+    print(f"population: accel={p.accel:.3f} decel={p.decel:.3f} tau={p.tau:.3f} minGap={p.minGap:.3f} "
+          f"maxSpeed={p.maxSpeed:.2f}; median spacing RMSE {result.population_median_rmse_m:.3f} m "
+          f"({result.seconds_population:.1f} s + per-pair {result.seconds_per_pair:.1f} s)", file=sys.stderr)
+    print(args.out)
+    return 0
+
+
+def run_evaluate(args: argparse.Namespace) -> int:
+    from scenarios.calibration import evaluate, load_result
+
+    result = load_result(args.params)
+    ev = evaluate(result.population, _pairs(args, held_out=True), model=result.model)
+    if args.json:
+        print(json.dumps(ev.to_json_dict()))
+        return 0
+    width = max(len(s.name) for s in ev.pairs)
+    print(f"{'pair':<{width}}  {'rmse_m':>8}  {'default_rmse_m':>14}")
+    for s in ev.pairs:
+        print(f"{s.name:<{width}}  {s.rmse_m:8.3f}  {s.default_rmse_m:14.3f}")
+    print(f"{'median':<{width}}  {ev.median_rmse_m:8.3f}  {ev.default_median_rmse_m:14.3f}")
+    print(f"{'mean':<{width}}  {ev.mean_rmse_m:8.3f}  {ev.default_mean_rmse_m:14.3f}")
+    print(f"calibrated better on {100 * ev.win_fraction:.0f}% of {len(ev.pairs)} pairs")
+    return 0
+
+
+def run_check(args: argparse.Namespace) -> int:
+    from analysis.calibration_check import run_calibration_check
+
+    report = run_calibration_check(
+        params_path=args.params, pairs_dir=args.pairs, scenario=args.scenario,
+        duration_s=args.duration, seed=args.seed, keep_drivers=args.keep_drivers,
+    )
+    if args.out:
+        report.write_markdown(args.out)
+    if args.json:
+        print(json.dumps(report.to_json_dict()))
+    else:
+        print(report.to_markdown())
+    return 0

@@ -1,0 +1,199 @@
+"""Car-following models replicating SUMO 1.28's update for a follower behind a replayed leader.
+
+Both models follow what SUMO 1.28 does at a 0.1 s step with its default (ballistic) position
+update, verified against libsumo in ``tests/test_calibration_replica.py``: the new speed is
+computed from the state at the start of the step (own speed, bumper gap to the leader and
+the leader's speed, both as the leader was at the start of the step); the position then
+advances by ``(v + v_new) / 2 * dt`` (or, when the model asks for a negative speed, by the
+distance to a stop at constant deceleration); new speeds below ``1e-5`` m/s become 0. The
+speed goes through SUMO's ``MSCFModel::finalizeSpeed`` bounds:
+
+``v_new = max(v_min, min(v_pos, v + accel*dt, maxSpeed))`` with
+``v_min = min(v - d*dt, max(v_pos, v - emergencyDecel*dt))``,
+
+where ``v_pos`` is the model's safe speed (the minimum of its free-road and following speeds)
+and ``d`` the model's ``minNextSpeed`` deceleration (IDM: ``max(decel, min(emergencyDecel,
+1.5))``; Krauss: ``decel``).
+
+**IDM** (``MSCFModel_IDM::_v``): ``idmStepping`` defaults to 0.25 s, so SUMO does
+``max(1, int(0.1/0.25 + 0.5)) = 1`` IDM iteration per 0.1 s step:
+``s* = minGap + max(0, v*tau + v*(v - v_L) / (2*sqrt(accel*decel)))``,
+``a = accel * (1 - (v/v0)^delta - (s*/max(gap, 0.001))^2)``, ``v_follow = max(0, v + a*dt)``;
+the free-road speed is the same with gap 1e6 m, no minGap and leader speed ``v0``. The desired
+speed ``v0`` is the vType's ``maxSpeed`` (speedFactor 1, lane limit not lower).
+
+**Krauss** (sigma = 0, deterministic): ``v_safe`` = SUMO's ``maximumSafeStopSpeedBallistic``
+for the gap plus the leader's braking distance ``v_L^2 / (2 decel)`` (the leader is assumed to
+brake like the follower), with headway ``tau``; when that asks for more than ``decel``, SUMO's
+emergency deceleration (1.2 x the deceleration needed to stop behind the braking leader,
+within [decel, requested]) is used.
+
+All functions are vectorised: parameters and states are arrays broadcastable to one shape
+(for example ``(P,)`` pairs, or ``(P, C)`` pairs x candidate parameter sets).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+DT = 0.1
+NUMERICAL_EPS = 0.001
+EMERGENCY_DECEL_AMPLIFIER = 1.2
+#: SUMO's NUMERICAL_EPS_SPEED (0.1 * NUMERICAL_EPS * TS): smaller new speeds become 0.
+EPS_SPEED = 0.1 * NUMERICAL_EPS * DT
+
+
+@dataclass(frozen=True)
+class CFParams:
+    """SUMO vType car-following attributes (SI units).
+
+    Attributes:
+        accel: maximum acceleration (m/s^2), SUMO ``accel``.
+        decel: comfortable deceleration (m/s^2), SUMO ``decel``.
+        tau: desired time headway (s), SUMO ``tau``.
+        minGap: standstill gap (m), SUMO ``minGap``.
+        maxSpeed: desired speed v0 (m/s), SUMO ``maxSpeed`` with ``speedFactor`` 1.
+        delta: IDM acceleration exponent, SUMO ``delta`` (ignored by Krauss).
+        emergencyDecel: hardest possible braking (m/s^2), SUMO ``emergencyDecel``.
+    """
+
+    accel: float = 2.6
+    decel: float = 4.5
+    tau: float = 1.0
+    minGap: float = 2.5
+    maxSpeed: float = 29.06
+    delta: float = 4.0
+    emergencyDecel: float = 9.0
+
+    def as_dict(self) -> dict[str, float]:
+        return {f.name: float(getattr(self, f.name)) for f in fields(self)}
+
+
+#: SUMO's defaults for a passenger car (accel 2.6, decel 4.5, tau 1, minGap 2.5, delta 4,
+#: emergencyDecel 9); desired speed = I-80's 65 mph limit (29.06 m/s), speedFactor 1.
+SUMO_DEFAULTS = CFParams()
+
+PARAM_NAMES: tuple[str, ...] = tuple(f.name for f in fields(CFParams))
+
+
+def _finalize(v, v_pos, p, min_decel):
+    v_min_emerg = v - p["emergencyDecel"] * DT
+    v_min = np.minimum(v - min_decel * DT, np.maximum(v_pos, v_min_emerg))
+    v_max = np.minimum(np.minimum(v_pos, v + p["accel"] * DT), p["maxSpeed"])
+    return np.maximum(v_min, v_max)
+
+
+def idm_next_speed(v, gap, v_leader, p):
+    """Next speed (m/s) of an IDM follower; ``gap`` is the bumper-to-bumper gap (m)."""
+    accel, decel, tau, min_gap, v0, delta = (
+        p["accel"], p["decel"], p["tau"], p["minGap"], p["maxSpeed"], p["delta"])
+    two_sqrt_ab = 2.0 * np.sqrt(accel * decel)
+    free_term = 1.0 - (v / np.maximum(NUMERICAL_EPS, v0)) ** delta
+    s = min_gap + np.maximum(0.0, v * tau + v * (v - v_leader) / two_sqrt_ab)
+    g = np.maximum(NUMERICAL_EPS, gap)
+    v_follow = np.maximum(0.0, v + accel * (free_term - (s * s) / (g * g)) * DT)
+    s_free = np.maximum(0.0, v * tau + v * (v - v0) / two_sqrt_ab)
+    v_free = np.maximum(0.0, v + accel * (free_term - (s_free * s_free) / 1e12) * DT)
+    v_pos = np.minimum(v_follow, v_free)
+    return _finalize(v, v_pos, p, np.maximum(decel, np.minimum(p["emergencyDecel"], 1.5)))
+
+
+def _max_safe_stop_speed_ballistic(g, v, decel, tau):
+    """SUMO's ``maximumSafeStopSpeedBallistic`` (not on insertion)."""
+    g = np.maximum(0.0, g - NUMERICAL_EPS)
+    v0 = np.maximum(0.0, v)
+    stop_within_tau = v0 * tau >= 2.0 * g
+    a_stop = -v0 * v0 / (2.0 * np.maximum(g, 1e-300))
+    x_stop = np.where(g == 0.0, np.where(v0 > 0, -np.inf, 0.0), v0 + a_stop * DT)
+    btau2 = decel * tau / 2.0
+    v1 = -btau2 + np.sqrt(np.maximum(btau2 * btau2 + decel * (2.0 * g - tau * v0), 0.0))
+    x_go = v0 + (v1 - v0) / tau * DT
+    return np.where(stop_within_tau, x_stop, x_go)
+
+
+def _emergency_decel(gap2pred, v, v_leader, pred_decel, emergency):
+    """SUMO's ``calculateEmergencyDeceleration``."""
+    g = np.maximum(gap2pred, 1e-300)
+    b1 = 0.5 * v * v / (g + 0.5 * v_leader * v_leader / pred_decel)
+    b2 = 0.5 * (v * v - v_leader * v_leader) / g
+    return np.where(gap2pred <= 0, emergency, np.where(b1 <= pred_decel, b1, b2))
+
+
+def krauss_next_speed(v, gap, v_leader, p):
+    """Next speed (m/s) of a Krauss follower with sigma = 0; ``gap`` is the bumper gap (m).
+
+    May be negative: SUMO's signal for "stops within this step" (see :func:`simulate_follower`).
+    """
+    decel, tau, emerg = p["decel"], p["tau"], p["emergencyDecel"]
+    gap2pred = gap - p["minGap"]
+    brake_gap_leader = v_leader * v_leader / (2.0 * decel)
+    x = _max_safe_stop_speed_ballistic(gap2pred + brake_gap_leader, v, decel, tau)
+    x = np.where(gap2pred >= 0, x, v - emerg * DT)
+    orig = (v - x) / DT
+    safe = EMERGENCY_DECEL_AMPLIFIER * _emergency_decel(gap2pred, v, v_leader, decel, emerg)
+    safe = np.minimum(np.maximum(safe, decel), orig)
+    x = np.where(orig > decel + NUMERICAL_EPS, v - safe * DT, x)
+    v_follow = np.maximum(np.minimum(x, v + p["accel"] * DT), v - emerg * DT)
+    v_free = np.minimum(v + p["accel"] * DT, p["maxSpeed"])
+    v_pos = np.minimum(v_follow, v_free)
+    return _finalize(v, v_pos, p, decel)
+
+
+MODELS = {"idm": idm_next_speed, "krauss": krauss_next_speed}
+
+
+def simulate_follower(
+    model: str, x_leader, v_leader, leader_length, x0, v0, params, *, lengths=None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Replay leaders, simulate followers.
+
+    Args:
+        model: "idm" or "krauss".
+        x_leader, v_leader: float64[B..., T] leader front position (m) and speed (m/s).
+        leader_length, x0, v0: float64[B...] leader length, follower's initial position / speed.
+        params: every name in :data:`PARAM_NAMES` -> float or array broadcastable to the
+            output's leading shape ``S`` (the broadcast of ``B...`` and the parameter shapes;
+            e.g. pairs ``(P, 1)`` x candidates ``(C,)`` -> ``(P, C)``).
+        lengths: optional int[S[0]] number of valid steps per row of the first axis, sorted in
+            decreasing order; rows stop being simulated after their length (values there are
+            then copies of the last valid step).
+    Returns:
+        (x, v): float64[S..., T] follower position and speed; step 0 is the initial state.
+    """
+    step = MODELS[model]
+    p = {k: np.asarray(params[k], dtype=np.float64) for k in PARAM_NAMES}
+    T = np.shape(x_leader)[-1]
+    shape = np.broadcast_shapes(np.shape(x0), np.shape(leader_length), *(np.shape(a) for a in p.values()),
+                                np.shape(x_leader)[:-1])
+    p = {k: np.broadcast_to(a, shape) for k, a in p.items()}
+    xl = np.broadcast_to(x_leader, shape + (T,))
+    vl = np.broadcast_to(v_leader, shape + (T,))
+    ll = np.broadcast_to(leader_length, shape)
+    x = np.empty(shape + (T,)); v = np.empty(shape + (T,))
+    x[..., 0] = x0; v[..., 0] = v0
+    if lengths is None:
+        active = np.full(T, shape[0] if shape else 1)
+    else:
+        lengths = np.asarray(lengths)
+        if np.any(np.diff(lengths) > 0):
+            raise ValueError("lengths must be sorted in decreasing order")
+        active = (lengths[None, :] > np.arange(T)[:, None]).sum(axis=1)
+    for t in range(1, T):
+        m = int(active[t]) if shape else None
+        if shape and m < shape[0]:
+            x[m:, ..., t] = x[m:, ..., t - 1]; v[m:, ..., t] = v[m:, ..., t - 1]
+        sl = slice(None, m) if shape else ...
+        pm = {k: a[sl] for k, a in p.items()}
+        v_old = v[sl][..., t - 1]
+        x_old = x[sl][..., t - 1]
+        gap = xl[sl][..., t - 1] - ll[sl] - x_old
+        v_raw = step(v_old, gap, vl[sl][..., t - 1], pm)
+        stop = v_raw < 0  # stops within the step at constant deceleration
+        v_new = np.where(v_raw < EPS_SPEED, 0.0, v_raw)
+        acc = np.where(stop, (v_raw - v_old) / DT, -1.0)
+        dx = np.where(stop, -0.5 * v_old * v_old / acc, 0.5 * (v_old + v_new) * DT)
+        v[sl][..., t] = v_new
+        x[sl][..., t] = x_old + dx
+    return x, v

@@ -1,0 +1,55 @@
+"""Spacing error of a car-following model on a batch of replayed pairs.
+
+All functions work in the batch's row order (pairs sorted by decreasing length, see
+:class:`~scenarios.calibration.pairs.PairBatch`); per-pair parameter arrays must be in that
+order too. A trailing candidate axis ``C`` (parameters shaped ``(P, C)`` or ``(C,)``) evaluates
+several parameter sets in one vectorised simulation.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from scenarios.calibration.models import simulate_follower
+from scenarios.calibration.pairs import PairBatch
+
+
+def simulated_spacing(
+    model: str, batch: PairBatch, params: Mapping[str, np.ndarray | float], *, candidates: bool = False
+) -> np.ndarray:
+    """Simulated bumper gap (m): float64[P, T], or float64[P, C, T] with ``candidates=True``
+    (then every parameter is a float, a float64[C] or a float64[P, C] array)."""
+    if candidates:
+        x, _ = simulate_follower(
+            model, batch.x_leader[:, None, :], batch.v_leader[:, None, :],
+            batch.leader_length[:, None], batch.x0[:, None], batch.v0[:, None], params,
+            lengths=batch.lengths,
+        )
+        return batch.x_leader[:, None, :] - batch.leader_length[:, None, None] - x
+    x, _ = simulate_follower(
+        model, batch.x_leader, batch.v_leader, batch.leader_length, batch.x0, batch.v0, params,
+        lengths=batch.lengths,
+    )
+    return batch.x_leader - batch.leader_length[:, None] - x
+
+
+def spacing_errors(
+    model: str, batch: PairBatch, params: Mapping[str, np.ndarray | float], *, candidates: bool = False
+) -> np.ndarray:
+    """Simulated minus observed gap (m), 0 outside the scored steps; shape as :func:`simulated_spacing`."""
+    s = simulated_spacing(model, batch, params, candidates=candidates)
+    obs = batch.spacing_obs[:, None, :] if candidates else batch.spacing_obs
+    mask = batch.mask[:, None, :] if candidates else batch.mask
+    return np.where(mask, s - obs, 0.0)
+
+
+def spacing_rmse(
+    model: str, batch: PairBatch, params: Mapping[str, np.ndarray | float], *, candidates: bool = False
+) -> np.ndarray:
+    """Per-pair root-mean-square spacing error (m): float64[P] (or float64[P, C]), batch order."""
+    err = spacing_errors(model, batch, params, candidates=candidates)
+    n = batch.mask.sum(axis=1)
+    n = n[:, None] if candidates else n
+    return np.sqrt((err * err).sum(axis=-1) / n)

@@ -1,0 +1,177 @@
+"""Leader-follower pairs: loading the real NGSIM I-80 pairs and padding them into batches.
+
+A pair file (``ngsim_i80_car_following/train/*.csv``) has the columns ``t, x_follower,
+v_follower, a_follower, x_leader, v_leader, a_leader, leader_length, spacing, dv`` in feet,
+ft/s, ft/s^2 at 0.1 s steps, with ``spacing = x_leader - x_follower - leader_length``. File
+names carry the recording period, follower and leader ids:
+``ngsim_<period>_run<period>_f<follower>_l<leader>_<n>.csv``.
+
+Pairs are converted to SI (m, m/s) on load, the units of SUMO's car-following parameters.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from scenarios.errors import SpecError
+
+M_PER_FT = 0.3048
+STEP_S = 0.1
+_NAME = re.compile(r"^(?:ngsim_)?(?P<period>.+?)_run.*_f(?P<f>\d+)_l(?P<l>\d+)_(?P<n>\d+)$")
+_REQUIRED = ("t", "x_follower", "v_follower", "x_leader", "v_leader", "leader_length")
+
+
+@dataclass(frozen=True)
+class CarFollowingPair:
+    """One recorded leader-follower episode, SI units, uniform 0.1 s steps.
+
+    Attributes:
+        name: file stem.
+        group: the follower's identity (``period/follower``); splits keep a group together.
+        t: float64[T] time (s).
+        x_follower, v_follower: float64[T] follower front position (m) and speed (m/s).
+        x_leader, v_leader: float64[T] leader front position (m) and speed (m/s).
+        leader_length: leader length (m).
+    """
+
+    name: str
+    group: str
+    t: np.ndarray
+    x_follower: np.ndarray
+    v_follower: np.ndarray
+    x_leader: np.ndarray
+    v_leader: np.ndarray
+    leader_length: float
+
+    @property
+    def spacing(self) -> np.ndarray:
+        """float64[T] bumper-to-bumper gap (m)."""
+        return self.x_leader - self.leader_length - self.x_follower
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+
+def read_pair(path: str | Path) -> CarFollowingPair:
+    """Read one pair CSV (feet) into a :class:`CarFollowingPair` (metres)."""
+    path = Path(path)
+    try:
+        df = pd.read_csv(path)
+    except (pd.errors.ParserError, UnicodeDecodeError) as e:
+        raise SpecError(f"{path}: not a pair CSV: {e}") from e
+    missing = [c for c in _REQUIRED if c not in df.columns]
+    if missing:
+        raise SpecError(f"{path}: missing column(s) {missing}; expected {list(_REQUIRED)}")
+    if len(df) < 10:
+        raise SpecError(f"{path}: {len(df)} rows; a pair needs at least 10 steps")
+    arr = {c: df[c].to_numpy(dtype=np.float64) for c in _REQUIRED}
+    for c, v in arr.items():
+        if not np.isfinite(v).all():
+            raise SpecError(f"{path}: column {c} line {int(np.argmax(~np.isfinite(v))) + 2}: not a finite number")
+    dt = np.diff(arr["t"])
+    if np.abs(dt - STEP_S).max() > 1e-6:
+        i = int(np.argmax(np.abs(dt - STEP_S)))
+        raise SpecError(f"{path}: column t line {i + 3}: step {dt[i]:.4f} s; expected uniform {STEP_S} s steps")
+    m = _NAME.match(path.stem)
+    group = f"{m['period']}/{m['f']}" if m else path.stem
+    return CarFollowingPair(
+        name=path.stem, group=group, t=arr["t"],
+        x_follower=arr["x_follower"] * M_PER_FT, v_follower=arr["v_follower"] * M_PER_FT,
+        x_leader=arr["x_leader"] * M_PER_FT, v_leader=arr["v_leader"] * M_PER_FT,
+        leader_length=float(arr["leader_length"][0]) * M_PER_FT,
+    )
+
+
+def load_pairs(directory: str | Path, *, limit: int | None = None) -> tuple[CarFollowingPair, ...]:
+    """All pairs under ``directory`` (``*.csv`` there, or in its ``train/`` subfolder), sorted by name.
+
+    ``manifest.csv`` is skipped. ``limit`` keeps the first ``limit`` files (name order).
+    """
+    d = Path(directory)
+    if not d.is_dir():
+        raise FileNotFoundError(f"pairs directory not found: {d}")
+    files = sorted(p for p in d.glob("*.csv") if p.name != "manifest.csv")
+    if not files and (d / "train").is_dir():
+        files = sorted((d / "train").glob("*.csv"))
+    if not files:
+        raise SpecError(f"{d}: no pair CSV files found (expected *.csv or train/*.csv)")
+    if limit is not None:
+        files = files[:limit]
+    return tuple(read_pair(f) for f in files)
+
+
+def split_by_follower(
+    pairs: Sequence[CarFollowingPair], test_fraction: float, seed: int
+) -> tuple[tuple[CarFollowingPair, ...], tuple[CarFollowingPair, ...]]:
+    """(train, test): followers (groups) drawn at random for test, never in both."""
+    groups = sorted({p.group for p in pairs})
+    rng = np.random.default_rng(seed)
+    n_test = max(1, int(round(test_fraction * len(groups))))
+    test_groups = set(rng.choice(groups, size=n_test, replace=False).tolist())
+    train = tuple(p for p in pairs if p.group not in test_groups)
+    test = tuple(p for p in pairs if p.group in test_groups)
+    return train, test
+
+
+@dataclass(frozen=True)
+class PairBatch:
+    """Pairs padded to a common length T, rows sorted by decreasing length.
+
+    Row ``i`` holds ``pairs[order[i]]``; :meth:`unsort` maps per-row results back to the
+    order of the pairs given. Past a pair's end its leader keeps its last speed.
+
+    Attributes:
+        x_leader, v_leader: float64[P, T]; spacing_obs: float64[P, T] observed gap (m).
+        x0, v0: float64[P] follower's initial position and speed; leader_length: float64[P].
+        mask: bool[P, T], True on the steps scored (1 .. len-1 of each pair).
+        lengths: int64[P], decreasing.
+        order: int64[P], row -> index of the pair in the sequence given.
+    """
+
+    x_leader: np.ndarray
+    v_leader: np.ndarray
+    spacing_obs: np.ndarray
+    x0: np.ndarray
+    v0: np.ndarray
+    leader_length: np.ndarray
+    mask: np.ndarray
+    lengths: np.ndarray
+    order: np.ndarray
+
+    def unsort(self, values: np.ndarray) -> np.ndarray:
+        """Per-row values (first axis P) back in the order of the pairs given."""
+        out = np.empty_like(values)
+        out[self.order] = values
+        return out
+
+    @classmethod
+    def from_pairs(cls, pairs: Sequence[CarFollowingPair]) -> "PairBatch":
+        if not pairs:
+            raise SpecError("no pairs given")
+        order = np.argsort([-len(p) for p in pairs], kind="stable")
+        pairs = [pairs[i] for i in order]
+        T = max(len(p) for p in pairs)
+        P = len(pairs)
+        xl = np.empty((P, T)); vl = np.empty((P, T)); so = np.zeros((P, T))
+        mask = np.zeros((P, T), dtype=bool)
+        for i, p in enumerate(pairs):
+            n = len(p)
+            xl[i, :n], vl[i, :n] = p.x_leader, p.v_leader
+            xl[i, n:] = p.x_leader[-1] + p.v_leader[-1] * STEP_S * np.arange(1, T - n + 1)
+            vl[i, n:] = p.v_leader[-1]
+            so[i, :n] = p.spacing
+            mask[i, 1:n] = True
+        return cls(
+            x_leader=xl, v_leader=vl, spacing_obs=so,
+            x0=np.array([p.x_follower[0] for p in pairs]),
+            v0=np.array([p.v_follower[0] for p in pairs]),
+            leader_length=np.array([p.leader_length for p in pairs]),
+            mask=mask, lengths=np.array([len(p) for p in pairs], dtype=np.int64),
+            order=order.astype(np.int64),
+        )

@@ -1,0 +1,131 @@
+"""Calibration results as TOML (``merge-irl calibrate fit --out params.toml``).
+
+Layout::
+
+    model = "idm"
+    fitted = ["accel", "decel", "tau", "minGap", "maxSpeed"]
+    n_pairs = 211
+    population_median_rmse_m = 3.41
+    seconds_population = 40.2
+    seconds_per_pair = 160.0
+
+    [population]            # SUMO vType attributes, SI units
+    accel = 1.15
+    ...
+    [spread.accel]          # over the per-pair fits
+    mean = 1.46
+    std = 1.13
+    median = 1.15
+    q10 = 0.53
+    q90 = 2.99
+
+    [[pair]]                # one per training pair
+    name = "..."
+    group = "..."
+    rmse_m = 1.2
+    params = { accel = 1.1, ... }
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import tomllib
+from dataclasses import asdict, fields
+from pathlib import Path
+
+from scenarios.calibration.fit import CalibrationResult, PairFit, ParamSpread
+from scenarios.calibration.models import MODELS, PARAM_NAMES, CFParams
+from scenarios.errors import SpecError
+from scenarios.toml_write import dumps
+
+
+def result_to_dict(r: CalibrationResult) -> dict:
+    return {
+        "model": r.model,
+        "fitted": list(r.fitted),
+        "n_pairs": r.n_pairs,
+        "population_median_rmse_m": r.population_median_rmse_m,
+        "seconds_population": r.seconds_population,
+        "seconds_per_pair": r.seconds_per_pair,
+        "population": r.population.as_dict(),
+        "spread": {n: asdict(s) for n, s in r.spread},
+        "pair": [
+            {"name": f.name, "group": f.group, "rmse_m": f.rmse_m, "params": f.params.as_dict()}
+            for f in r.per_pair
+        ],
+    }
+
+
+def save_result(r: CalibrationResult, path: str | os.PathLike) -> Path:
+    """Write ``r`` as TOML, atomically."""
+    path = Path(path)
+    data = result_to_dict(r)
+    if not data["pair"]:
+        del data["pair"]
+    if not data["spread"]:
+        del data["spread"]
+    text = dumps(data)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return path
+
+
+def _params(src: str, where: str, d: object) -> CFParams:
+    if not isinstance(d, dict):
+        raise SpecError(f"{src}: [{where}] must be a table of SUMO vType attributes")
+    unknown = sorted(set(d) - set(PARAM_NAMES))
+    if unknown:
+        raise SpecError(f"{src}: [{where}] unknown parameter(s) {unknown}; expected {list(PARAM_NAMES)}")
+    vals = {}
+    for k, v in d.items():
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not v > 0:
+            raise SpecError(f"{src}: [{where}] {k} = {v!r}; expected a positive number")
+        vals[k] = float(v)
+    return CFParams(**vals)
+
+
+def load_result(path: str | os.PathLike) -> CalibrationResult:
+    """Read a params TOML written by :func:`save_result` (or hand-written with at least
+    ``model`` and ``[population]``)."""
+    path = Path(path)
+    src = str(path)
+    try:
+        data = tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        raise SpecError(f"{src}: not valid TOML: {e}") from e
+    model = data.get("model", "idm")
+    if model not in MODELS:
+        raise SpecError(f"{src}: model = {model!r}; expected one of {sorted(MODELS)}")
+    if "population" not in data:
+        raise SpecError(f"{src}: missing [population] table")
+    pop = _params(src, "population", data["population"])
+    spread = []
+    for n, s in data.get("spread", {}).items():
+        try:
+            spread.append((n, ParamSpread(**{f.name: float(s[f.name]) for f in fields(ParamSpread)})))
+        except (KeyError, TypeError, ValueError) as e:
+            raise SpecError(f"{src}: [spread.{n}] needs numbers mean, std, median, q10, q90") from e
+    pairs = []
+    for i, p in enumerate(data.get("pair", [])):
+        try:
+            pairs.append(PairFit(name=str(p["name"]), group=str(p["group"]), rmse_m=float(p["rmse_m"]),
+                                 params=_params(src, f"pair {i} params", p["params"])))
+        except KeyError as e:
+            raise SpecError(f"{src}: [[pair]] number {i + 1} misses {e}") from e
+    return CalibrationResult(
+        model=model, fitted=tuple(data.get("fitted", ())), population=pop,
+        population_median_rmse_m=float(data.get("population_median_rmse_m", float("nan"))),
+        per_pair=tuple(pairs), spread=tuple(spread), n_pairs=int(data.get("n_pairs", len(pairs))),
+        seconds_population=float(data.get("seconds_population", 0.0)),
+        seconds_per_pair=float(data.get("seconds_per_pair", 0.0)),
+    )

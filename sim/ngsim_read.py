@@ -1,0 +1,397 @@
+"""Streaming reader of the public NGSIM vehicle-trajectory files into the trajectory table.
+
+``read_ngsim(path)`` reads ``trajectories-*.csv`` (comma-separated, header line) with pyarrow's
+streaming CSV reader, and the older header-less whitespace-separated ``.txt`` files with
+pandas' chunked C parser. Either way only the 18 schema columns are parsed (extra columns are
+dropped), all as float64 and then checked and cast to the schema dtypes, one chunk at a time:
+memory is bounded by the chunk size plus the rows kept by the filters (``lanes``, ``frames``,
+``vehicles``), whatever the file size.
+
+Every defect is either an error or reported (:class:`NgsimReport`), never silent:
+
+===============================================  =============================================
+errors (:class:`~sim.errors.TrajectoryFormatError`, naming file, line and column; nothing is returned)
+---------------------------------------------------------------------------------------------
+missing columns (header)                          non-numeric or missing values
+non-integral ids / frames / lanes / classes      negative ``v_Length`` / ``v_Width``
+frames out of order for a vehicle                 a frame repeated with different values
+metric-looking units (mean vehicle length < 8 ft or width < 3.5 ft)
+===============================================  =============================================
+
+Reported and handled: exact duplicate rows (dropped), vehicles with gaps in their frames (kept;
+counted), acceleration noise (rows at NGSIM's +-11.2 ft/s^2 cap, RMS jerk; optional smoothing,
+see :mod:`sim.ngsim_smooth`).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.csv as pacsv
+
+from sim.errors import TrajectoryFormatError
+from sim.ngsim_format import NGSIM_COLUMNS, canonical_name
+from sim.ngsim_smooth import SmoothingConfig, jerk_rms, smooth_table
+from sim.ngsim_validate import ChunkValidator
+from sim.schema import COLUMNS
+
+_COL = {c: i for i, c in enumerate(NGSIM_COLUMNS)}
+DEFAULT_CHUNKSIZE = 100_000  #: rows per chunk
+
+
+@dataclass(frozen=True)
+class NgsimReport:
+    """What the reader found and did. Counts refer to the whole file unless marked *kept*."""
+
+    path: str
+    layout: str  #: "csv" (header, comma-separated) or "txt" (no header, whitespace)
+    rows_read: int
+    rows_kept: int  #: rows in the returned table (after dropping duplicates and filters)
+    chunks: int
+    duplicate_rows_dropped: int
+    vehicles: int  #: distinct vehicles in the file
+    vehicles_with_gaps: tuple[int, ...]  #: ids of vehicles whose frames skip (data kept)
+    gap_events: int
+    missing_frames: int
+    max_gap_frames: int
+    acc_saturated_rows: int  #: rows with |v_Acc| at NGSIM's 11.2 ft/s^2 cap
+    jerk_rms_ft_s3: float  #: RMS jerk of the kept rows as read (acceleration noise)
+    smoothing: str  #: "none" or the filter's description
+    jerk_rms_smoothed_ft_s3: float | None
+    extra_columns_dropped: tuple[str, ...]
+
+    def summary(self) -> str:
+        """A few human-readable lines."""
+        lines = [
+            f"{self.path} ({self.layout}): {self.rows_read} rows read in {self.chunks} chunks, "
+            f"{self.rows_kept} kept, {self.vehicles} vehicles",
+            f"  duplicate rows dropped: {self.duplicate_rows_dropped}",
+            f"  vehicles with frame gaps: {len(self.vehicles_with_gaps)} ({self.gap_events} gaps, "
+            f"{self.missing_frames} missing frames, longest {self.max_gap_frames})",
+            f"  acceleration noise: {self.acc_saturated_rows} rows at the +-11.2 ft/s^2 cap, "
+            f"RMS jerk {self.jerk_rms_ft_s3:.1f} ft/s^3",
+            f"  smoothing: {self.smoothing}"
+            + (f" (RMS jerk after {self.jerk_rms_smoothed_ft_s3:.1f} ft/s^3)"
+               if self.jerk_rms_smoothed_ft_s3 is not None else ""),
+        ]
+        if self.extra_columns_dropped:
+            lines.append(f"  extra columns dropped: {', '.join(self.extra_columns_dropped)}")
+        return "\n".join(lines)
+
+
+@dataclass(frozen=True)
+class NgsimLoad:
+    """A loaded file: the trajectory table (schema dtypes, sorted by vehicle and frame)."""
+
+    table: pd.DataFrame
+    report: NgsimReport
+
+
+@dataclass(frozen=True)
+class _Layout:
+    kind: str  # "csv" | "txt"
+    names: tuple[str, ...]  # all columns of the file, canonical spelling
+    header_lines: int
+    bytes_per_row: float
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _sniff(path: Path) -> _Layout:
+    with open(path, "rb") as fh:
+        head = [fh.readline() for _ in range(50)]
+    head = [h.decode("utf-8", "replace") for h in head if h.strip()]
+    if not head:
+        raise TrajectoryFormatError(f"{path}: line 1: the file is empty; expected NGSIM rows")
+    first = head[0]
+    bpr = max(1.0, sum(len(h) for h in head[1:] or head) / max(1, len(head[1:] or head)))
+    if "," in first:
+        fields = [canonical_name(f) for f in first.rstrip("\r\n").split(",")]
+        if not all(_is_number(f) for f in fields):
+            missing = [c for c in NGSIM_COLUMNS if c not in fields]
+            if missing:
+                raise TrajectoryFormatError(
+                    f"{path}: line 1 (header): missing column(s) {missing}; expected NGSIM's "
+                    f"columns {list(NGSIM_COLUMNS)}"
+                )
+            return _Layout("csv", tuple(fields), 1, bpr)
+        if len(fields) < len(NGSIM_COLUMNS):
+            raise TrajectoryFormatError(
+                f"{path}: line 1: {len(fields)} fields and no header; expected a header line or "
+                f"the {len(NGSIM_COLUMNS)} NGSIM columns"
+            )
+        extra = tuple(f"extra_{i}" for i in range(len(fields) - len(NGSIM_COLUMNS)))
+        return _Layout("csv", NGSIM_COLUMNS + extra, 0, bpr)
+    n = len(first.split())
+    if n != len(NGSIM_COLUMNS):
+        raise TrajectoryFormatError(
+            f"{path}: line 1: {n} whitespace-separated fields; expected the {len(NGSIM_COLUMNS)} "
+            f"NGSIM columns {list(NGSIM_COLUMNS)}"
+        )
+    return _Layout("txt", NGSIM_COLUMNS, 0, bpr)
+
+
+def _locate_bad_line(path: Path, layout: _Layout, start_line: int, cause: Exception) -> TrajectoryFormatError:
+    """Error path: find the first unparsable line at or after ``start_line`` (1-based)."""
+    idx = {c: layout.names.index(c) for c in NGSIM_COLUMNS}
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        for lineno, line in enumerate(fh, start=1):
+            if lineno < start_line or lineno <= layout.header_lines or not line.strip():
+                continue
+            fields = line.rstrip("\r\n").split(",") if layout.kind == "csv" else line.split()
+            if len(fields) != len(layout.names):
+                return TrajectoryFormatError(
+                    f"{path}: line {lineno}: {len(fields)} fields; expected {len(layout.names)}"
+                )
+            for c, i in idx.items():
+                try:
+                    float(fields[i])
+                except ValueError:
+                    what = "missing value" if not fields[i].strip() else f"value {fields[i]!r} is not a number"
+                    return TrajectoryFormatError(
+                        f"{path}: line {lineno}, column {c}: {what}; expected a number"
+                    )
+    return TrajectoryFormatError(f"{path}: unreadable NGSIM data after line {start_line}: {cause}")
+
+
+#: pyarrow's streaming reader keeps about 40 blocks in flight: 1 MB blocks bound that to ~40 MB.
+MAX_BLOCK_BYTES = 1 << 20
+
+
+def _chunks(path: Path, layout: _Layout, chunksize: int) -> Iterator[np.ndarray]:
+    """Yield float64[18, n] arrays (one row per schema column), in file order, n = ``chunksize``
+    except for the last. The array may be reused for the next chunk: copy what you keep."""
+    cols = list(NGSIM_COLUMNS)
+    if layout.kind == "csv":
+        block = int(min(MAX_BLOCK_BYTES, max(1 << 12, chunksize * layout.bytes_per_row)))
+        reader = pacsv.open_csv(
+            path,
+            read_options=pacsv.ReadOptions(
+                skip_rows=layout.header_lines, column_names=list(layout.names), block_size=block,
+            ),
+            parse_options=pacsv.ParseOptions(delimiter=","),
+            convert_options=pacsv.ConvertOptions(
+                include_columns=cols, column_types={c: pa.float64() for c in cols},
+            ),
+        )
+        # batches (~5k rows) are copied straight into a reused chunk buffer, column by column
+        buf = np.empty((len(cols), chunksize), dtype=np.float64)
+        n_buf = 0
+        for batch in reader:
+            at, m = 0, batch.num_rows
+            arrays = [batch.column(j).to_numpy(zero_copy_only=False) for j in range(len(cols))]
+            while at < m:
+                take = min(m - at, chunksize - n_buf)
+                for j in range(len(cols)):
+                    buf[j, n_buf:n_buf + take] = arrays[j][at:at + take]
+                n_buf += take
+                at += take
+                if n_buf == chunksize:
+                    yield buf
+                    n_buf = 0
+        if n_buf:
+            yield buf[:, :n_buf]
+    else:
+        it = pd.read_csv(
+            path, sep=r"\s+", header=None, names=cols, dtype=np.float64,
+            chunksize=chunksize, engine="c",
+        )
+        for df in it:
+            yield np.ascontiguousarray(df.to_numpy(dtype=np.float64).T)
+
+
+def read_ngsim(
+    path: str | os.PathLike,
+    *,
+    lanes: Iterable[int] | None = None,
+    frames: tuple[int, int] | None = None,
+    vehicles: Iterable[int] | None = None,
+    chunksize: int = DEFAULT_CHUNKSIZE,
+    smooth: bool | SmoothingConfig = False,
+    progress: bool = False,
+) -> NgsimLoad:
+    """Load an NGSIM trajectory file (``.csv`` with header or whitespace ``.txt``).
+
+    Args:
+        path: the file.
+        lanes: keep only rows with these ``Lane_ID`` (e.g. ``(6, 7)``); None keeps all.
+        frames: keep only ``first <= Frame_ID <= last``; None keeps all.
+        vehicles: keep only these ``Vehicle_ID``; None keeps all.
+        chunksize: rows parsed per chunk (memory bound; validation is streaming).
+        smooth: True (default filter) or a :class:`SmoothingConfig`: recompute ``Local_Y``,
+            ``v_Vel`` and ``v_Acc`` from smoothed positions (see :mod:`sim.ngsim_smooth`).
+        progress: show a tqdm bar on stderr.
+
+    Returns:
+        :class:`NgsimLoad`: ``.table`` in the schema dtypes, sorted by (Vehicle_ID, Frame_ID),
+        and ``.report``. Validation covers every row of the file, not only the kept ones.
+
+    Raises:
+        TrajectoryFormatError: naming file, line and column (see the module docstring).
+        FileNotFoundError: ``path`` does not exist.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"NGSIM file not found: {path}")
+    if chunksize < 1:
+        raise ValueError(f"chunksize must be >= 1, got {chunksize}")
+    layout = _sniff(path)
+    lane_set = None if lanes is None else np.unique(np.asarray(list(lanes), dtype=np.float64))
+    veh_set = None if vehicles is None else np.unique(np.asarray(list(vehicles), dtype=np.float64))
+    validator = ChunkValidator(str(path))
+    parts: list[np.ndarray] = []  # kept rows of every chunk, float64[18, k]
+    chunks = rows_read = 0
+    bar = None
+    if progress:
+        import sys
+
+        from tqdm import tqdm
+        bar = tqdm(total=path.stat().st_size, unit="B", unit_scale=True, desc=path.name,
+                   disable=not sys.stderr.isatty())
+    try:
+        gen = _chunks(path, layout, chunksize)
+        while True:
+            try:
+                data = next(gen)
+            except StopIteration:
+                break
+            except (pa.ArrowInvalid, ValueError, pd.errors.ParserError) as e:
+                raise _locate_bad_line(path, layout, rows_read + layout.header_lines + 1, e) from None
+            n = data.shape[1]
+            lines = np.arange(n, dtype=np.int64) + rows_read + layout.header_lines + 1
+            keep = validator.check(data, lines)
+            if lane_set is not None:
+                keep &= np.isin(data[_COL["Lane_ID"]], lane_set)
+            if frames is not None:
+                f = data[_COL["Frame_ID"]]
+                keep &= (f >= frames[0]) & (f <= frames[1])
+            if veh_set is not None:
+                keep &= np.isin(data[_COL["Vehicle_ID"]], veh_set)
+            parts.append(data[:, keep])  # a copy: ``data`` is reused for the next chunk
+            del data
+            chunks += 1
+            rows_read += n
+            if bar is not None:
+                bar.update(int(n * layout.bytes_per_row))
+    finally:
+        if bar is not None:
+            bar.close()
+    validator.check_units()
+    table = _assemble(parts)
+    table = _sorted(table)
+    jerk = jerk_rms(table)
+    smoothing, jerk_after = "none", None
+    if smooth:
+        cfg = smooth if isinstance(smooth, SmoothingConfig) else SmoothingConfig()
+        table = smooth_table(table, cfg)
+        smoothing, jerk_after = cfg.describe(), jerk_rms(table)
+    t = validator.totals
+    report = NgsimReport(
+        path=str(path), layout=layout.kind, rows_read=rows_read, rows_kept=len(table),
+        chunks=chunks, duplicate_rows_dropped=t.duplicate_rows,
+        vehicles=validator.n_vehicles, vehicles_with_gaps=validator.vehicles_with_gaps,
+        gap_events=t.gap_events, missing_frames=t.missing_frames, max_gap_frames=t.max_gap_frames,
+        acc_saturated_rows=t.acc_saturated_rows, jerk_rms_ft_s3=jerk, smoothing=smoothing,
+        jerk_rms_smoothed_ft_s3=jerk_after,
+        extra_columns_dropped=tuple(n for n in layout.names if n not in COLUMNS),
+    )
+    return NgsimLoad(table=table, report=report)
+
+
+_FLOAT_POS = np.array([j for j, c in enumerate(NGSIM_COLUMNS) if COLUMNS[c] == "float64"])
+_INT_POS = np.array([j for j, c in enumerate(NGSIM_COLUMNS) if COLUMNS[c] == "int64"])
+
+
+def _release_freed_memory() -> None:
+    """Give freed heap memory back to the OS (glibc ``malloc_trim``; no-op elsewhere).
+
+    The kept chunks are a few MB each: glibc's adaptive mmap threshold puts such arrays on the
+    heap, whose freed pages otherwise stay resident while the table's blocks are allocated."""
+    global _MALLOC_TRIM
+    if _MALLOC_TRIM is None:
+        try:
+            import ctypes
+
+            _MALLOC_TRIM = ctypes.CDLL("libc.so.6").malloc_trim
+        except (OSError, AttributeError):
+            _MALLOC_TRIM = False
+    if _MALLOC_TRIM:
+        _MALLOC_TRIM(0)
+
+
+_MALLOC_TRIM = None
+
+
+def _assemble(parts: list[np.ndarray]) -> pd.DataFrame:
+    """Move the kept chunks (float64[18, k] each; the list is emptied) into the table's two
+    column blocks, freeing each chunk as it is copied: peak memory ~ the table plus a few chunks."""
+    _release_freed_memory()  # heap left over from parsing and validating
+    n = sum(p.shape[1] for p in parts)
+    fblock = np.empty((len(_FLOAT_POS), n), dtype=np.float64)
+    iblock = np.empty((len(_INT_POS), n), dtype=np.int64)
+    at = 0
+    parts.reverse()
+    while parts:
+        p = parts.pop()
+        k = p.shape[1]
+        for i, j in enumerate(_FLOAT_POS):
+            fblock[i, at:at + k] = p[j]
+        for i, j in enumerate(_INT_POS):
+            iblock[i, at:at + k] = p[j]
+        at += k
+        del p
+        if len(parts) % 8 == 0:
+            _release_freed_memory()
+    try:
+        from pandas.api.internals import create_dataframe_from_blocks
+    except ImportError:  # pandas < 2.3: the constructor copies once more
+        cols = {NGSIM_COLUMNS[j]: fblock[i] for i, j in enumerate(_FLOAT_POS)}
+        cols.update({NGSIM_COLUMNS[j]: iblock[i] for i, j in enumerate(_INT_POS)})
+        return pd.DataFrame({c: cols[c] for c in NGSIM_COLUMNS})
+    return create_dataframe_from_blocks(
+        [(fblock, _FLOAT_POS), (iblock, _INT_POS)], index=pd.RangeIndex(n), columns=pd.Index(NGSIM_COLUMNS),
+    )
+
+
+def _sorted(table: pd.DataFrame) -> pd.DataFrame:
+    v = table["Vehicle_ID"].to_numpy()
+    f = table["Frame_ID"].to_numpy()
+    if len(v) < 2 or bool(np.all((v[1:] > v[:-1]) | ((v[1:] == v[:-1]) & (f[1:] > f[:-1])))):
+        return table
+    order = np.lexsort((f, v))
+    return table.take(order).reset_index(drop=True)
+
+
+def read_trajectories(path: str | os.PathLike, **kwargs) -> pd.DataFrame:
+    """A trajectory table from Parquet (simulated runs) or an NGSIM ``.csv`` / ``.txt`` file.
+
+    ``kwargs`` go to :func:`read_ngsim` for NGSIM files (ignored for Parquet).
+    """
+    from sim.schema import conform
+
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix in (".parquet", ".pq"):
+        if not path.is_file():
+            raise FileNotFoundError(f"trajectory file not found: {path}")
+        try:
+            return conform(pd.read_parquet(path))
+        except (KeyError, ValueError, TypeError) as e:
+            raise TrajectoryFormatError(f"{path}: {e}") from e
+    if suffix in (".csv", ".txt"):
+        return read_ngsim(path, **kwargs).table
+    raise TrajectoryFormatError(
+        f"{path}: unknown trajectory file type {suffix!r}; expected .parquet, .csv or .txt"
+    )

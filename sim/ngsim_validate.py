@@ -1,0 +1,197 @@
+"""Streaming validation of NGSIM rows, one chunk at a time.
+
+:class:`ChunkValidator` sees the chunks of a file in order (as float64 arrays, one per
+column, plus the file line number of every row) and
+
+* raises :class:`~sim.errors.TrajectoryFormatError` naming file, line and column for: missing
+  values, non-integral ids / frames / classes / lanes / times, negative vehicle length or width,
+  frames out of order for a vehicle, a frame repeated for a vehicle with different values;
+* marks exact duplicate rows (a known NGSIM defect) for dropping and counts them;
+* counts vehicles with gaps in their frames and the frames missing (reported, data kept);
+* accumulates what the units check and the acceleration-noise summary need.
+
+Per-vehicle state (last frame and last row of every vehicle seen so far) is kept in sorted
+numpy arrays, so memory grows with the number of vehicles, not of rows.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from sim.errors import TrajectoryFormatError
+from sim.ngsim_format import INT_COLUMNS, NGSIM_COLUMNS
+
+#: NGSIM caps accelerations at +-11.2 ft/s^2; rows at the cap are counted as saturated.
+ACC_CAP_FT_S2 = 11.2
+#: Mean vehicle length / width below these (ft) means the file is in metres.
+MIN_MEAN_LENGTH_FT = 8.0
+MIN_MEAN_WIDTH_FT = 3.5
+
+_COL = {c: i for i, c in enumerate(NGSIM_COLUMNS)}
+
+
+@dataclass
+class ValidationTotals:
+    """Running totals; turned into the frozen load report at the end."""
+
+    rows: int = 0
+    duplicate_rows: int = 0
+    gap_events: int = 0
+    missing_frames: int = 0
+    max_gap_frames: int = 0
+    acc_saturated_rows: int = 0
+    length_sum: float = 0.0
+    width_sum: float = 0.0
+    speed_max: float = 0.0
+
+
+class ChunkValidator:
+    """Validates consecutive chunks of one file. See the module docstring."""
+
+    def __init__(self, path: str) -> None:
+        self.path = path
+        self.totals = ValidationTotals()
+        self._ids = np.empty(0, dtype=np.int64)  # sorted vehicle ids
+        self._last = np.empty((0, len(NGSIM_COLUMNS)), dtype=np.float64)  # their last rows
+        self._last_line = np.empty(0, dtype=np.int64)
+        self._gapped: set[int] = set()
+
+    @property
+    def n_vehicles(self) -> int:
+        return int(len(self._ids))
+
+    @property
+    def vehicles_with_gaps(self) -> tuple[int, ...]:
+        return tuple(sorted(self._gapped))
+
+    def _fail(self, line: int, column: str, msg: str) -> TrajectoryFormatError:
+        return TrajectoryFormatError(f"{self.path}: line {line}, column {column}: {msg}")
+
+    def check(self, data: np.ndarray, lines: np.ndarray) -> np.ndarray:
+        """Validate one chunk; return a keep mask (False for exact duplicate rows).
+
+        Args:
+            data: float64[18, N], one row per NGSIM column in schema order.
+            lines: int64[N], the 1-based file line of every row.
+        Returns:
+            bool[N], True for rows to keep.
+        """
+        n = data.shape[1]
+        keep = np.ones(n, dtype=bool)
+        if n == 0:
+            return keep
+        nan = np.isnan(data)
+        if nan.any():
+            r = int(np.flatnonzero(nan.any(axis=0))[0])
+            c = int(np.flatnonzero(nan[:, r])[0])
+            raise self._fail(int(lines[r]), NGSIM_COLUMNS[c], "missing value; expected a number")
+        for c in INT_COLUMNS:
+            col = data[_COL[c]]
+            bad = col != np.round(col)
+            if bad.any():
+                r = int(np.argmax(bad))
+                raise self._fail(int(lines[r]), c, f"value {col[r]!r} is not an integer")
+        for c in ("v_Length", "v_Width"):
+            col = data[_COL[c]]
+            if (col < 0).any():
+                r = int(np.argmax(col < 0))
+                raise self._fail(int(lines[r]), c, f"negative {c} {col[r]}; expected a length >= 0 ft")
+        self._check_order(data, lines, keep)
+        t = self.totals
+        t.rows += n
+        t.length_sum += float(data[_COL["v_Length"]][keep].sum())
+        t.width_sum += float(data[_COL["v_Width"]][keep].sum())
+        t.speed_max = max(t.speed_max, float(np.abs(data[_COL["v_Vel"]]).max(initial=0.0)))
+        t.acc_saturated_rows += int((np.abs(data[_COL["v_Acc"]][keep]) >= ACC_CAP_FT_S2 - 1e-9).sum())
+        return keep
+
+    def _check_order(self, data: np.ndarray, lines: np.ndarray, keep: np.ndarray) -> None:
+        veh = data[_COL["Vehicle_ID"]].astype(np.int64)
+        frame = data[_COL["Frame_ID"]].astype(np.int64)
+        order = np.lexsort((np.arange(len(veh)), veh))  # by vehicle, file order within
+        sv, sf = veh[order], frame[order]
+        first = np.ones(len(sv), dtype=bool)
+        first[1:] = sv[1:] != sv[:-1]
+        # previous frame of the same vehicle: in this chunk, or the state from earlier chunks
+        prev_f = np.empty(len(sv), dtype=np.int64)
+        prev_f[1:] = sf[:-1]
+        prev_line = np.empty(len(sv), dtype=np.int64)
+        prev_line[1:] = lines[order][:-1]
+        prev_row_src = np.empty(len(sv), dtype=np.int64)  # index into data, -1 = state
+        prev_row_src[1:] = order[:-1]
+        has_prev = ~first
+        fi = np.flatnonzero(first)
+        pos = np.searchsorted(self._ids, sv[fi])
+        pos_c = np.minimum(pos, max(len(self._ids) - 1, 0))
+        known = (pos < len(self._ids)) & (self._ids[pos_c] == sv[fi]) if len(self._ids) else np.zeros(len(fi), bool)
+        kfi = fi[known]
+        state_pos = pos[known]
+        prev_f[kfi] = self._last[state_pos, _COL["Frame_ID"]].astype(np.int64)
+        prev_line[kfi] = self._last_line[state_pos]
+        prev_row_src[kfi] = -1 - state_pos
+        has_prev[kfi] = True
+        d = sf - prev_f
+        back = has_prev & (d < 0)
+        if back.any():
+            i = int(np.flatnonzero(back)[0])
+            raise self._fail(
+                int(lines[order[i]]), "Frame_ID",
+                f"vehicle {sv[i]} frame {sf[i]} comes after its frame {prev_f[i]} (line "
+                f"{prev_line[i]}); expected increasing frames per vehicle",
+            )
+        same = np.flatnonzero(has_prev & (d == 0))
+        if len(same):
+            src = prev_row_src[same]
+            prev_rows = np.where((src >= 0)[:, None], data[:, np.maximum(src, 0)].T,
+                                 self._last[np.maximum(-1 - src, 0)] if len(self._last) else 0.0)
+            rows = data[:, order[same]].T
+            equal = (prev_rows == rows).all(axis=1)
+            if not equal.all():
+                j = int(np.flatnonzero(~equal)[0])
+                i = same[j]
+                diff = [NGSIM_COLUMNS[c] for c in np.flatnonzero(prev_rows[j] != rows[j])]
+                raise self._fail(
+                    int(lines[order[i]]), diff[0],
+                    f"vehicle {sv[i]} frame {sf[i]} appears again (first on line {prev_line[i]}) "
+                    f"with different values in {diff}; expected one row per vehicle and frame",
+                )
+            keep[order[same]] = False
+        self.totals.duplicate_rows += int(len(same))
+        gap = has_prev & (d > 1)
+        if gap.any():
+            g = d[gap] - 1
+            self.totals.gap_events += int(gap.sum())
+            self.totals.missing_frames += int(g.sum())
+            self.totals.max_gap_frames = max(self.totals.max_gap_frames, int(g.max()))
+            self._gapped.update(int(v) for v in np.unique(sv[gap]))
+        # update state with the last row of every vehicle in this chunk
+        last = np.ones(len(sv), dtype=bool)
+        last[:-1] = sv[:-1] != sv[1:]
+        new_ids = sv[last]
+        new_rows = data[:, order[last]].T
+        new_lines = lines[order[last]]
+        ids = np.concatenate([new_ids, self._ids])
+        rows = np.concatenate([new_rows, self._last])
+        lns = np.concatenate([new_lines, self._last_line])
+        uniq, idx = np.unique(ids, return_index=True)  # first occurrence = the new row
+        self._ids, self._last, self._last_line = uniq, rows[idx], lns[idx]
+
+    def check_units(self) -> None:
+        """After the last chunk: raise if vehicle sizes look like metres, not feet."""
+        t = self.totals
+        rows = t.rows - t.duplicate_rows
+        if rows == 0:
+            return
+        mean_len, mean_wid = t.length_sum / rows, t.width_sum / rows
+        if mean_len < MIN_MEAN_LENGTH_FT or mean_wid < MIN_MEAN_WIDTH_FT:
+            col, val, lim = (
+                ("v_Length", mean_len, MIN_MEAN_LENGTH_FT) if mean_len < MIN_MEAN_LENGTH_FT
+                else ("v_Width", mean_wid, MIN_MEAN_WIDTH_FT)
+            )
+            raise TrajectoryFormatError(
+                f"{self.path}: column {col} (all {rows} rows): mean {val:.2f} looks like metres; "
+                f"NGSIM files are in feet (expected a mean of at least {lim} ft, cars are about "
+                "15 ft long and 6 ft wide). Convert the file to NGSIM units (ft, ft/s) first."
+            )

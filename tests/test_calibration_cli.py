@@ -1,0 +1,94 @@
+"""``merge-irl calibrate fit / evaluate / check`` end to end on a few real pairs."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from analysis.calibration_check import compare_distributions, pair_states, table_states
+from scenarios.calibration import CFParams, load_pairs, load_result
+
+PAIRS_DIR = Path("/work/shared/data/ngsim_i80_car_following")
+
+
+def _cli(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "analysis", *args], capture_output=True, text=True, timeout=timeout)
+
+
+@pytest.fixture(scope="module")
+def params(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("cal") / "params.toml"
+    r = _cli("calibrate", "fit", "--pairs", str(PAIRS_DIR), "--out", str(out), "--limit", "8", "--no-per-pair")
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == str(out)
+    return out
+
+
+def test_fit_writes_loadable_params(params: Path) -> None:
+    res = load_result(params)
+    assert res.model == "idm" and res.n_pairs == 8 and res.per_pair == ()
+    assert res.population != CFParams()  # moved away from SUMO's defaults
+
+
+def test_evaluate_json_and_table(params: Path) -> None:
+    r = _cli("calibrate", "evaluate", "--params", str(params), "--pairs", str(PAIRS_DIR), "--json")
+    assert r.returncode == 0, r.stderr
+    d = json.loads(r.stdout)
+    assert {"median_rmse_m", "default_median_rmse_m"} <= set(d) and d["n_pairs"] == 302
+    assert 0 < d["median_rmse_m"] < 20 and 0 < d["default_median_rmse_m"] < 20
+    r = _cli("calibrate", "evaluate", "--params", str(params), "--pairs", str(PAIRS_DIR))
+    assert r.returncode == 0
+    lines = r.stdout.splitlines()
+    assert lines[0].split() == ["pair", "rmse_m", "default_rmse_m"] and len(lines) == 302 + 4
+    assert lines[-3].split()[0] == "median" and float(lines[-3].split()[1]) == pytest.approx(d["median_rmse_m"], abs=1e-3)
+
+
+def test_user_errors_are_one_line_exit_2(tmp_path: Path) -> None:
+    bad = tmp_path / "p.toml"
+    bad.write_text("[population]\naccel = 'fast'\n")
+    r = _cli("calibrate", "evaluate", "--params", str(bad), "--pairs", str(PAIRS_DIR))
+    assert r.returncode == 2 and "accel" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    r = _cli("calibrate", "fit", "--pairs", str(tmp_path), "--out", str(tmp_path / "x.toml"))
+    assert r.returncode == 2 and "no pair CSV files" in r.stderr
+
+
+def test_distribution_comparison_detects_difference() -> None:
+    pairs = list(load_pairs(PAIRS_DIR, limit=30))
+    real = pair_states(pairs)
+    same = compare_distributions(real, real)
+    assert all(v.ks == 0 and v.js < 1e-9 for v in same)
+    shifted = {k: v * 1.5 for k, v in real.items()}
+    diff = compare_distributions(shifted, real)
+    assert all(v.ks > 0.1 and v.js > 0.02 for v in diff)
+    # a table built from the pairs themselves gives the same states as the pairs
+    rows = []
+    for i, p in enumerate(pairs[:3]):
+        n = len(p)
+        rows.append(pd.DataFrame({"Vehicle_ID": 2 * i + 2, "Frame_ID": np.arange(n), "Lane_ID": 3,
+                                  "Preceding": 2 * i + 1, "v_Vel": p.v_follower / 0.3048,
+                                  "Space_Headway": (p.spacing + p.leader_length) / 0.3048, "v_Length": 15.0}))
+        rows.append(pd.DataFrame({"Vehicle_ID": 2 * i + 1, "Frame_ID": np.arange(n), "Lane_ID": 3, "Preceding": 0,
+                                  "v_Vel": p.v_leader / 0.3048, "Space_Headway": 0.0, "v_Length": p.leader_length / 0.3048}))
+    st = table_states(pd.concat(rows, ignore_index=True))
+    ref = pair_states(pairs[:3])
+    for k in ref:
+        np.testing.assert_allclose(np.sort(st[k]), np.sort(ref[k]), rtol=1e-9)
+
+
+@pytest.mark.sumo
+def test_check_runs_i80_with_calibrated_drivers(params: Path, tmp_path: Path) -> None:
+    out = tmp_path / "check.md"
+    r = _cli("calibrate", "check", "--params", str(params), "--pairs", str(PAIRS_DIR), "--duration", "100",
+             "--seed", "2", "--out", str(out), "--json", timeout=600)
+    assert r.returncode == 0, r.stderr
+    d = json.loads(r.stdout)
+    assert set(d["variables"]) == {"speed_ft_s", "spacing_ft", "time_headway_s"}
+    for v in d["variables"].values():
+        assert v["n_sim"] > 100 and 0 <= v["ks"] <= 1 and 0 <= v["js"] <= 1
+    assert "Jensen-Shannon" in out.read_text()

@@ -1,0 +1,34 @@
+"""The shipped I-80 geometry is what the derivation script computes from the raw NGSIM.jl
+files, and the ``i80`` preset's road uses it."""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+import pytest
+
+from analysis.scripts.derive_i80_geometry import derive, to_toml
+
+ROOT = Path(__file__).resolve().parents[1]
+SHIPPED = ROOT / "scenarios" / "data" / "i80_geometry.toml"
+RAW = Path("/work/shared/data/i80_geometry")
+
+
+def test_shipped_geometry_is_reproducible() -> None:
+    if not RAW.is_dir():
+        pytest.skip("raw NGSIM.jl geometry not present on this machine")  # data dependency, not a feature
+    g = derive(RAW)
+    assert g["main_lanes"] == 6
+    assert g["lane_width_ft"] == pytest.approx(12.0, abs=0.2)
+    assert 0 < g["merge_position_ft"] < g["merge_position_ft"] + g["aux_length_ft"] < g["section_length_ft"]
+    assert to_toml(g, "sisl/NGSIM.jl data/ (centerlines80, boundaries80)") == SHIPPED.read_text()
+
+
+def test_i80_preset_road_is_the_derived_geometry() -> None:
+    from scenarios.loader import load_preset
+
+    road = tomllib.loads(SHIPPED.read_text())["road"]
+    spec = load_preset("i80").road
+    for key, value in road.items():
+        assert getattr(spec, key) == pytest.approx(value, abs=1e-6), key

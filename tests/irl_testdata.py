@@ -12,9 +12,9 @@ import numpy as np
 
 from irl.demonstrations import Demonstrations
 
-GRIDWORLD_DIR = Path("/work/shared/data/railusm/gridworld")
-if not GRIDWORLD_DIR.exists():  # the shared data also sits next to the repository
-    GRIDWORLD_DIR = Path(__file__).resolve().parents[2] / "shared/data/railusm/gridworld"
+from shared_data import DATA
+
+GRIDWORLD_DIR = DATA / "railusm" / "gridworld"
 
 
 def gridworld_features() -> np.ndarray:

@@ -14,7 +14,9 @@ import pytest
 from analysis.calibration_check import compare_distributions, pair_states, table_states
 from scenarios.calibration import CFParams, load_pairs, load_result
 
-PAIRS_DIR = Path("/work/shared/data/ngsim_i80_car_following")
+from shared_data import DATA
+
+PAIRS_DIR = DATA / "ngsim_i80_car_following"
 
 
 def _cli(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:

@@ -23,9 +23,9 @@ from scenarios.calibration.pairs import CarFollowingPair, PairBatch
 from scenarios.calibration.vtypes import SIM_RANGE
 from scenarios.errors import SpecError
 
-PAIRS_DIR = Path(__file__).resolve().parents[2] / "shared" / "data" / "ngsim_i80_car_following"
-if not PAIRS_DIR.is_dir():
-    PAIRS_DIR = Path("/work/shared/data/ngsim_i80_car_following")
+from shared_data import DATA
+
+PAIRS_DIR = DATA / "ngsim_i80_car_following"
 TRUE = CFParams(accel=1.4, decel=2.2, tau=1.3, minGap=2.0, maxSpeed=22.0)
 
 

@@ -7,7 +7,9 @@ import pytest
 
 from irl import gridworld as g
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "railusm" / "gridworld"
+from shared_data import DATA as SHARED_DATA
+
+DATA = SHARED_DATA / "railusm" / "gridworld"
 
 
 def test_layout_and_moves():

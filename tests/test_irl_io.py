@@ -9,7 +9,9 @@ from irl.demonstrations import Demonstrations
 from irl.errors import DemonstrationError
 from irl.io import load_npz, load_railusm, natural_key, save_npz, save_railusm
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "railusm"
+from shared_data import DATA as SHARED_DATA
+
+DATA = SHARED_DATA / "railusm"
 
 S, A, K = 6, 3, 2
 

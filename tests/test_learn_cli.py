@@ -13,7 +13,9 @@ from irl.boltzmann import log_policy
 from irl.io import save_npz
 from irl.result import SavedModel
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "railusm"
+from shared_data import DATA as SHARED_DATA
+
+DATA = SHARED_DATA / "railusm"
 pytestmark = pytest.mark.skipif(not DATA.is_dir(), reason="the authors' data is not on this machine")
 
 

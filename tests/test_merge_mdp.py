@@ -9,7 +9,9 @@ import pytest
 from irl import merge_mdp as m
 from irl.errors import ConfigError, DemonstrationError
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "railusm" / "merge_ngsim"
+from shared_data import DATA as SHARED_DATA
+
+DATA = SHARED_DATA / "railusm" / "merge_ngsim"
 
 
 def test_state_layout_round_trip():

@@ -12,7 +12,9 @@ from analysis.scripts.derive_i80_geometry import derive, to_toml
 
 ROOT = Path(__file__).resolve().parents[1]
 SHIPPED = ROOT / "scenarios" / "data" / "i80_geometry.toml"
-RAW = Path("/work/shared/data/i80_geometry")
+from shared_data import DATA
+
+RAW = DATA / "i80_geometry"
 
 
 def test_shipped_geometry_is_reproducible() -> None:

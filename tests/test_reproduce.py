@@ -11,7 +11,9 @@ from analysis.reproduce import reproduce, table_problem, wilcoxon_p
 from analysis.trials import TrialTask, run_trial, run_trials, trial_seeds
 from irl.config import IRLConfig
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "railusm"
+from shared_data import DATA as SHARED_DATA
+
+DATA = SHARED_DATA / "railusm"
 needs_data = pytest.mark.skipif(not DATA.is_dir(), reason="the authors' data is not on this machine")
 
 

@@ -25,7 +25,7 @@ def test_presets_load_and_round_trip(name):
 def test_i80_preset_shape():
     spec = load_scenario("i80")
     assert spec.road.main_lanes == 6
-    assert 480 <= spec.road.main_length_m <= 530  # about 1650 ft
+    assert 600 <= spec.road.main_length_m <= 620  # 2005 ft: on-ramp start to off-ramp, derived from I-80 geometry
     assert len(spec.drivers.car) >= 2  # a distribution of car drivers
     assert set(preset_names()) >= {"synthetic", "i80"}
 
@@ -117,6 +117,6 @@ def test_vtype_distribution_in_routes():
     from scenarios.routes import routes_xml
 
     xml = routes_xml(load_scenario("i80"))
-    assert xml.count("<vType ") == 3 and '<vTypeDistribution id="traffic">' in xml
+    assert xml.count("<vType ") == len(spec.drivers.car) + len(spec.drivers.truck) and '<vTypeDistribution id="traffic">' in xml
     probs = [float(x.split('"')[0]) for x in xml.split('probability="')[1:]]
     assert abs(sum(probs) - 1.0) < 1e-6

@@ -101,7 +101,8 @@ def calibration_time(pairs_dir: Path) -> dict:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size-mb", type=float, default=520.0)
-    ap.add_argument("--pairs", type=Path, default=Path("/work/shared/data/ngsim_i80_car_following"))
+    ap.add_argument("--pairs", type=Path, default=Path("../shared/data/ngsim_i80_car_following"),
+                    help="folder of car-following pairs (default: ../shared/..., beside the checkout)")
     ap.add_argument("--skip-calibration", action="store_true")
     ap.add_argument("--keep", action="store_true", help="keep the generated file")
     args = ap.parse_args(argv)

@@ -2,7 +2,7 @@
 
 One-off script (kept so the numbers can be re-derived and checked):
 
-    python -m analysis.scripts.derive_i80_geometry /work/shared/data/i80_geometry \
+    python -m analysis.scripts.derive_i80_geometry ../shared/data/i80_geometry \
         --out scenarios/data/i80_geometry.toml
 
 Input: NGSIM.jl's I-80 files (MIT licence; point lists in NGSIM global coordinates, feet):

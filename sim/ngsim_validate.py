@@ -32,6 +32,10 @@ MIN_MEAN_WIDTH_FT = 3.5
 _COL = {c: i for i, c in enumerate(NGSIM_COLUMNS)}
 
 
+#: Largest integer magnitude accepted in an integer column (exact in float64).
+INT_LIMIT = float(2**53)
+
+
 @dataclass
 class ValidationTotals:
     """Running totals; turned into the frozen load report at the end."""
@@ -87,12 +91,24 @@ class ChunkValidator:
             r = int(np.flatnonzero(nan.any(axis=0))[0])
             c = int(np.flatnonzero(nan[:, r])[0])
             raise self._fail(int(lines[r]), NGSIM_COLUMNS[c], "missing value; expected a number")
+        inf = np.isinf(data)
+        if inf.any():
+            r = int(np.flatnonzero(inf.any(axis=0))[0])
+            c = int(np.flatnonzero(inf[:, r])[0])
+            raise self._fail(int(lines[r]), NGSIM_COLUMNS[c],
+                             f"value {data[c, r]!r} is not finite; expected a number")
         for c in INT_COLUMNS:
             col = data[_COL[c]]
             bad = col != np.round(col)
             if bad.any():
                 r = int(np.argmax(bad))
                 raise self._fail(int(lines[r]), c, f"value {col[r]!r} is not an integer")
+            # float64 holds integers exactly only up to 2**53; ids beyond that are not NGSIM's
+            big = np.abs(col) > INT_LIMIT
+            if big.any():
+                r = int(np.argmax(big))
+                raise self._fail(int(lines[r]), c,
+                                 f"integer {col[r]:.17g} is out of range; expected |value| <= 2**53")
         for c in ("v_Length", "v_Width"):
             col = data[_COL[c]]
             if (col < 0).any():

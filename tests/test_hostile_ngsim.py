@@ -57,8 +57,7 @@ def _check(path, **kw):
     t = load.table
     assert list(t.columns) == list(COLUMNS)
     assert {c: str(t[c].dtype) for c in t.columns} == COLUMNS
-    # Non-finite values ("inf", "1e400") are currently accepted: a known bug tracked by the
-    # deterministic xfail test below, so the properties do not trip over it every run.
+    assert all(np.isfinite(t[c]).all() for c in t.columns if t[c].dtype.kind == "f")
     assert load.report.rows_kept == len(t)
     return load
 
@@ -157,7 +156,6 @@ def test_parquet_with_wrong_columns(tmp_path):
         read_trajectories(p)
 
 
-@pytest.mark.xfail(strict=False, reason="sim.ngsim_validate rejects NaN but not +-inf (reported by H6)")
 @pytest.mark.parametrize("token", ["inf", "-inf", "1e400"])
 def test_infinite_values_are_rejected(tmp_path, token):
     rows = [list(r) for r in ROWS]
@@ -168,7 +166,6 @@ def test_infinite_values_are_rejected(tmp_path, token):
         read_ngsim(p)
 
 
-@pytest.mark.xfail(strict=False, reason="sim.ngsim_read casts integers beyond int64 to garbage (reported by H6)")
 @pytest.mark.parametrize("col,token", [(0, str(2**70)), (13, str(-(2**63) - 4096))])
 def test_integers_beyond_int64_are_rejected(tmp_path, col, token):
     rows = [list(r) for r in ROWS]

@@ -116,7 +116,8 @@ def test_bad_toml_file_names_the_file(tmp_path):
 def test_vtype_distribution_in_routes():
     from scenarios.routes import routes_xml
 
-    xml = routes_xml(load_scenario("i80"))
+    spec = load_scenario("i80")
+    xml = routes_xml(spec)
     assert xml.count("<vType ") == len(spec.drivers.car) + len(spec.drivers.truck) and '<vTypeDistribution id="traffic">' in xml
     probs = [float(x.split('"')[0]) for x in xml.split('probability="')[1:]]
     assert abs(sum(probs) - 1.0) < 1e-6

@@ -19,11 +19,11 @@ from __future__ import annotations
 
 import os
 import re
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from irl.atomic import write_atomic, write_text_atomic
 from irl.demonstrations import Demonstrations
 from irl.errors import DemonstrationError
 
@@ -124,20 +124,8 @@ def save_railusm(demos: Demonstrations, directory: str | os.PathLike, prefix: st
     out = []
     for i, (s, a) in enumerate(zip(demos.states, demos.actions)):
         text = "".join(f"{int(x)}\t{int(y)}\t\n" for x, y in zip(s, a))
-        out.append(_atomic_write_text(directory / f"{prefix}{i}.txt", text))
+        out.append(write_text_atomic(directory / f"{prefix}{i}.txt", text))
     return out
-
-
-def _atomic_write_text(path: Path, text: str) -> Path:
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
 
 
 _REQUIRED = ("features", "states", "actions", "offsets")
@@ -271,12 +259,4 @@ def save_npz(demos: Demonstrations, path: str | os.PathLike, feature_names: tupl
         arrays["feature_names"] = np.asarray(feature_names, dtype=str)
     if demos.names:
         arrays["names"] = np.asarray(demos.names, dtype=str)
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            np.savez(f, **arrays)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    return write_atomic(path, lambda f: np.savez(f, **arrays), binary=True)

@@ -41,6 +41,91 @@ class EpisodeResult:
     rrd: str = ""
     table: pd.DataFrame | None = field(default=None, repr=False)
 
+    def to_dict(self) -> dict:
+        """JSON-serialisable form (the sweep runner stores results as JSON; NaN kept as NaN)."""
+        d = {
+            "metrics": _plain(self.metrics.to_dict()),
+            "controls": frame_to_dict(self.controls),
+            "decisions": frame_to_dict(self.decisions),
+            "speed_profiles": frame_to_dict(self.speed_profiles),
+            "wall_time_s": float(self.wall_time_s),
+            "rrd": self.rrd,
+        }
+        if self.table is not None:
+            d["table"] = frame_to_dict(self.table)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "EpisodeResult":
+        """Inverse of :meth:`to_dict`."""
+        return cls(
+            metrics=EpisodeMetrics.from_dict(d["metrics"]), controls=frame_from_dict(d["controls"]),
+            decisions=frame_from_dict(d["decisions"]), speed_profiles=frame_from_dict(d["speed_profiles"]),
+            wall_time_s=float(d["wall_time_s"]), rrd=str(d.get("rrd", "")),
+            table=frame_from_dict(d["table"]) if d.get("table") is not None else None,
+        )
+
+
+def _plain(x):
+    """Numpy scalars and containers to plain Python values."""
+    if isinstance(x, dict):
+        return {str(k): _plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_plain(v) for v in x]
+    if isinstance(x, np.generic):
+        return x.item()
+    return x
+
+
+def frame_to_dict(df: pd.DataFrame) -> dict:
+    """``{"columns": {name: [values]}, "dtypes": {name: dtype}}`` of a flat DataFrame (index dropped)."""
+    return {"columns": {str(c): _plain(df[c].tolist()) for c in df.columns},
+            "dtypes": {str(c): str(df[c].dtype) for c in df.columns}}
+
+
+def frame_from_dict(d: dict) -> pd.DataFrame:
+    """Inverse of :func:`frame_to_dict` (same columns, order and dtypes)."""
+    cols = d["columns"]
+    df = pd.DataFrame({c: pd.Series(v, dtype=object) for c, v in cols.items()}, columns=list(cols))
+    return df.astype(d["dtypes"]) if len(cols) else df
+
+
+@dataclass(frozen=True)
+class EpisodeSpec:
+    """One closed-loop episode as a sweep task config (see :func:`run_episode_task`).
+
+    Attributes:
+        scenario: preset name, TOML path or ScenarioSpec.
+        policy: the policy driving the As.
+        seed: the episode's SUMO and sampling seed (the same seeds for every policy, so every
+            policy meets the same traffic; the sweep's derived seed is not used).
+        duration_s, controller, metrics, demo_action_counts, rrd_path, keep_table: as in
+            :func:`run_episode` (``demo_action_counts`` as a tuple).
+    """
+
+    scenario: object
+    policy: Policy
+    seed: int
+    duration_s: float | None = None
+    controller: ControllerConfig = ControllerConfig()
+    metrics: MetricsConfig = MetricsConfig()
+    demo_action_counts: tuple[int, ...] | None = None
+    rrd_path: str | None = None
+    keep_table: bool = False
+
+
+def run_episode_task(spec: EpisodeSpec, seed: int) -> dict:
+    """Sweep task: :func:`run_episode` of ``spec`` as ``EpisodeResult.to_dict()``.
+
+    Runs in a sweep worker; a worker runs one task at a time and ``run_scenario`` closes its
+    libsumo simulation before returning, so successive episodes in one worker are fine.
+    """
+    del seed
+    counts = None if spec.demo_action_counts is None else np.asarray(spec.demo_action_counts, dtype=np.int64)
+    return run_episode(spec.scenario, spec.policy, spec.seed, duration_s=spec.duration_s,
+                       controller=spec.controller, metrics=spec.metrics, demo_action_counts=counts,
+                       rrd_path=spec.rrd_path, keep_table=spec.keep_table).to_dict()
+
 
 def run_episode(
     scenario,

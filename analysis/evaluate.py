@@ -10,8 +10,8 @@ Example::
     print(report.aggregates["qavg"].b_ahead_rate)
 
 Every policy runs the same episodes (seeds ``seed .. seed + episodes - 1``: the same traffic
-for every policy). Episodes run in a process pool (one libsumo simulation per process at a
-time). Outputs in ``out_dir``: ``report.md``, ``metrics.json``, ``action_histograms.png``,
+for every policy). Episodes run through :func:`analysis.sweep.run_sweep` (``executor``: a
+process pool by default, one libsumo simulation per process at a time; or Dask). Outputs in ``out_dir``: ``report.md``, ``metrics.json``, ``action_histograms.png``,
 ``gap_acceptance.png``, ``speed_profiles.png`` and, with ``rrd=True``, one rerun recording of
 the first episode of each policy under ``rerun/``.
 """
@@ -24,16 +24,13 @@ import os
 import sys
 import tempfile
 from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
-
-import multiprocessing as mp
 
 import numpy as np
 import pandas as pd
 
-from analysis.episode import EpisodeResult, run_episode
+from analysis.episode import EpisodeResult
 from analysis.metrics import AggregateMetrics, MetricsConfig, aggregate, heldout_loglik
 from irl.result import SavedModel
 from sim.controller import ControllerConfig
@@ -136,30 +133,54 @@ class EvaluationReport:
     rrd: dict[str, Path] = field(default_factory=dict)
 
 
-def _episode_task(args) -> EpisodeResult:
-    scenario, policy, seed, kw = args
-    return run_episode(scenario, policy, seed, **kw)
+def run_episodes(tasks: Sequence[tuple], *, workers: int | None = None, executor: str | None = None,
+                 store=None, progress: bool = True) -> list[EpisodeResult]:
+    """Run ``(scenario, policy, seed, kwargs)`` tasks through :func:`analysis.sweep.run_sweep`, in order.
 
+    Args:
+        executor: ``serial``, ``process[:N]``, ``dask-local[:N]`` or ``dask://HOST:PORT``
+            (default: ``process:<workers>``, or every core if ``workers`` is None too). Process
+            workers are fresh ``spawn`` processes running one task (one libsumo simulation) at
+            a time; the Dask executors start single-threaded workers.
+        workers: shorthand for ``executor="process:<workers>"``.
+        store: optional result directory (finished episodes are skipped on a re-run).
 
-def run_episodes(tasks: Sequence[tuple], *, workers: int = 2, progress: bool = True) -> list[EpisodeResult]:
-    """Run ``(scenario, policy, seed, kwargs)`` tasks, each in a worker process, in order.
-
-    ``workers`` processes (spawned; one libsumo simulation per process at a time).
+    Raises:
+        SimError: if an episode failed twice (every failure listed).
     """
-    from tqdm import tqdm
+    from analysis.episode import EpisodeSpec, run_episode_task
+    from analysis.sweep import Task, run_sweep
 
-    bar = tqdm(total=len(tasks), desc="episodes", unit="ep", file=sys.stderr,
-               disable=not (progress and sys.stderr.isatty()))
+    executor = resolve_executor(executor, workers)
+    sweep_tasks = []
+    for i, (scenario, policy, seed, kw) in enumerate(tasks):
+        kw = dict(kw)
+        counts = kw.pop("demo_action_counts", None)
+        spec = EpisodeSpec(scenario, policy, int(seed), **kw,
+                           demo_action_counts=None if counts is None else tuple(int(c) for c in counts))
+        sweep_tasks.append(Task(f"{i:04d}/{policy.name}/seed{int(seed)}", run_episode_task, spec))
+    report = run_sweep(sweep_tasks, seed=0, executor=executor, store=store, progress=progress and sys.stderr.isatty(),
+                       desc="episodes")
+    if not report.ok:
+        from sim.errors import SimError
+
+        raise SimError("episodes failed: " + "; ".join(f"{f.key}: {f.error}" for f in report.failures))
+    return [EpisodeResult.from_dict(report.results[t.key]) for t in sweep_tasks]
+
+
+def resolve_executor(executor: str | None, workers: int | None) -> str:
+    """``executor`` if given, else ``process:<workers>``, else ``process`` (every core);
+    raises SimError on a malformed value."""
+    from analysis.sweep import parse_executor
+    from sim.errors import SimError
+
+    if executor is None:
+        executor = "process" if workers is None else f"process:{max(1, int(workers))}"
     try:
-        with ProcessPoolExecutor(max_workers=max(1, int(workers)), mp_context=mp.get_context("spawn")) as ex:
-            futures = [ex.submit(_episode_task, t) for t in tasks]
-            out = []
-            for f in futures:
-                out.append(f.result())
-                bar.update(1)
-        return out
-    finally:
-        bar.close()
+        parse_executor(executor)
+    except ValueError as e:
+        raise SimError(str(e)) from None
+    return executor
 
 
 def evaluate(
@@ -175,7 +196,8 @@ def evaluate(
     policies: Sequence[Policy] = (),
     controller: ControllerConfig = ControllerConfig(),
     metrics: MetricsConfig = MetricsConfig(),
-    workers: int = 2,
+    workers: int | None = 2,
+    executor: str | None = None,
     rrd: bool = True,
     progress: bool = True,
 ) -> EvaluationReport:
@@ -191,7 +213,8 @@ def evaluate(
             held-out log-likelihood; None: both are NaN.
         baselines: any of ``"sumo"`` (not taken over) and ``"uniform"`` (random actions).
         policies: further policies to evaluate (e.g. ``ConstantPolicy(0)``).
-        workers: processes.
+        workers: processes (shorthand for ``executor="process:<workers>"``).
+        executor: where episodes run (see :func:`run_episodes`); overrides ``workers``.
         rrd: write a rerun recording of each policy's first episode.
     """
     if episodes < 1:
@@ -225,7 +248,7 @@ def evaluate(
             kw = dict(duration_s=duration_s, controller=controller, metrics=metrics, demo_action_counts=counts,
                       rrd_path=str(out / "rerun" / f"{p.name}.rrd") if (rrd and i == 0) else None)
             tasks.append((spec, p, seed + i, kw))
-    results = run_episodes(tasks, workers=workers, progress=progress)
+    results = run_episodes(tasks, workers=workers, executor=executor, progress=progress)
     by_policy: dict[str, list[EpisodeResult]] = {p.name: [] for p in pols}
     for (_, p, _, _), r in zip(tasks, results):
         by_policy[p.name].append(r)

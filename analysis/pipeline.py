@@ -52,7 +52,9 @@ class DemoConfig:
         eval_duration_s: simulated seconds per evaluation episode.
         methods: IRL methods to learn.
         fit_seed: seed of the IRL fits.
-        workers: processes.
+        workers: processes (``process:<workers>``).
+        executor: where the data runs and evaluation episodes run (``analysis.sweep``
+            executors); None: ``process:<workers>``.
     """
 
     scenario: str = "synthetic"
@@ -65,6 +67,7 @@ class DemoConfig:
     methods: tuple[str, ...] = METHODS
     fit_seed: int = 0
     workers: int = 2
+    executor: str | None = None
 
 
 @dataclass(frozen=True)
@@ -100,26 +103,52 @@ class DemoResult:
         return "\n".join(lines)
 
 
-def _encounters_task(args) -> pd.DataFrame:
-    scenario, seed, duration = args
+@dataclass(frozen=True)
+class EncounterRun:
+    """One data run as a sweep task config: ``scenario`` (name, TOML path or ScenarioSpec)
+    simulated with SUMO ``seed`` for ``duration_s`` (None: the scenario's)."""
+
+    scenario: object
+    seed: int
+    duration_s: float | None = None
+
+
+def encounters_task(run: EncounterRun, seed: int) -> dict:
+    """Sweep task: the run's encounter frames (ids offset by ``1e6 * run.seed``) as
+    ``analysis.episode.frame_to_dict``. The sweep's derived ``seed`` is not used."""
+    del seed
+    from analysis.episode import frame_to_dict
     from scenarios.loader import load_scenario
     from sim.encounters import extract_encounters
     from sim.run import run_scenario
 
-    spec = load_scenario(scenario) if isinstance(scenario, (str, Path)) else scenario
-    res = run_scenario(spec, seed=seed, duration_s=duration)
+    spec = load_scenario(run.scenario) if isinstance(run.scenario, (str, Path)) else run.scenario
+    res = run_scenario(spec, seed=run.seed, duration_s=run.duration_s)
     frames = extract_encounters(res.table)
-    frames["encounter_id"] = frames["encounter_id"].astype("int64") + 1_000_000 * int(seed)
-    return frames
+    frames["encounter_id"] = frames["encounter_id"].astype("int64") + 1_000_000 * int(run.seed)
+    return frame_to_dict(frames)
 
 
-def generate_encounters(scenario, seeds: Sequence[int], duration_s: float | None, *, workers: int = 2) -> list[pd.DataFrame]:
-    """Encounter frames of one SUMO run per seed (worker processes), ids made unique per seed."""
-    import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor
+def generate_encounters(scenario, seeds: Sequence[int], duration_s: float | None, *, workers: int | None = 2,
+                        executor: str | None = None, progress: bool = False) -> list[pd.DataFrame]:
+    """Encounter frames of one SUMO run per seed, ids made unique per seed, in seed order.
 
-    with ProcessPoolExecutor(max_workers=max(1, workers), mp_context=mp.get_context("spawn")) as ex:
-        return list(ex.map(_encounters_task, [(scenario, s, duration_s) for s in seeds]))
+    Runs through :func:`analysis.sweep.run_sweep` (``executor``, default ``process:<workers>``;
+    one simulation per worker process at a time). Raises SimError if a run failed twice.
+    """
+    from analysis.episode import frame_from_dict
+    from analysis.evaluate import resolve_executor
+    from analysis.sweep import Task, run_sweep
+
+    tasks = [Task(f"{i:03d}/seed{int(s)}", encounters_task, EncounterRun(scenario, int(s), duration_s))
+             for i, s in enumerate(seeds)]
+    report = run_sweep(tasks, seed=0, executor=resolve_executor(executor, workers),
+                       progress=progress and sys.stderr.isatty(), desc="data runs")
+    if not report.ok:
+        from sim.errors import SimError
+
+        raise SimError("data runs failed: " + "; ".join(f"{f.key}: {f.error}" for f in report.failures))
+    return [frame_from_dict(report.results[t.key]) for t in tasks]
 
 
 def _say(msg: str, quiet: bool) -> None:
@@ -142,7 +171,8 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
 
     _say(f"[1/5] simulating {len(config.train_seeds)} training runs + 1 held-out run of {config.scenario}", quiet)
     frames = generate_encounters(config.scenario, (*config.train_seeds, config.heldout_seed),
-                                 config.data_duration_s, workers=config.workers)
+                                 config.data_duration_s, workers=config.workers,
+                                 executor=config.executor)
     train = prepare_encounters(pd.concat(frames[:-1], ignore_index=True))
     heldout = prepare_encounters(frames[-1])
     train_path = out / "data" / "train_encounters.parquet"
@@ -190,7 +220,7 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     _say(f"[5/5] evaluating {len(models)} models + sumo + uniform, {config.eval_episodes} episodes each", quiet)
     report = evaluate(list(models.values()), config.scenario, config.eval_episodes, config.eval_seed,
                       out / "evaluation", duration_s=config.eval_duration_s, demos=held_path,
-                      workers=config.workers, progress=progress)
+                      workers=config.workers, executor=config.executor, progress=progress)
     wall = time.perf_counter() - t0
     result = DemoResult(out, models, report, out / "demo.rrd", out / "summary.md", int(train["encounter_id"].nunique()),
                         problem.demos.n_steps, wall, messages)

@@ -11,8 +11,11 @@ with the first trial seed).
 Example::
 
     from analysis.reproduce import reproduce, format_report
-    report = reproduce(1, "/path/to/railusm", trials=5)
+    report = reproduce(1, "/path/to/railusm", trials=5, executor="process:2")
     print(format_report(report))
+
+Trials run through :func:`analysis.sweep.run_sweep` (``executor``: serial, process pool, Dask;
+``store``: a directory that makes a re-run skip the trials already finished).
 """
 
 from __future__ import annotations
@@ -23,12 +26,14 @@ import os
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Iterable
+from typing import Sequence
 
 import numpy as np
 
 from analysis.problem import Problem, load_problem
-from analysis.trials import TrialOutcome, TrialTask, config_label, run_trials, trial_seeds
+from analysis.sweep import ResultStore, SweepReport, Task, TaskFailure, run_sweep
+from analysis.trials import (TrialOutcome, TrialSpec, cached_table_problem, config_label, run_trial_spec,
+                             trial_seeds)
 from irl.config import IRLConfig
 from irl.errors import ConfigError, DemonstrationError
 from irl.reirl import DEFAULT_EPSILON
@@ -114,6 +119,7 @@ class ReproductionReport:
     trials: tuple[TrialOutcome, ...]
     holdout: tuple[TrialOutcome, ...]
     seed: int
+    failures: tuple[TaskFailure, ...] = ()
 
     def to_json_dict(self) -> dict:
         def clean(x):
@@ -130,20 +136,30 @@ class ReproductionReport:
             "trials": [t.to_dict() for t in self.trials],
             "holdout": [t.to_dict() for t in self.holdout],
             "paper": {m: list(v) for m, v in PAPER.get(self.table, {}).items()},
+            "failures": [{"key": f.key, "error": f.error, "attempts": f.attempts} for f in self.failures],
         }
 
     def save_json(self, path: str | os.PathLike) -> Path:
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
-        try:
-            with os.fdopen(fd, "w") as f:
-                json.dump(self.to_json_dict(), f, indent=1)
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
-        return path
+        return _write_json_atomic(path, self.to_json_dict())
+
+
+def save_reports_json(reports: Sequence[ReproductionReport], path: str | os.PathLike) -> Path:
+    """Several tables' reports as ``{"tables": [report.to_json_dict(), ...]}``, atomically."""
+    return _write_json_atomic(path, {"tables": [r.to_json_dict() for r in reports]})
+
+
+def _write_json_atomic(path: str | os.PathLike, data: dict) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w") as f:
+            json.dump(data, f, indent=1)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
 
 
 def wilcoxon_p(x: np.ndarray, y: np.ndarray) -> float:
@@ -170,7 +186,11 @@ def summarize(method: str, outcomes: list[TrialOutcome], mlirl: list[TrialOutcom
     ddof = 1 if len(outcomes) > 1 else 0
     p = float("nan")
     if mlirl is not None and method != "mlirl":
-        p = wilcoxon_p(ll, np.array([o.loglik for o in mlirl]))
+        ref = {o.seed: o.loglik for o in mlirl}  # pair by trial seed (a failed trial drops its pair)
+        pairs = [(o.loglik, ref[o.seed]) for o in outcomes if o.seed in ref]
+        if pairs:
+            x, y = np.array(pairs).T
+            p = wilcoxon_p(x, y)
     held = float(np.sum([o.heldout_loglik for o in holdout])) if holdout else float("nan")
     return MethodSummary(
         method=method, theta_mean=tuple(theta.mean(axis=0)), theta_std=tuple(theta.std(axis=0, ddof=ddof)),
@@ -179,6 +199,127 @@ def summarize(method: str, outcomes: list[TrialOutcome], mlirl: list[TrialOutcom
         n_unbounded=sum(o.unbounded for o in outcomes),
         time_mean_s=float(np.mean([o.wall_time_s for o in outcomes])),
     )
+
+
+def _trial_specs(table: int, data_dir: str, config: IRLConfig, n: int, seed: int,
+                 methods: tuple[str, ...], holdout: bool, epsilon: float) -> list[TrialSpec]:
+    seeds = trial_seeds(seed, n)
+    specs = [TrialSpec(table, data_dir, m, config, j, s, epsilon=epsilon)
+             for m in methods for j, s in enumerate(seeds)]
+    if holdout:
+        n_traj = cached_table_problem(table, data_dir).demos.n_trajectories
+        specs += [TrialSpec(table, data_dir, m, config, 0, seeds[0], holdout=i, epsilon=epsilon)
+                  for m in methods for i in range(n_traj)]
+    return specs
+
+
+_METHOD_COST = {"qsm": 3, "mlirl": 2, "reirl": 1, "qavg": 0}
+
+
+def _expected_cost(spec: TrialSpec) -> tuple[int, int, int]:
+    return (spec.table == 3, _METHOD_COST.get(spec.method, 0), spec.holdout is None)
+
+
+@dataclass(frozen=True)
+class ReproductionRun:
+    """Result of :func:`reproduce_tables`: one report per table and the sweep that ran them.
+
+    Attributes:
+        reports: one :class:`ReproductionReport` per requested table, in order.
+        sweep: the :class:`analysis.sweep.SweepReport` (timings, cached/run counts, failures).
+    """
+
+    reports: tuple[ReproductionReport, ...]
+    sweep: SweepReport
+
+    @property
+    def ok(self) -> bool:
+        return self.sweep.ok
+
+
+def reproduce_tables(
+    tables: Sequence[int],
+    data_dir: str | os.PathLike,
+    *,
+    trials: int | None = None,
+    settings: str = "paper",
+    config: IRLConfig | None = None,
+    seed: int = 0,
+    methods: tuple[str, ...] = METHOD_ORDER,
+    holdout: bool = True,
+    epsilon: float = DEFAULT_EPSILON,
+    executor: str = "process",
+    store: ResultStore | str | os.PathLike | None = None,
+    retries: int = 1,
+    progress: bool = False,
+) -> ReproductionRun:
+    """Run every method of each table over ``trials`` initialisations (default 30, 30, 10), as
+    one sweep (:func:`analysis.sweep.run_sweep`), so slow and fast trials of all tables share
+    the workers.
+
+    Args:
+        settings: ``paper`` or ``reference`` base settings (ignored if ``config`` is given).
+        seed: master seed; trial ``j`` uses ``trial_seeds(seed, n)[j]`` for every method (the
+            same seeds as before the sweep runner: results are unchanged for a given seed).
+        holdout: also run the leave-one-trajectory-out evaluation (first trial seed).
+        epsilon: REIRL's L1 weight.
+        executor: ``serial``, ``process[:N]`` (default: every core), ``dask-local[:N]`` or
+            ``dask://HOST:PORT``. Results do not depend on it.
+        store: a result directory: finished trials are stored there and skipped when re-run.
+        retries: re-runs of a failing trial before it is reported in ``sweep.failures``; the
+            tables are summarised from the trials that succeeded.
+    """
+    tables = tuple(int(t) for t in tables)
+    for table in tables:
+        if table not in DEFAULT_TRIALS:
+            raise ConfigError(f"table must be 1, 2 or 3, got {table}")
+    if not tables:
+        raise ConfigError("no table to reproduce")
+    if settings not in ("paper", "reference"):
+        raise ConfigError(f"settings must be 'paper' or 'reference', got {settings!r}")
+    bad = [m for m in methods if m not in METHOD_ORDER]
+    if bad:
+        raise ConfigError(f"methods: unknown {bad}; expected some of {list(METHOD_ORDER)}")
+    if config is None:
+        config = IRLConfig.reference() if settings == "reference" else IRLConfig.paper()
+    if trials is not None and int(trials) < 1:
+        raise ConfigError(f"trials must be >= 1, got {trials}")
+    d = str(resolve_data_dir(data_dir).resolve())
+    specs: dict[int, list[TrialSpec]] = {}
+    for table in tables:
+        n = DEFAULT_TRIALS[table] if trials is None else int(trials)
+        specs[table] = _trial_specs(table, d, config, n, seed, tuple(methods), holdout, epsilon)
+    # submit the slow trials first (NGSIM before gridworld; Q-SM and MLIRL before Q-Avg and
+    # REIRL) so no long trial starts last and leaves the other workers idle; results are
+    # keyed, so the order changes nothing else
+    ordered = sorted((s for table in tables for s in specs[table]), key=_expected_cost, reverse=True)
+    tasks = [Task(s.key, run_trial_spec, s) for s in ordered]
+    label = "tables " + ",".join(map(str, tables)) if len(tables) > 1 else f"table {tables[0]}"
+    sweep = run_sweep(tasks, seed=seed, executor=executor, store=store, retries=retries,
+                      progress=progress, desc=label)
+    reports = []
+    for table in tables:
+        outcomes = [TrialOutcome.from_dict(sweep.results[s.key]) for s in specs[table] if s.key in sweep.results]
+        prefix = f"table{table}/"
+        failed = tuple(f for f in sweep.failures if f.key.startswith(prefix))
+        reports.append(_table_report(table, d, config, methods, outcomes, failed, seed))
+    return ReproductionRun(tuple(reports), sweep)
+
+
+def _table_report(table: int, data_dir: str, config: IRLConfig, methods: Sequence[str], outcomes: list[TrialOutcome],
+                  failures: tuple[TaskFailure, ...], seed: int) -> ReproductionReport:
+    main = [o for o in outcomes if o.holdout is None]
+    folds = [o for o in outcomes if o.holdout is not None]
+    by_method = {m: [o for o in main if o.method == m] for m in methods}
+    mlirl = by_method.get("mlirl")
+    # a method with a failed fold gets no held-out sum (NaN) rather than a partial one
+    fold_failed = {f.key.split("/")[1] for f in failures if "/holdout" in f.key}
+    rows = tuple(summarize(m, by_method[m], mlirl,
+                           [] if m in fold_failed else [o for o in folds if o.method == m])
+                 for m in methods if by_method[m])
+    names = tuple(cached_table_problem(table, data_dir).feature_names)
+    return ReproductionReport(table, TITLES[table], config, names, rows, tuple(main), tuple(folds), int(seed),
+                              failures)
 
 
 def reproduce(
@@ -192,41 +333,17 @@ def reproduce(
     methods: tuple[str, ...] = METHOD_ORDER,
     holdout: bool = True,
     epsilon: float = DEFAULT_EPSILON,
+    executor: str = "process",
+    store: ResultStore | str | os.PathLike | None = None,
+    retries: int = 1,
     progress: bool = False,
-    map_fn: Callable[[Callable, Iterable], Iterable] = map,
 ) -> ReproductionReport:
-    """Run every method of ``table`` over ``trials`` initialisations (default 30, 30, 10).
-
-    Args:
-        settings: ``paper`` or ``reference`` base settings (ignored if ``config`` is given).
-        seed: master seed; trial ``j`` uses the same derived seed for every method.
-        holdout: also run the leave-one-trajectory-out evaluation.
-        epsilon: REIRL's L1 weight.
-        map_fn: order-preserving map used by :func:`analysis.trials.run_trials`.
-    """
-    if table not in DEFAULT_TRIALS:
-        raise ConfigError(f"table must be 1, 2 or 3, got {table}")
-    if settings not in ("paper", "reference"):
-        raise ConfigError(f"settings must be 'paper' or 'reference', got {settings!r}")
-    if config is None:
-        config = IRLConfig.reference() if settings == "reference" else IRLConfig.paper()
-    n = DEFAULT_TRIALS[table] if trials is None else int(trials)
-    if n < 1:
-        raise ConfigError(f"trials must be >= 1, got {trials}")
-    problem = table_problem(table, data_dir)
-    seeds = trial_seeds(seed, n)
-    tasks = [TrialTask(m, problem, config, s, epsilon=epsilon) for m in methods for s in seeds]
-    if holdout:
-        tasks += [TrialTask(m, problem, config, seeds[0], holdout=i, epsilon=epsilon)
-                  for m in methods for i in range(problem.demos.n_trajectories)]
-    outcomes = run_trials(tasks, progress=progress, map_fn=map_fn, description=f"table {table}")
-    main = [o for o in outcomes if o.holdout is None]
-    folds = [o for o in outcomes if o.holdout is not None]
-    by_method = {m: [o for o in main if o.method == m] for m in methods}
-    mlirl = by_method.get("mlirl")
-    rows = tuple(summarize(m, by_method[m], mlirl, [o for o in folds if o.method == m]) for m in methods)
-    return ReproductionReport(table, TITLES[table], config, tuple(problem.feature_names), rows,
-                              tuple(main), tuple(folds), int(seed))
+    """One table: :func:`reproduce_tables` ``([table], ...)`` (same arguments); trials that
+    failed after their retry are listed in ``report.failures``."""
+    run = reproduce_tables([table], data_dir, trials=trials, settings=settings, config=config, seed=seed,
+                           methods=methods, holdout=holdout, epsilon=epsilon, executor=executor, store=store,
+                           retries=retries, progress=progress)
+    return run.reports[0]
 
 
 def _pm(mean: float, std: float) -> str:
@@ -264,5 +381,7 @@ def format_report(report: ReproductionReport) -> str:
                "p: two-sided Wilcoxon signed-rank test of paired trials vs MLIRL. LOO held-out LL: sum over "
                "trajectories of its log-likelihood under the policy fitted on the others (first trial seed). "
                "conv/unb: trials converged / with unbounded weights.")
+    for f in report.failures:
+        out.append(f"FAILED {f.key} after {f.attempts} attempt(s): {f.error}")
     return "\n".join(out)
 

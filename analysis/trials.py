@@ -1,11 +1,19 @@
 """Independent IRL trials: each a pure function of (method, data, config, seed).
 
-``run_trials`` is the one place a batch of trials is executed; it takes a ``map_fn`` so a
-process pool (or Dask) can replace the built-in serial ``map`` without touching the callers.
+Two ways to run a batch:
+
+- :func:`run_trial_spec` is the sweep task (``func(config, seed) -> dict``) that
+  ``analysis.reproduce`` hands to :func:`analysis.sweep.run_sweep`: its config, a
+  :class:`TrialSpec`, is small and picklable (table id, data directory, method, settings,
+  trial seed, held-out fold); the worker process loads the table's data itself, once per
+  process (:func:`cached_table_problem`), instead of receiving the 62 MB merge model per task.
+- :func:`run_trials` runs in-memory :class:`TrialTask` objects with any order-preserving
+  ``map_fn`` (serial ``map`` by default), for ad-hoc problems that are not one of the tables.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 import sys
 from dataclasses import dataclass
@@ -66,6 +74,74 @@ class TrialOutcome:
             if not math.isfinite(d[key]):
                 d[key] = None
         return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "TrialOutcome":
+        """Inverse of :meth:`to_dict` (None log-likelihoods back to NaN)."""
+        def num(x) -> float:
+            return float("nan") if x is None else float(x)
+
+        return cls(
+            method=str(d["method"]), seed=int(d["seed"]),
+            holdout=None if d["holdout"] is None else int(d["holdout"]),
+            theta=tuple(float(x) for x in d["theta"]), loglik=num(d["loglik"]),
+            heldout_loglik=num(d["heldout_loglik"]), wall_time_s=float(d["wall_time_s"]),
+            converged=bool(d["converged"]), unbounded=bool(d["unbounded"]),
+            n_iterations=int(d["n_iterations"]), message=str(d["message"]),
+        )
+
+
+@dataclass(frozen=True)
+class TrialSpec:
+    """A reproduction trial as a sweep task config (small, picklable, stable digest).
+
+    Attributes:
+        table: 1, 2 or 3 (the data set, see ``analysis.reproduce.table_problem``).
+        data_dir: the authors' data directory (absolute path string).
+        method: ``qavg | qsm | mlirl | reirl``.
+        config: IRL settings.
+        trial: trial index ``j`` (0-based; for a held-out fold, the trial whose seed it uses).
+        trial_seed: seed of the trial's generator (``trial_seeds(master, n)[j]``: the same for
+            every method, so trials pair up across methods).
+        holdout: index of the left-out trajectory, or None.
+        epsilon: REIRL's L1 weight.
+    """
+
+    table: int
+    data_dir: str
+    method: str
+    config: IRLConfig
+    trial: int
+    trial_seed: int
+    holdout: int | None = None
+    epsilon: float = DEFAULT_EPSILON
+
+    @property
+    def key(self) -> str:
+        """Unique sweep key, e.g. ``table3/qsm/trial07`` or ``table1/qavg/holdout03``."""
+        tail = f"trial{self.trial:02d}" if self.holdout is None else f"holdout{self.holdout:02d}"
+        return f"table{self.table}/{self.method}/{tail}"
+
+
+@functools.lru_cache(maxsize=4)
+def cached_table_problem(table: int, data_dir: str) -> Problem:
+    """``analysis.reproduce.table_problem``, loaded once per process (each sweep worker)."""
+    from analysis.reproduce import table_problem
+
+    return table_problem(table, data_dir)
+
+
+def run_trial_spec(spec: TrialSpec, seed: int) -> dict:
+    """Sweep task: run the trial ``spec`` describes and return ``TrialOutcome.to_dict()``.
+
+    ``seed`` (the sweep's derived per-task seed) is not used: the trial's generator is seeded
+    with ``spec.trial_seed``, shared by every method so the trials pair up (Wilcoxon test).
+    """
+    del seed
+    problem = cached_table_problem(spec.table, spec.data_dir)
+    task = TrialTask(spec.method, problem, spec.config, spec.trial_seed, holdout=spec.holdout,
+                     epsilon=spec.epsilon)
+    return run_trial(task).to_dict()
 
 
 def run_trial(task: TrialTask) -> TrialOutcome:

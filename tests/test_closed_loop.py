@@ -178,3 +178,22 @@ def test_same_seed_same_metrics_across_processes(spec):
     assert a.decisions.equals(b.decisions)
     assert a.metrics.n_controls > 0
     assert not a.decisions.equals(c.decisions)
+
+
+def test_episodes_through_the_sweep_match_in_process_runs(spec, uniform_run):
+    """Episodes run by the sweep runner (spawned worker, results through JSON) equal the same
+    episodes run here; one worker runs two simulations one after the other."""
+    from analysis.episode import EpisodeResult
+    from analysis.evaluate import metrics_to_json, run_episodes
+
+    back = EpisodeResult.from_dict(uniform_run.to_dict())  # JSON form keeps values and dtypes
+    for name in ("controls", "decisions", "speed_profiles", "table"):
+        pd_a, pd_b = getattr(back, name), getattr(uniform_run, name)
+        assert list(pd_a.dtypes) == list(pd_b.dtypes) and pd_a.equals(pd_b), name
+    kw = dict(duration_s=DURATION)
+    a, b = run_episodes([(spec, UniformPolicy(), SEED, kw), (spec, ConstantPolicy(0), SEED, kw)],
+                        executor="process:1", progress=False)
+    assert metrics_to_json(a.metrics.to_dict()) == metrics_to_json(uniform_run.metrics.to_dict())
+    assert a.decisions.equals(uniform_run.decisions) and a.controls.equals(uniform_run.controls)
+    assert a.speed_profiles.equals(uniform_run.speed_profiles)
+    assert b.metrics.policy != a.metrics.policy and b.metrics.n_controls > 0

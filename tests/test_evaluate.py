@@ -99,6 +99,7 @@ def test_evaluate_cli(tmp_path):
     out = tmp_path / "ev"
     r = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--model", str(model_path), "--episodes", "1",
                         "--duration", "100", "--baselines", "sumo", "--no-rrd", "--no-progress", "--seed", "5",
+                        "--executor", "process:2",
                         "--out", str(out), "--fail-if", "sumo.n_episodes<1"],
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
@@ -112,6 +113,10 @@ def test_evaluate_cli(tmp_path):
     bad = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--baselines", "human",
                           "--out", str(tmp_path / "x")], capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and "human" in bad.stderr
+    for extra in (["--executor", "process:0"], ["--executor", "serial", "--workers", "2"]):
+        bad = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--baselines", "sumo", *extra,
+                              "--out", str(tmp_path / "z")], capture_output=True, text=True, timeout=120)
+        assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1, bad.stderr
     bad = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--baselines", "sumo", "--fail-if",
                           "collisions>>0", "--out", str(tmp_path / "y")], capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and "collisions>>0" in bad.stderr and not (tmp_path / "y").exists()

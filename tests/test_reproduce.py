@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from analysis.cli import main
-from analysis.reproduce import reproduce, table_problem, wilcoxon_p
-from analysis.trials import TrialTask, run_trial, run_trials, trial_seeds
+from analysis.reproduce import reproduce, reproduce_tables, table_problem, wilcoxon_p
+from analysis.trials import TrialOutcome, TrialTask, run_trial, run_trials, trial_seeds
 from irl.config import IRLConfig
 
 from shared_data import DATA as SHARED_DATA
@@ -33,7 +33,7 @@ def test_trial_seeds_are_deterministic_and_distinct():
 def test_cli_table_1_two_trials(tmp_path, capsys):
     out = tmp_path / "t1.json"
     rc = main(["reproduce", "--table", "1", "--data", str(DATA), "--trials", "2", "--no-holdout",
-               "--json", str(out), "--no-progress"])
+               "--json", str(out), "--no-progress", "--executor", "serial"])
     assert rc == 0
     text = capsys.readouterr().out
     for label in ("MLIRL", "Q-Avg", "Q-SM", "REIRL", "θ_5 (blue)", "Final log-likelihood", "p vs MLIRL",
@@ -70,24 +70,68 @@ def test_holdout_is_the_held_out_trajectory_likelihood():
 
 
 @needs_data
-def test_reproduce_api_is_deterministic_and_uses_map_fn():
-    calls = []
-
-    def recording_map(fn, tasks):
-        tasks = list(tasks)
-        calls.append(len(tasks))
-        return [fn(t) for t in tasks]
-
+def test_reproduce_api_is_deterministic_and_pairs_trials():
     kw = dict(trials=2, methods=("qavg", "reirl"), holdout=True, config=IRLConfig.paper(l2=0.01))
-    r1 = reproduce(2, DATA, map_fn=recording_map, **kw)
-    r2 = reproduce(2, DATA, **kw)
-    assert calls == [2 * 2 + 2 * 14]  # 2 methods x (2 trials + 14 folds), one batch
+    r1 = reproduce(2, DATA, executor="serial", **kw)
+    r2 = reproduce(2, DATA, executor="serial", **kw)
+    assert len(r1.trials) == 2 * 2 and len(r1.holdout) == 2 * 14 and r1.failures == ()
     assert [t.theta for t in r1.trials] == [t.theta for t in r2.trials]
     assert [row.loglik_mean for row in r1.rows] == [row.loglik_mean for row in r2.rows]
     assert all(np.isfinite(row.heldout_loglik) for row in r1.rows)
-    # the two trials start from different random thetas
+    # the two trials start from different random thetas; trial j has the same seed for every method
     qavg = [t for t in r1.trials if t.method == "qavg"]
-    assert qavg[0].seed != qavg[1].seed
+    reirl = [t for t in r1.trials if t.method == "reirl"]
+    assert qavg[0].seed != qavg[1].seed and [t.seed for t in qavg] == [t.seed for t in reirl]
+    assert [t.seed for t in qavg] == trial_seeds(0, 2)  # the seeds used before the sweep runner
+
+
+def _trial_key(o: TrialOutcome):
+    return (o.method, o.seed, o.holdout, o.theta, o.loglik, o.converged, o.n_iterations, o.message,
+            None if np.isnan(o.heldout_loglik) else o.heldout_loglik)
+
+
+@needs_data
+def test_serial_and_process_executors_give_identical_tables():
+    kw = dict(trials=2, methods=("qavg", "reirl"), holdout=False)
+    serial = reproduce_tables([1, 3], DATA, executor="serial", **kw)
+    pooled = reproduce_tables([1, 3], DATA, executor="process:2", **kw)
+    assert serial.ok and pooled.ok and pooled.sweep.n_run == serial.sweep.n_run == 2 * 2 * 2
+    for a, b in zip(serial.reports, pooled.reports):
+        assert [_trial_key(o) for o in a.trials] == [_trial_key(o) for o in b.trials]
+        strip = lambda r: {k: v for k, v in r.__dict__.items() if k != "time_mean_s"}  # noqa: E731
+        assert [repr(strip(r)) for r in a.rows] == [repr(strip(r)) for r in b.rows]  # repr: NaN == NaN
+
+
+@needs_data
+def test_resumed_reproduce_skips_finished_trials(tmp_path):
+    store = tmp_path / "store"
+    kw = dict(trials=2, methods=("qavg", "reirl"), holdout=False, executor="serial", store=store)
+    first = reproduce_tables([1], DATA, **kw)
+    assert first.sweep.n_run == 4 and first.sweep.n_cached == 0
+    files = sorted(store.glob("*.json"))
+    assert len(files) == 4
+    files[0].unlink()  # as if the run had been killed before this trial finished
+    again = reproduce_tables([1], DATA, **kw)
+    assert again.sweep.n_cached == 3 and again.sweep.n_run == 1
+    assert [_trial_key(o) for o in again.reports[0].trials] == [_trial_key(o) for o in first.reports[0].trials]
+    # another master seed is another set of trials: nothing reused
+    other = reproduce_tables([1], DATA, **{**kw, "trials": 1}, seed=1)
+    assert other.sweep.n_cached == 0
+
+
+@needs_data
+def test_cli_reports_failed_trials_and_exits_nonzero(tmp_path, capsys):
+    store = tmp_path / "s"
+    args = ["reproduce", "--table", "1", "--data", str(DATA), "--trials", "1", "--no-holdout", "--no-progress",
+            "--executor", "serial", "--store", str(store), "--epsilon", "-1"]
+    rc = main(args)  # a negative REIRL weight fails REIRL's trial (twice: one retry); the others finish
+    captured = capsys.readouterr()
+    assert rc == 1
+    assert "FAILED table1/reirl/trial00 after 2 attempt(s)" in captured.out
+    assert "Q-Avg" in captured.out and "1 failed" in captured.err
+    assert len(list(store.glob("*.json"))) == 3
+    assert main(args) == 1  # resumed: only REIRL runs again
+    assert "3 from the store, 1 run" in capsys.readouterr().err
 
 
 @needs_data

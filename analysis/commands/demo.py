@@ -27,6 +27,9 @@ def register(subparsers) -> None:
     p.add_argument("--methods", default=None, metavar="LIST",
                    help="comma-separated IRL methods (default: qavg,qsm,mlirl,reirl)")
     p.add_argument("--workers", type=int, default=None, metavar="N", help="processes (default 2)")
+    p.add_argument("--executor", default=None,
+                   help="where data runs and episodes run: serial, process[:N], dask-local[:N], dask://HOST:PORT "
+                        "(default: process:<workers>)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(func=run)
 
@@ -45,6 +48,13 @@ def run(args: argparse.Namespace) -> int:
         config = replace(config, methods=tuple(m.strip() for m in args.methods.split(",") if m.strip()))
     if args.workers is not None:
         config = replace(config, workers=max(1, args.workers))
+    if args.executor is not None:
+        from analysis.evaluate import resolve_executor
+        from sim.errors import SimError
+
+        if args.workers is not None:
+            raise SimError("give --executor or --workers, not both")
+        config = replace(config, executor=resolve_executor(args.executor, None))
     result = run_demo(args.out, config, progress=not args.no_progress)
     print(result.format())
     return 0

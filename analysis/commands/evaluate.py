@@ -25,7 +25,10 @@ def register(subparsers) -> None:
                    help="comma-separated baselines among sumo, uniform ('' for none)")
     p.add_argument("--decision-step", type=float, default=0.3, help="seconds between two decisions of A")
     p.add_argument("--mode", action="store_true", help="take the most likely action instead of sampling")
-    p.add_argument("--workers", type=int, default=2, help="processes (one SUMO each)")
+    p.add_argument("--executor", default=None,
+                   help="where episodes run: serial, process[:N] (default: every core), dask-local[:N], "
+                        "dask://HOST:PORT")
+    p.add_argument("--workers", type=int, default=None, help="processes (one SUMO each); same as --executor process:N")
     p.add_argument("--no-rrd", action="store_true", help="do not write rerun recordings")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--out", default=None, help="output folder (default ./runs/evaluate-<scenario>-<seed>/)")
@@ -42,6 +45,11 @@ def run(args: argparse.Namespace) -> int:
     from sim.errors import SimError
 
     thresholds = parse_thresholds(args.fail_if) if args.fail_if else ()  # syntax errors before any work
+    from analysis.evaluate import resolve_executor
+
+    if args.executor is not None and args.workers is not None:
+        raise SimError("give --executor or --workers, not both")
+    executor = resolve_executor(args.executor, args.workers)
 
     baselines = tuple(b.strip() for b in args.baselines.split(",") if b.strip())
     bad = [b for b in baselines if b not in ("sumo", "uniform")]
@@ -54,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
     report = evaluate(
         args.model, args.scenario, args.episodes, args.seed, out, duration_s=args.duration, demos=args.demos,
         baselines=baselines, controller=ControllerConfig(decision_s=args.decision_step, mode=args.mode),
-        workers=args.workers, rrd=not args.no_rrd, progress=not args.no_progress,
+        executor=executor, rrd=not args.no_rrd, progress=not args.no_progress,
     )
     from analysis.evaluate_report import report_table
 

@@ -14,8 +14,9 @@ def register(subparsers) -> None:
         description="Run MLIRL, Q-Avg, Q-SM and REIRL over N random initialisations on the authors' data and "
                     "print the paper's table: mean ± std of each weight and of the final log-likelihood, "
                     "Wilcoxon p-values against MLIRL, and the leave-one-trajectory-out log-likelihood.")
-    p.add_argument("--table", type=int, choices=(1, 2, 3), required=True,
-                   help="1: gridworld no noise, 2: gridworld 10%% noise, 3: NGSIM merge")
+    p.add_argument("--table", type=int, choices=(1, 2, 3), required=True, nargs="+",
+                   help="1: gridworld no noise, 2: gridworld 10%% noise, 3: NGSIM merge "
+                        "(several, e.g. '--table 1 2 3', run as one sweep)")
     p.add_argument("--data", required=True,
                    help="the authors' data directory (holding gridworld/ and merge_ngsim/)")
     p.add_argument("--trials", type=int, help="random initialisations per method (default 30, 30, 10)")
@@ -23,22 +24,45 @@ def register(subparsers) -> None:
     p.add_argument("--seed", type=int, default=0, help="master seed of the trials")
     p.add_argument("--epsilon", type=float, default=None, help="REIRL L1 weight of the dual (default 0.01)")
     p.add_argument("--no-holdout", action="store_true", help="skip the leave-one-trajectory-out evaluation")
-    p.add_argument("--json", help="also write every trial and the summary to this JSON file")
+    p.add_argument("--json", help="also write every trial and the summary to this JSON file "
+                                  "(several tables: {\"tables\": [...]})")
+    p.add_argument("--executor", default="process",
+                   help="where trials run: serial, process[:N] (default: every core), dask-local[:N], "
+                        "dask://HOST:PORT; results do not depend on it")
+    p.add_argument("--store", default=None, metavar="DIR",
+                   help="keep each finished trial in DIR; a re-run skips them (resume)")
+    p.add_argument("--retries", type=int, default=1, help="re-runs of a failing trial (default 1)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from analysis.reproduce import format_report, reproduce
+    from analysis.reproduce import format_report, reproduce_tables, save_reports_json
+    from irl.errors import ConfigError
     from irl.reirl import DEFAULT_EPSILON
 
-    report = reproduce(
+    from analysis.sweep import parse_executor
+
+    try:
+        parse_executor(args.executor)  # a bad --executor is a one-line error before any work
+    except ValueError as e:
+        raise ConfigError(str(e)) from None
+    run_ = reproduce_tables(
         args.table, args.data, trials=args.trials, config=config_from_args(args), seed=args.seed,
         holdout=not args.no_holdout, epsilon=DEFAULT_EPSILON if args.epsilon is None else args.epsilon,
+        executor=args.executor, store=args.store, retries=args.retries,
         progress=not args.no_progress and sys.stderr.isatty(),
     )
-    print(format_report(report))
+    print("\n\n".join(format_report(r) for r in run_.reports))
+    print(run_.sweep.summary().splitlines()[0], file=sys.stderr)
     if args.json:
-        report.save_json(args.json)
+        if len(run_.reports) == 1:
+            run_.reports[0].save_json(args.json)
+        else:
+            save_reports_json(run_.reports, args.json)
         print(f"wrote {args.json}")
+    if not run_.ok:
+        print(run_.sweep.summary(), file=sys.stderr)
+        return 1
     return 0
+

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
+import os
 import sys
 import time
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -190,11 +192,30 @@ def _crash_record(e: BaseException) -> dict:
     return {"ok": False, "error": f"worker process died ({type(e).__name__}: {e})", "wall_time_s": 0.0}
 
 
+#: Thread-pool sizes of the numerical libraries, fixed to 1 in process-pool workers (as Dask's
+#: nanny does for its workers): N processes each using every core for BLAS would oversubscribe
+#: the machine; parallelism comes from the processes. A value the user set is kept.
+_THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+@contextlib.contextmanager
+def _single_threaded_workers():
+    """Spawned workers inherit the environment: set the thread counts while the pool lives."""
+    added = [k for k in _THREAD_ENV if k not in os.environ]
+    for k in added:
+        os.environ[k] = "1"
+    try:
+        yield
+    finally:
+        for k in added:
+            os.environ.pop(k, None)
+
+
 def _run_isolated(p: _Pending, finish) -> None:
     """Run one task alone in a fresh process until it succeeds or runs out of retries."""
     ctx = multiprocessing.get_context("spawn")
     while True:
-        with ProcessPoolExecutor(1, mp_context=ctx) as pool:
+        with _single_threaded_workers(), ProcessPoolExecutor(1, mp_context=ctx) as pool:
             try:
                 record = pool.submit(call_task, p.task.func, p.task.config, p.seed).result()
             except BrokenProcessPool as e:
@@ -215,7 +236,7 @@ def _run_process_pool(todo: Sequence[_Pending], finish, workers: int) -> None:
     while queue:
         in_flight: dict[Future, _Pending] = {}
         crashed: list[_Pending] = []
-        with ProcessPoolExecutor(workers, mp_context=ctx) as pool:
+        with _single_threaded_workers(), ProcessPoolExecutor(workers, mp_context=ctx) as pool:
             while queue or in_flight:
                 while queue and len(in_flight) < workers:
                     p = queue.pop(0)

@@ -1,9 +1,6 @@
 """Hostile input for the demonstration loaders (``irl.io``): the authors' text format and the
 generic ``.npz``. Random or malformed files give a ``DemonstrationError`` naming the file, or
-valid ``Demonstrations``; never a numpy/zipfile exception, never a hang.
-
-Exercises H2's ``irl/io.py`` (in progress when written): run on its own with
-``pytest tests/test_hostile_irl_io.py`` or ``-m others_wip``."""
+valid ``Demonstrations``; never a numpy/zipfile exception, never a hang."""
 
 from __future__ import annotations
 
@@ -20,7 +17,7 @@ from irl.demonstrations import Demonstrations
 from irl.errors import DemonstrationError
 from irl.io import load_npz, load_railusm, save_npz
 
-pytestmark = [pytest.mark.hostile, pytest.mark.others_wip]
+pytestmark = pytest.mark.hostile
 
 SETTINGS = settings(max_examples=120, deadline=None,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])

@@ -1,9 +1,6 @@
 """Numerical hostility for the IRL methods (``irl.fit.fit``): huge or tiny beta, theta0 up to
 1e4, identical trajectories, single-step trajectories, states never visited, huge features.
-Every fit ends with finite theta, Q and log-likelihood, or raises an ``IRLError``.
-
-Exercises H1's solvers (in progress when written): run on its own with
-``pytest tests/test_hostile_irl_numeric.py`` or ``-m others_wip``."""
+Every fit ends with finite theta, Q and log-likelihood, or raises an ``IRLError``."""
 
 from __future__ import annotations
 
@@ -20,7 +17,7 @@ from irl.errors import IRLError
 from irl.fit import fit
 from irl.result import FitResult
 
-pytestmark = [pytest.mark.hostile, pytest.mark.others_wip]
+pytestmark = pytest.mark.hostile
 
 S, A, K = 6, 3, 3
 SETTINGS = settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])

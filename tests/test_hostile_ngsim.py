@@ -1,9 +1,6 @@
 """Hostile input for the NGSIM reader (``sim.ngsim_io.read_ngsim`` / ``read_trajectories``):
 random bytes, random text, and a valid file with cells, lines or the header damaged. Only a
-schema-conforming table or a ``SimError`` (``TrajectoryFormatError``) naming the file is allowed.
-
-Exercises H4's ``sim/ngsim_*.py`` (in progress when written): run on its own with
-``pytest tests/test_hostile_ngsim.py`` or ``-m others_wip``."""
+schema-conforming table or a ``SimError`` (``TrajectoryFormatError``) naming the file is allowed."""
 
 from __future__ import annotations
 
@@ -18,7 +15,7 @@ from sim.ngsim_format import NGSIM_COLUMNS, NGSIM_HEADER
 from sim.ngsim_io import read_ngsim, read_trajectories
 from sim.schema import COLUMNS
 
-pytestmark = [pytest.mark.hostile, pytest.mark.others_wip]
+pytestmark = pytest.mark.hostile
 
 SETTINGS = settings(max_examples=120, deadline=None,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])

@@ -102,7 +102,9 @@ def i80_lane_of(y_m: float, n_main: int, lane_width_m: float) -> int:
 
 def lane_numbers(local_x_ft: np.ndarray, n_main: int, lane_width_ft: float) -> np.ndarray:
     """I-80 lane numbers (int64[V]) of lateral positions from the left road edge (float64[V], ft)."""
-    idx = np.clip(np.floor(local_x_ft / lane_width_ft).astype(np.int64), 0, n_main)
+    idx = np.floor(local_x_ft / lane_width_ft).astype(np.int64)
+    np.maximum(idx, 0, out=idx)
+    np.minimum(idx, n_main, out=idx)
     return np.where(idx >= n_main, RAMP_LANE, RIGHTMOST_MAIN_LANE - n_main + 1 + idx)
 
 
@@ -236,17 +238,18 @@ def _simulate(spec, net, routes, hooks, progress, work_dir):
                 for s in new:
                     sumo_ids.append(s)
                     vid_of[s] = len(sumo_ids)
-            vals = list(res.values())
-            pos = np.array([v[VP] for v in vals], dtype=np.float64).reshape(-1, 2) * FT_PER_M
+            # one array per frame: x, y (m), speed (m/s), acceleration (m/s^2) -> ft units
+            kin = np.array([(*v[VP], v[VS], v[VA]) for v in res.values()],
+                           dtype=np.float64).reshape(-1, 4) * FT_PER_M
             st = np.array([static[s] for s in sids], dtype=np.float64).reshape(-1, 3)
+            local_x = -kin[:, 1]
             fs = FrameState(
                 frame=frame, time_s=step * sim.step_s, sumo_ids=sids,
                 vehicle_id=np.array([vid_of[s] for s in sids], dtype=np.int64),
-                local_x=-pos[:, 1], local_y=pos[:, 0].copy(), global_x=pos[:, 0], global_y=pos[:, 1],
-                speed=np.array([v[VS] for v in vals], dtype=np.float64) * FT_PER_M,
-                acc=np.array([v[VA] for v in vals], dtype=np.float64) * FT_PER_M,
+                local_x=local_x, local_y=kin[:, 0].copy(), global_x=kin[:, 0].copy(),
+                global_y=kin[:, 1].copy(), speed=kin[:, 2].copy(), acc=kin[:, 3].copy(),
                 length=st[:, 0], width=st[:, 1],
-                lane_id=lane_numbers(-pos[:, 1], n_main, lane_w),
+                lane_id=lane_numbers(local_x, n_main, lane_w),
                 v_class=st[:, 2].astype(np.int64),
             )
             for arr in (fs.vehicle_id, fs.local_x, fs.local_y, fs.global_x, fs.global_y, fs.speed,

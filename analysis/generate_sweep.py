@@ -25,7 +25,8 @@ from pathlib import Path
 import pandas as pd
 
 from analysis.sweep import ResultStore, SweepReport, Task, derive_seed, run_sweep, task_digest
-from scenarios.spec import ScenarioSpec, spec_from_toml
+from scenarios.spec import ScenarioSpec
+from scenarios.spec_parse import spec_from_toml
 
 STORE_DIR = ".sweep-store"
 SUMMARY = "sweep.csv"

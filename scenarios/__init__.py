@@ -14,10 +14,8 @@ from scenarios.spec import (
     ScenarioSpec,
     SimulationSpec,
     VTypeSpec,
-    spec_from_dict,
-    spec_from_file,
-    spec_from_toml,
 )
+from scenarios.spec_parse import spec_from_dict, spec_from_file, spec_from_toml
 
 __all__ = [
     "DEFAULT_SCENARIO",

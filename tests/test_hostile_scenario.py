@@ -15,7 +15,8 @@ from hypothesis import strategies as st
 
 from scenarios.errors import SpecError
 from scenarios.loader import load_scenario
-from scenarios.spec import ScenarioSpec, spec_from_dict, spec_from_toml
+from scenarios.spec import ScenarioSpec
+from scenarios.spec_parse import spec_from_dict, spec_from_toml
 
 pytestmark = pytest.mark.hostile
 

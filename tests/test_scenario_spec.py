@@ -9,7 +9,8 @@ import pytest
 
 from scenarios.errors import SpecError
 from scenarios.loader import load_scenario, preset_names
-from scenarios.spec import ScenarioSpec, VTypeSpec, spec_from_dict, spec_from_toml
+from scenarios.spec import ScenarioSpec, VTypeSpec
+from scenarios.spec_parse import spec_from_dict, spec_from_toml
 
 
 @pytest.mark.parametrize("name", ["synthetic", "i80"])

@@ -18,15 +18,14 @@ for any simulated table.
 
 from __future__ import annotations
 
-import json
 import os
-import tempfile
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from irl.atomic import write_text_atomic
 from scenarios.calibration import CarFollowingPair, evaluate, load_pairs, load_result
 from scenarios.calibration.pairs import M_PER_FT
 
@@ -92,12 +91,7 @@ class CalibrationCheck:
         return "\n".join(lines)
 
     def write_markdown(self, path: str | os.PathLike) -> Path:
-        path = Path(path)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        with os.fdopen(fd, "w") as fh:
-            fh.write(self.to_markdown())
-        os.replace(tmp, path)
-        return path
+        return write_text_atomic(path, self.to_markdown())
 
 
 def _congested(speed: np.ndarray, spacing: np.ndarray, headway_front: np.ndarray) -> dict[str, np.ndarray]:

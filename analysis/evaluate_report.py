@@ -46,7 +46,8 @@ def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes,
     """Write report.md, metrics.json and the plots; return their paths."""
     from dataclasses import asdict
 
-    from analysis.evaluate import metrics_to_json, write_text_atomic
+    from analysis.evaluate import metrics_to_json
+    from irl.atomic import write_text_atomic
 
     plots = (
         plot_action_histograms(out / "action_histograms.png", aggs, held),

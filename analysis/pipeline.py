@@ -35,7 +35,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from analysis.evaluate import EvaluationReport, evaluate, prepare_encounters, write_text_atomic
+from analysis.evaluate import EvaluationReport, evaluate, prepare_encounters
+from irl.atomic import write_text_atomic
 
 METHODS = ("qavg", "qsm", "mlirl", "reirl")
 

@@ -20,10 +20,8 @@ Trials run through :func:`analysis.sweep.run_sweep` (``executor``: serial, proce
 
 from __future__ import annotations
 
-import json
 import math
 import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
@@ -34,6 +32,7 @@ from analysis.problem import Problem, load_problem
 from analysis.sweep import ResultStore, SweepReport, Task, TaskFailure, run_sweep
 from analysis.trials import (TrialOutcome, TrialSpec, cached_table_problem, config_label, run_trial_spec,
                              trial_seeds)
+from irl.atomic import write_json_atomic
 from irl.config import IRLConfig
 from irl.errors import ConfigError, DemonstrationError
 from irl.reirl import DEFAULT_EPSILON
@@ -140,26 +139,14 @@ class ReproductionReport:
         }
 
     def save_json(self, path: str | os.PathLike) -> Path:
-        return _write_json_atomic(path, self.to_json_dict())
+        return write_json_atomic(path, self.to_json_dict())
 
 
 def save_reports_json(reports: Sequence[ReproductionReport], path: str | os.PathLike) -> Path:
     """Several tables' reports as ``{"tables": [report.to_json_dict(), ...]}``, atomically."""
-    return _write_json_atomic(path, {"tables": [r.to_json_dict() for r in reports]})
+    return write_json_atomic(path, {"tables": [r.to_json_dict() for r in reports]})
 
 
-def _write_json_atomic(path: str | os.PathLike, data: dict) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as f:
-            json.dump(data, f, indent=1)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
 
 
 def wilcoxon_p(x: np.ndarray, y: np.ndarray) -> float:

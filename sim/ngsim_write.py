@@ -13,7 +13,6 @@ file is written atomically (temporary file in the same directory, then ``os.repl
 from __future__ import annotations
 
 import os
-import tempfile
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Literal
@@ -26,6 +25,7 @@ import pyarrow.csv as pacsv
 
 from sim.errors import TrajectoryFormatError
 from sim.ngsim_format import DECIMALS, NGSIM_COLUMNS, NGSIM_HEADER
+from sim.outputs import write_atomic
 from sim.schema import COLUMNS, conform, sort_table
 
 Precision = Literal["ngsim", "exact"]
@@ -79,20 +79,7 @@ def write_ngsim_csv_blocks(
     """Write a large table given as consecutive blocks (each in schema, each already in NGSIM's
     order and following the previous one in that order), streaming; atomic like
     :func:`write_ngsim_csv`. For files too big to hold as one table (benchmarks)."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or ".")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write((NGSIM_HEADER + "\n").encode())
-            opts = pacsv.WriteOptions(include_header=False, quoting_style="none")
-            for block in blocks:
-                pacsv.write_csv(_format_block(conform(block), precision), fh, opts)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
+    return _write_blocks((_format_block(conform(b), precision) for b in blocks), Path(path))
 
 
 def write_ngsim_csv(
@@ -124,17 +111,19 @@ def write_ngsim_csv(
             f"cannot write {path}: column {floats[c]} row {r} is {t[floats[c]].iloc[r]}; "
             "NGSIM files hold finite numbers only"
         )
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or ".")
-    try:
-        with os.fdopen(fd, "wb") as fh:
+    blocks = (_format_block(t.iloc[start : start + _ROWS_PER_BLOCK], precision)
+              for start in range(0, len(t), _ROWS_PER_BLOCK))
+    return _write_blocks(blocks, path)
+
+
+def _write_blocks(blocks: Iterable[pa.Table], path: Path) -> Path:
+    """The header line, then each formatted block, streamed into ``path`` atomically."""
+
+    def write(tmp: Path) -> None:
+        with open(tmp, "wb") as fh:
             fh.write((NGSIM_HEADER + "\n").encode())
             opts = pacsv.WriteOptions(include_header=False, quoting_style="none")
-            for start in range(0, len(t), _ROWS_PER_BLOCK):
-                block = _format_block(t.iloc[start : start + _ROWS_PER_BLOCK], precision)
+            for block in blocks:
                 pacsv.write_csv(block, fh, opts)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
+
+    return write_atomic(path, write)

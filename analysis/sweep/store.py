@@ -6,9 +6,10 @@ import dataclasses
 import hashlib
 import json
 import os
-import tempfile
 from pathlib import Path
 from typing import Any
+
+from irl.atomic import write_json_atomic
 
 
 def _canonical(value: Any) -> Any:
@@ -61,13 +62,4 @@ class ResultStore:
         return data
 
     def put(self, digest: str, record: dict[str, Any]) -> Path:
-        p = self.path(digest)
-        fd, tmp = tempfile.mkstemp(prefix=p.name + ".", suffix=".tmp", dir=self.root)
-        try:
-            with os.fdopen(fd, "w") as f:
-                json.dump(record, f)
-            os.replace(tmp, p)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
-        return p
+        return write_json_atomic(self.path(digest), record, indent=None)

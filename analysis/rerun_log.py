@@ -32,6 +32,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
 import rerun as rr
 
 from sim.hooks import FrameState, RunContext
@@ -156,12 +157,13 @@ class RerunLogger:
         n = len(frame.sumo_ids)
         roles = self._roles_of(frame)
         if self.log_vehicles:
-            self._gx.append(np.array(frame.global_x))
-            self._gy.append(np.array(frame.global_y))
-            self._len.append(np.array(frame.length))
-            self._wid.append(np.array(frame.width))
+            # the frame's arrays are read-only and never reused: keep references, not copies
+            self._gx.append(frame.global_x)
+            self._gy.append(frame.global_y)
+            self._len.append(frame.length)
+            self._wid.append(frame.width)
             self._roles.append(roles)
-            self._ids.append(np.array(frame.vehicle_id))
+            self._ids.append(frame.vehicle_id)
             self._lens.append(n)
             self._steps.append(int(frame.frame))
             self._times.append(float(frame.time_s))
@@ -240,7 +242,8 @@ class RerunLogger:
         cols = [
             *rr.Boxes3D.columns(centers=centers, half_sizes=half,
                                 class_ids=roles, colors=ROLE_RGBA_U32[roles]).partition(lens),
-            *rr.AnyValues.columns(vehicle_id=ids).partition(lens),
+            # an arrow array, not numpy: rerun turns a numpy column into one Python list per value
+            *rr.AnyValues.columns(vehicle_id=pa.array(ids)).partition(lens),
         ]
         self._rec.send_columns(
             "world/vehicles",

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
@@ -62,8 +63,11 @@ class FrameState:
 
     Arrays are aligned: entry i of every array is vehicle ``sumo_ids[i]``. Units: ft, ft/s,
     ft/s^2. ``lane_id`` uses I-80 numbering (1 leftmost .. 6 rightmost main lane, 7 ramp /
-    auxiliary lane). ``v_class`` is NGSIM's (2 auto, 3 truck). The arrays are read-only views
-    of the run's buffers: copy them if you keep them.
+    auxiliary lane). ``v_class`` is NGSIM's (2 auto, 3 truck). The arrays are read-only and
+    never written again after the frame (frames that see the same vehicles may share the id
+    and static arrays), so a hook may keep references instead of copies; positions, speed and
+    acceleration are column views of one ``[V, 4]`` array (``local_y`` and ``global_x`` are
+    the same values).
 
     Attributes:
         frame: Frame_ID (int, 0.1 s units since the start of the simulation).
@@ -89,6 +93,23 @@ class FrameState:
     width: np.ndarray
     lane_id: np.ndarray
     v_class: np.ndarray
+
+    def lane_order(self, lane: int) -> tuple[list[float], list[int]]:
+        """Vehicles of ``lane`` sorted by ``Local_Y`` (ascending; equal positions by row).
+
+        Returns ``(local_y, rows)`` as two Python lists of the same length, ready for
+        ``bisect``. Computed once per lane and frame, then cached on the frame.
+        """
+        hit = self._lane_orders.get(lane)
+        if hit is None:
+            rows = np.flatnonzero(self.lane_id == lane)
+            rows = rows[np.argsort(self.local_y[rows], kind="stable")]
+            hit = self._lane_orders[lane] = (self.local_y[rows].tolist(), rows.tolist())
+        return hit
+
+    @cached_property
+    def _lane_orders(self) -> dict[int, tuple[list[float], list[int]]]:
+        return {}
 
     def index_of(self, vehicle_id: int) -> int | None:
         """Row of ``vehicle_id`` in this frame's arrays, or None if it is not in the network."""

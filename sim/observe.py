@@ -14,6 +14,7 @@ When there is no lead car C, A's view ahead is open: ``d_AC = NO_LEAD_GAP_FT`` a
 
 from __future__ import annotations
 
+from bisect import bisect_right
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -81,6 +82,7 @@ class StateEncoder:
                 )
             edges.append(e)
         self.edges = tuple(edges)
+        self._edge_lists = tuple(e.tolist() for e in edges)
         self.descending = tuple(name in descending for name in VARIABLES)
 
     def bins(self, values: np.ndarray) -> np.ndarray:
@@ -99,7 +101,12 @@ class StateEncoder:
         return 625 * t + 125 * b[:, 0] + 25 * b[:, 1] + 5 * b[:, 2] + b[:, 3]
 
     def state(self, d_AC: float, d_AB: float, v_AC: float, v_AB: float, truck: bool) -> int:
-        return int(self.states(np.array([[d_AC, d_AB, v_AC, v_AB]]), np.array([truck]))[0])
+        """One observation -> state in [0, 1250); same bins as :meth:`states`, without numpy."""
+        s = 625 if truck else 0
+        for x, edges, desc, weight in zip((d_AC, d_AB, v_AC, v_AB), self._edge_lists, self.descending, (125, 25, 5, 1)):
+            b = bisect_right(edges, x)  # NaN sorts last, like searchsorted
+            s += weight * (4 - b if desc else b)
+        return s
 
 
 def observe(frame: FrameState, ia: int, ib: int, ic: int | None) -> tuple[float, float, float, float, bool]:
@@ -118,22 +125,27 @@ def observe(frame: FrameState, ia: int, ib: int, ic: int | None) -> tuple[float,
     return d_ac, d_ab, v_ac, v_ab, bool(frame.v_class[ib] == V_CLASS_TRUCK)
 
 
-def lead_of(frame: FrameState, y_ref: float, *, lane: int = RIGHTMOST_MAIN_LANE, exclude: Sequence[int] = ()) -> int | None:
-    """Row of the nearest vehicle in ``lane`` strictly ahead of ``y_ref`` (ft), or None."""
-    mask = (frame.lane_id == lane) & (frame.local_y > y_ref)
-    for row in exclude:
-        if row is not None:
-            mask[row] = False
-    rows = np.flatnonzero(mask)
-    if rows.size == 0:
-        return None
-    return int(rows[np.argmin(frame.local_y[rows])])
+def lead_of(frame: FrameState, y_ref: float, *, lane: int = RIGHTMOST_MAIN_LANE, exclude: Sequence[int | None] = ()) -> int | None:
+    """Row of the nearest vehicle in ``lane`` strictly ahead of ``y_ref`` (ft), or None.
+
+    Rows in ``exclude`` are skipped; among vehicles at the same position the lowest row wins.
+    """
+    ys, rows = frame.lane_order(lane)
+    for k in range(bisect_right(ys, y_ref), len(rows)):
+        if rows[k] not in exclude:
+            return rows[k]
+    return None
 
 
 def lag_of(frame: FrameState, y_ref: float, *, lane: int = RIGHTMOST_MAIN_LANE, max_gap_ft: float = np.inf) -> int | None:
-    """Row of the nearest vehicle in ``lane`` at or behind ``y_ref`` within ``max_gap_ft``, or None."""
-    mask = (frame.lane_id == lane) & (frame.local_y <= y_ref) & (frame.local_y >= y_ref - max_gap_ft)
-    rows = np.flatnonzero(mask)
-    if rows.size == 0:
+    """Row of the nearest vehicle in ``lane`` at or behind ``y_ref`` within ``max_gap_ft``, or None.
+
+    Among vehicles at the same position the lowest row wins.
+    """
+    ys, rows = frame.lane_order(lane)
+    k = bisect_right(ys, y_ref) - 1
+    if k < 0 or ys[k] < y_ref - max_gap_ft:
         return None
-    return int(rows[np.argmax(frame.local_y[rows])])
+    while k > 0 and ys[k - 1] == ys[k]:
+        k -= 1
+    return rows[k]

@@ -1,9 +1,11 @@
 """Run a scenario headless through libsumo and record the NGSIM-schema trajectory table.
 
-Recording: every vehicle is subscribed at departure (position, speed, acceleration, lane id);
-each recorded frame (every 0.1 s of simulated time after the warm-up) is turned into numpy
-arrays, passed to the step hooks, and appended to a chunk list; the DataFrame is built once at
-the end, with Preceding/Following/headways computed vectorised (``sim.table``).
+Recording: every vehicle is subscribed at departure (position, speed, acceleration); each
+recorded frame (every 0.1 s of simulated time after the warm-up) becomes one read-only
+``[V, 4]`` array (plus id, lane and static arrays, rebuilt only when the set of vehicles
+changes), which the step hooks see as :class:`sim.hooks.FrameState` column views and the
+recorder keeps by reference; the DataFrame is built once at the end, with
+Preceding/Following/headways computed vectorised (``sim.table``).
 
 Coordinates: ``Local_Y`` = SUMO x (distance along the main road from the section start),
 ``Local_X`` = -SUMO y (lateral distance from the left road edge), ``Global_X/Global_Y`` = SUMO
@@ -25,6 +27,7 @@ import tempfile
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from itertools import chain
 from pathlib import Path
 
 import numpy as np
@@ -101,11 +104,24 @@ def i80_lane_of(y_m: float, n_main: int, lane_width_m: float) -> int:
 
 
 def lane_numbers(local_x_ft: np.ndarray, n_main: int, lane_width_ft: float) -> np.ndarray:
-    """I-80 lane numbers (int64[V]) of lateral positions from the left road edge (float64[V], ft)."""
-    idx = np.floor(local_x_ft / lane_width_ft).astype(np.int64)
-    np.maximum(idx, 0, out=idx)
-    np.minimum(idx, n_main, out=idx)
-    return np.where(idx >= n_main, RAMP_LANE, RIGHTMOST_MAIN_LANE - n_main + 1 + idx)
+    """I-80 lane numbers (int64[V]) of lateral positions from the left road edge (float64[V], ft).
+
+    Lane k (0-based from the left) covers ``[k w, (k + 1) w)``; positions left of the road go
+    to lane 1, positions right of the main lanes to lane 7 (ramp / auxiliary lane).
+    """
+    return _LaneNumbering(n_main, lane_width_ft)(local_x_ft)
+
+
+class _LaneNumbering:
+    """:func:`lane_numbers` for one road, as one ``searchsorted`` and one lookup per frame."""
+
+    def __init__(self, n_main: int, lane_width_ft: float):
+        self.edges = lane_width_ft * np.arange(1, n_main + 1, dtype=np.float64)
+        self.numbers = np.array([RIGHTMOST_MAIN_LANE - n_main + 1 + k for k in range(n_main)] + [RAMP_LANE],
+                                dtype=np.int64)
+
+    def __call__(self, local_x_ft: np.ndarray) -> np.ndarray:
+        return self.numbers[np.searchsorted(self.edges, local_x_ft, side="right")]
 
 
 def _lane_tables(ls, spec: ScenarioSpec) -> tuple[dict[str, int], dict[str, np.ndarray]]:
@@ -169,8 +185,7 @@ def _simulate(spec, net, routes, hooks, progress, work_dir):
     # its lane's centre line), which saves a fourth subscribed variable per vehicle
     vars_ = (tc.VAR_POSITION, tc.VAR_SPEED, tc.VAR_ACCELERATION)
     VP, VS, VA = vars_
-    n_main = spec.road.main_lanes
-    lane_w = spec.road.lane_width_m * FT_PER_M
+    lane_of = _LaneNumbering(spec.road.main_lanes, spec.road.lane_width_m * FT_PER_M)
 
     try:
         ls.start(["sumo", *sumo_args(spec, net, routes)])
@@ -207,6 +222,7 @@ def _simulate(spec, net, routes, hooks, progress, work_dir):
             bar = tqdm(total=round(sim.duration_s), unit="sim s", file=sys.stderr,
                        disable=not sys.stderr.isatty(), desc=f"simulating {spec.name}")
         shown = 0
+        prev_sids: tuple[str, ...] | None = None
         type_static: dict[str, tuple[float, float, int]] = {}
         for step in range(1, n_steps + 1):
             ts = time.perf_counter()
@@ -232,30 +248,31 @@ def _simulate(spec, net, routes, hooks, progress, work_dir):
                 continue
             res = ls.vehicle.getAllSubscriptionResults()
             sids = tuple(res)
-            new = [s for s in sids if s not in vid_of]
-            if new:
-                new.sort(key=depart_seq.__getitem__)
-                for s in new:
-                    sumo_ids.append(s)
-                    vid_of[s] = len(sumo_ids)
+            if sids != prev_sids:  # who is in the network changed: new id and static arrays
+                new = [s for s in sids if s not in vid_of]
+                if new:
+                    new.sort(key=depart_seq.__getitem__)
+                    for s in new:
+                        sumo_ids.append(s)
+                        vid_of[s] = len(sumo_ids)
+                vid = _frozen(np.array([vid_of[s] for s in sids], dtype=np.int64))
+                st = _frozen(np.array([static[s] for s in sids], dtype=np.float64).reshape(-1, 3))
+                v_class = _frozen(st[:, 2].astype(np.int64))
+                prev_sids = sids
             # one array per frame: x, y (m), speed (m/s), acceleration (m/s^2) -> ft units
-            kin = np.array([(*v[VP], v[VS], v[VA]) for v in res.values()],
-                           dtype=np.float64).reshape(-1, 4) * FT_PER_M
-            st = np.array([static[s] for s in sids], dtype=np.float64).reshape(-1, 3)
-            local_x = -kin[:, 1]
+            kin = np.fromiter(chain.from_iterable((*v[VP], v[VS], v[VA]) for v in res.values()),
+                              dtype=np.float64, count=4 * len(sids)).reshape(-1, 4)
+            kin *= FT_PER_M
+            local_x = _frozen(-kin[:, 1])
+            lane = _frozen(lane_of(local_x))
+            _frozen(kin)
+            recorder.add(frame, vid, kin, lane, st)
             fs = FrameState(
-                frame=frame, time_s=step * sim.step_s, sumo_ids=sids,
-                vehicle_id=np.array([vid_of[s] for s in sids], dtype=np.int64),
-                local_x=local_x, local_y=kin[:, 0].copy(), global_x=kin[:, 0].copy(),
-                global_y=kin[:, 1].copy(), speed=kin[:, 2].copy(), acc=kin[:, 3].copy(),
-                length=st[:, 0], width=st[:, 1],
-                lane_id=lane_numbers(local_x, n_main, lane_w),
-                v_class=st[:, 2].astype(np.int64),
+                frame=frame, time_s=step * sim.step_s, sumo_ids=sids, vehicle_id=vid,
+                local_x=local_x, local_y=kin[:, 0], global_x=kin[:, 0], global_y=kin[:, 1],
+                speed=kin[:, 2], acc=kin[:, 3], length=st[:, 0], width=st[:, 1],
+                lane_id=lane, v_class=v_class,
             )
-            for arr in (fs.vehicle_id, fs.local_x, fs.local_y, fs.global_x, fs.global_y, fs.speed,
-                        fs.acc, fs.length, fs.width, fs.lane_id, fs.v_class):
-                arr.flags.writeable = False
-            recorder.add(fs)
             for h in hooks:
                 h.on_step(ctx, fs)
     except (KeyboardInterrupt, SimulationError):
@@ -272,6 +289,11 @@ def _simulate(spec, net, routes, hooks, progress, work_dir):
                 bar.close()
             _safe_close(ls)
     return recorder.table(), sumo_time, tuple(sumo_ids)
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a.flags.writeable = False
+    return a
 
 
 def _safe_close(ls) -> None:

@@ -12,65 +12,62 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from sim.schema import COLUMNS, sort_table
+from sim.schema import COLUMNS
 
 #: Time_Headway of a vehicle at (almost) zero speed, as in NGSIM.
 STANDSTILL_TIME_HEADWAY = 9999.99
 _MIN_SPEED_FT_S = 1e-3
 
 
-def neighbours(frame: np.ndarray, lane: np.ndarray, local_y: np.ndarray, vehicle: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Preceding and following Vehicle_ID of every row (0 when none).
+def _sorted_neighbours(frame: np.ndarray, lane: np.ndarray, local_y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rows ordered by (frame, lane, Local_Y), and whether each sorted row's successor shares its lane and frame.
 
-    Args: frame, lane, vehicle: int64[N]; local_y: float64[N].
-    Returns: (preceding, following), int64[N] each, aligned with the inputs.
+    Returns: (order int64[N], same_next bool[N]); ``same_next[i]`` says that sorted row i + 1 is the
+    vehicle directly ahead of sorted row i.
     """
     n = frame.shape[0]
-    order = np.lexsort((local_y, lane, frame))  # by frame, then lane, then Local_Y ascending
-    f, la, v = frame[order], lane[order], vehicle[order]
+    order = np.lexsort((local_y, lane, frame))
+    f, la = frame[order], lane[order]
     same_next = np.zeros(n, dtype=bool)
     if n > 1:
         same_next[:-1] = (f[1:] == f[:-1]) & (la[1:] == la[:-1])
-    prec_sorted = np.zeros(n, dtype=np.int64)
-    prec_sorted[:-1][same_next[:-1]] = v[1:][same_next[:-1]]
-    foll_sorted = np.zeros(n, dtype=np.int64)
-    foll_sorted[1:][same_next[:-1]] = v[:-1][same_next[:-1]]
-    preceding = np.empty(n, dtype=np.int64)
-    following = np.empty(n, dtype=np.int64)
-    preceding[order] = prec_sorted
-    following[order] = foll_sorted
-    return preceding, following
+    return order, same_next
 
 
 def add_derived_columns(table: pd.DataFrame) -> pd.DataFrame:
     """Fill Total_Frames, Preceding, Following, Space_Headway, Time_Headway; sort NGSIM-style.
 
-    ``table`` needs Vehicle_ID, Frame_ID, Lane_ID, Local_Y, v_Vel. Returns a new table with
-    all schema columns in schema order, sorted by (Vehicle_ID, Frame_ID).
+    ``table`` needs every schema column (the derived ones may hold anything). Returns a new
+    table with all schema columns in schema order and dtypes, sorted by (Vehicle_ID, Frame_ID).
     """
     vid = table["Vehicle_ID"].to_numpy(np.int64)
     frame = table["Frame_ID"].to_numpy(np.int64)
     lane = table["Lane_ID"].to_numpy(np.int64)
     y = table["Local_Y"].to_numpy(np.float64)
     vel = table["v_Vel"].to_numpy(np.float64)
-    prec, foll = neighbours(frame, lane, y, vid)
-    out = table.copy()
-    out["Preceding"] = prec
-    out["Following"] = foll
-    # Local_Y of the preceding vehicle in the same frame: look it up by (vehicle, frame) key.
-    space = np.zeros(len(vid))
+    n = vid.shape[0]
+    order, same_next = _sorted_neighbours(frame, lane, y)
+    ahead = same_next[:-1] if n else same_next
+    v_s, y_s = vid[order], y[order]
+    prec = np.zeros(n, dtype=np.int64)
+    foll = np.zeros(n, dtype=np.int64)
+    space = np.zeros(n, dtype=np.float64)
+    if n > 1:
+        prec[order[:-1][ahead]] = v_s[1:][ahead]
+        foll[order[1:][ahead]] = v_s[:-1][ahead]
+        # front-to-front spacing to the vehicle ahead: its Local_Y minus ours
+        space[order[:-1][ahead]] = (y_s[1:] - y_s[:-1])[ahead]
     has = prec != 0
-    if has.any():
-        key_all = pd.MultiIndex.from_arrays([vid, frame])
-        pos = key_all.get_indexer(pd.MultiIndex.from_arrays([prec[has], frame[has]]))
-        space[has] = y[pos] - y[has]
-    out["Space_Headway"] = space
-    th = np.zeros(len(vid))
+    th = np.zeros(n, dtype=np.float64)
     moving = has & (vel > _MIN_SPEED_FT_S)
     th[moving] = space[moving] / vel[moving]
     th[has & ~moving] = STANDSTILL_TIME_HEADWAY
-    out["Time_Headway"] = th
-    counts = np.bincount(vid, minlength=int(vid.max(initial=0)) + 1) if len(vid) else np.zeros(1, np.int64)
-    out["Total_Frames"] = counts[vid].astype(np.int64)
-    out = out.loc[:, list(COLUMNS)].astype(COLUMNS)
-    return sort_table(out)
+    counts = np.bincount(vid, minlength=int(vid.max(initial=0)) + 1) if n else np.zeros(1, np.int64)
+    derived = {"Preceding": prec, "Following": foll, "Space_Headway": space, "Time_Headway": th,
+               "Total_Frames": counts[vid].astype(np.int64)}
+    final = np.lexsort((frame, vid))  # stable: NGSIM's (Vehicle_ID, Frame_ID) file order
+    cols = {}
+    for c, dtype in COLUMNS.items():
+        col = derived[c] if c in derived else table[c].to_numpy()
+        cols[c] = np.asarray(col[final], dtype=dtype)
+    return pd.DataFrame(cols)

@@ -48,6 +48,10 @@ def test_state_encoder_matches_merge_mdp():
     enc = StateEncoder(EDGES.to_dict())
     ours = enc.states(df[["d_AC", "d_AB", "v_AC", "v_AB"]].to_numpy(), df.B_is_truck.to_numpy())
     np.testing.assert_array_equal(ours, merge_mdp.discretize_states(df, EDGES))
+    # the controller's scalar path (bisect) gives the same states, edge values and NaN included
+    rows = df[["d_AC", "d_AB", "v_AC", "v_AB", "B_is_truck"]].itertuples(index=False)
+    np.testing.assert_array_equal([enc.state(*r) for r in rows], ours)
+    assert enc.state(np.nan, np.nan, np.nan, np.nan, False) == int(enc.states(np.full((1, 4), np.nan), [False])[0])
     assert enc.state(20.0, 5.0, 0.0, 0.0, True) == int(merge_mdp.discretize_states(
         pd.DataFrame({"d_AC": [20.0], "d_AB": [5.0], "v_AC": [0.0], "v_AB": [0.0], "B_is_truck": [True]}), EDGES)[0])
 

@@ -126,7 +126,10 @@ class RerunLogger:
         self._app = application_id
         self._rec, self._tmp = recording if recording is not None else (None, None)
         self._reset_buffers()
-        self._scalars: dict[str, tuple[list[int], list[float], list[float]]] = {}
+        # per controlled car: rows (step, t, speed, d_AC, d_AB, ttc) and decision rows
+        # (step, t, p0..p4, action, features...), sent as columns when the run ends
+        self._metric_rows: dict[int, list[tuple]] = {}
+        self._decision_rows: dict[int, list[tuple]] = {}
         self.n_vehicle_frames = 0
 
     def _reset_buffers(self) -> None:
@@ -190,13 +193,8 @@ class RerunLogger:
             roles[row] = ROLE_IDS[role]
         return roles
 
-    def _scalar(self, entity: str, step: int, t: float, value: float) -> None:
-        buf = self._scalars.setdefault(entity, ([], [], []))
-        buf[0].append(step)
-        buf[1].append(t)
-        buf[2].append(value)
-
     def _log_controlled(self, frame: FrameState) -> None:
+        """Buffers one row per controlled car and frame (and one per decision); see _flush_scalars."""
         ctl = self.controller
         if not ctl.last:
             return
@@ -206,22 +204,17 @@ class RerunLogger:
             ia = rows.get(a_id)
             if ia is None:
                 continue
-            base = f"A_{a_id}"
             speed, y = float(frame.speed[ia]), float(frame.local_y[ia])
-            self._scalar(f"metrics/{base}/speed", step, t, speed)
-            self._scalar(f"metrics/{base}/d_AC", step, t, obs.d_AC)
-            self._scalar(f"metrics/{base}/d_AB", step, t, obs.d_AB)
+            ttc = np.nan  # only while A closes in on its leader
             il = lead_of(frame, y, lane=int(frame.lane_id[ia]), exclude=(ia,))
             if il is not None:
-                gap = float(frame.local_y[il]) - y - float(frame.length[il])
                 closing = speed - float(frame.speed[il])
                 if closing > 1e-6:
-                    self._scalar(f"metrics/{base}/ttc", step, t, max(gap, 0.0) / closing)
+                    ttc = max(float(frame.local_y[il]) - y - float(frame.length[il]), 0.0) / closing
+            self._metric_rows.setdefault(a_id, []).append((step, t, speed, obs.d_AC, obs.d_AB, ttc))
             if a_id in ctl.decided:
-                self._scalar(f"policy/{base}/probs", step, t, probs)
-                self._scalar(f"policy/{base}/action", step, t, float(action))
-                for name, val in zip(FEATURE_NAMES, paper_features(obs.d_AC, obs.b_is_truck, action)):
-                    self._scalar(f"policy/{base}/features/{name}", step, t, val)
+                self._decision_rows.setdefault(a_id, []).append(
+                    (step, t, *probs.tolist(), float(action), *paper_features(obs.d_AC, obs.b_is_truck, action)))
 
     def _flush(self) -> None:
         if not self._steps:
@@ -254,19 +247,35 @@ class RerunLogger:
         self._reset_buffers()
 
     def _flush_scalars(self) -> None:
-        for entity, (steps, times, vals) in self._scalars.items():
-            v = np.asarray(vals, dtype=np.float64)
-            cols = rr.Scalars.columns(scalars=v.reshape(-1))
-            if v.ndim == 2:  # several series per row (the action probabilities)
-                cols = cols.partition(np.full(v.shape[0], v.shape[1]))
-                self._rec.log(entity, rr.SeriesLines(names=[n.lower() for n in ACTION_NAMES]), static=True)
-            self._rec.send_columns(
-                entity,
-                indexes=[rr.TimeColumn("step", sequence=np.asarray(steps)),
-                         rr.TimeColumn("sim_time", duration=np.asarray(times))],
-                columns=cols,
-            )
-        self._scalars = {}
+        """Sends the buffered per-car series as columns, one ``send_columns`` per entity."""
+        for a_id, rows in self._metric_rows.items():
+            m = np.asarray(rows, dtype=np.float64)  # [n, 6]: step, t, speed, d_AC, d_AB, ttc
+            for k, name in enumerate(("speed", "d_AC", "d_AB", "ttc"), start=2):
+                keep = ~np.isnan(m[:, k]) if name == "ttc" else slice(None)
+                self._send_series(f"metrics/A_{a_id}/{name}", m[keep, 0], m[keep, 1], m[keep, k])
+        for a_id, rows in self._decision_rows.items():
+            d = np.asarray(rows, dtype=np.float64)  # [n, 2 + 5 + 1 + 3]
+            base = f"policy/A_{a_id}"
+            self._rec.log(f"{base}/probs", rr.SeriesLines(names=[n.lower() for n in ACTION_NAMES]), static=True)
+            self._send_series(f"{base}/probs", d[:, 0], d[:, 1], d[:, 2:7])
+            self._send_series(f"{base}/action", d[:, 0], d[:, 1], d[:, 7])
+            for k, name in enumerate(FEATURE_NAMES, start=8):
+                self._send_series(f"{base}/features/{name}", d[:, 0], d[:, 1], d[:, k])
+        self._metric_rows, self._decision_rows = {}, {}
+
+    def _send_series(self, entity: str, steps: np.ndarray, times: np.ndarray, values: np.ndarray) -> None:
+        """``values [n]`` (one series) or ``[n, S]`` (S series per row) on the step and sim_time timelines."""
+        if steps.size == 0:
+            return
+        cols = rr.Scalars.columns(scalars=values.reshape(-1))
+        if values.ndim == 2:
+            cols = cols.partition(np.full(values.shape[0], values.shape[1]))
+        self._rec.send_columns(
+            entity,
+            indexes=[rr.TimeColumn("step", sequence=steps.astype(np.int64)),
+                     rr.TimeColumn("sim_time", duration=times)],
+            columns=cols,
+        )
 
 
 def read_entities(path: str | os.PathLike) -> dict[str, list]:

@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 
 from sim.schema import empty_table
-from sim.table import add_derived_columns
+from sim.table import table_from_columns
 
 
 class TrajectoryRecorder:
@@ -51,10 +51,9 @@ class TrajectoryRecorder:
         frame = np.repeat(np.asarray(self._frame, dtype=np.int64), counts)
         kin = np.concatenate(self._kin)
         st = np.concatenate(self._static)
-        raw = pd.DataFrame({
+        return table_from_columns({
             "Vehicle_ID": np.concatenate(self._vid),
             "Frame_ID": frame,
-            "Total_Frames": 0,
             "Global_Time": frame * 100,
             "Local_X": -kin[:, 1],
             "Local_Y": kin[:, 0],
@@ -62,13 +61,8 @@ class TrajectoryRecorder:
             "Global_Y": kin[:, 1],
             "v_Length": st[:, 0],
             "v_Width": st[:, 1],
-            "v_Class": st[:, 2].astype(np.int64),
+            "v_Class": st[:, 2],
             "v_Vel": kin[:, 2],
             "v_Acc": kin[:, 3],
             "Lane_ID": np.concatenate(self._lane),
-            "Preceding": 0,
-            "Following": 0,
-            "Space_Headway": 0.0,
-            "Time_Headway": 0.0,
         })
-        return add_derived_columns(raw)

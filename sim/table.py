@@ -9,6 +9,8 @@ vehicle stands still (NGSIM's convention); both 0 when there is no preceding veh
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 import pandas as pd
 
@@ -37,14 +39,30 @@ def _sorted_neighbours(frame: np.ndarray, lane: np.ndarray, local_y: np.ndarray)
 def add_derived_columns(table: pd.DataFrame) -> pd.DataFrame:
     """Fill Total_Frames, Preceding, Following, Space_Headway, Time_Headway; sort NGSIM-style.
 
-    ``table`` needs every schema column (the derived ones may hold anything). Returns a new
-    table with all schema columns in schema order and dtypes, sorted by (Vehicle_ID, Frame_ID).
+    ``table`` needs every schema column except the derived ones. Returns a new table with all
+    schema columns in schema order and dtypes, sorted by (Vehicle_ID, Frame_ID).
     """
-    vid = table["Vehicle_ID"].to_numpy(np.int64)
-    frame = table["Frame_ID"].to_numpy(np.int64)
-    lane = table["Lane_ID"].to_numpy(np.int64)
-    y = table["Local_Y"].to_numpy(np.float64)
-    vel = table["v_Vel"].to_numpy(np.float64)
+    return table_from_columns({c: table[c].to_numpy() for c in COLUMNS if c not in DERIVED})
+
+
+#: Columns computed by :func:`table_from_columns` (any given values are ignored).
+DERIVED = ("Total_Frames", "Preceding", "Following", "Space_Headway", "Time_Headway")
+
+
+def table_from_columns(columns: Mapping[str, np.ndarray]) -> pd.DataFrame:
+    """The trajectory table from its measured columns, built in one pass.
+
+    Args:
+        columns: every schema column except :data:`DERIVED`, each an array of length N in
+            any row order.
+    Returns: the table (N rows, schema columns, order and dtypes), sorted by
+        (Vehicle_ID, Frame_ID), with the derived columns filled.
+    """
+    vid = np.asarray(columns["Vehicle_ID"], dtype=np.int64)
+    frame = np.asarray(columns["Frame_ID"], dtype=np.int64)
+    lane = np.asarray(columns["Lane_ID"], dtype=np.int64)
+    y = np.asarray(columns["Local_Y"], dtype=np.float64)
+    vel = np.asarray(columns["v_Vel"], dtype=np.float64)
     n = vid.shape[0]
     order, same_next = _sorted_neighbours(frame, lane, y)
     ahead = same_next[:-1] if n else same_next
@@ -64,10 +82,10 @@ def add_derived_columns(table: pd.DataFrame) -> pd.DataFrame:
     th[has & ~moving] = STANDSTILL_TIME_HEADWAY
     counts = np.bincount(vid, minlength=int(vid.max(initial=0)) + 1) if n else np.zeros(1, np.int64)
     derived = {"Preceding": prec, "Following": foll, "Space_Headway": space, "Time_Headway": th,
-               "Total_Frames": counts[vid].astype(np.int64)}
+               "Total_Frames": counts[vid]}
     final = np.lexsort((frame, vid))  # stable: NGSIM's (Vehicle_ID, Frame_ID) file order
-    cols = {}
+    out = {}
     for c, dtype in COLUMNS.items():
-        col = derived[c] if c in derived else table[c].to_numpy()
-        cols[c] = np.asarray(col[final], dtype=dtype)
-    return pd.DataFrame(cols)
+        col = derived[c] if c in derived else np.asarray(columns[c])
+        out[c] = np.asarray(col[final], dtype=dtype)
+    return pd.DataFrame(out, copy=False)

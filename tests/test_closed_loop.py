@@ -128,9 +128,7 @@ class _Probe:
         if self.removed is None:
             for c in self.ctl.controls:
                 if c.active and frame.frame - c.start_frame == self.remove_after:
-                    # libsumo 1.28 fails in the next simulationStep if a subscribed vehicle
-                    # is removed: drop the run's subscription first
-                    libsumo.vehicle.unsubscribe(c.a_sumo)
+                    # a plain remove: the runner holds no subscription that would break the next step
                     libsumo.vehicle.remove(c.a_sumo)
                     self.removed = c.a_sumo
                     break

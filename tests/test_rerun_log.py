@@ -107,7 +107,17 @@ def test_policy_values_match_decisions(logged):
     np.testing.assert_array_equal(states, d.state.to_numpy())
     speed = ents[f"/metrics/A_{a}/speed"]
     sp_steps = np.concatenate([b.column("step").to_numpy() for b in speed])
+    sp_vals = np.concatenate([np.concatenate(b.column("Scalars:scalars").to_pylist()) for b in speed])
     assert set(d.frame) <= set(sp_steps)
+    # A's logged speed is the table's v_Vel of A at every logged step
+    rows = res.table[res.table.Vehicle_ID == a].set_index("Frame_ID").v_Vel
+    np.testing.assert_allclose(sp_vals, rows.loc[sp_steps].to_numpy(), rtol=0, atol=1e-9)
+    for name in ("d_AC", "d_AB", "ttc"):
+        series = ents.get(f"/metrics/A_{a}/{name}", [])
+        vals = np.concatenate([np.concatenate(b.column("Scalars:scalars").to_pylist()) for b in series] or [[]])
+        assert np.all(np.isfinite(vals)), name
+        if name == "ttc":
+            assert np.all(vals >= 0) and len(vals) <= len(sp_vals)
 
 
 def test_training_traces_are_logged(tmp_path):

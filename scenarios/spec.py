@@ -92,12 +92,17 @@ class DriversSpec:
 
 @dataclass(frozen=True)
 class SimulationSpec:
-    """Time settings. Frames (0.1 s) of the first ``warmup_s`` seconds are not recorded."""
+    """Time settings. Frames (0.1 s) of the first ``warmup_s`` seconds are not recorded.
+
+    ``time_to_teleport_s`` is SUMO's ``--time-to-teleport``: a vehicle that has stood blocked
+    at the front of its lane this long is teleported ahead (0 disables jam teleports).
+    """
 
     step_s: float = 0.1
     duration_s: float = 300.0
     warmup_s: float = 60.0
     seed: int = 42
+    time_to_teleport_s: float = 300.0
 
 
 @dataclass(frozen=True)

@@ -263,6 +263,8 @@ def _simulation(ctx: _Ctx, data: Any) -> SimulationSpec:
         kw["seed"] = _num(ctx, "simulation.seed", d["seed"], integer=True)
         if not 0 <= kw["seed"] < 2**31:
             raise ctx.fail("simulation.seed", f"must be in [0, 2**31), got {d['seed']!r}")
+    if "time_to_teleport_s" in d:
+        kw["time_to_teleport_s"] = _nonneg(ctx, "simulation.time_to_teleport_s", d["time_to_teleport_s"])
     sim = SimulationSpec(**kw)
     if sim.warmup_s >= sim.duration_s:
         raise ctx.fail("simulation.warmup_s", f"must be shorter than duration_s = {sim.duration_s:g} s, got {sim.warmup_s:g}")

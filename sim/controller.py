@@ -219,7 +219,9 @@ class Controller:
                 c.b_ahead = bool(ia is not None and frame.local_y[ib] > frame.local_y[ia])
             reason = self._release_reason(c, frame, ia, ib, colliding, teleported, arrived)
             if reason:
-                self._release(c, frame.frame, reason, present=ia is not None and reason != "teleported")
+                # a teleported car is still known to SUMO (off the road for a while): it gets its
+                # own speed and lane-change modes back like any other released car
+                self._release(c, frame.frame, reason, present=ia is not None or reason == "teleported")
         # 2. new take-overs
         self._take_over_new(frame, rows)
         if self._active and not rows:

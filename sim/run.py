@@ -95,6 +95,8 @@ def sumo_args(spec: ScenarioSpec, net: Path, routes: Path) -> list[str]:
         "--seed", str(sim.seed),
         "--no-step-log", "true", "--no-warnings", "true",
         "--collision.action", "warn",
+        # SUMO disables jam teleports for any value <= 0
+        "--time-to-teleport", f"{sim.time_to_teleport_s:g}" if sim.time_to_teleport_s > 0 else "-1",
     ]
 
 

@@ -164,6 +164,30 @@ def test_collision_and_removal_release_and_report(spec):
     assert all(r in RELEASE_REASONS for r in ct.reason)
 
 
+def test_teleported_car_is_released_with_its_modes_back(spec):
+    """High Brake with a long hold stops A on the main road; SUMO teleports it after 5 s."""
+    from dataclasses import replace
+
+    from sim.run import run_scenario
+
+    quick = replace(spec, simulation=replace(spec.simulation, time_to_teleport_s=5.0))
+    ctl = Controller(ConstantPolicy(0), ControllerConfig(hold_after_merge_s=120.0, max_control_s=120.0))
+    probe = _Probe(ctl, remove_after=10**9)  # never removes: only records released cars' modes
+    res = run_scenario(quick, seed=SEED, duration_s=DURATION, hooks=[ctl, probe])
+    ct = ctl.control_table()
+    tele = ct[ct.reason == "teleported"]
+    assert len(tele) >= 1 and ctl.n_teleports >= len(tele)
+    # the teleported car is back under SUMO's own modes (not left in speed mode 0)
+    back = [probe.modes[a] for a in tele.a_id if a in probe.modes]
+    assert back
+    for reason, sm, lcm, sm0, lcm0 in back:
+        assert reason == "teleported" and (sm, lcm) == (sm0, lcm0) and sm != 0
+    # the run went on after the first teleport: recorded frames and later take-overs
+    first = int(tele.end_frame.min())
+    assert res.table.Frame_ID.max() > first + 100
+    assert (ct.start_frame > first).any()
+
+
 def test_same_seed_same_metrics_across_processes(spec):
     from analysis.evaluate import run_episodes
 

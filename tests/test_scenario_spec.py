@@ -72,6 +72,8 @@ BAD = [
     ("simulation.step_s", 0.03, "simulation.step_s"),
     ("simulation.warmup_s", 1e6, "simulation.warmup_s"),
     ("simulation.seed", -1, "simulation.seed"),
+    ("simulation.time_to_teleport_s", -3.0, "simulation.time_to_teleport_s: must be >= 0"),
+    ("simulation.time_to_teleport_s", "never", "simulation.time_to_teleport_s: must be a number"),
     ("drivers.car.0.car_follow_model", "Bogus", "drivers.car[0].car_follow_model: must be one of"),
     ("drivers.car.0.sigma", 2.0, "drivers.car[0].sigma"),
     ("drivers.car.0.wheels", 4, "drivers.car[0].wheels: unknown key"),

@@ -198,9 +198,10 @@ class Controller:
     def on_step(self, ctx: RunContext, frame: FrameState) -> None:
         sim = self._traci.simulation
         self._last_frame = frame.frame
-        colliding = set(sim.getCollidingVehiclesIDList())
-        teleported = set(sim.getStartingTeleportIDList())
-        arrived = set(sim.getArrivedIDList()) if self._active else set()
+        # short tuples (usually empty): membership tests need no set
+        colliding = sim.getCollidingVehiclesIDList()
+        teleported = sim.getStartingTeleportIDList()
+        arrived = sim.getArrivedIDList() if self._active else ()
         if colliding:
             for col in sim.getCollisions():
                 self._collision_pairs.add((col.collider, col.victim))

@@ -18,6 +18,9 @@ Policies in the same harness:
 
 from __future__ import annotations
 
+from bisect import bisect_right
+from itertools import accumulate
+
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
@@ -77,12 +80,12 @@ class Policy(Protocol):
 
 def choose_action(probs: np.ndarray, rng: np.random.Generator, *, mode: bool = False) -> int:
     """Sample an action from ``probs [A]`` with ``rng`` (or take the most likely one)."""
-    p = np.asarray(probs, dtype=np.float64)
+    p = np.asarray(probs, dtype=np.float64).tolist()  # five numbers: plain Python is faster than numpy
     if mode:
-        return int(np.argmax(p))
-    cdf = np.cumsum(p)
+        return p.index(max(p))  # the first of equal maxima, as argmax
+    cdf = list(accumulate(p))  # sequential sums, bit for bit numpy's cumsum
     u = rng.random() * cdf[-1]
-    return int(min(np.searchsorted(cdf, u, side="right"), p.size - 1))
+    return min(bisect_right(cdf, u), len(p) - 1)
 
 
 @dataclass(frozen=True)

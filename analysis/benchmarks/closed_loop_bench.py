@@ -124,6 +124,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"    of which rerun logging         {o['logger']:7.2f} s   ({us_log:.2f} us per vehicle-frame)")
     print(f"  ratio closed loop / bare         {med(ratios):7.2f} x   (target <= 3; per repetition "
           f"{', '.join(f'{r:.2f}' for r in ratios)})")
+    print(f"  ratio of best times / bare       {min(r['wall'] for r in ours) / min(bare):7.2f} x   "
+          f"(the least disturbed run of each)")
     print(f"  ratio closed loop / bare+fcd     {med(ratios_fcd):7.2f} x   (per repetition "
           f"{', '.join(f'{r:.2f}' for r in ratios_fcd)})")
     print(f"  rerun logging per vehicle-frame  {us_log:7.2f} us  (target < 10)")

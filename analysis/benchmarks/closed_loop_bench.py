@@ -17,6 +17,7 @@ Targets (DESIGN.md section 7): closed loop at most 3x the bare binary; logging a
 from __future__ import annotations
 
 import argparse
+import resource
 import subprocess
 import tempfile
 import time
@@ -47,7 +48,8 @@ class _Timed:
         self.seconds += time.perf_counter() - t
 
 
-def time_bare(spec, work: Path, *, fcd: bool) -> float:
+def time_bare(spec, work: Path, *, fcd: bool) -> tuple[float, float]:
+    """(wall s, CPU s user + system) of the bare binary."""
     from sim.run import prepare_inputs, sumo_args, sumo_binary
 
     net, routes = prepare_inputs(spec, work)
@@ -55,9 +57,12 @@ def time_bare(spec, work: Path, *, fcd: bool) -> float:
     if fcd:
         cmd += ["--fcd-output", str(work / "fcd.xml"), "--fcd-output.acceleration", "true",
                 "--device.fcd.begin", f"{spec.simulation.warmup_s:g}"]
+    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t = time.perf_counter()
     subprocess.run(cmd, check=True, capture_output=True)
-    return time.perf_counter() - t
+    wall = time.perf_counter() - t
+    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return wall, (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
 
 
 def time_closed_loop(spec, work: Path) -> dict[str, float]:
@@ -76,10 +81,11 @@ def time_closed_loop(spec, work: Path) -> dict[str, float]:
     tctl = _Timed(ctl)
     log = RerunLogger(work / "bench.rrd", controller=ctl)
     tlog = _Timed(log)
+    c = time.process_time()  # every thread of this process, rerun's writer included
     t = time.perf_counter()
     res = run_scenario(spec, hooks=[tctl, tlog], work_dir=work / "run")
     wall = time.perf_counter() - t
-    return {"wall": wall, "sumo": res.sumo_time_s, "controller": tctl.seconds, "logger": tlog.seconds,
+    return {"wall": wall, "cpu": time.process_time() - c, "sumo": res.sumo_time_s, "controller": tctl.seconds, "logger": tlog.seconds,
             "vehicle_frames": float(log.n_vehicle_frames), "controls": float(len(ctl.controls)),
             "rrd_mb": (work / "bench.rrd").stat().st_size / 1e6}
 
@@ -95,13 +101,15 @@ def main(argv: list[str] | None = None) -> int:
     spec = load_scenario(args.scenario)
     if args.duration is not None:
         spec = spec.with_overrides(duration_s=args.duration)
-    bare, fcd, ours = [], [], []
+    bare, bare_cpu, fcd, ours = [], [], [], []
     with tempfile.TemporaryDirectory(prefix="merge-irl-clbench-") as tmp:
         work = Path(tmp)
         time_bare(spec, work, fcd=False)  # builds / warms the network cache
         for i in range(args.repeat):
-            bare.append(time_bare(spec, work, fcd=False))
-            fcd.append(time_bare(spec, work, fcd=True))
+            wall, cpu = time_bare(spec, work, fcd=False)
+            bare.append(wall)
+            bare_cpu.append(cpu)
+            fcd.append(time_bare(spec, work, fcd=True)[0])
             (work / f"r{i}").mkdir()
             ours.append(time_closed_loop(spec, work / f"r{i}"))
     med = lambda xs: float(np.median(xs))  # noqa: E731
@@ -126,6 +134,8 @@ def main(argv: list[str] | None = None) -> int:
           f"{', '.join(f'{r:.2f}' for r in ratios)})")
     print(f"  ratio of best times / bare       {min(r['wall'] for r in ours) / min(bare):7.2f} x   "
           f"(the least disturbed run of each)")
+    print(f"  CPU-time ratio / bare            {med([r['cpu'] / x for r, x in zip(ours, bare_cpu)]):7.2f} x   "
+          f"(user + system; less sensitive to a busy machine than wall time)")
     print(f"  ratio closed loop / bare+fcd     {med(ratios_fcd):7.2f} x   (per repetition "
           f"{', '.join(f'{r:.2f}' for r in ratios_fcd)})")
     print(f"  rerun logging per vehicle-frame  {us_log:7.2f} us  (target < 10)")

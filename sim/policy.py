@@ -19,9 +19,8 @@ Policies in the same harness:
 from __future__ import annotations
 
 from bisect import bisect_right
-from itertools import accumulate
-
 from dataclasses import dataclass
+from itertools import accumulate
 from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import numpy as np

@@ -6,7 +6,6 @@ only: yellow 4, green 0, red 20, pink 24, blue {1, 8, 11, 18, 21}).
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 

@@ -94,7 +94,8 @@ def test_hard_brake_policy_metrics(brake_run, sumo_run):
     assert m.b_ahead_rate >= base.b_ahead_rate
     assert m.min_ttc_s < base.min_ttc_s
     # JS divergence of a one-hot distribution against uniform demonstrations, by hand
-    p, mix = np.array([1, 0, 0, 0, 0.0]), np.array([0.6, 0.1, 0.1, 0.1, 0.1])
+    # (the midpoint of one-hot [1,0,0,0,0] and uniform is [0.6, 0.1, 0.1, 0.1, 0.1])
+    p = np.array([1, 0, 0, 0, 0.0])
     expected = 0.5 * np.log2(1 / 0.6) + 0.5 * (0.2 * np.log2(0.2 / 0.6) + 0.8 * np.log2(0.2 / 0.1))
     assert m.js_divergence == pytest.approx(expected, abs=1e-12)
     assert js_divergence(p, np.ones(5)) == pytest.approx(expected)

@@ -1,6 +1,5 @@
 """The 5x5 gridworld of the paper, laid out as REFERENCE.md describes."""
 
-from pathlib import Path
 
 import numpy as np
 import pytest

@@ -29,7 +29,6 @@ def direct_loglik(q, beta, demos):
 
 def reference_qavg(theta, demos, gamma):
     """Q-Avg fixed point by plain value iteration on the observed successors (test's own code)."""
-    S, A = demos.n_states, demos.n_actions
     succ = {}
     for states, actions in zip(demos.states, demos.actions):
         for t in range(len(states) - 1):

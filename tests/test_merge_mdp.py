@@ -1,6 +1,5 @@
 """The merge MDP: state layout, action bins, features, bin edges, discretization, fallback model."""
 
-from pathlib import Path
 
 import numpy as np
 import pandas as pd

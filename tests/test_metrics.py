@@ -38,7 +38,6 @@ def _scene(v_follow=60.0, v_a=50.0, v_lead=55.0, acc_a=-2.0, n=20, section=400.0
     """Follower 3 behind A (1) behind leader 2, all in lane 6; A crosses the whole section."""
     rows = []
     for f in range(n):
-        ya = 0.0 + v_a * 0.1 * f * 8  # A covers 0..~760 ft... scaled below
         rows.append(dict(Vehicle_ID=1, Frame_ID=f, Local_Y=f * section / (n - 1), v_Vel=v_a, v_Acc=acc_a,
                          Lane_ID=6, Preceding=2, Following=3, v_Length=15.0))
         rows.append(dict(Vehicle_ID=2, Frame_ID=f, Local_Y=f * section / (n - 1) + 65.0, v_Vel=v_lead, v_Acc=0.0,

@@ -1,7 +1,6 @@
 """``merge-irl reproduce``: the paper's table layout, Wilcoxon p-values, held-out likelihood."""
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest

@@ -7,7 +7,8 @@ second, and the scaling when the demand or the duration is doubled::
 
 The bare binary writes FCD (position, speed, lane, acceleration) for the recorded period
 (``--device.fcd.begin`` = warm-up); ours is timed in-process (``sim.generate.generate``) and
-as the ``merge-irl generate`` command (which adds Python start-up and imports).
+as the ``merge-irl generate`` command (which adds Python start-up and imports). The last
+column compares ours with the bare binary writing nothing (DESIGN.md section 7: at most 2x).
 """
 
 from __future__ import annotations
@@ -32,11 +33,13 @@ def _children_cpu() -> float:
     return r.ru_utime + r.ru_stime
 
 
-def time_bare(spec: ScenarioSpec, work: Path) -> tuple[float, float]:
-    """(wall s, CPU s) of the bare sumo binary writing FCD output."""
+def time_bare(spec: ScenarioSpec, work: Path, *, fcd: bool = True) -> tuple[float, float]:
+    """(wall s, CPU s) of the bare sumo binary writing FCD output (or nothing)."""
     net, routes = prepare_inputs(spec, work)
-    cmd = [sumo_binary("sumo"), *sumo_args(spec, net, routes), "--fcd-output", str(work / "fcd.xml"),
-           "--fcd-output.acceleration", "true", "--device.fcd.begin", f"{spec.simulation.warmup_s:g}"]
+    cmd = [sumo_binary("sumo"), *sumo_args(spec, net, routes)]
+    if fcd:
+        cmd += ["--fcd-output", str(work / "fcd.xml"), "--fcd-output.acceleration", "true",
+                "--device.fcd.begin", f"{spec.simulation.warmup_s:g}"]
     c0, t0 = _children_cpu(), time.perf_counter()
     subprocess.run(cmd, check=True, capture_output=True)
     return time.perf_counter() - t0, _children_cpu() - c0
@@ -72,11 +75,13 @@ def measure(spec: ScenarioSpec, repeat: int, *, cli: bool = False) -> dict[str, 
             work = Path(tmp)
             bw, bc = time_bare(spec, work)
             ow, oc, steps = time_ours(spec, work)
-            rows.append((bw, bc, ow, oc))
+            nw = time_bare(spec, work, fcd=False)[0]
+            rows.append((bw, bc, ow, oc, nw))
             if cli:
                 clis.append(time_cli(spec, work))
-    best = [min(r[i] for r in rows) for i in range(4)]
-    out = {"bare_s": best[0], "bare_cpu": best[1], "ours_s": best[2], "ours_cpu": best[3], "vehicle_steps": steps}
+    best = [min(r[i] for r in rows) for i in range(5)]
+    out = {"bare_s": best[0], "bare_cpu": best[1], "ours_s": best[2], "ours_cpu": best[3], "nofcd_s": best[4],
+           "vehicle_steps": steps}
     if cli:
         out["cli_s"] = min(clis)
     return out
@@ -100,7 +105,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"scenario {preset.name}, seed {preset.simulation.seed}, step {preset.simulation.step_s} s, "
           f"warm-up {w:g} s, best of {a.repeat}; CPU = user + system seconds")
     print(f"{'case':<12} {'sim s':>6} {'veh-steps':>10} {'bare wall':>9} {'ours wall':>9} {'ratio':>6} "
-          f"{'bare CPU':>8} {'ours CPU':>8} {'ratio':>6} {'ours veh-steps/CPU s':>20} {'CLI wall':>8}")
+          f"{'bare CPU':>8} {'ours CPU':>8} {'ratio':>6} {'ours veh-steps/CPU s':>20} {'CLI wall':>8} "
+          f"{'vs no-output':>12}")
     results = {}
     for name, spec, cli in cases:
         m = measure(spec, a.repeat, cli=cli)
@@ -108,7 +114,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{name:<12} {spec.simulation.duration_s:6.0f} {m['vehicle_steps']:10d} {m['bare_s']:9.2f} "
               f"{m['ours_s']:9.2f} {m['ours_s'] / m['bare_s']:6.2f} {m['bare_cpu']:8.2f} {m['ours_cpu']:8.2f} "
               f"{m['ours_cpu'] / m['bare_cpu']:6.2f} {m['vehicle_steps'] / m['ours_cpu']:20.0f} "
-              f"{m.get('cli_s', float('nan')):8.2f}")
+              f"{m.get('cli_s', float('nan')):8.2f} {m['ours_s'] / m['nofcd_s']:12.2f}")
     b = results["half demand"]
     for name in ("2x demand", "2x duration"):
         m = results[name]

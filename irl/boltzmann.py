@@ -7,7 +7,12 @@ log-sum-exp with max subtraction, so large ``beta`` or large ``Q`` never overflo
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+if TYPE_CHECKING:  # pragma: no cover
+    from irl.demonstrations import Demonstrations
 
 
 def log_policy(q: np.ndarray, beta: float) -> np.ndarray:
@@ -27,6 +32,12 @@ def step_counts(states: np.ndarray, actions: np.ndarray, n_states: int, n_action
     counts = np.zeros((n_states, n_actions))
     np.add.at(counts, (states, actions), 1.0)
     return counts
+
+
+def demo_counts(demos: Demonstrations) -> np.ndarray:
+    """``[S, A]`` step counts of every step of ``demos`` (the final ones too)."""
+    states, actions, _ = demos.flat()
+    return step_counts(states, actions, demos.n_states, demos.n_actions)
 
 
 def loglik_from_counts(q: np.ndarray, beta: float, counts: np.ndarray) -> float:

@@ -26,9 +26,10 @@ from irl.bellman import (
     FixedPoint, backup_operator, boltzmann_dq, boltzmann_fixed_point, iteration_stability,
     mean_weights,
 )
-from irl.boltzmann import loglik_grad_from_counts, step_counts
+from irl.boltzmann import demo_counts, loglik_grad_from_counts
 from irl.config import IRLConfig
 from irl.demonstrations import Demonstrations
+from irl.faithful import FaithfulSolver
 from irl.fit_common import result_from_ascent
 from irl.result import FitResult
 from irl.transitions import SuccessorModel, reachable_states, restrict
@@ -37,12 +38,6 @@ from irl.transitions import SuccessorModel, reachable_states, restrict
 NEWTON_CAP = 200
 #: Damped backups allowed when a line-search trial point leaves the anchor's branch.
 JUMP_BACKUPS = 2000
-
-
-def demo_counts(demos: Demonstrations) -> np.ndarray:
-    """``[S, A]`` step counts of every step (the final ones too)."""
-    states, actions, _ = demos.flat()
-    return step_counts(states, actions, demos.n_states, demos.n_actions)
 
 
 class ExactBoltzmann:
@@ -184,23 +179,19 @@ def fit_exact(method: str, demos: Demonstrations, succ: SuccessorModel, config: 
     return result_from_ascent(method, config, asc, time.perf_counter() - start, extra=extra)
 
 
-class DampedBoltzmann:
+class DampedBoltzmann(FaithfulSolver):
     """Synchronous damped Boltzmann backup over all pairs (MLIRL faithful), warm-started."""
 
     def __init__(self, demos: Demonstrations, succ: SuccessorModel, config: IRLConfig):
+        super().__init__(demos, config)
         S, A, K = demos.features.shape
         self.shape = (S, A, K)
         self.phi = demos.features.reshape(S * A, K)
         self.succ = succ
         # small models: dense products are far cheaper than sparse ones per sweep
         self.p = succ.p.toarray() if S * A * S <= 2_000_000 else succ.p
-        self.config = config
-        self.counts = demo_counts(demos)
         self.q = np.zeros(S * A)
         self.dq = np.zeros((S * A, K))
-        self.sweeps = 0
-        self.inner_caps = 0
-        self.last_ok = True
 
     def evaluate(self, theta: np.ndarray) -> Evaluation:
         c = self.config
@@ -232,11 +223,5 @@ class DampedBoltzmann:
             if change < c.inner_tol:
                 ok_d = True
                 break
-        self.sweeps += n1 + n2
-        self.inner_caps += (not ok_q) + (not ok_d)
-        self.last_ok = ok_q and ok_d
-        q = self.q.reshape(S, A)
-        ll, g = loglik_grad_from_counts(q, self.dq.reshape(S, A, K), c.beta, self.counts)
-        finite = bool(np.isfinite(ll) and np.all(np.isfinite(g)))
-        return Evaluation(ll, g, q.copy(), ok=finite, message="" if finite else "non-finite Q or dQ")
+        return self.conclude(self.q.reshape(S, A).copy(), self.dq.reshape(S, A, K), n1 + n2, (ok_q, ok_d))
 

@@ -28,9 +28,10 @@ from irl.bellman import average_basis
 from irl.boltzmann import log_policy, loglik_grad_from_counts, step_counts
 from irl.config import IRLConfig
 from irl.demonstrations import Demonstrations
+from irl.faithful import PlannedSweeps
 from irl.fit_common import finish_faithful, initial_theta, result_from_ascent
 from irl.result import FitResult
-from irl.sweeps import compose_sweep, iterate_affine, make_plan
+from irl.sweeps import compose_sweep, iterate_affine
 from irl.transitions import model_free_successors
 
 
@@ -97,52 +98,23 @@ def _fit_exact(demos: Demonstrations, config: IRLConfig, theta: np.ndarray, prog
     return asc, unbounded, message, {"separable": float(separable)}
 
 
-class FaithfulQAvg:
+class FaithfulQAvg(PlannedSweeps):
     """The reference code's inner loops for Q-Avg, with warm-started state across outer steps."""
 
     def __init__(self, demos: Demonstrations, config: IRLConfig):
-        self.config = config
-        self.plan = make_plan(demos)
-        S, A = demos.n_states, demos.n_actions
-        self.shape = (S, A)
-        w = np.full((S, A), 1.0 / A)
+        super().__init__(demos, config)
+        w = np.full(self.shape, 1.0 / self.shape[1])  # Q-Avg: the uniform mean, fixed
         self.gh = compose_sweep(self.plan, w, config.alpha, config.gamma)
-        phi = demos.features.reshape(S * A, -1)
-        self.phi_in, self.phi_out = phi[self.plan.active], phi[self.plan.outside]
-        k = phi.shape[1]
-        self.x = np.zeros(self.plan.n_active)
-        self.x_out = np.zeros(self.plan.outside.size)
-        self.dx = np.zeros((self.plan.n_active, k))
-        self.dx_out = np.zeros((self.plan.outside.size, k))
-        states, actions, _ = demos.flat()
-        self.counts = step_counts(states, actions, S, A)
-        self.inner_caps = 0
-        self.sweeps = 0
-        self.last_ok = True
-
-    def assemble(self, x_in: np.ndarray, x_out: np.ndarray) -> np.ndarray:
-        S, A = self.shape
-        full = np.zeros((S * A,) + x_in.shape[1:])
-        full[self.plan.active] = x_in
-        full[self.plan.outside] = x_out
-        return full.reshape((S, A) + x_in.shape[1:])
 
     def evaluate(self, theta: np.ndarray) -> Evaluation:
         c = self.config
-        S, A = self.shape
         r = (self.phi_in @ theta), (self.phi_out @ theta)
         self.x, self.x_out, n1, ok1 = iterate_affine(self.gh, self.x, r[0], self.x_out, r[1],
                                                      c.alpha, c.max_inner, c.inner_tol)
         self.dx, self.dx_out, n2, ok2 = iterate_affine(self.gh, self.dx, self.phi_in, self.dx_out,
                                                        self.phi_out, c.alpha, c.max_inner, c.inner_tol)
-        self.sweeps += n1 + n2
-        self.inner_caps += (not ok1) + (not ok2)
-        self.last_ok = ok1 and ok2
-        q = self.assemble(self.x, self.x_out)
-        dq = self.assemble(self.dx, self.dx_out)
-        ll, g = loglik_grad_from_counts(q, dq, c.beta, self.counts)
-        finite = bool(np.isfinite(ll) and np.all(np.isfinite(g)))
-        return Evaluation(ll, g, q, ok=finite, message="" if finite else "non-finite Q or dQ")
+        return self.conclude(self.assemble(self.x, self.x_out), self.assemble(self.dx, self.dx_out),
+                             n1 + n2, (ok1, ok2))
 
 
 def fit_qavg(demos: Demonstrations, config: IRLConfig, rng: np.random.Generator, *,

@@ -23,41 +23,18 @@ import numpy as np
 
 from irl.ascent import Evaluation, unit_step_ascent
 from irl.bellman import mean_weights
-from irl.boltzmann import loglik_grad_from_counts
-from irl.boltzmann_backup import demo_counts, fit_exact
+from irl.boltzmann_backup import fit_exact
 from irl.config import IRLConfig
 from irl.demonstrations import Demonstrations
+from irl.faithful import PlannedSweeps
 from irl.fit_common import finish_faithful, initial_theta
 from irl.result import FitResult
-from irl.sweeps import compose_sweep, iterate_affine, make_plan, softmax_sweep
+from irl.sweeps import compose_sweep, iterate_affine, softmax_sweep
 from irl.transitions import model_free_successors
 
 
-class FaithfulQSM:
+class FaithfulQSM(PlannedSweeps):
     """The reference code's Q-SM inner loops (minus the ``z^2`` bug), warm-started."""
-
-    def __init__(self, demos: Demonstrations, config: IRLConfig):
-        self.config = config
-        self.plan = make_plan(demos)
-        S, A, K = demos.features.shape
-        self.shape = (S, A)
-        phi = demos.features.reshape(S * A, K)
-        self.phi_in, self.phi_out = phi[self.plan.active], phi[self.plan.outside]
-        self.x = np.zeros(self.plan.n_active)
-        self.x_out = np.zeros(self.plan.outside.size)
-        self.dx = np.zeros((self.plan.n_active, K))
-        self.dx_out = np.zeros((self.plan.outside.size, K))
-        self.counts = demo_counts(demos)
-        self.sweeps = 0
-        self.inner_caps = 0
-        self.last_ok = True
-
-    def assemble(self, x_in: np.ndarray, x_out: np.ndarray) -> np.ndarray:
-        S, A = self.shape
-        full = np.zeros((S * A,) + x_in.shape[1:])
-        full[self.plan.active] = x_in
-        full[self.plan.outside] = x_out
-        return full.reshape((S, A) + x_in.shape[1:])
 
     def iterate_q(self, theta: np.ndarray) -> tuple[int, bool]:
         c = self.config
@@ -87,13 +64,7 @@ class FaithfulQSM:
         self.dx, self.dx_out, n2, ok_d = iterate_affine(gh, self.dx, self.phi_in, self.dx_out,
                                                         self.phi_out, c.alpha, c.max_inner,
                                                         c.inner_tol)
-        self.sweeps += n1 + n2
-        self.inner_caps += (not ok_q) + (not ok_d)
-        self.last_ok = ok_q and ok_d
-        dq = self.assemble(self.dx, self.dx_out)
-        ll, g = loglik_grad_from_counts(q, dq, c.beta, self.counts)
-        finite = bool(np.isfinite(ll) and np.all(np.isfinite(g)))
-        return Evaluation(ll, g, q, ok=finite, message="" if finite else "non-finite Q or dQ")
+        return self.conclude(q, self.assemble(self.dx, self.dx_out), n1 + n2, (ok_q, ok_d))
 
 
 def fit_qsm(demos: Demonstrations, config: IRLConfig, rng: np.random.Generator, *,

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from irl_testdata import random_mdp
 
-from irl.boltzmann import loglik_grad_from_counts
-from irl.boltzmann_backup import DampedBoltzmann, ExactBoltzmann, demo_counts
+from irl.boltzmann import demo_counts, loglik_grad_from_counts
+from irl.boltzmann_backup import DampedBoltzmann, ExactBoltzmann
 from irl.config import IRLConfig
 from irl.qavg import FaithfulQAvg, qavg_basis
 from irl.qsm import FaithfulQSM

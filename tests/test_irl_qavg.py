@@ -8,7 +8,7 @@ from irl_testdata import gridworld_demos, random_mdp
 
 from irl.bellman import average_basis
 from irl.boltzmann import loglik_grad_from_counts
-from irl.boltzmann_backup import demo_counts
+from irl.boltzmann import demo_counts
 from irl.config import IRLConfig
 from irl.demonstrations import Demonstrations
 from irl.fit import fit

@@ -100,15 +100,9 @@ def sumo_args(spec: ScenarioSpec, net: Path, routes: Path) -> list[str]:
     ]
 
 
-def i80_lane_of(y_m: float, n_main: int, lane_width_m: float) -> int:
-    """I-80 lane number of a lateral SUMO position y (m, negative to the right of the left edge)."""
-    idx = int(math.floor(-y_m / lane_width_m))
-    idx = min(max(idx, 0), n_main)
-    return RAMP_LANE if idx >= n_main else RIGHTMOST_MAIN_LANE - n_main + 1 + idx
-
-
 def lane_numbers(local_x_ft: np.ndarray, n_main: int, lane_width_ft: float) -> np.ndarray:
-    """I-80 lane numbers (int64[V]) of lateral positions from the left road edge (float64[V], ft).
+    """I-80 lane numbers (int64[V]) of lateral positions from the left road edge (float64[V], ft;
+    any unit works if ``lane_width_ft`` is in the same one).
 
     Lane k (0-based from the left) covers ``[k w, (k + 1) w)``; positions left of the road go
     to lane 1, positions right of the main lanes to lane 7 (ramp / auxiliary lane).
@@ -135,7 +129,7 @@ def _lane_tables(ls, spec: ScenarioSpec) -> tuple[dict[str, int], dict[str, np.n
     pieces: dict[int, list[np.ndarray]] = {}
     for lid in ls.lane.getIDList():
         shape = np.asarray(ls.lane.getShape(lid), dtype=np.float64)
-        num = i80_lane_of(float(shape[:, 1].mean()), n, w)
+        num = int(lane_numbers(np.array([-shape[:, 1].mean()]), n, w)[0])  # metres here
         lane_map[lid] = num
         if not lid.startswith(":"):
             pieces.setdefault(num, []).append(shape)

@@ -1,7 +1,7 @@
 """Neighbour search inside one frame (lead / lag car, lane order) and lane numbering, without SUMO.
 
 The fast paths (sorted Python lists + bisect, one searchsorted) are checked against a
-brute-force numpy search over random frames, ties and empty lanes included.
+brute-force search over random frames (ties and empty lanes included) and the floor rule.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from sim.hooks import FrameState
 from sim.observe import lag_of, lead_of
-from sim.run import i80_lane_of, lane_numbers
+from sim.run import lane_numbers
 
 
 def make_frame(lanes: np.ndarray, ys: np.ndarray) -> FrameState:
@@ -68,12 +68,15 @@ def test_lane_order_is_sorted_and_cached():
     assert frame.lane_order(3) == ([], [])
 
 
-def test_lane_numbers_match_the_scalar_rule():
+def test_lane_numbers_follow_the_floor_rule():
+    """Lane k (0-based from the left) covers [k w, (k + 1) w); left of the road -> lane 1, right of
+    the main lanes -> lane 7 (ramp / auxiliary)."""
     width_ft = 12.0
     x_ft = np.linspace(-30, 100, 1301)
-    x_ft = x_ft[np.abs(x_ft / width_ft - np.round(x_ft / width_ft)) > 1e-9]  # metres vs feet round differently on an edge
-    scalar = [i80_lane_of(-x * 0.3048, 6, width_ft * 0.3048) for x in x_ft]
-    np.testing.assert_array_equal(lane_numbers(x_ft, 6, width_ft), scalar)
+    for n_main in (3, 6):
+        k = [min(max(int(np.floor(x / width_ft)), 0), n_main) for x in x_ft]
+        expected = [7 if j == n_main else 6 - n_main + 1 + j for j in k]
+        np.testing.assert_array_equal(lane_numbers(x_ft, n_main, width_ft), expected)
     np.testing.assert_array_equal(lane_numbers(np.array([-5.0, 0.0, 6.0, 12.0, 18.0, 66.0, 72.0, 73.0]), 6, 12.0),
                                   [1, 1, 1, 2, 2, 6, 7, 7])
     np.testing.assert_array_equal(lane_numbers(np.array([6.0, 18.0, 40.0]), 3, 12.0), [4, 5, 7])

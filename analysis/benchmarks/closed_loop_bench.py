@@ -17,13 +17,13 @@ Targets (DESIGN.md section 7): closed loop at most 3x the bare binary; logging a
 from __future__ import annotations
 
 import argparse
-import resource
-import subprocess
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+
+from analysis.benchmarks.bare_sumo import time_bare
 
 
 class _Timed:
@@ -46,23 +46,6 @@ class _Timed:
         t = time.perf_counter()
         self.hook.on_end(ctx)
         self.seconds += time.perf_counter() - t
-
-
-def time_bare(spec, work: Path, *, fcd: bool) -> tuple[float, float]:
-    """(wall s, CPU s user + system) of the bare binary."""
-    from sim.run import prepare_inputs, sumo_args, sumo_binary
-
-    net, routes = prepare_inputs(spec, work)
-    cmd = [sumo_binary("sumo"), *sumo_args(spec, net, routes)]
-    if fcd:
-        cmd += ["--fcd-output", str(work / "fcd.xml"), "--fcd-output.acceleration", "true",
-                "--device.fcd.begin", f"{spec.simulation.warmup_s:g}"]
-    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    t = time.perf_counter()
-    subprocess.run(cmd, check=True, capture_output=True)
-    wall = time.perf_counter() - t
-    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return wall, (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
 
 
 def time_closed_loop(spec, work: Path) -> dict[str, float]:

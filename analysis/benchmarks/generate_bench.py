@@ -15,34 +15,16 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import resource
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
+from analysis.benchmarks.bare_sumo import time_bare
 from scenarios.loader import load_scenario
 from scenarios.spec import ScenarioSpec
 from sim.generate import generate
-from sim.run import prepare_inputs, sumo_args, sumo_binary
-
-
-def _children_cpu() -> float:
-    r = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return r.ru_utime + r.ru_stime
-
-
-def time_bare(spec: ScenarioSpec, work: Path, *, fcd: bool = True) -> tuple[float, float]:
-    """(wall s, CPU s) of the bare sumo binary writing FCD output (or nothing)."""
-    net, routes = prepare_inputs(spec, work)
-    cmd = [sumo_binary("sumo"), *sumo_args(spec, net, routes)]
-    if fcd:
-        cmd += ["--fcd-output", str(work / "fcd.xml"), "--fcd-output.acceleration", "true",
-                "--device.fcd.begin", f"{spec.simulation.warmup_s:g}"]
-    c0, t0 = _children_cpu(), time.perf_counter()
-    subprocess.run(cmd, check=True, capture_output=True)
-    return time.perf_counter() - t0, _children_cpu() - c0
 
 
 def time_ours(spec: ScenarioSpec, work: Path) -> tuple[float, float, int]:

@@ -23,7 +23,6 @@ class TrajectoryRecorder:
         self._lane: list[np.ndarray] = []
         self._static: list[np.ndarray] = []
         self.n_rows = 0
-        self.n_frames = 0
 
     def add(self, frame: int, vehicle_id: np.ndarray, kin: np.ndarray, lane: np.ndarray, static: np.ndarray) -> None:
         """One frame of V vehicles.
@@ -41,7 +40,10 @@ class TrajectoryRecorder:
         self._lane.append(lane)
         self._static.append(static)
         self.n_rows += vehicle_id.shape[0]
-        self.n_frames += 1
+
+    @property
+    def n_frames(self) -> int:
+        return len(self._frame)
 
     def table(self) -> pd.DataFrame:
         """The trajectory table (NGSIM schema, sorted by Vehicle_ID, Frame_ID)."""

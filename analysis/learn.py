@@ -18,10 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.problem import Problem, load_problem
 from irl.config import IRLConfig
 from irl.errors import ConfigError, ConvergenceError
 from irl.merge_mdp import MergeBins
+from irl.problems import Problem, load_problem
 from irl.reirl import DEFAULT_EPSILON, DEFAULT_N_BASELINE, fit_reirl
 from irl.result import METHODS, FitResult, SavedModel
 
@@ -108,7 +108,7 @@ def learn(
 ) -> SavedModel:
     """Load ``demos_path`` as ``domain``, fit ``method``, and (if ``out``) save ``model.json``.
 
-    See :func:`analysis.problem.load_problem` for the domains and :func:`fit_problem` for what
+    See :func:`irl.problems.load_problem` for the domains and :func:`fit_problem` for what
     each method sees. Returns the saved record (theta, loglik, q, settings, merge bin edges).
     """
     config = config or IRLConfig.paper()

@@ -161,7 +161,7 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
              progress: bool = True) -> DemoResult:
     """Run the whole pipeline (see the module docstring) and return where the outputs are."""
     from analysis.learn import fit_problem, saved_model
-    from analysis.problem import load_problem
+    from irl.problems import load_problem
     from analysis.rerun_log import RerunLogger, close_recording, log_training, open_recording
     from irl.config import IRLConfig
     from irl.merge_mdp import fit_quantile_bins

@@ -28,7 +28,7 @@ from typing import Sequence
 
 import numpy as np
 
-from analysis.problem import Problem, load_problem
+from irl.problems import Problem, load_problem
 from analysis.sweep import ResultStore, SweepReport, Task, TaskFailure, run_sweep
 from analysis.trials import (TrialOutcome, TrialSpec, cached_table_problem, config_label, run_trial_spec,
                              trial_seeds)

@@ -22,9 +22,9 @@ from typing import Callable, Iterable, Sequence
 import numpy as np
 
 from analysis.learn import fit_problem
-from analysis.problem import Problem
 from irl.boltzmann import loglik_from_counts, step_counts
 from irl.config import IRLConfig
+from irl.problems import Problem
 from irl.reirl import DEFAULT_EPSILON
 
 

@@ -11,7 +11,7 @@ Side by side on the same scenario, network, routes and seed:
   vehicle-frame.
 
 Targets (DESIGN.md section 7): closed loop at most 3x the bare binary; logging alone under
-10 microseconds per vehicle-frame. Run: ``python -m analysis.benchmarks.closed_loop_bench``.
+10 microseconds per vehicle-frame. Run: ``python -m benchmarks.closed_loop_bench``.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.benchmarks.bare_sumo import time_bare
+from benchmarks.bare_sumo import time_bare
 
 
 class _Timed:

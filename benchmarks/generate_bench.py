@@ -3,7 +3,7 @@
 Same network, routes, seed and step. Prints the wall time of each, the ratio, vehicle-steps per
 second, and the scaling when the demand or the duration is doubled::
 
-    python -m analysis.benchmarks.generate_bench [--scenario i80] [--duration 300] [--repeat 3]
+    python -m benchmarks.generate_bench [--scenario i80] [--duration 300] [--repeat 3]
 
 The bare binary writes FCD (position, speed, lane, acceleration) for the recorded period
 (``--device.fcd.begin`` = warm-up); ours is timed in-process (``sim.generate.generate``) and
@@ -21,7 +21,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from analysis.benchmarks.bare_sumo import time_bare
+from benchmarks.bare_sumo import time_bare
 from scenarios.loader import load_scenario
 from scenarios.spec import ScenarioSpec
 from sim.generate import generate

@@ -1,6 +1,6 @@
 """Benchmark: NGSIM loader throughput and peak memory vs plain pandas; calibration time.
 
-    python -m analysis.benchmarks.ngsim_bench [--size-mb 520] [--pairs DIR] [--keep]
+    python -m benchmarks.ngsim_bench [--size-mb 520] [--pairs DIR] [--keep]
 
 1. Generates an NGSIM-format CSV of at least ``--size-mb`` MB in the temp folder (deleted
    afterwards unless ``--keep``): vehicles driving along Local_Y in lanes 1..7, written with

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from analysis.scripts.derive_i80_geometry import derive, to_toml
+from tools.derive_i80_geometry import derive, to_toml
 
 ROOT = Path(__file__).resolve().parents[1]
 SHIPPED = ROOT / "scenarios" / "data" / "i80_geometry.toml"

@@ -2,7 +2,7 @@
 
 One-off script (kept so the numbers can be re-derived and checked):
 
-    python -m analysis.scripts.derive_i80_geometry ../shared/data/i80_geometry \
+    python -m tools.derive_i80_geometry ../shared/data/i80_geometry \
         --out scenarios/data/i80_geometry.toml
 
 Input: NGSIM.jl's I-80 files (MIT licence; point lists in NGSIM global coordinates, feet):
@@ -131,7 +131,7 @@ def to_toml(g: dict, source: str) -> str:
                                      "aux_length_ft", "lane_width_ft")}
     lines = [
         "# I-80 (Emeryville, NGSIM study area) road geometry, derived by",
-        "# analysis/scripts/derive_i80_geometry.py from NGSIM.jl's I-80 lane geometry (MIT).",
+        "# tools/derive_i80_geometry.py from NGSIM.jl's I-80 lane geometry (MIT).",
         f"# Source: {source}. Stations along lane 6's centerline, origin at the on-ramp's upstream end.",
         "",
         "[derived_ft]",

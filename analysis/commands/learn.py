@@ -9,7 +9,7 @@ from dataclasses import replace
 from irl.config import SOLVERS, IRLConfig
 from irl.result import METHODS
 
-from analysis.problem import DOMAINS
+from irl.problems import DOMAINS
 
 
 def add_config_arguments(p: argparse.ArgumentParser) -> None:

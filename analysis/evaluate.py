@@ -18,22 +18,25 @@ the first episode of each policy under ``rerun/``.
 
 from __future__ import annotations
 
-import json
-import math
 import os
 import sys
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from analysis.episode import EpisodeResult
+from analysis.episode import EpisodeResult, EpisodeSpec, run_episode_task
+from analysis.evaluate_report import write_outputs
 from analysis.metrics import AggregateMetrics, MetricsConfig, aggregate, heldout_loglik
+from analysis.sweep import Task, parse_executor, run_sweep
+from irl.merge_mdp import read_encounters
 from irl.result import SavedModel
+from scenarios.loader import load_scenario
 from sim.controller import ControllerConfig
-from sim.observe import NO_LEAD_GAP_FT, ObservationError, StateEncoder
+from sim.errors import SimError
+from sim.observe import NO_LEAD_GAP_FT, MergeObservation, ObservationError, StateEncoder
 from sim.policy import N_ACTIONS, LearnedPolicy, Policy, PolicyError, SumoPolicy, UniformPolicy, action_of_acc
 
 
@@ -68,8 +71,6 @@ def load_heldout(demos: str | os.PathLike | pd.DataFrame) -> HeldOut:
     if isinstance(demos, pd.DataFrame):
         df, src = demos, "encounters"
     else:
-        from irl.merge_mdp import read_encounters
-
         df, src = read_encounters(demos), str(demos)
     df = prepare_encounters(df)
     counts = np.bincount(action_of_acc(df["acc_A"].to_numpy(float)), minlength=N_ACTIONS)
@@ -87,8 +88,6 @@ def policy_heldout_loglik(policy: Policy, heldout: HeldOut) -> tuple[float, floa
         states = enc.states(df[["d_AC", "d_AB", "v_AC", "v_AB"]].to_numpy(float), df["B_is_truck"].to_numpy(bool))
         return heldout_loglik(policy.log_pi, states, actions)
     # state-independent policies (uniform, constant): log p(a)
-    from sim.observe import MergeObservation
-
     p = np.asarray(policy.probs(MergeObservation(0, 0, 0, 0, False, 0)), dtype=float)
     with np.errstate(divide="ignore"):
         lp = np.log(p)[actions]
@@ -147,9 +146,6 @@ def run_episodes(tasks: Sequence[tuple], *, workers: int | None = None, executor
     Raises:
         SimError: if an episode failed twice (every failure listed).
     """
-    from analysis.episode import EpisodeSpec, run_episode_task
-    from analysis.sweep import Task, run_sweep
-
     executor = resolve_executor(executor, workers)
     sweep_tasks = []
     for i, (scenario, policy, seed, kw) in enumerate(tasks):
@@ -161,8 +157,6 @@ def run_episodes(tasks: Sequence[tuple], *, workers: int | None = None, executor
     report = run_sweep(sweep_tasks, seed=0, executor=executor, store=store, progress=progress and sys.stderr.isatty(),
                        desc="episodes")
     if not report.ok:
-        from sim.errors import SimError
-
         raise SimError("episodes failed: " + "; ".join(f"{f.key}: {f.error}" for f in report.failures))
     return [EpisodeResult.from_dict(report.results[t.key]) for t in sweep_tasks]
 
@@ -170,9 +164,6 @@ def run_episodes(tasks: Sequence[tuple], *, workers: int | None = None, executor
 def resolve_executor(executor: str | None, workers: int | None) -> str:
     """``executor`` if given, else ``process:<workers>``, else ``process`` (every core);
     raises SimError on a malformed value."""
-    from analysis.sweep import parse_executor
-    from sim.errors import SimError
-
     if executor is None:
         executor = "process" if workers is None else f"process:{max(1, int(workers))}"
     try:
@@ -217,11 +208,7 @@ def evaluate(
         rrd: write a rerun recording of each policy's first episode.
     """
     if episodes < 1:
-        from sim.errors import SimError
-
         raise SimError(f"evaluate: episodes must be >= 1, got {episodes}")
-    from scenarios.loader import load_scenario
-
     spec = load_scenario(scenario) if isinstance(scenario, (str, Path)) else scenario  # validate before SUMO
     pols: list[Policy] = [learned_policy(m) for m in models]
     out = Path(out_dir)
@@ -255,8 +242,6 @@ def evaluate(
     for p in pols:
         ho = policy_heldout_loglik(p, held) if held is not None else None
         aggs[p.name] = aggregate([r.metrics for r in by_policy[p.name]], demo_action_counts=counts, heldout=ho)
-    from analysis.evaluate_report import write_outputs
-
     scen_name = scenario if isinstance(scenario, (str, Path)) else spec.name
     report_md, metrics_json, plots = write_outputs(
         out, aggs, by_policy, held, scenario=str(scen_name), seed=seed, episodes=episodes,
@@ -267,27 +252,4 @@ def evaluate(
 
 
 def _renamed(p: Policy, name: str) -> Policy:
-    from dataclasses import replace
-
     return replace(p, name=name)
-
-
-
-
-def metrics_to_json(obj) -> str:
-    """JSON text with NaN/inf written as null."""
-    def clean(x):
-        if isinstance(x, float):
-            return x if math.isfinite(x) else None
-        if isinstance(x, dict):
-            return {str(k): clean(v) for k, v in x.items()}
-        if isinstance(x, (list, tuple)):
-            return [clean(v) for v in x]
-        if isinstance(x, (np.integer,)):
-            return int(x)
-        if isinstance(x, (np.floating,)):
-            return clean(float(x))
-        if isinstance(x, np.bool_):
-            return bool(x)
-        return x
-    return json.dumps(clean(obj), indent=1)

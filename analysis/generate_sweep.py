@@ -25,6 +25,7 @@ from pathlib import Path
 import pandas as pd
 
 from analysis.sweep import ResultStore, SweepReport, Task, derive_seed, run_sweep, task_digest
+from irl.atomic import write_atomic
 from scenarios.spec import ScenarioSpec
 from scenarios.spec_parse import spec_from_toml
 
@@ -141,8 +142,6 @@ def _forget_missing_outputs(tasks: Sequence[Task], store: ResultStore) -> int:
 
 def write_summary(report: SweepReport, path: str | Path) -> Path:
     """``sweep.csv``: one line per finished run, in task order (atomic write)."""
-    from sim.outputs import write_atomic
-
     cols = ["run", "seed", "demand_scale", "n_vehicles", "n_rows", "n_merges", "n_encounter_frames",
             "sim_wall_time_s", "table_sha256", "out_dir"]
     rows = [{c: r.get(c) for c in cols} for r in report.results.values()]

@@ -37,6 +37,7 @@ import pandas as pd
 
 from analysis.evaluate import EvaluationReport, evaluate, prepare_encounters
 from irl.atomic import write_text_atomic
+from sim.outputs import write_parquet
 
 METHODS = ("qavg", "qsm", "mlirl", "reirl")
 
@@ -179,9 +180,7 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     train_path = out / "data" / "train_encounters.parquet"
     held_path = out / "data" / "heldout_encounters.parquet"
     for df, path in ((train, train_path), (heldout, held_path)):
-        tmp = path.with_name(path.name + ".tmp")
-        df.to_parquet(tmp, index=False)
-        tmp.replace(path)
+        write_parquet(df, path)
 
     _say("[2/5] discretizing (quantile bins fitted on the training encounters)", quiet)
     bins = fit_quantile_bins(train, where=str(train_path))

@@ -35,6 +35,7 @@ import numpy as np
 import pyarrow as pa
 import rerun as rr
 
+from irl.atomic import move_into_place, temporary_path
 from sim.hooks import FrameState, RunContext
 from sim.observe import lead_of
 from sim.policy import ACTION_NAMES
@@ -63,7 +64,7 @@ def paper_features(d_AC: float, b_is_truck: bool, action: int) -> tuple[float, f
 
 
 def _tmp_path(path: Path) -> Path:
-    return path.with_name(path.name + ".partial")
+    return temporary_path(path, suffix=".partial")
 
 
 def open_recording(path: str | os.PathLike, *, application_id: str = "merge-irl",
@@ -81,8 +82,7 @@ def close_recording(rec: rr.RecordingStream, tmp: Path, path: str | os.PathLike)
     """Flush, close and atomically rename the file to ``path``."""
     rec.flush()
     rec.disconnect()
-    os.replace(tmp, path)
-    return Path(path)
+    return move_into_place(tmp, path)
 
 
 def log_training(rec: rr.RecordingStream, method: str, loglik_trace: np.ndarray, theta_trace: np.ndarray,

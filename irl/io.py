@@ -259,4 +259,8 @@ def save_npz(demos: Demonstrations, path: str | os.PathLike, feature_names: tupl
         arrays["feature_names"] = np.asarray(feature_names, dtype=str)
     if demos.names:
         arrays["names"] = np.asarray(demos.names, dtype=str)
-    return write_atomic(path, lambda f: np.savez(f, **arrays), binary=True)
+    def write(tmp: Path) -> None:
+        with open(tmp, "wb") as f:  # a file object: np.savez would add ".npz" to a path
+            np.savez(f, **arrays)
+
+    return write_atomic(path, write)

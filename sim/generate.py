@@ -18,10 +18,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from irl.atomic import write_text_atomic
 from scenarios.spec import ScenarioSpec
 from sim.encounters import Encounters, EncounterWindow, extract
 from sim.hooks import StepHook
-from sim.outputs import write_parquet, write_text
+from sim.outputs import write_parquet
 from sim.run import SimulationResult, run_scenario
 
 TRAJECTORIES = "trajectories.parquet"
@@ -71,7 +72,7 @@ def generate(
         write_parquet(result.table, out / TRAJECTORIES),
         write_parquet(enc.frames, out / ENCOUNTERS),
         write_parquet(enc.merges, out / MERGES),
-        write_text(spec.to_toml(), out / SCENARIO),
+        write_text_atomic(out / SCENARIO, spec.to_toml()),
     ]
     if csv:
         from sim.ngsim_io import write_ngsim_csv

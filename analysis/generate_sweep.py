@@ -27,7 +27,7 @@ import pandas as pd
 from analysis.sweep import ResultStore, SweepReport, Task, derive_seed, run_sweep, task_digest
 from irl.atomic import write_atomic
 from scenarios.spec import ScenarioSpec
-from scenarios.spec_parse import spec_from_toml
+from scenarios.spec_parse import spec_from_toml, with_overrides
 
 STORE_DIR = ".sweep-store"
 SUMMARY = "sweep.csv"
@@ -77,8 +77,8 @@ def generate_one(config: GenerateRun, seed: int) -> dict:
     """
     from sim.generate import generate
 
-    spec = spec_from_toml(config.spec_toml, source="<sweep spec>").with_overrides(
-        seed=config.seed, duration_s=config.duration_s, demand_scale=config.demand_scale)
+    spec = with_overrides(
+        spec_from_toml(config.spec_toml, source="<sweep spec>"), seed=config.seed, duration_s=config.duration_s, demand_scale=config.demand_scale)
     res = generate(spec, config.run_dir, csv=config.csv, progress=False)
     sim = res.simulation
     return {
@@ -116,7 +116,7 @@ def generate_tasks(
     tasks = []
     for s in seeds:
         for k in scales:
-            spec.with_overrides(seed=s, duration_s=duration_s, demand_scale=k)  # SpecError early
+            with_overrides(spec, seed=s, duration_s=duration_s, demand_scale=k)  # SpecError early
             name = run_name(spec.name, s, k)
             cfg = GenerateRun(spec_toml=text, seed=int(s), demand_scale=None if k is None else float(k),
                               duration_s=None if duration_s is None else float(duration_s), csv=bool(csv),

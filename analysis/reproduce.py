@@ -28,13 +28,12 @@ from typing import Sequence
 
 import numpy as np
 
-from irl.problems import Problem, load_problem
 from analysis.sweep import ResultStore, SweepReport, Task, TaskFailure, run_sweep
-from analysis.trials import (TrialOutcome, TrialSpec, cached_table_problem, config_label, run_trial_spec,
-                             trial_seeds)
+from analysis.trials import (TrialOutcome, TrialSpec, cached_table_problem, config_label, resolve_data_dir,
+                             run_trial_spec, trial_seeds)
 from irl.atomic import write_json_atomic
 from irl.config import IRLConfig
-from irl.errors import ConfigError, DemonstrationError
+from irl.errors import ConfigError
 from irl.reirl import DEFAULT_EPSILON
 
 #: Row order of the paper's tables.
@@ -55,30 +54,6 @@ PAPER = {
     3: {"mlirl": (0.28, 0.42, 0.45, -1927.09), "qavg": (2.01, 1.86, 0.15, -1891.34),
         "qsm": (0.41, 0.80, -0.12, -1914.56), "reirl": (0.08, 0.01, 15.89, -1920.48)},
 }
-
-
-def resolve_data_dir(data_dir: str | os.PathLike) -> Path:
-    """``data_dir`` itself if it holds ``gridworld/`` or ``merge_ngsim/``, else its ``railusm/``."""
-    d = Path(data_dir)
-    if (d / "gridworld").is_dir() or (d / "merge_ngsim").is_dir():
-        return d
-    if (d / "railusm").is_dir():
-        return d / "railusm"
-    raise DemonstrationError(f"{d}: expected the authors' data layout (gridworld/, merge_ngsim/)")
-
-
-def table_problem(table: int, data_dir: str | os.PathLike) -> Problem:
-    """The data set of ``table`` (1, 2 or 3) under ``data_dir`` (the ``railusm`` layout)."""
-    d = resolve_data_dir(data_dir)
-    if table in (1, 2):
-        noise = 0.0 if table == 1 else 0.1
-        tag = f"noise_{noise:.1f}"
-        return load_problem("gridworld", d / "gridworld" / f"{tag}_expert_trajs", noise=noise,
-                            baseline_path=d / "gridworld" / f"{tag}_baseline_trajs",
-                            name=f"gridworld {int(noise * 100)}% noise")
-    if table == 3:
-        return load_problem("merge", d / "merge_ngsim", name="NGSIM merge")
-    raise ConfigError(f"table must be 1, 2 or 3, got {table}")
 
 
 @dataclass(frozen=True)

@@ -27,8 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from analysis.learn import fit_problem
-from analysis.reproduce import table_problem
-from analysis.trials import trial_seeds
+from analysis.trials import table_problem, trial_seeds
 from irl.config import IRLConfig
 from irl.problems import Problem
 

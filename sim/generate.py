@@ -20,6 +20,7 @@ from pathlib import Path
 
 from irl.atomic import write_text_atomic
 from scenarios.spec import ScenarioSpec
+from scenarios.spec_parse import with_overrides
 from sim.encounters import Encounters, EncounterWindow, extract
 from sim.hooks import StepHook
 from sim.outputs import write_parquet
@@ -61,7 +62,7 @@ def generate(
 ) -> GenerateResult:
     """Simulate ``spec`` (optionally with another seed / duration) and write the output files."""
     if seed is not None or duration_s is not None:
-        spec = spec.with_overrides(seed=seed, duration_s=duration_s)
+        spec = with_overrides(spec, seed=seed, duration_s=duration_s)
     out = Path(out_dir) if out_dir is not None else default_out_dir(spec)
     out.mkdir(parents=True, exist_ok=True)
     for name in OUTPUT_FILES:

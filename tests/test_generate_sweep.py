@@ -12,6 +12,7 @@ import pytest
 from analysis.generate_sweep import generate_tasks, parse_scales, parse_seeds, run_name
 from scenarios.errors import SpecError
 from scenarios.loader import load_scenario
+from scenarios.spec_parse import with_overrides
 
 
 def cli(args, cache):
@@ -35,13 +36,13 @@ def test_parse_seeds_and_scales():
 
 def test_demand_scale_multiplies_every_flow_and_is_validated():
     spec = load_scenario("synthetic")
-    scaled = spec.with_overrides(demand_scale=0.5)
+    scaled = with_overrides(spec, demand_scale=0.5)
     assert scaled.demand.main_veh_h == tuple(x * 0.5 for x in spec.demand.main_veh_h)
     assert scaled.demand.ramp_veh_h == spec.demand.ramp_veh_h * 0.5
     assert scaled.demand.truck_share == spec.demand.truck_share
     for bad in (0, -1.0, float("nan"), float("inf"), "2", True):
         with pytest.raises(SpecError, match="demand_scale"):
-            spec.with_overrides(demand_scale=bad)
+            with_overrides(spec, demand_scale=bad)
 
 
 def test_task_names_and_early_validation(tmp_path):

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from analysis.cli import main
-from analysis.reproduce import reproduce, reproduce_tables, table_problem, wilcoxon_p
-from analysis.trials import TrialOutcome, TrialTask, run_trial, run_trials, trial_seeds
+from analysis.reproduce import reproduce, reproduce_tables, wilcoxon_p
+from analysis.trials import TrialOutcome, TrialTask, run_trial, run_trials, table_problem, trial_seeds
 from irl.config import IRLConfig
 
 from shared_data import DATA as SHARED_DATA

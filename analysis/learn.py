@@ -20,10 +20,11 @@ import numpy as np
 
 from irl.config import IRLConfig
 from irl.errors import ConfigError, ConvergenceError
+from irl.fit import METHODS, fit
 from irl.merge_mdp import MergeBins
 from irl.problems import Problem, load_problem
-from irl.reirl import DEFAULT_EPSILON, DEFAULT_N_BASELINE, fit_reirl
-from irl.result import METHODS, FitResult, SavedModel
+from irl.reirl import DEFAULT_EPSILON, DEFAULT_N_BASELINE
+from irl.result import FitResult, SavedModel
 
 
 def fit_problem(
@@ -44,14 +45,11 @@ def fit_problem(
     """
     if method not in METHODS:
         raise ConfigError(f"method must be one of {METHODS}, got {method!r}")
-    rng = np.random.default_rng(seed)
+    options = {}
     if method == "reirl":
-        return fit_reirl(problem.demos, config, rng, baseline=problem.baseline, transitions=problem.transitions,
-                         epsilon=epsilon, n_baseline=n_baseline, pad_step=problem.pad_step(), progress=progress)
-    from irl.fit import fit
-
-    transitions = problem.transitions if method == "mlirl" else None
-    return fit(method, problem.demos, config, rng, transitions=transitions, progress=progress)
+        options = dict(baseline=problem.baseline, epsilon=epsilon, n_baseline=n_baseline, pad_step=problem.pad_step())
+    return fit(method, problem.demos, config, np.random.default_rng(seed), transitions=problem.transitions,
+               progress=progress, **options)
 
 
 def _json_scalar(v):

@@ -37,9 +37,8 @@ import pandas as pd
 
 from analysis.evaluate import EvaluationReport, evaluate, prepare_encounters
 from irl.atomic import write_text_atomic
+from irl.fit import METHODS
 from sim.outputs import write_parquet
-
-METHODS = ("qavg", "qsm", "mlirl", "reirl")
 
 
 @dataclass(frozen=True)

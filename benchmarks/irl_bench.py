@@ -29,9 +29,9 @@ import numpy as np
 from analysis.learn import fit_problem
 from analysis.trials import table_problem, trial_seeds
 from irl.config import IRLConfig
+from irl.fit import METHODS
 from irl.problems import Problem
 
-METHODS = ("qavg", "qsm", "mlirl", "reirl")
 DATASETS = {1: "grid 0%", 2: "grid 10%", 3: "NGSIM"}
 #: Targets for one exact trial (seconds) by (method, is_ngsim).
 TARGETS = {("qavg", False): 0.05, ("qavg", True): 0.05, ("qsm", False): 1.0, ("qsm", True): 10.0,

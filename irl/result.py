@@ -11,11 +11,12 @@ from typing import Any
 
 import numpy as np
 
-from irl.boltzmann import log_policy
 from irl.atomic import write_json_atomic
+from irl.boltzmann import log_policy
 from irl.config import IRLConfig
 from irl.errors import ModelFileError
 
+#: Method names a model file may carry (the methods themselves: :data:`irl.fit.REGISTRY`).
 METHODS = ("qavg", "qsm", "mlirl", "reirl")
 
 

@@ -7,8 +7,7 @@ import sys
 from dataclasses import replace
 
 from irl.config import SOLVERS, IRLConfig
-from irl.result import METHODS
-
+from irl.result import METHODS  # the names only: irl.fit would load scipy.optimize (1.4 s) for --help
 from irl.problems import DOMAINS
 
 

@@ -28,6 +28,7 @@ from analysis.sweep import ResultStore, SweepReport, Task, derive_seed, run_swee
 from irl.atomic import write_atomic
 from scenarios.spec import ScenarioSpec
 from scenarios.spec_parse import spec_from_toml, with_overrides
+from sim.generate import generate
 
 STORE_DIR = ".sweep-store"
 SUMMARY = "sweep.csv"
@@ -75,8 +76,6 @@ def generate_one(config: GenerateRun, seed: int) -> dict:
     Returns the run's summary (JSON-ready): name, folder, seed, demand scale, counts, the
     files written (names) and the trajectory table's checksum.
     """
-    from sim.generate import generate
-
     spec = with_overrides(
         spec_from_toml(config.spec_toml, source="<sweep spec>"), seed=config.seed, duration_s=config.duration_s, demand_scale=config.demand_scale)
     res = generate(spec, config.run_dir, csv=config.csv, progress=False)

@@ -35,10 +35,23 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from analysis.evaluate import EvaluationReport, evaluate, prepare_encounters
+from analysis.episode import frame_from_dict, frame_to_dict
+from analysis.evaluate import EvaluationReport, evaluate, learned_policy, prepare_encounters, resolve_executor
+from analysis.evaluate_report import report_table
+from analysis.learn import fit_problem, saved_model
+from analysis.sweep import Task, run_sweep
 from irl.atomic import write_text_atomic
+from irl.config import IRLConfig
+from irl.errors import IRLError
 from irl.fit import METHODS
+from irl.merge_mdp import fit_quantile_bins
+from irl.problems import load_problem
+from scenarios.loader import load_scenario
+from sim.controller import Controller
+from sim.encounters import extract_encounters
+from sim.errors import SimError
 from sim.outputs import write_parquet
+from sim.run import run_scenario
 
 
 @dataclass(frozen=True)
@@ -86,8 +99,6 @@ class DemoResult:
     fit_messages: dict[str, str] = field(default_factory=dict)
 
     def format(self) -> str:
-        from analysis.evaluate_report import report_table
-
         lines = [
             f"merge-irl demo -> {self.out_dir}  ({self.wall_time_s:.0f} s)",
             f"  training data: {self.n_train_encounters} encounters, {self.n_train_steps} steps",
@@ -118,11 +129,6 @@ def encounters_task(run: EncounterRun, seed: int) -> dict:
     """Sweep task: the run's encounter frames (ids offset by ``1e6 * run.seed``) as
     ``analysis.episode.frame_to_dict``. The sweep's derived ``seed`` is not used."""
     del seed
-    from analysis.episode import frame_to_dict
-    from scenarios.loader import load_scenario
-    from sim.encounters import extract_encounters
-    from sim.run import run_scenario
-
     spec = load_scenario(run.scenario) if isinstance(run.scenario, (str, Path)) else run.scenario
     res = run_scenario(spec, seed=run.seed, duration_s=run.duration_s)
     frames = extract_encounters(res.table)
@@ -137,17 +143,11 @@ def generate_encounters(scenario, seeds: Sequence[int], duration_s: float | None
     Runs through :func:`analysis.sweep.run_sweep` (``executor``, default ``process:<workers>``;
     one simulation per worker process at a time). Raises SimError if a run failed twice.
     """
-    from analysis.episode import frame_from_dict
-    from analysis.evaluate import resolve_executor
-    from analysis.sweep import Task, run_sweep
-
     tasks = [Task(f"{i:03d}/seed{int(s)}", encounters_task, EncounterRun(scenario, int(s), duration_s))
              for i, s in enumerate(seeds)]
     report = run_sweep(tasks, seed=0, executor=resolve_executor(executor, workers),
                        progress=progress and sys.stderr.isatty(), desc="data runs")
     if not report.ok:
-        from sim.errors import SimError
-
         raise SimError("data runs failed: " + "; ".join(f"{f.key}: {f.error}" for f in report.failures))
     return [frame_from_dict(report.results[t.key]) for t in tasks]
 
@@ -160,11 +160,9 @@ def _say(msg: str, quiet: bool) -> None:
 def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(), *, quiet: bool = False,
              progress: bool = True) -> DemoResult:
     """Run the whole pipeline (see the module docstring) and return where the outputs are."""
-    from analysis.learn import fit_problem, saved_model
-    from irl.problems import load_problem
+    # rerun takes about 0.8 s to import; the sweep workers that import this module for
+    # encounters_task never record
     from analysis.rerun_log import RerunLogger, close_recording, log_training, open_recording
-    from irl.config import IRLConfig
-    from irl.merge_mdp import fit_quantile_bins
 
     t0 = time.perf_counter()
     out = Path(out_dir) if out_dir is not None else Path("runs") / "demo"
@@ -202,13 +200,9 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
             model = saved_model(fit, problem, seed=config.fit_seed, source=str(train_path))
             models[method] = model.save(out / "models" / f"{method}.json")
     if not models:
-        from irl.errors import IRLError
-
         raise IRLError("demo: no IRL method produced a usable model: " + "; ".join(f"{k}: {v}" for k, v in messages.items()))
 
     _say("[4/5] one closed-loop episode with Q-Avg, logged to demo.rrd", quiet)
-    from analysis.evaluate import learned_policy
-
     first = "qavg" if "qavg" in models else next(iter(models))
     pol = learned_policy(models[first])
     logger = RerunLogger(out / "demo.rrd", recording=(rec, tmp_rrd))
@@ -229,10 +223,6 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
 
 def _run_logged_episode(config: DemoConfig, policy, logger) -> None:
     """One episode in this process, with ``logger`` attached to the episode's controller."""
-    from scenarios.loader import load_scenario
-    from sim.controller import Controller
-    from sim.run import run_scenario
-
     ctl = Controller(policy)
     logger.controller = ctl
     spec = load_scenario(config.scenario)

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+# API imports sit inside the functions: `merge-irl --help` imports every command module (analysis/commands/__init__.py).
 import argparse
 import sys
 from dataclasses import replace
 
 from irl.config import SOLVERS, IRLConfig
-from irl.result import METHODS  # the names only: irl.fit would load scipy.optimize (1.4 s) for --help
 from irl.problems import DOMAINS
+from irl.result import METHODS  # names only: irl.fit loads scipy.optimize
 
 
 def add_config_arguments(p: argparse.ArgumentParser) -> None:

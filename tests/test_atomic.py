@@ -14,6 +14,8 @@ from irl.atomic import temporary_path, write_atomic, write_json_atomic, write_te
 from scenarios.calibration.fit import CalibrationResult
 from scenarios.calibration.models import CFParams
 from scenarios.calibration.params_file import load_result, save_result
+from scenarios.loader import load_scenario
+from scenarios.network import build_network
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -109,3 +111,13 @@ def test_irl_atomic_is_the_only_file_writer_that_renames():
             if hits:
                 offenders[rel] = hits
     assert offenders == {}
+
+
+def test_network_cache_folder_is_readable_like_the_files(tmp_path):
+    old = os.umask(0o022)
+    try:
+        net = build_network(load_scenario("synthetic").road, cache_dir=tmp_path)
+    finally:
+        os.umask(old)
+    assert _mode(net.parent) == 0o755
+    assert _mode(net) == 0o644

@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.metrics import AggregateMetrics
+from analysis.provenance import provenance_markdown
 from sim.policy import ACTION_NAMES, N_ACTIONS
 
 
@@ -42,8 +43,10 @@ def report_table(aggs: dict[str, AggregateMetrics]) -> str:
     return "\n".join(rows)
 
 
-def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes, duration_s, controller, metrics):
-    """Write report.md, metrics.json and the plots; return their paths."""
+def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes, duration_s, controller, metrics,
+                  provenance: dict | None = None):
+    """Write report.md, metrics.json and the plots; return their paths. ``provenance``
+    (:func:`analysis.provenance.provenance`) goes into both."""
     from dataclasses import asdict
 
     from analysis.evaluate import metrics_to_json
@@ -65,6 +68,8 @@ def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes,
             for name, a in aggs.items()
         },
     }
+    if provenance is not None:
+        payload["provenance"] = provenance
     mj = write_text_atomic(out / "metrics.json", metrics_to_json(payload))
     lines = [
         f"# Closed-loop evaluation: {scenario}",
@@ -98,6 +103,8 @@ def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes,
         c = c / c.sum() if c.sum() else c
         lines.append(f"| {name} | " + " | ".join(f"{x:.3f}" for x in c) + " |")
     lines += ["", "Plots: " + ", ".join(f"[{p.name}]({p.name})" for p in plots), ""]
+    if provenance is not None:
+        lines += [provenance_markdown(provenance), ""]
     rm = write_text_atomic(out / "report.md", "\n".join(lines))
     return rm, mj, plots
 

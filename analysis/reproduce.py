@@ -29,6 +29,7 @@ from typing import Sequence
 import numpy as np
 
 from analysis.problem import Problem, load_problem
+from analysis.provenance import provenance, write_timings
 from analysis.sweep import ResultStore, SweepReport, Task, TaskFailure, run_sweep
 from analysis.trials import (TrialOutcome, TrialSpec, cached_table_problem, config_label, run_trial_spec,
                              trial_seeds)
@@ -65,6 +66,18 @@ def resolve_data_dir(data_dir: str | os.PathLike) -> Path:
     if (d / "railusm").is_dir():
         return d / "railusm"
     raise DemonstrationError(f"{d}: expected the authors' data layout (gridworld/, merge_ngsim/)")
+
+
+def table_inputs(table: int, data_dir: str | os.PathLike) -> dict[str, Path]:
+    """The folders ``table`` reads under ``data_dir`` (role -> path), for its provenance."""
+    d = resolve_data_dir(data_dir)
+    if table in (1, 2):
+        tag = f"noise_{0.0 if table == 1 else 0.1:.1f}"
+        return {f"table{table}_demos": d / "gridworld" / f"{tag}_expert_trajs",
+                f"table{table}_baseline": d / "gridworld" / f"{tag}_baseline_trajs"}
+    if table == 3:
+        return {"table3_demos": d / "merge_ngsim"}
+    raise ConfigError(f"table must be 1, 2 or 3, got {table}")
 
 
 def table_problem(table: int, data_dir: str | os.PathLike) -> Problem:
@@ -119,8 +132,11 @@ class ReproductionReport:
     holdout: tuple[TrialOutcome, ...]
     seed: int
     failures: tuple[TaskFailure, ...] = ()
+    data_dir: str = ""
 
     def to_json_dict(self) -> dict:
+        """The report as JSON, with its provenance (versions, hashes of the data read) and
+        without wall times (see :meth:`timings`), so identical runs give identical files."""
         def clean(x):
             if isinstance(x, float) and not math.isfinite(x):
                 return None
@@ -128,22 +144,44 @@ class ReproductionReport:
                 return [clean(v) for v in x]
             return x
 
+        def untimed(t: TrialOutcome) -> dict:
+            d = t.to_dict()
+            d.pop("wall_time_s")
+            return d
+
         return {
             "table": self.table, "title": self.title, "settings": self.config.to_dict(), "seed": self.seed,
             "feature_names": list(self.feature_names),
-            "rows": [{k: clean(v) for k, v in r.__dict__.items()} for r in self.rows],
-            "trials": [t.to_dict() for t in self.trials],
-            "holdout": [t.to_dict() for t in self.holdout],
+            "rows": [{k: clean(v) for k, v in r.__dict__.items() if k != "time_mean_s"} for r in self.rows],
+            "trials": [untimed(t) for t in self.trials],
+            "holdout": [untimed(t) for t in self.holdout],
             "paper": {m: list(v) for m, v in PAPER.get(self.table, {}).items()},
             "failures": [{"key": f.key, "error": f.error, "attempts": f.attempts} for f in self.failures],
+            "provenance": provenance(table_inputs(self.table, self.data_dir) if self.data_dir else {}),
         }
 
+    def timings(self) -> dict:
+        """Wall time (s) of each trial and held-out fit, by method: ``{"trials": {method: [...]},
+        "holdout": {...}}`` (kept out of :meth:`to_json_dict`)."""
+        def by_method(outcomes) -> dict:
+            out: dict[str, list[float]] = {}
+            for t in outcomes:
+                out.setdefault(t.method, []).append(t.wall_time_s)
+            return out
+
+        return {"table": self.table, "trials": by_method(self.trials), "holdout": by_method(self.holdout)}
+
     def save_json(self, path: str | os.PathLike) -> Path:
+        """Write :meth:`to_json_dict` to ``path`` and :meth:`timings` beside it
+        (``<stem>.timings.json``)."""
+        write_timings(path, self.timings())
         return write_json_atomic(path, self.to_json_dict())
 
 
 def save_reports_json(reports: Sequence[ReproductionReport], path: str | os.PathLike) -> Path:
-    """Several tables' reports as ``{"tables": [report.to_json_dict(), ...]}``, atomically."""
+    """Several tables' reports as ``{"tables": [report.to_json_dict(), ...]}``, atomically; their
+    timings to ``<stem>.timings.json`` (``{"tables": [report.timings(), ...]}``)."""
+    write_timings(path, {"tables": [r.timings() for r in reports]})
     return write_json_atomic(path, {"tables": [r.to_json_dict() for r in reports]})
 
 
@@ -306,7 +344,7 @@ def _table_report(table: int, data_dir: str, config: IRLConfig, methods: Sequenc
                  for m in methods if by_method[m])
     names = tuple(cached_table_problem(table, data_dir).feature_names)
     return ReproductionReport(table, TITLES[table], config, names, rows, tuple(main), tuple(folds), int(seed),
-                              failures)
+                              failures, data_dir=str(data_dir))
 
 
 def reproduce(

@@ -19,7 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from analysis.problem import Problem, load_problem
-from analysis.provenance import provenance as provenance_record, write_timings
+from analysis.provenance import provenance as provenance_record
+from analysis.provenance import write_timings
 from irl.config import IRLConfig
 from irl.errors import ConfigError, ConvergenceError
 from irl.merge_mdp import MergeBins

@@ -74,7 +74,7 @@ def git_state(root: str | os.PathLike = SOURCE_ROOT) -> tuple[str, bool] | None:
 
     def git(*args: str) -> str | None:
         try:
-            r = subprocess.run(["git", "-C", str(root), *args], capture_output=True, text=True, timeout=20)
+            r = subprocess.run(["git", "-C", str(root), *args], capture_output=True, text=True, timeout=20, check=False)
         except (OSError, subprocess.SubprocessError):
             return None
         return r.stdout.strip() if r.returncode == 0 else None

@@ -101,7 +101,7 @@ def test_version_option_prints_versions_without_importing_libsumo():
     code = ("import sys\nfrom analysis.cli import main\n"
             "try:\n    main(['--version'])\nexcept SystemExit as e:\n    assert e.code in (0, None), e.code\n"
             "assert 'libsumo' not in sys.modules, 'libsumo imported'\n")
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=False)
     assert r.returncode == 0, r.stderr
     line = r.stdout.strip()
     assert line.startswith(f"merge-irl {prov.package_version()} (SUMO {prov.sumo_version()}")

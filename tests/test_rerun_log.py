@@ -6,8 +6,16 @@ import numpy as np
 import pytest
 
 from analysis.episode import run_episode
-from analysis.rerun_log import (ROLE_IDS, close_recording, log_training, open_recording, read_entities, read_rrd_table,
-                                recording_identity, recording_info)
+from analysis.rerun_log import (
+    ROLE_IDS,
+    close_recording,
+    log_training,
+    open_recording,
+    read_entities,
+    read_rrd_table,
+    recording_identity,
+    recording_info,
+)
 from scenarios.loader import load_scenario
 from sim.observe import StateEncoder
 from sim.policy import LearnedPolicy

@@ -243,6 +243,7 @@ def evaluate(
             renamed.append(_renamed(p, f"{p.name}-{k + 1}") if p.name in dup else p)
         pols = renamed
     held = load_heldout(demos) if demos is not None else None
+    prov = evaluation_provenance(models, pols, scenario, spec, demos)  # the files as read, before the work
     counts = held.action_counts if held is not None else None
     tasks = []
     for p in pols:
@@ -264,7 +265,7 @@ def evaluate(
     report_md, metrics_json, plots = write_outputs(
         out, aggs, by_policy, held, scenario=str(scen_name), seed=seed, episodes=episodes,
         duration_s=duration_s, controller=controller, metrics=metrics,
-        provenance=evaluation_provenance(models, pols, scenario, spec, demos),
+        provenance=prov,
     )
     write_timings(out, {"episode_wall_time_s": {name: [float(r.wall_time_s) for r in rs]
                                                 for name, rs in by_policy.items()}})

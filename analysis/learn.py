@@ -129,10 +129,10 @@ def learn(
     if bins is not None and not isinstance(bins, MergeBins):
         bins_path, bins = bins, MergeBins.load(bins)
     problem = load_problem(domain, demos_path, noise=noise, baseline_path=baseline_path, bins=bins, dt=dt)
+    prov = provenance_record({"demos": demos_path, "baseline": baseline_path, "bins": bins_path})
     result = fit_problem(problem, method, config, seed, progress=progress, epsilon=epsilon)
     if not math.isfinite(result.loglik):
         raise ConvergenceError(f"{method} on {demos_path}: the fit failed ({result.message}); no model written")
-    prov = provenance_record({"demos": demos_path, "baseline": baseline_path, "bins": bins_path})
     model = saved_model(result, problem, seed=seed, source=str(Path(demos_path)), provenance=prov)
     if out is not None:
         model.save(out)

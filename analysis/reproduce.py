@@ -132,7 +132,7 @@ class ReproductionReport:
     holdout: tuple[TrialOutcome, ...]
     seed: int
     failures: tuple[TaskFailure, ...] = ()
-    data_dir: str = ""
+    provenance: dict | None = None
 
     def to_json_dict(self) -> dict:
         """The report as JSON, with its provenance (versions, hashes of the data read) and
@@ -157,7 +157,7 @@ class ReproductionReport:
             "holdout": [untimed(t) for t in self.holdout],
             "paper": {m: list(v) for m, v in PAPER.get(self.table, {}).items()},
             "failures": [{"key": f.key, "error": f.error, "attempts": f.attempts} for f in self.failures],
-            "provenance": provenance(table_inputs(self.table, self.data_dir) if self.data_dir else {}),
+            "provenance": self.provenance,
         }
 
     def timings(self) -> dict:
@@ -310,6 +310,7 @@ def reproduce_tables(
     if trials is not None and int(trials) < 1:
         raise ConfigError(f"trials must be >= 1, got {trials}")
     d = str(resolve_data_dir(data_dir).resolve())
+    provenances = {table: provenance(table_inputs(table, d)) for table in tables}  # the data as read, before the work
     specs: dict[int, list[TrialSpec]] = {}
     for table in tables:
         n = DEFAULT_TRIALS[table] if trials is None else int(trials)
@@ -327,12 +328,12 @@ def reproduce_tables(
         outcomes = [TrialOutcome.from_dict(sweep.results[s.key]) for s in specs[table] if s.key in sweep.results]
         prefix = f"table{table}/"
         failed = tuple(f for f in sweep.failures if f.key.startswith(prefix))
-        reports.append(_table_report(table, d, config, methods, outcomes, failed, seed))
+        reports.append(_table_report(table, d, config, methods, outcomes, failed, seed, provenances[table]))
     return ReproductionRun(tuple(reports), sweep)
 
 
 def _table_report(table: int, data_dir: str, config: IRLConfig, methods: Sequence[str], outcomes: list[TrialOutcome],
-                  failures: tuple[TaskFailure, ...], seed: int) -> ReproductionReport:
+                  failures: tuple[TaskFailure, ...], seed: int, prov: dict | None = None) -> ReproductionReport:
     main = [o for o in outcomes if o.holdout is None]
     folds = [o for o in outcomes if o.holdout is not None]
     by_method = {m: [o for o in main if o.method == m] for m in methods}
@@ -344,7 +345,7 @@ def _table_report(table: int, data_dir: str, config: IRLConfig, methods: Sequenc
                  for m in methods if by_method[m])
     names = tuple(cached_table_problem(table, data_dir).feature_names)
     return ReproductionReport(table, TITLES[table], config, names, rows, tuple(main), tuple(folds), int(seed),
-                              failures, data_dir=str(data_dir))
+                              failures, provenance=prov)
 
 
 def reproduce(

@@ -12,8 +12,10 @@ Example::
 Every policy runs the same episodes (seeds ``seed .. seed + episodes - 1``: the same traffic
 for every policy). Episodes run through :func:`analysis.sweep.run_sweep` (``executor``: a
 process pool by default, one libsumo simulation per process at a time; or Dask). Outputs in ``out_dir``: ``report.md``, ``metrics.json``, ``action_histograms.png``,
-``gap_acceptance.png``, ``speed_profiles.png`` and, with ``rrd=True``, one rerun recording of
-the first episode of each policy under ``rerun/``.
+``gap_acceptance.png``, ``speed_profiles.png``, ``timings.json`` (wall time of each episode,
+kept out of the results so reruns can be compared by hash) and, with ``rrd=True``, one rerun
+recording of the first episode of each policy under ``rerun/``. ``metrics.json`` and
+``report.md`` record their provenance (:mod:`analysis.provenance`).
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ from analysis.evaluate_report import write_outputs
 from analysis.metrics import AggregateMetrics, MetricsConfig, aggregate, heldout_loglik
 from analysis.sweep import Task, parse_executor, run_sweep
 from irl.merge_mdp import read_encounters
+from analysis.provenance import provenance, text_digest, write_timings
 from irl.result import SavedModel
 from scenarios.loader import load_scenario
 from sim.controller import ControllerConfig
@@ -227,6 +230,7 @@ def evaluate(
             renamed.append(_renamed(p, f"{p.name}-{k + 1}") if p.name in dup else p)
         pols = renamed
     held = load_heldout(demos) if demos is not None else None
+    prov = evaluation_provenance(models, pols, scenario, spec, demos)  # the files as read, before the work
     counts = held.action_counts if held is not None else None
     tasks = []
     for p in pols:
@@ -246,9 +250,25 @@ def evaluate(
     report_md, metrics_json, plots = write_outputs(
         out, aggs, by_policy, held, scenario=str(scen_name), seed=seed, episodes=episodes,
         duration_s=duration_s, controller=controller, metrics=metrics,
+        provenance=prov,
     )
+    write_timings(out, {"episode_wall_time_s": {name: [float(r.wall_time_s) for r in rs]
+                                                for name, rs in by_policy.items()}})
     rrds = {name: Path(rs[0].rrd) for name, rs in by_policy.items() if rs and rs[0].rrd}
     return EvaluationReport(out, aggs, by_policy, report_md, metrics_json, plots, rrds)
+
+
+def evaluation_provenance(models: Sequence, pols: Sequence[Policy], scenario, spec, demos) -> dict:
+    """:func:`analysis.provenance.provenance` of an evaluation: the model file of each policy
+    (``pols`` starts with one policy per entry of ``models``; None for baselines and models
+    given as objects), the held-out demonstrations and scenario files read, and the SHA-256
+    of the scenario actually simulated (its TOML)."""
+    files = {p.name: None if isinstance(m, SavedModel) else m for p, m in zip(pols, models)}
+    files.update({p.name: None for p in pols[len(models):]})
+    scenario_file = scenario if isinstance(scenario, (str, Path)) and Path(scenario).is_file() else None
+    demos_file = None if isinstance(demos, pd.DataFrame) else demos
+    return provenance({"demos": demos_file, "scenario": scenario_file}, files,
+                      extra={"scenario_sha256": text_digest(spec.to_toml())})
 
 
 def _renamed(p: Policy, name: str) -> Policy:

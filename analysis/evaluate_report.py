@@ -12,6 +12,7 @@ import pandas as pd
 
 from analysis.metrics import AggregateMetrics
 from irl.atomic import write_atomic, write_text_atomic
+from analysis.provenance import provenance_markdown
 from sim.policy import ACTION_NAMES, N_ACTIONS
 
 
@@ -64,8 +65,10 @@ def metrics_to_json(obj) -> str:
     return json.dumps(clean(obj), indent=1)
 
 
-def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes, duration_s, controller, metrics):
-    """Write report.md, metrics.json and the plots; return their paths."""
+def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes, duration_s, controller, metrics,
+                  provenance: dict | None = None):
+    """Write report.md, metrics.json and the plots; return their paths. ``provenance``
+    (:func:`analysis.provenance.provenance`) goes into both."""
     plots = (
         plot_action_histograms(out / "action_histograms.png", aggs, held),
         plot_gap_acceptance(out / "gap_acceptance.png", by_policy),
@@ -82,6 +85,8 @@ def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes,
             for name, a in aggs.items()
         },
     }
+    if provenance is not None:
+        payload["provenance"] = provenance
     mj = write_text_atomic(out / "metrics.json", metrics_to_json(payload))
     lines = [
         f"# Closed-loop evaluation: {scenario}",
@@ -115,6 +120,8 @@ def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes,
         c = c / c.sum() if c.sum() else c
         lines.append(f"| {name} | " + " | ".join(f"{x:.3f}" for x in c) + " |")
     lines += ["", "Plots: " + ", ".join(f"[{p.name}]({p.name})" for p in plots), ""]
+    if provenance is not None:
+        lines += [provenance_markdown(provenance), ""]
     rm = write_text_atomic(out / "report.md", "\n".join(lines))
     return rm, mj, plots
 

@@ -20,7 +20,8 @@ Everything goes under ``out_dir`` (default ``./runs/demo``)::
     models/<method>.json
     evaluation/report.md, metrics.json, *.png, rerun/<policy>.rrd
     demo.rrd
-    summary.md
+    summary.md      (with the provenance: versions, git commit, scenario and model hashes)
+    timings.json    (wall times: kept out of the results so reruns can be compared by hash)
 """
 
 from __future__ import annotations
@@ -39,6 +40,7 @@ from analysis.episode import frame_from_dict, frame_to_dict
 from analysis.evaluate import EvaluationReport, evaluate, learned_policy, prepare_encounters, resolve_executor
 from analysis.evaluate_report import report_table
 from analysis.learn import fit_problem, saved_model
+from analysis.provenance import provenance, provenance_markdown, text_digest, write_timings
 from analysis.sweep import Task, run_sweep
 from irl.atomic import write_text_atomic
 from irl.config import IRLConfig
@@ -98,9 +100,11 @@ class DemoResult:
     wall_time_s: float
     fit_messages: dict[str, str] = field(default_factory=dict)
 
-    def format(self) -> str:
+    def format(self, *, timings: bool = True) -> str:
+        """The summary printed by ``merge-irl demo``; ``timings=False``: without the wall time
+        (as in ``summary.md``, so reruns can be compared by hash)."""
         lines = [
-            f"merge-irl demo -> {self.out_dir}  ({self.wall_time_s:.0f} s)",
+            f"merge-irl demo -> {self.out_dir}" + (f"  ({self.wall_time_s:.0f} s)" if timings else ""),
             f"  training data: {self.n_train_encounters} encounters, {self.n_train_steps} steps",
             "  models: " + ", ".join(f"{k} {v}" for k, v in self.models.items()),
             *[f"  left out: {k} ({v})" for k, v in self.fit_messages.items() if k not in self.models],
@@ -162,7 +166,7 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     """Run the whole pipeline (see the module docstring) and return where the outputs are."""
     # rerun takes about 0.8 s to import; the sweep workers that import this module for
     # encounters_task never record
-    from analysis.rerun_log import RerunLogger, close_recording, log_training, open_recording
+    from analysis.rerun_log import RerunLogger, close_recording, log_training, open_recording, recording_identity
 
     t0 = time.perf_counter()
     out = Path(out_dir) if out_dir is not None else Path("runs") / "demo"
@@ -183,21 +187,25 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     bins = fit_quantile_bins(train, where=str(train_path))
     bins.save(out / "data" / "bins.json")
     problem = load_problem("merge", train_path, bins=bins, name=f"{config.scenario} training encounters")
+    model_prov = provenance({"demos": train_path, "bins": out / "data" / "bins.json"})
 
     _say(f"[3/5] learning {', '.join(config.methods)}", quiet)
-    rec, tmp_rrd = open_recording(out / "demo.rrd", recording_id=f"merge-irl-demo-{config.scenario}")
+    rid, name = recording_identity(config.scenario, "demo", config.eval_seed)
+    rec, tmp_rrd = open_recording(out / "demo.rrd", recording_id=rid, name=f"{name}: training and one episode")
     models: dict[str, Path] = {}
     messages: dict[str, str] = {}
+    fit_times: dict[str, float] = {}
     cfg = IRLConfig.paper()
     for method in config.methods:
         fit = fit_problem(problem, method, cfg, config.fit_seed, progress=False)
         messages[method] = fit.message
+        fit_times[method] = float(fit.wall_time_s)
         log_training(rec, method, fit.loglik_trace, fit.theta_trace, problem.feature_names)
         usable = math.isfinite(fit.loglik) and np.all(np.isfinite(fit.q)) and np.all(np.isfinite(fit.theta))
         _say(f"      {method}: loglik {fit.loglik:.2f}, theta {[round(float(x), 3) for x in fit.theta]} "
              f"({fit.wall_time_s:.2f} s){'' if usable else ' -- not usable, left out: ' + fit.message}", quiet)
         if usable:
-            model = saved_model(fit, problem, seed=config.fit_seed, source=str(train_path))
+            model = saved_model(fit, problem, seed=config.fit_seed, source=str(train_path), provenance=model_prov)
             models[method] = model.save(out / "models" / f"{method}.json")
     if not models:
         raise IRLError("demo: no IRL method produced a usable model: " + "; ".join(f"{k}: {v}" for k, v in messages.items()))
@@ -217,7 +225,12 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     wall = time.perf_counter() - t0
     result = DemoResult(out, models, report, out / "demo.rrd", out / "summary.md", int(train["encounter_id"].nunique()),
                         problem.demos.n_steps, wall, messages)
-    write_text_atomic(out / "summary.md", "# merge-irl demo\n\n```\n" + result.format() + "\n```\n")
+    scenario_file = config.scenario if Path(config.scenario).is_file() else None
+    summary_prov = provenance({"scenario": scenario_file}, models,
+                              extra={"scenario_sha256": text_digest(load_scenario(config.scenario).to_toml())})
+    write_text_atomic(out / "summary.md", "# merge-irl demo\n\n```\n" + result.format(timings=False) + "\n```\n\n"
+                      + provenance_markdown(summary_prov) + "\n")
+    write_timings(out, {"wall_time_s": wall, "fit_wall_time_s": fit_times})
     return result
 
 

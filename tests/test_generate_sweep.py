@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -80,6 +81,17 @@ def test_sweep_process_pool_equals_serial_and_rerun_skips(tmp_path):
     assert list(sa["run"]) == names
     assert list(sa["table_sha256"]) == list(sb["table_sha256"])
     assert len(set(sa["table_sha256"])) == 4  # different seeds / demands: different runs
+    # provenance: the scenario each run simulated, the versions; no wall time (that is in sweep.timings.json)
+    import hashlib
+
+    from analysis.provenance import package_version
+
+    for n, sha in zip(sa["run"], sa["scenario_sha256"]):
+        assert sha == hashlib.sha256((tmp_path / "a" / n / "scenario.toml").read_bytes()).hexdigest()
+    assert set(sa["merge_irl"]) == {package_version()}
+    pd.testing.assert_frame_equal(sa.drop(columns="out_dir"), sb.drop(columns="out_dir"))
+    timings = json.loads((tmp_path / "a" / "sweep.timings.json").read_text())["sim_wall_time_s"]
+    assert set(timings) == set(names) and all(t > 0 for t in timings.values())
     # doubling demand gives more vehicles for the same seed
     n_veh = dict(zip(sa["run"], sa["n_vehicles"]))
     assert n_veh["synthetic-seed1-demand2"] > n_veh["synthetic-seed1-demand1"]

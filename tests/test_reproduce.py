@@ -47,6 +47,15 @@ def test_cli_table_1_two_trials(tmp_path, capsys):
     qavg = [t for t in data["trials"] if t["method"] == "qavg"]
     assert rows["qavg"]["loglik_mean"] == pytest.approx(np.mean([t["loglik"] for t in qavg]))
     assert rows["mlirl"]["p_vs_mlirl"] is None
+    # provenance: the folders table 1 read; wall times beside the file, not in it
+    from analysis.provenance import path_digest
+
+    inputs = data["provenance"]["inputs"]
+    assert inputs["table1_demos"]["sha256"] == path_digest(DATA / "gridworld" / "noise_0.0_expert_trajs")["sha256"]
+    assert set(inputs) == {"table1_demos", "table1_baseline"}
+    assert "wall_time" not in out.read_text() and "time_mean_s" not in out.read_text()
+    timings = json.loads((tmp_path / "t1.timings.json").read_text())
+    assert {m: len(v) for m, v in timings["trials"].items()} == {"mlirl": 2, "qavg": 2, "qsm": 2, "reirl": 2}
 
 
 @needs_data

@@ -58,13 +58,11 @@ def register(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from analysis.learn import learn
-    from irl.merge_mdp import MergeBins
     from irl.reirl import DEFAULT_EPSILON
 
-    bins = MergeBins.load(args.bins) if args.bins else None
     model = learn(
         args.method, args.domain, args.demos, config=config_from_args(args), seed=args.seed,
-        noise=args.noise, baseline_path=args.baseline, bins=bins, dt=args.dt,
+        noise=args.noise, baseline_path=args.baseline, bins=args.bins or None, dt=args.dt,
         epsilon=DEFAULT_EPSILON if args.epsilon is None else args.epsilon,
         out=args.out, progress=not args.no_progress and sys.stderr.isatty(),
     )

@@ -37,7 +37,7 @@ from irl.result import FitResult
 DEFAULT_EPSILON = 0.01
 #: Default number of generated baseline trajectories.
 DEFAULT_N_BASELINE = 100
-#: Box bound on |theta_k| applied when the dual is unbounded below.
+#: Box bound on ``|theta_k|`` applied when the dual is unbounded below.
 THETA_CAP = 1e4
 
 PadStep = Callable[[int], tuple[int, int]]

@@ -5,6 +5,7 @@ Build (warnings are errors, as CI does)::
     python -m sphinx -W --keep-going -b html docs docs/_build/html
 """
 
+import shutil
 import sys
 import types
 from importlib.metadata import PackageNotFoundError
@@ -46,6 +47,9 @@ myst_enable_extensions = ["dollarmath", "deflist", "colon_fence"]
 myst_heading_anchors = 3
 
 # API pages: generated at build time from the docstrings (docs/api/generated is not committed).
+# Start from an empty folder every build, so a module renamed or moved elsewhere leaves no stale
+# page behind (a stale page outside every toctree is a warning, hence an error under -W).
+shutil.rmtree(Path(__file__).resolve().parent / "api" / "generated", ignore_errors=True)
 autosummary_generate = True
 autosummary_imported_members = False
 # Each object is documented once, in the module that defines it: a package's `__all__`

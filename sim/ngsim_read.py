@@ -375,6 +375,11 @@ def read_trajectories(path: str | os.PathLike, **kwargs) -> pd.DataFrame:
     """A trajectory table from Parquet (simulated runs) or an NGSIM ``.csv`` / ``.txt`` file.
 
     ``kwargs`` go to :func:`read_ngsim` for NGSIM files (ignored for Parquet).
+
+    Raises:
+        FileNotFoundError: a Parquet path that does not exist.
+        TrajectoryFormatError: an unknown suffix, or a file that is not a valid trajectory table
+            (the message names the file, and for NGSIM files the line and column).
     """
     from sim.schema import conform
 

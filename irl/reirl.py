@@ -39,7 +39,7 @@ from irl.transitions import estimate_transitions
 DEFAULT_EPSILON = 0.01
 #: Default number of generated baseline trajectories.
 DEFAULT_N_BASELINE = 100
-#: Box bound on |theta_k| applied when the dual is unbounded below.
+#: Box bound on ``|theta_k|`` applied when the dual is unbounded below.
 THETA_CAP = 1e4
 
 PadStep = Callable[[int], tuple[int, int]]

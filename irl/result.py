@@ -124,7 +124,11 @@ class SavedModel:
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "SavedModel":
-        """Read a ``model.json``; every malformed file raises ``ModelFileError`` naming the field."""
+        """Read a ``model.json``.
+
+        Raises:
+            ModelFileError: a missing, unreadable or malformed file (naming the field at fault).
+        """
         path = Path(path)
         try:
             data = json.loads(path.read_text(encoding="utf-8"))

@@ -154,7 +154,9 @@ def run_scenario(
 
     ``seed`` / ``duration_s`` override the spec's. ``hooks`` are called at every recorded
     frame (see :mod:`sim.hooks`). ``progress`` shows a tqdm bar of simulated time on stderr.
-    Raises ``SimulationError`` if SUMO fails.
+
+    Raises:
+        SimulationError: SUMO fails to start or to step.
     """
     if seed is not None or duration_s is not None:
         spec = with_overrides(spec, seed=seed, duration_s=duration_s)

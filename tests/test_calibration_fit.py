@@ -23,9 +23,8 @@ from scenarios.calibration.pairs import CarFollowingPair, PairBatch
 from scenarios.calibration.vtypes import SIM_RANGE
 from scenarios.errors import SpecError
 
-from shared_data import DATA
+from shared_data import DATA, PAIRS_DIR, require
 
-PAIRS_DIR = DATA / "ngsim_i80_car_following"
 TRUE = CFParams(accel=1.4, decel=2.2, tau=1.3, minGap=2.0, maxSpeed=22.0)
 
 
@@ -73,8 +72,11 @@ def test_fit_recovers_sumo_idm_parameters(real_pairs) -> None:
     assert np.median(spacing_rmse("idm", PairBatch.from_pairs(pairs), CFParams().as_dict())) > 0.3
 
 
-def test_calibrated_beats_defaults_on_held_out_followers(real_pairs) -> None:
-    train, test = split_by_follower(real_pairs, 0.3, seed=0)
+def test_calibrated_beats_defaults_on_held_out_followers() -> None:
+    # a claim about the population: it needs the full 302-pair set (../shared), not the 36 vendored
+    # pairs, on which 11 held-out followers are too few to tell calibrated from default reliably
+    full = require(DATA / "ngsim_i80_car_following", "the full NGSIM I-80 pair set (302 pairs)")
+    train, test = split_by_follower(load_pairs(full), 0.3, seed=0)
     assert not {p.group for p in train} & {p.group for p in test}
     pop, _ = fit_population(train[::2], model="idm", max_nfev=25)  # every other pair: keeps the test fast
     ev = evaluate(pop, test, model="idm")

@@ -14,9 +14,10 @@ import numpy as np
 from irl import gridworld
 from irl.demonstrations import Demonstrations
 
-#: noise -> (trajectories drawn, seed, baseline length): 12 experts / 38 steps without noise,
-#: 14 / 50 with 10% slips (duplicates removed), uniform-random baselines of length 5 and 7.
-_GRIDWORLD = {"0.0": (12, 0, 5), "0.1": (15, 1, 7)}
+#: noise -> (experts drawn, seed, baseline trajectories, baseline length): 12 experts / 38 steps
+#: without noise, 14 / 50 with 10% slips (duplicates removed); uniform-random baselines of 12 x 5
+#: and 14 x 7 steps, as the authors' sets.
+_GRIDWORLD = {"0.0": (12, 0, 12, 5), "0.1": (15, 1, 14, 7)}
 
 
 def gridworld_features() -> np.ndarray:
@@ -34,12 +35,14 @@ def gridworld_demos(noise: str = "0.0", kind: str = "expert") -> Demonstrations:
     ones have one successor per observed (s, a)); ``kind="baseline"``: 12 or 14 uniform-random
     trajectories of fixed length (the REIRL sampling set).
     """
-    n, seed, length = _GRIDWORLD[noise]
+    n, seed, n_baseline, length = _GRIDWORLD[noise]
     rng = np.random.default_rng(seed)
     if kind == "expert":
         demos = gridworld.generate_experts(n, float(noise), rng)
+    elif kind == "baseline":
+        demos = gridworld.generate_baseline(n_baseline, length, float(noise), rng)
     else:
-        demos = gridworld.generate_baseline(12 if noise == "0.0" else 14, length, float(noise), rng)
+        raise ValueError(f"kind must be 'expert' or 'baseline', got {kind!r}")
     np.testing.assert_array_equal(demos.features, gridworld_features())  # the layout REFERENCE.md gives
     return demos
 

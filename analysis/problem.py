@@ -15,8 +15,9 @@ from typing import Callable
 
 import numpy as np
 
-from irl import gridworld, merge_mdp
+from irl import merge_mdp
 from irl.demonstrations import Demonstrations
+from irl.domains import gridworld
 from irl.errors import ConfigError, DemonstrationError
 from irl.io import load_feature_names, load_npz
 from irl.merge_mdp import MergeBins

@@ -4,7 +4,7 @@
 import numpy as np
 import pytest
 
-from irl import gridworld as g
+from irl.domains import gridworld as g
 
 from shared_data import DATA as SHARED_DATA
 

@@ -136,7 +136,7 @@ def test_npz_rejects_non_npz(tmp_path):
 
 @pytest.mark.skipif(not DATA.is_dir(), reason="the authors' data is not on this machine")
 def test_authors_gridworld_files_load():
-    from irl import gridworld
+    from irl.domains import gridworld
 
     d = gridworld.load(DATA / "gridworld" / "noise_0.0_expert_trajs")
     assert d.n_trajectories == 12 and d.n_steps == 33

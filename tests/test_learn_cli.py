@@ -31,7 +31,7 @@ def test_learn_gridworld_qavg_round_trip(tmp_path, capsys):
     assert m.feature_names == ("yellow", "green", "red", "pink", "blue")
     assert m.q.shape == (25, 4) and m.bin_edges == {}
     # loglik is the Eq. 5 sum under the saved Q, recomputed independently here
-    from irl import gridworld
+    from irl.domains import gridworld
 
     d = gridworld.load(DATA / "gridworld" / "noise_0.1_expert_trajs")
     lp = log_policy(m.q, m.config.beta)
@@ -62,7 +62,7 @@ def test_learn_merge_encounter_table_saves_fitted_bins(tmp_path):
 
 
 def test_learn_npz_reirl(tmp_path):
-    from irl import gridworld
+    from irl.domains import gridworld
 
     d = gridworld.load(DATA / "gridworld" / "noise_0.0_expert_trajs")
     p = save_npz(d, tmp_path / "d.npz", feature_names=gridworld.FEATURE_NAMES)

@@ -26,8 +26,8 @@ import numpy as np
 import pandas as pd
 
 from irl.atomic import write_text_atomic
+from irl.units import M_PER_FT
 from scenarios.calibration import CarFollowingPair, evaluate, load_pairs, load_result
-from scenarios.calibration.pairs import M_PER_FT
 
 #: Congested car following: speed range (ft/s) and largest spacing (ft) kept.
 SPEED_RANGE_FT_S = (1.0, 45.0)

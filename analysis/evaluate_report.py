@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.metrics import AggregateMetrics
-from sim.policy import ACTION_NAMES, N_ACTIONS
+from irl.domains.merge import ACTION_NAMES, N_ACTIONS
 
 
 def _fmt(x, nd=2) -> str:

@@ -21,7 +21,7 @@ import numpy as np
 from analysis.problem import Problem, load_problem
 from irl.config import IRLConfig
 from irl.errors import ConfigError, ConvergenceError
-from irl.merge_mdp import MergeBins
+from irl.domains.merge import MergeBins
 from irl.reirl import DEFAULT_EPSILON, DEFAULT_N_BASELINE, fit_reirl
 from irl.result import METHODS, FitResult, SavedModel
 

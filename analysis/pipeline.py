@@ -4,7 +4,7 @@
 
 1. **generate** merges: simulate the scenario with SUMO's own drivers for the training seeds and
    one held-out seed (in worker processes), extract the merge encounters (``sim.encounters``);
-2. **discretize**: quantile bin edges fitted on the training encounters (``irl.merge_mdp``);
+2. **discretize**: quantile bin edges fitted on the training encounters (``irl.domains.merge``);
    encounter frames without a lead car C get the closed loop's open-road values;
 3. **learn** Q-Avg, Q-SM, MLIRL and REIRL (``analysis.learn``), one ``model.json`` each;
 4. **re-inject and evaluate**: every model drives the lag cars A of new episodes (other seeds),
@@ -164,7 +164,7 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     from analysis.problem import load_problem
     from analysis.rerun_log import RerunLogger, close_recording, log_training, open_recording
     from irl.config import IRLConfig
-    from irl.merge_mdp import fit_quantile_bins
+    from irl.domains.merge import fit_quantile_bins
 
     t0 = time.perf_counter()
     out = Path(out_dir) if out_dir is not None else Path("runs") / "demo"

@@ -58,7 +58,7 @@ def register(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from analysis.learn import learn
-    from irl.merge_mdp import MergeBins
+    from irl.domains.merge import MergeBins
     from irl.reirl import DEFAULT_EPSILON
 
     bins = MergeBins.load(args.bins) if args.bins else None

@@ -11,8 +11,9 @@ import time
 import pandas as pd
 import pytest
 
+from irl.domains.merge import ENCOUNTER_COLUMNS
 from scenarios.loader import load_scenario
-from sim.encounters import ENCOUNTER_COLUMNS, MERGE_COLUMNS
+from sim.encounters import MERGE_COLUMNS
 from sim.generate import OUTPUT_FILES
 from sim.outputs import write_parquet
 from sim.schema import COLUMNS

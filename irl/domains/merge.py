@@ -449,9 +449,11 @@ def validate_encounters(table, where: str = "encounters") -> None:
             bad &= ~no_c
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
+            got = table[c].iloc[i]
+            got = got.item() if isinstance(got, np.generic) else got
             hint = " (d_AC and v_AC are NaN together when there is no car C)" if c in ("d_AC", "v_AC") else ""
             raise DemonstrationError(
-                f"{where}: row {i}, column {c!r}: expected a finite number, got {table[c].iloc[i]!r}{hint}"
+                f"{where}: row {i}, column {c!r}: expected a finite number, got {got!r}{hint}"
             )
 
 

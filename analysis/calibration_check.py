@@ -26,8 +26,8 @@ import numpy as np
 import pandas as pd
 
 from irl.atomic import write_text_atomic
+from irl.units import M_PER_FT
 from scenarios.calibration import CarFollowingPair, evaluate, load_pairs, load_result
-from scenarios.calibration.pairs import M_PER_FT
 from scenarios.calibration.vtypes import driver_members, to_vtype_specs
 from scenarios.loader import load_scenario
 from sim.run import run_scenario

@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.metrics import EpisodeMetrics, MetricsConfig, episode_metrics
+from irl.units import FT_PER_M
 from scenarios.loader import load_scenario
 from sim.controller import Controller, ControllerConfig
 from sim.policy import Policy
@@ -161,7 +162,7 @@ def run_episode(
     res = run_scenario(spec, seed=seed, duration_s=duration_s, hooks=hooks)
     controls = ctl.control_table()
     decisions = ctl.decision_table()
-    section = float(res.spec.road.main_length_m) / 0.3048
+    section = float(res.spec.road.main_length_m) * FT_PER_M
     m = episode_metrics(
         res.table, controls, decisions, policy=policy.name, seed=seed, section_length_ft=section,
         collisions=ctl.n_collisions, teleports=ctl.n_teleports, demo_action_counts=demo_action_counts,

@@ -32,15 +32,16 @@ import pandas as pd
 from analysis.episode import EpisodeResult, EpisodeSpec, run_episode_task
 from analysis.evaluate_report import write_outputs
 from analysis.metrics import AggregateMetrics, MetricsConfig, aggregate, heldout_loglik
-from analysis.sweep import Task, parse_executor, run_sweep
-from irl.merge_mdp import read_encounters
 from analysis.provenance import provenance, text_digest, write_timings
+from analysis.sweep import Task, parse_executor, run_sweep
+from irl.domains.merge import N_ACTIONS, actions_of
+from irl.merge_mdp import read_encounters
 from irl.result import SavedModel
 from scenarios.loader import load_scenario
 from sim.controller import ControllerConfig
 from sim.errors import SimError
-from sim.observe import NO_LEAD_GAP_FT, MergeObservation, ObservationError, StateEncoder
-from sim.policy import N_ACTIONS, LearnedPolicy, Policy, PolicyError, SumoPolicy, UniformPolicy, action_of_acc
+from sim.observe import MergeObservation
+from sim.policy import LearnedPolicy, Policy, PolicyError, SumoPolicy, UniformPolicy
 
 
 @dataclass(frozen=True)
@@ -48,8 +49,8 @@ class HeldOut:
     """Demonstrations used for the divergence and the held-out log-likelihood.
 
     Attributes:
-        encounters: encounter frames (``sim.encounters`` columns; NaN d_AC/v_AC = no lead car,
-            filled as in the closed loop: ``NO_LEAD_GAP_FT`` and 0).
+        encounters: encounter frames (``irl.domains.merge.ENCOUNTER_SCHEMA``; NaN d_AC and
+            v_AC = no lead car, encoded by the domain's no-lead-car rule).
         action_counts: ``[5]`` counts of the binned ``acc_A``.
         source: where they came from.
     """
@@ -60,12 +61,10 @@ class HeldOut:
 
 
 def prepare_encounters(frames: pd.DataFrame) -> pd.DataFrame:
-    """Encounter frames ready to discretize: rows with A and B only; missing C -> open road."""
+    """Encounter frames ready to discretize: rows with A, B and an action only (frames without
+    car C stay, with d_AC and v_AC NaN: the domain's no-lead-car rule encodes them)."""
     df = frames.copy()
     df = df[np.isfinite(df["d_AB"]) & np.isfinite(df["v_AB"]) & np.isfinite(df["acc_A"])]
-    no_c = ~np.isfinite(df["d_AC"].to_numpy(float)) | ~np.isfinite(df["v_AC"].to_numpy(float))
-    df.loc[no_c, "d_AC"] = NO_LEAD_GAP_FT
-    df.loc[no_c, "v_AC"] = 0.0
     return df.reset_index(drop=True)
 
 
@@ -76,7 +75,7 @@ def load_heldout(demos: str | os.PathLike | pd.DataFrame) -> HeldOut:
     else:
         df, src = read_encounters(demos), str(demos)
     df = prepare_encounters(df)
-    counts = np.bincount(action_of_acc(df["acc_A"].to_numpy(float)), minlength=N_ACTIONS)
+    counts = np.bincount(actions_of(df["acc_A"].to_numpy(float)), minlength=N_ACTIONS)
     return HeldOut(df, counts.astype(np.int64), src)
 
 
@@ -85,11 +84,9 @@ def policy_heldout_loglik(policy: Policy, heldout: HeldOut) -> tuple[float, floa
     if not policy.controls:
         return float("nan"), float("nan")
     df = heldout.encounters
-    actions = action_of_acc(df["acc_A"].to_numpy(float))
+    actions = actions_of(df["acc_A"].to_numpy(float))
     if isinstance(policy, LearnedPolicy):
-        enc = policy.encoder
-        states = enc.states(df[["d_AC", "d_AB", "v_AC", "v_AB"]].to_numpy(float), df["B_is_truck"].to_numpy(bool))
-        return heldout_loglik(policy.log_pi, states, actions)
+        return heldout_loglik(policy.log_pi, policy.encoder.encode(df), actions)
     # state-independent policies (uniform, constant): log p(a)
     p = np.asarray(policy.probs(MergeObservation(0, 0, 0, 0, False, 0)), dtype=float)
     with np.errstate(divide="ignore"):
@@ -106,9 +103,8 @@ def learned_policy(model: SavedModel | str | os.PathLike, name: str = "") -> Lea
         name = name or path.stem
         where = str(path)
     try:
-        return LearnedPolicy.from_model(model, encoder=StateEncoder(model.bin_edges) if model.bin_edges else None,
-                                        name=name or model.method)
-    except (PolicyError, ObservationError) as e:
+        return LearnedPolicy.from_model(model, name=name or model.method)
+    except PolicyError as e:
         raise type(e)(f"{where}: {e}") from None
 
 

@@ -11,9 +11,9 @@ import numpy as np
 import pandas as pd
 
 from analysis.metrics import AggregateMetrics
-from irl.atomic import write_atomic, write_text_atomic
 from analysis.provenance import provenance_markdown
-from sim.policy import ACTION_NAMES, N_ACTIONS
+from irl.atomic import write_atomic, write_text_atomic
+from irl.domains.merge import ACTION_NAMES, N_ACTIONS
 
 
 def _fmt(x, nd=2) -> str:

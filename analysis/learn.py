@@ -22,8 +22,8 @@ from analysis.provenance import provenance as provenance_record
 from analysis.provenance import write_timings
 from irl.config import IRLConfig
 from irl.errors import ConfigError, ConvergenceError
+from irl.domains.merge import MergeBins
 from irl.fit import METHODS, fit
-from irl.merge_mdp import MergeBins
 from irl.problems import Problem, load_problem
 from irl.reirl import DEFAULT_EPSILON, DEFAULT_N_BASELINE
 from irl.result import FitResult, SavedModel

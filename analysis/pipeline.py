@@ -4,7 +4,7 @@
 
 1. **generate** merges: simulate the scenario with SUMO's own drivers for the training seeds and
    one held-out seed (in worker processes), extract the merge encounters (``sim.encounters``);
-2. **discretize**: quantile bin edges fitted on the training encounters (``irl.merge_mdp``);
+2. **discretize**: quantile bin edges fitted on the training encounters (``irl.domains.merge``);
    encounter frames without a lead car C get the closed loop's open-road values;
 3. **learn** Q-Avg, Q-SM, MLIRL and REIRL (``analysis.learn``), one ``model.json`` each;
 4. **re-inject and evaluate**: every model drives the lag cars A of new episodes (other seeds),
@@ -46,7 +46,7 @@ from irl.atomic import write_text_atomic
 from irl.config import IRLConfig
 from irl.errors import IRLError
 from irl.fit import METHODS
-from irl.merge_mdp import fit_quantile_bins
+from irl.domains.merge import fit_quantile_bins
 from irl.problems import load_problem
 from scenarios.loader import load_scenario
 from sim.controller import Controller

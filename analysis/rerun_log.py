@@ -36,9 +36,9 @@ import pyarrow as pa
 import rerun as rr
 
 from irl.atomic import move_into_place, temporary_path
+from irl.domains.merge import ACTION_NAMES, FEATURE_NAMES, paper_features
 from sim.hooks import FrameState, RunContext
 from sim.observe import lead_of
-from sim.policy import ACTION_NAMES
 from sim.schema import RAMP_LANE
 
 ROLE_IDS = {"other": 0, "A": 1, "B": 2, "C": 3}
@@ -47,22 +47,9 @@ ROLE_COLORS = np.array(
     [[150, 150, 150, 255], [230, 40, 40, 255], [40, 110, 230, 255], [40, 180, 70, 255]], dtype=np.uint8
 )
 ROLE_RGBA_U32 = (ROLE_COLORS.astype(np.uint32) @ np.array([1 << 24, 1 << 16, 1 << 8, 1], dtype=np.uint32)).astype(np.uint32)
-FEATURE_NAMES = ("safe", "time_to_travel", "ahead_of_truck")
 VEHICLE_HEIGHT_FT = 5.0
 #: Entity holding a recording's properties (name, start time).
 PROPERTIES = "/__properties"
-
-
-def paper_features(d_AC: float, b_is_truck: bool, action: int) -> tuple[float, float, float]:
-    """The paper's three reward features of taking ``action`` (section 4.2), continuous form.
-
-    Safe = 0 only when d_AC < 35 ft and the action accelerates (>= 0.6 ft/s^2, actions 3-4);
-    Time-to-travel = 1 when acc > -0.6 (actions 2-4); Ahead-of-truck = 1 when B is a truck
-    and A accelerates (actions 3-4).
-    """
-    accel = action >= 3
-    return (0.0 if (d_AC < 35.0 and accel) else 1.0, 1.0 if action >= 2 else 0.0,
-            1.0 if (b_is_truck and accel) else 0.0)
 
 
 def _tmp_path(path: Path) -> Path:

@@ -28,7 +28,7 @@ from benchmarks.bare_sumo import time_bare
 from scenarios.loader import load_scenario
 from scenarios.spec_parse import with_overrides
 from sim.controller import Controller
-from sim.observe import StateEncoder
+from irl.domains.merge import MergeBins
 from sim.policy import LearnedPolicy
 from sim.run import run_scenario
 
@@ -61,7 +61,7 @@ def time_closed_loop(spec, work: Path) -> dict[str, float]:
     lp = q - np.log(np.exp(q).sum(axis=1, keepdims=True))
     edges = {"d_AC": (35, 60, 90, 130), "d_AB": (10, 30, 60, 100), "v_AC": (-7.5, -2.5, 2.5, 7.5),
              "v_AB": (-7.5, -2.5, 2.5, 7.5)}
-    ctl = Controller(LearnedPolicy(lp, StateEncoder(edges), name="bench"))
+    ctl = Controller(LearnedPolicy(lp, MergeBins.from_dict(edges), name="bench"))
     tctl = _Timed(ctl)
     log = RerunLogger(work / "bench.rrd", controller=ctl)
     tlog = _Timed(log)

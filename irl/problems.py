@@ -15,11 +15,12 @@ from typing import Callable
 
 import numpy as np
 
-from irl import gridworld, merge_mdp
+from irl import merge_mdp
 from irl.demonstrations import Demonstrations
+from irl.domains import gridworld
+from irl.domains.merge import FEATURE_NAMES, MergeBins, fit_quantile_bins
 from irl.errors import ConfigError, DemonstrationError
 from irl.io import load_feature_names, load_npz
-from irl.merge_mdp import MergeBins
 from irl.transitions import estimate_transitions
 
 DOMAINS = ("gridworld", "merge", "npz")
@@ -91,7 +92,7 @@ def load_merge_demos(path: str | os.PathLike, bins: MergeBins | None) -> tuple[D
     if _is_text_format(path):
         return merge_mdp.load(path), bins or MergeBins.assumed_authors()
     table = merge_mdp.read_encounters(path)
-    bins = bins or merge_mdp.fit_quantile_bins(table, where=str(path))
+    bins = bins or fit_quantile_bins(table, where=str(path))
     return merge_mdp.discretize(table, bins, where=str(path)), bins
 
 
@@ -132,7 +133,7 @@ def load_problem(
         if baseline_path is not None:
             baseline, _ = load_merge_demos(baseline_path, bins)
         return Problem(label, domain, demos, merge_mdp.estimated_transitions(demos, bins, dt), True, baseline,
-                       merge_mdp.FEATURE_NAMES, bins, dt, 0.0)
+                       FEATURE_NAMES, bins, dt, 0.0)
     demos = load_npz(demos_path)
     if baseline_path is not None:
         baseline = load_npz(baseline_path)

@@ -3,6 +3,9 @@
     from scenarios import load_scenario, with_overrides
     spec = load_scenario("synthetic")          # a preset, or a path to a .toml file
     spec = with_overrides(spec, seed=3, duration_s=120)
+
+Layering: ``scenarios`` imports nothing of ours but :mod:`irl.units`, a leaf module of unit
+constants (feet and metres) that itself imports nothing.
 """
 
 from scenarios.errors import ScenarioError, SpecError

@@ -1,6 +1,6 @@
 """Small IRL test inputs: random MDP demonstrations and gridworld demonstrations.
 
-The gridworld demonstrations come from the project's own generator (``irl.gridworld``: the
+The gridworld demonstrations come from the project's own generator (``irl.domains.gridworld``: the
 paper's 5x5 gridworld, REFERENCE.md layout), with fixed seeds and about the authors' sizes
 (12 expert trajectories without noise, 14 with 10% slips), so the tests run on a fresh clone.
 The authors' own files (AGPL, not shipped) are tested through the ``railusm`` fixture.
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from irl import gridworld
+from irl.domains import gridworld
 from irl.demonstrations import Demonstrations
 
 #: noise -> (experts drawn, seed, baseline trajectories, baseline length): 12 experts / 38 steps

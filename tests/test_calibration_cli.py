@@ -12,6 +12,7 @@ import pandas as pd
 import pytest
 
 from analysis.calibration_check import compare_distributions, pair_states, table_states
+from irl.units import M_PER_FT
 from scenarios.calibration import CFParams, load_pairs, load_result
 
 from shared_data import PAIRS_DIR
@@ -73,10 +74,10 @@ def test_distribution_comparison_detects_difference() -> None:
     for i, p in enumerate(pairs[:3]):
         n = len(p)
         rows.append(pd.DataFrame({"Vehicle_ID": 2 * i + 2, "Frame_ID": np.arange(n), "Lane_ID": 3,
-                                  "Preceding": 2 * i + 1, "v_Vel": p.v_follower / 0.3048,
-                                  "Space_Headway": (p.spacing + p.leader_length) / 0.3048, "v_Length": 15.0}))
+                                  "Preceding": 2 * i + 1, "v_Vel": p.v_follower / M_PER_FT,
+                                  "Space_Headway": (p.spacing + p.leader_length) / M_PER_FT, "v_Length": 15.0}))
         rows.append(pd.DataFrame({"Vehicle_ID": 2 * i + 1, "Frame_ID": np.arange(n), "Lane_ID": 3, "Preceding": 0,
-                                  "v_Vel": p.v_leader / 0.3048, "Space_Headway": 0.0, "v_Length": p.leader_length / 0.3048}))
+                                  "v_Vel": p.v_leader / M_PER_FT, "Space_Headway": 0.0, "v_Length": p.leader_length / M_PER_FT}))
     st = table_states(pd.concat(rows, ignore_index=True))
     ref = pair_states(pairs[:3])
     for k in ref:

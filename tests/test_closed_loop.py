@@ -8,9 +8,10 @@ import pytest
 
 from analysis.episode import run_episode
 from analysis.metrics import js_divergence
+from irl.domains.merge import ACTION_ACC_FT_S2
 from scenarios.loader import load_scenario
 from sim.controller import RELEASE_REASONS, Controller, ControllerConfig
-from sim.policy import ACTION_ACC_FT_S2, ConstantPolicy, SumoPolicy, UniformPolicy
+from sim.policy import ConstantPolicy, SumoPolicy, UniformPolicy
 
 pytestmark = pytest.mark.sumo
 

@@ -4,7 +4,7 @@
 import numpy as np
 import pytest
 
-from irl import gridworld as g
+from irl.domains import gridworld as g
 
 
 def test_layout_and_moves():

@@ -131,7 +131,7 @@ def test_npz_rejects_non_npz(tmp_path):
 
 
 def test_authors_gridworld_files_load(railusm):
-    from irl import gridworld
+    from irl.domains import gridworld
 
     d = gridworld.load(railusm / "gridworld" / "noise_0.0_expert_trajs")
     assert d.n_trajectories == 12 and d.n_steps == 33

@@ -9,8 +9,9 @@ import pytest
 from irl_testdata import gridworld_demos
 
 from analysis.cli import main
-from irl import gridworld, merge_mdp
 from irl.boltzmann import log_policy
+from irl.domains import gridworld
+from irl.domains.merge import MergeBins, fit_quantile_bins
 from irl.io import save_npz, save_railusm
 from irl.result import SavedModel
 
@@ -54,8 +55,8 @@ def test_learn_merge_encounter_table_saves_fitted_bins(tmp_path):
                "--out", str(out), "--no-progress"])
     assert rc == 0
     m = SavedModel.load(out)
-    bins = merge_mdp.MergeBins.from_dict({k: list(v) for k, v in m.bin_edges.items()})
-    assert bins == merge_mdp.fit_quantile_bins(df)
+    bins = MergeBins.from_dict({k: list(v) for k, v in m.bin_edges.items()})
+    assert bins == fit_quantile_bins(df)
     assert m.config.gamma == 0.9 and m.q.shape == (1250, 5)
 
 

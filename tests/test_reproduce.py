@@ -54,7 +54,7 @@ def test_cli_table_1_two_trials(railusm, tmp_path, capsys):
     from analysis.provenance import path_digest
 
     inputs = data["provenance"]["inputs"]
-    assert inputs["table1_demos"]["sha256"] == path_digest(DATA / "gridworld" / "noise_0.0_expert_trajs")["sha256"]
+    assert inputs["table1_demos"]["sha256"] == path_digest(railusm / "gridworld" / "noise_0.0_expert_trajs")["sha256"]
     assert set(inputs) == {"table1_demos", "table1_baseline"}
     assert "wall_time" not in out.read_text() and "time_mean_s" not in out.read_text()
     timings = json.loads((tmp_path / "t1.timings.json").read_text())

@@ -16,8 +16,8 @@ from analysis.rerun_log import (
     recording_identity,
     recording_info,
 )
+from irl.domains.merge import MergeBins
 from scenarios.loader import load_scenario
-from sim.observe import StateEncoder
 from sim.policy import LearnedPolicy
 
 EDGES = {"d_AC": (35, 60, 90, 130), "d_AB": (10, 30, 60, 100), "v_AC": (-7.5, -2.5, 2.5, 7.5),
@@ -33,7 +33,7 @@ def logged(tmp_path_factory):
     path = tmp_path_factory.mktemp("rrd") / "run.rrd"
     rng = np.random.default_rng(7)
     q = rng.normal(size=(1250, 5))
-    policy = LearnedPolicy(q - np.log(np.exp(q).sum(axis=1, keepdims=True)), StateEncoder(EDGES), name="random-q")
+    policy = LearnedPolicy(q - np.log(np.exp(q).sum(axis=1, keepdims=True)), MergeBins.from_dict(EDGES), name="random-q")
     res = run_episode(load_scenario("synthetic"), policy, 3, duration_s=120.0, rrd_path=path, keep_table=True)
     return path, res
 
@@ -111,8 +111,7 @@ def test_policy_values_match_decisions(logged):
     got = np.array([row for b in probs for row in b.column("Scalars:scalars").to_pylist()])
     np.testing.assert_allclose(got, d[["p0", "p1", "p2", "p3", "p4"]].to_numpy(), rtol=0, atol=1e-12)
     assert np.ptp(got[:, 0]) > 0  # the probabilities vary with the state
-    enc = StateEncoder(EDGES)
-    states = enc.states(d[["d_AC", "d_AB", "v_AC", "v_AB"]].to_numpy(float), d.b_is_truck.to_numpy(bool))
+    states = MergeBins.from_dict(EDGES).states(d.d_AC, d.d_AB, d.v_AC, d.v_AB, d.b_is_truck.to_numpy(bool))
     np.testing.assert_array_equal(states, d.state.to_numpy())
     speed = ents[f"/metrics/A_{a}/speed"]
     sp_steps = np.concatenate([b.column("step").to_numpy() for b in speed])

@@ -8,17 +8,23 @@ Files written into the output folder (each atomically; see ``sim.outputs``):
 * ``scenario.toml``         the spec simulated, with the seed and duration actually used;
 * ``trajectories.csv``      on request, in NGSIM's text format (``sim.ngsim_io``).
 
-Before simulating, these names are removed from the folder, so an aborted rerun never leaves
-the previous run's files looking like the result of this one.
+The files are published as a set (:mod:`irl.run_folder`): written into a hidden staging folder
+beside the output folder, then renamed into place in one step, so a run killed at any point
+publishes nothing under the final name. The output folder is locked for the run (a second run
+into it fails at once), must hold nothing but a previous run's files (removed before simulating,
+so an aborted rerun never leaves them looking like this run's), and is checked writable before
+the simulation starts. Leftovers of killed runs (staging folders, temporary files) are removed.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
 from irl.atomic import write_text_atomic
+from irl.run_folder import check_replaceable, locked, publish, remove_temporaries, staging_folder
 from scenarios.spec import ScenarioSpec
 from scenarios.spec_parse import with_overrides
 from sim.encounters import Encounters, EncounterWindow, extract
@@ -60,13 +66,36 @@ def generate(
     window: EncounterWindow = EncounterWindow(),
     hooks: Sequence[StepHook] = (),
 ) -> GenerateResult:
-    """Simulate ``spec`` (optionally with another seed / duration) and write the output files."""
+    """Simulate ``spec`` (optionally with another seed / duration) and write the output files.
+
+    Raises:
+        OutputLockedError: another run is writing into the output folder.
+        FileExistsError: the output folder holds files that are not a previous run's outputs.
+        OSError: the output folder cannot be written (checked before simulating).
+    """
     if seed is not None or duration_s is not None:
         spec = with_overrides(spec, seed=seed, duration_s=duration_s)
-    out = Path(out_dir) if out_dir is not None else default_out_dir(spec)
-    out.mkdir(parents=True, exist_ok=True)
-    for name in OUTPUT_FILES:
-        (out / name).unlink(missing_ok=True)
+    final = Path(out_dir) if out_dir is not None else default_out_dir(spec)
+    with locked(final):
+        check_replaceable(final, OUTPUT_FILES)
+        remove_temporaries(final.parent, final.name)
+        remove_temporaries(final)
+        for name in OUTPUT_FILES:
+            (final / name).unlink(missing_ok=True)
+        stage = staging_folder(final)
+        try:
+            res = _generate_into(stage, spec, csv=csv, progress=progress, window=window, hooks=hooks)
+            publish(stage, final)
+        finally:
+            if stage.exists():
+                shutil.rmtree(stage, ignore_errors=True)
+    files = tuple(final / p.name for p in res.files)
+    return GenerateResult(out_dir=final, files=files, simulation=res.simulation, encounters=res.encounters)
+
+
+def _generate_into(out: Path, spec: ScenarioSpec, *, csv: bool, progress: bool, window: EncounterWindow,
+                   hooks: Sequence[StepHook]) -> GenerateResult:
+    """Simulate and write every output file into the (staging) folder ``out``."""
     result = run_scenario(spec, hooks=hooks, progress=progress)
     enc = extract(result.table, window=window)
     files = [

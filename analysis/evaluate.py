@@ -37,6 +37,7 @@ from analysis.sweep import Task, parse_executor, run_sweep
 from irl.domains.merge import N_ACTIONS, actions_of
 from irl.merge_mdp import read_encounters
 from irl.result import SavedModel
+from irl.run_folder import check_writable
 from scenarios.loader import load_scenario
 from sim.controller import ControllerConfig
 from sim.errors import SimError
@@ -212,6 +213,7 @@ def evaluate(
     pols: list[Policy] = [learned_policy(m) for m in models]
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    check_writable(out / "report.md")  # before the episodes, not after
     for b in baselines:
         pols.append({"sumo": SumoPolicy, "uniform": UniformPolicy}[b]())
     pols.extend(policies)

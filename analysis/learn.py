@@ -27,6 +27,7 @@ from irl.fit import METHODS, fit
 from irl.problems import Problem, load_problem
 from irl.reirl import DEFAULT_EPSILON, DEFAULT_N_BASELINE
 from irl.result import FitResult, SavedModel
+from irl.run_folder import check_writable
 
 
 def fit_problem(
@@ -121,7 +122,12 @@ def learn(
     SHA-256 of every input file). With ``out``, the fit's wall time goes to
     ``<out stem>.timings.json`` beside it, not into ``model.json``: identical runs write
     identical model files.
+
+    Raises:
+        OSError: ``out`` cannot be written (checked before loading and fitting).
     """
+    if out is not None:
+        check_writable(out)  # an unwritable --out fails now, not after the fit
     config = config or IRLConfig.paper()
     bins_path = None
     if bins is not None and not isinstance(bins, MergeBins):

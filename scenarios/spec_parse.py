@@ -99,6 +99,20 @@ def _str(ctx: _Ctx, path: str, v: Any, choices: tuple[str, ...] | None = None) -
     return v
 
 
+#: Plausible ranges of the road's sizes and speeds (inclusive): outside them a value is a typo
+#: or a unit mix-up (a 0.1 m lane, a 1 m road), not a road SUMO should build. Lengths hold a
+#: few cars (5 m each); lanes are 2.5-5 m wide in practice; speeds up to 250 km/h.
+ROAD_RANGES: dict[str, tuple[float, float, str]] = {
+    "main_length_m": (50.0, 20_000.0, "m"),
+    "merge_position_m": (10.0, 20_000.0, "m"),
+    "ramp_length_m": (20.0, 5_000.0, "m"),
+    "aux_length_m": (10.0, 5_000.0, "m"),
+    "lane_width_m": (2.5, 5.0, "m"),
+    "speed_limit_mps": (1.0, 70.0, "m/s"),
+    "ramp_speed_limit_mps": (1.0, 70.0, "m/s"),
+}
+
+
 def _road(ctx: _Ctx, data: Any) -> RoadSpec:
     names = [f.name for f in fields(RoadSpec)]
     d = _check_keys(ctx, "road", data, names)
@@ -117,6 +131,9 @@ def _road(ctx: _Ctx, data: Any) -> RoadSpec:
                 raise ctx.fail(p, f"must be in (0, 45) degrees, got {d[n]!r}")
         else:
             kw[n] = _positive(ctx, p, d[n])
+            lo, hi, unit = ROAD_RANGES.get(n, (0.0, math.inf, ""))
+            if not lo <= kw[n] <= hi:
+                raise ctx.fail(p, f"{kw[n]:g} {unit} is implausible; expected {lo:g} to {hi:g} {unit}")
     r = RoadSpec(**kw)
     if r.merge_position_m + r.aux_length_m >= r.main_length_m:
         raise ctx.fail(

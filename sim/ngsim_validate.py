@@ -5,6 +5,7 @@ column, plus the file line number of every row) and
 
 * raises :class:`~sim.errors.TrajectoryFormatError` naming file, line and column for: missing
   values, non-integral ids / frames / classes / lanes / times, negative vehicle length or width,
+  a negative speed, a lane number below 1,
   frames out of order for a vehicle, a frame repeated for a vehicle with different values;
 * marks exact duplicate rows (a known NGSIM defect) for dropping and counts them;
 * counts vehicles with gaps in their frames and the frames missing (reported, data kept);
@@ -109,6 +110,12 @@ class ChunkValidator:
                 r = int(np.argmax(big))
                 raise self._fail(int(lines[r]), c,
                                  f"integer {col[r]:.17g} is out of range; expected |value| <= 2**53")
+        for c, lo, expected in (("v_Vel", 0.0, "a speed >= 0 ft/s (NGSIM speeds have no sign)"),
+                                ("Lane_ID", 1.0, "a lane number >= 1 (NGSIM numbers lanes from 1)")):
+            col = data[_COL[c]]
+            if (col < lo).any():
+                r = int(np.argmax(col < lo))
+                raise self._fail(int(lines[r]), c, f"{c} {col[r]:g}; expected {expected}")
         for c in ("v_Length", "v_Width"):
             col = data[_COL[c]]
             if (col < 0).any():

@@ -1,6 +1,8 @@
 """Merge encounters (merging car B, lag car A, lead car C) from any NGSIM-schema trajectory table.
 
-Definitions (the paper's section 4.2; feet, ft/s, ft/s^2; positions are NGSIM's front bumper):
+Definitions (the paper's section 4.2; feet, ft/s, ft/s^2; positions are NGSIM's front bumper).
+Lane numbers are I-80's (ramp 7, merge lane 6); other sites pass ``site`` (:mod:`sim.sites`:
+its ramp lanes for 7, its merge lane for 6; unknown lane codes are an error):
 
 * **B** is a vehicle with a row in lane 7 (ramp / auxiliary lane) followed later by a row in
   lane 6 (the rightmost main lane). Its **merge frame** is its first lane-6 frame after its
@@ -31,7 +33,8 @@ import numpy as np
 import pandas as pd
 
 from sim.errors import TrajectoryFormatError
-from sim.schema import RAMP_LANE, RIGHTMOST_MAIN_LANE, V_CLASS_TRUCK
+from sim.schema import V_CLASS_TRUCK
+from sim.sites import I80, SiteProfile, check_lanes
 
 #: Columns of the per-frame encounter table, in order.
 ENCOUNTER_COLUMNS: dict[str, str] = {
@@ -89,27 +92,43 @@ def _check(table: pd.DataFrame) -> None:
         raise TrajectoryFormatError(f"trajectory table: missing columns {missing} needed for merge encounters")
 
 
-def find_merges(table: pd.DataFrame) -> pd.DataFrame:
-    """One row per merging vehicle B: ``B_id, merge_frame`` (int64), sorted by merge frame, B."""
+def find_merges(table: pd.DataFrame, *, site: SiteProfile = I80) -> pd.DataFrame:
+    """One row per merging vehicle B: ``B_id, merge_frame`` (int64), sorted by merge frame, B.
+
+    ``site`` gives the lane coding (:mod:`sim.sites`): B has a row in one of its ramp lanes
+    and later one in its merge lane.
+
+    Raises:
+        TrajectoryFormatError: a needed column is missing, or ``Lane_ID`` holds codes the
+            site does not list.
+    """
     _check(table)
     vid = table["Vehicle_ID"].to_numpy(np.int64)
     frame = table["Frame_ID"].to_numpy(np.int64)
     lane = table["Lane_ID"].to_numpy(np.int64)
-    on7 = lane == RAMP_LANE
+    check_lanes(lane, site)
+    on7 = np.isin(lane, np.asarray(site.ramp_lanes, dtype=np.int64))
     if not on7.any():
         return pd.DataFrame({"B_id": pd.Series(dtype="int64"), "merge_frame": pd.Series(dtype="int64")})
     first7 = pd.Series(frame[on7]).groupby(vid[on7]).min()
     f7 = first7.reindex(vid).to_numpy()  # NaN for vehicles never in lane 7
-    cand = (lane == RIGHTMOST_MAIN_LANE) & ~np.isnan(f7) & (frame > np.nan_to_num(f7, nan=np.inf))
+    cand = (lane == site.merge_lane) & ~np.isnan(f7) & (frame > np.nan_to_num(f7, nan=np.inf))
     merge = pd.Series(frame[cand]).groupby(vid[cand]).min()
     out = pd.DataFrame({"B_id": merge.index.to_numpy(np.int64), "merge_frame": merge.to_numpy(np.int64)})
     return out.sort_values(["merge_frame", "B_id"], kind="stable").reset_index(drop=True)
 
 
-def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow()) -> Encounters:
-    """Every merge of ``table`` with its A and C, and the per-frame encounter variables."""
+def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),
+            site: SiteProfile = I80) -> Encounters:
+    """Every merge of ``table`` with its A and C, and the per-frame encounter variables.
+
+    ``site``: the lane coding (:mod:`sim.sites`; I-80's by default, as in simulated runs).
+
+    Raises:
+        TrajectoryFormatError: see :func:`find_merges`; duplicate (Vehicle_ID, Frame_ID) rows.
+    """
     _check(table)
-    merges = find_merges(table)
+    merges = find_merges(table, site=site)
     if merges.empty:
         return Encounters(_empty(ENCOUNTER_COLUMNS), _empty(MERGE_COLUMNS))
     vid = table["Vehicle_ID"].to_numpy(np.int64)
@@ -126,7 +145,7 @@ def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow())
     first_frame = pd.Series(frame).groupby(vid).min()
 
     # lane-6 rows sorted by (frame, Local_Y): A/C lookups with searchsorted
-    r6 = np.flatnonzero(lane == RIGHTMOST_MAIN_LANE)
+    r6 = np.flatnonzero(lane == site.merge_lane)
     r6 = r6[np.lexsort((y[r6], frame[r6]))]
     f6 = frame[r6]
 
@@ -176,6 +195,7 @@ def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow())
     return Encounters(frames_df, merges_df)
 
 
-def extract_encounters(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow()) -> pd.DataFrame:
+def extract_encounters(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),
+                       site: SiteProfile = I80) -> pd.DataFrame:
     """The per-frame encounter table (ENCOUNTER_COLUMNS) of every merge in ``table``."""
-    return extract(table, window=window).frames
+    return extract(table, window=window, site=site).frames

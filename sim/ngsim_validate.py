@@ -73,12 +73,14 @@ class ChunkValidator:
     def _fail(self, line: int, column: str, msg: str) -> TrajectoryFormatError:
         return TrajectoryFormatError(f"{self.path}: line {line}, column {column}: {msg}")
 
-    def check(self, data: np.ndarray, lines: np.ndarray) -> np.ndarray:
+    def check(self, data: np.ndarray, lines: np.ndarray, *, order: bool = True) -> np.ndarray:
         """Validate one chunk; return a keep mask (False for exact duplicate rows).
 
         Args:
             data: float64[18, N], one row per NGSIM column in schema order.
             lines: int64[N], the 1-based file line of every row.
+            order: also check frame order, duplicates and gaps per vehicle (False: values
+                only, nothing is tallied; for files read unsorted, checked after sorting).
         Returns:
             bool[N], True for rows to keep.
         """
@@ -114,6 +116,8 @@ class ChunkValidator:
             if (col < 0).any():
                 r = int(np.argmax(col < 0))
                 raise self._fail(int(lines[r]), c, f"negative {c} {col[r]}; expected a length >= 0 ft")
+        if not order:
+            return keep
         self._check_order(data, lines, keep)
         t = self.totals
         t.rows += n

@@ -85,10 +85,11 @@ def _rows(n: int = 3, vid: int = 1, lane: int = 2) -> list[str]:
         (lambda r: r.__setitem__(2, r[2].replace(",30.0,", ",,")), 4, "v_Vel", "missing value"),
         (lambda r: r.__setitem__(1, r[1].replace(",15.0,", ",-15.0,")), 3, "v_Length", "negative"),
         (lambda r: r.__setitem__(0, r[0].replace(",2,30.0", ",2.5,30.0")), 2, "v_Class", "not an integer"),
-        (lambda r: r.insert(3, r[0]), 5, "Frame_ID", "comes after"),
+        (lambda r: r.insert(3, r[0].replace(",30.0,", ",31.0,")), 5, "v_Vel", "appears again"),
         (lambda r: r.append(r[2].replace(",30.0,", ",31.0,")), 5, "v_Vel", "appears again"),
     ],
-    ids=["non-numeric", "missing-value", "negative-length", "non-integer-class", "frame-order", "duplicate-frame"],
+    ids=["non-numeric", "missing-value", "negative-length", "non-integer-class", "late-conflicting-frame",
+         "duplicate-frame"],
 )
 def test_bad_input_named_error(tmp_path: Path, mutate, line: int, column: str, words: str) -> None:
     rows = _rows(3)

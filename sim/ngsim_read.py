@@ -39,7 +39,7 @@ from sim.errors import TrajectoryFormatError
 from sim.ngsim_format import NGSIM_COLUMNS, canonical_name
 from sim.ngsim_recordings import RecordingTally, choose_location, choose_recording, normalise_location
 from sim.ngsim_smooth import SmoothingConfig, jerk_rms, smooth_table
-from sim.ngsim_validate import ChunkValidator
+from sim.ngsim_validate import ChunkValidator, check_kinematic_units
 from sim.schema import COLUMNS
 
 _COL = {c: i for i, c in enumerate(NGSIM_COLUMNS)}
@@ -441,6 +441,8 @@ def _read_pass(path, layout, location, recording, lanes, frames, vehicles, chunk
         del data
     validator.check_units()
     table = _sorted(_assemble(parts))
+    check_kinematic_units(*(table[c].to_numpy() for c in (
+        "Vehicle_ID", "Frame_ID", "Lane_ID", "Local_X", "Local_Y", "v_Vel")), str(path))
     return table, validator, rows_read, chunks, rec
 
 

@@ -188,6 +188,7 @@ def test_smoothing_reduces_acceleration_noise(tmp_path: Path) -> None:
     t = synthetic_table(1, n)
     t["Frame_ID"] = fr
     t["Local_Y"] = y_true + rng.normal(0, 0.05, n)
+    t["v_Vel"] = 20 + 2.0 * tt  # consistent with Local_Y (the reader checks units kinematically)
     t["v_Acc"] = 2.0 + rng.normal(0, 4.0, n)
     p = write_ngsim_csv(t, tmp_path / "noisy.csv", precision="exact")
     load = read_ngsim(p, smooth=SmoothingConfig(window_frames=31, polyorder=2))

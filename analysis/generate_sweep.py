@@ -89,6 +89,9 @@ def generate_one(config: GenerateRun, seed: int) -> dict:
         "n_rows": int(sim.n_vehicle_steps),
         "n_merges": int(len(res.encounters.merges)),
         "n_encounter_frames": int(len(res.encounters.frames)),
+        **{k: sim.events.as_dict()[k] for k in ("requested_veh_h", "served_veh_h", "insertion_backlog", "teleports",
+                                                "collisions")},
+        "warnings": sim.events.warnings(),
         "files": [p.name for p in res.files],
         "sim_wall_time_s": float(sim.wall_time_s),
         "table_sha256": table_checksum(sim.table),
@@ -143,8 +146,8 @@ def write_summary(report: SweepReport, path: str | Path) -> Path:
     """``sweep.csv``: one line per finished run, in task order (atomic write)."""
     from sim.outputs import write_atomic
 
-    cols = ["run", "seed", "demand_scale", "n_vehicles", "n_rows", "n_merges", "n_encounter_frames",
-            "sim_wall_time_s", "table_sha256", "out_dir"]
+    cols = ["run", "seed", "demand_scale", "requested_veh_h", "served_veh_h", "insertion_backlog", "teleports",
+            "collisions", "n_vehicles", "n_rows", "n_merges", "n_encounter_frames", "sim_wall_time_s", "table_sha256", "out_dir"]
     rows = [{c: r.get(c) for c in cols} for r in report.results.values()]
     table = pd.DataFrame(rows, columns=cols)
     return write_atomic(path, lambda p: table.to_csv(p, index=False))

@@ -27,13 +27,14 @@ its ramp lanes for 7, its merge lane for 6; unknown lane codes are an error):
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
 from sim.errors import TrajectoryFormatError
-from sim.schema import V_CLASS_TRUCK
+from sim.schema import FRAME_S, V_CLASS_TRUCK
 from sim.sites import I80, SiteProfile, check_lanes
 
 #: Columns of the per-frame encounter table, in order.
@@ -74,12 +75,61 @@ class EncounterWindow:
             raise ValueError(f"EncounterWindow.frames_after must be >= 0, got {self.frames_after}")
 
 
+#: A merge whose B moves this much more (ft) than its speed explains, between its last row
+#: before the merge frame and the merge frame, is a jump (a SUMO teleport), not a merge.
+MAX_MERGE_JUMP_FT = 10.0
+
+#: Columns of the table of merges left out (``Encounters.excluded``).
+EXCLUDED_COLUMNS: dict[str, str] = {"B_id": "int64", "merge_frame": "int64", "reason": "object"}
+
+
 @dataclass(frozen=True)
 class Encounters:
-    """``frames``: one row per encounter frame (ENCOUNTER_COLUMNS); ``merges``: one row per B."""
+    """``frames``: one row per encounter frame (ENCOUNTER_COLUMNS); ``merges``: one row per B;
+    ``excluded``: merges left out (EXCLUDED_COLUMNS: teleported B, position jump at the merge)."""
 
     frames: pd.DataFrame
     merges: pd.DataFrame
+    excluded: pd.DataFrame = None  # type: ignore[assignment]  # set in __post_init__
+
+    def __post_init__(self) -> None:
+        if self.excluded is None:
+            object.__setattr__(self, "excluded", _empty(EXCLUDED_COLUMNS))
+
+
+def screen_merges(table: pd.DataFrame, merges: pd.DataFrame,
+                  teleported: Collection[int] = ()) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Split ``merges`` (``B_id, merge_frame``) into real merges and non-physical ones.
+
+    A merge is left out when B is in ``teleported`` (Vehicle_IDs SUMO reported as teleported)
+    or when, between B's last row before the merge frame and the merge frame, ``Local_Y``
+    moves more than :data:`MAX_MERGE_JUMP_FT` beyond what ``v_Vel`` explains (trapezoid rule,
+    0.1 s frames): a vehicle put ahead without driving, as SUMO's jam teleport does.
+
+    Returns:
+        (kept merges, same columns; excluded, EXCLUDED_COLUMNS).
+    """
+    if merges.empty:
+        return merges, _empty(EXCLUDED_COLUMNS)
+    vid = table["Vehicle_ID"].to_numpy(np.int64)
+    frame = table["Frame_ID"].to_numpy(np.int64)
+    o = np.lexsort((frame, vid))
+    sv, sf = vid[o], frame[o]
+    y = table["Local_Y"].to_numpy(np.float64)[o]
+    v = table["v_Vel"].to_numpy(np.float64)[o]
+    b = merges["B_id"].to_numpy(np.int64)
+    mf = merges["merge_frame"].to_numpy(np.int64)
+    pos = pd.MultiIndex.from_arrays([sv, sf]).get_indexer(pd.MultiIndex.from_arrays([b, mf]))
+    prev = np.maximum(pos - 1, 0)
+    has_prev = (pos > 0) & (sv[prev] == b)
+    expected = (v[pos] + v[prev]) * 0.5 * (sf[pos] - sf[prev]) * FRAME_S
+    jump = np.where(has_prev, np.abs(y[pos] - y[prev] - expected), 0.0)
+    tele = np.isin(b, np.fromiter(teleported, dtype=np.int64)) if len(teleported) else np.zeros(len(b), bool)
+    bad = tele | (jump > MAX_MERGE_JUMP_FT)
+    reasons = [("teleported (SUMO's list)" if t else f"Local_Y jumps {j:.1f} ft beyond what v_Vel explains at the merge")
+               for t, j in zip(tele[bad], jump[bad])]
+    excluded = pd.DataFrame({"B_id": b[bad], "merge_frame": mf[bad], "reason": reasons}).astype(EXCLUDED_COLUMNS)
+    return merges.loc[~bad].reset_index(drop=True), excluded
 
 
 def _empty(cols: dict[str, str]) -> pd.DataFrame:
@@ -119,18 +169,20 @@ def find_merges(table: pd.DataFrame, *, site: SiteProfile = I80) -> pd.DataFrame
 
 
 def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),
-            site: SiteProfile = I80) -> Encounters:
+            site: SiteProfile = I80, teleported: Collection[int] = ()) -> Encounters:
     """Every merge of ``table`` with its A and C, and the per-frame encounter variables.
 
     ``site``: the lane coding (:mod:`sim.sites`; I-80's by default, as in simulated runs).
+    ``teleported``: Vehicle_IDs SUMO teleported; their merges, and merges with a position jump,
+    are left out (listed in ``excluded``, see :func:`screen_merges`).
 
     Raises:
         TrajectoryFormatError: see :func:`find_merges`; duplicate (Vehicle_ID, Frame_ID) rows.
     """
     _check(table)
-    merges = find_merges(table, site=site)
+    merges, excluded = screen_merges(table, find_merges(table, site=site), teleported)
     if merges.empty:
-        return Encounters(_empty(ENCOUNTER_COLUMNS), _empty(MERGE_COLUMNS))
+        return Encounters(_empty(ENCOUNTER_COLUMNS), _empty(MERGE_COLUMNS), excluded)
     vid = table["Vehicle_ID"].to_numpy(np.int64)
     frame = table["Frame_ID"].to_numpy(np.int64)
     lane = table["Lane_ID"].to_numpy(np.int64)
@@ -192,7 +244,7 @@ def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),
     frames_df = pd.concat(chunks, ignore_index=True) if chunks else _empty(ENCOUNTER_COLUMNS)
     frames_df = frames_df.astype(ENCOUNTER_COLUMNS).loc[:, list(ENCOUNTER_COLUMNS)]
     merges_df = pd.DataFrame(summary, columns=list(MERGE_COLUMNS)).astype(MERGE_COLUMNS)
-    return Encounters(frames_df, merges_df)
+    return Encounters(frames_df, merges_df, excluded)
 
 
 def extract_encounters(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),

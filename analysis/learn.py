@@ -13,6 +13,7 @@ Example::
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 import os
 from pathlib import Path
 
@@ -94,7 +95,7 @@ def saved_model(fit: FitResult, problem: Problem, *, seed: int, source: str = ""
 def learn(
     method: str,
     domain: str,
-    demos_path: str | os.PathLike,
+    demos_path: str | os.PathLike | Sequence[str | os.PathLike],
     *,
     config: IRLConfig | None = None,
     seed: int = 0,
@@ -115,8 +116,8 @@ def learn(
     problem = load_problem(domain, demos_path, noise=noise, baseline_path=baseline_path, bins=bins, dt=dt)
     result = fit_problem(problem, method, config, seed, progress=progress, epsilon=epsilon)
     if not math.isfinite(result.loglik):
-        raise ConvergenceError(f"{method} on {demos_path}: the fit failed ({result.message}); no model written")
-    model = saved_model(result, problem, seed=seed, source=str(Path(demos_path)))
+        raise ConvergenceError(f"{method} on {problem.name}: the fit failed ({result.message}); no model written")
+    model = saved_model(result, problem, seed=seed, source=problem.name)
     if out is not None:
         model.save(out)
     return model

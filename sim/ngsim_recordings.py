@@ -39,7 +39,7 @@ class Recording:
     rows: int
 
     def describe(self) -> str:
-        start = (_dt.datetime.fromtimestamp(self.first_time_ms / 1000.0, _dt.timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
+        start = (_dt.datetime.fromtimestamp(self.first_time_ms / 1000.0, _dt.UTC).strftime("%Y-%m-%d %H:%M:%S UTC")
                  if self.first_time_ms >= _EPOCH_MS else f"Global_Time {self.first_time_ms:.0f} ms")
         return (f"#{self.number}: frames {self.first_frame}-{self.last_frame} from {start}, "
                 f"{self.rows} rows")

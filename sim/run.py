@@ -284,6 +284,7 @@ def _simulate(spec, net, routes, hooks, progress, work_dir):
     collisions: list[tuple[float, str]] = []
     emergency: list[tuple[float, str]] = []
     departed = backlog = 0
+    ok = False  # set once every step ran: hooks then commit their outputs
     simulation = ls.simulation
     try:
         _, lane_shapes = _lane_tables(ls, spec)
@@ -365,6 +366,7 @@ def _simulate(spec, net, routes, hooks, progress, work_dir):
                 h.on_step(ctx, fs)
         departed = len(depart_seq)
         backlog = len(simulation.getPendingVehicles())
+        ok = True
     except (KeyboardInterrupt, SimulationError):
         raise
     except (ls.TraCIException, ls.FatalTraCIError) as e:
@@ -373,7 +375,8 @@ def _simulate(spec, net, routes, hooks, progress, work_dir):
         try:
             if ctx is not None:
                 for h in started_hooks:
-                    h.on_end(ctx)
+                    # an aborted run (error, Ctrl-C) must not publish outputs: on_abort if defined
+                    (getattr(h, "on_abort", h.on_end) if not ok else h.on_end)(ctx)
         finally:
             if bar is not None:
                 bar.close()

@@ -15,6 +15,7 @@ import pytest
 
 from analysis.cli import main as cli
 from analysis.problem import load_merge_demos
+from analysis.rerun_log import RerunLogger
 from irl import merge_mdp
 from scenarios.loader import load_scenario
 from sim.encounters import extract
@@ -323,3 +324,37 @@ def test_unserved_demand_reported_and_warned() -> None:
     assert ev.demand_shortfall > 0.05
     assert any("served demand" in w and "still waiting" in w for w in ev.warnings())
     assert ev.as_dict()["insertion_backlog"] == ev.backlog
+
+
+# --- kind 8: an aborted run publishes nothing -------------------------------------------------
+
+class _Boom:
+    """A step hook that fails after a few frames."""
+
+    def __init__(self, after: int) -> None:
+        self.after, self.seen = after, 0
+
+    def on_start(self, ctx) -> None:
+        pass
+
+    def on_step(self, ctx, frame) -> None:
+        self.seen += 1
+        if self.seen == self.after:
+            raise RuntimeError("hook failed")
+
+    def on_end(self, ctx) -> None:
+        pass
+
+
+@pytest.mark.sumo
+def test_aborted_run_leaves_no_final_rrd(tmp_path: Path) -> None:
+    path = tmp_path / "run.rrd"
+    path.write_bytes(b"old run")  # a previous run's file must not survive as this run's
+    spec = load_scenario("synthetic")
+    with pytest.raises(RuntimeError, match="hook failed"):
+        run_scenario(spec, duration_s=spec.simulation.warmup_s + 3.0, hooks=[RerunLogger(path), _Boom(10)])
+    assert not path.exists()
+    assert (tmp_path / "run.rrd.partial").exists()
+    # the same run without the failure publishes its file
+    run_scenario(spec, duration_s=spec.simulation.warmup_s + 3.0, hooks=[RerunLogger(path)])
+    assert path.exists() and not (tmp_path / "run.rrd.partial").exists()

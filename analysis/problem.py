@@ -9,6 +9,7 @@ each domain (``gridworld``, ``merge``, ``npz``).
 from __future__ import annotations
 
 import os
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -108,6 +109,8 @@ def load_merge_demos(path: str | os.PathLike | Sequence[str | os.PathLike],
         raise DemonstrationError(f"{text[0]}: several demonstration sources must all be encounter tables "
                                  "(.parquet/.csv); the authors' text format is read alone")
     tables = [merge_mdp.read_encounters(p) for p in paths]
+    for p, t in zip(paths, tables):
+        _warn_raw_accelerations(t, p)
     where = ", ".join(str(p) for p in paths)
     bins = bins or merge_mdp.fit_quantile_bins(pd.concat(tables, ignore_index=True) if len(tables) > 1
                                                else tables[0], where=where)
@@ -119,6 +122,28 @@ def load_merge_demos(path: str | os.PathLike | Sequence[str | os.PathLike],
         first, states=tuple(s for d in parts for s in d.states), actions=tuple(a for d in parts for a in d.actions),
         source=where, names=tuple(f"{p}: {n}" for p, d in zip(paths, parts) for n in d.names),
     ), bins
+
+
+#: NGSIM's acceleration cap (ft/s^2) and the share of rows at it that marks raw accelerations.
+_NGSIM_ACC_CAP = 11.2
+RAW_ACC_CAP_SHARE = 0.01
+
+
+class RawAccelerationWarning(UserWarning):
+    """Encounters whose acc_A looks like NGSIM's raw, unsmoothed v_Acc."""
+
+
+def _warn_raw_accelerations(table: pd.DataFrame, path: Path) -> None:
+    """Warn when more than :data:`RAW_ACC_CAP_SHARE` of ``acc_A`` sits at NGSIM's +-11.2 cap."""
+    if "acc_A" not in table.columns or len(table) == 0:
+        return
+    acc = pd.to_numeric(table["acc_A"], errors="coerce").to_numpy(dtype=np.float64)
+    share = float(np.mean(np.abs(np.abs(acc) - _NGSIM_ACC_CAP) < 0.005))
+    if share > RAW_ACC_CAP_SHARE:
+        warnings.warn(
+            f"{path}: column acc_A: {share:.0%} of rows at NGSIM's +-11.2 ft/s^2 cap: raw, unsmoothed "
+            "accelerations, whose noise becomes the action labels (hard brake / hard accel); extract the "
+            "encounters with `merge-irl encounters --smooth`", RawAccelerationWarning, stacklevel=3)
 
 
 def load_problem(

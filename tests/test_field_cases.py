@@ -6,6 +6,7 @@ the command line, invisible bytes, units, SUMO's teleports and unserved demand."
 from __future__ import annotations
 
 import dataclasses
+import json
 import tomllib
 from pathlib import Path
 
@@ -14,9 +15,10 @@ import pandas as pd
 import pytest
 
 from analysis.cli import main as cli
-from analysis.problem import load_merge_demos
+from analysis.problem import RawAccelerationWarning, load_merge_demos
 from analysis.rerun_log import RerunLogger
 from irl import merge_mdp
+from irl.errors import DemonstrationError
 from scenarios.loader import load_scenario
 from sim.encounters import extract
 from sim.errors import TrajectoryFormatError
@@ -112,8 +114,19 @@ def test_cli_location_and_ambiguous_exit_2(tmp_path: Path, capsys) -> None:
     assert m[["B_id", "A_id", "C_id", "n_frames"]].values.tolist() == [[20, 10, 11, 71]]
 
 
+def _varied_frames(n_enc: int = 10, n: int = 20, seed: int = 12) -> pd.DataFrame:
+    """An encounter table with spread in every variable: ``n_enc`` encounters of ``n`` frames."""
+    rng = np.random.default_rng(seed)
+    m = n_enc * n
+    return pd.DataFrame({
+        "encounter_id": np.repeat(np.arange(1, n_enc + 1), n), "Frame_ID": np.tile(np.arange(1000, 1000 + n), n_enc),
+        "d_AC": rng.uniform(10, 200, m), "d_AB": rng.uniform(-50, 50, m), "v_AC": rng.normal(0, 5, m),
+        "v_AB": rng.normal(0, 5, m), "B_is_truck": rng.random(m) < 0.1, "acc_A": rng.normal(0, 2, m),
+    })
+
+
 def test_several_demo_tables_keep_encounters_apart(tmp_path: Path) -> None:
-    frames = extract(_i80()).frames
+    frames = _varied_frames(1, 71)
     a, b = tmp_path / "a.parquet", tmp_path / "b.parquet"
     frames.to_parquet(a)
     frames.to_parquet(b)
@@ -358,3 +371,33 @@ def test_aborted_run_leaves_no_final_rrd(tmp_path: Path) -> None:
     # the same run without the failure publishes its file
     run_scenario(spec, duration_s=spec.simulation.warmup_s + 3.0, hooks=[RerunLogger(path)])
     assert path.exists() and not (tmp_path / "run.rrd.partial").exists()
+
+
+# --- kind 9: degenerate encounter columns are named, not binned silently ----------------------
+
+def test_constant_column_refused_and_ties_warned() -> None:
+    frames = _varied_frames()
+    merge_mdp.fit_quantile_bins(frames)  # varied data: no error
+    const = frames.assign(v_AC=0.0)
+    with pytest.raises(DemonstrationError, match=r"column 'v_AC': all 200 rows are 0"):
+        merge_mdp.fit_quantile_bins(const, where="const.parquet")
+    tied = frames.copy()
+    tied.loc[tied.index[: int(0.7 * len(tied))], "v_AB"] = 1.5  # 70 % ties: edges coincide
+    with pytest.warns(merge_mdp.DegenerateBinsWarning, match=r"column 'v_AB': .* coincide"):
+        merge_mdp.fit_quantile_bins(tied, where="tied.parquet")
+
+
+def test_learn_cli_several_demos_and_raw_acceleration_warning(tmp_path: Path, capsys) -> None:
+    a, b = tmp_path / "a.parquet", tmp_path / "b.parquet"
+    _varied_frames(5, 30, 1).to_parquet(a)
+    _varied_frames(5, 30, 2).to_parquet(b)
+    out = tmp_path / "m.json"
+    assert cli(["learn", "--method", "qavg", "--domain", "merge", "--demos", str(a), "--demos", str(b),
+                "--out", str(out), "--no-progress"]) == 0
+    info = json.loads(out.read_text())["info"]
+    assert info["n_trajectories"] == 10 and str(a) in info["demos"] and str(b) in info["demos"]
+    # raw NGSIM accelerations (at the +-11.2 cap) as action labels: a warning naming the column
+    raw = tmp_path / "raw.parquet"
+    cli(["encounters", str(NOISY / "noisy_with_dups.csv"), "--out", str(raw)])
+    with pytest.warns(RawAccelerationWarning, match=r"raw\.parquet: column acc_A: .* cap"):
+        load_merge_demos(raw, None)

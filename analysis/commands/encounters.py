@@ -78,6 +78,8 @@ def run(args: argparse.Namespace) -> int:
                   "reads as hard braking and accelerating; rerun with --smooth", file=sys.stderr)
     print(f"{len(enc.merges)} merges, {int((enc.merges['A_id'] != 0).sum())} with a lag car, "
           f"{len(enc.frames)} encounter frames", file=sys.stderr)
+    for r in enc.excluded.itertuples(index=False):
+        print(f"left out: B {r.B_id} at frame {r.merge_frame}: {r.reason}", file=sys.stderr)
     for w in written:
         print(w)
     return 0

@@ -394,12 +394,12 @@ def _read_pass(path, layout, location, recording, lanes, frames, vehicles, chunk
             n = data.shape[1]
             lines = np.arange(n, dtype=np.int64) + rows_read + layout.header_lines + 1
             if locs is not None:
-                norm = np.array([normalise_location("" if v is None else v) for v in locs], dtype=object)
-                u, c = np.unique(norm.astype(str), return_counts=True)
-                for k, m in zip(u.tolist(), c.tolist()):
+                codes, uniq = pd.factorize(locs, use_na_sentinel=False)  # hashing in C: few sites
+                names = [normalise_location("" if v is None or v != v else v) for v in uniq]
+                for k, m in zip(names, np.bincount(codes, minlength=len(names)).tolist()):
                     loc_counts[k] = loc_counts.get(k, 0) + m
                 if target is not None:
-                    sel = norm == target
+                    sel = np.isin(codes, [i for i, k in enumerate(names) if k == target])
                     data, lines = data[:, sel], lines[sel]
             off = tally.add(data[_COL["Frame_ID"]], data[_COL["Global_Time"]])
             if ordered:

@@ -57,12 +57,16 @@ class RecordingTally:
         off = global_time - 100.0 * frame
         if off.size == 0:
             return off
-        u, inv = np.unique(off, return_inverse=True)
-        fmin = np.full(u.size, np.inf)
-        fmax = np.full(u.size, -np.inf)
-        np.minimum.at(fmin, inv, frame)
-        np.maximum.at(fmax, inv, frame)
-        cnt = np.bincount(inv, minlength=u.size)
+        lo, hi = off.min(), off.max()
+        if lo == hi:  # the usual case: one recording, exact 100 ms frames
+            u, fmin, fmax, cnt = np.array([lo]), np.array([frame.min()]), np.array([frame.max()]), np.array([off.size])
+        else:
+            u, inv = np.unique(off, return_inverse=True)
+            fmin = np.full(u.size, np.inf)
+            fmax = np.full(u.size, -np.inf)
+            np.minimum.at(fmin, inv, frame)
+            np.maximum.at(fmax, inv, frame)
+            cnt = np.bincount(inv, minlength=u.size)
         for o, lo, hi, c in zip(u.tolist(), fmin.tolist(), fmax.tolist(), cnt.tolist()):
             s = self._stats.get(o)
             if s is None:

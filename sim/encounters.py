@@ -28,7 +28,7 @@ its ramp lanes for 7, its merge lane for 6; unknown lane codes are an error):
 from __future__ import annotations
 
 from collections.abc import Collection
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -76,8 +76,11 @@ class EncounterWindow:
 
 
 #: A merge whose B moves this much more (ft) than its speed explains, between its last row
-#: before the merge frame and the merge frame, is a jump (a SUMO teleport), not a merge.
+#: before the merge frame and the merge frame, is a jump (a SUMO teleport), not a merge. Over a
+#: gap of dt seconds (missing frames) the allowance grows by what NGSIM's largest acceleration
+#: (11.2 ft/s^2) can make the trapezoid rule miss, 11.2 * dt^2 / 4.
 MAX_MERGE_JUMP_FT = 10.0
+_MAX_ACC_FT_S2 = 11.2
 
 #: Columns of the table of merges left out (``Encounters.excluded``).
 EXCLUDED_COLUMNS: dict[str, str] = {"B_id": "int64", "merge_frame": "int64", "reason": "object"}
@@ -90,11 +93,7 @@ class Encounters:
 
     frames: pd.DataFrame
     merges: pd.DataFrame
-    excluded: pd.DataFrame = None  # type: ignore[assignment]  # set in __post_init__
-
-    def __post_init__(self) -> None:
-        if self.excluded is None:
-            object.__setattr__(self, "excluded", _empty(EXCLUDED_COLUMNS))
+    excluded: pd.DataFrame = field(default_factory=lambda: _empty(EXCLUDED_COLUMNS))
 
 
 def screen_merges(table: pd.DataFrame, merges: pd.DataFrame,
@@ -108,6 +107,9 @@ def screen_merges(table: pd.DataFrame, merges: pd.DataFrame,
 
     Returns:
         (kept merges, same columns; excluded, EXCLUDED_COLUMNS).
+
+    Raises:
+        TrajectoryFormatError: duplicate (Vehicle_ID, Frame_ID) rows.
     """
     if merges.empty:
         return merges, _empty(EXCLUDED_COLUMNS)
@@ -119,13 +121,17 @@ def screen_merges(table: pd.DataFrame, merges: pd.DataFrame,
     v = table["v_Vel"].to_numpy(np.float64)[o]
     b = merges["B_id"].to_numpy(np.int64)
     mf = merges["merge_frame"].to_numpy(np.int64)
-    pos = pd.MultiIndex.from_arrays([sv, sf]).get_indexer(pd.MultiIndex.from_arrays([b, mf]))
+    idx = pd.MultiIndex.from_arrays([sv, sf])
+    if not idx.is_unique:
+        raise TrajectoryFormatError("trajectory table: duplicate (Vehicle_ID, Frame_ID) rows")
+    pos = idx.get_indexer(pd.MultiIndex.from_arrays([b, mf]))
     prev = np.maximum(pos - 1, 0)
     has_prev = (pos > 0) & (sv[prev] == b)
-    expected = (v[pos] + v[prev]) * 0.5 * (sf[pos] - sf[prev]) * FRAME_S
-    jump = np.where(has_prev, np.abs(y[pos] - y[prev] - expected), 0.0)
+    dt = (sf[pos] - sf[prev]) * FRAME_S
+    jump = np.where(has_prev, np.abs(y[pos] - y[prev] - (v[pos] + v[prev]) * 0.5 * dt), 0.0)
+    allowed = MAX_MERGE_JUMP_FT + _MAX_ACC_FT_S2 * dt * dt / 4.0
     tele = np.isin(b, np.fromiter(teleported, dtype=np.int64)) if len(teleported) else np.zeros(len(b), bool)
-    bad = tele | (jump > MAX_MERGE_JUMP_FT)
+    bad = tele | (jump > allowed)
     reasons = [("teleported (SUMO's list)" if t else f"Local_Y jumps {j:.1f} ft beyond what v_Vel explains at the merge")
                for t, j in zip(tele[bad], jump[bad])]
     excluded = pd.DataFrame({"B_id": b[bad], "merge_frame": mf[bad], "reason": reasons}).astype(EXCLUDED_COLUMNS)

@@ -401,15 +401,16 @@ def _read_pass(path, layout, location, recording, lanes, frames, vehicles, chunk
                 if target is not None:
                     sel = np.isin(codes, [i for i, k in enumerate(names) if k == target])
                     data, lines = data[:, sel], lines[sel]
-            off = tally.add(data[_COL["Frame_ID"]], data[_COL["Global_Time"]])
             if ordered:
                 try:
                     keep = validator.check(data, lines)
                 except TrajectoryFormatError as e:
                     raise _NeedsSorting(str(e)) from e
+                tally.add(data[_COL["Frame_ID"]], data[_COL["Global_Time"]])
                 parts.append(data[:, filters(data, keep)])  # a copy: ``data`` is reused
             else:
                 validator.check(data, lines, order=False)
+                off = tally.add(data[_COL["Frame_ID"]], data[_COL["Global_Time"]])
                 parts.append(data.copy())
                 line_parts.append(lines)
                 off_parts.append(off)

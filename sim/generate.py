@@ -20,11 +20,13 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from irl.atomic import write_text_atomic
 from scenarios.spec import ScenarioSpec
+from scenarios.spec_parse import with_overrides
 from scenarios.toml_write import dumps
 from sim.encounters import Encounters, EncounterWindow, extract
 from sim.hooks import StepHook
-from sim.outputs import write_parquet, write_text
+from sim.outputs import write_parquet
 from sim.run import SimulationResult, run_scenario
 
 TRAJECTORIES = "trajectories.parquet"
@@ -64,7 +66,7 @@ def generate(
 ) -> GenerateResult:
     """Simulate ``spec`` (optionally with another seed / duration) and write the output files."""
     if seed is not None or duration_s is not None:
-        spec = spec.with_overrides(seed=seed, duration_s=duration_s)
+        spec = with_overrides(spec, seed=seed, duration_s=duration_s)
     out = Path(out_dir) if out_dir is not None else default_out_dir(spec)
     out.mkdir(parents=True, exist_ok=True)
     for name in OUTPUT_FILES:
@@ -75,8 +77,8 @@ def generate(
         write_parquet(result.table, out / TRAJECTORIES),
         write_parquet(enc.frames, out / ENCOUNTERS),
         write_parquet(enc.merges, out / MERGES),
-        write_text(spec.to_toml(), out / SCENARIO),
-        write_text(run_report_toml(result, enc), out / RUN_REPORT),
+        write_text_atomic(out / SCENARIO, spec.to_toml()),
+        write_text_atomic(out / RUN_REPORT, run_report_toml(result, enc)),
     ]
     if csv:
         from sim.ngsim_io import write_ngsim_csv

@@ -95,6 +95,27 @@ def test_evaluate_writes_report_metrics_plots(tmp_path):
     for p in rep.plots:
         assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert set(rep.rrd) == set(names) and all(p.exists() for p in rep.rrd.values())
+    # each policy's recording is its own (the viewer would merge files sharing an id)
+    from analysis.rerun_log import recording_info
+
+    ids = {n: recording_info(p)["recording_id"] for n, p in rep.rrd.items()}
+    assert ids == {n: f"merge-irl/synthetic/{n}/seed3" for n in names}
+    # provenance: the model file of each policy, the scenario simulated, the versions
+    import hashlib
+
+    from analysis.provenance import package_version, text_digest
+    from scenarios.loader import load_scenario
+
+    prov = data["provenance"]
+    assert prov["models"] == {"qavg": {"path": str(model_path), "sha256": hashlib.sha256(model_path.read_bytes()).hexdigest()},
+                              "sumo": None, "uniform": None, "constant-high-brake": None}
+    assert prov["scenario_sha256"] == text_digest(load_scenario("synthetic").to_toml())
+    assert prov["merge_irl"] == package_version() and prov["inputs"] == {}  # demos given as a DataFrame
+    assert "## Provenance" in md and hashlib.sha256(model_path.read_bytes()).hexdigest() in md
+    # wall times are kept out of the results
+    assert "wall_time" not in rep.metrics_json.read_text()
+    timings = json.loads((tmp_path / "out" / "timings.json").read_text())
+    assert all(len(timings["episode_wall_time_s"][n]) == 2 for n in names)
 
 
 @pytest.mark.sumo
@@ -111,6 +132,14 @@ def test_evaluate_cli(tmp_path):
     assert "| model | 1 |" in r.stdout and "| sumo | 1 |" in r.stdout
     assert (out / "report.md").exists() and (out / "metrics.json").exists()
     assert not (out / "rerun").exists()
+    # a rerun (another executor, another folder) writes byte-identical results: no times in them
+    again = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--model", str(model_path), "--episodes", "1",
+                            "--duration", "100", "--baselines", "sumo", "--no-rrd", "--no-progress", "--seed", "5",
+                            "--executor", "serial", "--out", str(tmp_path / "ev2")],
+                           capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0, again.stderr
+    for name in ("metrics.json", "report.md"):
+        assert (out / name).read_bytes() == (tmp_path / "ev2" / name).read_bytes(), name
     bad = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--model", str(tmp_path / "nope.json"),
                           "--out", str(tmp_path / "x")], capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and "nope.json" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1

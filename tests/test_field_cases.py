@@ -15,11 +15,12 @@ import pandas as pd
 import pytest
 
 from analysis.cli import main as cli
-from analysis.problem import RawAccelerationWarning, load_merge_demos
 from analysis.rerun_log import RerunLogger
 from irl import merge_mdp
 from irl.errors import DemonstrationError
+from irl.problems import RawAccelerationWarning, load_merge_demos
 from scenarios.loader import load_scenario
+from scenarios.spec_parse import with_overrides
 from sim.encounters import extract
 from sim.errors import TrajectoryFormatError
 from sim.generate import RUN_REPORT, generate
@@ -329,7 +330,7 @@ def test_teleported_ramp_cars_yield_no_encounter(tmp_path: Path) -> None:
 
 @pytest.mark.sumo
 def test_unserved_demand_reported_and_warned() -> None:
-    spec = load_scenario("synthetic").with_overrides(demand_scale=3.0, duration_s=120.0)
+    spec = with_overrides(load_scenario("synthetic"), demand_scale=3.0, duration_s=120.0)
     ev = run_scenario(spec).events
     assert ev.requested_veh_h == pytest.approx(3 * (sum(load_scenario("synthetic").demand.main_veh_h)
                                                     + load_scenario("synthetic").demand.ramp_veh_h))
@@ -367,10 +368,12 @@ def test_aborted_run_leaves_no_final_rrd(tmp_path: Path) -> None:
     with pytest.raises(RuntimeError, match="hook failed"):
         run_scenario(spec, duration_s=spec.simulation.warmup_s + 3.0, hooks=[RerunLogger(path), _Boom(10)])
     assert not path.exists()
-    assert (tmp_path / "run.rrd.partial").exists()
+    partial = list(tmp_path.glob(".run.rrd*.partial"))
+    assert len(partial) == 1  # what was recorded stays under its temporary name
+    partial[0].unlink()
     # the same run without the failure publishes its file
     run_scenario(spec, duration_s=spec.simulation.warmup_s + 3.0, hooks=[RerunLogger(path)])
-    assert path.exists() and not (tmp_path / "run.rrd.partial").exists()
+    assert path.exists() and not list(tmp_path.glob("*.partial")) + list(tmp_path.glob(".*.partial"))
 
 
 # --- kind 9: degenerate encounter columns are named, not binned silently ----------------------

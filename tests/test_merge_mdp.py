@@ -8,10 +8,6 @@ import pytest
 from irl import merge_mdp as m
 from irl.errors import ConfigError, DemonstrationError
 
-from shared_data import DATA as SHARED_DATA
-
-DATA = SHARED_DATA / "railusm" / "merge_ngsim"
-
 
 def test_state_layout_round_trip():
     s = np.arange(m.N_STATES)
@@ -113,9 +109,8 @@ def test_kinematic_fallback():
     assert np.all(src // 625 == dst // 625)
 
 
-@pytest.mark.skipif(not DATA.is_dir(), reason="the authors' data is not on this machine")
-def test_authors_merge_trajectories_load():
-    d = m.load(DATA)
+def test_authors_merge_trajectories_load(railusm):
+    d = m.load(railusm / "merge_ngsim")
     assert d.n_trajectories == 12 and d.n_steps == 1197
     assert d.names[:3] == ("traj_0.txt", "traj_1.txt", "traj_2.txt") and d.names[-1] == "traj_11.txt"
     counts = np.bincount(np.concatenate(d.actions), minlength=5)

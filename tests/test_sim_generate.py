@@ -12,6 +12,7 @@ import pandas as pd
 import pytest
 
 from scenarios.loader import load_scenario
+from scenarios.spec_parse import with_overrides
 from sim.encounters import ENCOUNTER_COLUMNS, MERGE_COLUMNS
 from sim.generate import OUTPUT_FILES
 from sim.outputs import write_parquet
@@ -35,7 +36,7 @@ def test_generate_writes_outputs_and_spec(tmp_path):
     assert list(pd.read_parquet(out / "encounters.parquet").columns) == list(ENCOUNTER_COLUMNS)
     assert list(pd.read_parquet(out / "merges.parquet").columns) == list(MERGE_COLUMNS)
     used = load_scenario(out / "scenario.toml")
-    assert used == load_scenario("synthetic").with_overrides(seed=3, duration_s=100.0)
+    assert used == with_overrides(load_scenario("synthetic"), seed=3, duration_s=100.0)
     assert not [p for p in out.iterdir() if p.name.startswith(".")]
     # encounters from the saved table = the ones generate wrote
     r2 = cli(["encounters", str(out / "trajectories.parquet"), "--out", str(tmp_path / "e.parquet")], tmp_path / "cache")

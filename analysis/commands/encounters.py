@@ -2,16 +2,11 @@
 
 from __future__ import annotations
 
+# API imports sit inside the functions: `merge-irl --help` imports every command module (analysis/commands/__init__.py).
+# API imports sit inside the functions: `merge-irl --help` imports every command module (analysis/commands/__init__.py).
 import argparse
 import sys
 from pathlib import Path
-
-from sim.encounters import EncounterWindow, extract
-from sim.errors import TrajectoryFormatError
-from sim.ngsim_io import read_ngsim, read_trajectories
-from sim.ngsim_smooth import SmoothingConfig
-from sim.outputs import write_parquet, write_text
-from sim.sites import I80, SITES, load_site
 
 #: RMS jerk (ft/s^3) above which unsmoothed accelerations are taken as raw measurement noise.
 RAW_JERK_FT_S3 = 30.0
@@ -34,7 +29,7 @@ def register(subparsers) -> None:
     p.add_argument("--recording", type=int, default=None, metavar="N",
                    help="NGSIM files holding several recordings (Global_Time jumps): keep recording N")
     p.add_argument("--site", default=None, metavar="NAME|FILE.toml",
-                   help=f"lane coding: {', '.join(sorted(SITES))} or a TOML lane mapping (default: the "
+                   help="lane coding: i-80, us-101 (built in, sim.sites) or a TOML lane mapping (default: the "
                         "--location site if built in, else i-80)")
     p.add_argument("--smooth", action="store_true",
                    help="NGSIM files: smooth positions and recompute speeds and accelerations (Savitzky-Golay)")
@@ -42,6 +37,14 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from irl.atomic import write_text_atomic
+    from sim.encounters import EncounterWindow, extract
+    from sim.errors import TrajectoryFormatError
+    from sim.ngsim_io import read_ngsim, read_trajectories
+    from sim.ngsim_smooth import SmoothingConfig
+    from sim.outputs import write_parquet
+    from sim.sites import I80, SITES, load_site
+
     if args.max_frames_before is not None and args.max_frames_before < 0:
         raise TrajectoryFormatError(f"--max-frames-before: must be >= 0, got {args.max_frames_before}")
     if args.frames_after < 0:
@@ -71,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
     if report is not None:
         text = report.summary() + f"\n  site lane coding: {site.describe()}\n"
         print(text, end="", file=sys.stderr)
-        written.append(write_text(text, out.with_name(out.stem + ".load-report.txt")))
+        written.append(write_text_atomic(out.with_name(out.stem + ".load-report.txt"), text))
         if report.smoothing == "none" and (report.acc_saturated_rows or report.jerk_rms_ft_s3 > RAW_JERK_FT_S3):
             print(f"warning: acc_A is the file's raw, unsmoothed v_Acc ({report.acc_saturated_rows} rows at the "
                   f"+-11.2 ft/s^2 cap, RMS jerk {report.jerk_rms_ft_s3:.1f} ft/s^3): as action labels this noise "

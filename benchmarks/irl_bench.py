@@ -1,6 +1,6 @@
 """IRL benchmark: ``faithful`` vs ``exact`` time per trial and final log-likelihood.
 
-    python -m analysis.benchmarks.irl_bench [--data DIR] [--trials 3] [--grid-outer 50]
+    python -m benchmarks.irl_bench [--data DIR] [--trials 3] [--grid-outer 50]
                                             [--ngsim-outer 3] [--markdown FILE]
 
 For each data set (gridworld 0 %, gridworld 10 %, NGSIM merge), each method and both settings
@@ -27,12 +27,11 @@ from pathlib import Path
 import numpy as np
 
 from analysis.learn import fit_problem
-from analysis.problem import Problem
-from analysis.reproduce import table_problem
-from analysis.trials import trial_seeds
+from analysis.trials import table_problem, trial_seeds
 from irl.config import IRLConfig
+from irl.fit import METHODS
+from irl.problems import Problem
 
-METHODS = ("qavg", "qsm", "mlirl", "reirl")
 DATASETS = {1: "grid 0%", 2: "grid 10%", 3: "NGSIM"}
 #: Targets for one exact trial (seconds) by (method, is_ngsim).
 TARGETS = {("qavg", False): 0.05, ("qavg", True): 0.05, ("qsm", False): 1.0, ("qsm", True): 10.0,
@@ -149,7 +148,7 @@ def markdown(rows: list[dict], trials: int) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m analysis.benchmarks.irl_bench", description=__doc__,
+    p = argparse.ArgumentParser(prog="python -m benchmarks.irl_bench", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--data", default=os.environ.get("MERGE_IRL_RAILUSM", "../shared/data/railusm"),
                    help="the authors' data directory (gridworld/, merge_ngsim/)")

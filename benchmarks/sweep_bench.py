@@ -6,8 +6,8 @@ Dask overhead ``dask-local:2 / process:2``, the total time of the whole reproduc
 (target < 5 min with the paper's trial counts and the held-out folds), and where the time goes
 (summed trial time per table and method, e.g. exact Q-SM on the NGSIM table).
 
-    python -m analysis.benchmarks.sweep_bench                      # paper counts 30/30/10 + folds
-    python -m analysis.benchmarks.sweep_bench --trials 3 --no-holdout   # quick variant
+    python -m benchmarks.sweep_bench                      # paper counts 30/30/10 + folds
+    python -m benchmarks.sweep_bench --trials 3 --no-holdout   # quick variant
 
 Every executor must give the same tables (checked here: trial by trial).
 """

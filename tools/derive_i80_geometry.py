@@ -2,7 +2,7 @@
 
 One-off script (kept so the numbers can be re-derived and checked):
 
-    python -m analysis.scripts.derive_i80_geometry ../shared/data/i80_geometry \
+    python -m tools.derive_i80_geometry ../shared/data/i80_geometry \
         --out scenarios/data/i80_geometry.toml
 
 Input: NGSIM.jl's I-80 files (MIT licence; point lists in NGSIM global coordinates, feet):
@@ -27,11 +27,11 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
+
+from irl.atomic import write_text_atomic
 
 FT_TO_M = 0.3048
 
@@ -131,7 +131,7 @@ def to_toml(g: dict, source: str) -> str:
                                      "aux_length_ft", "lane_width_ft")}
     lines = [
         "# I-80 (Emeryville, NGSIM study area) road geometry, derived by",
-        "# analysis/scripts/derive_i80_geometry.py from NGSIM.jl's I-80 lane geometry (MIT).",
+        "# tools/derive_i80_geometry.py from NGSIM.jl's I-80 lane geometry (MIT).",
         f"# Source: {source}. Stations along lane 6's centerline, origin at the on-ramp's upstream end.",
         "",
         "[derived_ft]",
@@ -156,13 +156,10 @@ def to_toml(g: dict, source: str) -> str:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("data_dir", type=Path, help="folder with ngsimjl_centerlines80.txt and ngsimjl_boundaries80.txt")
-    ap.add_argument("--out", type=Path, default=Path(__file__).resolve().parents[2] / "scenarios" / "data" / "i80_geometry.toml")
+    ap.add_argument("--out", type=Path, default=Path(__file__).resolve().parents[1] / "scenarios" / "data" / "i80_geometry.toml")
     args = ap.parse_args(argv)
     text = to_toml(derive(args.data_dir), "sisl/NGSIM.jl data/ (centerlines80, boundaries80)")
-    fd, tmp = tempfile.mkstemp(dir=args.out.parent, suffix=".tmp")
-    with os.fdopen(fd, "w") as fh:
-        fh.write(text)
-    os.replace(tmp, args.out)
+    write_text_atomic(args.out, text)
     print(text)
     return 0
 

@@ -1,6 +1,6 @@
 """Benchmark: NGSIM loader throughput and peak memory vs plain pandas; calibration time.
 
-    python -m analysis.benchmarks.ngsim_bench [--size-mb 520] [--pairs DIR] [--keep]
+    python -m benchmarks.ngsim_bench [--size-mb 520] [--pairs DIR] [--keep]
 
 1. Generates an NGSIM-format CSV of at least ``--size-mb`` MB in the temp folder (deleted
    afterwards unless ``--keep``): vehicles driving along Local_Y in lanes 1..7, written with
@@ -30,6 +30,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from scenarios.calibration import fit_population, load_pairs
+from sim.ngsim_io import write_ngsim_csv_blocks
 from sim.schema import COLUMNS
 
 _CHILD = textwrap.dedent("""
@@ -75,8 +77,6 @@ def _blocks(n_vehicles: int, n_frames: int, per_block: int, seed: int):
 
 def generate_file(path: Path, size_mb: float, seed: int = 0) -> tuple[int, float]:
     """Write an NGSIM CSV of at least ``size_mb`` MB; returns (rows, MB)."""
-    from sim.ngsim_io import write_ngsim_csv_blocks
-
     bytes_per_row = 106.0  # measured on this generator's output
     n_frames = 1000
     n_vehicles = int(np.ceil(size_mb * 1e6 * 1.02 / bytes_per_row / n_frames))
@@ -90,8 +90,6 @@ def measure(mode: str, path: Path) -> dict:
 
 
 def calibration_time(pairs_dir: Path) -> dict:
-    from scenarios.calibration import fit_population, load_pairs
-
     pairs = load_pairs(pairs_dir)
     t0 = time.perf_counter()
     pop, med = fit_population(pairs, model="idm")

@@ -11,7 +11,7 @@ Side by side on the same scenario, network, routes and seed:
   vehicle-frame.
 
 Targets (DESIGN.md section 7): closed loop at most 3x the bare binary; logging alone under
-10 microseconds per vehicle-frame. Run: ``python -m analysis.benchmarks.closed_loop_bench``.
+10 microseconds per vehicle-frame. Run: ``python -m benchmarks.closed_loop_bench``.
 """
 
 from __future__ import annotations
@@ -23,7 +23,14 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.benchmarks.bare_sumo import time_bare
+from analysis.rerun_log import RerunLogger
+from benchmarks.bare_sumo import time_bare
+from scenarios.loader import load_scenario
+from scenarios.spec_parse import with_overrides
+from sim.controller import Controller
+from sim.observe import StateEncoder
+from sim.policy import LearnedPolicy
+from sim.run import run_scenario
 
 
 class _Timed:
@@ -49,12 +56,6 @@ class _Timed:
 
 
 def time_closed_loop(spec, work: Path) -> dict[str, float]:
-    from analysis.rerun_log import RerunLogger
-    from sim.controller import Controller
-    from sim.observe import StateEncoder
-    from sim.policy import LearnedPolicy
-    from sim.run import run_scenario
-
     rng = np.random.default_rng(0)
     q = rng.normal(size=(1250, 5))
     lp = q - np.log(np.exp(q).sum(axis=1, keepdims=True))
@@ -74,8 +75,6 @@ def time_closed_loop(spec, work: Path) -> dict[str, float]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from scenarios.loader import load_scenario
-
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenario", default="synthetic")
     ap.add_argument("--duration", type=float, default=None, help="simulated seconds (default: the scenario's)")
@@ -83,7 +82,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     spec = load_scenario(args.scenario)
     if args.duration is not None:
-        spec = spec.with_overrides(duration_s=args.duration)
+        spec = with_overrides(spec, duration_s=args.duration)
     bare, bare_cpu, fcd, ours = [], [], [], []
     with tempfile.TemporaryDirectory(prefix="merge-irl-clbench-") as tmp:
         work = Path(tmp)

@@ -6,7 +6,7 @@ the speed-up over serial (parallel efficiency = speed-up / workers), the Dask ov
 process pool, checks that every executor wrote identical tables, and times a rerun that finds
 everything in the store::
 
-    python -m analysis.benchmarks.generate_sweep_bench [--scenario synthetic] [--seeds 1-4]
+    python -m benchmarks.generate_sweep_bench [--scenario synthetic] [--seeds 1-4]
         [--demand-scale 1] [--duration 240] [--workers 2] [--no-dask]
 """
 

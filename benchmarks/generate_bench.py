@@ -3,7 +3,7 @@
 Same network, routes, seed and step. Prints the wall time of each, the ratio, vehicle-steps per
 second, and the scaling when the demand or the duration is doubled::
 
-    python -m analysis.benchmarks.generate_bench [--scenario i80] [--duration 300] [--repeat 3]
+    python -m benchmarks.generate_bench [--scenario i80] [--duration 300] [--repeat 3]
 
 The bare binary writes FCD (position, speed, lane, acceleration) for the recorded period
 (``--device.fcd.begin`` = warm-up); ours is timed in-process (``sim.generate.generate``) and
@@ -21,9 +21,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from analysis.benchmarks.bare_sumo import time_bare
+from benchmarks.bare_sumo import time_bare
 from scenarios.loader import load_scenario
 from scenarios.spec import ScenarioSpec
+from scenarios.spec_parse import with_overrides
 from sim.generate import generate
 
 
@@ -75,14 +76,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--duration", type=float, default=300.0)
     ap.add_argument("--repeat", type=int, default=3)
     a = ap.parse_args(argv)
-    preset = load_scenario(a.scenario).with_overrides(duration_s=a.duration)
+    preset = with_overrides(load_scenario(a.scenario), duration_s=a.duration)
     w = preset.simulation.warmup_s
     half = scaled_demand(preset, 0.5)  # the scaling runs start below capacity so demand can double
     cases = [
         (f"{preset.name}", preset, True),
         ("half demand", half, False),
         ("2x demand", preset, False),
-        ("2x duration", half.with_overrides(duration_s=w + 2 * (a.duration - w)), False),
+        ("2x duration", with_overrides(half, duration_s=w + 2 * (a.duration - w)), False),
     ]
     print(f"scenario {preset.name}, seed {preset.simulation.seed}, step {preset.simulation.step_s} s, "
           f"warm-up {w:g} s, best of {a.repeat}; CPU = user + system seconds")

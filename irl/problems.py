@@ -23,6 +23,7 @@ from irl.demonstrations import Demonstrations
 from irl.errors import ConfigError, DemonstrationError
 from irl.io import load_feature_names, load_npz
 from irl.merge_mdp import MergeBins
+from irl.transitions import estimate_transitions
 
 DOMAINS = ("gridworld", "merge", "npz")
 
@@ -76,8 +77,6 @@ def estimate_model(demos: Demonstrations, domain: str, bins: MergeBins | None, d
     """Relative-count model of ``demos``; unseen pairs: kinematic (merge) or self-loop."""
     if domain == "merge" and bins is not None:
         return merge_mdp.estimated_transitions(demos, bins, dt)
-    from irl.transitions import estimate_transitions
-
     return estimate_transitions(demos)
 
 

@@ -1,6 +1,6 @@
 """Benchmark: the exact solvers alone, time per trial against the targets (quick, ~1 minute).
 
-    python -m analysis.benchmarks.irl_exact_bench [--data ../shared/data/railusm] [--trials 3]
+    python -m benchmarks.irl_exact_bench [--data ../shared/data/railusm] [--trials 3]
 
 For each of the paper's three data sets (Table 1 gridworld, Table 2 gridworld 10% noise,
 Table 3 NGSIM merge) and each Q-based method, the median wall time of ``--trials`` fits with the

@@ -104,7 +104,7 @@ def test_recession_direction_needs_a_strict_rise_somewhere():
 
 
 def test_iteration_fixed_point_is_the_damped_iteration_limit_from_zero():
-    t, d = random_mdp(2, n_states=6, n_actions=3)
+    _, d = random_mdp(2, n_states=6, n_actions=3)
     succ = model_free_successors(d)
     r = d.features @ np.array([3.0, -2.0, 1.0])
     fp = iteration_fixed_point(r, succ, 1.0, 0.9)

@@ -181,3 +181,16 @@ def test_heldout_module_uses_the_same_folds_as_reproduce():
     out = run_trial(TrialTask("qavg", problem, config, seed=1, holdout=3))
     assert folds[3] == pytest.approx(out.heldout_loglik)
     assert folds.shape == (problem.demos.n_trajectories,)
+
+
+@needs_data
+def test_heldout_script_prints_the_baseline_table(capsys):
+    from analysis.heldout import main as heldout_main
+
+    assert heldout_main([str(DATA), "--table", "1", "--methods", "uniform,marginal,markov,bc"]) == 0
+    text = capsys.readouterr().out
+    demos = table_problem(1, DATA).demos
+    from irl.baselines import baseline_leave_one_out
+
+    for name in ("uniform", "marginal", "markov", "bc"):
+        assert f"{name:10s} {baseline_leave_one_out(name, demos).sum():10.1f}" in text

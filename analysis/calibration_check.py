@@ -26,8 +26,11 @@ import numpy as np
 import pandas as pd
 
 from irl.atomic import write_text_atomic
+from irl.units import M_PER_FT
 from scenarios.calibration import CarFollowingPair, evaluate, load_pairs, load_result
-from scenarios.calibration.pairs import M_PER_FT
+from scenarios.calibration.vtypes import driver_members, to_vtype_specs
+from scenarios.loader import load_scenario
+from sim.run import run_scenario
 
 #: Congested car following: speed range (ft/s) and largest spacing (ft) kept.
 SPEED_RANGE_FT_S = (1.0, 45.0)
@@ -145,8 +148,6 @@ def compare_distributions(sim: dict[str, np.ndarray], real: dict[str, np.ndarray
 
 def calibrated_spec(spec, result, *, n_members: int = 8, seed: int = 0):
     """``spec`` with its car vTypes replaced by the calibrated driver distribution."""
-    from scenarios.calibration.vtypes import driver_members, to_vtype_specs
-
     members = driver_members(result, n_members, seed=seed) if result.spread else driver_members(result, 1)
     cars = to_vtype_specs(members, spec.drivers.car[0], result.model)
     return replace(spec, drivers=replace(spec.drivers, car=cars))
@@ -159,14 +160,10 @@ def run_calibration_check(
 ) -> CalibrationCheck:
     """Simulate ``scenario`` with the calibrated drivers (the scenario's own with
     ``keep_drivers``; nothing is simulated when ``table`` is given) and compare."""
-    from scenarios.loader import load_scenario
-
     result = load_result(params_path)
     pairs = list(load_pairs(pairs_dir))
     spec = load_scenario(scenario)
     if table is None:
-        from sim.run import run_scenario
-
         if not keep_drivers:
             spec = calibrated_spec(spec, result, seed=seed)
         table = run_scenario(spec, seed=seed, duration_s=duration_s).table

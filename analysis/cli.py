@@ -18,6 +18,7 @@ from scenarios.errors import ScenarioError
 from sim.errors import SimError
 
 import analysis.commands as _commands
+from analysis.provenance import version_line
 
 #: Errors that are the user's input at fault: printed as one line, exit status 2.
 USER_ERRORS: tuple[type[BaseException], ...] = (IRLError, ScenarioError, SimError, FileNotFoundError)
@@ -28,6 +29,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="merge-irl",
         description="Learn merge-driving reward weights with model-free IRL and test them in SUMO.",
     )
+    parser.add_argument("--version", action=_VersionAction, help="print the package, SUMO and git versions and exit")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     for info in sorted(pkgutil.iter_modules(_commands.__path__), key=lambda m: m.name):
@@ -36,6 +38,17 @@ def build_parser() -> argparse.ArgumentParser:
         module = importlib.import_module(f"{_commands.__name__}.{info.name}")
         module.register(sub)
     return parser
+
+
+class _VersionAction(argparse.Action):
+    """``--version``: :func:`analysis.provenance.version_line`, computed only when asked for."""
+
+    def __init__(self, option_strings, dest, **kw):
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kw)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(version_line())
+        parser.exit()
 
 
 def main(argv: list[str] | None = None) -> int:

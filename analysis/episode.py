@@ -8,6 +8,7 @@ time; ``analysis.evaluate`` uses a process pool).
 from __future__ import annotations
 
 import os
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -15,8 +16,11 @@ import numpy as np
 import pandas as pd
 
 from analysis.metrics import EpisodeMetrics, MetricsConfig, episode_metrics
+from irl.units import FT_PER_M
+from scenarios.loader import load_scenario
 from sim.controller import Controller, ControllerConfig
 from sim.policy import Policy
+from sim.run import run_scenario
 
 
 @dataclass(frozen=True)
@@ -145,16 +149,12 @@ def run_episode(
     The controller's action sampling uses ``seed`` too, so the episode is a deterministic
     function of its arguments. ``rrd_path``: also write a rerun recording of the episode.
     """
-    import time
-
-    from scenarios.loader import load_scenario
-    from sim.run import run_scenario
-
     t0 = time.perf_counter()
     spec = load_scenario(scenario) if isinstance(scenario, (str, Path)) else scenario
     ctl = Controller(policy, controller)
     hooks = [ctl]
     if rrd_path is not None:
+        # rerun takes about 0.8 s to import: only when recording
         from analysis.rerun_log import RerunLogger
 
         hooks.append(RerunLogger(rrd_path, controller=ctl))
@@ -162,7 +162,7 @@ def run_episode(
     res = run_scenario(spec, seed=seed, duration_s=duration_s, hooks=hooks)
     controls = ctl.control_table()
     decisions = ctl.decision_table()
-    section = float(res.spec.road.main_length_m) / 0.3048
+    section = float(res.spec.road.main_length_m) * FT_PER_M
     m = episode_metrics(
         res.table, controls, decisions, policy=policy.name, seed=seed, section_length_ft=section,
         collisions=ctl.n_collisions, teleports=ctl.n_teleports, demo_action_counts=demo_action_counts,

@@ -12,29 +12,36 @@ Example::
 Every policy runs the same episodes (seeds ``seed .. seed + episodes - 1``: the same traffic
 for every policy). Episodes run through :func:`analysis.sweep.run_sweep` (``executor``: a
 process pool by default, one libsumo simulation per process at a time; or Dask). Outputs in ``out_dir``: ``report.md``, ``metrics.json``, ``action_histograms.png``,
-``gap_acceptance.png``, ``speed_profiles.png`` and, with ``rrd=True``, one rerun recording of
-the first episode of each policy under ``rerun/``.
+``gap_acceptance.png``, ``speed_profiles.png``, ``timings.json`` (wall time of each episode,
+kept out of the results so reruns can be compared by hash) and, with ``rrd=True``, one rerun
+recording of the first episode of each policy under ``rerun/``. ``metrics.json`` and
+``report.md`` record their provenance (:mod:`analysis.provenance`).
 """
 
 from __future__ import annotations
 
-import json
-import math
 import os
 import sys
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from analysis.episode import EpisodeResult
+from analysis.episode import EpisodeResult, EpisodeSpec, run_episode_task
+from analysis.evaluate_report import write_outputs
 from analysis.metrics import AggregateMetrics, MetricsConfig, aggregate, heldout_loglik
+from analysis.provenance import provenance, text_digest, write_timings
+from analysis.sweep import Task, parse_executor, run_sweep
+from irl.domains.merge import N_ACTIONS, actions_of
+from irl.merge_mdp import read_encounters
 from irl.result import SavedModel
+from scenarios.loader import load_scenario
 from sim.controller import ControllerConfig
-from sim.observe import NO_LEAD_GAP_FT, ObservationError, StateEncoder
-from sim.policy import N_ACTIONS, LearnedPolicy, Policy, PolicyError, SumoPolicy, UniformPolicy, action_of_acc
+from sim.errors import SimError
+from sim.observe import MergeObservation
+from sim.policy import LearnedPolicy, Policy, PolicyError, SumoPolicy, UniformPolicy
 
 
 @dataclass(frozen=True)
@@ -42,8 +49,8 @@ class HeldOut:
     """Demonstrations used for the divergence and the held-out log-likelihood.
 
     Attributes:
-        encounters: encounter frames (``sim.encounters`` columns; NaN d_AC/v_AC = no lead car,
-            filled as in the closed loop: ``NO_LEAD_GAP_FT`` and 0).
+        encounters: encounter frames (``irl.domains.merge.ENCOUNTER_SCHEMA``; NaN d_AC and
+            v_AC = no lead car, encoded by the domain's no-lead-car rule).
         action_counts: ``[5]`` counts of the binned ``acc_A``.
         source: where they came from.
     """
@@ -54,12 +61,10 @@ class HeldOut:
 
 
 def prepare_encounters(frames: pd.DataFrame) -> pd.DataFrame:
-    """Encounter frames ready to discretize: rows with A and B only; missing C -> open road."""
+    """Encounter frames ready to discretize: rows with A, B and an action only (frames without
+    car C stay, with d_AC and v_AC NaN: the domain's no-lead-car rule encodes them)."""
     df = frames.copy()
     df = df[np.isfinite(df["d_AB"]) & np.isfinite(df["v_AB"]) & np.isfinite(df["acc_A"])]
-    no_c = ~np.isfinite(df["d_AC"].to_numpy(float)) | ~np.isfinite(df["v_AC"].to_numpy(float))
-    df.loc[no_c, "d_AC"] = NO_LEAD_GAP_FT
-    df.loc[no_c, "v_AC"] = 0.0
     return df.reset_index(drop=True)
 
 
@@ -68,11 +73,9 @@ def load_heldout(demos: str | os.PathLike | pd.DataFrame) -> HeldOut:
     if isinstance(demos, pd.DataFrame):
         df, src = demos, "encounters"
     else:
-        from irl.merge_mdp import read_encounters
-
         df, src = read_encounters(demos), str(demos)
     df = prepare_encounters(df)
-    counts = np.bincount(action_of_acc(df["acc_A"].to_numpy(float)), minlength=N_ACTIONS)
+    counts = np.bincount(actions_of(df["acc_A"].to_numpy(float)), minlength=N_ACTIONS)
     return HeldOut(df, counts.astype(np.int64), src)
 
 
@@ -81,14 +84,10 @@ def policy_heldout_loglik(policy: Policy, heldout: HeldOut) -> tuple[float, floa
     if not policy.controls:
         return float("nan"), float("nan")
     df = heldout.encounters
-    actions = action_of_acc(df["acc_A"].to_numpy(float))
+    actions = actions_of(df["acc_A"].to_numpy(float))
     if isinstance(policy, LearnedPolicy):
-        enc = policy.encoder
-        states = enc.states(df[["d_AC", "d_AB", "v_AC", "v_AB"]].to_numpy(float), df["B_is_truck"].to_numpy(bool))
-        return heldout_loglik(policy.log_pi, states, actions)
+        return heldout_loglik(policy.log_pi, policy.encoder.encode(df), actions)
     # state-independent policies (uniform, constant): log p(a)
-    from sim.observe import MergeObservation
-
     p = np.asarray(policy.probs(MergeObservation(0, 0, 0, 0, False, 0)), dtype=float)
     with np.errstate(divide="ignore"):
         lp = np.log(p)[actions]
@@ -104,9 +103,8 @@ def learned_policy(model: SavedModel | str | os.PathLike, name: str = "") -> Lea
         name = name or path.stem
         where = str(path)
     try:
-        return LearnedPolicy.from_model(model, encoder=StateEncoder(model.bin_edges) if model.bin_edges else None,
-                                        name=name or model.method)
-    except (PolicyError, ObservationError) as e:
+        return LearnedPolicy.from_model(model, name=name or model.method)
+    except PolicyError as e:
         raise type(e)(f"{where}: {e}") from None
 
 
@@ -147,9 +145,6 @@ def run_episodes(tasks: Sequence[tuple], *, workers: int | None = None, executor
     Raises:
         SimError: if an episode failed twice (every failure listed).
     """
-    from analysis.episode import EpisodeSpec, run_episode_task
-    from analysis.sweep import Task, run_sweep
-
     executor = resolve_executor(executor, workers)
     sweep_tasks = []
     for i, (scenario, policy, seed, kw) in enumerate(tasks):
@@ -161,8 +156,6 @@ def run_episodes(tasks: Sequence[tuple], *, workers: int | None = None, executor
     report = run_sweep(sweep_tasks, seed=0, executor=executor, store=store, progress=progress and sys.stderr.isatty(),
                        desc="episodes")
     if not report.ok:
-        from sim.errors import SimError
-
         raise SimError("episodes failed: " + "; ".join(f"{f.key}: {f.error}" for f in report.failures))
     return [EpisodeResult.from_dict(report.results[t.key]) for t in sweep_tasks]
 
@@ -170,9 +163,6 @@ def run_episodes(tasks: Sequence[tuple], *, workers: int | None = None, executor
 def resolve_executor(executor: str | None, workers: int | None) -> str:
     """``executor`` if given, else ``process:<workers>``, else ``process`` (every core);
     raises SimError on a malformed value."""
-    from analysis.sweep import parse_executor
-    from sim.errors import SimError
-
     if executor is None:
         executor = "process" if workers is None else f"process:{max(1, int(workers))}"
     try:
@@ -217,11 +207,7 @@ def evaluate(
         rrd: write a rerun recording of each policy's first episode.
     """
     if episodes < 1:
-        from sim.errors import SimError
-
         raise SimError(f"evaluate: episodes must be >= 1, got {episodes}")
-    from scenarios.loader import load_scenario
-
     spec = load_scenario(scenario) if isinstance(scenario, (str, Path)) else scenario  # validate before SUMO
     pols: list[Policy] = [learned_policy(m) for m in models]
     out = Path(out_dir)
@@ -240,6 +226,7 @@ def evaluate(
             renamed.append(_renamed(p, f"{p.name}-{k + 1}") if p.name in dup else p)
         pols = renamed
     held = load_heldout(demos) if demos is not None else None
+    prov = evaluation_provenance(models, pols, scenario, spec, demos)  # the files as read, before the work
     counts = held.action_counts if held is not None else None
     tasks = []
     for p in pols:
@@ -255,39 +242,30 @@ def evaluate(
     for p in pols:
         ho = policy_heldout_loglik(p, held) if held is not None else None
         aggs[p.name] = aggregate([r.metrics for r in by_policy[p.name]], demo_action_counts=counts, heldout=ho)
-    from analysis.evaluate_report import write_outputs
-
     scen_name = scenario if isinstance(scenario, (str, Path)) else spec.name
     report_md, metrics_json, plots = write_outputs(
         out, aggs, by_policy, held, scenario=str(scen_name), seed=seed, episodes=episodes,
         duration_s=duration_s, controller=controller, metrics=metrics,
+        provenance=prov,
     )
+    write_timings(out, {"episode_wall_time_s": {name: [float(r.wall_time_s) for r in rs]
+                                                for name, rs in by_policy.items()}})
     rrds = {name: Path(rs[0].rrd) for name, rs in by_policy.items() if rs and rs[0].rrd}
     return EvaluationReport(out, aggs, by_policy, report_md, metrics_json, plots, rrds)
 
 
+def evaluation_provenance(models: Sequence, pols: Sequence[Policy], scenario, spec, demos) -> dict:
+    """:func:`analysis.provenance.provenance` of an evaluation: the model file of each policy
+    (``pols`` starts with one policy per entry of ``models``; None for baselines and models
+    given as objects), the held-out demonstrations and scenario files read, and the SHA-256
+    of the scenario actually simulated (its TOML)."""
+    files = {p.name: None if isinstance(m, SavedModel) else m for p, m in zip(pols, models)}
+    files.update({p.name: None for p in pols[len(models):]})
+    scenario_file = scenario if isinstance(scenario, (str, Path)) and Path(scenario).is_file() else None
+    demos_file = None if isinstance(demos, pd.DataFrame) else demos
+    return provenance({"demos": demos_file, "scenario": scenario_file}, files,
+                      extra={"scenario_sha256": text_digest(spec.to_toml())})
+
+
 def _renamed(p: Policy, name: str) -> Policy:
-    from dataclasses import replace
-
     return replace(p, name=name)
-
-
-
-
-def metrics_to_json(obj) -> str:
-    """JSON text with NaN/inf written as null."""
-    def clean(x):
-        if isinstance(x, float):
-            return x if math.isfinite(x) else None
-        if isinstance(x, dict):
-            return {str(k): clean(v) for k, v in x.items()}
-        if isinstance(x, (list, tuple)):
-            return [clean(v) for v in x]
-        if isinstance(x, (np.integer,)):
-            return int(x)
-        if isinstance(x, (np.floating,)):
-            return clean(float(x))
-        if isinstance(x, np.bool_):
-            return bool(x)
-        return x
-    return json.dumps(clean(obj), indent=1)

@@ -2,14 +2,18 @@
 
 from __future__ import annotations
 
+import json
 import math
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from analysis.metrics import AggregateMetrics
-from sim.policy import ACTION_NAMES, N_ACTIONS
+from analysis.provenance import provenance_markdown
+from irl.atomic import write_atomic, write_text_atomic
+from irl.domains.merge import ACTION_NAMES, N_ACTIONS
 
 
 def _fmt(x, nd=2) -> str:
@@ -42,13 +46,29 @@ def report_table(aggs: dict[str, AggregateMetrics]) -> str:
     return "\n".join(rows)
 
 
-def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes, duration_s, controller, metrics):
-    """Write report.md, metrics.json and the plots; return their paths."""
-    from dataclasses import asdict
+def metrics_to_json(obj) -> str:
+    """JSON text with NaN/inf written as null."""
+    def clean(x):
+        if isinstance(x, float):
+            return x if math.isfinite(x) else None
+        if isinstance(x, dict):
+            return {str(k): clean(v) for k, v in x.items()}
+        if isinstance(x, (list, tuple)):
+            return [clean(v) for v in x]
+        if isinstance(x, (np.integer,)):
+            return int(x)
+        if isinstance(x, (np.floating,)):
+            return clean(float(x))
+        if isinstance(x, np.bool_):
+            return bool(x)
+        return x
+    return json.dumps(clean(obj), indent=1)
 
-    from analysis.evaluate import metrics_to_json
-    from irl.atomic import write_text_atomic
 
+def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes, duration_s, controller, metrics,
+                  provenance: dict | None = None):
+    """Write report.md, metrics.json and the plots; return their paths. ``provenance``
+    (:func:`analysis.provenance.provenance`) goes into both."""
     plots = (
         plot_action_histograms(out / "action_histograms.png", aggs, held),
         plot_gap_acceptance(out / "gap_acceptance.png", by_policy),
@@ -65,6 +85,8 @@ def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes,
             for name, a in aggs.items()
         },
     }
+    if provenance is not None:
+        payload["provenance"] = provenance
     mj = write_text_atomic(out / "metrics.json", metrics_to_json(payload))
     lines = [
         f"# Closed-loop evaluation: {scenario}",
@@ -98,11 +120,14 @@ def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes,
         c = c / c.sum() if c.sum() else c
         lines.append(f"| {name} | " + " | ".join(f"{x:.3f}" for x in c) + " |")
     lines += ["", "Plots: " + ", ".join(f"[{p.name}]({p.name})" for p in plots), ""]
+    if provenance is not None:
+        lines += [provenance_markdown(provenance), ""]
     rm = write_text_atomic(out / "report.md", "\n".join(lines))
     return rm, mj, plots
 
 
 def _plt():
+    # matplotlib (about 0.5 s to import) only when a plot is drawn
     import matplotlib
 
     matplotlib.use("Agg", force=True)
@@ -112,16 +137,7 @@ def _plt():
 
 
 def _save(fig, path: Path) -> Path:
-    import os
-    import tempfile
-
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".png", dir=path.parent)
-    os.close(fd)
-    try:
-        fig.savefig(tmp, dpi=110, bbox_inches="tight")
-        os.replace(tmp, path)
-    finally:
-        Path(tmp).unlink(missing_ok=True)
+    write_atomic(path, lambda p: fig.savefig(p, dpi=110, bbox_inches="tight"))
     _plt().close(fig)
     return path
 

@@ -7,7 +7,9 @@ pool on every core, one libsumo simulation per worker process at a time) and wri
     OUT/<scenario>-seed<N>[-demand<X>]/   trajectories.parquet, encounters.parquet, merges.parquet,
                                           scenario.toml (the spec actually simulated) [, trajectories.csv]
     OUT/.sweep-store/<digest>.json        one record per finished run (what makes reruns skip it)
-    OUT/sweep.csv                         one line per finished run (counts, table checksum)
+    OUT/sweep.csv                         one line per finished run (counts, table and scenario
+                                          checksums, package/SUMO versions, git commit)
+    OUT/sweep.timings.json                each run's wall time (kept out of sweep.csv)
 
 The ``-demand<X>`` suffix is present when demand scales were given. Each run's SUMO seed is the
 one asked for (``seeds``), not the sweep-derived seed, so ``OUT/<scenario>-seed7`` is the same
@@ -24,9 +26,12 @@ from pathlib import Path
 
 import pandas as pd
 
+from analysis.provenance import provenance, text_digest, write_timings
 from analysis.sweep import ResultStore, SweepReport, Task, derive_seed, run_sweep, task_digest
+from irl.atomic import write_atomic
 from scenarios.spec import ScenarioSpec
-from scenarios.spec_parse import spec_from_toml
+from scenarios.spec_parse import spec_from_toml, with_overrides
+from sim.generate import generate
 
 STORE_DIR = ".sweep-store"
 SUMMARY = "sweep.csv"
@@ -74,10 +79,8 @@ def generate_one(config: GenerateRun, seed: int) -> dict:
     Returns the run's summary (JSON-ready): name, folder, seed, demand scale, counts, the
     files written (names) and the trajectory table's checksum.
     """
-    from sim.generate import generate
-
-    spec = spec_from_toml(config.spec_toml, source="<sweep spec>").with_overrides(
-        seed=config.seed, duration_s=config.duration_s, demand_scale=config.demand_scale)
+    spec = with_overrides(
+        spec_from_toml(config.spec_toml, source="<sweep spec>"), seed=config.seed, duration_s=config.duration_s, demand_scale=config.demand_scale)
     res = generate(spec, config.run_dir, csv=config.csv, progress=False)
     sim = res.simulation
     return {
@@ -92,6 +95,7 @@ def generate_one(config: GenerateRun, seed: int) -> dict:
         "files": [p.name for p in res.files],
         "sim_wall_time_s": float(sim.wall_time_s),
         "table_sha256": table_checksum(sim.table),
+        "scenario_sha256": text_digest(spec.to_toml()),
     }
 
 
@@ -115,7 +119,7 @@ def generate_tasks(
     tasks = []
     for s in seeds:
         for k in scales:
-            spec.with_overrides(seed=s, duration_s=duration_s, demand_scale=k)  # SpecError early
+            with_overrides(spec, seed=s, duration_s=duration_s, demand_scale=k)  # SpecError early
             name = run_name(spec.name, s, k)
             cfg = GenerateRun(spec_toml=text, seed=int(s), demand_scale=None if k is None else float(k),
                               duration_s=None if duration_s is None else float(duration_s), csv=bool(csv),
@@ -140,13 +144,19 @@ def _forget_missing_outputs(tasks: Sequence[Task], store: ResultStore) -> int:
 
 
 def write_summary(report: SweepReport, path: str | Path) -> Path:
-    """``sweep.csv``: one line per finished run, in task order (atomic write)."""
-    from sim.outputs import write_atomic
-
+    """``sweep.csv``: one line per finished run, in task order (atomic write), with the
+    provenance of each line: package and SUMO versions, git commit (empty outside a checkout)
+    and the SHA-256 of the run's ``scenario.toml``. The runs' wall times go to
+    ``sweep.timings.json`` (:func:`analysis.provenance.write_timings`), so that two sweeps'
+    ``sweep.csv`` can be compared by hash."""
     cols = ["run", "seed", "demand_scale", "n_vehicles", "n_rows", "n_merges", "n_encounter_frames",
-            "sim_wall_time_s", "table_sha256", "out_dir"]
+            "table_sha256", "scenario_sha256", "out_dir"]
     rows = [{c: r.get(c) for c in cols} for r in report.results.values()]
     table = pd.DataFrame(rows, columns=cols)
+    prov = provenance()
+    for key in ("merge_irl", "sumo", "git_commit"):
+        table[key] = prov.get(key)
+    write_timings(path, {"sim_wall_time_s": {r.get("run"): r.get("sim_wall_time_s") for r in report.results.values()}})
     return write_atomic(path, lambda p: table.to_csv(p, index=False))
 
 

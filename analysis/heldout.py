@@ -17,9 +17,10 @@ import time
 import numpy as np
 
 from analysis.learn import fit_problem
-from analysis.problem import Problem
+from analysis.trials import table_problem
 from irl.baselines import BASELINES, TabularPolicy, baseline_leave_one_out, leave_one_out, paired_test
 from irl.config import IRLConfig
+from irl.problems import Problem
 from irl.reirl import DEFAULT_EPSILON
 
 
@@ -39,8 +40,6 @@ def method_leave_one_out(problem: Problem, method: str, config: IRLConfig, seed:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from analysis.reproduce import table_problem
-
     p = argparse.ArgumentParser(prog="python -m analysis.heldout", description=__doc__.splitlines()[0])
     p.add_argument("data", help="the authors' data directory (railusm layout)")
     p.add_argument("--table", type=int, choices=(1, 2, 3), default=3)

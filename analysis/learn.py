@@ -18,12 +18,15 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.problem import Problem, load_problem
+from analysis.provenance import provenance as provenance_record
+from analysis.provenance import write_timings
 from irl.config import IRLConfig
 from irl.errors import ConfigError, ConvergenceError
-from irl.merge_mdp import MergeBins
-from irl.reirl import DEFAULT_EPSILON, DEFAULT_N_BASELINE, fit_reirl
-from irl.result import METHODS, FitResult, SavedModel
+from irl.domains.merge import MergeBins
+from irl.fit import METHODS, fit
+from irl.problems import Problem, load_problem
+from irl.reirl import DEFAULT_EPSILON, DEFAULT_N_BASELINE
+from irl.result import FitResult, SavedModel
 
 
 def fit_problem(
@@ -44,14 +47,11 @@ def fit_problem(
     """
     if method not in METHODS:
         raise ConfigError(f"method must be one of {METHODS}, got {method!r}")
-    rng = np.random.default_rng(seed)
+    options = {}
     if method == "reirl":
-        return fit_reirl(problem.demos, config, rng, baseline=problem.baseline, transitions=problem.transitions,
-                         epsilon=epsilon, n_baseline=n_baseline, pad_step=problem.pad_step(), progress=progress)
-    from irl.fit import fit
-
-    transitions = problem.transitions if method == "mlirl" else None
-    return fit(method, problem.demos, config, rng, transitions=transitions, progress=progress)
+        options = dict(baseline=problem.baseline, epsilon=epsilon, n_baseline=n_baseline, pad_step=problem.pad_step())
+    return fit(method, problem.demos, config, np.random.default_rng(seed), transitions=problem.transitions,
+               progress=progress, **options)
 
 
 def _json_scalar(v):
@@ -63,8 +63,14 @@ def _json_scalar(v):
     return x if math.isfinite(x) else str(x)
 
 
-def saved_model(fit: FitResult, problem: Problem, *, seed: int, source: str = "") -> SavedModel:
-    """The ``model.json`` record of ``fit`` on ``problem``."""
+def saved_model(fit: FitResult, problem: Problem, *, seed: int, source: str = "",
+                provenance: dict | None = None) -> SavedModel:
+    """The ``model.json`` record of ``fit`` on ``problem``.
+
+    It holds no wall-clock time (``fit.wall_time_s`` goes to a timings file, see
+    :func:`analysis.provenance.write_timings`), so identical fits give identical files;
+    ``provenance`` (:func:`analysis.provenance.provenance`) goes to ``info["provenance"]``.
+    """
     info = {
         "demos": source or problem.name,
         "seed": int(seed),
@@ -73,7 +79,6 @@ def saved_model(fit: FitResult, problem: Problem, *, seed: int, source: str = ""
         "n_states": problem.demos.n_states,
         "n_actions": problem.demos.n_actions,
         "message": fit.message,
-        "wall_time_s": float(fit.wall_time_s),
         "n_iterations": fit.n_iterations,
         "extra": {str(k): _json_scalar(v) for k, v in fit.extra.items()},
         "loglik_note": "Eq. 5 sum of log pi(a_t|s_t) without log Pr(s_1)",
@@ -82,6 +87,8 @@ def saved_model(fit: FitResult, problem: Problem, *, seed: int, source: str = ""
         info["noise"] = problem.noise
     if problem.domain == "merge":
         info["dt"] = problem.dt
+    if provenance is not None:
+        info["provenance"] = provenance
     return SavedModel.from_fit(
         fit,
         domain=problem.domain,
@@ -100,7 +107,7 @@ def learn(
     seed: int = 0,
     noise: float = 0.0,
     baseline_path: str | os.PathLike | None = None,
-    bins: MergeBins | None = None,
+    bins: MergeBins | str | os.PathLike | None = None,
     dt: float = 0.1,
     epsilon: float = DEFAULT_EPSILON,
     out: str | os.PathLike | None = None,
@@ -108,15 +115,24 @@ def learn(
 ) -> SavedModel:
     """Load ``demos_path`` as ``domain``, fit ``method``, and (if ``out``) save ``model.json``.
 
-    See :func:`analysis.problem.load_problem` for the domains and :func:`fit_problem` for what
-    each method sees. Returns the saved record (theta, loglik, q, settings, merge bin edges).
+    See :func:`irl.problems.load_problem` for the domains and :func:`fit_problem` for what
+    each method sees. ``bins``: merge bin edges, or the JSON file holding them. Returns the
+    saved record (theta, loglik, q, settings, merge bin edges, provenance: versions and the
+    SHA-256 of every input file). With ``out``, the fit's wall time goes to
+    ``<out stem>.timings.json`` beside it, not into ``model.json``: identical runs write
+    identical model files.
     """
     config = config or IRLConfig.paper()
+    bins_path = None
+    if bins is not None and not isinstance(bins, MergeBins):
+        bins_path, bins = bins, MergeBins.load(bins)
     problem = load_problem(domain, demos_path, noise=noise, baseline_path=baseline_path, bins=bins, dt=dt)
+    prov = provenance_record({"demos": demos_path, "baseline": baseline_path, "bins": bins_path})
     result = fit_problem(problem, method, config, seed, progress=progress, epsilon=epsilon)
     if not math.isfinite(result.loglik):
         raise ConvergenceError(f"{method} on {demos_path}: the fit failed ({result.message}); no model written")
-    model = saved_model(result, problem, seed=seed, source=str(Path(demos_path)))
+    model = saved_model(result, problem, seed=seed, source=str(Path(demos_path)), provenance=prov)
     if out is not None:
         model.save(out)
+        write_timings(out, {"fit_wall_time_s": float(result.wall_time_s)})
     return model

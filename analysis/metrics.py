@@ -30,9 +30,8 @@ from dataclasses import asdict, dataclass, field, fields
 import numpy as np
 import pandas as pd
 
-FT_PER_M = 1.0 / 0.3048
-FRAME_S = 0.1
-N_ACTIONS = 5
+from irl.domains.merge import N_ACTIONS
+from irl.units import FRAME_S, FT_PER_M
 
 
 @dataclass(frozen=True)

@@ -4,7 +4,7 @@
 
 1. **generate** merges: simulate the scenario with SUMO's own drivers for the training seeds and
    one held-out seed (in worker processes), extract the merge encounters (``sim.encounters``);
-2. **discretize**: quantile bin edges fitted on the training encounters (``irl.merge_mdp``);
+2. **discretize**: quantile bin edges fitted on the training encounters (``irl.domains.merge``);
    encounter frames without a lead car C get the closed loop's open-road values;
 3. **learn** Q-Avg, Q-SM, MLIRL and REIRL (``analysis.learn``), one ``model.json`` each;
 4. **re-inject and evaluate**: every model drives the lag cars A of new episodes (other seeds),
@@ -20,7 +20,8 @@ Everything goes under ``out_dir`` (default ``./runs/demo``)::
     models/<method>.json
     evaluation/report.md, metrics.json, *.png, rerun/<policy>.rrd
     demo.rrd
-    summary.md
+    summary.md      (with the provenance: versions, git commit, scenario and model hashes)
+    timings.json    (wall times: kept out of the results so reruns can be compared by hash)
 """
 
 from __future__ import annotations
@@ -35,10 +36,24 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from analysis.evaluate import EvaluationReport, evaluate, prepare_encounters
+from analysis.episode import frame_from_dict, frame_to_dict
+from analysis.evaluate import EvaluationReport, evaluate, learned_policy, prepare_encounters, resolve_executor
+from analysis.evaluate_report import report_table
+from analysis.learn import fit_problem, saved_model
+from analysis.provenance import provenance, provenance_markdown, text_digest, write_timings
+from analysis.sweep import Task, run_sweep
 from irl.atomic import write_text_atomic
-
-METHODS = ("qavg", "qsm", "mlirl", "reirl")
+from irl.config import IRLConfig
+from irl.errors import IRLError
+from irl.fit import METHODS
+from irl.domains.merge import fit_quantile_bins
+from irl.problems import load_problem
+from scenarios.loader import load_scenario
+from sim.controller import Controller
+from sim.encounters import extract_encounters
+from sim.errors import SimError
+from sim.outputs import write_parquet
+from sim.run import run_scenario
 
 
 @dataclass(frozen=True)
@@ -85,11 +100,11 @@ class DemoResult:
     wall_time_s: float
     fit_messages: dict[str, str] = field(default_factory=dict)
 
-    def format(self) -> str:
-        from analysis.evaluate_report import report_table
-
+    def format(self, *, timings: bool = True) -> str:
+        """The summary printed by ``merge-irl demo``; ``timings=False``: without the wall time
+        (as in ``summary.md``, so reruns can be compared by hash)."""
         lines = [
-            f"merge-irl demo -> {self.out_dir}  ({self.wall_time_s:.0f} s)",
+            f"merge-irl demo -> {self.out_dir}" + (f"  ({self.wall_time_s:.0f} s)" if timings else ""),
             f"  training data: {self.n_train_encounters} encounters, {self.n_train_steps} steps",
             "  models: " + ", ".join(f"{k} {v}" for k, v in self.models.items()),
             *[f"  left out: {k} ({v})" for k, v in self.fit_messages.items() if k not in self.models],
@@ -118,11 +133,6 @@ def encounters_task(run: EncounterRun, seed: int) -> dict:
     """Sweep task: the run's encounter frames (ids offset by ``1e6 * run.seed``) as
     ``analysis.episode.frame_to_dict``. The sweep's derived ``seed`` is not used."""
     del seed
-    from analysis.episode import frame_to_dict
-    from scenarios.loader import load_scenario
-    from sim.encounters import extract_encounters
-    from sim.run import run_scenario
-
     spec = load_scenario(run.scenario) if isinstance(run.scenario, (str, Path)) else run.scenario
     res = run_scenario(spec, seed=run.seed, duration_s=run.duration_s)
     frames = extract_encounters(res.table)
@@ -137,17 +147,11 @@ def generate_encounters(scenario, seeds: Sequence[int], duration_s: float | None
     Runs through :func:`analysis.sweep.run_sweep` (``executor``, default ``process:<workers>``;
     one simulation per worker process at a time). Raises SimError if a run failed twice.
     """
-    from analysis.episode import frame_from_dict
-    from analysis.evaluate import resolve_executor
-    from analysis.sweep import Task, run_sweep
-
     tasks = [Task(f"{i:03d}/seed{int(s)}", encounters_task, EncounterRun(scenario, int(s), duration_s))
              for i, s in enumerate(seeds)]
     report = run_sweep(tasks, seed=0, executor=resolve_executor(executor, workers),
                        progress=progress and sys.stderr.isatty(), desc="data runs")
     if not report.ok:
-        from sim.errors import SimError
-
         raise SimError("data runs failed: " + "; ".join(f"{f.key}: {f.error}" for f in report.failures))
     return [frame_from_dict(report.results[t.key]) for t in tasks]
 
@@ -160,11 +164,9 @@ def _say(msg: str, quiet: bool) -> None:
 def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(), *, quiet: bool = False,
              progress: bool = True) -> DemoResult:
     """Run the whole pipeline (see the module docstring) and return where the outputs are."""
-    from analysis.learn import fit_problem, saved_model
-    from analysis.problem import load_problem
-    from analysis.rerun_log import RerunLogger, close_recording, log_training, open_recording
-    from irl.config import IRLConfig
-    from irl.merge_mdp import fit_quantile_bins
+    # rerun takes about 0.8 s to import; the sweep workers that import this module for
+    # encounters_task never record
+    from analysis.rerun_log import RerunLogger, close_recording, log_training, open_recording, recording_identity
 
     t0 = time.perf_counter()
     out = Path(out_dir) if out_dir is not None else Path("runs") / "demo"
@@ -179,39 +181,37 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     train_path = out / "data" / "train_encounters.parquet"
     held_path = out / "data" / "heldout_encounters.parquet"
     for df, path in ((train, train_path), (heldout, held_path)):
-        tmp = path.with_name(path.name + ".tmp")
-        df.to_parquet(tmp, index=False)
-        tmp.replace(path)
+        write_parquet(df, path)
 
     _say("[2/5] discretizing (quantile bins fitted on the training encounters)", quiet)
     bins = fit_quantile_bins(train, where=str(train_path))
     bins.save(out / "data" / "bins.json")
     problem = load_problem("merge", train_path, bins=bins, name=f"{config.scenario} training encounters")
+    model_prov = provenance({"demos": train_path, "bins": out / "data" / "bins.json"})
 
     _say(f"[3/5] learning {', '.join(config.methods)}", quiet)
-    rec, tmp_rrd = open_recording(out / "demo.rrd", recording_id=f"merge-irl-demo-{config.scenario}")
+    rid, name = recording_identity(config.scenario, "demo", config.eval_seed)
+    rec, tmp_rrd = open_recording(out / "demo.rrd", recording_id=rid, name=f"{name}: training and one episode")
     models: dict[str, Path] = {}
     messages: dict[str, str] = {}
+    fit_times: dict[str, float] = {}
     cfg = IRLConfig.paper()
     for method in config.methods:
         fit = fit_problem(problem, method, cfg, config.fit_seed, progress=False)
         messages[method] = fit.message
+        fit_times[method] = float(fit.wall_time_s)
         log_training(rec, method, fit.loglik_trace, fit.theta_trace, problem.feature_names)
         usable = math.isfinite(fit.loglik) and np.all(np.isfinite(fit.q)) and np.all(np.isfinite(fit.theta))
         _say(f"      {method}: loglik {fit.loglik:.2f}, theta {[round(float(x), 3) for x in fit.theta]} "
              f"({fit.wall_time_s:.2f} s){' FLAGGED ' + ', '.join(fit.flags) if fit.flags else ''}"
              f"{'' if usable else ' -- not usable, left out: ' + fit.message}", quiet)
         if usable:
-            model = saved_model(fit, problem, seed=config.fit_seed, source=str(train_path))
+            model = saved_model(fit, problem, seed=config.fit_seed, source=str(train_path), provenance=model_prov)
             models[method] = model.save(out / "models" / f"{method}.json")
     if not models:
-        from irl.errors import IRLError
-
         raise IRLError("demo: no IRL method produced a usable model: " + "; ".join(f"{k}: {v}" for k, v in messages.items()))
 
     _say("[4/5] one closed-loop episode with Q-Avg, logged to demo.rrd", quiet)
-    from analysis.evaluate import learned_policy
-
     first = "qavg" if "qavg" in models else next(iter(models))
     pol = learned_policy(models[first])
     logger = RerunLogger(out / "demo.rrd", recording=(rec, tmp_rrd))
@@ -226,16 +226,17 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     wall = time.perf_counter() - t0
     result = DemoResult(out, models, report, out / "demo.rrd", out / "summary.md", int(train["encounter_id"].nunique()),
                         problem.demos.n_steps, wall, messages)
-    write_text_atomic(out / "summary.md", "# merge-irl demo\n\n```\n" + result.format() + "\n```\n")
+    scenario_file = config.scenario if Path(config.scenario).is_file() else None
+    summary_prov = provenance({"scenario": scenario_file}, models,
+                              extra={"scenario_sha256": text_digest(load_scenario(config.scenario).to_toml())})
+    write_text_atomic(out / "summary.md", "# merge-irl demo\n\n```\n" + result.format(timings=False) + "\n```\n\n"
+                      + provenance_markdown(summary_prov) + "\n")
+    write_timings(out, {"wall_time_s": wall, "fit_wall_time_s": fit_times})
     return result
 
 
 def _run_logged_episode(config: DemoConfig, policy, logger) -> None:
     """One episode in this process, with ``logger`` attached to the episode's controller."""
-    from scenarios.loader import load_scenario
-    from sim.controller import Controller
-    from sim.run import run_scenario
-
     ctl = Controller(policy)
     logger.controller = ctl
     spec = load_scenario(config.scenario)

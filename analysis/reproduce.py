@@ -29,14 +29,14 @@ from typing import Sequence
 
 import numpy as np
 
-from analysis.problem import Problem, load_problem
+from analysis.provenance import provenance, write_timings
 from analysis.sweep import ResultStore, SweepReport, Task, TaskFailure, run_sweep
-from analysis.trials import (TrialOutcome, TrialSpec, cached_table_problem, config_label, run_trial_spec,
-                             trial_seeds)
+from analysis.trials import (TrialOutcome, TrialSpec, cached_table_problem, config_label, resolve_data_dir,
+                             run_trial_spec, trial_seeds)
 from irl.atomic import write_json_atomic
 from irl.baselines import BASELINES, baseline_leave_one_out, fit_baseline, paired_test
 from irl.config import IRLConfig
-from irl.errors import ConfigError, DemonstrationError
+from irl.errors import ConfigError
 from irl.reirl import DEFAULT_EPSILON
 
 #: Row order of the paper's tables.
@@ -60,27 +60,15 @@ PAPER = {
 }
 
 
-def resolve_data_dir(data_dir: str | os.PathLike) -> Path:
-    """``data_dir`` itself if it holds ``gridworld/`` or ``merge_ngsim/``, else its ``railusm/``."""
-    d = Path(data_dir)
-    if (d / "gridworld").is_dir() or (d / "merge_ngsim").is_dir():
-        return d
-    if (d / "railusm").is_dir():
-        return d / "railusm"
-    raise DemonstrationError(f"{d}: expected the authors' data layout (gridworld/, merge_ngsim/)")
-
-
-def table_problem(table: int, data_dir: str | os.PathLike) -> Problem:
-    """The data set of ``table`` (1, 2 or 3) under ``data_dir`` (the ``railusm`` layout)."""
+def table_inputs(table: int, data_dir: str | os.PathLike) -> dict[str, Path]:
+    """The folders ``table`` reads under ``data_dir`` (role -> path), for its provenance."""
     d = resolve_data_dir(data_dir)
     if table in (1, 2):
-        noise = 0.0 if table == 1 else 0.1
-        tag = f"noise_{noise:.1f}"
-        return load_problem("gridworld", d / "gridworld" / f"{tag}_expert_trajs", noise=noise,
-                            baseline_path=d / "gridworld" / f"{tag}_baseline_trajs",
-                            name=f"gridworld {int(noise * 100)}% noise")
+        tag = f"noise_{0.0 if table == 1 else 0.1:.1f}"
+        return {f"table{table}_demos": d / "gridworld" / f"{tag}_expert_trajs",
+                f"table{table}_baseline": d / "gridworld" / f"{tag}_baseline_trajs"}
     if table == 3:
-        return load_problem("merge", d / "merge_ngsim", name="NGSIM merge")
+        return {"table3_demos": d / "merge_ngsim"}
     raise ConfigError(f"table must be 1, 2 or 3, got {table}")
 
 
@@ -129,8 +117,11 @@ class ReproductionReport:
     holdout: tuple[TrialOutcome, ...]
     seed: int
     failures: tuple[TaskFailure, ...] = ()
+    provenance: dict | None = None
 
     def to_json_dict(self) -> dict:
+        """The report as JSON, with its provenance (versions, hashes of the data read) and
+        without wall times (see :meth:`timings`), so identical runs give identical files."""
         def clean(x):
             if isinstance(x, float) and not math.isfinite(x):
                 return None
@@ -138,22 +129,44 @@ class ReproductionReport:
                 return [clean(v) for v in x]
             return x
 
+        def untimed(t: TrialOutcome) -> dict:
+            d = t.to_dict()
+            d.pop("wall_time_s")
+            return d
+
         return {
             "table": self.table, "title": self.title, "settings": self.config.to_dict(), "seed": self.seed,
             "feature_names": list(self.feature_names),
-            "rows": [{k: clean(v) for k, v in r.__dict__.items()} for r in self.rows],
-            "trials": [t.to_dict() for t in self.trials],
-            "holdout": [t.to_dict() for t in self.holdout],
+            "rows": [{k: clean(v) for k, v in r.__dict__.items() if k != "time_mean_s"} for r in self.rows],
+            "trials": [untimed(t) for t in self.trials],
+            "holdout": [untimed(t) for t in self.holdout],
             "paper": {m: list(v) for m, v in PAPER.get(self.table, {}).items()},
             "failures": [{"key": f.key, "error": f.error, "attempts": f.attempts} for f in self.failures],
+            "provenance": self.provenance,
         }
 
+    def timings(self) -> dict:
+        """Wall time (s) of each trial and held-out fit, by method: ``{"trials": {method: [...]},
+        "holdout": {...}}`` (kept out of :meth:`to_json_dict`)."""
+        def by_method(outcomes) -> dict:
+            out: dict[str, list[float]] = {}
+            for t in outcomes:
+                out.setdefault(t.method, []).append(t.wall_time_s)
+            return out
+
+        return {"table": self.table, "trials": by_method(self.trials), "holdout": by_method(self.holdout)}
+
     def save_json(self, path: str | os.PathLike) -> Path:
+        """Write :meth:`to_json_dict` to ``path`` and :meth:`timings` beside it
+        (``<stem>.timings.json``)."""
+        write_timings(path, self.timings())
         return write_json_atomic(path, self.to_json_dict())
 
 
 def save_reports_json(reports: Sequence[ReproductionReport], path: str | os.PathLike) -> Path:
-    """Several tables' reports as ``{"tables": [report.to_json_dict(), ...]}``, atomically."""
+    """Several tables' reports as ``{"tables": [report.to_json_dict(), ...]}``, atomically; their
+    timings to ``<stem>.timings.json`` (``{"tables": [report.timings(), ...]}``)."""
+    write_timings(path, {"tables": [r.timings() for r in reports]})
     return write_json_atomic(path, {"tables": [r.to_json_dict() for r in reports]})
 
 
@@ -292,6 +305,7 @@ def reproduce_tables(
     if trials is not None and int(trials) < 1:
         raise ConfigError(f"trials must be >= 1, got {trials}")
     d = str(resolve_data_dir(data_dir).resolve())
+    provenances = {table: provenance(table_inputs(table, d)) for table in tables}  # the data as read, before the work
     specs: dict[int, list[TrialSpec]] = {}
     for table in tables:
         n = DEFAULT_TRIALS[table] if trials is None else int(trials)
@@ -309,12 +323,12 @@ def reproduce_tables(
         outcomes = [TrialOutcome.from_dict(sweep.results[s.key]) for s in specs[table] if s.key in sweep.results]
         prefix = f"table{table}/"
         failed = tuple(f for f in sweep.failures if f.key.startswith(prefix))
-        reports.append(_table_report(table, d, config, methods, outcomes, failed, seed))
+        reports.append(_table_report(table, d, config, methods, outcomes, failed, seed, provenances[table]))
     return ReproductionRun(tuple(reports), sweep)
 
 
 def _table_report(table: int, data_dir: str, config: IRLConfig, methods: Sequence[str], outcomes: list[TrialOutcome],
-                  failures: tuple[TaskFailure, ...], seed: int) -> ReproductionReport:
+                  failures: tuple[TaskFailure, ...], seed: int, prov: dict | None = None) -> ReproductionReport:
     main = [o for o in outcomes if o.holdout is None]
     folds = [o for o in outcomes if o.holdout is not None]
     by_method = {m: [o for o in main if o.method == m] for m in methods}
@@ -329,7 +343,7 @@ def _table_report(table: int, data_dir: str, config: IRLConfig, methods: Sequenc
     rows += tuple(baseline_summary(b, problem, with_holdout, mlirl, marginal) for b in BASELINES)
     names = tuple(problem.feature_names)
     return ReproductionReport(table, TITLES[table], config, names, rows, tuple(main), tuple(folds), int(seed),
-                              failures)
+                              failures, provenance=prov)
 
 
 def reproduce(

@@ -35,9 +35,10 @@ import numpy as np
 import pyarrow as pa
 import rerun as rr
 
+from irl.atomic import move_into_place, temporary_path
+from irl.domains.merge import ACTION_NAMES, FEATURE_NAMES, paper_features
 from sim.hooks import FrameState, RunContext
 from sim.observe import lead_of
-from sim.policy import ACTION_NAMES
 from sim.schema import RAMP_LANE
 
 ROLE_IDS = {"other": 0, "A": 1, "B": 2, "C": 3}
@@ -46,34 +47,43 @@ ROLE_COLORS = np.array(
     [[150, 150, 150, 255], [230, 40, 40, 255], [40, 110, 230, 255], [40, 180, 70, 255]], dtype=np.uint8
 )
 ROLE_RGBA_U32 = (ROLE_COLORS.astype(np.uint32) @ np.array([1 << 24, 1 << 16, 1 << 8, 1], dtype=np.uint32)).astype(np.uint32)
-FEATURE_NAMES = ("safe", "time_to_travel", "ahead_of_truck")
 VEHICLE_HEIGHT_FT = 5.0
-
-
-def paper_features(d_AC: float, b_is_truck: bool, action: int) -> tuple[float, float, float]:
-    """The paper's three reward features of taking ``action`` (section 4.2), continuous form.
-
-    Safe = 0 only when d_AC < 35 ft and the action accelerates (>= 0.6 ft/s^2, actions 3-4);
-    Time-to-travel = 1 when acc > -0.6 (actions 2-4); Ahead-of-truck = 1 when B is a truck
-    and A accelerates (actions 3-4).
-    """
-    accel = action >= 3
-    return (0.0 if (d_AC < 35.0 and accel) else 1.0, 1.0 if action >= 2 else 0.0,
-            1.0 if (b_is_truck and accel) else 0.0)
+#: Entity holding a recording's properties (name, start time).
+PROPERTIES = "/__properties"
 
 
 def _tmp_path(path: Path) -> Path:
-    return path.with_name(path.name + ".partial")
+    return temporary_path(path, suffix=".partial")
+
+
+def recording_identity(scenario: str, policy: str, seed: int, episode: int | None = None) -> tuple[str, str]:
+    """``(recording id, recording name)`` of one run's ``.rrd``: distinct for every scenario,
+    policy, seed (and episode, when given), so the viewer keeps the files apart.
+
+    E.g. ``("merge-irl/synthetic/qavg/seed3", "qavg on synthetic, seed 3")``.
+    """
+    rid = f"merge-irl/{scenario}/{policy}/seed{int(seed)}"
+    name = f"{policy} on {scenario}, seed {int(seed)}"
+    if episode is not None:
+        rid += f"/episode{int(episode)}"
+        name += f", episode {int(episode)}"
+    return rid, name
 
 
 def open_recording(path: str | os.PathLike, *, application_id: str = "merge-irl",
-                   recording_id: str | None = None) -> tuple[rr.RecordingStream, Path]:
-    """A recording stream saving to a temporary name next to ``path`` (see :func:`close_recording`)."""
+                   recording_id: str | None = None, name: str | None = None) -> tuple[rr.RecordingStream, Path]:
+    """A recording stream saving to a temporary name next to ``path`` (see :func:`close_recording`).
+
+    ``recording_id``: what the viewer groups data by (two files with one id merge into one
+    recording); ``name``: the recording's display name.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     rec = rr.RecordingStream(application_id, recording_id=recording_id)
     tmp = _tmp_path(path)
     rec.save(str(tmp))
+    if name is not None:
+        rec.send_recording_name(name)
     return rec, tmp
 
 
@@ -81,8 +91,7 @@ def close_recording(rec: rr.RecordingStream, tmp: Path, path: str | os.PathLike)
     """Flush, close and atomically rename the file to ``path``."""
     rec.flush()
     rec.disconnect()
-    os.replace(tmp, path)
-    return Path(path)
+    return move_into_place(tmp, path)
 
 
 def log_training(rec: rr.RecordingStream, method: str, loglik_trace: np.ndarray, theta_trace: np.ndarray,
@@ -114,11 +123,16 @@ class RerunLogger:
             one; then the caller closes it.
         flush_every: frames buffered before they are sent.
         log_vehicles: log ``world/vehicles`` (False: only policy/metrics scalars).
+        episode: the episode's index, if the file holds one episode of several; it goes into
+            the recording id and name (:func:`recording_identity`) with the scenario, the
+            controller's policy (``sumo`` without a controller) and the seed.
     """
 
     def __init__(self, path: str | os.PathLike, *, controller=None, recording: tuple[rr.RecordingStream, Path] | None = None,
-                 flush_every: int = 600, log_vehicles: bool = True, application_id: str = "merge-irl"):
+                 flush_every: int = 600, log_vehicles: bool = True, application_id: str = "merge-irl",
+                 episode: int | None = None):
         self.path = Path(path)
+        self.episode = episode
         self.controller = controller
         self.flush_every = int(flush_every)
         self.log_vehicles = log_vehicles
@@ -146,8 +160,9 @@ class RerunLogger:
     # -- hook protocol -------------------------------------------------------------------
     def on_start(self, ctx: RunContext) -> None:
         if self._rec is None:
-            self._rec, self._tmp = open_recording(self.path, application_id=self._app,
-                                                  recording_id=f"{self._app}-seed{ctx.seed}")
+            policy = self.controller.policy.name if self.controller is not None else "sumo"
+            rid, name = recording_identity(ctx.spec.name, policy, ctx.seed, self.episode)
+            self._rec, self._tmp = open_recording(self.path, application_id=self._app, recording_id=rid, name=name)
         rec = self._rec
         names = sorted(ctx.lane_shapes, key=lambda s: int(s) if s.isdigit() else 99)
         strips = [np.column_stack([np.asarray(ctx.lane_shapes[n], float), np.zeros(len(ctx.lane_shapes[n]))]) for n in names]
@@ -286,3 +301,83 @@ def read_entities(path: str | os.PathLike) -> dict[str, list]:
     for chunk in RrdReader(str(path)).store().stream():
         out.setdefault(chunk.entity_path, []).append(chunk.to_record_batch())
     return out
+
+
+def recording_info(path: str | os.PathLike) -> dict[str, str | None]:
+    """``{"application_id", "recording_id", "name"}`` of the (first) recording in an ``.rrd``
+    (``name`` None if none was set).
+
+    Raises:
+        FileNotFoundError: no such file.
+        ValueError: the file holds no recording.
+    """
+    from rerun.chunk import RrdReader
+
+    if not Path(path).is_file():
+        raise FileNotFoundError(f"{path}: no such recording")
+    reader = RrdReader(str(path))
+    entries = reader.recordings()
+    if not entries:
+        raise ValueError(f"{path}: no recording in this .rrd file")
+    name = None
+    for chunk in reader.stream(store=entries[0]):
+        if chunk.entity_path == PROPERTIES:
+            batch = chunk.to_record_batch()
+            if "RecordingInfo:name" in batch.schema.names:
+                name = str(batch.column("RecordingInfo:name")[0][0])
+    return {"application_id": entries[0].application_id, "recording_id": entries[0].recording_id, "name": name}
+
+
+def read_rrd_table(path: str | os.PathLike, entity: str | None = None, *, properties: bool = False):
+    """An ``.rrd`` file as a pandas table, one row per logged row, in file order.
+
+    Columns: ``entity`` (e.g. ``/metrics/A_12/speed``), ``static``, one column per timeline
+    present (``step``, ``iteration``: integers; ``sim_time``: float seconds; NaN/None where an
+    entity lacks it) and one per component (rerun's names, e.g. ``Scalars:scalars``,
+    ``Boxes3D:centers``, ``vehicle_id``). A component column whose every value is a
+    one-element list holds that element; others hold arrays (e.g. the 5 action probabilities
+    of ``policy/A_<id>/probs``, or one array per frame of ``world/vehicles``).
+
+    Example::
+
+        df = read_rrd_table("runs/eval/rerun/qavg.rrd", "/metrics/")
+        speed = df[df.entity.str.endswith("/speed")][["entity", "sim_time", "Scalars:scalars"]]
+
+    Args:
+        entity: keep only entities whose path starts with this (None: all).
+        properties: also return the recording's properties (``/__properties``: name, start time).
+
+    Raises:
+        FileNotFoundError: no such file.
+        ValueError: the file holds no recording.
+    """
+    import pandas as pd
+    from rerun.chunk import RrdReader
+
+    if not Path(path).is_file():
+        raise FileNotFoundError(f"{path}: no such recording")
+    reader = RrdReader(str(path))
+    if not reader.recordings():
+        raise ValueError(f"{path}: no recording in this .rrd file")
+    parts = []
+    for chunk in reader.stream():
+        ent = chunk.entity_path
+        if (entity is not None and not ent.startswith(entity)) or (ent == PROPERTIES and not properties):
+            continue
+        batch = chunk.to_record_batch()
+        keep = [f.name for f in batch.schema if (f.metadata or {}).get(b"rerun:kind") != b"control"]
+        df = batch.select(keep).to_pandas()
+        for col in df.columns:
+            if pd.api.types.is_timedelta64_dtype(df[col]):
+                df[col] = df[col].dt.total_seconds()
+        df.insert(0, "static", bool(chunk.is_static))
+        df.insert(0, "entity", ent)
+        parts.append(df)
+    if not parts:
+        return pd.DataFrame({"entity": pd.Series(dtype=object), "static": pd.Series(dtype=bool)})
+    table = pd.concat(parts, ignore_index=True)
+    for col in table.columns[2:]:
+        values = table[col].dropna()
+        if len(values) and all(hasattr(v, "__len__") and not isinstance(v, str) and len(v) == 1 for v in values):
+            table[col] = [v[0] if hasattr(v, "__len__") and not isinstance(v, str) else v for v in table[col]]
+    return table

@@ -84,7 +84,11 @@ def parse_threshold(text: str) -> Threshold:
 
 
 def parse_thresholds(texts: Iterable[str] | str) -> tuple[Threshold, ...]:
-    """Several thresholds: an iterable of strings, each possibly ``,``/``;``-separated."""
+    """Several thresholds: an iterable of strings, each possibly ``,``/``;``-separated.
+
+    Raises:
+        ThresholdError: a part that is not ``[POLICY.]METRIC OP NUMBER``.
+    """
     if isinstance(texts, str):
         texts = [texts]
     out = []
@@ -154,5 +158,10 @@ def metrics_from_file(path: str | Path) -> dict[str, dict[str, Any]]:
 
 
 def check_file(path: str | Path, thresholds: Iterable[str] | str) -> list[Breach]:
-    """Parse ``thresholds`` and check them against ``metrics.json`` at ``path``."""
+    """Parse ``thresholds`` and check them against ``metrics.json`` at ``path``.
+
+    Raises:
+        ThresholdError: a malformed threshold, a missing or malformed metrics file, or an
+            unknown policy or metric name.
+    """
     return check_thresholds(parse_thresholds(thresholds), metrics_from_file(path))

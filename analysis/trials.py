@@ -15,16 +15,19 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 import sys
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Callable, Iterable, Sequence
 
 import numpy as np
 
 from analysis.learn import fit_problem
-from analysis.problem import Problem
 from irl.boltzmann import loglik_from_counts, step_counts
 from irl.config import IRLConfig
+from irl.errors import ConfigError, DemonstrationError
+from irl.problems import Problem, load_problem
 from irl.reirl import DEFAULT_EPSILON
 
 
@@ -96,7 +99,7 @@ class TrialSpec:
     """A reproduction trial as a sweep task config (small, picklable, stable digest).
 
     Attributes:
-        table: 1, 2 or 3 (the data set, see ``analysis.reproduce.table_problem``).
+        table: 1, 2 or 3 (the data set, see :func:`table_problem`).
         data_dir: the authors' data directory (absolute path string).
         method: ``qavg | qsm | mlirl | reirl``.
         config: IRL settings.
@@ -123,11 +126,33 @@ class TrialSpec:
         return f"table{self.table}/{self.method}/{tail}"
 
 
+def resolve_data_dir(data_dir: str | os.PathLike) -> Path:
+    """``data_dir`` itself if it holds ``gridworld/`` or ``merge_ngsim/``, else its ``railusm/``."""
+    d = Path(data_dir)
+    if (d / "gridworld").is_dir() or (d / "merge_ngsim").is_dir():
+        return d
+    if (d / "railusm").is_dir():
+        return d / "railusm"
+    raise DemonstrationError(f"{d}: expected the authors' data layout (gridworld/, merge_ngsim/)")
+
+
+def table_problem(table: int, data_dir: str | os.PathLike) -> Problem:
+    """The data set of ``table`` (1, 2 or 3) under ``data_dir`` (the ``railusm`` layout)."""
+    d = resolve_data_dir(data_dir)
+    if table in (1, 2):
+        noise = 0.0 if table == 1 else 0.1
+        tag = f"noise_{noise:.1f}"
+        return load_problem("gridworld", d / "gridworld" / f"{tag}_expert_trajs", noise=noise,
+                            baseline_path=d / "gridworld" / f"{tag}_baseline_trajs",
+                            name=f"gridworld {int(noise * 100)}% noise")
+    if table == 3:
+        return load_problem("merge", d / "merge_ngsim", name="NGSIM merge")
+    raise ConfigError(f"table must be 1, 2 or 3, got {table}")
+
+
 @functools.lru_cache(maxsize=4)
 def cached_table_problem(table: int, data_dir: str) -> Problem:
-    """``analysis.reproduce.table_problem``, loaded once per process (each sweep worker)."""
-    from analysis.reproduce import table_problem
-
+    """:func:`table_problem`, loaded once per process (each sweep worker)."""
     return table_problem(table, data_dir)
 
 

@@ -7,12 +7,9 @@ log-sum-exp with max subtraction, so large ``beta`` or large ``Q`` never overflo
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
-if TYPE_CHECKING:  # pragma: no cover
-    from irl.demonstrations import Demonstrations
+from irl.demonstrations import Demonstrations
 
 
 def log_policy(q: np.ndarray, beta: float) -> np.ndarray:

@@ -83,7 +83,7 @@ class IRLConfig:
 
     @classmethod
     def reference(cls, **overrides: Any) -> "IRLConfig":
-        """The authors' code's settings: gamma 0.9, alpha 0.1, stop at |dL| <= 1e-4 unscaled."""
+        """The authors' code's settings: gamma 0.9, alpha 0.1, stop at ``|dL| <= 1e-4`` unscaled."""
         return replace(cls(gamma=0.9, alpha=0.1, tol=1e-4, stop_scale_by_gamma=False), **overrides)
 
     def to_dict(self) -> dict[str, Any]:

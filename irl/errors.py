@@ -19,3 +19,8 @@ class ModelFileError(IRLError, ValueError):
 
 class ConvergenceError(IRLError, RuntimeError):
     """A fixed point (Q of a given theta) could not be computed."""
+
+
+class EncodingError(DemonstrationError):
+    """A value cannot be encoded into a domain's state or action (e.g. NaN where a number is
+    required)."""

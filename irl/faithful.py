@@ -12,8 +12,8 @@ import numpy as np
 from irl.ascent import Evaluation
 from irl.boltzmann import demo_counts, loglik_grad_from_counts
 from irl.config import IRLConfig
+from irl.damped_sweeps import make_plan
 from irl.demonstrations import Demonstrations
-from irl.sweeps import make_plan
 
 
 class FaithfulSolver:
@@ -37,7 +37,7 @@ class FaithfulSolver:
 
 
 class PlannedSweeps(FaithfulSolver):
-    """A model-free faithful solver's iterates, split by its :class:`irl.sweeps.SweepPlan`.
+    """A model-free faithful solver's iterates, split by its :class:`irl.damped_sweeps.SweepPlan`.
 
     ``x [n_active]`` / ``x_out [n_outside]``: Q of the swept pairs and of the others;
     ``dx [n_active, K]`` / ``dx_out [n_outside, K]``: their dQ/dtheta; ``phi_in`` /

@@ -98,6 +98,10 @@ def load_railusm(
 
     Returns:
         Demonstrations with one trajectory per file, named by file name.
+
+    Raises:
+        DemonstrationError: a missing or empty file/directory, a malformed line, a state or
+            action out of range, or features of the wrong shape (naming the file and line).
     """
     features = np.asarray(features, dtype=np.float64)
     if features.ndim != 3 or features.shape[:2] != (n_states, n_actions):
@@ -151,7 +155,12 @@ def _int_array(arr: np.ndarray, name: str, where: str) -> np.ndarray:
 
 
 def load_npz(path: str | os.PathLike) -> Demonstrations:
-    """Load the generic ``.npz`` format (see the module docstring)."""
+    """Load the generic ``.npz`` format (see the module docstring).
+
+    Raises:
+        DemonstrationError: a missing or unreadable file, a missing array, or an array of the
+            wrong dtype, shape or range (naming the array and the entry).
+    """
     path = Path(path)
     where = str(path)
     if not path.is_file():
@@ -259,4 +268,8 @@ def save_npz(demos: Demonstrations, path: str | os.PathLike, feature_names: tupl
         arrays["feature_names"] = np.asarray(feature_names, dtype=str)
     if demos.names:
         arrays["names"] = np.asarray(demos.names, dtype=str)
-    return write_atomic(path, lambda f: np.savez(f, **arrays), binary=True)
+    def write(tmp: Path) -> None:
+        with open(tmp, "wb") as f:  # a file object: np.savez would add ".npz" to a path
+            np.savez(f, **arrays)
+
+    return write_atomic(path, write)

@@ -3,7 +3,7 @@
 ``Q = R + gamma T (sum_b pi(b|s') Q(s', b))`` over every (s, a) with a full row-stochastic
 ``T [S, A, S]``: the true model (gridworld), or :func:`irl.transitions.estimate_transitions`
 with a domain-supplied fallback for unseen pairs (merge). The fixed-point code is shared with
-Q-SM (:mod:`irl.boltzmann_backup`); only the successor model differs (no terminal pairs).
+Q-SM (:mod:`irl.boltzmann_fit`); only the successor model differs (no terminal pairs).
 
 * ``exact``: Newton fixed point, implicit gradient, L-BFGS.
 * ``faithful``: the damped synchronous Boltzmann backup ``Q <- (1-alpha) Q + alpha (R + gamma T V(Q))``
@@ -19,7 +19,7 @@ import numpy as np
 
 from irl.ascent import unit_step_ascent
 from irl.bellman import boltzmann_fixed_point
-from irl.boltzmann_backup import DampedBoltzmann, fit_exact
+from irl.boltzmann_fit import DampedBoltzmann, fit_exact
 from irl.config import IRLConfig
 from irl.demonstrations import Demonstrations
 from irl.errors import ConfigError, ConvergenceError

@@ -10,7 +10,7 @@ averaged successors is ``Q = R + gamma P_hat (mean_b Q(s', b))``, linear in thet
   global maximum. A linear programme (:func:`irl.ascent.recession_direction`) checks first
   whether the data let the weights grow without bound; then the reported ``loglik`` is the
   supremum approached and ``unbounded=True`` (use ``l2 > 0`` for a finite answer).
-* ``faithful`` solver: the authors' damped in-place sweeps (:mod:`irl.sweeps`), Q then dQ each
+* ``faithful`` solver: the authors' damped in-place sweeps (:mod:`irl.damped_sweeps`), Q then dQ each
   to ``max change < inner_tol`` or ``max_inner`` sweeps, warm-started across outer steps, and
   fixed-length unit-gradient outer steps (:func:`irl.ascent.unit_step_ascent`). Where a pair has
   several different successors, the in-place sweep's fixed point depends on alpha and the data
@@ -27,11 +27,11 @@ from irl.ascent import Evaluation, newton_concave, recession_direction, unit_ste
 from irl.bellman import average_basis
 from irl.boltzmann import log_policy, loglik_grad_from_counts, step_counts
 from irl.config import IRLConfig
+from irl.damped_sweeps import compose_sweep, iterate_affine
 from irl.demonstrations import Demonstrations
 from irl.faithful import PlannedSweeps
 from irl.fit_common import finish_faithful, initial_theta, result_from_ascent
 from irl.result import FitResult
-from irl.sweeps import compose_sweep, iterate_affine
 from irl.transitions import model_free_successors
 
 

@@ -4,10 +4,10 @@ Same model-free successors and terminal pairs as Q-Avg (:mod:`irl.transitions`);
 bootstraps from ``sum_b pi(b|s') Q(s', b)`` with ``pi = softmax(beta Q)``. Not a
 non-expansion: the iteration may fail to converge, and both solvers report it.
 
-* ``exact``: Newton fixed point + implicit gradient + L-BFGS (:mod:`irl.boltzmann_backup`);
+* ``exact``: Newton fixed point + implicit gradient + L-BFGS (:mod:`irl.boltzmann_fit`);
   ``converged=False`` with a message when no fixed point is found, or when the one found repels
   the damped iteration of Eq. 15.
-* ``faithful``: the authors' in-place damped sweeps (:func:`irl.sweeps.softmax_sweep`), Q first
+* ``faithful``: the authors' in-place damped sweeps (:func:`irl.damped_sweeps.softmax_sweep`), Q first
   to ``max change < inner_tol`` or ``max_inner`` sweeps, then dQ with the gradient term
   ``pi dQ + Q dpi`` (Eq. 16 with ``dpi`` from the current sweep, not the previous outer step, and
   without the reference code's ``z^2`` factor), warm-started, fixed-length outer steps.
@@ -23,13 +23,13 @@ import numpy as np
 
 from irl.ascent import Evaluation, unit_step_ascent
 from irl.bellman import mean_weights
-from irl.boltzmann_backup import fit_exact
+from irl.boltzmann_fit import fit_exact
 from irl.config import IRLConfig
+from irl.damped_sweeps import compose_sweep, iterate_affine, softmax_sweep
 from irl.demonstrations import Demonstrations
 from irl.faithful import PlannedSweeps
 from irl.fit_common import finish_faithful, initial_theta
 from irl.result import FitResult
-from irl.sweeps import compose_sweep, iterate_affine, softmax_sweep
 from irl.transitions import model_free_successors
 
 

@@ -42,7 +42,9 @@ from irl.boltzmann import loglik_from_counts, step_counts
 from irl.config import IRLConfig
 from irl.demonstrations import Demonstrations
 from irl.errors import ConfigError, DemonstrationError, IRLError
+from irl.mlirl import solve_q
 from irl.result import FitResult
+from irl.transitions import estimate_transitions
 
 #: Default L1 weight ``eps`` of the dual: None means the Hoeffding bound (:func:`hoeffding_epsilon`).
 DEFAULT_EPSILON = None
@@ -50,7 +52,7 @@ DEFAULT_EPSILON = None
 DEFAULT_DELTA = 0.05
 #: Default number of generated baseline trajectories.
 DEFAULT_N_BASELINE = 100
-#: Box bound on |theta_k| applied when the dual is unbounded below.
+#: Box bound on ``|theta_k|`` applied when the dual is unbounded below.
 THETA_CAP = 1e4
 
 PadStep = Callable[[int], tuple[int, int]]
@@ -244,8 +246,6 @@ def fit_reirl(
     if not theta_cap > 0:
         raise ConfigError(f"REIRL theta_cap must be positive, got {theta_cap}")
     if transitions is None:
-        from irl.transitions import estimate_transitions
-
         transitions = estimate_transitions(demos)
     transitions = np.asarray(transitions, dtype=np.float64)
     if transitions.shape != (demos.n_states, demos.n_actions, demos.n_states):
@@ -276,8 +276,6 @@ def fit_reirl(
     unbounded = status == "unbounded"
     if unbounded:
         theta, status, value = solve_dual(f_base, f_expert, log_w, eps, theta_cap=theta_cap)
-    from irl.mlirl import solve_q
-
     message = f"cvxpy status {status}; dual value {value:.6g}"
     converged = status == "optimal"
     try:

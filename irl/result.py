@@ -11,11 +11,12 @@ from typing import Any
 
 import numpy as np
 
-from irl.boltzmann import log_policy
 from irl.atomic import write_json_atomic
+from irl.boltzmann import log_policy
 from irl.config import IRLConfig
 from irl.errors import ModelFileError
 
+#: Method names a model file may carry (the methods themselves: :data:`irl.fit.REGISTRY`).
 METHODS = ("qavg", "qsm", "mlirl", "reirl")
 
 
@@ -137,7 +138,11 @@ class SavedModel:
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "SavedModel":
-        """Read a ``model.json``; every malformed file raises ``ModelFileError`` naming the field."""
+        """Read a ``model.json``.
+
+        Raises:
+            ModelFileError: a missing, unreadable or malformed file (naming the field at fault).
+        """
         path = Path(path)
         try:
             data = json.loads(path.read_text(encoding="utf-8"))

@@ -1,8 +1,11 @@
 """On-ramp merge scenarios: frozen specs loaded from TOML, presets, and SUMO networks.
 
-    from scenarios import load_scenario
+    from scenarios import load_scenario, with_overrides
     spec = load_scenario("synthetic")          # a preset, or a path to a .toml file
-    spec = spec.with_overrides(seed=3, duration_s=120)
+    spec = with_overrides(spec, seed=3, duration_s=120)
+
+Layering: ``scenarios`` imports nothing of ours but :mod:`irl.units`, a leaf module of unit
+constants (feet and metres) that itself imports nothing.
 """
 
 from scenarios.errors import ScenarioError, SpecError
@@ -15,7 +18,7 @@ from scenarios.spec import (
     SimulationSpec,
     VTypeSpec,
 )
-from scenarios.spec_parse import spec_from_dict, spec_from_file, spec_from_toml
+from scenarios.spec_parse import spec_from_dict, spec_from_file, spec_from_toml, with_overrides
 
 __all__ = [
     "DEFAULT_SCENARIO",
@@ -33,4 +36,5 @@ __all__ = [
     "spec_from_dict",
     "spec_from_file",
     "spec_from_toml",
+    "with_overrides",
 ]

@@ -27,7 +27,12 @@ def load_preset(name: str) -> ScenarioSpec:
 
 
 def load_scenario(name_or_path: str | Path) -> ScenarioSpec:
-    """A preset name (``synthetic``, ``i80``) or the path of a scenario ``.toml`` file."""
+    """A preset name (``synthetic``, ``i80``) or the path of a scenario ``.toml`` file.
+
+    Raises:
+        SpecError: unknown preset, missing file, or an invalid field (the message names the
+            file and the field).
+    """
     s = str(name_or_path)
     p = Path(s)
     if isinstance(name_or_path, Path) or s.endswith(".toml") or p.exists() or "/" in s:

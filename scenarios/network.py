@@ -20,9 +20,9 @@ import hashlib
 import json
 import math
 import os
+import secrets
 import shutil
 import subprocess
-import tempfile
 from dataclasses import asdict
 from pathlib import Path
 
@@ -96,7 +96,8 @@ def build_network(road: RoadSpec, *, cache_dir: Path | None = None) -> Path:
     if net.is_file():
         return net
     root.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}-", dir=root))
+    tmp = root / f".{final.name}-{secrets.token_hex(6)}"
+    tmp.mkdir()  # mode 0777 minus umask, readable like the files (mkdtemp would give 0700)
     try:
         for name, text in _xml_files(road).items():
             (tmp / name).write_text(text, encoding="utf-8")

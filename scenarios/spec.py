@@ -1,4 +1,5 @@
-"""The on-ramp merge scenario as frozen dataclasses (read and validated by :mod:`scenarios.spec_parse`).
+"""The on-ramp merge scenario as frozen dataclasses (read, validated and overridden by
+:mod:`scenarios.spec_parse`).
 
 Layout of a scenario TOML file (SI units, as SUMO uses them)::
 
@@ -22,6 +23,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
 from typing import Any
+
+from scenarios.toml_write import dumps
 
 VEHICLE_CLASSES = ("car", "truck")
 
@@ -116,37 +119,12 @@ class ScenarioSpec:
     simulation: SimulationSpec = SimulationSpec()
     source: str = field(default="", compare=False)  #: file read from; not saved, not compared
 
-    def with_overrides(
-        self, *, seed: int | None = None, duration_s: float | None = None,
-        demand_scale: float | None = None,
-    ) -> "ScenarioSpec":
-        """A copy with another seed and/or duration, validated again.
-
-        ``demand_scale`` multiplies every demand flow (each ``main_veh_h`` entry and
-        ``ramp_veh_h``); it must be a positive finite number.
-        """
-        data = self.to_dict()
-        if seed is not None:
-            data["simulation"]["seed"] = seed
-        if duration_s is not None:
-            data["simulation"]["duration_s"] = duration_s
-        from scenarios.spec_parse import _Ctx, _positive, spec_from_dict
-
-        if demand_scale is not None:
-            ctx = _Ctx(self.source or "<overrides>")
-            k = _positive(ctx, "demand_scale", demand_scale)
-            data["demand"]["main_veh_h"] = [x * k for x in data["demand"]["main_veh_h"]]
-            data["demand"]["ramp_veh_h"] = data["demand"]["ramp_veh_h"] * k
-        return spec_from_dict(data, source=self.source or "<overrides>")
-
     def to_dict(self) -> dict[str, Any]:
         """Plain TOML-ready mapping (tuples become lists, param tuples become tables)."""
         return _to_plain(self)
 
     def to_toml(self) -> str:
         """The spec as TOML text; ``load_scenario`` of that text gives an equal spec."""
-        from scenarios.toml_write import dumps
-
         return dumps(self.to_dict())
 
 

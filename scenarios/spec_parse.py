@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import re
+import tomllib
 from dataclasses import fields
 from pathlib import Path
 from typing import Any
@@ -293,8 +294,6 @@ def spec_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> ScenarioS
 
 def spec_from_toml(text: str, *, source: str = "<toml>") -> ScenarioSpec:
     """Parse TOML text and validate it."""
-    import tomllib
-
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
@@ -311,3 +310,32 @@ def spec_from_file(path: str | Path) -> ScenarioSpec:
     except UnicodeDecodeError as e:
         raise SpecError(f"{p}: not a UTF-8 text file (byte {e.start}); expected scenario TOML") from None
     return spec_from_toml(text, source=p.name)
+
+
+def with_overrides(
+    spec: ScenarioSpec, *, seed: int | None = None, duration_s: float | None = None,
+    demand_scale: float | None = None,
+) -> ScenarioSpec:
+    """A copy of ``spec`` with another seed, duration and/or demand, validated again.
+
+    Args:
+        spec: the scenario.
+        seed: SUMO's random seed.
+        duration_s: simulated seconds, warm-up included.
+        demand_scale: multiplies every demand flow (each ``main_veh_h`` entry and
+            ``ramp_veh_h``); a positive finite number.
+
+    Raises:
+        SpecError: if an override is invalid (naming the field).
+    """
+    source = spec.source or "<overrides>"
+    data = spec.to_dict()
+    if seed is not None:
+        data["simulation"]["seed"] = seed
+    if duration_s is not None:
+        data["simulation"]["duration_s"] = duration_s
+    if demand_scale is not None:
+        k = _positive(_Ctx(source), "demand_scale", demand_scale)
+        data["demand"]["main_veh_h"] = [x * k for x in data["demand"]["main_veh_h"]]
+        data["demand"]["ramp_veh_h"] = data["demand"]["ramp_veh_h"] * k
+    return spec_from_dict(data, source=source)

@@ -35,13 +35,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from irl.domains.merge import ACTION_ACC_FT_S2, action_of
+from irl.units import M_PER_FT
 from sim.errors import SimError
 from sim.hooks import FrameState, RunContext
 from sim.observe import MergeObservation, lag_of, lead_of, observe
-from sim.policy import ACTION_ACC_FT_S2, Policy, action_of_acc, choose_action
+from sim.policy import Policy, choose_action
 from sim.schema import RAMP_LANE, RIGHTMOST_MAIN_LANE
 
-M_PER_FT = 0.3048
 #: A that reaches the end of its route within this of the section end has left the section (ft).
 EXIT_MARGIN_FT = 150.0
 
@@ -334,7 +335,7 @@ class Controller:
             self._traci.vehicle.setAcceleration(c.a_sumo, acc * M_PER_FT, self._every * self._frame_s)
         else:
             acc = float(frame.acc[ia])
-            action = int(action_of_acc(acc))
+            action = action_of(acc)
         c.n_decisions += 1
         self.decided.add(c.a_id)
         c_id = int(frame.vehicle_id[ic]) if ic is not None else 0

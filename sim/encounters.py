@@ -11,16 +11,21 @@ Definitions (the paper's section 4.2; feet, ft/s, ft/s^2; positions are NGSIM's 
   by ``Preceding`` / ``Following``). A and C keep their roles over the whole window.
 * Per frame: ``d_AC = Local_Y(C) - Local_Y(A)``, ``d_AB = Local_Y(B) - Local_Y(A)`` (negative
   while B is still behind A), ``v_AC = v_Vel(A) - v_Vel(C)``, ``v_AB = v_Vel(A) - v_Vel(B)``
-  (positive when A is faster, i.e. closing in), ``B_is_truck`` (B's v_Class is 3) and
-  ``acc_A = v_Acc(A)``.
+  (positive when A is faster, i.e. closing in), ``B_is_truck`` (B's v_Class is 3) and the
+  action ``acc_A = (v_Vel(A, t+1) - v_Vel(A, t)) / 0.1 s``: the forward difference, the
+  acceleration A applies in frame t (``v_Acc`` is the backward difference that led to frame t
+  and is not used). The next frame may lie beyond the window: A's row at t+1 is taken from the
+  table wherever it is. A frame whose t+1 row of A is not in the table has no action and no
+  row. The columns, dtypes and units are :data:`irl.domains.merge.ENCOUNTER_SCHEMA`.
 * **Window** (:class:`EncounterWindow`): from the first frame in which A and B are both in the
   table (both in the section), or at most ``max_frames_before`` frames before the merge, until
   ``frames_after`` frames after the merge frame (0: the merge frame is the last row). Frames in
-  which A or B is missing are skipped.
+  which A or B is missing, or A has no row at t+1, are skipped.
 * **Missing neighbours**: every B gets one row in the merges summary (``merges``), with
   ``A_id = 0`` when no lane-6 vehicle is behind it at the merge frame and ``C_id = 0`` when
   none is ahead. Without A there is no per-frame row (A is the driver being modelled). Without C
-  (or in frames where C is not in the table) ``d_AC`` and ``v_AC`` are NaN.
+  (or in frames where C is not in the table) ``d_AC`` and ``v_AC`` are NaN: the no-lead-car
+  rule of :mod:`irl.domains.merge`.
 """
 
 from __future__ import annotations
@@ -30,16 +35,9 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from irl.domains.merge import ENCOUNTER_COLUMNS, forward_acceleration
 from sim.errors import TrajectoryFormatError
-from sim.schema import RAMP_LANE, RIGHTMOST_MAIN_LANE, V_CLASS_TRUCK
-
-#: Columns of the per-frame encounter table, in order.
-ENCOUNTER_COLUMNS: dict[str, str] = {
-    "encounter_id": "int64", "B_id": "int64", "A_id": "int64", "C_id": "int64",
-    "Frame_ID": "int64", "Global_Time": "int64", "merge_frame": "int64",
-    "d_AC": "float64", "d_AB": "float64", "v_AC": "float64", "v_AB": "float64",
-    "B_is_truck": "bool", "acc_A": "float64",
-}
+from sim.schema import FRAME_S, RAMP_LANE, RIGHTMOST_MAIN_LANE, V_CLASS_TRUCK
 
 #: Columns of the per-merge summary table, in order.
 MERGE_COLUMNS: dict[str, str] = {
@@ -48,7 +46,7 @@ MERGE_COLUMNS: dict[str, str] = {
     "first_frame": "int64", "n_frames": "int64",
 }
 
-_NEEDED = ("Vehicle_ID", "Frame_ID", "Global_Time", "Local_Y", "v_Vel", "v_Acc", "v_Class", "Lane_ID")
+_NEEDED = ("Vehicle_ID", "Frame_ID", "Global_Time", "Local_Y", "v_Vel", "v_Class", "Lane_ID")
 
 
 @dataclass(frozen=True)
@@ -117,7 +115,6 @@ def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow())
     lane = table["Lane_ID"].to_numpy(np.int64)
     y = table["Local_Y"].to_numpy(np.float64)
     vel = table["v_Vel"].to_numpy(np.float64)
-    acc = table["v_Acc"].to_numpy(np.float64)
     vclass = table["v_Class"].to_numpy(np.int64)
     gtime = table["Global_Time"].to_numpy(np.int64)
     row_of = pd.MultiIndex.from_arrays([vid, frame])
@@ -149,9 +146,9 @@ def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow())
             if window.max_frames_before is not None:
                 start = max(start, int(mf) - window.max_frames_before)
             frames = np.arange(start, mf + window.frames_after + 1, dtype=np.int64)
-            ra, rbb = rows(a, frames), rows(b, frames)
-            keep = (ra >= 0) & (rbb >= 0)
-            frames, ra, rbb = frames[keep], ra[keep], rbb[keep]
+            ra, rbb, ra_next = rows(a, frames), rows(b, frames), rows(a, frames + 1)
+            keep = (ra >= 0) & (rbb >= 0) & (ra_next >= 0)
+            frames, ra, rbb, ra_next = frames[keep], ra[keep], rbb[keep], ra_next[keep]
             if c:
                 rc = rows(c, frames)
                 hc = rc >= 0
@@ -164,7 +161,7 @@ def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow())
                 "Frame_ID": frames, "Global_Time": gtime[ra], "merge_frame": mf,
                 "d_AC": yc - y[ra], "d_AB": y[rbb] - y[ra],
                 "v_AC": vel[ra] - vc, "v_AB": vel[ra] - vel[rbb],
-                "B_is_truck": truck, "acc_A": acc[ra],
+                "B_is_truck": truck, "acc_A": forward_acceleration(vel[ra], vel[ra_next], FRAME_S),
             }))
             n = len(frames)
         else:

@@ -3,7 +3,7 @@
 Files written into the output folder (each atomically; see ``sim.outputs``):
 
 * ``trajectories.parquet``  the NGSIM-schema trajectory table;
-* ``encounters.parquet``    per-frame merge encounters (``sim.encounters.ENCOUNTER_COLUMNS``);
+* ``encounters.parquet``    per-frame merge encounters (``irl.domains.merge.ENCOUNTER_SCHEMA``);
 * ``merges.parquet``        one row per merging vehicle (``sim.encounters.MERGE_COLUMNS``);
 * ``scenario.toml``         the spec simulated, with the seed and duration actually used;
 * ``trajectories.csv``      on request, in NGSIM's text format (``sim.ngsim_io``).
@@ -18,10 +18,12 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from irl.atomic import write_text_atomic
 from scenarios.spec import ScenarioSpec
+from scenarios.spec_parse import with_overrides
 from sim.encounters import Encounters, EncounterWindow, extract
 from sim.hooks import StepHook
-from sim.outputs import write_parquet, write_text
+from sim.outputs import write_parquet
 from sim.run import SimulationResult, run_scenario
 
 TRAJECTORIES = "trajectories.parquet"
@@ -60,7 +62,7 @@ def generate(
 ) -> GenerateResult:
     """Simulate ``spec`` (optionally with another seed / duration) and write the output files."""
     if seed is not None or duration_s is not None:
-        spec = spec.with_overrides(seed=seed, duration_s=duration_s)
+        spec = with_overrides(spec, seed=seed, duration_s=duration_s)
     out = Path(out_dir) if out_dir is not None else default_out_dir(spec)
     out.mkdir(parents=True, exist_ok=True)
     for name in OUTPUT_FILES:
@@ -71,7 +73,7 @@ def generate(
         write_parquet(result.table, out / TRAJECTORIES),
         write_parquet(enc.frames, out / ENCOUNTERS),
         write_parquet(enc.merges, out / MERGES),
-        write_text(spec.to_toml(), out / SCENARIO),
+        write_text_atomic(out / SCENARIO, spec.to_toml()),
     ]
     if csv:
         from sim.ngsim_io import write_ngsim_csv

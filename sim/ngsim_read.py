@@ -9,14 +9,11 @@ memory is bounded by the chunk size plus the rows kept by the filters (``lanes``
 
 Every defect is either an error or reported (:class:`NgsimReport`), never silent:
 
-===============================================  =============================================
-errors (:class:`~sim.errors.TrajectoryFormatError`, naming file, line and column; nothing is returned)
----------------------------------------------------------------------------------------------
-missing columns (header)                          non-numeric or missing values
-non-integral ids / frames / lanes / classes      negative ``v_Length`` / ``v_Width``
-frames out of order for a vehicle                 a frame repeated with different values
-metric-looking units (mean vehicle length < 8 ft or width < 3.5 ft)
-===============================================  =============================================
+Errors (:class:`~sim.errors.TrajectoryFormatError`, naming file, line and column; nothing is
+returned): missing columns (header); non-numeric or missing values; non-integral ids / frames /
+lanes / classes; negative ``v_Length`` / ``v_Width``; frames out of order for a vehicle; a frame
+repeated with different values; metric-looking units (mean vehicle length < 8 ft or width <
+3.5 ft).
 
 Reported and handled: exact duplicate rows (dropped), vehicles with gaps in their frames (kept;
 counted), acceleration noise (rows at NGSIM's +-11.2 ft/s^2 cap, RMS jerk; optional smoothing,
@@ -60,7 +57,7 @@ class NgsimReport:
     gap_events: int
     missing_frames: int
     max_gap_frames: int
-    acc_saturated_rows: int  #: rows with |v_Acc| at NGSIM's 11.2 ft/s^2 cap
+    acc_saturated_rows: int  #: rows with ``|v_Acc|`` at NGSIM's 11.2 ft/s^2 cap
     jerk_rms_ft_s3: float  #: RMS jerk of the kept rows as read (acceleration noise)
     smoothing: str  #: "none" or the filter's description
     jerk_rms_smoothed_ft_s3: float | None
@@ -378,6 +375,11 @@ def read_trajectories(path: str | os.PathLike, **kwargs) -> pd.DataFrame:
     """A trajectory table from Parquet (simulated runs) or an NGSIM ``.csv`` / ``.txt`` file.
 
     ``kwargs`` go to :func:`read_ngsim` for NGSIM files (ignored for Parquet).
+
+    Raises:
+        FileNotFoundError: a Parquet path that does not exist.
+        TrajectoryFormatError: an unknown suffix, or a file that is not a valid trajectory table
+            (the message names the file, and for NGSIM files the line and column).
     """
     from sim.schema import conform
 

@@ -23,9 +23,9 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.csv as pacsv
 
+from irl.atomic import write_atomic
 from sim.errors import TrajectoryFormatError
 from sim.ngsim_format import DECIMALS, NGSIM_COLUMNS, NGSIM_HEADER
-from sim.outputs import write_atomic
 from sim.schema import COLUMNS, conform, sort_table
 
 Precision = Literal["ngsim", "exact"]

@@ -3,8 +3,9 @@
 A policy maps the merge observation of car A (:class:`sim.observe.MergeObservation`: the four
 continuous variables, B's truck flag and the discrete state) to probabilities over the merge
 domain's five acceleration actions (High Brake, Low Brake, Zero, Low Accel, High Accel). The
-controller samples an action (or takes the mode) and applies :data:`ACTION_ACC_FT_S2`, the
-representative acceleration of each action bin.
+controller samples an action (or takes the mode) and applies
+:data:`irl.domains.merge.ACTION_ACC_FT_S2`, the representative acceleration of each action bin
+(the action bins, names and state encoding are :mod:`irl.domains.merge`'s).
 
 Policies in the same harness:
 
@@ -25,38 +26,17 @@ from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import numpy as np
 
+from irl.domains.merge import ACTION_NAMES, N_ACTIONS, MergeBins
+from irl.errors import ConfigError
 from sim.errors import SimError
 
 if TYPE_CHECKING:  # pragma: no cover
     from irl.result import SavedModel
     from sim.observe import MergeObservation
 
-N_ACTIONS = 5
-ACTION_NAMES = ("High Brake", "Low Brake", "Zero", "Low Accel", "High Accel")
-#: Action bin edges in ft/s^2 (paper section 4.2): [-11.2,-4.8], (-4.8,-0.6], (-0.6,0.6),
-#: [0.6,4.8), [4.8,11.2]. Values outside [-11.2, 11.2] fall in the end bins.
-ACTION_EDGES_FT_S2 = (-11.2, -4.8, -0.6, 0.6, 4.8, 11.2)
-#: The acceleration (ft/s^2) applied for each action: the midpoint of its bin.
-ACTION_ACC_FT_S2 = (-8.0, -2.7, 0.0, 2.7, 8.0)
-
 
 class PolicyError(SimError, ValueError):
     """A policy cannot be built from its inputs (e.g. a model that is not a merge model)."""
-
-
-def action_of_acc(acc_ft_s2: np.ndarray | float) -> np.ndarray:
-    """Action index (0..4) of accelerations in ft/s^2, any shape -> int64 of the same shape.
-
-    Bins as in the paper: a <= -4.8 -> 0; -4.8 < a <= -0.6 -> 1; -0.6 < a < 0.6 -> 2;
-    0.6 <= a < 4.8 -> 3; a >= 4.8 -> 4.
-    """
-    a = np.asarray(acc_ft_s2, dtype=np.float64)
-    out = np.full(a.shape, 2, dtype=np.int64)
-    out[a <= -0.6] = 1
-    out[a <= -4.8] = 0
-    out[a >= 0.6] = 3
-    out[a >= 4.8] = 4
-    return out
 
 
 @runtime_checkable
@@ -132,24 +112,19 @@ class SumoPolicy:
         return np.full(N_ACTIONS, 1.0 / N_ACTIONS)
 
 
-class StateEncoderLike(Protocol):
-    def state(self, d_AC: float, d_AB: float, v_AC: float, v_AB: float, truck: bool) -> int: ...
-
-
 @dataclass(frozen=True)
 class LearnedPolicy:
     """``pi(a|s) = softmax(beta Q(s, .))`` of a learned IRL model.
 
     Attributes:
         log_pi: ``[S, 5]`` log-policy table (``SavedModel.log_policy()``).
-        encoder: maps the continuous observation to the model's discrete state with the bin
-            edges the model was trained with (:class:`sim.observe.StateEncoder` or
-            ``irl.merge_mdp``'s; see :meth:`from_model`).
+        encoder: the state bins the model was trained with (:class:`irl.domains.merge.MergeBins`,
+            the one merge-state encoder; see :meth:`from_model`).
         name: label (e.g. the method).
     """
 
     log_pi: np.ndarray
-    encoder: StateEncoderLike
+    encoder: MergeBins
     name: str = "learned"
     controls: bool = True
 
@@ -160,10 +135,12 @@ class LearnedPolicy:
         object.__setattr__(self, "log_pi", lp)
 
     @classmethod
-    def from_model(cls, model: "SavedModel", *, encoder: StateEncoderLike | None = None, name: str = "") -> "LearnedPolicy":
-        """From a saved merge model (``q [S, 5]``, ``bin_edges``, ``config.beta``)."""
-        from sim.observe import StateEncoder
+    def from_model(cls, model: "SavedModel", *, encoder: MergeBins | None = None, name: str = "") -> "LearnedPolicy":
+        """From a saved merge model (``q [S, 5]``, ``bin_edges``, ``config.beta``).
 
+        Raises:
+            PolicyError: ``q`` is not ``[S, 5]``, or the model has no or bad ``bin_edges``.
+        """
         q = np.asarray(model.q)
         if q.ndim != 2 or q.shape[1] != N_ACTIONS:
             raise PolicyError(
@@ -176,7 +153,10 @@ class LearnedPolicy:
                     "edges the model was trained with (learn it from encounters, not from pre-binned "
                     "data, or add bin_edges to model.json)"
                 )
-            encoder = StateEncoder(model.bin_edges)
+            try:
+                encoder = MergeBins.from_dict(dict(model.bin_edges), where=f"model {model.method!r} bin_edges")
+            except ConfigError as e:
+                raise PolicyError(str(e)) from None
         return cls(log_pi=model.log_policy(), encoder=encoder, name=name or model.method)
 
     @property

@@ -38,6 +38,7 @@ import pandas as pd
 from scenarios.network import build_network
 from scenarios.routes import type_class_map, write_routes
 from scenarios.spec import ScenarioSpec
+from scenarios.spec_parse import with_overrides
 from sim.errors import SimulationError
 from sim.hooks import FrameState, RunContext, StepHook
 from sim.recorder import TrajectoryRecorder
@@ -153,10 +154,12 @@ def run_scenario(
 
     ``seed`` / ``duration_s`` override the spec's. ``hooks`` are called at every recorded
     frame (see :mod:`sim.hooks`). ``progress`` shows a tqdm bar of simulated time on stderr.
-    Raises ``SimulationError`` if SUMO fails.
+
+    Raises:
+        SimulationError: SUMO fails to start or to step.
     """
     if seed is not None or duration_s is not None:
-        spec = spec.with_overrides(seed=seed, duration_s=duration_s)
+        spec = with_overrides(spec, seed=seed, duration_s=duration_s)
     sim = spec.simulation
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="merge-irl-run-") as tmp:

@@ -13,6 +13,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from irl.units import FRAME_S, FT_PER_M  # noqa: F401  (re-exported: the table's units)
+
 #: Column order and numpy dtype of every column of the trajectory table.
 COLUMNS: dict[str, str] = {
     "Vehicle_ID": "int64",
@@ -44,8 +46,6 @@ V_CLASS_TRUCK = 3
 RIGHTMOST_MAIN_LANE = 6
 RAMP_LANE = 7
 
-FRAME_S = 0.1  #: one NGSIM frame, seconds
-FT_PER_M = 1.0 / 0.3048
 
 
 def empty_table() -> pd.DataFrame:

@@ -1,7 +1,9 @@
-"""Small IRL test inputs: random MDP demonstrations and the authors' gridworld data.
+"""Small IRL test inputs: random MDP demonstrations and gridworld demonstrations.
 
-The gridworld features follow REFERENCE.md (state = 5*row + col; features depend on the state
-only: yellow 4, green 0, red 20, pink 24, blue {1, 8, 11, 18, 21}).
+The gridworld demonstrations come from the project's own generator (``irl.domains.gridworld``: the
+paper's 5x5 gridworld, REFERENCE.md layout), with fixed seeds and about the authors' sizes
+(12 expert trajectories without noise, 14 with 10% slips), so the tests run on a fresh clone.
+The authors' own files (AGPL, not shipped) are tested through the ``railusm`` fixture.
 """
 
 from __future__ import annotations
@@ -9,15 +11,17 @@ from __future__ import annotations
 
 import numpy as np
 
+from irl.domains import gridworld
 from irl.demonstrations import Demonstrations
 
-from shared_data import DATA
-
-GRIDWORLD_DIR = DATA / "railusm" / "gridworld"
+#: noise -> (experts drawn, seed, baseline trajectories, baseline length): 12 experts / 38 steps
+#: without noise, 14 / 50 with 10% slips (duplicates removed); uniform-random baselines of 12 x 5
+#: and 14 x 7 steps, as the authors' sets.
+_GRIDWORLD = {"0.0": (12, 0, 12, 5), "0.1": (15, 1, 14, 7)}
 
 
 def gridworld_features() -> np.ndarray:
-    """``[25, 4, 5]`` colour indicators of the state (same for every action)."""
+    """``[25, 4, 5]`` colour indicators of the state (same for every action), written out here."""
     f = np.zeros((25, 4, 5))
     for k, cells in enumerate(([4], [0], [20], [24], [1, 8, 11, 18, 21])):
         f[cells, :, k] = 1.0
@@ -25,16 +29,22 @@ def gridworld_features() -> np.ndarray:
 
 
 def gridworld_demos(noise: str = "0.0", kind: str = "expert") -> Demonstrations:
-    """Read ``noise_<noise>_<kind>_trajs`` (one file per trajectory, ``state<TAB>action``)."""
-    folder = GRIDWORLD_DIR / f"noise_{noise}_{kind}_trajs"
-    files = sorted(folder.glob("*.txt"))
-    states, actions = [], []
-    for path in files:
-        rows = [line.split() for line in path.read_text().splitlines() if line.strip()]
-        states.append(np.array([int(r[0]) for r in rows]))
-        actions.append(np.array([int(r[1]) for r in rows]))
-    return Demonstrations(tuple(states), tuple(actions), gridworld_features(), 25, 4,
-                          source=str(folder), names=tuple(p.name for p in files))
+    """Generated gridworld demonstrations with slip ``noise`` ("0.0" or "0.1"), deterministic.
+
+    ``kind="expert"``: expert trajectories to the nearest corner avoiding blue (the noise-free
+    ones have one successor per observed (s, a)); ``kind="baseline"``: 12 or 14 uniform-random
+    trajectories of fixed length (the REIRL sampling set).
+    """
+    n, seed, n_baseline, length = _GRIDWORLD[noise]
+    rng = np.random.default_rng(seed)
+    if kind == "expert":
+        demos = gridworld.generate_experts(n, float(noise), rng)
+    elif kind == "baseline":
+        demos = gridworld.generate_baseline(n_baseline, length, float(noise), rng)
+    else:
+        raise ValueError(f"kind must be 'expert' or 'baseline', got {kind!r}")
+    np.testing.assert_array_equal(demos.features, gridworld_features())  # the layout REFERENCE.md gives
+    return demos
 
 
 def random_mdp(seed: int, n_states: int = 6, n_actions: int = 3, n_features: int = 3,
@@ -64,30 +74,3 @@ def random_mdp(seed: int, n_states: int = 6, n_actions: int = 3, n_features: int
         states.append(np.array(ss))
         actions.append(np.array(aa))
     return t, Demonstrations(tuple(states), tuple(actions), phi, S, A, source=f"random mdp {seed}")
-
-
-MERGE_DIR = GRIDWORLD_DIR.parent / "merge_ngsim"
-
-
-def merge_features() -> np.ndarray:
-    """``[1250, 5, 3]`` FMFeatures of REFERENCE.md: Safe, Time-to-travel, Ahead-of-truck."""
-    s = np.arange(1250)
-    truck, x1 = s // 625, (s // 125) % 5
-    a = np.arange(5)
-    f = np.zeros((1250, 5, 3))
-    f[:, :, 0] = 1.0 - ((x1[:, None] == 4) & (a[None, :] >= 3))
-    f[:, :, 1] = (a[None, :] >= 2) * np.ones((1250, 1))
-    f[:, :, 2] = (truck[:, None] == 1) & (a[None, :] >= 3)
-    return f
-
-
-def merge_demos() -> Demonstrations:
-    """The authors' 12 discretized NGSIM merge trajectories (``traj_0..11.txt``)."""
-    files = sorted(MERGE_DIR.glob("traj_*.txt"), key=lambda p: int(p.stem.split("_")[1]))
-    states, actions = [], []
-    for path in files:
-        rows = [line.split() for line in path.read_text().splitlines() if line.strip()]
-        states.append(np.array([int(r[0]) for r in rows]))
-        actions.append(np.array([int(r[1]) for r in rows]))
-    return Demonstrations(tuple(states), tuple(actions), merge_features(), 1250, 5,
-                          source=str(MERGE_DIR), names=tuple(p.name for p in files))

@@ -8,7 +8,9 @@ from irl.baselines import (BASELINES, TabularPolicy, baseline_leave_one_out, fit
 from irl.demonstrations import Demonstrations
 from irl.errors import ConfigError, DemonstrationError
 
-from irl_testdata import merge_demos, random_mdp
+from irl.problems import load_problem
+
+from irl_testdata import random_mdp
 
 
 def _tiny() -> Demonstrations:
@@ -79,9 +81,9 @@ def test_tabular_policy_scores_a_state_policy():
         [np.log(0.9) + np.log(0.5) + np.log(0.8), 2 * np.log(0.8)])
 
 
-def test_authors_ngsim_leave_one_out_figures():
+def test_authors_ngsim_leave_one_out_figures(railusm):
     """Issue 11's figures on the authors' 12 trajectories: marginal -1529.8, markov -907.5."""
-    d = merge_demos()
+    d = load_problem("merge", railusm / "merge_ngsim").demos
     totals = {name: float(baseline_leave_one_out(name, d).sum()) for name in BASELINES}
     assert totals["uniform"] == pytest.approx(1197 * np.log(1 / 5))
     assert totals["marginal"] == pytest.approx(-1529.8, abs=0.05)

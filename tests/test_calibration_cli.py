@@ -12,11 +12,12 @@ import pandas as pd
 import pytest
 
 from analysis.calibration_check import compare_distributions, pair_states, table_states
+from irl.units import M_PER_FT
 from scenarios.calibration import CFParams, load_pairs, load_result
 
-from shared_data import DATA
+from shared_data import PAIRS_DIR
 
-PAIRS_DIR = DATA / "ngsim_i80_car_following"
+N_PAIRS = 36  # the vendored pairs (tests/data/README.md)
 
 
 def _cli(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:
@@ -42,12 +43,12 @@ def test_evaluate_json_and_table(params: Path) -> None:
     r = _cli("calibrate", "evaluate", "--params", str(params), "--pairs", str(PAIRS_DIR), "--json")
     assert r.returncode == 0, r.stderr
     d = json.loads(r.stdout)
-    assert {"median_rmse_m", "default_median_rmse_m"} <= set(d) and d["n_pairs"] == 302
+    assert {"median_rmse_m", "default_median_rmse_m"} <= set(d) and d["n_pairs"] == N_PAIRS
     assert 0 < d["median_rmse_m"] < 20 and 0 < d["default_median_rmse_m"] < 20
     r = _cli("calibrate", "evaluate", "--params", str(params), "--pairs", str(PAIRS_DIR))
     assert r.returncode == 0
     lines = r.stdout.splitlines()
-    assert lines[0].split() == ["pair", "rmse_m", "default_rmse_m"] and len(lines) == 302 + 4
+    assert lines[0].split() == ["pair", "rmse_m", "default_rmse_m"] and len(lines) == N_PAIRS + 4
     assert lines[-3].split()[0] == "median" and float(lines[-3].split()[1]) == pytest.approx(d["median_rmse_m"], abs=1e-3)
 
 
@@ -73,10 +74,10 @@ def test_distribution_comparison_detects_difference() -> None:
     for i, p in enumerate(pairs[:3]):
         n = len(p)
         rows.append(pd.DataFrame({"Vehicle_ID": 2 * i + 2, "Frame_ID": np.arange(n), "Lane_ID": 3,
-                                  "Preceding": 2 * i + 1, "v_Vel": p.v_follower / 0.3048,
-                                  "Space_Headway": (p.spacing + p.leader_length) / 0.3048, "v_Length": 15.0}))
+                                  "Preceding": 2 * i + 1, "v_Vel": p.v_follower / M_PER_FT,
+                                  "Space_Headway": (p.spacing + p.leader_length) / M_PER_FT, "v_Length": 15.0}))
         rows.append(pd.DataFrame({"Vehicle_ID": 2 * i + 1, "Frame_ID": np.arange(n), "Lane_ID": 3, "Preceding": 0,
-                                  "v_Vel": p.v_leader / 0.3048, "Space_Headway": 0.0, "v_Length": p.leader_length / 0.3048}))
+                                  "v_Vel": p.v_leader / M_PER_FT, "Space_Headway": 0.0, "v_Length": p.leader_length / M_PER_FT}))
     st = table_states(pd.concat(rows, ignore_index=True))
     ref = pair_states(pairs[:3])
     for k in ref:

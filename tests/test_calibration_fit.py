@@ -23,15 +23,21 @@ from scenarios.calibration.pairs import CarFollowingPair, PairBatch
 from scenarios.calibration.vtypes import SIM_RANGE
 from scenarios.errors import SpecError
 
-from shared_data import DATA
+from shared_data import DATA, PAIRS_DIR, require
 
-PAIRS_DIR = DATA / "ngsim_i80_car_following"
 TRUE = CFParams(accel=1.4, decel=2.2, tau=1.3, minGap=2.0, maxSpeed=22.0)
 
 
 @pytest.fixture(scope="module")
 def real_pairs() -> tuple[CarFollowingPair, ...]:
+    """The 36 vendored NGSIM I-80 pairs (tests/data)."""
     return load_pairs(PAIRS_DIR)
+
+
+@pytest.fixture(scope="module")
+def all_real_pairs() -> tuple[CarFollowingPair, ...]:
+    """The full 302-pair set of ../shared: skips when absent, fails under MERGE_IRL_REQUIRE_DATA=1."""
+    return load_pairs(require(DATA / "ngsim_i80_car_following", "the full NGSIM I-80 pair set (302 pairs)"))
 
 
 def _sumo_generated(real: tuple[CarFollowingPair, ...], params: CFParams) -> list[CarFollowingPair]:
@@ -73,8 +79,10 @@ def test_fit_recovers_sumo_idm_parameters(real_pairs) -> None:
     assert np.median(spacing_rmse("idm", PairBatch.from_pairs(pairs), CFParams().as_dict())) > 0.3
 
 
-def test_calibrated_beats_defaults_on_held_out_followers(real_pairs) -> None:
-    train, test = split_by_follower(real_pairs, 0.3, seed=0)
+def test_calibrated_beats_defaults_on_held_out_followers(all_real_pairs) -> None:
+    # a claim about the population: it needs the full set, not the 36 vendored pairs, on which
+    # 11 held-out followers are too few to tell calibrated from default reliably
+    train, test = split_by_follower(all_real_pairs, 0.3, seed=0)
     assert not {p.group for p in train} & {p.group for p in test}
     pop, _ = fit_population(train[::2], model="idm", max_nfev=25)  # every other pair: keeps the test fast
     ev = evaluate(pop, test, model="idm")

@@ -8,9 +8,10 @@ import pytest
 
 from analysis.episode import run_episode
 from analysis.metrics import js_divergence
+from irl.domains.merge import ACTION_ACC_FT_S2
 from scenarios.loader import load_scenario
 from sim.controller import RELEASE_REASONS, Controller, ControllerConfig
-from sim.policy import ACTION_ACC_FT_S2, ConstantPolicy, SumoPolicy, UniformPolicy
+from sim.policy import ConstantPolicy, SumoPolicy, UniformPolicy
 
 pytestmark = pytest.mark.sumo
 
@@ -195,7 +196,7 @@ def test_same_seed_same_metrics_across_processes(spec):
     kw = dict(duration_s=120.0)
     a, b, c = run_episodes([(spec, UniformPolicy(), 5, kw), (spec, UniformPolicy(), 5, kw),
                             (spec, UniformPolicy(), 6, kw)], workers=2, progress=False)
-    from analysis.evaluate import metrics_to_json
+    from analysis.evaluate_report import metrics_to_json
 
     assert metrics_to_json(a.metrics.to_dict()) == metrics_to_json(b.metrics.to_dict())  # NaN-safe
     assert a.decisions.equals(b.decisions)
@@ -207,7 +208,8 @@ def test_episodes_through_the_sweep_match_in_process_runs(spec, uniform_run):
     """Episodes run by the sweep runner (spawned worker, results through JSON) equal the same
     episodes run here; one worker runs two simulations one after the other."""
     from analysis.episode import EpisodeResult
-    from analysis.evaluate import metrics_to_json, run_episodes
+    from analysis.evaluate import run_episodes
+    from analysis.evaluate_report import metrics_to_json
 
     back = EpisodeResult.from_dict(uniform_run.to_dict())  # JSON form keeps values and dtypes
     for name in ("controls", "decisions", "speed_profiles", "table"):

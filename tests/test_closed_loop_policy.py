@@ -5,23 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from irl import merge_mdp
 from irl.config import IRLConfig
+from irl.domains.merge import MergeBins
 from irl.result import SavedModel
 from sim.controller import ControllerConfig, ControllerError
 from sim.errors import SimError
-from sim.observe import MergeObservation, ObservationError, StateEncoder
-from sim.policy import (
-    ACTION_ACC_FT_S2, ConstantPolicy, LearnedPolicy, PolicyError, SumoPolicy, UniformPolicy, action_of_acc,
-    choose_action,
-)
-
-
-def test_action_bins_match_the_merge_mdp():
-    acc = np.concatenate([np.linspace(-15, 15, 3001), [-4.8, -0.6, 0.6, 4.8, -11.2, 11.2]])
-    np.testing.assert_array_equal(action_of_acc(acc), merge_mdp.action_of(acc))
-    assert tuple(ACTION_ACC_FT_S2) == tuple(merge_mdp.ACC_MIDPOINTS)
-    np.testing.assert_array_equal(action_of_acc(np.array(ACTION_ACC_FT_S2)), np.arange(5))
+from sim.observe import MergeObservation
+from sim.policy import ConstantPolicy, LearnedPolicy, PolicyError, SumoPolicy, UniformPolicy, choose_action
 
 
 def test_choose_action_samples_with_the_generator_and_mode():
@@ -47,7 +37,7 @@ def test_simple_policies():
 
 def test_learned_policy_from_model():
     rng = np.random.default_rng(1)
-    edges = merge_mdp.MergeBins.assumed_authors().to_dict()
+    edges = MergeBins.assumed_authors().to_dict()
     m = SavedModel(method="qsm", theta=np.ones(3), loglik=-1.0, q=rng.normal(size=(1250, 5)) * 50,
                    config=IRLConfig(beta=0.05), domain="merge", bin_edges={k: tuple(v) for k, v in edges.items()})
     pol = LearnedPolicy.from_model(m)
@@ -61,6 +51,10 @@ def test_learned_policy_from_model():
         LearnedPolicy.from_model(SavedModel(method="qavg", theta=np.ones(3), loglik=-1.0, q=m.q, config=IRLConfig()))
     with pytest.raises(PolicyError, match="out of range"):
         pol.probs(MergeObservation(0, 0, 0, 0, False, 5000))
+    bad = {**m.bin_edges, "d_AB": (3, 2, 1, 0)}
+    with pytest.raises(PolicyError, match="d_AB"):
+        LearnedPolicy.from_model(SavedModel(method="qavg", theta=np.ones(3), loglik=-1.0, q=m.q, config=IRLConfig(),
+                                            domain="merge", bin_edges=bad))
 
 
 def test_bad_settings_name_the_field():
@@ -68,6 +62,4 @@ def test_bad_settings_name_the_field():
         ControllerConfig(decision_s=0)
     with pytest.raises(ControllerError, match="hold_after_merge_s"):
         ControllerConfig(hold_after_merge_s=-1)
-    with pytest.raises(ObservationError, match="d_AB"):
-        StateEncoder({"d_AC": (1, 2, 3, 4), "d_AB": (3, 2, 1, 0), "v_AC": (1, 2, 3, 4), "v_AB": (1, 2, 3, 4)})
     assert issubclass(ControllerError, SimError) and issubclass(PolicyError, SimError)

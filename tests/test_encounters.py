@@ -7,7 +7,8 @@ import pandas as pd
 import pytest
 from sim_testutil import short_run
 
-from sim.encounters import ENCOUNTER_COLUMNS, MERGE_COLUMNS, EncounterWindow, extract, extract_encounters
+from irl.domains.merge import ENCOUNTER_COLUMNS
+from sim.encounters import MERGE_COLUMNS, EncounterWindow, extract, extract_encounters
 from sim.schema import COLUMNS
 from sim.table import add_derived_columns
 
@@ -51,8 +52,28 @@ def test_definitions_and_signs_on_a_hand_made_merge():
     yA, yB, yC = 100 + 5.0 * (k - 10), 130 + 4.0 * (k - 10), 200 + 4.5 * (k - 10)
     assert np.allclose(f.d_AC, yC - yA) and np.allclose(f.d_AB, yB - yA)
     assert np.allclose(f.v_AC, 50 - 45) and np.allclose(f.v_AB, 50 - 40)
-    assert f.B_is_truck.all() and np.allclose(f.acc_A, 10 + k / 100.0)
+    assert f.B_is_truck.all() and np.allclose(f.acc_A, 0.0)  # A's speed is constant; v_Acc is not used
     assert (f.Global_Time == f.Frame_ID * 100).all() and (f.merge_frame == 18).all()
+
+
+def test_action_is_the_forward_difference_of_A_speed():
+    # A's speed changes every frame; v_Acc (10 * id + frame / 100) must not be used
+    speeds = {f: 50.0 + 0.05 * (f - 10) ** 2 for f in range(10, 25)}
+
+    def tracks(a_last):
+        return {1: [(f, 6, 100.0 + 5.0 * (f - 10), speeds[f]) for f in range(10, a_last + 1) if f != 14],
+                2: [(f, 7 if f < 18 else 6, 130.0 + 4.0 * (f - 10), 40.0) for f in range(10, 25)]}
+
+    # A's trajectory goes on past the merge frame: the window's last frame takes A's next frame
+    f = extract_encounters(make_table(tracks(24)))
+    # frame 14 (A missing) and 13 (its next speed unknown) have no row; 18 uses frame 19
+    assert f.Frame_ID.tolist() == [10, 11, 12, 15, 16, 17, 18]
+    expected = [(speeds[k + 1] - speeds[k]) / 0.1 for k in f.Frame_ID]
+    np.testing.assert_allclose(f.acc_A, expected)
+    np.testing.assert_allclose(f.acc_A, 2 * 0.05 * (f.Frame_ID - 10) / 0.1 + 0.05 / 0.1)
+    # A's trajectory ends at the merge frame: that frame has no action and is dropped
+    f = extract_encounters(make_table(tracks(18)))
+    assert f.Frame_ID.tolist() == [10, 11, 12, 15, 16, 17]
 
 
 def test_window_parameter():
@@ -141,3 +162,13 @@ def test_every_ramp_vehicle_reaching_lane_6_yields_one_encounter(tmp_path):
     last = enc.frames[enc.frames.Frame_ID == enc.frames.merge_frame]
     assert len(last) == len(with_a)
     assert (last.d_AB > 0).all() and ((last.d_AC > last.d_AB) | last.d_AC.isna()).all()
+    # the action at frame t is A's forward speed difference (v(t+1) - v(t)) / 0.1 s, from the table
+    f = enc.frames
+    v_now = key.loc[list(zip(f.A_id, f.Frame_ID)), "v_Vel"].to_numpy()
+    v_next = key.loc[list(zip(f.A_id, f.Frame_ID + 1)), "v_Vel"].to_numpy()
+    np.testing.assert_allclose(f.acc_A.to_numpy(), (v_next - v_now) / 0.1, rtol=0, atol=1e-9)
+    # ... which is SUMO's backward-difference v_Acc of the NEXT frame, not of frame t
+    acc_next = key.loc[list(zip(f.A_id, f.Frame_ID + 1)), "v_Acc"].to_numpy()
+    acc_now = key.loc[list(zip(f.A_id, f.Frame_ID)), "v_Acc"].to_numpy()
+    assert np.mean(np.abs(f.acc_A.to_numpy() - acc_next) < 1e-3) > 0.95
+    assert np.mean(np.abs(f.acc_A.to_numpy() - acc_now) < 1e-3) < np.mean(np.abs(f.acc_A.to_numpy() - acc_next) < 1e-3)

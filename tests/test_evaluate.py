@@ -12,48 +12,30 @@ import pytest
 
 from irl import merge_mdp
 from irl.config import IRLConfig
+from irl.domains.merge import FEATURE_NAMES, MergeBins
 from irl.result import SavedModel
-from sim.observe import StateEncoder
 
-EDGES = merge_mdp.MergeBins.assumed_authors()
+EDGES = MergeBins.assumed_authors()
 
 
 def _model(seed=0, beta=1.0) -> SavedModel:
     rng = np.random.default_rng(seed)
     return SavedModel(method="qavg", theta=np.array([1.0, 0.5, -0.2]), loglik=-1.0,
                       q=rng.normal(size=(1250, 5)) * 2, config=IRLConfig(beta=beta), domain="merge",
-                      feature_names=merge_mdp.FEATURE_NAMES,
+                      feature_names=FEATURE_NAMES,
                       bin_edges={k: tuple(v) for k, v in EDGES.to_dict().items()})
 
 
 def _encounters(n=60, seed=1) -> pd.DataFrame:
     rng = np.random.default_rng(seed)
     d_ac = rng.uniform(10, 200, n)
-    d_ac[:5] = np.nan  # no lead car: open road
+    v_ac = rng.normal(0, 5, n)
+    d_ac[:5] = v_ac[:5] = np.nan  # no lead car: open road
     return pd.DataFrame({
         "encounter_id": np.repeat(np.arange(n // 10), 10), "Frame_ID": np.arange(n),
-        "d_AC": d_ac, "d_AB": rng.uniform(-20, 120, n), "v_AC": rng.normal(0, 5, n), "v_AB": rng.normal(0, 5, n),
+        "d_AC": d_ac, "d_AB": rng.uniform(-20, 120, n), "v_AC": v_ac, "v_AB": rng.normal(0, 5, n),
         "B_is_truck": rng.random(n) < 0.2, "acc_A": rng.normal(0, 4, n),
     })
-
-
-def test_state_encoder_matches_merge_mdp():
-    rng = np.random.default_rng(0)
-    n = 2000
-    df = pd.DataFrame({"d_AC": rng.uniform(0, 200, n), "d_AB": rng.uniform(-50, 150, n),
-                       "v_AC": rng.normal(0, 8, n), "v_AB": rng.normal(0, 8, n), "B_is_truck": rng.random(n) < 0.5})
-    # values exactly on edges too
-    df.loc[:3, "d_AC"] = [35.0, 60.0, 90.0, 130.0]
-    df.loc[:3, "v_AB"] = [-7.5, -2.5, 2.5, 7.5]
-    enc = StateEncoder(EDGES.to_dict())
-    ours = enc.states(df[["d_AC", "d_AB", "v_AC", "v_AB"]].to_numpy(), df.B_is_truck.to_numpy())
-    np.testing.assert_array_equal(ours, merge_mdp.discretize_states(df, EDGES))
-    # the controller's scalar path (bisect) gives the same states, edge values and NaN included
-    rows = df[["d_AC", "d_AB", "v_AC", "v_AB", "B_is_truck"]].itertuples(index=False)
-    np.testing.assert_array_equal([enc.state(*r) for r in rows], ours)
-    assert enc.state(np.nan, np.nan, np.nan, np.nan, False) == int(enc.states(np.full((1, 4), np.nan), [False])[0])
-    assert enc.state(20.0, 5.0, 0.0, 0.0, True) == int(merge_mdp.discretize_states(
-        pd.DataFrame({"d_AC": [20.0], "d_AB": [5.0], "v_AC": [0.0], "v_AB": [0.0], "B_is_truck": [True]}), EDGES)[0])
 
 
 @pytest.mark.sumo
@@ -74,10 +56,8 @@ def test_evaluate_writes_report_metrics_plots(tmp_path):
     assert set(data["policies"]) == set(names)
     assert all(len(v["episodes"]) == 2 for v in data["policies"].values())
     assert [e["seed"] for e in data["policies"]["qavg"]["episodes"]] == [3, 4]
-    # held-out log-likelihood, recomputed through irl.merge_mdp's own discretisation
-    filled = demos.copy()
-    filled.loc[filled.d_AC.isna(), ["d_AC", "v_AC"]] = [1000.0, 0.0]
-    demo = merge_mdp.discretize(filled, EDGES)
+    # held-out log-likelihood, recomputed through irl.merge_mdp's discretisation (no-lead rows too)
+    demo = merge_mdp.discretize(demos, EDGES)
     s, a, _ = demo.flat()
     lp = _model().log_policy()
     expected = lp[s, a].mean()
@@ -95,6 +75,27 @@ def test_evaluate_writes_report_metrics_plots(tmp_path):
     for p in rep.plots:
         assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert set(rep.rrd) == set(names) and all(p.exists() for p in rep.rrd.values())
+    # each policy's recording is its own (the viewer would merge files sharing an id)
+    from analysis.rerun_log import recording_info
+
+    ids = {n: recording_info(p)["recording_id"] for n, p in rep.rrd.items()}
+    assert ids == {n: f"merge-irl/synthetic/{n}/seed3" for n in names}
+    # provenance: the model file of each policy, the scenario simulated, the versions
+    import hashlib
+
+    from analysis.provenance import package_version, text_digest
+    from scenarios.loader import load_scenario
+
+    prov = data["provenance"]
+    assert prov["models"] == {"qavg": {"path": str(model_path), "sha256": hashlib.sha256(model_path.read_bytes()).hexdigest()},
+                              "sumo": None, "uniform": None, "constant-high-brake": None}
+    assert prov["scenario_sha256"] == text_digest(load_scenario("synthetic").to_toml())
+    assert prov["merge_irl"] == package_version() and prov["inputs"] == {}  # demos given as a DataFrame
+    assert "## Provenance" in md and hashlib.sha256(model_path.read_bytes()).hexdigest() in md
+    # wall times are kept out of the results
+    assert "wall_time" not in rep.metrics_json.read_text()
+    timings = json.loads((tmp_path / "out" / "timings.json").read_text())
+    assert all(len(timings["episode_wall_time_s"][n]) == 2 for n in names)
 
 
 @pytest.mark.sumo
@@ -111,6 +112,14 @@ def test_evaluate_cli(tmp_path):
     assert "| model | 1 |" in r.stdout and "| sumo | 1 |" in r.stdout
     assert (out / "report.md").exists() and (out / "metrics.json").exists()
     assert not (out / "rerun").exists()
+    # a rerun (another executor, another folder) writes byte-identical results: no times in them
+    again = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--model", str(model_path), "--episodes", "1",
+                            "--duration", "100", "--baselines", "sumo", "--no-rrd", "--no-progress", "--seed", "5",
+                            "--executor", "serial", "--out", str(tmp_path / "ev2")],
+                           capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0, again.stderr
+    for name in ("metrics.json", "report.md"):
+        assert (out / name).read_bytes() == (tmp_path / "ev2" / name).read_bytes(), name
     bad = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--model", str(tmp_path / "nope.json"),
                           "--out", str(tmp_path / "x")], capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and "nope.json" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1

@@ -31,3 +31,15 @@ def test_run_demo_small(tmp_path):
                  "evaluation/report.md", "evaluation/speed_profiles.png"):
         assert (out / name).exists(), name
     assert str(out) in res.format()
+    # provenance: the models were learned from the training table; the summary lists their files
+    import hashlib
+
+    train = out / "data" / "train_encounters.parquet"
+    assert model.info["provenance"]["inputs"]["demos"]["sha256"] == hashlib.sha256(train.read_bytes()).hexdigest()
+    summary = (out / "summary.md").read_text()
+    assert "## Provenance" in summary
+    assert hashlib.sha256(res.models["qavg"].read_bytes()).hexdigest() in summary
+    # no wall time in the results: it is in timings.json
+    assert "wall_time" not in res.models["qavg"].read_text()
+    assert f"({res.wall_time_s:.0f} s)" not in summary
+    assert set(json.loads((out / "timings.json").read_text())["fit_wall_time_s"]) == {"qavg"}

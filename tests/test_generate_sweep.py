@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -12,6 +13,7 @@ import pytest
 from analysis.generate_sweep import generate_tasks, parse_scales, parse_seeds, run_name
 from scenarios.errors import SpecError
 from scenarios.loader import load_scenario
+from scenarios.spec_parse import with_overrides
 
 
 def cli(args, cache):
@@ -35,13 +37,13 @@ def test_parse_seeds_and_scales():
 
 def test_demand_scale_multiplies_every_flow_and_is_validated():
     spec = load_scenario("synthetic")
-    scaled = spec.with_overrides(demand_scale=0.5)
+    scaled = with_overrides(spec, demand_scale=0.5)
     assert scaled.demand.main_veh_h == tuple(x * 0.5 for x in spec.demand.main_veh_h)
     assert scaled.demand.ramp_veh_h == spec.demand.ramp_veh_h * 0.5
     assert scaled.demand.truck_share == spec.demand.truck_share
     for bad in (0, -1.0, float("nan"), float("inf"), "2", True):
         with pytest.raises(SpecError, match="demand_scale"):
-            spec.with_overrides(demand_scale=bad)
+            with_overrides(spec, demand_scale=bad)
 
 
 def test_task_names_and_early_validation(tmp_path):
@@ -79,6 +81,17 @@ def test_sweep_process_pool_equals_serial_and_rerun_skips(tmp_path):
     assert list(sa["run"]) == names
     assert list(sa["table_sha256"]) == list(sb["table_sha256"])
     assert len(set(sa["table_sha256"])) == 4  # different seeds / demands: different runs
+    # provenance: the scenario each run simulated, the versions; no wall time (that is in sweep.timings.json)
+    import hashlib
+
+    from analysis.provenance import package_version
+
+    for n, sha in zip(sa["run"], sa["scenario_sha256"]):
+        assert sha == hashlib.sha256((tmp_path / "a" / n / "scenario.toml").read_bytes()).hexdigest()
+    assert set(sa["merge_irl"]) == {package_version()}
+    pd.testing.assert_frame_equal(sa.drop(columns="out_dir"), sb.drop(columns="out_dir"))
+    timings = json.loads((tmp_path / "a" / "sweep.timings.json").read_text())["sim_wall_time_s"]
+    assert set(timings) == set(names) and all(t > 0 for t in timings.values())
     # doubling demand gives more vehicles for the same seed
     n_veh = dict(zip(sa["run"], sa["n_vehicles"]))
     assert n_veh["synthetic-seed1-demand2"] > n_veh["synthetic-seed1-demand1"]

@@ -4,11 +4,7 @@
 import numpy as np
 import pytest
 
-from irl import gridworld as g
-
-from shared_data import DATA as SHARED_DATA
-
-DATA = SHARED_DATA / "railusm" / "gridworld"
+from irl.domains import gridworld as g
 
 
 def test_layout_and_moves():
@@ -88,9 +84,8 @@ def test_baseline_fixed_length():
     assert set(acts.tolist()) <= {0, 1, 2, 3}
 
 
-@pytest.mark.skipif(not DATA.is_dir(), reason="the authors' data is not on this machine")
-def test_authors_no_noise_experts_follow_our_expert_policy():
-    d = g.load(DATA / "noise_0.0_expert_trajs")
+def test_authors_no_noise_experts_follow_our_expert_policy(railusm):
+    d = g.load(railusm / "gridworld" / "noise_0.0_expert_trajs")
     dist = g.corner_distances()
     for s, a in zip(d.states, d.actions):
         assert s[-1] in g.CORNERS and a[-1] == g.CORNER_ACTION[int(s[-1])]

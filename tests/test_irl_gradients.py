@@ -11,7 +11,7 @@ import pytest
 from irl_testdata import random_mdp
 
 from irl.boltzmann import demo_counts, loglik_grad_from_counts
-from irl.boltzmann_backup import DampedBoltzmann, ExactBoltzmann
+from irl.boltzmann_fit import DampedBoltzmann, ExactBoltzmann
 from irl.config import IRLConfig
 from irl.qavg import FaithfulQAvg, qavg_basis
 from irl.qsm import FaithfulQSM

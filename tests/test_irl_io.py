@@ -9,10 +9,6 @@ from irl.demonstrations import Demonstrations
 from irl.errors import DemonstrationError
 from irl.io import load_npz, load_railusm, natural_key, save_npz, save_railusm
 
-from shared_data import DATA as SHARED_DATA
-
-DATA = SHARED_DATA / "railusm"
-
 S, A, K = 6, 3, 2
 
 
@@ -134,13 +130,12 @@ def test_npz_rejects_non_npz(tmp_path):
         load_npz(tmp_path / "missing.npz")
 
 
-@pytest.mark.skipif(not DATA.is_dir(), reason="the authors' data is not on this machine")
-def test_authors_gridworld_files_load():
-    from irl import gridworld
+def test_authors_gridworld_files_load(railusm):
+    from irl.domains import gridworld
 
-    d = gridworld.load(DATA / "gridworld" / "noise_0.0_expert_trajs")
+    d = gridworld.load(railusm / "gridworld" / "noise_0.0_expert_trajs")
     assert d.n_trajectories == 12 and d.n_steps == 33
-    d = gridworld.load(DATA / "gridworld" / "noise_0.1_expert_trajs")
+    d = gridworld.load(railusm / "gridworld" / "noise_0.1_expert_trajs")
     assert d.n_trajectories == 14 and d.n_steps == 52
 
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from analysis.learn import fit_problem
-from analysis.problem import load_problem
+from irl.problems import load_problem
 from irl.bellman import iteration_fixed_point
 from irl.boltzmann import loglik_from_counts, log_policy, demo_counts
 from irl.config import IRLConfig
@@ -116,14 +116,10 @@ def test_iteration_fixed_point_is_the_damped_iteration_limit_from_zero():
     assert np.allclose(fp.q.ravel(), q, atol=1e-8)
 
 
-def test_qsm_reports_the_fixed_point_from_zero_on_ngsim():
+def test_qsm_reports_the_fixed_point_from_zero_on_ngsim(railusm):
     """Issue 11 item 10: at gamma 0.9 the optimised branch (L -1094.16) is not the fixed point the
     Eq. 15 iteration reaches from Q = 0 (L -1101.45); the fit reports the latter and says so."""
-    from irl_testdata import MERGE_DIR
-
-    if not MERGE_DIR.is_dir():
-        pytest.skip("the authors' data is not on this machine")
-    p = load_problem("merge", MERGE_DIR)
+    p = load_problem("merge", railusm / "merge_ngsim")
     cfg = IRLConfig.reference()
     r = fit_problem(p, "qsm", cfg, 0)
     fz = iteration_fixed_point(p.demos.features @ r.theta, model_free_successors(p.demos), cfg.beta, cfg.gamma)

@@ -6,22 +6,22 @@ import sys
 import numpy as np
 import pytest
 
+from irl_testdata import gridworld_demos
+
 from analysis.cli import main
-from irl import merge_mdp
 from irl.boltzmann import log_policy
-from irl.io import save_npz
+from irl.domains import gridworld
+from irl.domains.merge import MergeBins, fit_quantile_bins
+from irl.io import save_npz, save_railusm
 from irl.result import SavedModel
-
-from shared_data import DATA as SHARED_DATA
-
-DATA = SHARED_DATA / "railusm"
-pytestmark = pytest.mark.skipif(not DATA.is_dir(), reason="the authors' data is not on this machine")
 
 
 def test_learn_gridworld_qavg_round_trip(tmp_path, capsys):
     out = tmp_path / "model.json"
+    demos_dir = tmp_path / "noise_0.1_expert_trajs"
+    save_railusm(gridworld_demos("0.1"), demos_dir)  # the authors' text format
     rc = main(["learn", "--method", "qavg", "--domain", "gridworld", "--noise", "0.1",
-               "--demos", str(DATA / "gridworld" / "noise_0.1_expert_trajs"), "--l2", "0.01",
+               "--demos", str(demos_dir), "--l2", "0.01",
                "--seed", "3", "--out", str(out), "--no-progress"])
     assert rc == 0
     assert "wrote" in capsys.readouterr().out
@@ -31,9 +31,8 @@ def test_learn_gridworld_qavg_round_trip(tmp_path, capsys):
     assert m.feature_names == ("yellow", "green", "red", "pink", "blue")
     assert m.q.shape == (25, 4) and m.bin_edges == {}
     # loglik is the Eq. 5 sum under the saved Q, recomputed independently here
-    from irl import gridworld
-
-    d = gridworld.load(DATA / "gridworld" / "noise_0.1_expert_trajs")
+    d = gridworld.load(demos_dir)
+    assert d.n_steps == gridworld_demos("0.1").n_steps
     lp = log_policy(m.q, m.config.beta)
     assert m.loglik == pytest.approx(sum(lp[s, a].sum() for s, a in zip(d.states, d.actions)), rel=1e-9)
 
@@ -56,17 +55,14 @@ def test_learn_merge_encounter_table_saves_fitted_bins(tmp_path):
                "--out", str(out), "--no-progress"])
     assert rc == 0
     m = SavedModel.load(out)
-    bins = merge_mdp.MergeBins.from_dict({k: list(v) for k, v in m.bin_edges.items()})
-    assert bins == merge_mdp.fit_quantile_bins(df)
+    bins = MergeBins.from_dict({k: list(v) for k, v in m.bin_edges.items()})
+    assert bins == fit_quantile_bins(df)
     assert m.config.gamma == 0.9 and m.q.shape == (1250, 5)
 
 
 def test_learn_npz_reirl(tmp_path):
-    from irl import gridworld
-
-    d = gridworld.load(DATA / "gridworld" / "noise_0.0_expert_trajs")
-    p = save_npz(d, tmp_path / "d.npz", feature_names=gridworld.FEATURE_NAMES)
-    base = save_npz(gridworld.load(DATA / "gridworld" / "noise_0.0_baseline_trajs"), tmp_path / "b.npz")
+    p = save_npz(gridworld_demos("0.0"), tmp_path / "d.npz", feature_names=gridworld.FEATURE_NAMES)
+    base = save_npz(gridworld_demos("0.0", "baseline"), tmp_path / "b.npz")
     out = tmp_path / "m.json"
     assert main(["learn", "--method", "reirl", "--domain", "npz", "--demos", str(p), "--baseline", str(base),
                  "--epsilon", "0.05", "--out", str(out), "--no-progress"]) == 0

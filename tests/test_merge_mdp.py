@@ -1,4 +1,6 @@
-"""The merge MDP: state layout, action bins, features, bin edges, discretization, fallback model."""
+"""The merge MDP: discretization of encounter tables, the kinematic fallback model, the authors' files.
+
+The domain itself (bins, encoding, features) is tested in test_domain_merge.py."""
 
 
 import numpy as np
@@ -6,34 +8,8 @@ import pandas as pd
 import pytest
 
 from irl import merge_mdp as m
-from irl.errors import ConfigError, DemonstrationError
-
-from shared_data import DATA as SHARED_DATA
-
-DATA = SHARED_DATA / "railusm" / "merge_ngsim"
-
-
-def test_state_layout_round_trip():
-    s = np.arange(m.N_STATES)
-    parts = m.state_parts(s)
-    np.testing.assert_array_equal(m.state_index(*parts.T), s)
-    assert m.state_index(1, 4, 0, 0, 0) == 625 + 500
-
-
-def test_action_bins():
-    acc = np.array([-20, -11.2, -4.8, -4.79, -0.6, -0.59, 0.0, 0.59, 0.6, 4.79, 4.8, 11.2, 30])
-    np.testing.assert_array_equal(m.action_of(acc), [0, 0, 0, 1, 1, 2, 2, 2, 3, 3, 4, 4, 4])
-
-
-def test_features_match_reference_definitions():
-    phi = m.features()
-    assert phi.shape == (1250, 5, 3)
-    for s in range(0, 1250, 7):
-        truck, x1 = m.state_parts(s)[:2]
-        for a in range(5):
-            assert phi[s, a, 0] == (0 if (x1 == 4 and a >= 3) else 1)
-            assert phi[s, a, 1] == (1 if a >= 2 else 0)
-            assert phi[s, a, 2] == (1 if (truck == 1 and a >= 3) else 0)
+from irl.domains import merge as dm
+from irl.errors import DemonstrationError
 
 
 def encounters(n=3, rows=40, seed=0):
@@ -52,7 +28,7 @@ def encounters(n=3, rows=40, seed=0):
 
 def test_quantile_bins_and_discretize_are_consistent():
     df = encounters()
-    bins = m.fit_quantile_bins(df)
+    bins = dm.fit_quantile_bins(df)
     assert bins.d_AC[0] == 35.0
     for name in ("d_AB", "v_AC", "v_AB"):
         counts = np.bincount(bins.bin_index(name, df[name]), minlength=5)
@@ -60,9 +36,9 @@ def test_quantile_bins_and_discretize_are_consistent():
     d = m.discretize(df, bins)
     assert d.n_trajectories == 3 and d.names == ("encounter 100", "encounter 101", "encounter 102")
     s = np.concatenate(d.states)
-    parts = m.state_parts(s)
+    parts = dm.state_parts(s)
     assert np.all((parts[:, 1] == 4) == (df["d_AC"].to_numpy() < 35.0))  # bin 4 = closest
-    for i, name in enumerate(m.VARIABLES):
+    for i, name in enumerate(dm.VARIABLES):
         v = df[name].to_numpy()
         e = np.asarray(getattr(bins, name))
         idx = parts[:, i + 1]
@@ -70,41 +46,31 @@ def test_quantile_bins_and_discretize_are_consistent():
             idx = 4 - idx
         assert np.all(v >= np.r_[-np.inf, e][idx]) and np.all(v < np.r_[e, np.inf][idx])
     np.testing.assert_array_equal(parts[:, 0], df["B_is_truck"].to_numpy())
-    np.testing.assert_array_equal(np.concatenate(d.actions), m.action_of(df["acc_A"]))
+    np.testing.assert_array_equal(np.concatenate(d.actions), dm.actions_of(df["acc_A"]))
 
 
 def test_discretize_validates_columns():
     df = encounters().drop(columns=["acc_A"])
     with pytest.raises(DemonstrationError, match=r"lacks column\(s\) \['acc_A'\]"):
-        m.discretize(df, m.MergeBins.assumed_authors())
+        m.discretize(df, dm.MergeBins.assumed_authors())
     df = encounters()
     df.loc[5, "v_AB"] = np.nan
     with pytest.raises(DemonstrationError, match=r"row 5, column 'v_AB'"):
-        m.discretize(df, m.MergeBins.assumed_authors())
-
-
-def test_bins_json_round_trip_and_validation(tmp_path):
-    b = m.fit_quantile_bins(encounters())
-    p = b.save(tmp_path / "bins.json")
-    assert m.MergeBins.load(p) == b
-    with pytest.raises(ConfigError, match="strictly increasing"):
-        m.MergeBins(d_AC=(1, 1, 2, 3), d_AB=(0, 1, 2, 3), v_AC=(0, 1, 2, 3), v_AB=(0, 1, 2, 3))
-    with pytest.raises(ConfigError, match=r"missing variable\(s\) \['v_AB'\]"):
-        m.MergeBins.from_dict({"d_AC": [1, 2, 3, 4], "d_AB": [1, 2, 3, 4], "v_AC": [1, 2, 3, 4]})
+        m.discretize(df, dm.MergeBins.assumed_authors())
 
 
 def test_kinematic_fallback():
-    b = m.MergeBins.assumed_authors()
+    b = dm.MergeBins.assumed_authors()
     # representative values are finite and follow the bin order
     rep = b.representatives("d_AC")
     assert np.all(np.isfinite(rep)) and np.all(np.diff(rep) < 0)
     assert np.all(np.diff(b.representatives("v_AB")) > 0)
-    s = m.state_index(0, 2, 2, 2, 2)  # mid bins; relative speeds 0
+    s = dm.state_index(0, 2, 2, 2, 2)  # mid bins; relative speeds 0
     # over a long step, high braking lowers the relative speeds by a bin or more and opens gaps
-    nxt = m.state_parts(m.kinematic_next_state(np.array([s]), np.array([0]), b, dt=1.0))[0]
+    nxt = dm.state_parts(m.kinematic_next_state(np.array([s]), np.array([0]), b, dt=1.0))[0]
     assert nxt[3] < 2 and nxt[4] < 2 and nxt[1] <= 2
     # high acceleration raises them
-    nxt = m.state_parts(m.kinematic_next_state(np.array([s]), np.array([4]), b, dt=1.0))[0]
+    nxt = dm.state_parts(m.kinematic_next_state(np.array([s]), np.array([4]), b, dt=1.0))[0]
     assert nxt[3] > 2 and nxt[4] > 2
     # truck flag never changes; the model is deterministic and row-stochastic
     t = m.kinematic_model(b, dt=1.0)
@@ -113,9 +79,8 @@ def test_kinematic_fallback():
     assert np.all(src // 625 == dst // 625)
 
 
-@pytest.mark.skipif(not DATA.is_dir(), reason="the authors' data is not on this machine")
-def test_authors_merge_trajectories_load():
-    d = m.load(DATA)
+def test_authors_merge_trajectories_load(railusm):
+    d = m.load(railusm / "merge_ngsim")
     assert d.n_trajectories == 12 and d.n_steps == 1197
     assert d.names[:3] == ("traj_0.txt", "traj_1.txt", "traj_2.txt") and d.names[-1] == "traj_11.txt"
     counts = np.bincount(np.concatenate(d.actions), minlength=5)
@@ -129,7 +94,21 @@ def test_authors_merge_trajectories_load():
     for x, y, z in zip(src.tolist(), act.tolist(), dst.tolist()):
         pairs.setdefault((x, y), set()).add(z)
     assert sum(len(v) > 1 for v in pairs.values()) == 141
-    t = m.estimated_transitions(d, m.MergeBins.assumed_authors())
+    t = m.estimated_transitions(d, dm.MergeBins.assumed_authors())
     np.testing.assert_allclose(t.sum(axis=2), 1.0)
     src, act, dst = d.transitions()
     assert np.all(t[src, act, dst] > 0)
+
+
+def test_frames_without_car_c_discretize_by_the_no_lead_rule():
+    df = encounters()
+    df.loc[[3, 50], ["d_AC", "v_AC"]] = np.nan
+    bins = dm.fit_quantile_bins(df)
+    d = m.discretize(df, bins)
+    parts = dm.state_parts(np.concatenate(d.states))
+    assert parts[3, 1] == parts[50, 1] == 0  # farthest d_AC bin
+    assert parts[3, 3] == bins.bin_index("v_AC", 0.0) == bins.no_lead_v_AC_bin()
+    # only one of the two NaN: an error naming the row and the column
+    df.loc[7, "d_AC"] = np.nan
+    with pytest.raises(DemonstrationError, match=r"row 7, column 'd_AC'.*no car C"):
+        m.discretize(df, bins)

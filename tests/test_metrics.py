@@ -11,6 +11,7 @@ import pytest
 from analysis.metrics import (
     EpisodeMetrics, MetricsConfig, aggregate, episode_metrics, heldout_loglik, js_divergence,
 )
+from irl.units import FT_PER_M
 from sim.schema import COLUMNS
 
 
@@ -90,7 +91,7 @@ def test_episode_metrics_on_a_hand_made_scene():
 
 def test_emergency_braking_counts_runs_near_a_only_while_controlled():
     t = _scene(acc_a=-2.0)
-    thr = -4.5 / 0.3048
+    thr = -4.5 * FT_PER_M
     # A brakes hard on frames 3-5 (one event) and 8 (another); the follower on frame 12;
     # a far vehicle (4 after its merge) brakes hard too, and A again after the window
     t.loc[(t.Vehicle_ID == 1) & t.Frame_ID.isin([3, 4, 5, 8, 18]), "v_Acc"] = thr - 1

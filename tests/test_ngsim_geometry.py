@@ -8,19 +8,16 @@ from pathlib import Path
 
 import pytest
 
-from analysis.scripts.derive_i80_geometry import derive, to_toml
+from tools.derive_i80_geometry import derive, to_toml
+
+from shared_data import GEOMETRY_DIR
 
 ROOT = Path(__file__).resolve().parents[1]
 SHIPPED = ROOT / "scenarios" / "data" / "i80_geometry.toml"
-from shared_data import DATA
-
-RAW = DATA / "i80_geometry"
 
 
 def test_shipped_geometry_is_reproducible() -> None:
-    if not RAW.is_dir():
-        pytest.skip("raw NGSIM.jl geometry not present on this machine")  # data dependency, not a feature
-    g = derive(RAW)
+    g = derive(GEOMETRY_DIR)  # the raw NGSIM.jl files, vendored in tests/data/i80_geometry
     assert g["main_lanes"] == 6
     assert g["lane_width_ft"] == pytest.approx(12.0, abs=0.2)
     assert 0 < g["merge_position_ft"] < g["merge_position_ft"] + g["aux_length_ft"] < g["section_length_ft"]

@@ -12,6 +12,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from irl.units import M_PER_FT
 from sim.errors import TrajectoryFormatError
 from sim.ngsim_format import NGSIM_HEADER
 from sim.ngsim_io import (
@@ -118,8 +119,8 @@ def test_wrong_field_count_named(tmp_path: Path) -> None:
 
 def test_metric_units_rejected(tmp_path: Path) -> None:
     t = synthetic_table(5, 20)
-    t["v_Length"] = t["v_Length"] * 0.3048
-    t["v_Width"] = t["v_Width"] * 0.3048
+    t["v_Length"] = t["v_Length"] * M_PER_FT
+    t["v_Width"] = t["v_Width"] * M_PER_FT
     p = write_ngsim_csv(t, tmp_path / "metric.csv")
     with pytest.raises(TrajectoryFormatError, match=r"metric\.csv: column v_Length.*metres"):
         read_ngsim(p)

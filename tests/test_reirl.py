@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from irl import gridworld
+from irl.domains import gridworld
 from irl.config import IRLConfig
 from irl.demonstrations import Demonstrations
 from irl.errors import ConfigError

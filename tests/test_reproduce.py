@@ -6,14 +6,9 @@ import numpy as np
 import pytest
 
 from analysis.cli import main
-from analysis.reproduce import reproduce, reproduce_tables, table_problem, wilcoxon_p
-from analysis.trials import TrialOutcome, TrialTask, run_trial, run_trials, trial_seeds
+from analysis.reproduce import reproduce, reproduce_tables, wilcoxon_p
+from analysis.trials import TrialOutcome, TrialTask, run_trial, run_trials, table_problem, trial_seeds
 from irl.config import IRLConfig
-
-from shared_data import DATA as SHARED_DATA
-
-DATA = SHARED_DATA / "railusm"
-needs_data = pytest.mark.skipif(not DATA.is_dir(), reason="the authors' data is not on this machine")
 
 
 def test_wilcoxon_handles_degenerate_inputs():
@@ -23,15 +18,23 @@ def test_wilcoxon_handles_degenerate_inputs():
     assert 0 < p < 0.01
 
 
+def test_without_data_says_where_the_authors_data_come_from(capsys):
+    assert main(["reproduce", "--table", "1", "--no-progress"]) == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
+    assert len(err) == 1 and captured.out == ""
+    assert err[0].startswith("merge-irl reproduce: error: --data DIR is required")
+    assert "github.com/RAILUSM/Model-free-IRL" in err[0] and "folder data/" in err[0]
+
+
 def test_trial_seeds_are_deterministic_and_distinct():
     a, b = trial_seeds(4, 6), trial_seeds(4, 6)
     assert a == b and len(set(a)) == 6 and trial_seeds(5, 6) != a
 
 
-@needs_data
-def test_cli_table_1_two_trials(tmp_path, capsys):
+def test_cli_table_1_two_trials(railusm, tmp_path, capsys):
     out = tmp_path / "t1.json"
-    rc = main(["reproduce", "--table", "1", "--data", str(DATA), "--trials", "2", "--no-holdout",
+    rc = main(["reproduce", "--table", "1", "--data", str(railusm), "--trials", "2", "--no-holdout",
                "--json", str(out), "--no-progress", "--executor", "serial"])
     assert rc == 0
     text = capsys.readouterr().out
@@ -48,11 +51,19 @@ def test_cli_table_1_two_trials(tmp_path, capsys):
     qavg = [t for t in data["trials"] if t["method"] == "qavg"]
     assert rows["qavg"]["loglik_mean"] == pytest.approx(np.mean([t["loglik"] for t in qavg]))
     assert rows["mlirl"]["p_vs_mlirl"] is None
+    # provenance: the folders table 1 read; wall times beside the file, not in it
+    from analysis.provenance import path_digest
+
+    inputs = data["provenance"]["inputs"]
+    assert inputs["table1_demos"]["sha256"] == path_digest(railusm / "gridworld" / "noise_0.0_expert_trajs")["sha256"]
+    assert set(inputs) == {"table1_demos", "table1_baseline"}
+    assert "wall_time" not in out.read_text() and "time_mean_s" not in out.read_text()
+    timings = json.loads((tmp_path / "t1.timings.json").read_text())
+    assert {m: len(v) for m, v in timings["trials"].items()} == {"mlirl": 2, "qavg": 2, "qsm": 2, "reirl": 2}
 
 
-@needs_data
-def test_holdout_is_the_held_out_trajectory_likelihood():
-    problem = table_problem(1, DATA)
+def test_holdout_is_the_held_out_trajectory_likelihood(railusm):
+    problem = table_problem(1, railusm)
     config = IRLConfig.paper(l2=0.01)
     task = TrialTask("qavg", problem, config, seed=1, holdout=3)
     out = run_trial(task)
@@ -69,11 +80,10 @@ def test_holdout_is_the_held_out_trajectory_likelihood():
     assert out.heldout_loglik < 0
 
 
-@needs_data
-def test_reproduce_api_is_deterministic_and_pairs_trials():
+def test_reproduce_api_is_deterministic_and_pairs_trials(railusm):
     kw = dict(trials=2, methods=("qavg", "reirl"), holdout=True, config=IRLConfig.paper(l2=0.01))
-    r1 = reproduce(2, DATA, executor="serial", **kw)
-    r2 = reproduce(2, DATA, executor="serial", **kw)
+    r1 = reproduce(2, railusm, executor="serial", **kw)
+    r2 = reproduce(2, railusm, executor="serial", **kw)
     assert len(r1.trials) == 2 * 2 and len(r1.holdout) == 2 * 14 and r1.failures == ()
     assert [t.theta for t in r1.trials] == [t.theta for t in r2.trials]
     assert [row.loglik_mean for row in r1.rows] == [row.loglik_mean for row in r2.rows]
@@ -90,11 +100,10 @@ def _trial_key(o: TrialOutcome):
             None if np.isnan(o.heldout_loglik) else o.heldout_loglik)
 
 
-@needs_data
-def test_serial_and_process_executors_give_identical_tables():
+def test_serial_and_process_executors_give_identical_tables(railusm):
     kw = dict(trials=2, methods=("qavg", "reirl"), holdout=False)
-    serial = reproduce_tables([1, 3], DATA, executor="serial", **kw)
-    pooled = reproduce_tables([1, 3], DATA, executor="process:2", **kw)
+    serial = reproduce_tables([1, 3], railusm, executor="serial", **kw)
+    pooled = reproduce_tables([1, 3], railusm, executor="process:2", **kw)
     assert serial.ok and pooled.ok and pooled.sweep.n_run == serial.sweep.n_run == 2 * 2 * 2
     for a, b in zip(serial.reports, pooled.reports):
         assert [_trial_key(o) for o in a.trials] == [_trial_key(o) for o in b.trials]
@@ -102,27 +111,25 @@ def test_serial_and_process_executors_give_identical_tables():
         assert [repr(strip(r)) for r in a.rows] == [repr(strip(r)) for r in b.rows]  # repr: NaN == NaN
 
 
-@needs_data
-def test_resumed_reproduce_skips_finished_trials(tmp_path):
+def test_resumed_reproduce_skips_finished_trials(railusm, tmp_path):
     store = tmp_path / "store"
     kw = dict(trials=2, methods=("qavg", "reirl"), holdout=False, executor="serial", store=store)
-    first = reproduce_tables([1], DATA, **kw)
+    first = reproduce_tables([1], railusm, **kw)
     assert first.sweep.n_run == 4 and first.sweep.n_cached == 0
     files = sorted(store.glob("*.json"))
     assert len(files) == 4
     files[0].unlink()  # as if the run had been killed before this trial finished
-    again = reproduce_tables([1], DATA, **kw)
+    again = reproduce_tables([1], railusm, **kw)
     assert again.sweep.n_cached == 3 and again.sweep.n_run == 1
     assert [_trial_key(o) for o in again.reports[0].trials] == [_trial_key(o) for o in first.reports[0].trials]
     # another master seed is another set of trials: nothing reused
-    other = reproduce_tables([1], DATA, **{**kw, "trials": 1}, seed=1)
+    other = reproduce_tables([1], railusm, **{**kw, "trials": 1}, seed=1)
     assert other.sweep.n_cached == 0
 
 
-@needs_data
-def test_cli_reports_failed_trials_and_exits_nonzero(tmp_path, capsys):
+def test_cli_reports_failed_trials_and_exits_nonzero(railusm, tmp_path, capsys):
     store = tmp_path / "s"
-    args = ["reproduce", "--table", "1", "--data", str(DATA), "--trials", "1", "--no-holdout", "--no-progress",
+    args = ["reproduce", "--table", "1", "--data", str(railusm), "--trials", "1", "--no-holdout", "--no-progress",
             "--executor", "serial", "--store", str(store), "--epsilon", "-1"]
     rc = main(args)  # a negative REIRL weight fails REIRL's trial (twice: one retry); the others finish
     captured = capsys.readouterr()
@@ -134,23 +141,21 @@ def test_cli_reports_failed_trials_and_exits_nonzero(tmp_path, capsys):
     assert "3 from the store, 1 run" in capsys.readouterr().err
 
 
-@needs_data
-def test_table_3_problem_is_the_authors_merge_data():
-    p = table_problem(3, DATA)
+def test_table_3_problem_is_the_authors_merge_data(railusm):
+    p = table_problem(3, railusm)
     assert p.demos.n_steps == 1197 and p.transitions.shape == (1250, 5, 1250)
     assert p.bins is not None and p.pad_step() is not None
     sub = p.subset(range(11))
     assert sub.demos.n_trajectories == 11 and not np.array_equal(sub.transitions, p.transitions)
 
 
-@needs_data
-def test_baseline_rows_and_paired_held_out_tests(capsys):
+def test_baseline_rows_and_paired_held_out_tests(railusm, capsys):
     from irl.baselines import baseline_leave_one_out, fit_baseline, paired_test
 
-    report = reproduce(1, DATA, trials=1, methods=("mlirl", "qavg"), config=IRLConfig.paper(l2=0.01),
+    report = reproduce(1, railusm, trials=1, methods=("mlirl", "qavg"), config=IRLConfig.paper(l2=0.01),
                        executor="serial")
     rows = {r.method: r for r in report.rows}
-    demos = table_problem(1, DATA).demos
+    demos = table_problem(1, railusm).demos
     for name in ("uniform", "marginal", "markov", "bc"):
         assert rows[name].loglik_mean == pytest.approx(fit_baseline(name, demos).loglik(demos))
         folds = baseline_leave_one_out(name, demos)
@@ -171,11 +176,10 @@ def test_baseline_rows_and_paired_held_out_tests(capsys):
         assert label in text
 
 
-@needs_data
-def test_heldout_module_uses_the_same_folds_as_reproduce():
+def test_heldout_module_uses_the_same_folds_as_reproduce(railusm):
     from analysis.heldout import method_leave_one_out
 
-    problem = table_problem(1, DATA)
+    problem = table_problem(1, railusm)
     config = IRLConfig.paper(l2=0.01)
     folds = method_leave_one_out(problem, "qavg", config, seed=1)
     out = run_trial(TrialTask("qavg", problem, config, seed=1, holdout=3))
@@ -183,13 +187,12 @@ def test_heldout_module_uses_the_same_folds_as_reproduce():
     assert folds.shape == (problem.demos.n_trajectories,)
 
 
-@needs_data
-def test_heldout_script_prints_the_baseline_table(capsys):
+def test_heldout_script_prints_the_baseline_table(railusm, capsys):
     from analysis.heldout import main as heldout_main
 
-    assert heldout_main([str(DATA), "--table", "1", "--methods", "uniform,marginal,markov,bc"]) == 0
+    assert heldout_main([str(railusm), "--table", "1", "--methods", "uniform,marginal,markov,bc"]) == 0
     text = capsys.readouterr().out
-    demos = table_problem(1, DATA).demos
+    demos = table_problem(1, railusm).demos
     from irl.baselines import baseline_leave_one_out
 
     for name in ("uniform", "marginal", "markov", "bc"):

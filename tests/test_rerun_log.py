@@ -6,9 +6,18 @@ import numpy as np
 import pytest
 
 from analysis.episode import run_episode
-from analysis.rerun_log import ROLE_IDS, close_recording, log_training, open_recording, read_entities
+from analysis.rerun_log import (
+    ROLE_IDS,
+    close_recording,
+    log_training,
+    open_recording,
+    read_entities,
+    read_rrd_table,
+    recording_identity,
+    recording_info,
+)
+from irl.domains.merge import MergeBins
 from scenarios.loader import load_scenario
-from sim.observe import StateEncoder
 from sim.policy import LearnedPolicy
 
 EDGES = {"d_AC": (35, 60, 90, 130), "d_AB": (10, 30, 60, 100), "v_AC": (-7.5, -2.5, 2.5, 7.5),
@@ -24,7 +33,7 @@ def logged(tmp_path_factory):
     path = tmp_path_factory.mktemp("rrd") / "run.rrd"
     rng = np.random.default_rng(7)
     q = rng.normal(size=(1250, 5))
-    policy = LearnedPolicy(q - np.log(np.exp(q).sum(axis=1, keepdims=True)), StateEncoder(EDGES), name="random-q")
+    policy = LearnedPolicy(q - np.log(np.exp(q).sum(axis=1, keepdims=True)), MergeBins.from_dict(EDGES), name="random-q")
     res = run_episode(load_scenario("synthetic"), policy, 3, duration_s=120.0, rrd_path=path, keep_table=True)
     return path, res
 
@@ -102,8 +111,7 @@ def test_policy_values_match_decisions(logged):
     got = np.array([row for b in probs for row in b.column("Scalars:scalars").to_pylist()])
     np.testing.assert_allclose(got, d[["p0", "p1", "p2", "p3", "p4"]].to_numpy(), rtol=0, atol=1e-12)
     assert np.ptp(got[:, 0]) > 0  # the probabilities vary with the state
-    enc = StateEncoder(EDGES)
-    states = enc.states(d[["d_AC", "d_AB", "v_AC", "v_AB"]].to_numpy(float), d.b_is_truck.to_numpy(bool))
+    states = MergeBins.from_dict(EDGES).states(d.d_AC, d.d_AB, d.v_AC, d.v_AB, d.b_is_truck.to_numpy(bool))
     np.testing.assert_array_equal(states, d.state.to_numpy())
     speed = ents[f"/metrics/A_{a}/speed"]
     sp_steps = np.concatenate([b.column("step").to_numpy() for b in speed])
@@ -135,3 +143,56 @@ def test_training_traces_are_logged(tmp_path):
     np.testing.assert_array_equal(its, [0, 1, 2])
     t = ents["/train/qavg/theta/time_to_travel"]
     np.testing.assert_array_equal(np.concatenate([np.concatenate(x.column("Scalars:scalars").to_pylist()) for x in t]), th[:, 1])
+
+
+@pytest.mark.sumo
+def test_recording_is_named_for_its_scenario_policy_and_seed(logged):
+    path, _ = logged
+    assert recording_info(path) == {"application_id": "merge-irl", "recording_id": "merge-irl/synthetic/random-q/seed3",
+                                    "name": "random-q on synthetic, seed 3"}
+
+
+def test_recording_ids_differ_by_policy_seed_and_episode():
+    ids = {recording_identity(s, p, seed, ep)[0] for s in ("synthetic", "i80") for p in ("qavg", "sumo")
+           for seed in (1, 2) for ep in (None, 0, 1)}
+    assert len(ids) == 2 * 2 * 2 * 3
+    assert recording_identity("i80", "qavg", 4, 2) == ("merge-irl/i80/qavg/seed4/episode2", "qavg on i80, seed 4, episode 2")
+
+
+@pytest.mark.sumo
+def test_rrd_table_holds_what_the_episode_logged(logged):
+    path, res = logged
+    table = read_rrd_table(path)
+    assert not table.entity.eq("/__properties").any()
+    assert read_rrd_table(path, properties=True).entity.eq("/__properties").any()
+    # one vehicles row per recorded frame, its boxes the frame's vehicles
+    veh = table[table.entity == "/world/vehicles"].sort_values("step")
+    frames = res.table.groupby("Frame_ID").size()
+    np.testing.assert_array_equal(veh.step.to_numpy(), frames.index.to_numpy())
+    np.testing.assert_array_equal([len(v) for v in veh["vehicle_id"]], frames.to_numpy())
+    a = int(res.decisions.a_id.iloc[0])
+    d = res.decisions[res.decisions.a_id == a]
+    speed = read_rrd_table(path, f"/metrics/A_{a}/speed")
+    assert set(speed.entity) == {f"/metrics/A_{a}/speed"}
+    v = res.table[res.table.Vehicle_ID == a].set_index("Frame_ID").v_Vel
+    np.testing.assert_allclose(speed["Scalars:scalars"].to_numpy(float), v.loc[speed.step].to_numpy(), rtol=0, atol=1e-9)
+    # sim_time in seconds: frames are 0.1 s apart
+    np.testing.assert_allclose(np.diff(speed.sim_time.to_numpy(float)), 0.1 * np.diff(speed.step.to_numpy()), atol=1e-9)
+    probs = table[(table.entity == f"/policy/A_{a}/probs") & ~table.static]
+    np.testing.assert_allclose(np.stack(probs["Scalars:scalars"].to_numpy()),
+                               d[["p0", "p1", "p2", "p3", "p4"]].to_numpy(), rtol=0, atol=1e-12)
+
+
+def test_rrd_table_of_training_traces(tmp_path):
+    path = tmp_path / "train.rrd"
+    rec, tmp = open_recording(path, recording_id="train-test", name="a name")
+    ll = np.array([-50.0, -40.0, -35.5])
+    log_training(rec, "mlirl", ll, np.ones((3, 2)))
+    close_recording(rec, tmp, path)
+    t = read_rrd_table(path, "/train/mlirl/loglik")
+    np.testing.assert_array_equal(t["iteration"].to_numpy(), [0, 1, 2])
+    np.testing.assert_array_equal(t["Scalars:scalars"].to_numpy(float), ll)
+    assert recording_info(path)["name"] == "a name" and recording_info(path)["recording_id"] == "train-test"
+    assert read_rrd_table(path, "/nothing").empty
+    with pytest.raises(FileNotFoundError, match="missing.rrd"):
+        read_rrd_table(tmp_path / "missing.rrd")

@@ -10,7 +10,7 @@ import pytest
 from scenarios.errors import SpecError
 from scenarios.loader import load_scenario, preset_names
 from scenarios.spec import ScenarioSpec, VTypeSpec
-from scenarios.spec_parse import spec_from_dict, spec_from_toml
+from scenarios.spec_parse import spec_from_dict, spec_from_toml, with_overrides
 
 
 @pytest.mark.parametrize("name", ["synthetic", "i80"])
@@ -32,7 +32,7 @@ def test_i80_preset_shape():
 
 
 def test_load_from_file_and_overrides(tmp_path):
-    spec = load_scenario("synthetic").with_overrides(seed=7, duration_s=90.0)
+    spec = with_overrides(load_scenario("synthetic"), seed=7, duration_s=90.0)
     p = tmp_path / "mine.toml"
     p.write_text(spec.to_toml())
     loaded = load_scenario(p)

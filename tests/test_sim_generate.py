@@ -8,11 +8,15 @@ import subprocess
 import sys
 import time
 
+import numpy as np
 import pandas as pd
 import pytest
 
+from irl.domains.merge import ENCOUNTER_COLUMNS, MergeBins, state_parts
+from irl.result import SavedModel
 from scenarios.loader import load_scenario
-from sim.encounters import ENCOUNTER_COLUMNS, MERGE_COLUMNS
+from scenarios.spec_parse import with_overrides
+from sim.encounters import MERGE_COLUMNS
 from sim.generate import OUTPUT_FILES
 from sim.outputs import write_parquet
 from sim.schema import COLUMNS
@@ -35,13 +39,46 @@ def test_generate_writes_outputs_and_spec(tmp_path):
     assert list(pd.read_parquet(out / "encounters.parquet").columns) == list(ENCOUNTER_COLUMNS)
     assert list(pd.read_parquet(out / "merges.parquet").columns) == list(MERGE_COLUMNS)
     used = load_scenario(out / "scenario.toml")
-    assert used == load_scenario("synthetic").with_overrides(seed=3, duration_s=100.0)
+    assert used == with_overrides(load_scenario("synthetic"), seed=3, duration_s=100.0)
     assert not [p for p in out.iterdir() if p.name.startswith(".")]
     # encounters from the saved table = the ones generate wrote
     r2 = cli(["encounters", str(out / "trajectories.parquet"), "--out", str(tmp_path / "e.parquet")], tmp_path / "cache")
     assert r2.returncode == 0, r2.stderr
     pd.testing.assert_frame_equal(pd.read_parquet(tmp_path / "e.parquet"), pd.read_parquet(out / "encounters.parquet"))
     pd.testing.assert_frame_equal(pd.read_parquet(tmp_path / "e.merges.parquet"), pd.read_parquet(out / "merges.parquet"))
+
+
+def test_learn_merge_accepts_what_generate_writes_with_frames_without_car_c(tmp_path):
+    out = tmp_path / "run"
+    r = cli(["generate", "--scenario", "synthetic", "--duration", "100", "--seed", "3", "--no-progress",
+             "--out", str(out)], tmp_path / "cache")
+    assert r.returncode == 0, r.stderr
+    enc_path = out / "encounters.parquet"
+    enc = pd.read_parquet(enc_path)
+    if not enc.d_AC.isna().any():
+        # no frame without C in this short run: take a C off the road for part of its encounter
+        # (drop its trajectory rows) and extract the encounters again, as a user would
+        t = pd.read_parquet(out / "trajectories.parquet")
+        row = enc[enc.C_id != 0].iloc[0]
+        drop = (t.Vehicle_ID == row.C_id) & (t.Frame_ID <= row.merge_frame - 3)
+        assert drop.any()
+        t[~drop].to_parquet(tmp_path / "t.parquet")
+        enc_path = tmp_path / "e.parquet"
+        r = cli(["encounters", str(tmp_path / "t.parquet"), "--out", str(enc_path)], tmp_path / "cache")
+        assert r.returncode == 0, r.stderr
+        enc = pd.read_parquet(enc_path)
+    no_c = enc.d_AC.isna()
+    assert no_c.any() and (no_c == enc.v_AC.isna()).all() and (~no_c).any()
+    model = tmp_path / "m.json"
+    r = cli(["learn", "--method", "qavg", "--domain", "merge", "--demos", str(enc_path), "--settings", "reference",
+             "--out", str(model), "--no-progress"], tmp_path / "cache")
+    assert r.returncode == 0, r.stderr
+    m = SavedModel.load(model)
+    assert m.domain == "merge" and m.q.shape == (1250, 5) and np.all(np.isfinite(m.theta))
+    # the no-C frames were encoded by the no-lead-car rule (farthest d_AC bin), not rejected
+    bins = MergeBins.from_dict({k: list(v) for k, v in m.bin_edges.items()})
+    parts = state_parts(bins.encode(enc[no_c]))
+    assert (parts[:, 1] == 0).all() and (parts[:, 3] == bins.no_lead_v_AC_bin()).all()
 
 
 def test_generate_bad_spec_fails_before_sumo_naming_the_field(tmp_path):

@@ -9,6 +9,7 @@ Thin layer over :mod:`scenarios.calibration` and :mod:`analysis.calibration_chec
 
 from __future__ import annotations
 
+# API imports sit inside the functions: `merge-irl --help` imports every command module (analysis/commands/__init__.py).
 import argparse
 import json
 import sys

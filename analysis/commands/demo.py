@@ -7,6 +7,7 @@ and the ``.rrd`` log, and print where they are. See :func:`analysis.pipeline.run
 
 from __future__ import annotations
 
+# API imports sit inside the functions: `merge-irl --help` imports every command module (analysis/commands/__init__.py).
 import argparse
 from dataclasses import replace
 

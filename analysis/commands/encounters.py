@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+# API imports sit inside the functions: `merge-irl --help` imports every command module (analysis/commands/__init__.py).
 import argparse
 import sys
 from pathlib import Path

@@ -5,6 +5,7 @@ With ``--seeds`` and/or ``--demand-scale`` it runs a resumable sweep (``analysis
 
 from __future__ import annotations
 
+# API imports sit inside the functions: `merge-irl --help` imports every command module (analysis/commands/__init__.py).
 import argparse
 import sys
 

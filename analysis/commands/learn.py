@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
+# API imports sit inside the functions: `merge-irl --help` imports every command module (analysis/commands/__init__.py).
 import argparse
 import sys
 from dataclasses import replace
 
 from irl.config import SOLVERS, IRLConfig
-from irl.result import METHODS
-
-from analysis.problem import DOMAINS
+from irl.problems import DOMAINS
+from irl.result import METHODS  # names only: irl.fit loads scipy.optimize
 
 
 def add_config_arguments(p: argparse.ArgumentParser) -> None:
@@ -59,13 +59,11 @@ def register(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from analysis.learn import learn
-    from irl.merge_mdp import MergeBins
     from irl.reirl import DEFAULT_EPSILON
 
-    bins = MergeBins.load(args.bins) if args.bins else None
     model = learn(
         args.method, args.domain, args.demos, config=config_from_args(args), seed=args.seed,
-        noise=args.noise, baseline_path=args.baseline, bins=bins, dt=args.dt,
+        noise=args.noise, baseline_path=args.baseline, bins=args.bins or None, dt=args.dt,
         epsilon=DEFAULT_EPSILON if args.epsilon is None else args.epsilon,
         out=args.out, progress=not args.no_progress and sys.stderr.isatty(),
     )

@@ -2,10 +2,15 @@
 
 from __future__ import annotations
 
+# API imports sit inside the functions: `merge-irl --help` imports every command module (analysis/commands/__init__.py).
 import argparse
 import sys
 
 from analysis.commands.learn import add_config_arguments, config_from_args
+
+#: Said when ``--data`` is missing: the demonstrations are not shipped (AGPL), users fetch them.
+DATA_SOURCE = ("--data DIR is required: the authors' demonstrations are not shipped; get the folder data/ "
+               "of their public repository https://github.com/RAILUSM/Model-free-IRL and pass it as --data")
 
 
 def register(subparsers) -> None:
@@ -19,8 +24,9 @@ def register(subparsers) -> None:
     p.add_argument("--table", type=int, choices=(1, 2, 3), required=True, nargs="+",
                    help="1: gridworld no noise, 2: gridworld 10%% noise, 3: NGSIM merge "
                         "(several, e.g. '--table 1 2 3', run as one sweep)")
-    p.add_argument("--data", required=True,
-                   help="the authors' data directory (holding gridworld/ and merge_ngsim/)")
+    p.add_argument("--data", default=None,
+                   help="the authors' data directory (holding gridworld/ and merge_ngsim/): the folder data/ "
+                        "of https://github.com/RAILUSM/Model-free-IRL")
     p.add_argument("--trials", type=int, help="random initialisations per method (default 30, 30, 10)")
     add_config_arguments(p)
     p.add_argument("--seed", type=int, default=0, help="master seed of the trials")
@@ -46,6 +52,8 @@ def run(args: argparse.Namespace) -> int:
 
     from analysis.sweep import parse_executor
 
+    if args.data is None:
+        raise ConfigError(DATA_SOURCE)  # one line, exit 2 (analysis.cli)
     try:
         parse_executor(args.executor)  # a bad --executor is a one-line error before any work
     except ValueError as e:

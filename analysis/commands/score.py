@@ -2,15 +2,13 @@
 
 from __future__ import annotations
 
+# API imports sit inside the functions: `merge-irl --help` imports every command module (analysis/commands/__init__.py).
 import argparse
 import json
 import math
 from pathlib import Path
 
-from analysis.problem import DOMAINS, MergeBins, load_problem
-from irl.baselines import TabularPolicy
-from irl.errors import DemonstrationError, ModelFileError
-from irl.result import SavedModel
+from irl.problems import DOMAINS
 
 
 def register(subparsers) -> None:
@@ -30,10 +28,11 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def score(model: SavedModel, demos_path: str, domain: str | None = None) -> dict:
+def score(model, demos_path: str, domain: str | None = None) -> dict:
     """Score ``demos_path`` under ``model``.
 
     Args:
+        model: a :class:`irl.result.SavedModel`.
         domain: one of ``DOMAINS``; default ``model.domain``.
 
     Returns:
@@ -44,6 +43,11 @@ def score(model: SavedModel, demos_path: str, domain: str | None = None) -> dict
         DemonstrationError: no domain known, or the demonstrations' state/action counts differ
             from the model's Q table.
     """
+    from irl.baselines import TabularPolicy
+    from irl.domains.merge import MergeBins
+    from irl.errors import DemonstrationError
+    from irl.problems import load_problem
+
     domain = domain or model.domain
     if domain not in DOMAINS:
         raise DemonstrationError(f"{demos_path}: the model names no domain ({model.domain!r}); "
@@ -61,7 +65,9 @@ def score(model: SavedModel, demos_path: str, domain: str | None = None) -> dict
             "method": model.method, "converged": bool(model.converged), "unbounded": bool(model.unbounded)}
 
 
-def _info_number(model: SavedModel, key: str, default: float) -> float:
+def _info_number(model, key: str, default: float) -> float:
+    from irl.errors import ModelFileError
+
     value = model.info.get(key, default)
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise ModelFileError(f"model field 'info.{key}' must be a finite number, got {value!r}")
@@ -69,6 +75,8 @@ def _info_number(model: SavedModel, key: str, default: float) -> float:
 
 
 def run(args: argparse.Namespace) -> int:
+    from irl.result import SavedModel
+
     model = SavedModel.load(args.model)
     result = score(model, args.demos, args.domain)
     if args.json:

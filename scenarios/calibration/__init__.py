@@ -7,9 +7,9 @@ spread describes how drivers differ. The calibrated population feeds the ``i80``
 vType distribution.
 
 Modules: :mod:`.pairs` (loading, batches, split by follower), :mod:`.models` (the SUMO
-replica), :mod:`.objective` (spacing error), :mod:`.fit` (fits), :mod:`.evaluate`
-(calibrated vs default RMSE), :mod:`.params_file` (TOML), :mod:`.vtypes` (driver
-distribution), :mod:`.sumo_replay` (the same pairs in real SUMO, for checks).
+replica), :mod:`.objective` (spacing error), :mod:`.fit` (fits),
+:mod:`~scenarios.calibration.evaluate` (calibrated vs default RMSE), :mod:`.params_file` (TOML),
+:mod:`.vtypes` (driver distribution), :mod:`.sumo_replay` (the same pairs in real SUMO, for checks).
 """
 
 from scenarios.calibration.evaluate import Evaluation, PairScore, evaluate

@@ -19,9 +19,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from irl.units import M_PER_FT
 from scenarios.errors import SpecError
-
-M_PER_FT = 0.3048
 STEP_S = 0.1
 _NAME = re.compile(r"^(?:ngsim_)?(?P<period>.+?)_run.*_f(?P<f>\d+)_l(?P<l>\d+)_(?P<n>\d+)$")
 _REQUIRED = ("t", "x_follower", "v_follower", "x_leader", "v_leader", "leader_length")

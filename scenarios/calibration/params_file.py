@@ -29,11 +29,11 @@ Layout::
 from __future__ import annotations
 
 import os
-import tempfile
 import tomllib
 from dataclasses import asdict, fields
 from pathlib import Path
 
+from irl.atomic import write_text_atomic
 from scenarios.calibration.fit import CalibrationResult, PairFit, ParamSpread
 from scenarios.calibration.models import MODELS, PARAM_NAMES, CFParams
 from scenarios.errors import SpecError
@@ -66,16 +66,7 @@ def save_result(r: CalibrationResult, path: str | os.PathLike) -> Path:
     if not data["spread"]:
         del data["spread"]
     text = dumps(data)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
+    return write_text_atomic(path, text)
 
 
 def _params(src: str, where: str, d: object) -> CFParams:

@@ -1,0 +1,168 @@
+"""The package import graph, read from the source (ast): no circles, and the layering of
+DESIGN.md section 1. Every import counts, at module top or inside a function."""
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("sim", "irl", "scenarios", "analysis")
+SUMO = ("libsumo", "traci", "sumolib")
+#: the bottom-layer modules of irl that scenarios may use (they import nothing of ours)
+IRL_LEAVES = ("irl.units", "irl.atomic")
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def _modules() -> dict[str, Path]:
+    return {_module_name(p): p for pkg in PACKAGES for p in sorted((ROOT / pkg).rglob("*.py"))}
+
+
+MODULES = _modules()
+
+
+def _imported_names(name: str, path: Path) -> list[tuple[str, int]]:
+    """Every ``(module, line)`` that ``name`` imports, anywhere in the file."""
+    is_pkg = path.name == "__init__.py"
+    out = []
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), str(path))):
+        if isinstance(node, ast.Import):
+            out += [(a.name, node.lineno) for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:  # relative: resolve against this module's package
+                base = name.split(".") if is_pkg else name.split(".")[:-1]
+                base = base[: len(base) - (node.level - 1)]
+                mod = ".".join(base + ([node.module] if node.module else []))
+            else:
+                mod = node.module
+            out.append((mod, node.lineno))
+            # ``from pkg import submodule`` imports the submodule
+            out += [(f"{mod}.{a.name}", node.lineno) for a in node.names if f"{mod}.{a.name}" in MODULES]
+    return out
+
+
+def _resolve(mod: str) -> str | None:
+    """The project module ``mod`` names (a module, or the package holding the name), or None."""
+    while mod:
+        if mod in MODULES:
+            return mod
+        mod = mod.rpartition(".")[0]
+    return None
+
+
+def _graph() -> tuple[dict[str, set[str]], dict[tuple[str, str], int], dict[str, set[str]]]:
+    edges: dict[str, set[str]] = {m: set() for m in MODULES}
+    where: dict[tuple[str, str], int] = {}
+    third: dict[str, set[str]] = {m: set() for m in MODULES}
+    for name, path in MODULES.items():
+        for mod, line in _imported_names(name, path):
+            target = _resolve(mod) if mod.split(".")[0] in PACKAGES else None
+            if target is None:
+                third[name].add(mod.split(".")[0])
+            elif target != name:
+                edges[name].add(target)
+                where.setdefault((name, target), line)
+    return edges, where, third
+
+
+EDGES, WHERE, THIRD_PARTY = _graph()
+
+
+def _cycles(edges: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components with more than one module (Tarjan)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on: set[str] = set()
+    out: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in sorted(edges[v]):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(edges):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def _is_package_init(importer: str, target: str) -> bool:
+    """A package's ``__init__`` importing its own submodules (and those importing siblings
+    through it) is how packages re-export; the submodule files themselves must not circle."""
+    return MODULES[importer].name == "__init__.py" and target.startswith(importer + ".")
+
+
+def test_the_graph_sees_function_level_imports():
+    assert "sim" in EDGES and "irl.fit" in EDGES and len(EDGES) > 80
+    # analysis.cli imports the command package at top; commands import the API inside functions
+    assert "analysis.learn" in EDGES["analysis.commands.learn"]
+    assert "analysis.rerun_log" in EDGES["analysis.episode"]  # an import inside run_episode
+
+
+def test_no_import_circles():
+    edges = {m: {t for t in ts if not _is_package_init(m, t)} for m, ts in EDGES.items()}
+    cycles = _cycles(edges)
+    detail = ["; ".join(f"{a} -> {b} (line {WHERE[(a, b)]})" for a in c for b in sorted(edges[a]) if b in c)
+              for c in cycles]
+    assert cycles == [], "\n".join(detail)
+
+
+def _ours(module: str, targets: set[str]) -> set[str]:
+    return {t for t in targets if t.split(".")[0] != module.split(".")[0]}
+
+
+@pytest.mark.parametrize("layer", ["irl", "scenarios", "sim"])
+def test_layering(layer):
+    allowed = {"irl": set(), "scenarios": set(IRL_LEAVES), "sim": None}[layer]
+    bad = {}
+    for m, targets in EDGES.items():
+        if m.split(".")[0] != layer:
+            continue
+        other = _ours(m, targets)
+        if layer == "sim":
+            wrong = {t for t in other if t.split(".")[0] not in ("scenarios", "irl")}
+        else:
+            wrong = {t for t in other if t not in allowed}
+        if wrong:
+            bad[m] = sorted(f"{t} (line {WHERE[(m, t)]})" for t in wrong)
+    assert bad == {}
+
+
+def test_irl_never_imports_sumo():
+    bad = {m: sorted(THIRD_PARTY[m] & set(SUMO)) for m in EDGES if m.split(".")[0] == "irl"}
+    assert {m: v for m, v in bad.items() if v} == {}
+
+
+def test_irl_leaves_import_nothing_of_ours():
+    for leaf in IRL_LEAVES:
+        if leaf in EDGES:
+            assert EDGES[leaf] == set(), f"{leaf} imports {sorted(EDGES[leaf])}"
+    assert "irl.atomic" in EDGES
+
+
+def test_the_check_catches_a_circle():
+    assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+    assert _cycles({"a": {"b"}, "b": set()}) == []

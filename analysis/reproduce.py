@@ -37,6 +37,7 @@ from irl.atomic import write_json_atomic
 from irl.baselines import BASELINES, baseline_leave_one_out, fit_baseline, paired_test
 from irl.config import IRLConfig
 from irl.errors import ConfigError
+from irl.problems import Problem
 from irl.reirl import DEFAULT_EPSILON
 
 #: Row order of the paper's tables.

@@ -129,10 +129,35 @@ def _encoding(path: Path) -> str:
     return "utf-8"
 
 
+#: Longest line (characters) read while sniffing or locating a bad line: NGSIM rows are a few
+#: hundred; a longer "line" (a damaged or sparse file, binary data) is refused without reading
+#: it whole, so the memory of error reporting stays bounded.
+MAX_LINE_CHARS = 1 << 16
+
+
+def _bounded_lines(fh, path: Path) -> Iterator[tuple[int, str]]:
+    """``(line number, line)`` of a text file, each line read at most :data:`MAX_LINE_CHARS` long.
+
+    Raises:
+        TrajectoryFormatError: a line longer than that (named by number).
+    """
+    lineno = 0
+    while True:
+        line = fh.readline(MAX_LINE_CHARS + 1)
+        if not line:
+            return
+        lineno += 1
+        if len(line) > MAX_LINE_CHARS:
+            raise TrajectoryFormatError(
+                f"{path}: line {lineno}: longer than {MAX_LINE_CHARS} characters without a line end; "
+                "expected NGSIM rows (a few hundred characters each): a damaged or binary file?")
+        yield lineno, line
+
+
 def _sniff(path: Path) -> _Layout:
     encoding = _encoding(path)
     with open(path, encoding=encoding, errors="replace", newline="") as fh:
-        head = [fh.readline() for _ in range(50)]
+        head = [line for _, (_, line) in zip(range(50), _bounded_lines(fh, path))]
     head = [h for h in head if h.strip()]
     if not head:
         raise TrajectoryFormatError(f"{path}: line 1: the file is empty; expected NGSIM rows")
@@ -174,7 +199,7 @@ def _locate_bad_line(path: Path, layout: _Layout, start_line: int, cause: Except
     """Error path: find the first unparsable line at or after ``start_line`` (1-based)."""
     idx = {c: layout.names.index(c) for c in NGSIM_COLUMNS}
     with open(path, encoding=layout.encoding, errors="replace") as fh:
-        for lineno, line in enumerate(fh, start=1):
+        for lineno, line in _bounded_lines(fh, path):
             if lineno < start_line or lineno <= layout.header_lines or not line.strip():
                 continue
             fields = line.rstrip("\r\n").split(",") if layout.kind == "csv" else line.split()

@@ -200,3 +200,49 @@ def test_learn_out_that_is_a_folder_is_one_line(tmp_path):
     line = _one_line_exit_2(_cli("learn", "--method", "qavg", "--domain", "gridworld", "--demos",
                                  str(tmp_path / "no-such-demos"), "--out", str(tmp_path)), "learn")
     assert "Is a directory" in line
+
+
+# -- leftovers: the network cache, a moved sweep ---------------------------------------------
+
+@pytest.mark.parametrize("damage", ["truncated", "emptied", "checksum-lost", "net-lost"])
+def test_damaged_network_cache_entry_is_rebuilt(tmp_path, monkeypatch, damage):
+    import scenarios.network as network
+    from scenarios.loader import load_scenario
+
+    monkeypatch.setenv("MERGE_IRL_CACHE", str(tmp_path))
+    road = load_scenario("synthetic").road
+    net = network.build_network(road)
+    good = net.read_bytes()
+    if damage == "truncated":
+        net.write_bytes(good[: len(good) // 2])
+    elif damage == "emptied":
+        net.write_bytes(b"")
+    elif damage == "checksum-lost":
+        (net.parent / network.CHECKSUM_FILE).unlink()
+    else:
+        net.unlink()
+    calls = []
+    real = network.netconvert_binary
+    monkeypatch.setattr(network, "netconvert_binary", lambda: calls.append(1) or real())
+    again = network.build_network(road)
+    body = good[good.index(b"<net "):]  # netconvert's header comment holds the build time
+    assert again == net and again.read_bytes().endswith(body) and calls == [1]
+    assert [p.name for p in (tmp_path / "networks").iterdir()] == [net.parent.name]  # nothing left aside
+    network.build_network(road)
+    assert calls == [1]  # intact now: reused
+
+
+def test_moved_sweep_folder_resumes_without_recomputing(tmp_path, sim_env):
+    args = ["generate", "--scenario", "synthetic", "--seeds", "1-2", "--duration", "90", "--executor", "serial",
+            "--no-progress"]
+    first = _cli(*args, "--out", str(tmp_path / "a" / "sweep"), env=sim_env)
+    assert first.returncode == 0, first.stderr
+    (tmp_path / "b").mkdir()
+    os.rename(tmp_path / "a" / "sweep", tmp_path / "b" / "sweep")
+    moved = _cli(*args, "--out", str(tmp_path / "b" / "sweep"), env=sim_env)
+    assert moved.returncode == 0, moved.stderr
+    assert "(2 from the store, 0 run)" in moved.stderr
+    import pandas as pd
+
+    table = pd.read_csv(tmp_path / "b" / "sweep" / "sweep.csv")
+    assert all(str(tmp_path / "b" / "sweep") in d for d in table["out_dir"])  # where the runs are now

@@ -246,3 +246,20 @@ def test_moved_sweep_folder_resumes_without_recomputing(tmp_path, sim_env):
 
     table = pd.read_csv(tmp_path / "b" / "sweep" / "sweep.csv")
     assert all(str(tmp_path / "b" / "sweep") in d for d in table["out_dir"])  # where the runs are now
+
+
+def test_second_evaluate_into_the_same_out_fails_at_once(tmp_path, sim_env):
+    out = tmp_path / "eval"
+    holder = subprocess.Popen([sys.executable, "-c", (
+        "import time; from irl.run_folder import locked\n"
+        f"with locked({str(out)!r}):\n    print('held', flush=True); time.sleep(60)")],
+        stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        line = _one_line_exit_2(_cli("evaluate", "--baselines", "sumo", "--scenario", "synthetic", "--episodes", "1",
+                                     "--no-progress", "--out", str(out), env=sim_env), "evaluate")
+        assert "another run is writing into this folder" in line
+    finally:
+        holder.kill()
+        holder.wait()
+    assert not out.exists()

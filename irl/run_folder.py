@@ -38,7 +38,7 @@ class OutputLockedError(OSError):
 
 def lock_path(folder: str | os.PathLike) -> Path:
     """``.NAME.lock`` beside ``folder`` (outside it, so that the folder can be replaced)."""
-    folder = Path(folder)
+    folder = Path(os.path.abspath(folder))  # "." and "a/.." have a name only once resolved
     return folder.parent / f".{folder.name}.lock"
 
 
@@ -94,7 +94,7 @@ def remove_temporaries(folder: str | os.PathLike, name: str | None = None) -> li
 
 def staging_folder(final: str | os.PathLike) -> Path:
     """Create a fresh hidden staging folder ``.NAME.<hex>.tmpdir`` beside ``final``."""
-    final = Path(final)
+    final = Path(os.path.abspath(final))
     final.parent.mkdir(parents=True, exist_ok=True)
     while True:
         stage = final.with_name(f".{final.name}.{secrets.token_hex(4)}.tmpdir")
@@ -137,7 +137,7 @@ def publish(stage: str | os.PathLike, final: str | os.PathLike) -> Path:
     Raises:
         OSError: if a rename fails (``final`` then keeps its previous content, or is absent).
     """
-    stage, final = Path(stage), Path(final)
+    stage, final = Path(os.path.abspath(stage)), Path(os.path.abspath(final))
     try:
         os.rename(stage, final)  # absent, or an empty folder: replaced in one step
         return final

@@ -82,7 +82,7 @@ def generate(
     final = Path(out_dir) if out_dir is not None else default_out_dir(spec)
     with locked(final):
         check_replaceable(final, OUTPUT_FILES)
-        remove_temporaries(final.parent, final.name)
+        remove_temporaries(final.resolve().parent, final.resolve().name)  # stale staging folders
         remove_temporaries(final)
         for name in OUTPUT_FILES:
             (final / name).unlink(missing_ok=True)

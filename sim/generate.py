@@ -20,13 +20,19 @@ the simulation starts. Leftovers of killed runs (staging folders, temporary file
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 import shutil
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 from irl.atomic import write_text_atomic
-from irl.run_folder import check_replaceable, locked, publish, remove_temporaries, staging_folder
+from irl.run_folder import (
+    check_replaceable,
+    locked,
+    publish,
+    remove_temporaries,
+    staging_folder,
+)
 from scenarios.spec import ScenarioSpec
 from scenarios.spec_parse import with_overrides
 from scenarios.toml_write import dumps

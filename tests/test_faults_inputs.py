@@ -10,8 +10,8 @@ import textwrap
 import time
 
 import pytest
-
 from ngsim_testdata import synthetic_table
+
 from scenarios.errors import SpecError
 from scenarios.spec_parse import spec_from_toml
 from sim.errors import TrajectoryFormatError

@@ -13,7 +13,14 @@ from pathlib import Path
 import pytest
 
 from irl.atomic import temporary_path
-from irl.run_folder import OutputLockedError, check_replaceable, locked, publish, remove_temporaries, staging_folder
+from irl.run_folder import (
+    OutputLockedError,
+    check_replaceable,
+    locked,
+    publish,
+    remove_temporaries,
+    staging_folder,
+)
 
 
 def _cli(*args: str, env: dict | None = None, timeout: float = 300) -> subprocess.CompletedProcess:

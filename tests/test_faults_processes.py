@@ -13,9 +13,9 @@ from pathlib import Path
 
 import psutil
 import pytest
+from sweep_tasks import DrawConfig, draw
 
 from analysis.sweep import ResultStore, Task, run_sweep
-from sweep_tasks import DrawConfig, draw
 
 TESTS_DIR = Path(__file__).resolve().parent
 
@@ -69,7 +69,7 @@ def test_pool_workers_die_with_the_sweep_parent(tmp_path, sig):
         alive = _gone_within(kids, 5.0)
         assert not alive, f"still running 5 s after the parent's {sig.name}: {[_cmdline(p) for p in alive]}"
         # nobody holds the parent's output any more: reading it to the end returns
-        out, _ = proc.communicate(timeout=5)
+        proc.communicate(timeout=5)
     finally:
         if proc.poll() is None:
             proc.kill()

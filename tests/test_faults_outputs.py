@@ -156,7 +156,7 @@ def test_second_generate_into_the_same_out_fails_at_once(tmp_path, sim_env):
     assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".run.")) == [".run.lock"]
     assert not stale_tmp.exists()
     assert sorted(p.name for p in out.iterdir()) == sorted(
-        ["trajectories.parquet", "encounters.parquet", "merges.parquet", "scenario.toml"])
+        ["trajectories.parquet", "encounters.parquet", "merges.parquet", "scenario.toml", "run.toml"])
 
 
 def test_generate_refuses_an_out_folder_with_other_files(tmp_path, sim_env):

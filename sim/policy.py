@@ -52,7 +52,7 @@ class Policy(Protocol):
     name: str
     controls: bool
 
-    def probs(self, obs: "MergeObservation") -> np.ndarray:
+    def probs(self, obs: MergeObservation) -> np.ndarray:
         """``[5]`` action probabilities (sum to 1)."""
         ...
 
@@ -74,7 +74,7 @@ class UniformPolicy:
     name: str = "uniform"
     controls: bool = True
 
-    def probs(self, obs: "MergeObservation") -> np.ndarray:
+    def probs(self, obs: MergeObservation) -> np.ndarray:
         return np.full(N_ACTIONS, 1.0 / N_ACTIONS)
 
 
@@ -92,7 +92,7 @@ class ConstantPolicy:
         if not self.name:
             object.__setattr__(self, "name", f"constant-{ACTION_NAMES[int(self.action)].lower().replace(' ', '-')}")
 
-    def probs(self, obs: "MergeObservation") -> np.ndarray:
+    def probs(self, obs: MergeObservation) -> np.ndarray:
         p = np.zeros(N_ACTIONS)
         p[int(self.action)] = 1.0
         return p
@@ -108,7 +108,7 @@ class SumoPolicy:
     name: str = "sumo"
     controls: bool = False
 
-    def probs(self, obs: "MergeObservation") -> np.ndarray:
+    def probs(self, obs: MergeObservation) -> np.ndarray:
         return np.full(N_ACTIONS, 1.0 / N_ACTIONS)
 
 
@@ -135,7 +135,7 @@ class LearnedPolicy:
         object.__setattr__(self, "log_pi", lp)
 
     @classmethod
-    def from_model(cls, model: "SavedModel", *, encoder: MergeBins | None = None, name: str = "") -> "LearnedPolicy":
+    def from_model(cls, model: SavedModel, *, encoder: MergeBins | None = None, name: str = "") -> LearnedPolicy:
         """From a saved merge model (``q [S, 5]``, ``bin_edges``, ``config.beta``).
 
         Raises:
@@ -163,7 +163,7 @@ class LearnedPolicy:
     def n_states(self) -> int:
         return int(self.log_pi.shape[0])
 
-    def probs(self, obs: "MergeObservation") -> np.ndarray:
+    def probs(self, obs: MergeObservation) -> np.ndarray:
         if not 0 <= obs.state < self.n_states:
             raise PolicyError(f"state {obs.state} out of range [0, {self.n_states}) for policy {self.name!r}")
         return np.exp(self.log_pi[obs.state])

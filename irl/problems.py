@@ -11,7 +11,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -56,7 +56,7 @@ class Problem:
     dt: float = 0.1
     noise: float = 0.0
 
-    def subset(self, indices) -> "Problem":
+    def subset(self, indices) -> Problem:
         """The same problem on the trajectories at ``indices`` (model re-estimated if estimated)."""
         demos = self.demos.subset(indices)
         transitions = estimate_model(demos, self.domain, self.bins, self.dt) if self.transitions_estimated \

@@ -23,7 +23,7 @@ under ``transitions``.
 from __future__ import annotations
 
 import time
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

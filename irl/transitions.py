@@ -46,7 +46,7 @@ class SuccessorModel:
         return self.n_states * self.n_actions
 
     @cached_property
-    def jacobian_pattern(self) -> "JacobianPattern":
+    def jacobian_pattern(self) -> JacobianPattern:
         """Precomputed sparsity of ``I - gamma P W(c)`` (see :func:`irl.bellman.backup_jacobian`)."""
         return JacobianPattern.of(self)
 
@@ -70,7 +70,7 @@ class JacobianPattern:
     n: int
 
     @classmethod
-    def of(cls, succ: "SuccessorModel") -> "JacobianPattern":
+    def of(cls, succ: SuccessorModel) -> JacobianPattern:
         A, n = succ.n_actions, succ.n_pairs
         p = succ.p.tocoo()
         rows = np.repeat(p.row, A)

@@ -196,7 +196,7 @@ class MergeBins:
             object.__setattr__(self, name, edges)
 
     @classmethod
-    def assumed_authors(cls) -> "MergeBins":
+    def assumed_authors(cls) -> MergeBins:
         """The edges we assume for the authors' 12 trajectories (none are published).
 
         ``d_AC`` (35, 60, 90, 130) ft, ``d_AB`` (10, 30, 60, 100) ft, ``v_AC`` and ``v_AB``
@@ -214,7 +214,7 @@ class MergeBins:
         return {name: list(getattr(self, name)) for name in VARIABLES}
 
     @classmethod
-    def from_dict(cls, data: dict, where: str = "bin edges") -> "MergeBins":
+    def from_dict(cls, data: dict, where: str = "bin edges") -> MergeBins:
         """From ``{variable: [4 edges]}`` (``to_dict``'s form, as saved in model.json).
 
         Raises:
@@ -237,7 +237,7 @@ class MergeBins:
         return write_json_atomic(path, self.to_dict())
 
     @classmethod
-    def load(cls, path: str | os.PathLike) -> "MergeBins":
+    def load(cls, path: str | os.PathLike) -> MergeBins:
         """Read a file written by :meth:`save`.
 
         Raises:

@@ -238,7 +238,7 @@ def _drivers(ctx: _Ctx, data: Any) -> DriversSpec:
             if isinstance(items, dict):
                 items = [items]
             if not isinstance(items, list) or not items:
-                raise ctx.fail(f"drivers.{cls}", "must be a non-empty array of vType tables ([[drivers.%s]])" % cls)
+                raise ctx.fail(f"drivers.{cls}", f"must be a non-empty array of vType tables ([[drivers.{cls}]])")
             kw[cls] = tuple(_vtype(ctx, f"drivers.{cls}[{i}]", it, cls) for i, it in enumerate(items))
         for i, vt in enumerate(kw[cls]):
             if vt.id in seen:

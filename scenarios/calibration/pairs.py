@@ -150,14 +150,14 @@ class PairBatch:
         return out
 
     @classmethod
-    def from_pairs(cls, pairs: Sequence[CarFollowingPair]) -> "PairBatch":
+    def from_pairs(cls, pairs: Sequence[CarFollowingPair]) -> PairBatch:
         if not pairs:
             raise SpecError("no pairs given")
         order = np.argsort([-len(p) for p in pairs], kind="stable")
         pairs = [pairs[i] for i in order]
         T = max(len(p) for p in pairs)
         P = len(pairs)
-        xl = np.empty((P, T)); vl = np.empty((P, T)); so = np.zeros((P, T))
+        xl, vl, so = np.empty((P, T)), np.empty((P, T)), np.zeros((P, T))
         mask = np.zeros((P, T), dtype=bool)
         for i, p in enumerate(pairs):
             n = len(p)

@@ -60,7 +60,7 @@ class EpisodeResult:
         return d
 
     @classmethod
-    def from_dict(cls, d: dict) -> "EpisodeResult":
+    def from_dict(cls, d: dict) -> EpisodeResult:
         """Inverse of :meth:`to_dict`."""
         return cls(
             metrics=EpisodeMetrics.from_dict(d["metrics"]), controls=frame_from_dict(d["controls"]),

@@ -19,7 +19,7 @@ import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 
 import numpy as np
 
@@ -79,7 +79,7 @@ class TrialOutcome:
         return d
 
     @classmethod
-    def from_dict(cls, d: dict) -> "TrialOutcome":
+    def from_dict(cls, d: dict) -> TrialOutcome:
         """Inverse of :meth:`to_dict` (None log-likelihoods back to NaN)."""
         def num(x) -> float:
             return float("nan") if x is None else float(x)

@@ -5,7 +5,8 @@ from __future__ import annotations
 import json
 import time
 import traceback
-from typing import Any, Callable
+from typing import Any
+from collections.abc import Callable
 
 
 def call_task(func: Callable[[Any, int], dict], config: Any, seed: int) -> dict[str, Any]:

@@ -23,7 +23,7 @@ see :mod:`sim.ngsim_smooth`).
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -108,8 +108,8 @@ def _is_number(text: str) -> bool:
 
 def _sniff(path: Path) -> _Layout:
     with open(path, "rb") as fh:
-        head = [fh.readline() for _ in range(50)]
-    head = [h.decode("utf-8", "replace") for h in head if h.strip()]
+        raw = [fh.readline() for _ in range(50)]
+    head = [h.decode("utf-8", "replace") for h in raw if h.strip()]
     if not head:
         raise TrajectoryFormatError(f"{path}: line 1: the file is empty; expected NGSIM rows")
     first = head[0]
@@ -324,11 +324,11 @@ def _release_freed_memory() -> None:
             _MALLOC_TRIM = ctypes.CDLL("libc.so.6").malloc_trim
         except (OSError, AttributeError):
             _MALLOC_TRIM = False
-    if _MALLOC_TRIM:
+    if callable(_MALLOC_TRIM):
         _MALLOC_TRIM(0)
 
 
-_MALLOC_TRIM = None
+_MALLOC_TRIM: Callable[[int], int] | bool | None = None  # None: not looked up yet
 
 
 def _assemble(parts: list[np.ndarray]) -> pd.DataFrame:

@@ -89,14 +89,14 @@ class ChunkValidator:
         nan = np.isnan(data)
         if nan.any():
             r = int(np.flatnonzero(nan.any(axis=0))[0])
-            c = int(np.flatnonzero(nan[:, r])[0])
-            raise self._fail(int(lines[r]), NGSIM_COLUMNS[c], "missing value; expected a number")
+            j = int(np.flatnonzero(nan[:, r])[0])
+            raise self._fail(int(lines[r]), NGSIM_COLUMNS[j], "missing value; expected a number")
         inf = np.isinf(data)
         if inf.any():
             r = int(np.flatnonzero(inf.any(axis=0))[0])
-            c = int(np.flatnonzero(inf[:, r])[0])
-            raise self._fail(int(lines[r]), NGSIM_COLUMNS[c],
-                             f"value {data[c, r]!r} is not finite; expected a number")
+            j = int(np.flatnonzero(inf[:, r])[0])
+            raise self._fail(int(lines[r]), NGSIM_COLUMNS[j],
+                             f"value {data[j, r]!r} is not finite; expected a number")
         for c in INT_COLUMNS:
             col = data[_COL[c]]
             bad = col != np.round(col)

@@ -49,8 +49,12 @@ class Policy(Protocol):
             only observes it.
     """
 
-    name: str
-    controls: bool
+    # read-only properties, so frozen dataclasses (the policies here) satisfy the protocol
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def controls(self) -> bool: ...
 
     def probs(self, obs: MergeObservation) -> np.ndarray:
         """``[5]`` action probabilities (sum to 1)."""

@@ -97,6 +97,7 @@ def unit_step_ascent(evaluate: Callable[[np.ndarray], Evaluation], theta0: np.nd
                 theta = theta + config.step_size * g / norm
                 if n % 64 == 0:
                     bar.set_postfix(L=f"{ev.loglik:.4f}")
+    assert ev is not None, "IRLConfig validates max_outer >= 1, so the loop evaluated at least once"
     return AscentResult(theta, ev, np.array(lls), np.array(thetas).reshape(len(thetas), -1),
                         converged, message, {"outer_steps": float(len(lls))})
 
@@ -216,6 +217,8 @@ def newton_concave(evaluate: Callable[[np.ndarray], Evaluation], theta0: np.ndar
     converged, message = False, f"Newton: reached {n_iter} iterations"
     with progress_bar(progress, n_iter, desc) as bar:
         for it in range(n_iter):
+            if ev.hess is None:
+                raise ValueError("newton_concave: evaluate returned no Hessian (Evaluation.hess is None)")
             h = -(ev.hess - l2 * np.eye(theta.size))  # PSD
             lam, vec = np.linalg.eigh(0.5 * (h + h.T))
             radius = 10.0 * (1.0 + float(np.linalg.norm(theta)))  # |theta| grows at most 11x a step

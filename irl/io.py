@@ -270,6 +270,6 @@ def save_npz(demos: Demonstrations, path: str | os.PathLike, feature_names: tupl
         arrays["names"] = np.asarray(demos.names, dtype=str)
     def write(tmp: Path) -> None:
         with open(tmp, "wb") as f:  # a file object: np.savez would add ".npz" to a path
-            np.savez(f, **arrays)
+            np.savez(f, **arrays)  # type: ignore[arg-type]  # numpy stub: a ** dict might hold allow_pickle
 
     return write_atomic(path, write)

@@ -129,7 +129,8 @@ def generate_experts(
     states, actions = [], []
     for _ in range(int(n)):
         s = int(rng.choice(starts))
-        ss, aa = [], []
+        ss: list[int] = []
+        aa: list[int] = []
         while s not in CORNERS and len(ss) < max_len:
             a = int(rng.choice(expert_actions(s, dist)))
             ss.append(s)

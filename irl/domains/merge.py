@@ -56,6 +56,7 @@ import os
 from bisect import bisect_right
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -320,8 +321,8 @@ class MergeBins:
 
     def encode(self, table: pd.DataFrame) -> np.ndarray:
         """``[rows]`` state index of every row of an encounter table (columns by name)."""
-        return self.states(*(table[c].to_numpy(dtype=np.float64) for c in VARIABLES),
-                           table["B_is_truck"].to_numpy(dtype=np.float64))
+        d_AC, d_AB, v_AC, v_AB = (table[c].to_numpy(dtype=np.float64) for c in VARIABLES)
+        return self.states(d_AC, d_AB, v_AC, v_AB, table["B_is_truck"].to_numpy(dtype=np.float64))
 
     def representatives(self, name: str) -> np.ndarray:
         """``[5]`` a finite representative value of each bin of ``name``, in bin-index order.
@@ -356,7 +357,7 @@ def fit_quantile_bins(table: pd.DataFrame, *, safe_distance: float = SAFE_DISTAN
         DemonstrationError: ``table`` breaks :func:`validate_encounters`.
     """
     validate_encounters(table, where)
-    edges: dict[str, tuple[float, ...]] = {}
+    edges: dict[str, Any] = {}  # four edges per variable: MergeBins.__post_init__ checks the count
     for name in VARIABLES:
         v = table[name].to_numpy(dtype=np.float64)
         v = v[~np.isnan(v)]

@@ -161,7 +161,7 @@ def run_calibration_check(
     """Simulate ``scenario`` with the calibrated drivers (the scenario's own with
     ``keep_drivers``; nothing is simulated when ``table`` is given) and compare."""
     result = load_result(params_path)
-    pairs = list(load_pairs(pairs_dir))
+    pairs = list(load_pairs(Path(pairs_dir)))
     spec = load_scenario(scenario)
     if table is None:
         if not keep_drivers:

@@ -22,8 +22,8 @@ from __future__ import annotations
 
 import os
 import sys
-from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, is_dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -213,7 +213,7 @@ def evaluate(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     for b in baselines:
-        pols.append({"sumo": SumoPolicy, "uniform": UniformPolicy}[b]())
+        pols.append(_BASELINES[b]())
     pols.extend(policies)
     names = [p.name for p in pols]
     dup = {n for n in names if names.count(n) > 1}
@@ -267,5 +267,11 @@ def evaluation_provenance(models: Sequence, pols: Sequence[Policy], scenario, sp
                       extra={"scenario_sha256": text_digest(spec.to_toml())})
 
 
+_BASELINES: dict[str, Callable[[], Policy]] = {"sumo": SumoPolicy, "uniform": UniformPolicy}
+
+
 def _renamed(p: Policy, name: str) -> Policy:
+    if not is_dataclass(p) or isinstance(p, type):
+        raise PolicyError(f"evaluate: two policies are named {p.name!r} and {type(p).__name__} is not a "
+                          "dataclass that could be renamed; give each policy a distinct name")
     return replace(p, name=name)

@@ -216,7 +216,7 @@ def parse_seeds(text: str) -> tuple[int, ...]:
                 a, b = int(lo), int(hi)
                 if b < a:
                     raise ValueError
-                values = range(a, b + 1)
+                values: range | list[int] = range(a, b + 1)
             else:
                 values = [int(part)]
         except ValueError:

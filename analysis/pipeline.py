@@ -49,6 +49,7 @@ from irl.fit import METHODS
 from irl.domains.merge import fit_quantile_bins
 from irl.problems import load_problem
 from scenarios.loader import load_scenario
+from scenarios.spec import ScenarioSpec
 from sim.controller import Controller
 from sim.encounters import extract_encounters
 from sim.errors import SimError
@@ -124,7 +125,7 @@ class EncounterRun:
     """One data run as a sweep task config: ``scenario`` (name, TOML path or ScenarioSpec)
     simulated with SUMO ``seed`` for ``duration_s`` (None: the scenario's)."""
 
-    scenario: object
+    scenario: str | Path | ScenarioSpec
     seed: int
     duration_s: float | None = None
 

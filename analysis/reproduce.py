@@ -47,7 +47,7 @@ TITLES = {
     3: "Table 3: NGSIM I-80 merge, 12 trajectories",
 }
 #: The paper's reported means (theta..., final LL) per table and method, for side-by-side reading.
-PAPER = {
+PAPER: dict[int, dict[str, tuple[float, ...]]] = {
     1: {"mlirl": (43.04, 33.31, 54.23, 53.93, -49.09, -36.50), "qavg": (152.33, 92.06, 1526.06, 151.51, 0.03, -29.25),
         "qsm": (17.92, 11.96, 109.88, 17.87, 0.02, -40.39), "reirl": (0.87, 28.27, 40.43, 44.62, -3.10, -43.58)},
     2: {"mlirl": (94.00, 86.91, 93.26, 95.35, -71.57, -45.05), "qavg": (227.72, 89.83, 157.59, 3368.95, 151.43, -40.49),

@@ -95,7 +95,12 @@ def policy_heldout_loglik(policy: Policy, heldout: HeldOut) -> tuple[float, floa
 
 
 def learned_policy(model: SavedModel | str | os.PathLike, name: str = "") -> LearnedPolicy:
-    """A :class:`LearnedPolicy` from a saved model (path or object) with its bin edges."""
+    """A :class:`LearnedPolicy` from a saved model (path or object) with its bin edges.
+
+    Raises:
+        ModelFileError: ``model`` is a path to a missing, unreadable or malformed ``model.json``.
+        PolicyError: the model is not a merge model (message prefixed with the file).
+    """
     where = "model"
     if not isinstance(model, SavedModel):
         path = Path(model)
@@ -162,7 +167,11 @@ def run_episodes(tasks: Sequence[tuple], *, workers: int | None = None, executor
 
 def resolve_executor(executor: str | None, workers: int | None) -> str:
     """``executor`` if given, else ``process:<workers>``, else ``process`` (every core);
-    raises SimError on a malformed value."""
+    raises SimError on a malformed value.
+
+    Raises:
+        SimError: both ``executor`` and ``workers`` given, or an executor spec that does not parse.
+    """
     if executor is None:
         executor = "process" if workers is None else f"process:{max(1, int(workers))}"
     try:
@@ -205,6 +214,13 @@ def evaluate(
         workers: processes (shorthand for ``executor="process:<workers>"``).
         executor: where episodes run (see :func:`run_episodes`); overrides ``workers``.
         rrd: write a rerun recording of each policy's first episode.
+
+    Raises:
+        SimError: ``episodes`` < 1.
+        PolicyError: a model is not a merge model, or two policies share a name and one of them is not a
+            dataclass that can be renamed.
+        ModelFileError: a model file is missing or malformed.
+        SimulationError: SUMO fails to start or to step.
     """
     if episodes < 1:
         raise SimError(f"evaluate: episodes must be >= 1, got {episodes}")

@@ -45,6 +45,10 @@ def fit_problem(
     Q-Avg and Q-SM see only the demonstrations; MLIRL gets ``problem.transitions``; REIRL gets
     the transitions (for its baseline and final log-likelihood), the baseline and the padding
     rule of the domain. A pure function of its arguments.
+
+    Raises:
+        ConfigError: ``method`` is not one of :data:`irl.fit.METHODS`.
+        DemonstrationError, ConvergenceError: from the method (see :func:`irl.fit.fit`).
     """
     if method not in METHODS:
         raise ConfigError(f"method must be one of {METHODS}, got {method!r}")
@@ -122,6 +126,11 @@ def learn(
     SHA-256 of every input file). With ``out``, the fit's wall time goes to
     ``<out stem>.timings.json`` beside it, not into ``model.json``: identical runs write
     identical model files.
+
+    Raises:
+        ConfigError: unknown ``domain`` or ``method``.
+        DemonstrationError: ``demos_path`` is missing or not a valid trajectory/encounter file.
+        ConvergenceError: the fit failed; no model is written.
     """
     config = config or IRLConfig.paper()
     bins_path = None

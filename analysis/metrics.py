@@ -290,7 +290,11 @@ def aggregate(
     demo_action_counts: np.ndarray | None = None,
     heldout: tuple[float, float] | None = None,
 ) -> AggregateMetrics:
-    """Aggregate the episodes of one policy (all must share ``policy``)."""
+    """Aggregate the episodes of one policy (all must share ``policy``).
+
+    Raises:
+        ValueError: no episodes, or episodes of more than one policy.
+    """
     if not episodes:
         raise ValueError("aggregate: no episodes")
     names = {e.policy for e in episodes}

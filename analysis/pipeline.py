@@ -147,6 +147,9 @@ def generate_encounters(scenario, seeds: Sequence[int], duration_s: float | None
 
     Runs through :func:`analysis.sweep.run_sweep` (``executor``, default ``process:<workers>``;
     one simulation per worker process at a time). Raises SimError if a run failed twice.
+
+    Raises:
+        SimError: a data run failed (the message lists each failed run and its error).
     """
     tasks = [Task(f"{i:03d}/seed{int(s)}", encounters_task, EncounterRun(scenario, int(s), duration_s))
              for i, s in enumerate(seeds)]
@@ -164,7 +167,11 @@ def _say(msg: str, quiet: bool) -> None:
 
 def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(), *, quiet: bool = False,
              progress: bool = True) -> DemoResult:
-    """Run the whole pipeline (see the module docstring) and return where the outputs are."""
+    """Run the whole pipeline (see the module docstring) and return where the outputs are.
+
+    Raises:
+        IRLError: no IRL method produced a usable model (the message gives each method's reason).
+    """
     # rerun takes about 0.8 s to import; the sweep workers that import this module for
     # encounters_task never record
     from analysis.rerun_log import RerunLogger, close_recording, log_training, open_recording, recording_identity

@@ -58,7 +58,12 @@ PAPER: dict[int, dict[str, tuple[float, ...]]] = {
 
 
 def table_inputs(table: int, data_dir: str | os.PathLike) -> dict[str, Path]:
-    """The folders ``table`` reads under ``data_dir`` (role -> path), for its provenance."""
+    """The folders ``table`` reads under ``data_dir`` (role -> path), for its provenance.
+
+    Raises:
+        ConfigError: ``table`` is not 1, 2 or 3.
+        DemonstrationError: ``data_dir`` does not hold the authors' data layout.
+    """
     d = resolve_data_dir(data_dir)
     if table in (1, 2):
         tag = f"noise_{0.0 if table == 1 else 0.1:.1f}"
@@ -268,6 +273,11 @@ def reproduce_tables(
         store: a result directory: finished trials are stored there and skipped when re-run.
         retries: re-runs of a failing trial before it is reported in ``sweep.failures``; the
             tables are summarised from the trials that succeeded.
+
+    Raises:
+        ConfigError: no table, a table other than 1, 2 or 3, unknown ``settings`` or ``methods``, or
+            ``trials`` < 1.
+        DemonstrationError: ``data_dir`` does not hold the authors' data layout.
     """
     tables = tuple(int(t) for t in tables)
     for table in tables:

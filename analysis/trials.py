@@ -127,7 +127,12 @@ class TrialSpec:
 
 
 def resolve_data_dir(data_dir: str | os.PathLike) -> Path:
-    """``data_dir`` itself if it holds ``gridworld/`` or ``merge_ngsim/``, else its ``railusm/``."""
+    """``data_dir`` itself if it holds ``gridworld/`` or ``merge_ngsim/``, else its ``railusm/``.
+
+    Raises:
+        DemonstrationError: the folder does not hold the authors' data layout (``gridworld/``,
+            ``merge_ngsim/``).
+    """
     d = Path(data_dir)
     if (d / "gridworld").is_dir() or (d / "merge_ngsim").is_dir():
         return d
@@ -137,7 +142,11 @@ def resolve_data_dir(data_dir: str | os.PathLike) -> Path:
 
 
 def table_problem(table: int, data_dir: str | os.PathLike) -> Problem:
-    """The data set of ``table`` (1, 2 or 3) under ``data_dir`` (the ``railusm`` layout)."""
+    """The data set of ``table`` (1, 2 or 3) under ``data_dir`` (the ``railusm`` layout).
+
+    Raises:
+        ConfigError: ``table`` is not 1, 2 or 3.
+    """
     d = resolve_data_dir(data_dir)
     if table in (1, 2):
         noise = 0.0 if table == 1 else 0.1

@@ -113,6 +113,9 @@ def run_sweep(
     a sweep killed midway loses only the tasks in flight. A task that raises, or kills its
     worker process, is retried ``retries`` times and then reported in ``failures``; the other
     tasks go on.
+
+    Raises:
+        ValueError: two tasks share a key.
     """
     spec = parse_executor(executor) if isinstance(executor, str) else executor
     if store is not None and not isinstance(store, ResultStore):

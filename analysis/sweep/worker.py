@@ -14,6 +14,9 @@ def call_task(func: Callable[[Any, int], dict], config: Any, seed: int) -> dict[
 
     The result must be a JSON-serialisable dict (it is stored as JSON); anything else is
     reported as the task's error.
+
+    Raises:
+        TypeError: the task returned something other than a dict.
     """
     t0 = time.perf_counter()
     try:

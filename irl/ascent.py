@@ -207,6 +207,9 @@ def newton_concave(evaluate: Callable[[np.ndarray], Evaluation], theta0: np.ndar
     ``theta_cap``, when an accepted step gains less than ``ftol max(1, |f|)`` (use a positive
     ``ftol`` when the weights are known to diverge, where the gains only shrink geometrically),
     or after ``min(max_iter, config.max_outer)`` iterations.
+
+    Raises:
+        ValueError: ``evaluate`` returned an :class:`Evaluation` without ``hess``.
     """
     theta = np.asarray(theta0, dtype=np.float64).copy()
     l2 = config.l2

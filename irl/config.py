@@ -91,6 +91,11 @@ class IRLConfig:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> IRLConfig:
+        """The settings in ``data`` (as written by :meth:`to_dict`); missing ones take the defaults.
+
+        Raises:
+            ConfigError: an unknown setting, or a value the settings' checks reject.
+        """
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(data) - known)
         if unknown:

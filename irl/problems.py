@@ -85,7 +85,11 @@ def _is_text_format(path: Path) -> bool:
 def load_merge_demos(path: str | os.PathLike, bins: MergeBins | None) -> tuple[Demonstrations, MergeBins]:
     """Merge demonstrations from the authors' text files (state indices as they are; ``bins``
     default to ``MergeBins.assumed_authors()``) or from an encounter table (``.parquet``/
-    ``.csv``; ``bins`` default to quantile bins fitted on it)."""
+    ``.csv``; ``bins`` default to quantile bins fitted on it).
+
+    Raises:
+        DemonstrationError: ``path`` does not exist, or is not a valid encounter table or trajectory folder.
+    """
     path = Path(path)
     if not path.exists():
         raise DemonstrationError(f"{path}: no such file or directory")
@@ -117,6 +121,10 @@ def load_problem(
             are discretized with the experts' bins).
         bins: merge bin edges (default: assumed for text files, quantile-fitted for tables).
         dt: merge decision step of the kinematic fallback, seconds.
+
+    Raises:
+        ConfigError: ``domain`` is not one of :data:`DOMAINS`.
+        DemonstrationError: the demonstrations are missing or malformed.
     """
     if domain not in DOMAINS:
         raise ConfigError(f"domain must be one of {DOMAINS}, got {domain!r}")

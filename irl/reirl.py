@@ -62,6 +62,9 @@ def pad_trajectories(
 
     Returns:
         ``states [n, length]``, ``actions [n, length]``.
+
+    Raises:
+        DemonstrationError: a trajectory is longer than ``length``.
     """
     n = len(states)
     out_s = np.empty((n, length), dtype=np.int64)
@@ -117,6 +120,9 @@ def solve_dual(
     Returns:
         ``(theta [K], cvxpy status, optimal value)``; status ``"unbounded"`` when the dual has no
         minimiser (only possible without ``theta_cap``).
+
+    Raises:
+        REIRLError: neither Clarabel nor SCS solves the dual.
     """
     import cvxpy as cp
 
@@ -196,6 +202,12 @@ def fit_reirl(
     Returns:
         FitResult with ``loglik_trace``/``theta_trace`` of length 1; ``unbounded`` when the dual
         has no minimiser (theta is then the minimiser within ``|theta_k| <= theta_cap``).
+
+    Raises:
+        ConfigError: ``epsilon`` < 0, ``theta_cap`` <= 0, ``n_baseline`` < 1, or ``transitions`` not of shape
+            ``[S, A, S]``.
+        DemonstrationError: the baseline trajectories have another number of states or actions than the
+            experts'.
     """
     del theta0, progress
     start = time.perf_counter()

@@ -105,7 +105,11 @@ def find_merges(table: pd.DataFrame) -> pd.DataFrame:
 
 
 def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow()) -> Encounters:
-    """Every merge of ``table`` with its A and C, and the per-frame encounter variables."""
+    """Every merge of ``table`` with its A and C, and the per-frame encounter variables.
+
+    Raises:
+        TrajectoryFormatError: the table has duplicate ``(Vehicle_ID, Frame_ID)`` rows.
+    """
     _check(table)
     merges = find_merges(table)
     if merges.empty:
@@ -174,5 +178,9 @@ def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow())
 
 
 def extract_encounters(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow()) -> pd.DataFrame:
-    """The per-frame encounter table (ENCOUNTER_COLUMNS) of every merge in ``table``."""
+    """The per-frame encounter table (ENCOUNTER_COLUMNS) of every merge in ``table``.
+
+    Raises:
+        TrajectoryFormatError: the table has duplicate ``(Vehicle_ID, Frame_ID)`` rows.
+    """
     return extract(table, window=window).frames

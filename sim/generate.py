@@ -60,7 +60,11 @@ def generate(
     window: EncounterWindow = EncounterWindow(),
     hooks: Sequence[StepHook] = (),
 ) -> GenerateResult:
-    """Simulate ``spec`` (optionally with another seed / duration) and write the output files."""
+    """Simulate ``spec`` (optionally with another seed / duration) and write the output files.
+
+    Raises:
+        SimulationError: SUMO fails to start or to step.
+    """
     if seed is not None or duration_s is not None:
         spec = with_overrides(spec, seed=seed, duration_s=duration_s)
     out = Path(out_dir) if out_dir is not None else default_out_dir(spec)

@@ -81,6 +81,10 @@ class ChunkValidator:
             lines: int64[N], the 1-based file line of every row.
         Returns:
             bool[N], True for rows to keep.
+
+        Raises:
+            TrajectoryFormatError: a missing or non-finite value, a non-integer or out-of-range integer
+                column, a negative length or width, or rows out of order (file, line and column named).
         """
         n = data.shape[1]
         keep = np.ones(n, dtype=bool)
@@ -195,7 +199,11 @@ class ChunkValidator:
         self._ids, self._last, self._last_line = uniq, rows[idx], lns[idx]
 
     def check_units(self) -> None:
-        """After the last chunk: raise if vehicle sizes look like metres, not feet."""
+        """After the last chunk: raise if vehicle sizes look like metres, not feet.
+
+        Raises:
+            TrajectoryFormatError: mean vehicle length or width looks like metres, not NGSIM's feet.
+        """
         t = self.totals
         rows = t.rows - t.duplicate_rows
         if rows == 0:

@@ -168,6 +168,11 @@ class LearnedPolicy:
         return int(self.log_pi.shape[0])
 
     def probs(self, obs: MergeObservation) -> np.ndarray:
+        """``[5]`` the learned policy's action probabilities in ``obs.state``.
+
+        Raises:
+            PolicyError: ``obs.state`` is outside ``[0, n_states)``.
+        """
         if not 0 <= obs.state < self.n_states:
             raise PolicyError(f"state {obs.state} out of range [0, {self.n_states}) for policy {self.name!r}")
         return np.exp(self.log_pi[obs.state])

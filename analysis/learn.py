@@ -13,8 +13,8 @@ Example::
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 import os
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -106,7 +106,7 @@ def saved_model(fit: FitResult, problem: Problem, *, seed: int, source: str = ""
 def learn(
     method: str,
     domain: str,
-    demos_path: str | os.PathLike,
+    demos_path: str | os.PathLike | Sequence[str | os.PathLike],
     *,
     config: IRLConfig | None = None,
     seed: int = 0,
@@ -137,11 +137,13 @@ def learn(
     if bins is not None and not isinstance(bins, MergeBins):
         bins_path, bins = bins, MergeBins.load(bins)
     problem = load_problem(domain, demos_path, noise=noise, baseline_path=baseline_path, bins=bins, dt=dt)
-    prov = provenance_record({"demos": demos_path, "baseline": baseline_path, "bins": bins_path})
+    demos_list = [demos_path] if isinstance(demos_path, (str, os.PathLike)) else list(demos_path)
+    inputs = {("demos" if len(demos_list) == 1 else f"demos{i}"): p for i, p in enumerate(demos_list, start=1)}
+    prov = provenance_record({**inputs, "baseline": baseline_path, "bins": bins_path})
     result = fit_problem(problem, method, config, seed, progress=progress, epsilon=epsilon)
     if not math.isfinite(result.loglik):
-        raise ConvergenceError(f"{method} on {demos_path}: the fit failed ({result.message}); no model written")
-    model = saved_model(result, problem, seed=seed, source=str(Path(demos_path)), provenance=prov)
+        raise ConvergenceError(f"{method} on {problem.name}: the fit failed ({result.message}); no model written")
+    model = saved_model(result, problem, seed=seed, source=problem.name, provenance=prov)
     if out is not None:
         model.save(out)
         write_timings(out, {"fit_wall_time_s": float(result.wall_time_s)})

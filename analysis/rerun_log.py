@@ -21,8 +21,9 @@
 
 Timelines: ``sim_time`` (duration, s) and ``step`` (sequence: Frame_ID). Frames are buffered
 and sent in columns (``send_columns``) every ``flush_every`` frames, which keeps logging well
-under 10 microseconds per vehicle-frame. The file is written under a temporary name and
-renamed when the run ends, so an interrupted run leaves no complete-looking ``.rrd``.
+under 10 microseconds per vehicle-frame. The file is written under a temporary name
+(``<name>.partial``) and renamed only when the run succeeds (``on_end``); a run that fails or
+is interrupted (``on_abort``) leaves the ``.partial`` file, never a complete-looking ``.rrd``.
 """
 
 from __future__ import annotations
@@ -72,13 +73,15 @@ def recording_identity(scenario: str, policy: str, seed: int, episode: int | Non
 
 def open_recording(path: str | os.PathLike, *, application_id: str = "merge-irl",
                    recording_id: str | None = None, name: str | None = None) -> tuple[rr.RecordingStream, Path]:
-    """A recording stream saving to a temporary name next to ``path`` (see :func:`close_recording`).
+    """A recording stream saving to a temporary name next to ``path`` (see :func:`close_recording`);
+    an existing file at ``path`` is removed first.
 
     ``recording_id``: what the viewer groups data by (two files with one id merge into one
     recording); ``name``: the recording's display name.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    path.unlink(missing_ok=True)  # a previous run's file must not pass for this run's
     rec = rr.RecordingStream(application_id, recording_id=recording_id)
     tmp = _tmp_path(path)
     rec.save(str(tmp))
@@ -204,6 +207,14 @@ class RerunLogger:
         self._flush_scalars()
         if self._own and self._rec is not None and self._tmp is not None:
             close_recording(self._rec, self._tmp, self.path)
+            self._rec = None
+
+    def on_abort(self, ctx: RunContext) -> None:
+        """The run failed or was interrupted: close the stream and leave it under its temporary
+        ``.partial`` name, never under the final one."""
+        if self._own and self._rec is not None:
+            self._rec.flush()
+            self._rec.disconnect()
             self._rec = None
 
     # -- internals ----------------------------------------------------------------------

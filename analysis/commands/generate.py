@@ -68,6 +68,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"{sim.spec.name} seed {sim.seed}: {sim.n_vehicles} vehicles, {sim.n_vehicle_steps} rows, "
           f"{len(res.encounters.merges)} merges, {len(res.encounters.frames)} encounter frames "
           f"in {sim.wall_time_s:.1f} s", file=sys.stderr)
+    for w in sim.events.warnings():
+        print(f"warning: {w}", file=sys.stderr)
     for f in res.files:
         print(f)
     return 0
@@ -94,6 +96,8 @@ def _run_sweep(args: argparse.Namespace, spec) -> int:
                            executor=args.executor, progress=not args.no_progress)
     for r in report.results.values():
         print(f"{r['out_dir']}\t{r['n_vehicles']} vehicles\t{r['n_merges']} merges")
+        for w in r.get("warnings", ()):
+            print(f"warning: {r['run']}: {w}", file=sys.stderr)
     print(report.summary(), file=sys.stderr)
     print(f"summary: {out / SUMMARY}", file=sys.stderr)
     for f in report.failures:

@@ -37,7 +37,7 @@ def fit_problem(
     seed: int,
     *,
     progress: bool = False,
-    epsilon: float = DEFAULT_EPSILON,
+    epsilon: float | None = DEFAULT_EPSILON,
     n_baseline: int = DEFAULT_N_BASELINE,
 ) -> FitResult:
     """Fit ``method`` on ``problem`` with ``numpy.random.default_rng(seed)``.
@@ -114,7 +114,7 @@ def learn(
     baseline_path: str | os.PathLike | None = None,
     bins: MergeBins | str | os.PathLike | None = None,
     dt: float = 0.1,
-    epsilon: float = DEFAULT_EPSILON,
+    epsilon: float | None = DEFAULT_EPSILON,
     out: str | os.PathLike | None = None,
     progress: bool = False,
 ) -> SavedModel:

@@ -184,7 +184,7 @@ wilcoxon_p = paired_test
 
 def _folds(holdout: list[TrialOutcome]) -> np.ndarray:
     """``[n]`` held-out log-likelihoods ordered by fold (held-out trajectory index)."""
-    return np.array([o.heldout_loglik for o in sorted(holdout, key=lambda o: o.holdout)])
+    return np.array([o.heldout_loglik for o in sorted(holdout, key=lambda o: -1 if o.holdout is None else o.holdout)])
 
 
 def _p_against(folds: np.ndarray, ref: np.ndarray | None) -> float:
@@ -228,7 +228,7 @@ def baseline_summary(name: str, problem: Problem, holdout: bool, mlirl_folds: np
 
 
 def _trial_specs(table: int, data_dir: str, config: IRLConfig, n: int, seed: int,
-                 methods: tuple[str, ...], holdout: bool, epsilon: float) -> list[TrialSpec]:
+                 methods: tuple[str, ...], holdout: bool, epsilon: float | None) -> list[TrialSpec]:
     seeds = trial_seeds(seed, n)
     specs = [TrialSpec(table, data_dir, m, config, j, s, epsilon=epsilon)
              for m in methods for j, s in enumerate(seeds)]
@@ -273,7 +273,7 @@ def reproduce_tables(
     seed: int = 0,
     methods: tuple[str, ...] = METHOD_ORDER,
     holdout: bool = True,
-    epsilon: float = DEFAULT_EPSILON,
+    epsilon: float | None = DEFAULT_EPSILON,
     executor: str = "process",
     store: ResultStore | str | os.PathLike | None = None,
     retries: int = 1,
@@ -367,7 +367,7 @@ def reproduce(
     seed: int = 0,
     methods: tuple[str, ...] = METHOD_ORDER,
     holdout: bool = True,
-    epsilon: float = DEFAULT_EPSILON,
+    epsilon: float | None = DEFAULT_EPSILON,
     executor: str = "process",
     store: ResultStore | str | os.PathLike | None = None,
     retries: int = 1,

@@ -51,7 +51,7 @@ class TrialTask:
     config: IRLConfig
     seed: int
     holdout: int | None = None
-    epsilon: float = DEFAULT_EPSILON
+    epsilon: float | None = DEFAULT_EPSILON
 
 
 @dataclass(frozen=True)
@@ -117,7 +117,7 @@ class TrialSpec:
     trial: int
     trial_seed: int
     holdout: int | None = None
-    epsilon: float = DEFAULT_EPSILON
+    epsilon: float | None = DEFAULT_EPSILON
 
     @property
     def key(self) -> str:

@@ -23,7 +23,8 @@ fold, so paired tests can compare two methods on the same held-out trajectories
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Protocol
+from typing import Protocol
+from collections.abc import Callable
 
 import numpy as np
 from scipy.stats import wilcoxon

@@ -240,7 +240,7 @@ def _chunks(path: Path, layout: _Layout, chunksize: int) -> Iterator[tuple[np.nd
                 take = min(m - at, chunksize - n_buf)
                 for j in range(len(cols)):
                     buf[j, n_buf:n_buf + take] = arrays[j][at:at + take]
-                if lbuf is not None:
+                if lbuf is not None and larr is not None:
                     lbuf[n_buf:n_buf + take] = larr[at:at + take]
                 n_buf += take
                 at += take
@@ -439,8 +439,9 @@ def _read_pass(path, layout, location, recording, lanes, frames, vehicles, chunk
         del data
     validator.check_units()
     table = _sorted(_assemble(parts))
-    check_kinematic_units(*(table[c].to_numpy() for c in (
-        "Vehicle_ID", "Frame_ID", "Lane_ID", "Local_X", "Local_Y", "v_Vel")), str(path))
+    vehicle, frame, lane, x, y, speed = (table[c].to_numpy() for c in (
+        "Vehicle_ID", "Frame_ID", "Lane_ID", "Local_X", "Local_Y", "v_Vel"))
+    check_kinematic_units(vehicle, frame, lane, x, y, speed, str(path))
     return table, validator, rows_read, chunks, rec
 
 

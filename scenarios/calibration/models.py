@@ -161,6 +161,9 @@ def simulate_follower(
             then copies of the last valid step).
     Returns:
         (x, v): float64[S..., T] follower position and speed; step 0 is the initial state.
+
+    Raises:
+        ValueError: ``lengths`` is not sorted in decreasing order.
     """
     step = MODELS[model]
     p = {k: np.asarray(params[k], dtype=np.float64) for k in PARAM_NAMES}

@@ -116,7 +116,11 @@ def generate_tasks(
     duration_s: float | None = None,
     csv: bool = False,
 ) -> list[Task]:
-    """The sweep's tasks, seeds outermost. Validates every override before anything runs."""
+    """The sweep's tasks, seeds outermost. Validates every override before anything runs.
+
+    Raises:
+        ValueError: no seeds, or an empty ``demand_scales``.
+    """
     out = Path(out_dir).resolve()
     if not seeds:
         raise ValueError("generate_many: no seeds given")
@@ -241,7 +245,11 @@ def _stored(tasks: Sequence[Task], store: ResultStore) -> SweepReport:
 
 
 def parse_seeds(text: str) -> tuple[int, ...]:
-    """``"1,2,3"``, ``"1-10"`` or a mix (``"1-3,7"``) -> distinct seeds in the order given."""
+    """``"1,2,3"``, ``"1-10"`` or a mix (``"1-3,7"``) -> distinct seeds in the order given.
+
+    Raises:
+        ValueError: a part is not ``N`` or ``N-M`` (``N <= M``, integers >= 0).
+    """
     out: list[int] = []
     for part in text.split(","):
         part = part.strip()
@@ -251,7 +259,7 @@ def parse_seeds(text: str) -> tuple[int, ...]:
                 a, b = int(lo), int(hi)
                 if b < a:
                     raise ValueError
-                values = range(a, b + 1)
+                values: range | list[int] = range(a, b + 1)
             else:
                 values = [int(part)]
         except ValueError:
@@ -265,7 +273,11 @@ def parse_seeds(text: str) -> tuple[int, ...]:
 
 
 def parse_scales(text: str) -> tuple[float, ...]:
-    """``"0.5,1,2"`` -> distinct positive demand factors in the order given."""
+    """``"0.5,1,2"`` -> distinct positive demand factors in the order given.
+
+    Raises:
+        ValueError: a part is not a positive finite number.
+    """
     out: list[float] = []
     for part in text.split(","):
         try:

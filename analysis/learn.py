@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 import os
+from typing import Any
 
 import numpy as np
 
@@ -37,7 +38,7 @@ def fit_problem(
     seed: int,
     *,
     progress: bool = False,
-    epsilon: float = DEFAULT_EPSILON,
+    epsilon: float | None = DEFAULT_EPSILON,
     n_baseline: int = DEFAULT_N_BASELINE,
 ) -> FitResult:
     """Fit ``method`` on ``problem`` with ``numpy.random.default_rng(seed)``.
@@ -45,10 +46,14 @@ def fit_problem(
     Q-Avg and Q-SM see only the demonstrations; MLIRL gets ``problem.transitions``; REIRL gets
     the transitions (for its baseline and final log-likelihood), the baseline and the padding
     rule of the domain. A pure function of its arguments.
+
+    Raises:
+        ConfigError: ``method`` is not one of :data:`irl.fit.METHODS`.
+        DemonstrationError, ConvergenceError: from the method (see :func:`irl.fit.fit`).
     """
     if method not in METHODS:
         raise ConfigError(f"method must be one of {METHODS}, got {method!r}")
-    options = {}
+    options: dict[str, Any] = {}
     if method == "reirl":
         options = dict(baseline=problem.baseline, epsilon=epsilon, n_baseline=n_baseline, pad_step=problem.pad_step())
     return fit(method, problem.demos, config, np.random.default_rng(seed), transitions=problem.transitions,
@@ -110,7 +115,7 @@ def learn(
     baseline_path: str | os.PathLike | None = None,
     bins: MergeBins | str | os.PathLike | None = None,
     dt: float = 0.1,
-    epsilon: float = DEFAULT_EPSILON,
+    epsilon: float | None = DEFAULT_EPSILON,
     out: str | os.PathLike | None = None,
     progress: bool = False,
 ) -> SavedModel:
@@ -124,6 +129,9 @@ def learn(
     identical model files.
 
     Raises:
+        ConfigError: unknown ``domain`` or ``method``.
+        DemonstrationError: ``demos_path`` is missing or not a valid trajectory/encounter file.
+        ConvergenceError: the fit failed; no model is written.
         OSError: ``out`` cannot be written (checked before loading and fitting).
     """
     if out is not None:

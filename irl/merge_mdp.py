@@ -99,6 +99,9 @@ def kinematic_next_state(states, actions, bins: MergeBins, dt: float = 0.1) -> n
 
     Returns:
         next states, same shape.
+
+    Raises:
+        ConfigError: ``dt`` is not positive.
     """
     if not dt > 0:
         raise ConfigError(f"decision step dt must be positive, got {dt}")

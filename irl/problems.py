@@ -13,7 +13,7 @@ import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 import pandas as pd
@@ -59,7 +59,7 @@ class Problem:
     dt: float = 0.1
     noise: float = 0.0
 
-    def subset(self, indices) -> "Problem":
+    def subset(self, indices) -> Problem:
         """The same problem on the trajectories at ``indices`` (model re-estimated if estimated)."""
         demos = self.demos.subset(indices)
         transitions = estimate_model(demos, self.domain, self.bins, self.dt) if self.transitions_estimated \
@@ -172,32 +172,35 @@ def load_problem(
             are discretized with the experts' bins).
         bins: merge bin edges (default: assumed for text files, quantile-fitted for tables).
         dt: merge decision step of the kinematic fallback, seconds.
+
+    Raises:
+        ConfigError: ``domain`` is not one of :data:`DOMAINS`.
+        DemonstrationError: the demonstrations are missing or malformed.
     """
     if domain not in DOMAINS:
         raise ConfigError(f"domain must be one of {DOMAINS}, got {domain!r}")
-    several = not isinstance(demos_path, (str, os.PathLike))
-    if several and len(demos_path) == 1:
-        demos_path, several = demos_path[0], False
+    paths = [demos_path] if isinstance(demos_path, (str, os.PathLike)) else list(demos_path)
+    several = len(paths) != 1
     if several and domain != "merge":
-        raise ConfigError(f"domain {domain}: one demonstrations source expected, got {len(demos_path)}; "
+        raise ConfigError(f"domain {domain}: one demonstrations source expected, got {len(paths)}; "
                           "several are read for the merge domain's encounter tables only")
-    label = name or (", ".join(str(p) for p in demos_path) if several else str(demos_path))
+    label = name or ", ".join(str(p) for p in paths)
     baseline = None
     if domain == "gridworld":
-        demos = gridworld.load(demos_path)
+        demos = gridworld.load(paths[0])
         if baseline_path is not None:
             baseline = gridworld.load(baseline_path)
         return Problem(label, domain, demos, gridworld.transition_model(noise), False, baseline,
                        gridworld.FEATURE_NAMES, None, dt, noise)
     if domain == "merge":
-        demos, bins = load_merge_demos(demos_path, bins)
+        demos, bins = load_merge_demos(paths, bins)
         if baseline_path is not None:
             baseline, _ = load_merge_demos(baseline_path, bins)
         return Problem(label, domain, demos, merge_mdp.estimated_transitions(demos, bins, dt), True, baseline,
                        FEATURE_NAMES, bins, dt, 0.0)
-    demos = load_npz(demos_path)
+    demos = load_npz(paths[0])
     if baseline_path is not None:
         baseline = load_npz(baseline_path)
-    names = load_feature_names(demos_path) or tuple(f"f{k}" for k in range(demos.n_features))
+    names = load_feature_names(paths[0]) or tuple(f"f{k}" for k in range(demos.n_features))
     return Problem(label, domain, demos, estimate_model(demos, domain, None, dt), True, baseline, names,
                    None, dt, 0.0)

@@ -106,7 +106,7 @@ class SavedModel:
     info: dict[str, Any] = field(default_factory=dict)
 
     @classmethod
-    def from_fit(cls, fit: FitResult, **kw: Any) -> "SavedModel":
+    def from_fit(cls, fit: FitResult, **kw: Any) -> SavedModel:
         return cls(
             method=fit.method, theta=np.asarray(fit.theta), loglik=fit.loglik, q=np.asarray(fit.q),
             config=fit.config, converged=fit.converged, unbounded=fit.unbounded, **kw,
@@ -137,7 +137,7 @@ class SavedModel:
         return write_json_atomic(path, self.to_json_dict())
 
     @classmethod
-    def load(cls, path: str | os.PathLike) -> "SavedModel":
+    def load(cls, path: str | os.PathLike) -> SavedModel:
         """Read a ``model.json``.
 
         Raises:

@@ -252,5 +252,9 @@ def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),
 
 def extract_encounters(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),
                        site: SiteProfile = I80) -> pd.DataFrame:
-    """The per-frame encounter table (ENCOUNTER_COLUMNS) of every merge in ``table``."""
+    """The per-frame encounter table (ENCOUNTER_COLUMNS) of every merge in ``table``.
+
+    Raises:
+        TrajectoryFormatError: see :func:`extract`.
+    """
     return extract(table, window=window, site=site).frames

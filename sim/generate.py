@@ -79,6 +79,7 @@ def generate(
     """Simulate ``spec`` (optionally with another seed / duration) and write the output files.
 
     Raises:
+        SimulationError: SUMO fails to start or to step.
         OutputLockedError: another run is writing into the output folder.
         FileExistsError: the output folder holds files that are not a previous run's outputs.
         OSError: the output folder cannot be written (checked before simulating).

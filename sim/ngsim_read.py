@@ -23,7 +23,7 @@ see :mod:`sim.ngsim_smooth`).
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -265,7 +265,7 @@ def _chunks(path: Path, layout: _Layout, chunksize: int) -> Iterator[tuple[np.nd
                 take = min(m - at, chunksize - n_buf)
                 for j in range(len(cols)):
                     buf[j, n_buf:n_buf + take] = arrays[j][at:at + take]
-                if lbuf is not None:
+                if lbuf is not None and larr is not None:
                     lbuf[n_buf:n_buf + take] = larr[at:at + take]
                 n_buf += take
                 at += take
@@ -464,8 +464,9 @@ def _read_pass(path, layout, location, recording, lanes, frames, vehicles, chunk
         del data
     validator.check_units()
     table = _sorted(_assemble(parts))
-    check_kinematic_units(*(table[c].to_numpy() for c in (
-        "Vehicle_ID", "Frame_ID", "Lane_ID", "Local_X", "Local_Y", "v_Vel")), str(path))
+    vehicle, frame, lane, x, y, speed = (table[c].to_numpy() for c in (
+        "Vehicle_ID", "Frame_ID", "Lane_ID", "Local_X", "Local_Y", "v_Vel"))
+    check_kinematic_units(vehicle, frame, lane, x, y, speed, str(path))
     return table, validator, rows_read, chunks, rec
 
 
@@ -486,11 +487,11 @@ def _release_freed_memory() -> None:
             _MALLOC_TRIM = ctypes.CDLL("libc.so.6").malloc_trim
         except (OSError, AttributeError):
             _MALLOC_TRIM = False
-    if _MALLOC_TRIM:
+    if callable(_MALLOC_TRIM):
         _MALLOC_TRIM(0)
 
 
-_MALLOC_TRIM = None
+_MALLOC_TRIM: Callable[[int], int] | bool | None = None  # None: not looked up yet
 
 
 def _assemble(parts: list[np.ndarray]) -> pd.DataFrame:

@@ -84,6 +84,10 @@ class ChunkValidator:
                 only, nothing is tallied; for files read unsorted, checked after sorting).
         Returns:
             bool[N], True for rows to keep.
+
+        Raises:
+            TrajectoryFormatError: a missing or non-finite value, a non-integer or out-of-range integer
+                column, a negative length or width, or rows out of order (file, line and column named).
         """
         n = data.shape[1]
         keep = np.ones(n, dtype=bool)
@@ -92,14 +96,14 @@ class ChunkValidator:
         nan = np.isnan(data)
         if nan.any():
             r = int(np.flatnonzero(nan.any(axis=0))[0])
-            c = int(np.flatnonzero(nan[:, r])[0])
-            raise self._fail(int(lines[r]), NGSIM_COLUMNS[c], "missing value; expected a number")
+            j = int(np.flatnonzero(nan[:, r])[0])
+            raise self._fail(int(lines[r]), NGSIM_COLUMNS[j], "missing value; expected a number")
         inf = np.isinf(data)
         if inf.any():
             r = int(np.flatnonzero(inf.any(axis=0))[0])
-            c = int(np.flatnonzero(inf[:, r])[0])
-            raise self._fail(int(lines[r]), NGSIM_COLUMNS[c],
-                             f"value {data[c, r]!r} is not finite; expected a number")
+            j = int(np.flatnonzero(inf[:, r])[0])
+            raise self._fail(int(lines[r]), NGSIM_COLUMNS[j],
+                             f"value {data[j, r]!r} is not finite; expected a number")
         for c in INT_COLUMNS:
             col = data[_COL[c]]
             bad = col != np.round(col)
@@ -206,7 +210,11 @@ class ChunkValidator:
         self._ids, self._last, self._last_line = uniq, rows[idx], lns[idx]
 
     def check_units(self) -> None:
-        """After the last chunk: raise if vehicle sizes look like metres, not feet."""
+        """After the last chunk: raise if vehicle sizes look like metres, not feet.
+
+        Raises:
+            TrajectoryFormatError: mean vehicle length or width looks like metres, not NGSIM's feet.
+        """
         t = self.totals
         rows = t.rows - t.duplicate_rows
         if rows == 0:

@@ -94,7 +94,7 @@ def _run_sweep(args: argparse.Namespace, spec) -> int:
     out = Path(args.out) if args.out else Path("runs") / f"{spec.name}-sweep"
     report = generate_many(spec, seeds, args.demand_scale, out, duration_s=args.duration, csv=args.csv,
                            executor=args.executor, progress=not args.no_progress)
-    for key, r in report.results.items():
+    for r in report.results.values():
         print(f"{r['out_dir']}\t{r['n_vehicles']} vehicles\t{r['n_merges']} merges")
         for w in r.get("warnings", ()):
             print(f"warning: {r['run']}: {w}", file=sys.stderr)

@@ -9,7 +9,8 @@ import signal
 import threading
 import time
 import traceback
-from typing import Any, Callable
+from typing import Any
+from collections.abc import Callable
 
 #: Linux ``prctl`` option: the signal a process receives when its parent dies.
 PR_SET_PDEATHSIG = 1
@@ -48,6 +49,9 @@ def call_task(func: Callable[[Any, int], dict], config: Any, seed: int) -> dict[
 
     The result must be a JSON-serialisable dict (it is stored as JSON); anything else is
     reported as the task's error.
+
+    Raises:
+        TypeError: the task returned something other than a dict.
     """
     t0 = time.perf_counter()
     try:

@@ -57,6 +57,7 @@ import warnings
 from bisect import bisect_right
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -197,7 +198,7 @@ class MergeBins:
             object.__setattr__(self, name, edges)
 
     @classmethod
-    def assumed_authors(cls) -> "MergeBins":
+    def assumed_authors(cls) -> MergeBins:
         """The edges we assume for the authors' 12 trajectories (none are published).
 
         ``d_AC`` (35, 60, 90, 130) ft, ``d_AB`` (10, 30, 60, 100) ft, ``v_AC`` and ``v_AB``
@@ -215,7 +216,7 @@ class MergeBins:
         return {name: list(getattr(self, name)) for name in VARIABLES}
 
     @classmethod
-    def from_dict(cls, data: dict, where: str = "bin edges") -> "MergeBins":
+    def from_dict(cls, data: dict, where: str = "bin edges") -> MergeBins:
         """From ``{variable: [4 edges]}`` (``to_dict``'s form, as saved in model.json).
 
         Raises:
@@ -238,7 +239,7 @@ class MergeBins:
         return write_json_atomic(path, self.to_dict())
 
     @classmethod
-    def load(cls, path: str | os.PathLike) -> "MergeBins":
+    def load(cls, path: str | os.PathLike) -> MergeBins:
         """Read a file written by :meth:`save`.
 
         Raises:
@@ -321,8 +322,8 @@ class MergeBins:
 
     def encode(self, table: pd.DataFrame) -> np.ndarray:
         """``[rows]`` state index of every row of an encounter table (columns by name)."""
-        return self.states(*(table[c].to_numpy(dtype=np.float64) for c in VARIABLES),
-                           table["B_is_truck"].to_numpy(dtype=np.float64))
+        d_AC, d_AB, v_AC, v_AB = (table[c].to_numpy(dtype=np.float64) for c in VARIABLES)
+        return self.states(d_AC, d_AB, v_AC, v_AB, table["B_is_truck"].to_numpy(dtype=np.float64))
 
     def representatives(self, name: str) -> np.ndarray:
         """``[5]`` a finite representative value of each bin of ``name``, in bin-index order.
@@ -358,7 +359,7 @@ def fit_quantile_bins(table: pd.DataFrame, *, safe_distance: float = SAFE_DISTAN
             constant over the table (no bins can be fitted).
     """
     validate_encounters(table, where)
-    edges: dict[str, tuple[float, ...]] = {}
+    edges: dict[str, Any] = {}  # four edges per variable: MergeBins.__post_init__ checks the count
     for name in VARIABLES:
         v = table[name].to_numpy(dtype=np.float64)
         v = v[~np.isnan(v)]

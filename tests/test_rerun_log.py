@@ -8,9 +8,11 @@ import pytest
 from analysis.episode import run_episode
 from analysis.rerun_log import (
     ROLE_IDS,
+    ROLE_LABELS,
     close_recording,
     log_training,
     open_recording,
+    read_blueprint,
     read_entities,
     read_rrd_table,
     recording_identity,
@@ -54,7 +56,7 @@ def test_rrd_has_expected_entities(logged):
     assert lanes.schema.metadata is not None
     # static lanes: no timeline column
     assert "step" not in lanes.schema.names
-    strips = lanes.column("LineStrips3D:strips")[0].as_py()
+    strips = lanes.column("LineStrips2D:strips")[0].as_py()
     assert len(strips) == 4  # synthetic: 3 main lanes + lane 7
 
 
@@ -71,21 +73,29 @@ def test_vehicle_positions_and_roles_match_the_table(logged):
     for b in batches:
         st = b.column("step").to_numpy()
         ids = b.column("vehicle_id").to_pylist()
-        cen = b.column("Boxes3D:centers").to_pylist()
-        half = b.column("Boxes3D:half_sizes").to_pylist()
-        cls = b.column("Boxes3D:class_ids").to_pylist()
+        cen = b.column("Boxes2D:centers").to_pylist()
+        half = b.column("Boxes2D:half_sizes").to_pylist()
+        cls = b.column("Boxes2D:class_ids").to_pylist()
+        lab = b.column("Boxes2D:labels").to_pylist()
         for i, s in enumerate(st):
-            for v, c, h, k in zip(ids[i], cen[i], half[i], cls[i]):
-                rows.append((int(s), int(v), c[0] + h[0], c[1], k))
+            for v, c, h, k, lb in zip(ids[i], cen[i], half[i], cls[i], lab[i]):
+                rows.append((int(s), int(v), c[0] + h[0], c[1], 2 * h[0], 2 * h[1], k, lb))
     import pandas as pd
 
-    rr_df = pd.DataFrame(rows, columns=["Frame_ID", "Vehicle_ID", "front_x", "y", "role"])
+    rr_df = pd.DataFrame(rows, columns=["Frame_ID", "Vehicle_ID", "front_x", "y", "len", "wid", "role", "label"])
     assert len(rr_df) == len(table)  # every vehicle of every frame, in one entity
     m = table.merge(rr_df, on=["Frame_ID", "Vehicle_ID"])
     assert len(m) == len(table)
     # float32 in the file: within 0.01 ft
     np.testing.assert_allclose(m.front_x, m.Global_X, atol=0.01)
     np.testing.assert_allclose(m.y, m.Global_Y, atol=0.01)
+    # boxes in the vehicles' real size; labels on A, B, C only
+    np.testing.assert_allclose(m.len, m.v_Length, atol=0.01)
+    np.testing.assert_allclose(m.wid, m.v_Width, atol=0.01)
+    assert (m.label[m.role == ROLE_IDS["other"]] == "").all()
+    tagged = m[m.role != ROLE_IDS["other"]]
+    assert len(tagged) and all(lb.split() == [r, str(v)] for lb, r, v in
+                               zip(tagged.label, tagged.role.map(dict(enumerate(ROLE_LABELS))), tagged.Vehicle_ID))
     # the controlled cars are role A exactly in their control windows (decisions frames)
     dec = res.decisions
     ctl_rows = m.merge(dec[["frame", "a_id"]], left_on=["Frame_ID", "Vehicle_ID"], right_on=["frame", "a_id"])
@@ -196,3 +206,51 @@ def test_rrd_table_of_training_traces(tmp_path):
     assert read_rrd_table(path, "/nothing").empty
     with pytest.raises(FileNotFoundError, match="missing.rrd"):
         read_rrd_table(tmp_path / "missing.rrd")
+
+
+@pytest.mark.sumo
+def test_blueprint_is_shipped_with_the_recording(logged):
+    path, res = logged
+    views = {v["name"]: v for v in read_blueprint(path)}
+    a_ids = list(dict.fromkeys(int(a) for a in res.controls.sort_values(["start_frame", "a_id"]).a_id))
+    merge, section = views["merge (follows car A)"], views["section"]
+    assert merge["kind"] == section["kind"] == "2D"
+    assert merge["origin"] == "/follow" and merge["contents"] == ["/world/**"] and section["origin"] == "/"
+    series = {n: v for n, v in views.items() if v["kind"] == "TimeSeries"}
+    for q in ("speed", "d_AB", "d_AC", "ttc"):
+        (v,) = [v for v in series.values() if v["contents"] and v["contents"][0].endswith("/" + q)]
+        assert v["contents"] == [f"/metrics/A_{a}/{q}" for a in a_ids]
+    assert any(v["contents"] == [f"/policy/A_{a}/action" for a in a_ids] for v in series.values())
+    (bars,) = [v for v in views.values() if v["kind"] == "BarChart"]
+    assert bars["origin"] == "/policy/action_probs"
+    assert not any(n.startswith(("log-likelihood", "weights")) for n in views)  # no training logged here
+    # every entity a view names is in the file; the follow transform has one row per frame
+    ents = read_entities(path)
+    for v in views.values():
+        for c in v["contents"]:
+            if not c.endswith("**"):
+                assert c in ents, c
+    follow = read_rrd_table(path, "/follow")
+    assert len(follow) == res.table.Frame_ID.nunique()
+    probs = read_rrd_table(path, "/policy/action_probs")
+    assert len(probs) == len(res.decisions)  # one bar chart per decision (the latest at a time is shown)
+
+
+def test_blueprint_training_tab(tmp_path):
+    from analysis.rerun_log import merge_blueprint
+
+    path = tmp_path / "bp.rrd"
+    rec, tmp = open_recording(path, recording_id="bp-test")
+    log_training(rec, "qsm", np.array([-3.0, -2.0]), np.ones((2, 3)))
+    rec.send_blueprint(merge_blueprint([5, 9], training_methods=["qsm", "reirl"], first_control=(10, 40)))
+    close_recording(rec, tmp, path)
+    views = {v["name"]: v for v in read_blueprint(path)}
+    assert views["log-likelihood"]["contents"] == ["/train/qsm/loglik", "/train/reirl/loglik"]
+    assert views["weights theta"]["contents"] == ["/train/qsm/theta/**", "/train/reirl/theta/**"]
+    assert views["speed of A (ft/s)"]["contents"] == ["/metrics/A_5/speed", "/metrics/A_9/speed"]
+    with pytest.raises(ValueError, match="no blueprint"):
+        p2 = tmp_path / "plain.rrd"
+        r2, t2 = open_recording(p2, recording_id="plain")
+        log_training(r2, "qsm", np.array([-3.0]), np.ones((1, 3)))
+        close_recording(r2, t2, p2)
+        read_blueprint(p2)

@@ -267,8 +267,6 @@ class RerunLogger:
         rec.log("world", rr.AnnotationContext(
             [(i, name, tuple(int(c) for c in ROLE_COLORS[i][:3])) for name, i in ROLE_IDS.items()]), static=True)
         rec.log("world", rr.Transform3D(mat3x3=MIRROR_Y), static=True)
-        # the viewer hides the labels of entities with many instances; the others' labels are ""
-        rec.log("world/vehicles", rr.Boxes2D.from_fields(show_labels=True), static=True)
         if strips:
             pts = np.concatenate(strips) @ MIRROR_Y[:2, :2]
             lo, hi = pts.min(axis=0) - 30.0, pts.max(axis=0) + 30.0
@@ -383,6 +381,8 @@ class RerunLogger:
         cols = [
             *rr.Boxes2D.columns(centers=centers, half_sizes=half, class_ids=roles, colors=ROLE_RGBA_U32[roles],
                                 labels=pa.array(np.concatenate(self._labels), type=pa.string())).partition(lens),
+            # the viewer hides the labels of entities with many instances; the others' labels are ""
+            *rr.Boxes2D.columns(show_labels=np.ones(lens.size, dtype=bool)),
             # an arrow array, not numpy: rerun turns a numpy column into one Python list per value
             *rr.AnyValues.columns(vehicle_id=pa.array(ids)).partition(lens),
         ]

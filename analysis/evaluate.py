@@ -37,6 +37,7 @@ from analysis.sweep import Task, parse_executor, run_sweep
 from irl.domains.merge import N_ACTIONS, actions_of
 from irl.merge_mdp import read_encounters
 from irl.result import SavedModel
+from irl.units import FT_PER_M
 from scenarios.loader import load_scenario
 from sim.controller import ControllerConfig
 from sim.errors import SimError
@@ -246,7 +247,7 @@ def evaluate(
     report_md, metrics_json, plots = write_outputs(
         out, aggs, by_policy, held, scenario=str(scen_name), seed=seed, episodes=episodes,
         duration_s=duration_s, controller=controller, metrics=metrics,
-        provenance=prov,
+        provenance=prov, speed_limit_ft_s=spec.road.speed_limit_mps * FT_PER_M,
     )
     write_timings(out, {"episode_wall_time_s": {name: [float(r.wall_time_s) for r in rs]
                                                 for name, rs in by_policy.items()}})

@@ -8,7 +8,6 @@ from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from analysis.metrics import AggregateMetrics
 from analysis.provenance import provenance_markdown

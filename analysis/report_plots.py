@@ -12,13 +12,14 @@ Inputs: ``by_policy`` maps a policy name to its :class:`analysis.episode.Episode
 
 from __future__ import annotations
 
+from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 from scipy.stats import binomtest
 
-from analysis.palette import DEMO_COLOR, policy_color
+from analysis.palette import policy_color
 from irl.atomic import write_atomic
 from irl.domains.merge import ACTION_NAMES, N_ACTIONS
 from irl.units import FRAME_S, FT_PER_M
@@ -136,7 +137,7 @@ def plot_gap_acceptance(path: Path, by_policy, held=None) -> Path:
     plt = _plt()
     fig, ax = plt.subplots(figsize=(7, 4))
     edges = np.asarray(GAP_BINS_FT)
-    labels = ["<0"] + [f"{int(a)}-{int(b)}" for a, b in zip(edges[:-1], edges[1:])] + [f">{int(edges[-1])}"]
+    labels = ["<0"] + [f"{int(a)}-{int(b)}" for a, b in pairwise(edges)] + [f">{int(edges[-1])}"]
     x = np.arange(len(labels))
     series = {}
     dm = demo_merges(held)

@@ -133,7 +133,7 @@ def log_training(rec: rr.RecordingStream, method: str, loglik_trace: np.ndarray,
 
 def merge_blueprint(a_ids: Sequence[int], *, training_methods: Sequence[str] = (),
                     section_bounds: tuple[float, float, float, float] | None = None,
-                    first_control: tuple[int, int] | None = None, play: bool = False):
+                    first_control: tuple[int, int] | None = None, play: bool = False, active_tab: int = 0):
     """The viewer layout of a run's recording (``rerun.blueprint.Blueprint``).
 
     Tab "run": the merge view (2D, origin ``/follow``: follows the current merge), the whole
@@ -151,6 +151,7 @@ def merge_blueprint(a_ids: Sequence[int], *, training_methods: Sequence[str] = (
         first_control: ``(start_frame, end_frame)`` of the first take-over (Frame_IDs).
         play: play the selection in a loop instead of pausing (for screenshots: the viewer
             has no blueprint setting for the time cursor, which starts at the first frame).
+        active_tab: the tab shown first (0 run, 1 training).
     """
     import rerun.blueprint as rrb
     from rerun.encodings import AbsoluteTimeRange
@@ -190,7 +191,7 @@ def merge_blueprint(a_ids: Sequence[int], *, training_methods: Sequence[str] = (
             name="training"))
     sel = None if first_control is None else AbsoluteTimeRange(min=int(first_control[0]), max=int(first_control[1]))
     return rrb.Blueprint(
-        rrb.Tabs(*tabs, active_tab=0),
+        rrb.Tabs(*tabs, active_tab=min(int(active_tab), len(tabs) - 1)),
         rrb.TimePanel(timeline="step", state="collapsed", time_selection=sel,
                       play_state="playing" if play and sel is not None else "paused",
                       playback_speed=4.0 if play else None,
@@ -476,7 +477,7 @@ def read_blueprint(path: str | os.PathLike) -> list[dict]:
                            ("ViewBlueprint:space_origin", "origin")):
             if col in batch and batch[col] and batch[col][-1]:
                 v[field] = batch[col][-1][0]
-        if "ViewContents:query" in batch and batch["ViewContents:query"]:
+        if batch.get("ViewContents:query"):
             v["contents"] = list(batch["ViewContents:query"][-1] or [])
     return list(views.values())
 

@@ -254,3 +254,25 @@ def test_blueprint_training_tab(tmp_path):
         log_training(r2, "qsm", np.array([-3.0]), np.ones((1, 3)))
         close_recording(r2, t2, p2)
         read_blueprint(p2)
+
+
+@pytest.mark.sumo
+def test_a_run_with_two_policies_holds_two_named_recordings(tmp_path):
+    from analysis.evaluate import evaluate
+
+    rep = evaluate([], "synthetic", 1, 5, tmp_path / "eval", duration_s=90.0, baselines=("sumo", "uniform"),
+                   workers=1, progress=False)
+    files = sorted((tmp_path / "eval" / "rerun").glob("*.rrd"))
+    assert [f.name for f in files] == ["sumo.rrd", "uniform.rrd"]
+    infos = [recording_info(f) for f in files]
+    assert [i["recording_id"] for i in infos] == ["merge-irl/synthetic/sumo/seed5", "merge-irl/synthetic/uniform/seed5"]
+    assert [i["name"] for i in infos] == ["sumo on synthetic, seed 5", "uniform on synthetic, seed 5"]
+    for f in files:
+        assert {v["name"] for v in read_blueprint(f)} >= {"merge (follows car A)", "section", "speed of A (ft/s)"}
+    # the SUMO baseline's As are observed, not driven: their own role and colour
+    roles = np.concatenate(read_rrd_table(files[0], "/world/vehicles")["Boxes2D:class_ids"].to_numpy())
+    assert (roles == ROLE_IDS["A observed"]).any() and not (roles == ROLE_IDS["A"]).any()
+    roles = np.concatenate(read_rrd_table(files[1], "/world/vehicles")["Boxes2D:class_ids"].to_numpy())
+    assert (roles == ROLE_IDS["A"]).any() and not (roles == ROLE_IDS["A observed"]).any()
+    assert set(rep.rrd) == {"sumo", "uniform"}
+    assert {p.name for p in rep.plots} >= {"speed_profiles.png", "acceleration.png", "headway.png"}

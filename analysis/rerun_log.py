@@ -133,7 +133,8 @@ def log_training(rec: rr.RecordingStream, method: str, loglik_trace: np.ndarray,
 
 def merge_blueprint(a_ids: Sequence[int], *, training_methods: Sequence[str] = (),
                     section_bounds: tuple[float, float, float, float] | None = None,
-                    first_control: tuple[int, int] | None = None, play: bool = False, active_tab: int = 0):
+                    first_control: tuple[int, int] | None = None, play: float | None = None,
+                    active_tab: int = 0):
     """The viewer layout of a run's recording (``rerun.blueprint.Blueprint``).
 
     Tab "run": the merge view (2D, origin ``/follow``: follows the current merge), the whole
@@ -149,9 +150,11 @@ def merge_blueprint(a_ids: Sequence[int], *, training_methods: Sequence[str] = (
         section_bounds: ``(x_min, x_max, y_min, y_max)`` ft of the lanes in the mirrored
             frame, the section view's bounds; None: the viewer's own.
         first_control: ``(start_frame, end_frame)`` of the first take-over (Frame_IDs).
-        play: play the selection in a loop instead of pausing (for screenshots: the viewer
-            has no blueprint setting for the time cursor, which starts at the first frame).
-        active_tab: the tab shown first (0 run, 1 training).
+        play: play at this speed (x real time) and loop over the selection once the cursor
+            reaches it, instead of pausing (for screenshots: the blueprint has no setting for
+            the time cursor, which starts at the first frame).
+        active_tab: the tab shown first (0 run, 1 training); with the training tab the time
+            panel shows the ``iteration`` timeline.
     """
     import rerun.blueprint as rrb
     from rerun.encodings import AbsoluteTimeRange
@@ -192,9 +195,9 @@ def merge_blueprint(a_ids: Sequence[int], *, training_methods: Sequence[str] = (
     sel = None if first_control is None else AbsoluteTimeRange(min=int(first_control[0]), max=int(first_control[1]))
     return rrb.Blueprint(
         rrb.Tabs(*tabs, active_tab=min(int(active_tab), len(tabs) - 1)),
-        rrb.TimePanel(timeline="step", state="collapsed", time_selection=sel,
-                      play_state="playing" if play and sel is not None else "paused",
-                      playback_speed=4.0 if play else None,
+        rrb.TimePanel(timeline="iteration" if active_tab == 1 and training_methods else "step", state="collapsed",
+                      time_selection=sel, play_state="playing" if play and sel is not None else "paused",
+                      playback_speed=float(play) if play else None,
                       loop_mode="selection" if play and sel is not None else None),
         rrb.BlueprintPanel(state="collapsed"), rrb.SelectionPanel(state="collapsed"),
         auto_views=False,

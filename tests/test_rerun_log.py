@@ -276,3 +276,30 @@ def test_a_run_with_two_policies_holds_two_named_recordings(tmp_path):
     assert (roles == ROLE_IDS["A"]).any() and not (roles == ROLE_IDS["A observed"]).any()
     assert set(rep.rrd) == {"sumo", "uniform"}
     assert {p.name for p in rep.plots} >= {"speed_profiles.png", "acceleration.png", "headway.png"}
+
+
+@pytest.mark.sumo
+def test_screenshot_blueprint_is_recovered_from_the_recording(logged):
+    from tools.render_screenshots import blueprint_inputs
+
+    path, res = logged
+    args = blueprint_inputs(path)
+    c = res.controls.sort_values(["start_frame", "a_id"])
+    assert args["a_ids"] == list(dict.fromkeys(int(a) for a in c.a_id))
+    assert args["training_methods"] == []
+    # the first take-over: from its first to its last logged frame
+    first = c.iloc[0]
+    assert args["first_control"][0] == int(first.start_frame)
+    assert int(first.start_frame) < args["first_control"][1] <= (int(first.end_frame) if first.end_frame >= 0
+                                                                 else int(res.table.Frame_ID.max()))
+    x0, x1, y0, y1 = args["section_bounds"]
+    assert x0 < res.table.Global_X.min() and x1 > res.table.Global_X.max()
+    assert y0 < -res.table.Global_Y.max() and y1 > -res.table.Global_Y.min()  # mirrored y
+    assert args["play"] >= 4.0
+
+
+def test_screenshot_tool_rejects_missing_files(tmp_path, capsys):
+    from tools.render_screenshots import main
+
+    assert main([str(tmp_path / "none.rrd")]) == 2
+    assert "none.rrd" in capsys.readouterr().err

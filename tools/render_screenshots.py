@@ -38,7 +38,8 @@ from analysis.rerun_log import MIRROR_Y, merge_blueprint, read_rrd_table, record
 
 def blueprint_inputs(rrd: Path) -> dict:
     """``merge_blueprint`` arguments recovered from a recording: the controlled cars (in order
-    of take-over), the training methods, the section bounds and the first take-over."""
+    of take-over), the training methods, the section bounds, the first take-over and a
+    playback speed."""
     table = read_rrd_table(rrd)
     ents = table.entity.astype(str)
     speed = table[ents.str.match(r"^/metrics/A_\d+/speed$")]
@@ -46,6 +47,7 @@ def blueprint_inputs(rrd: Path) -> dict:
     a_ids = [int(e.split("/")[2][2:]) for e in firsts.index]
     methods = sorted({e.split("/")[2] for e in ents[ents.str.match(r"^/train/[^/]+/loglik$")]})
     first = (int(firsts["min"].iloc[0]), int(firsts["max"].iloc[0])) if len(firsts) else None
+    t0 = float(table["step"].min()) if "step" in table and table["step"].notna().any() else 0.0
     bounds = None
     lanes = table[ents == "/world/lanes"]
     if len(lanes) and "LineStrips2D:strips" in lanes:
@@ -53,7 +55,11 @@ def blueprint_inputs(rrd: Path) -> dict:
         pts = np.concatenate([np.asarray([list(p) for p in s], float) for s in strips]) @ MIRROR_Y[:2, :2]
         lo, hi = pts.min(axis=0) - 30.0, pts.max(axis=0) + 30.0
         bounds = (float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1]))
-    return {"a_ids": a_ids, "training_methods": methods, "section_bounds": bounds, "first_control": first}
+    # the viewer plays 30 frames per second at speed 1 and takes its screenshot about 1 s after
+    # opening: fast enough to reach the first take-over in about 0.4 s
+    speed = max(4.0, (first[0] - t0) / 12.0) if first is not None else 4.0
+    return {"a_ids": a_ids, "training_methods": methods, "section_bounds": bounds, "first_control": first,
+            "play": speed}
 
 
 def viewer_command(rrd: Path, rbl: Path, png: Path, size: str) -> list[str]:
@@ -89,7 +95,7 @@ def render(rrd: Path, png: Path, *, size: str = "1600x1000", width: int = 1400, 
            timeout_s: float = 300.0) -> Path:
     """One screenshot of ``rrd`` into ``png``; see the module docstring."""
     args = blueprint_inputs(rrd)
-    bp = merge_blueprint(**args, play=True, active_tab=1 if tab == "training" else 0)
+    bp = merge_blueprint(**args, active_tab=1 if tab == "training" else 0)
     png.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
         rbl = Path(tmp) / "view.rbl"

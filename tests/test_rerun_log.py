@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import rerun as rr
 
 from analysis.episode import run_episode
 from analysis.rerun_log import (
@@ -303,3 +304,21 @@ def test_screenshot_tool_rejects_missing_files(tmp_path, capsys):
 
     assert main([str(tmp_path / "none.rrd")]) == 2
     assert "none.rrd" in capsys.readouterr().err
+
+
+def test_bar_chart_column_matches_rerun_bar_charts(tmp_path):
+    from analysis.rerun_log import bar_chart_column
+
+    vals = np.random.default_rng(2).random((7, 5))
+    a, b = tmp_path / "cols.rrd", tmp_path / "log.rrd"
+    rec, tmp = open_recording(a, recording_id="cols")
+    rec.send_columns("p", indexes=[rr.TimeColumn("step", sequence=np.arange(7))], columns=[bar_chart_column(vals)])
+    close_recording(rec, tmp, a)
+    rec, tmp = open_recording(b, recording_id="log")
+    for i, v in enumerate(vals):
+        rec.set_time("step", sequence=i)
+        rec.log("p", rr.BarChart(v))
+    close_recording(rec, tmp, b)
+    ta, tb = read_rrd_table(a, "/p"), read_rrd_table(b, "/p")
+    assert list(ta["BarChart:values"]) == list(tb["BarChart:values"])
+    assert len(ta) == 7 and ta["BarChart:values"].iloc[3]["buffer"] == list(vals[3])

@@ -101,7 +101,7 @@ def render(rrd: Path, png: Path, *, size: str = "1600x1000", width: int = 1400, 
         rbl = Path(tmp) / "view.rbl"
         bp.save(recording_info(rrd)["application_id"], str(rbl))
         out = Path(tmp) / "view.png"
-        res = subprocess.run(viewer_command(rrd, rbl, out, size), capture_output=True, text=True, timeout=timeout_s,
+        res = subprocess.run(viewer_command(rrd, rbl, out, size), capture_output=True, text=True, timeout=timeout_s, check=False,
                              env={**os.environ, "XDG_RUNTIME_DIR": os.environ.get("XDG_RUNTIME_DIR", tmp)})
         if res.returncode != 0 or not out.exists():
             sys.stderr.write(res.stdout[-3000:] + res.stderr[-3000:])

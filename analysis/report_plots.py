@@ -83,13 +83,15 @@ def policy_accelerations(rs) -> np.ndarray:
 
 def demo_merges(held) -> pd.DataFrame:
     """One row per demonstrated encounter: ``gap_AB_start_ft`` (d_AB at its first frame) and
-    ``b_ahead`` (B ahead of A at B's merge frame, or at the last frame before it)."""
-    if held is None or held.encounters.empty:
+    ``b_ahead`` (B ahead of A at B's merge frame, or at the last frame before it; the last
+    frame when the table has no ``merge_frame``). Empty without ``encounter_id``/``Frame_ID``."""
+    need = {"encounter_id", "Frame_ID", "d_AB"}
+    if held is None or held.encounters.empty or not need <= set(held.encounters.columns):
         return pd.DataFrame({"gap_AB_start_ft": pd.Series(dtype=float), "b_ahead": pd.Series(dtype=bool)})
     df = held.encounters.sort_values(["encounter_id", "Frame_ID"])
     rows = []
     for _, g in df.groupby("encounter_id", sort=False):
-        at = g[g["Frame_ID"] <= g["merge_frame"].iloc[0]]
+        at = g[g["Frame_ID"] <= g["merge_frame"].iloc[0]] if "merge_frame" in g else g
         last = at.iloc[-1] if len(at) else g.iloc[-1]
         rows.append((float(g["d_AB"].iloc[0]), bool(last["d_AB"] > 0)))
     return pd.DataFrame(rows, columns=["gap_AB_start_ft", "b_ahead"])
@@ -181,7 +183,7 @@ def plot_speed_profiles(path: Path, by_policy, held=None, *, speed_limit_ft_s: f
     too_fast = IMPLAUSIBLE_SPEED_FACTOR * limit
     fig, ax = plt.subplots(figsize=(7, 4))
     series = {}
-    if held is not None and "v_A" in held.encounters:
+    if held is not None and {"v_A", "Frame_ID", "encounter_id"} <= set(held.encounters.columns):
         e = held.encounters
         t = (e["Frame_ID"] - e.groupby("encounter_id")["Frame_ID"].transform("min")) * FRAME_S
         series["demonstrations"] = (pd.DataFrame({"t_s": t, "v_ft_s": e["v_A"]}), e["encounter_id"].nunique())
@@ -246,7 +248,7 @@ def plot_acceleration(path: Path, by_policy, held=None) -> Path:
     plt = _plt()
     fig, ax = plt.subplots(figsize=(7, 4))
     series = {}
-    if held is not None and len(held.encounters):
+    if held is not None and "acc_A" in held.encounters:
         series["demonstrations"] = held.encounters["acc_A"].to_numpy(float)
     for name, rs in by_policy.items():
         a = policy_accelerations(rs)
@@ -273,7 +275,7 @@ def plot_headway(path: Path, by_policy, held=None) -> Path:
     plt = _plt()
     fig, ax = plt.subplots(figsize=(7, 4))
     series = {}
-    if held is not None and len(held.encounters):
+    if held is not None and "d_AC" in held.encounters:
         series["demonstrations"] = held.encounters["d_AC"].to_numpy(float)
     for name, rs in by_policy.items():
         d = _concat(rs, "decisions")

@@ -142,3 +142,12 @@ def test_palette_is_fixed_and_covers_the_baselines():
         assert name in POLICY_COLORS
     assert len(set(POLICY_COLORS.values())) == len(POLICY_COLORS)
     assert policy_color("qavg-2") == policy_color("qavg-2") and policy_color("qavg-2") not in POLICY_COLORS.values()
+
+
+def test_demo_merges_without_merge_frame_use_the_last_frame():
+    held = _held(np.random.default_rng(5), 4)
+    bare = HeldOut(held.encounters.drop(columns=["merge_frame"]), held.action_counts, "bare")
+    m = rp.demo_merges(bare)
+    last = bare.encounters.groupby("encounter_id").d_AB.last().to_numpy()
+    np.testing.assert_array_equal(m.b_ahead, last > 0)
+    assert rp.demo_merges(HeldOut(bare.encounters[["acc_A"]], held.action_counts)).empty

@@ -22,8 +22,8 @@ from __future__ import annotations
 
 import os
 import sys
-from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, is_dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -96,7 +96,12 @@ def policy_heldout_loglik(policy: Policy, heldout: HeldOut) -> tuple[float, floa
 
 
 def learned_policy(model: SavedModel | str | os.PathLike, name: str = "") -> LearnedPolicy:
-    """A :class:`LearnedPolicy` from a saved model (path or object) with its bin edges."""
+    """A :class:`LearnedPolicy` from a saved model (path or object) with its bin edges.
+
+    Raises:
+        ModelFileError: ``model`` is a path to a missing, unreadable or malformed ``model.json``.
+        PolicyError: the model is not a merge model (message prefixed with the file).
+    """
     where = "model"
     if not isinstance(model, SavedModel):
         path = Path(model)
@@ -163,7 +168,11 @@ def run_episodes(tasks: Sequence[tuple], *, workers: int | None = None, executor
 
 def resolve_executor(executor: str | None, workers: int | None) -> str:
     """``executor`` if given, else ``process:<workers>``, else ``process`` (every core);
-    raises SimError on a malformed value."""
+    raises SimError on a malformed value.
+
+    Raises:
+        SimError: both ``executor`` and ``workers`` given, or an executor spec that does not parse.
+    """
     if executor is None:
         executor = "process" if workers is None else f"process:{max(1, int(workers))}"
     try:
@@ -206,6 +215,13 @@ def evaluate(
         workers: processes (shorthand for ``executor="process:<workers>"``).
         executor: where episodes run (see :func:`run_episodes`); overrides ``workers``.
         rrd: write a rerun recording of each policy's first episode.
+
+    Raises:
+        SimError: ``episodes`` < 1.
+        PolicyError: a model is not a merge model, or two policies share a name and one of them is not a
+            dataclass that can be renamed.
+        ModelFileError: a model file is missing or malformed.
+        SimulationError: SUMO fails to start or to step.
     """
     if episodes < 1:
         raise SimError(f"evaluate: episodes must be >= 1, got {episodes}")
@@ -214,7 +230,7 @@ def evaluate(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     for b in baselines:
-        pols.append({"sumo": SumoPolicy, "uniform": UniformPolicy}[b]())
+        pols.append(_BASELINES[b]())
     pols.extend(policies)
     names = [p.name for p in pols]
     dup = {n for n in names if names.count(n) > 1}
@@ -268,5 +284,11 @@ def evaluation_provenance(models: Sequence, pols: Sequence[Policy], scenario, sp
                       extra={"scenario_sha256": text_digest(spec.to_toml())})
 
 
+_BASELINES: dict[str, Callable[[], Policy]] = {"sumo": SumoPolicy, "uniform": UniformPolicy}
+
+
 def _renamed(p: Policy, name: str) -> Policy:
+    if not is_dataclass(p) or isinstance(p, type):
+        raise PolicyError(f"evaluate: two policies are named {p.name!r} and {type(p).__name__} is not a "
+                          "dataclass that could be renamed; give each policy a distinct name")
     return replace(p, name=name)

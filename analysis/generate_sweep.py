@@ -92,6 +92,9 @@ def generate_one(config: GenerateRun, seed: int) -> dict:
         "n_rows": int(sim.n_vehicle_steps),
         "n_merges": int(len(res.encounters.merges)),
         "n_encounter_frames": int(len(res.encounters.frames)),
+        **{k: sim.events.as_dict()[k] for k in ("requested_veh_h", "served_veh_h", "insertion_backlog", "teleports",
+                                                "collisions")},
+        "warnings": sim.events.warnings(),
         "files": [p.name for p in res.files],
         "sim_wall_time_s": float(sim.wall_time_s),
         "table_sha256": table_checksum(sim.table),
@@ -108,7 +111,11 @@ def generate_tasks(
     duration_s: float | None = None,
     csv: bool = False,
 ) -> list[Task]:
-    """The sweep's tasks, seeds outermost. Validates every override before anything runs."""
+    """The sweep's tasks, seeds outermost. Validates every override before anything runs.
+
+    Raises:
+        ValueError: no seeds, or an empty ``demand_scales``.
+    """
     out = Path(out_dir).resolve()
     if not seeds:
         raise ValueError("generate_many: no seeds given")
@@ -146,10 +153,12 @@ def _forget_missing_outputs(tasks: Sequence[Task], store: ResultStore) -> int:
 def write_summary(report: SweepReport, path: str | Path) -> Path:
     """``sweep.csv``: one line per finished run, in task order (atomic write), with the
     provenance of each line: package and SUMO versions, git commit (empty outside a checkout)
-    and the SHA-256 of the run's ``scenario.toml``. The runs' wall times go to
+    and the SHA-256 of the run's ``scenario.toml``; requested and served flow, the insertion
+    backlog, teleports and collisions (SUMO's, see ``run.toml``). The runs' wall times go to
     ``sweep.timings.json`` (:func:`analysis.provenance.write_timings`), so that two sweeps'
     ``sweep.csv`` can be compared by hash."""
-    cols = ["run", "seed", "demand_scale", "n_vehicles", "n_rows", "n_merges", "n_encounter_frames",
+    cols = ["run", "seed", "demand_scale", "requested_veh_h", "served_veh_h", "insertion_backlog", "teleports",
+            "collisions", "n_vehicles", "n_rows", "n_merges", "n_encounter_frames",
             "table_sha256", "scenario_sha256", "out_dir"]
     rows = [{c: r.get(c) for c in cols} for r in report.results.values()]
     table = pd.DataFrame(rows, columns=cols)
@@ -206,7 +215,11 @@ def generate_many(
 
 
 def parse_seeds(text: str) -> tuple[int, ...]:
-    """``"1,2,3"``, ``"1-10"`` or a mix (``"1-3,7"``) -> distinct seeds in the order given."""
+    """``"1,2,3"``, ``"1-10"`` or a mix (``"1-3,7"``) -> distinct seeds in the order given.
+
+    Raises:
+        ValueError: a part is not ``N`` or ``N-M`` (``N <= M``, integers >= 0).
+    """
     out: list[int] = []
     for part in text.split(","):
         part = part.strip()
@@ -216,7 +229,7 @@ def parse_seeds(text: str) -> tuple[int, ...]:
                 a, b = int(lo), int(hi)
                 if b < a:
                     raise ValueError
-                values = range(a, b + 1)
+                values: range | list[int] = range(a, b + 1)
             else:
                 values = [int(part)]
         except ValueError:
@@ -230,7 +243,11 @@ def parse_seeds(text: str) -> tuple[int, ...]:
 
 
 def parse_scales(text: str) -> tuple[float, ...]:
-    """``"0.5,1,2"`` -> distinct positive demand factors in the order given."""
+    """``"0.5,1,2"`` -> distinct positive demand factors in the order given.
+
+    Raises:
+        ValueError: a part is not a positive finite number.
+    """
     out: list[float] = []
     for part in text.split(","):
         try:

@@ -75,7 +75,7 @@ class EpisodeMetrics:
         return d
 
     @classmethod
-    def from_dict(cls, d: dict) -> "EpisodeMetrics":
+    def from_dict(cls, d: dict) -> EpisodeMetrics:
         kw = {f.name: d[f.name] for f in fields(cls) if f.name in d}
         kw["action_counts"] = tuple(int(x) for x in kw["action_counts"])
         for k in ("min_ttc_s", "b_ahead_rate", "travel_time_s", "mean_speed_A_ft_s", "js_divergence"):
@@ -290,7 +290,11 @@ def aggregate(
     demo_action_counts: np.ndarray | None = None,
     heldout: tuple[float, float] | None = None,
 ) -> AggregateMetrics:
-    """Aggregate the episodes of one policy (all must share ``policy``)."""
+    """Aggregate the episodes of one policy (all must share ``policy``).
+
+    Raises:
+        ValueError: no episodes, or episodes of more than one policy.
+    """
     if not episodes:
         raise ValueError("aggregate: no episodes")
     names = {e.policy for e in episodes}

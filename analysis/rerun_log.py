@@ -32,8 +32,9 @@ Every recording written by :class:`RerunLogger` carries a blueprint (:func:`merg
 sent with the data, so the viewer opens on the merge view, car A's time series, the action
 probabilities and (when logged) the training traces instead of its automatic layout. Frames are buffered
 and sent in columns (``send_columns``) every ``flush_every`` frames, which keeps logging well
-under 10 microseconds per vehicle-frame. The file is written under a temporary name and
-renamed when the run ends, so an interrupted run leaves no complete-looking ``.rrd``.
+under 10 microseconds per vehicle-frame. The file is written under a temporary name
+(``<name>.partial``) and renamed only when the run succeeds (``on_end``); a run that fails or
+is interrupted (``on_abort``) leaves the ``.partial`` file, never a complete-looking ``.rrd``.
 """
 
 from __future__ import annotations
@@ -91,13 +92,15 @@ def recording_identity(scenario: str, policy: str, seed: int, episode: int | Non
 
 def open_recording(path: str | os.PathLike, *, application_id: str = "merge-irl",
                    recording_id: str | None = None, name: str | None = None) -> tuple[rr.RecordingStream, Path]:
-    """A recording stream saving to a temporary name next to ``path`` (see :func:`close_recording`).
+    """A recording stream saving to a temporary name next to ``path`` (see :func:`close_recording`);
+    an existing file at ``path`` is removed first.
 
     ``recording_id``: what the viewer groups data by (two files with one id merge into one
     recording); ``name``: the recording's display name.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    path.unlink(missing_ok=True)  # a previous run's file must not pass for this run's
     rec = rr.RecordingStream(application_id, recording_id=recording_id)
     tmp = _tmp_path(path)
     rec.save(str(tmp))
@@ -157,7 +160,7 @@ def merge_blueprint(a_ids: Sequence[int], *, training_methods: Sequence[str] = (
             panel shows the ``iteration`` timeline.
     """
     import rerun.blueprint as rrb
-    from rerun.encodings import AbsoluteTimeRange
+    from rerun.blueprint.components import AbsoluteTimeRange
 
     def series(name: str, paths: list[str], **kw):
         return rrb.TimeSeriesView(name=name, origin="/", contents=paths or ["-/**"],
@@ -168,12 +171,12 @@ def merge_blueprint(a_ids: Sequence[int], *, training_methods: Sequence[str] = (
     merge = rrb.Spatial2DView(
         name="merge (follows car A)", origin="/follow", contents=["/world/**"],
         visual_bounds=rrb.VisualBounds2D(x_range=(-fx, fx), y_range=(-fy, fy)), background=[30, 30, 30])
-    section_kw = {}
+    bounds = None
     if section_bounds is not None:
         x0, x1, y0, y1 = section_bounds
-        section_kw["visual_bounds"] = rrb.VisualBounds2D(x_range=(x0, x1), y_range=(y0, y1))
+        bounds = rrb.VisualBounds2D(x_range=(x0, x1), y_range=(y0, y1))
     section = rrb.Spatial2DView(name="section", origin="/", contents=["/world/**"], background=[30, 30, 30],
-                                **section_kw)
+                                visual_bounds=bounds)
     car_a = rrb.Vertical(
         series("speed of A (ft/s)", [f"/metrics/A_{a}/speed" for a in ids]),
         series("d_AB (ft)", [f"/metrics/A_{a}/d_AB" for a in ids]),
@@ -186,7 +189,7 @@ def merge_blueprint(a_ids: Sequence[int], *, training_methods: Sequence[str] = (
                          origin="/policy/action_probs"),
         name="car A",
     )
-    tabs = [rrb.Horizontal(rrb.Vertical(merge, section, row_shares=[3, 2]), car_a, column_shares=[3, 2], name="run")]
+    tabs: list[rrb.Container] = [rrb.Horizontal(rrb.Vertical(merge, section, row_shares=[3, 2]), car_a, column_shares=[3, 2], name="run")]
     if training_methods:
         tabs.append(rrb.Vertical(
             series("log-likelihood", [f"/train/{m}/loglik" for m in training_methods]),
@@ -273,6 +276,8 @@ class RerunLogger:
         self.log_vehicles = log_vehicles
         self._own = recording is None
         self._app = application_id
+        self._rec: rr.RecordingStream | None
+        self._tmp: Path | None
         self._rec, self._tmp = recording if recording is not None else (None, None)
         self._reset_buffers()
         # per controlled car: rows (step, t, speed, d_AC, d_AB, ttc) and decision rows
@@ -293,6 +298,12 @@ class RerunLogger:
         self._ids: list[np.ndarray] = []
         self._labels: list[np.ndarray] = []
         self._foci: list[np.ndarray] = []
+
+    @property
+    def _stream(self) -> rr.RecordingStream:
+        if self._rec is None:
+            raise RuntimeError("RerunLogger: the recording opens in on_start; nothing can be logged before")
+        return self._rec
 
     # -- hook protocol -------------------------------------------------------------------
     def on_start(self, ctx: RunContext) -> None:
@@ -341,10 +352,18 @@ class RerunLogger:
         self._flush()
         a_ids, first = self._controls()
         self._flush_scalars()
-        self._rec.send_blueprint(merge_blueprint(a_ids, training_methods=self.training_methods,
-                                                 section_bounds=self._section, first_control=first))
-        if self._own and self._rec is not None:
+        self._stream.send_blueprint(merge_blueprint(a_ids, training_methods=self.training_methods,
+                                                    section_bounds=self._section, first_control=first))
+        if self._own and self._rec is not None and self._tmp is not None:
             close_recording(self._rec, self._tmp, self.path)
+            self._rec = None
+
+    def on_abort(self, ctx: RunContext) -> None:
+        """The run failed or was interrupted: close the stream and leave it under its temporary
+        ``.partial`` name, never under the final one."""
+        if self._own and self._rec is not None:
+            self._rec.flush()
+            self._rec.disconnect()
             self._rec = None
 
     # -- internals ----------------------------------------------------------------------
@@ -424,16 +443,16 @@ class RerunLogger:
             *rr.Boxes2D.columns(centers=centers, half_sizes=half, class_ids=roles, colors=ROLE_RGBA_U32[roles],
                                 labels=pa.array(np.concatenate(self._labels), type=pa.string())).partition(lens),
             # the viewer hides the labels of entities with many instances; the others' labels are ""
-            *rr.Boxes2D.columns(show_labels=np.ones(lens.size, dtype=bool)),
+            *rr.Boxes2D.columns(show_labels=[True] * lens.size),
             # an arrow array, not numpy: rerun turns a numpy column into one Python list per value
             *rr.AnyValues.columns(vehicle_id=pa.array(ids)).partition(lens),
         ]
         indexes = [rr.TimeColumn("step", sequence=np.asarray(self._steps)),
                    rr.TimeColumn("sim_time", duration=np.asarray(self._times))]
-        self._rec.send_columns("world/vehicles", indexes=indexes, columns=cols)
+        self._stream.send_columns("world/vehicles", indexes=indexes, columns=cols)
         foci = np.zeros((len(self._foci), 3))
         foci[:, :2] = self._foci
-        self._rec.send_columns("follow", indexes=indexes, columns=rr.Transform3D.columns(translation=foci))
+        self._stream.send_columns("follow", indexes=indexes, columns=rr.Transform3D.columns(translation=foci))
         self._reset_buffers()
 
     def _flush_scalars(self) -> None:
@@ -447,7 +466,7 @@ class RerunLogger:
         for a_id, rows in self._decision_rows.items():
             d = np.asarray(rows, dtype=np.float64)  # [n, 2 + 5 + 1 + 3]
             base = f"policy/A_{a_id}"
-            self._rec.log(f"{base}/probs", rr.SeriesLines(names=[n.lower() for n in ACTION_NAMES]), static=True)
+            self._stream.log(f"{base}/probs", rr.SeriesLines(names=[n.lower() for n in ACTION_NAMES]), static=True)
             self._send_series(f"{base}/probs", d[:, 0], d[:, 1], d[:, 2:7])
             self._send_series(f"{base}/action", d[:, 0], d[:, 1], d[:, 7])
             bars.append(d[:, :7])
@@ -456,7 +475,7 @@ class RerunLogger:
         if bars:
             b = np.concatenate(bars)
             b = b[np.argsort(b[:, 0], kind="stable")]  # [n, 7]: step, t, p0..p4, by step
-            self._rec.send_columns(
+            self._stream.send_columns(
                 "policy/action_probs",
                 indexes=[rr.TimeColumn("step", sequence=b[:, 0].astype(np.int64)), rr.TimeColumn("sim_time", duration=b[:, 1])],
                 columns=[bar_chart_column(b[:, 2:7])])
@@ -469,7 +488,7 @@ class RerunLogger:
         cols = rr.Scalars.columns(scalars=values.reshape(-1))
         if values.ndim == 2:
             cols = cols.partition(np.full(values.shape[0], values.shape[1]))
-        self._rec.send_columns(
+        self._stream.send_columns(
             entity,
             indexes=[rr.TimeColumn("step", sequence=steps.astype(np.int64)),
                      rr.TimeColumn("sim_time", duration=times)],

@@ -68,7 +68,12 @@ class Breach:
 
 
 def parse_threshold(text: str) -> Threshold:
-    """One ``[POLICY.]METRIC OP NUMBER``; ``ThresholdError`` explaining the syntax otherwise."""
+    """One ``[POLICY.]METRIC OP NUMBER``; ``ThresholdError`` explaining the syntax otherwise.
+
+    Raises:
+        ThresholdError: ``text`` is not ``[POLICY.]METRIC OP NUMBER`` with a known metric and a number (not
+            NaN).
+    """
     m = _PATTERN.match(text)
     if not m:
         raise ThresholdError(
@@ -142,7 +147,12 @@ def check_thresholds(thresholds: Iterable[Threshold],
 
 
 def metrics_from_file(path: str | Path) -> dict[str, dict[str, Any]]:
-    """``policy -> aggregate metrics`` of an evaluation's ``metrics.json``."""
+    """``policy -> aggregate metrics`` of an evaluation's ``metrics.json``.
+
+    Raises:
+        ThresholdError: the file is missing, not readable JSON, or has no ``policies`` object of ``{name:
+            {"aggregate": {...}}}``.
+    """
     path = Path(path)
     try:
         data = json.loads(path.read_text(encoding="utf-8"))

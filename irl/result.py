@@ -60,6 +60,20 @@ class FitResult:
     def n_iterations(self) -> int:
         return int(len(self.loglik_trace))
 
+    @property
+    def flags(self) -> tuple[str, ...]:
+        """What downstream code must check before ranking or deploying the model (empty: none).
+
+        ``"not_converged"``, ``"unbounded"`` (no finite maximiser; for REIRL the dual is
+        unbounded below), ``"infeasible"`` (REIRL: the experts' counts are out of reach within
+        eps), ``"uninformative"`` (REIRL: every weight is 0).
+        """
+        out = [] if self.converged else ["not_converged"]
+        if self.unbounded:
+            out.append("unbounded")
+        out += [k for k in ("infeasible", "uninformative") if self.extra.get(k)]
+        return tuple(out)
+
     def log_policy(self) -> np.ndarray:
         """``[S, A]`` log pi(a|s) of the learned policy."""
         return log_policy(self.q, self.config.beta)
@@ -92,7 +106,7 @@ class SavedModel:
     info: dict[str, Any] = field(default_factory=dict)
 
     @classmethod
-    def from_fit(cls, fit: FitResult, **kw: Any) -> "SavedModel":
+    def from_fit(cls, fit: FitResult, **kw: Any) -> SavedModel:
         return cls(
             method=fit.method, theta=np.asarray(fit.theta), loglik=fit.loglik, q=np.asarray(fit.q),
             config=fit.config, converged=fit.converged, unbounded=fit.unbounded, **kw,
@@ -123,7 +137,7 @@ class SavedModel:
         return write_json_atomic(path, self.to_json_dict())
 
     @classmethod
-    def load(cls, path: str | os.PathLike) -> "SavedModel":
+    def load(cls, path: str | os.PathLike) -> SavedModel:
         """Read a ``model.json``.
 
         Raises:

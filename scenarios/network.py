@@ -89,7 +89,11 @@ def netconvert_binary() -> str:
 
 
 def build_network(road: RoadSpec, *, cache_dir: Path | None = None) -> Path:
-    """Path of the ``.net.xml`` for ``road``; runs netconvert only if it is not cached yet."""
+    """Path of the ``.net.xml`` for ``road``; runs netconvert only if it is not cached yet.
+
+    Raises:
+        NetworkBuildError: netconvert fails (its error output is in the message).
+    """
     root = (cache_dir or cache_root()) / "networks"
     final = root / network_key(road)
     net = final / NET_FILE

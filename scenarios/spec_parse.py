@@ -238,7 +238,7 @@ def _drivers(ctx: _Ctx, data: Any) -> DriversSpec:
             if isinstance(items, dict):
                 items = [items]
             if not isinstance(items, list) or not items:
-                raise ctx.fail(f"drivers.{cls}", "must be a non-empty array of vType tables ([[drivers.%s]])" % cls)
+                raise ctx.fail(f"drivers.{cls}", f"must be a non-empty array of vType tables ([[drivers.{cls}]])")
             kw[cls] = tuple(_vtype(ctx, f"drivers.{cls}[{i}]", it, cls) for i, it in enumerate(items))
         for i, vt in enumerate(kw[cls]):
             if vt.id in seen:
@@ -273,7 +273,11 @@ def _simulation(ctx: _Ctx, data: Any) -> SimulationSpec:
 
 
 def spec_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> ScenarioSpec:
-    """Validate a parsed TOML mapping and build the spec; raises ``SpecError`` naming the field."""
+    """Validate a parsed TOML mapping and build the spec; raises ``SpecError`` naming the field.
+
+    Raises:
+        SpecError: a missing or invalid field (the message names it and what was expected).
+    """
     ctx = _Ctx(source)
     d = _check_keys(ctx, "", data, ["name", "road", "demand", "drivers", "simulation"])
     if "name" not in d:
@@ -293,7 +297,11 @@ def spec_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> ScenarioS
 
 
 def spec_from_toml(text: str, *, source: str = "<toml>") -> ScenarioSpec:
-    """Parse TOML text and validate it."""
+    """Parse TOML text and validate it.
+
+    Raises:
+        SpecError: invalid TOML, or a missing or invalid field (see :func:`spec_from_dict`).
+    """
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
@@ -302,6 +310,12 @@ def spec_from_toml(text: str, *, source: str = "<toml>") -> ScenarioSpec:
 
 
 def spec_from_file(path: str | Path) -> ScenarioSpec:
+    """The scenario in the UTF-8 TOML file ``path``.
+
+    Raises:
+        SpecError: the file cannot be read, is not UTF-8 text, or does not hold a valid scenario (see
+            :func:`spec_from_toml`).
+    """
     p = Path(path)
     try:
         text = p.read_text(encoding="utf-8")

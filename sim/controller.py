@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -177,7 +178,7 @@ class Controller:
         self._every = 1
         self._zone_start = 0.0
         self._section_end = math.inf
-        self._traci = None
+        self._traci: Any = None  # the libsumo module (untyped), set by on_start
         self._collision_pairs: set[tuple[str, str]] = set()
         self.n_teleports = 0  # teleports in the whole run, all vehicles
 
@@ -330,6 +331,7 @@ class Controller:
         obs = MergeObservation(d_ac, d_ab, v_ac, v_ab, truck, state, float(frame.speed[ia]))
         probs = np.asarray(self.policy.probs(obs), dtype=np.float64)
         if c.commanded:
+            assert self._rng is not None, "on_start seeds the generator before any step"
             action = choose_action(probs, self._rng, mode=self.config.mode)
             acc = ACTION_ACC_FT_S2[action]
             self._traci.vehicle.setAcceleration(c.a_sumo, acc * M_PER_FT, self._every * self._frame_s)

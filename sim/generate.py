@@ -6,6 +6,8 @@ Files written into the output folder (each atomically; see ``sim.outputs``):
 * ``encounters.parquet``    per-frame merge encounters (``irl.domains.merge.ENCOUNTER_SCHEMA``);
 * ``merges.parquet``        one row per merging vehicle (``sim.encounters.MERGE_COLUMNS``);
 * ``scenario.toml``         the spec simulated, with the seed and duration actually used;
+* ``run.toml``              what SUMO reported (:class:`sim.run.RunEvents`): requested and served
+  flow, insertion backlog, teleports, collisions, emergency stops, and the merges left out;
 * ``trajectories.csv``      on request, in NGSIM's text format (``sim.ngsim_io``).
 
 Before simulating, these names are removed from the folder, so an aborted rerun never leaves
@@ -21,6 +23,7 @@ from pathlib import Path
 from irl.atomic import write_text_atomic
 from scenarios.spec import ScenarioSpec
 from scenarios.spec_parse import with_overrides
+from scenarios.toml_write import dumps
 from sim.encounters import Encounters, EncounterWindow, extract
 from sim.hooks import StepHook
 from sim.outputs import write_parquet
@@ -30,8 +33,9 @@ TRAJECTORIES = "trajectories.parquet"
 ENCOUNTERS = "encounters.parquet"
 MERGES = "merges.parquet"
 SCENARIO = "scenario.toml"
+RUN_REPORT = "run.toml"
 CSV = "trajectories.csv"
-OUTPUT_FILES = (TRAJECTORIES, ENCOUNTERS, MERGES, SCENARIO, CSV)
+OUTPUT_FILES = (TRAJECTORIES, ENCOUNTERS, MERGES, SCENARIO, RUN_REPORT, CSV)
 
 
 @dataclass(frozen=True)
@@ -60,7 +64,11 @@ def generate(
     window: EncounterWindow = EncounterWindow(),
     hooks: Sequence[StepHook] = (),
 ) -> GenerateResult:
-    """Simulate ``spec`` (optionally with another seed / duration) and write the output files."""
+    """Simulate ``spec`` (optionally with another seed / duration) and write the output files.
+
+    Raises:
+        SimulationError: SUMO fails to start or to step.
+    """
     if seed is not None or duration_s is not None:
         spec = with_overrides(spec, seed=seed, duration_s=duration_s)
     out = Path(out_dir) if out_dir is not None else default_out_dir(spec)
@@ -68,15 +76,25 @@ def generate(
     for name in OUTPUT_FILES:
         (out / name).unlink(missing_ok=True)
     result = run_scenario(spec, hooks=hooks, progress=progress)
-    enc = extract(result.table, window=window)
+    enc = extract(result.table, window=window, teleported=result.teleported_vehicle_ids)
     files = [
         write_parquet(result.table, out / TRAJECTORIES),
         write_parquet(enc.frames, out / ENCOUNTERS),
         write_parquet(enc.merges, out / MERGES),
         write_text_atomic(out / SCENARIO, spec.to_toml()),
+        write_text_atomic(out / RUN_REPORT, run_report_toml(result, enc)),
     ]
     if csv:
         from sim.ngsim_io import write_ngsim_csv
 
         files.append(Path(write_ngsim_csv(result.table, out / CSV)))
     return GenerateResult(out_dir=out, files=tuple(files), simulation=result, encounters=enc)
+
+
+def run_report_toml(result: SimulationResult, enc: Encounters) -> str:
+    """``run.toml``: SUMO's events and the served demand of ``result``, and the merges left out."""
+    ev = result.events.as_dict()
+    ev["merges_left_out"] = [{"B_id": int(b), "merge_frame": int(f), "reason": str(r)}
+                             for b, f, r in enc.excluded.itertuples(index=False)]
+    ev["warnings"] = result.events.warnings()
+    return dumps({"run": ev})

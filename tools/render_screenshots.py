@@ -87,7 +87,7 @@ def shrink(png: Path, width: int) -> None:
 
     im = Image.open(png).convert("RGB")
     if im.width > width:
-        im = im.resize((width, round(im.height * width / im.width)), Image.LANCZOS)
+        im = im.resize((width, round(im.height * width / im.width)), Image.Resampling.LANCZOS)
     im.quantize(256, method=Image.Quantize.MEDIANCUT).save(png, optimize=True)
 
 

@@ -38,8 +38,9 @@ def register(subparsers) -> None:
         description="Fit one IRL method on tabular demonstrations and save the result as model.json "
                     "(theta, loglik, q, settings, merge bin edges).")
     p.add_argument("--method", choices=METHODS, required=True)
-    p.add_argument("--demos", required=True,
-                   help="trajectories: a directory/file in the authors' text format (gridworld, merge), "
+    p.add_argument("--demos", required=True, action="append",
+                   help="trajectories (merge encounter tables: repeat for several files or runs, kept apart): "
+                        "a directory/file in the authors' text format (gridworld, merge), "
                         "an encounter table .parquet/.csv (merge), or a .npz (npz)")
     p.add_argument("--domain", choices=DOMAINS, required=True)
     p.add_argument("--noise", type=float, default=0.0, help="gridworld slip probability of the true model")
@@ -48,7 +49,8 @@ def register(subparsers) -> None:
     p.add_argument("--bins", help="merge: JSON file of bin edges (default: assumed edges for text files, "
                                   "quantile bins fitted on an encounter table)")
     p.add_argument("--dt", type=float, default=0.1, help="merge: decision step (s) of the kinematic fallback")
-    p.add_argument("--epsilon", type=float, default=None, help="REIRL L1 weight of the dual")
+    p.add_argument("--epsilon", type=float, default=None, help="REIRL L1 weight of the dual (default: per feature, the "
+                                                           "Hoeffding bound of the experts' feature-count estimate)")
     add_config_arguments(p)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", required=True, help="model.json to write")

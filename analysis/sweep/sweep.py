@@ -10,8 +10,8 @@ import time
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any, Callable, Iterable, Sequence
+from typing import Any
+from collections.abc import Callable, Iterable, Sequence
 
 from tqdm import tqdm
 
@@ -100,7 +100,7 @@ def run_sweep(
     *,
     seed: int = 0,
     executor: str | ExecutorSpec = "process",
-    store: ResultStore | str | Path | None = None,
+    store: ResultStore | str | os.PathLike | None = None,
     retries: int = 1,
     progress: bool = True,
     desc: str = "sweep",
@@ -113,6 +113,9 @@ def run_sweep(
     a sweep killed midway loses only the tasks in flight. A task that raises, or kills its
     worker process, is retried ``retries`` times and then reported in ``failures``; the other
     tasks go on.
+
+    Raises:
+        ValueError: two tasks share a key.
     """
     spec = parse_executor(executor) if isinstance(executor, str) else executor
     if store is not None and not isinstance(store, ResultStore):
@@ -278,9 +281,9 @@ def _run_dask(todo: Sequence[_Pending], finish, spec: ExecutorSpec) -> None:
     def submit(p: _Pending):
         # Dask itself reschedules a task whose worker died (up to its allowed-failures);
         # an exception or KilledWorker comes back here and is retried once like elsewhere.
-        fut = client.submit(call_task, p.task.func, p.task.config, p.seed,
-                            key=f"{p.task.key}-{p.digest[:12]}-{p.attempts}", pure=False)
-        futures[fut.key] = p
+        key = f"{p.task.key}-{p.digest[:12]}-{p.attempts}"
+        fut = client.submit(call_task, p.task.func, p.task.config, p.seed, key=key, pure=False)
+        futures[key] = p
         return fut
 
     try:

@@ -5,7 +5,8 @@ from __future__ import annotations
 import json
 import time
 import traceback
-from typing import Any, Callable
+from typing import Any
+from collections.abc import Callable
 
 
 def call_task(func: Callable[[Any, int], dict], config: Any, seed: int) -> dict[str, Any]:
@@ -13,6 +14,9 @@ def call_task(func: Callable[[Any, int], dict], config: Any, seed: int) -> dict[
 
     The result must be a JSON-serialisable dict (it is stored as JSON); anything else is
     reported as the task's error.
+
+    Raises:
+        TypeError: the task returned something other than a dict.
     """
     t0 = time.perf_counter()
     try:

@@ -38,6 +38,7 @@ from irl.domains.merge import N_ACTIONS, actions_of
 from irl.merge_mdp import read_encounters
 from irl.result import SavedModel
 from irl.run_folder import check_writable
+from irl.units import FT_PER_M
 from scenarios.loader import load_scenario
 from sim.controller import ControllerConfig
 from sim.errors import SimError
@@ -264,7 +265,7 @@ def evaluate(
     report_md, metrics_json, plots = write_outputs(
         out, aggs, by_policy, held, scenario=str(scen_name), seed=seed, episodes=episodes,
         duration_s=duration_s, controller=controller, metrics=metrics,
-        provenance=prov,
+        provenance=prov, speed_limit_ft_s=spec.road.speed_limit_mps * FT_PER_M,
     )
     write_timings(out, {"episode_wall_time_s": {name: [float(r.wall_time_s) for r in rs]
                                                 for name, rs in by_policy.items()}})

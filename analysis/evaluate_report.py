@@ -8,11 +8,11 @@ from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from analysis.metrics import AggregateMetrics
 from analysis.provenance import provenance_markdown
-from irl.atomic import write_atomic, write_text_atomic
+from analysis.report_plots import write_plots
+from irl.atomic import write_text_atomic
 from irl.domains.merge import ACTION_NAMES, N_ACTIONS
 
 
@@ -66,14 +66,10 @@ def metrics_to_json(obj) -> str:
 
 
 def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes, duration_s, controller, metrics,
-                  provenance: dict | None = None):
-    """Write report.md, metrics.json and the plots; return their paths. ``provenance``
-    (:func:`analysis.provenance.provenance`) goes into both."""
-    plots = (
-        plot_action_histograms(out / "action_histograms.png", aggs, held),
-        plot_gap_acceptance(out / "gap_acceptance.png", by_policy),
-        plot_speed_profiles(out / "speed_profiles.png", by_policy),
-    )
+                  provenance: dict | None = None, speed_limit_ft_s: float | None = None):
+    """Write report.md, metrics.json and the plots (:mod:`analysis.report_plots`); return their
+    paths. ``provenance`` (:func:`analysis.provenance.provenance`) goes into both."""
+    plots = write_plots(out, aggs, by_policy, held, speed_limit_ft_s=speed_limit_ft_s)
     payload = {
         "format": "merge-irl-evaluation/1",
         "scenario": scenario, "seed": seed, "episodes": episodes, "duration_s": duration_s,
@@ -124,82 +120,3 @@ def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes,
         lines += [provenance_markdown(provenance), ""]
     rm = write_text_atomic(out / "report.md", "\n".join(lines))
     return rm, mj, plots
-
-
-def _plt():
-    # matplotlib (about 0.5 s to import) only when a plot is drawn
-    import matplotlib
-
-    matplotlib.use("Agg", force=True)
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _save(fig, path: Path) -> Path:
-    write_atomic(path, lambda p: fig.savefig(p, dpi=110, bbox_inches="tight"))
-    _plt().close(fig)
-    return path
-
-
-def plot_action_histograms(path: Path, aggs, held) -> Path:
-    plt = _plt()
-    series = {}
-    if held is not None:
-        series["demonstrations"] = np.asarray(held.action_counts, float)
-    for name, a in aggs.items():
-        series[name] = np.asarray(a.action_counts, float)
-    fig, ax = plt.subplots(figsize=(8, 4))
-    w = 0.8 / max(1, len(series))
-    x = np.arange(N_ACTIONS)
-    for i, (name, c) in enumerate(series.items()):
-        ax.bar(x + i * w - 0.4 + w / 2, c / c.sum() if c.sum() else c, width=w, label=name)
-    ax.set_xticks(x, ACTION_NAMES)
-    ax.set_ylabel("share of decisions")
-    ax.set_title("Action of car A")
-    ax.legend(fontsize=8)
-    return _save(fig, path)
-
-
-def plot_gap_acceptance(path: Path, by_policy) -> Path:
-    """Share of merges with B ahead of A, by the gap d_AB at take-over (ft)."""
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(7, 4))
-    bins = np.array([-np.inf, 0, 50, 100, 150, 200, np.inf])
-    labels = ["<0", "0-50", "50-100", "100-150", "150-200", ">200"]
-    for name, rs in by_policy.items():
-        ct = pd.concat([r.controls for r in rs], ignore_index=True) if rs else pd.DataFrame()
-        if ct.empty:
-            continue
-        ct = ct[ct["merge_frame"] >= 0]
-        if ct.empty:
-            continue
-        k = np.digitize(ct["gap_AB_start_ft"].to_numpy(float), bins[1:-1])
-        rate = [float(np.mean(ct["b_ahead"].to_numpy(bool)[k == j])) if np.any(k == j) else np.nan for j in range(len(labels))]
-        ax.plot(labels, rate, marker="o", label=name)
-    ax.set_xlabel("gap d_AB from A to B at take-over (ft)")
-    ax.set_ylabel("share of merges with B ahead of A")
-    ax.set_ylim(-0.05, 1.05)
-    ax.set_title("Gap acceptance")
-    ax.legend(fontsize=8)
-    return _save(fig, path)
-
-
-def plot_speed_profiles(path: Path, by_policy) -> Path:
-    """Mean speed of A against time since take-over."""
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(7, 4))
-    for name, rs in by_policy.items():
-        sp = pd.concat([r.speed_profiles for r in rs], ignore_index=True) if rs else pd.DataFrame()
-        if sp.empty:
-            continue
-        g = sp.assign(t=np.round(sp["t_s"], 1)).groupby("t")["v_ft_s"]
-        m = g.mean()
-        n = g.size()
-        m = m[n >= 2] if (n >= 2).any() else m
-        ax.plot(m.index, m.to_numpy(), label=name)
-    ax.set_xlabel("time since take-over (s)")
-    ax.set_ylabel("speed of A (ft/s)")
-    ax.set_title("Speed profiles of A")
-    ax.legend(fontsize=8)
-    return _save(fig, path)

@@ -222,7 +222,7 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     _say("[4/5] one closed-loop episode with Q-Avg, logged to demo.rrd", quiet)
     first = "qavg" if "qavg" in models else next(iter(models))
     pol = learned_policy(models[first])
-    logger = RerunLogger(out / "demo.rrd", recording=(rec, tmp_rrd))
+    logger = RerunLogger(out / "demo.rrd", recording=(rec, tmp_rrd), training_methods=config.methods)
     # the logger needs the episode's controller: run_episode builds it, so attach via extra hook
     _run_logged_episode(config, pol, logger)
     close_recording(rec, tmp_rrd, out / "demo.rrd")

@@ -2,16 +2,23 @@
 
 :class:`RerunLogger` is a :class:`sim.hooks.StepHook`. Entities (hierarchical, units ft, ft/s):
 
-* ``world/lanes`` (static): one ``LineStrips3D`` strip per lane centre line (I-80 numbering,
+* ``world/lanes`` (static): one ``LineStrips2D`` strip per lane centre line (I-80 numbering,
   labelled), from the run's lane shapes; ``world`` (static) carries an ``AnnotationContext``
-  naming the vehicle roles.
-* ``world/vehicles``: every vehicle of every frame as ONE batched ``Boxes3D`` entity: centres
-  (the box centre, half a length behind the front bumper along +x), half sizes, ``class_ids``
-  = role (0 other, 1 A controlled, 2 B merging, 3 C lead) with matching ``colors``, and an
-  extra component ``vehicle_id`` (the table's Vehicle_ID), so each box can be matched to the
-  trajectory table (front bumper = centre + (length/2, 0, 0)).
+  naming the vehicle roles and a ``Transform3D`` mirroring y, so that the top-down 2D views
+  (whose y axis points down) show the road as SUMO draws it (ramp on the right of travel).
+* ``world/vehicles``: every vehicle of every frame as ONE batched ``Boxes2D`` entity, in the
+  vehicles' real size: centres (the box centre, half a length behind the front bumper along
+  +x), half sizes (length/2, width/2), ``class_ids`` = role (:data:`ROLE_IDS`: 0 other,
+  1 A controlled, 2 B merging, 3 C lead, 4 A observed, i.e. a lag car the policy does not
+  drive, as with the ``sumo`` baseline) with matching ``colors``, ``labels`` on A, B and C
+  only ("A 12"; others ""), and an extra component ``vehicle_id`` (the table's Vehicle_ID), so
+  each box can be matched to the trajectory table (front bumper = centre + (length/2, 0)).
+* ``follow`` (``Transform3D`` per frame): the centre of the current merge (car A of the lowest
+  Vehicle_ID under control; held between merges) in the mirrored frame; the blueprint's
+  "merge" view has it as origin, so that view follows the merge.
 * ``policy/A_<id>/probs`` (``Scalars``, 5 series named by action), ``policy/A_<id>/action``
-  (``Scalars``: action index 0..4),
+  (``Scalars``: action index 0..4), ``policy/action_probs`` (``BarChart``: the 5 probabilities
+  of the latest decision of any controlled car, in ``ACTION_NAMES`` order),
   ``policy/A_<id>/features/<name>`` (``Scalars``: the paper's reward features of the chosen
   action, from the continuous observation) at each decision of controlled car ``<id>``.
 * ``metrics/A_<id>/speed``, ``.../d_AC``, ``.../d_AB``, ``.../ttc`` (``Scalars``) per frame
@@ -19,7 +26,11 @@
 * ``train/<method>/loglik`` and ``train/<method>/theta/<k>`` (``Scalars`` on the
   ``iteration`` timeline): IRL training traces, via :func:`log_training`.
 
-Timelines: ``sim_time`` (duration, s) and ``step`` (sequence: Frame_ID). Frames are buffered
+Timelines: ``sim_time`` (duration, s) and ``step`` (sequence: Frame_ID).
+
+Every recording written by :class:`RerunLogger` carries a blueprint (:func:`merge_blueprint`),
+sent with the data, so the viewer opens on the merge view, car A's time series, the action
+probabilities and (when logged) the training traces instead of its automatic layout. Frames are buffered
 and sent in columns (``send_columns``) every ``flush_every`` frames, which keeps logging well
 under 10 microseconds per vehicle-frame. The file is written under a temporary name
 (``<name>.partial``) and renamed only when the run succeeds (``on_end``); a run that fails or
@@ -42,13 +53,21 @@ from sim.hooks import FrameState, RunContext
 from sim.observe import lead_of
 from sim.schema import RAMP_LANE
 
-ROLE_IDS = {"other": 0, "A": 1, "B": 2, "C": 3}
+ROLE_IDS = {"other": 0, "A": 1, "B": 2, "C": 3, "A observed": 4}
+#: Short label drawn on a box, by role id ("" = no label).
+ROLE_LABELS = ("", "A", "B", "C", "A")
 #: RGBA colours of the roles, indexed by role id.
 ROLE_COLORS = np.array(
-    [[150, 150, 150, 255], [230, 40, 40, 255], [40, 110, 230, 255], [40, 180, 70, 255]], dtype=np.uint8
+    [[150, 150, 150, 255], [230, 40, 40, 255], [40, 110, 230, 255], [40, 180, 70, 255], [240, 150, 30, 255]],
+    dtype=np.uint8,
 )
 ROLE_RGBA_U32 = (ROLE_COLORS.astype(np.uint32) @ np.array([1 << 24, 1 << 16, 1 << 8, 1], dtype=np.uint32)).astype(np.uint32)
-VEHICLE_HEIGHT_FT = 5.0
+#: The ``world`` transform: y mirrored (2D views draw y downwards).
+MIRROR_Y = np.diag([1.0, -1.0, 1.0])
+#: Half extent (ft) of the merge view around the followed car.
+FOLLOW_HALF_FT = (330.0, 75.0)
+#: TTC axis of the time series (s): larger values are off the chart.
+TTC_RANGE_S = (0.0, 10.0)
 #: Entity holding a recording's properties (name, start time).
 PROPERTIES = "/__properties"
 
@@ -115,6 +134,117 @@ def log_training(rec: rr.RecordingStream, method: str, loglik_trace: np.ndarray,
         rec.send_columns(f"train/{method}/theta/{name}", indexes=it, columns=rr.Scalars.columns(scalars=th[:, k]))
 
 
+def merge_blueprint(a_ids: Sequence[int], *, training_methods: Sequence[str] = (),
+                    section_bounds: tuple[float, float, float, float] | None = None,
+                    first_control: tuple[int, int] | None = None, play: float | None = None,
+                    active_tab: int = 0):
+    """The viewer layout of a run's recording (``rerun.blueprint.Blueprint``).
+
+    Tab "run": the merge view (2D, origin ``/follow``: follows the current merge), the whole
+    section (2D, origin ``/``), and the group "car A": time series of speed, d_AB, d_AC, TTC
+    (y axis clipped to :data:`TTC_RANGE_S`) and the action taken of every controlled car, and
+    the bar chart of the current action probabilities. Tab "training" (only when
+    ``training_methods`` is not empty): log-likelihood and weights against the iteration.
+    The time panel shows the ``step`` timeline, paused, with the first take-over selected.
+
+    Args:
+        a_ids: Vehicle_IDs of the controlled cars (their ``metrics/A_<id>`` entities).
+        training_methods: the ``<method>`` of the ``train/<method>`` entities.
+        section_bounds: ``(x_min, x_max, y_min, y_max)`` ft of the lanes in the mirrored
+            frame, the section view's bounds; None: the viewer's own.
+        first_control: ``(start_frame, end_frame)`` of the first take-over (Frame_IDs).
+        play: play at this speed (x real time) and loop over the selection once the cursor
+            reaches it, instead of pausing (for screenshots: the blueprint has no setting for
+            the time cursor, which starts at the first frame).
+        active_tab: the tab shown first (0 run, 1 training); with the training tab the time
+            panel shows the ``iteration`` timeline.
+    """
+    import rerun.blueprint as rrb
+    from rerun.blueprint.components import AbsoluteTimeRange
+
+    def series(name: str, paths: list[str], **kw):
+        return rrb.TimeSeriesView(name=name, origin="/", contents=paths or ["-/**"],
+                                  plot_legend=rrb.PlotLegend(visible=False), **kw)
+
+    ids = [int(a) for a in a_ids]
+    fx, fy = FOLLOW_HALF_FT
+    merge = rrb.Spatial2DView(
+        name="merge (follows car A)", origin="/follow", contents=["/world/**"],
+        visual_bounds=rrb.VisualBounds2D(x_range=(-fx, fx), y_range=(-fy, fy)), background=[30, 30, 30])
+    bounds = None
+    if section_bounds is not None:
+        x0, x1, y0, y1 = section_bounds
+        bounds = rrb.VisualBounds2D(x_range=(x0, x1), y_range=(y0, y1))
+    section = rrb.Spatial2DView(name="section", origin="/", contents=["/world/**"], background=[30, 30, 30],
+                                visual_bounds=bounds)
+    car_a = rrb.Vertical(
+        series("speed of A (ft/s)", [f"/metrics/A_{a}/speed" for a in ids]),
+        series("d_AB (ft)", [f"/metrics/A_{a}/d_AB" for a in ids]),
+        series("d_AC (ft)", [f"/metrics/A_{a}/d_AC" for a in ids]),
+        series("TTC A to its leader (s)", [f"/metrics/A_{a}/ttc" for a in ids],
+               axis_y=rrb.ScalarAxis(range=TTC_RANGE_S, zoom_lock=True)),
+        series("action of A (0 " + ACTION_NAMES[0].lower() + " .. 4 " + ACTION_NAMES[-1].lower() + ")",
+               [f"/policy/A_{a}/action" for a in ids], axis_y=rrb.ScalarAxis(range=(-0.2, 4.2), zoom_lock=True)),
+        rrb.BarChartView(name="action probabilities now (" + ", ".join(n.lower() for n in ACTION_NAMES) + ")",
+                         origin="/policy/action_probs"),
+        name="car A",
+    )
+    tabs: list[rrb.Container] = [rrb.Horizontal(rrb.Vertical(merge, section, row_shares=[3, 2]), car_a, column_shares=[3, 2], name="run")]
+    if training_methods:
+        tabs.append(rrb.Vertical(
+            series("log-likelihood", [f"/train/{m}/loglik" for m in training_methods]),
+            rrb.TimeSeriesView(name="weights theta", origin="/train", contents=[f"/train/{m}/theta/**" for m in training_methods]),
+            name="training"))
+    sel = None if first_control is None else AbsoluteTimeRange(min=int(first_control[0]), max=int(first_control[1]))
+    return rrb.Blueprint(
+        rrb.Tabs(*tabs, active_tab=min(int(active_tab), len(tabs) - 1)),
+        rrb.TimePanel(timeline="iteration" if active_tab == 1 and training_methods else "step", state="collapsed",
+                      time_selection=sel, play_state="playing" if play and sel is not None else "paused",
+                      playback_speed=float(play) if play else None,
+                      loop_mode="selection" if play and sel is not None else None),
+        rrb.BlueprintPanel(state="collapsed"), rrb.SelectionPanel(state="collapsed"),
+        auto_views=False,
+    )
+
+
+class _ArrowBatch:
+    """A ready arrow array as a rerun component batch (what ``rr.ComponentColumn`` takes)."""
+
+    def __init__(self, array: pa.Array, descriptor):
+        self._array, self._descriptor = array, descriptor
+
+    def as_arrow_array(self) -> pa.Array:
+        return self._array
+
+    def component_descriptor(self):
+        return self._descriptor
+
+
+def bar_chart_column(values: np.ndarray) -> rr.ComponentColumn:
+    """``BarChart`` values as one column of ``n`` bar charts (rows of ``values [n, k]``, float64).
+
+    rerun's Python API builds a bar chart's tensor one call at a time (about 1 ms each); this
+    builds the same arrow layout (TensorData: shape ``[k]``, no names, an F64 buffer) for all
+    rows at once, typed after a one-row sample.
+    """
+    values = np.ascontiguousarray(values, dtype=np.float64)
+    n, k = values.shape
+    sample = next(iter(rr.BarChart.columns(values=np.zeros(max(k, 1)))))
+    st = sample.component_batch.as_arrow_array().type
+    ut = st.field("buffer").type
+    names = [f.name for f in ut]
+    children = [pa.ListArray.from_arrays(pa.array(np.arange(0, n * k + 1, k, dtype=np.int32)), pa.array(values.reshape(-1)),
+                                         type=f.type) if f.name == "F64" else pa.array([], type=f.type) for f in ut]
+    buf = pa.UnionArray.from_dense(pa.array(np.full(n, ut.type_codes[names.index("F64")], dtype=np.int8)),
+                                   pa.array(np.arange(n, dtype=np.int32)), children, field_names=names,
+                                   type_codes=list(ut.type_codes)).view(ut)
+    shape = pa.ListArray.from_arrays(pa.array(np.arange(n + 1, dtype=np.int32)), pa.array(np.full(n, k, dtype=np.uint64)),
+                                     type=st.field("shape").type)
+    arr = pa.StructArray.from_arrays([shape, pa.nulls(n, st.field("names").type), buf], fields=list(st))
+    desc = sample.component_descriptor()
+    return rr.ComponentColumn(desc, _ArrowBatch(arr, desc))
+
+
 class RerunLogger:
     """Step hook writing the run to ``path`` (``.rrd``); see the module docstring.
 
@@ -129,12 +259,17 @@ class RerunLogger:
         episode: the episode's index, if the file holds one episode of several; it goes into
             the recording id and name (:func:`recording_identity`) with the scenario, the
             controller's policy (``sumo`` without a controller) and the seed.
+        training_methods: methods whose traces (:func:`log_training`) the recording holds,
+            for the blueprint's training tab.
     """
 
     def __init__(self, path: str | os.PathLike, *, controller=None, recording: tuple[rr.RecordingStream, Path] | None = None,
                  flush_every: int = 600, log_vehicles: bool = True, application_id: str = "merge-irl",
-                 episode: int | None = None):
+                 episode: int | None = None, training_methods: Sequence[str] = ()):
         self.path = Path(path)
+        self.training_methods = tuple(training_methods)
+        self._section: tuple[float, float, float, float] | None = None
+        self._focus = np.zeros(2)
         self.episode = episode
         self.controller = controller
         self.flush_every = int(flush_every)
@@ -161,6 +296,8 @@ class RerunLogger:
         self._wid: list[np.ndarray] = []
         self._roles: list[np.ndarray] = []
         self._ids: list[np.ndarray] = []
+        self._labels: list[np.ndarray] = []
+        self._foci: list[np.ndarray] = []
 
     @property
     def _stream(self) -> rr.RecordingStream:
@@ -176,11 +313,18 @@ class RerunLogger:
             self._rec, self._tmp = open_recording(self.path, application_id=self._app, recording_id=rid, name=name)
         rec = self._rec
         names = sorted(ctx.lane_shapes, key=lambda s: int(s) if s.isdigit() else 99)
-        strips = [np.column_stack([np.asarray(ctx.lane_shapes[n], float), np.zeros(len(ctx.lane_shapes[n]))]) for n in names]
-        rec.log("world/lanes", rr.LineStrips3D(strips, labels=[f"lane {n}" for n in names],
-                                               colors=[[90, 90, 90, 255]] * len(strips)), static=True)
+        strips = [np.asarray(ctx.lane_shapes[n], float)[:, :2] for n in names]
+        rec.log("world/lanes", rr.LineStrips2D(strips, labels=[f"lane {n}" for n in names], draw_order=10.0,
+                                               radii=rr.Radius.ui_points(1.0),
+                                               colors=[[110, 110, 110, 255]] * len(strips)), static=True)
         rec.log("world", rr.AnnotationContext(
             [(i, name, tuple(int(c) for c in ROLE_COLORS[i][:3])) for name, i in ROLE_IDS.items()]), static=True)
+        rec.log("world", rr.Transform3D(mat3x3=MIRROR_Y), static=True)
+        if strips:
+            pts = np.concatenate(strips) @ MIRROR_Y[:2, :2]
+            lo, hi = pts.min(axis=0) - 30.0, pts.max(axis=0) + 30.0
+            self._section = (float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1]))
+            self._focus = 0.5 * (lo + hi)
 
     def on_step(self, ctx: RunContext, frame: FrameState) -> None:
         n = len(frame.sumo_ids)
@@ -193,6 +337,8 @@ class RerunLogger:
             self._wid.append(frame.width)
             self._roles.append(roles)
             self._ids.append(frame.vehicle_id)
+            self._labels.append(self._labels_of(roles, frame.vehicle_id))
+            self._foci.append(self._focus_of(frame, roles))
             self._lens.append(n)
             self._steps.append(int(frame.frame))
             self._times.append(float(frame.time_s))
@@ -204,7 +350,10 @@ class RerunLogger:
 
     def on_end(self, ctx: RunContext) -> None:
         self._flush()
+        a_ids, first = self._controls()
         self._flush_scalars()
+        self._stream.send_blueprint(merge_blueprint(a_ids, training_methods=self.training_methods,
+                                                    section_bounds=self._section, first_control=first))
         if self._own and self._rec is not None and self._tmp is not None:
             close_recording(self._rec, self._tmp, self.path)
             self._rec = None
@@ -223,9 +372,35 @@ class RerunLogger:
         if self.controller is None:
             roles[frame.lane_id == RAMP_LANE] = ROLE_IDS["B"]
             return roles
+        a_role = ROLE_IDS["A"] if getattr(self.controller.policy, "controls", True) else ROLE_IDS["A observed"]
         for row, role in self.controller.role_rows.items():
-            roles[row] = ROLE_IDS[role]
+            roles[row] = a_role if role == "A" else ROLE_IDS[role]
         return roles
+
+    @staticmethod
+    def _labels_of(roles: np.ndarray, ids: np.ndarray) -> np.ndarray:
+        """``[n]`` object array: "A 12" etc. on A, B and C, "" on the others."""
+        labels = np.full(roles.size, "", dtype=object)
+        for i in np.flatnonzero(roles):
+            labels[i] = f"{ROLE_LABELS[roles[i]]} {int(ids[i])}"
+        return labels
+
+    def _focus_of(self, frame: FrameState, roles: np.ndarray) -> np.ndarray:
+        """Centre (mirrored frame, ft) of the current merge's car A; the last one between merges."""
+        a_rows = np.flatnonzero((roles == ROLE_IDS["A"]) | (roles == ROLE_IDS["A observed"]))
+        if a_rows.size:
+            i = a_rows[np.argmin(frame.vehicle_id[a_rows])]
+            self._focus = np.array([float(frame.global_x[i]) - 0.5 * float(frame.length[i]), -float(frame.global_y[i])])
+        return self._focus
+
+    def _controls(self) -> tuple[list[int], tuple[int, int] | None]:
+        """Controlled cars' ids (in order of take-over) and the first take-over's frame range."""
+        if self.controller is None or not self.controller.controls:
+            return [], None
+        cs = sorted(self.controller.controls, key=lambda c: (c.start_frame, c.a_id))
+        c = cs[0]
+        end = c.end_frame if c.end_frame >= 0 else c.start_frame + 300
+        return list(dict.fromkeys(int(x.a_id) for x in cs)), (int(c.start_frame), int(end))
 
     def _log_controlled(self, frame: FrameState) -> None:
         """Buffers one row per controlled car and frame (and one per decision); see _flush_scalars."""
@@ -258,26 +433,26 @@ class RerunLogger:
         roles = np.concatenate(self._roles)
         length = np.concatenate(self._len)
         n = length.size
-        centers = np.empty((n, 3), dtype=np.float32)
+        centers = np.empty((n, 2), dtype=np.float32)
         centers[:, 0] = np.concatenate(self._gx) - 0.5 * length
         centers[:, 1] = np.concatenate(self._gy)
-        centers[:, 2] = 0.5 * VEHICLE_HEIGHT_FT
-        half = np.empty((n, 3), dtype=np.float32)
+        half = np.empty((n, 2), dtype=np.float32)
         half[:, 0] = 0.5 * length
         half[:, 1] = 0.5 * np.concatenate(self._wid)
-        half[:, 2] = 0.5 * VEHICLE_HEIGHT_FT
         cols = [
-            *rr.Boxes3D.columns(centers=centers, half_sizes=half,
-                                class_ids=roles, colors=ROLE_RGBA_U32[roles]).partition(lens),
+            *rr.Boxes2D.columns(centers=centers, half_sizes=half, class_ids=roles, colors=ROLE_RGBA_U32[roles],
+                                labels=pa.array(np.concatenate(self._labels), type=pa.string())).partition(lens),
+            # the viewer hides the labels of entities with many instances; the others' labels are ""
+            *rr.Boxes2D.columns(show_labels=[True] * lens.size),
             # an arrow array, not numpy: rerun turns a numpy column into one Python list per value
             *rr.AnyValues.columns(vehicle_id=pa.array(ids)).partition(lens),
         ]
-        self._stream.send_columns(
-            "world/vehicles",
-            indexes=[rr.TimeColumn("step", sequence=np.asarray(self._steps)),
-                     rr.TimeColumn("sim_time", duration=np.asarray(self._times))],
-            columns=cols,
-        )
+        indexes = [rr.TimeColumn("step", sequence=np.asarray(self._steps)),
+                   rr.TimeColumn("sim_time", duration=np.asarray(self._times))]
+        self._stream.send_columns("world/vehicles", indexes=indexes, columns=cols)
+        foci = np.zeros((len(self._foci), 3))
+        foci[:, :2] = self._foci
+        self._stream.send_columns("follow", indexes=indexes, columns=rr.Transform3D.columns(translation=foci))
         self._reset_buffers()
 
     def _flush_scalars(self) -> None:
@@ -287,14 +462,23 @@ class RerunLogger:
             for k, name in enumerate(("speed", "d_AC", "d_AB", "ttc"), start=2):
                 keep = ~np.isnan(m[:, k]) if name == "ttc" else slice(None)
                 self._send_series(f"metrics/A_{a_id}/{name}", m[keep, 0], m[keep, 1], m[keep, k])
+        bars: list[np.ndarray] = []
         for a_id, rows in self._decision_rows.items():
             d = np.asarray(rows, dtype=np.float64)  # [n, 2 + 5 + 1 + 3]
             base = f"policy/A_{a_id}"
             self._stream.log(f"{base}/probs", rr.SeriesLines(names=[n.lower() for n in ACTION_NAMES]), static=True)
             self._send_series(f"{base}/probs", d[:, 0], d[:, 1], d[:, 2:7])
             self._send_series(f"{base}/action", d[:, 0], d[:, 1], d[:, 7])
+            bars.append(d[:, :7])
             for k, name in enumerate(FEATURE_NAMES, start=8):
                 self._send_series(f"{base}/features/{name}", d[:, 0], d[:, 1], d[:, k])
+        if bars:
+            b = np.concatenate(bars)
+            b = b[np.argsort(b[:, 0], kind="stable")]  # [n, 7]: step, t, p0..p4, by step
+            self._stream.send_columns(
+                "policy/action_probs",
+                indexes=[rr.TimeColumn("step", sequence=b[:, 0].astype(np.int64)), rr.TimeColumn("sim_time", duration=b[:, 1])],
+                columns=[bar_chart_column(b[:, 2:7])])
         self._metric_rows, self._decision_rows = {}, {}
 
     def _send_series(self, entity: str, steps: np.ndarray, times: np.ndarray, values: np.ndarray) -> None:
@@ -322,6 +506,40 @@ def read_entities(path: str | os.PathLike) -> dict[str, list]:
     return out
 
 
+def read_blueprint(path: str | os.PathLike) -> list[dict]:
+    """The views of the blueprint stored in an ``.rrd``: one dict per view, ``{"name",
+    "kind"`` (e.g. ``"2D"``, ``"TimeSeries"``, ``"BarChart"``), ``"origin"``, ``"contents"``
+    (the entity filter lines)``}``, in no particular order.
+
+    Raises:
+        FileNotFoundError: no such file.
+        ValueError: the file holds no blueprint.
+    """
+    from rerun.chunk import RrdReader
+
+    if not Path(path).is_file():
+        raise FileNotFoundError(f"{path}: no such recording")
+    reader = RrdReader(str(path))
+    entries = reader.blueprints()
+    if not entries:
+        raise ValueError(f"{path}: no blueprint in this .rrd file")
+    views: dict[str, dict] = {}
+    for chunk in reader.stream(store=entries[-1]):
+        ent = chunk.entity_path
+        if not ent.startswith("/view/"):
+            continue
+        key = ent.split("/")[2]
+        v = views.setdefault(key, {"name": None, "kind": None, "origin": None, "contents": []})
+        batch = chunk.to_record_batch().to_pydict()
+        for col, field in (("ViewBlueprint:display_name", "name"), ("ViewBlueprint:class_identifier", "kind"),
+                           ("ViewBlueprint:space_origin", "origin")):
+            if col in batch and batch[col] and batch[col][-1]:
+                v[field] = batch[col][-1][0]
+        if batch.get("ViewContents:query"):
+            v["contents"] = list(batch["ViewContents:query"][-1] or [])
+    return list(views.values())
+
+
 def recording_info(path: str | os.PathLike) -> dict[str, str | None]:
     """``{"application_id", "recording_id", "name"}`` of the (first) recording in an ``.rrd``
     (``name`` None if none was set).
@@ -345,6 +563,23 @@ def recording_info(path: str | os.PathLike) -> dict[str, str | None]:
             if "RecordingInfo:name" in batch.schema.names:
                 name = str(batch.column("RecordingInfo:name")[0][0])
     return {"application_id": entries[0].application_id, "recording_id": entries[0].recording_id, "name": name}
+
+
+def _batch_frame(batch):
+    """A record batch as pandas; columns pandas cannot hold (e.g. ``BarChart``'s tensor
+    unions) as Python objects."""
+    import pandas as pd
+
+    try:
+        return batch.to_pandas()
+    except (pa.ArrowNotImplementedError, pa.ArrowTypeError):
+        cols = {}
+        for name, col in zip(batch.schema.names, batch.columns):
+            try:
+                cols[name] = pa.table({name: col}).to_pandas()[name]
+            except (pa.ArrowNotImplementedError, pa.ArrowTypeError):
+                cols[name] = pd.Series(col.to_pylist(), dtype=object)
+        return pd.DataFrame(cols)
 
 
 def read_rrd_table(path: str | os.PathLike, entity: str | None = None, *, properties: bool = False):
@@ -385,7 +620,7 @@ def read_rrd_table(path: str | os.PathLike, entity: str | None = None, *, proper
             continue
         batch = chunk.to_record_batch()
         keep = [f.name for f in batch.schema if (f.metadata or {}).get(b"rerun:kind") != b"control"]
-        df = batch.select(keep).to_pandas()
+        df = _batch_frame(batch.select(keep))
         for col in df.columns:
             if pd.api.types.is_timedelta64_dtype(df[col]):
                 df[col] = df[col].dt.total_seconds()

@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.evaluate_report import _plt, _save
+from analysis.report_plots import _plt, _save
 from irl.atomic import temporary_path, write_atomic, write_json_atomic, write_text_atomic
 from scenarios.calibration.fit import CalibrationResult
 from scenarios.calibration.models import CFParams

@@ -4,13 +4,16 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import rerun as rr
 
 from analysis.episode import run_episode
 from analysis.rerun_log import (
     ROLE_IDS,
+    ROLE_LABELS,
     close_recording,
     log_training,
     open_recording,
+    read_blueprint,
     read_entities,
     read_rrd_table,
     recording_identity,
@@ -54,7 +57,7 @@ def test_rrd_has_expected_entities(logged):
     assert lanes.schema.metadata is not None
     # static lanes: no timeline column
     assert "step" not in lanes.schema.names
-    strips = lanes.column("LineStrips3D:strips")[0].as_py()
+    strips = lanes.column("LineStrips2D:strips")[0].as_py()
     assert len(strips) == 4  # synthetic: 3 main lanes + lane 7
 
 
@@ -71,21 +74,29 @@ def test_vehicle_positions_and_roles_match_the_table(logged):
     for b in batches:
         st = b.column("step").to_numpy()
         ids = b.column("vehicle_id").to_pylist()
-        cen = b.column("Boxes3D:centers").to_pylist()
-        half = b.column("Boxes3D:half_sizes").to_pylist()
-        cls = b.column("Boxes3D:class_ids").to_pylist()
+        cen = b.column("Boxes2D:centers").to_pylist()
+        half = b.column("Boxes2D:half_sizes").to_pylist()
+        cls = b.column("Boxes2D:class_ids").to_pylist()
+        lab = b.column("Boxes2D:labels").to_pylist()
         for i, s in enumerate(st):
-            for v, c, h, k in zip(ids[i], cen[i], half[i], cls[i]):
-                rows.append((int(s), int(v), c[0] + h[0], c[1], k))
+            for v, c, h, k, lb in zip(ids[i], cen[i], half[i], cls[i], lab[i]):
+                rows.append((int(s), int(v), c[0] + h[0], c[1], 2 * h[0], 2 * h[1], k, lb))
     import pandas as pd
 
-    rr_df = pd.DataFrame(rows, columns=["Frame_ID", "Vehicle_ID", "front_x", "y", "role"])
+    rr_df = pd.DataFrame(rows, columns=["Frame_ID", "Vehicle_ID", "front_x", "y", "len", "wid", "role", "label"])
     assert len(rr_df) == len(table)  # every vehicle of every frame, in one entity
     m = table.merge(rr_df, on=["Frame_ID", "Vehicle_ID"])
     assert len(m) == len(table)
     # float32 in the file: within 0.01 ft
     np.testing.assert_allclose(m.front_x, m.Global_X, atol=0.01)
     np.testing.assert_allclose(m.y, m.Global_Y, atol=0.01)
+    # boxes in the vehicles' real size; labels on A, B, C only
+    np.testing.assert_allclose(m.len, m.v_Length, atol=0.01)
+    np.testing.assert_allclose(m.wid, m.v_Width, atol=0.01)
+    assert (m.label[m.role == ROLE_IDS["other"]] == "").all()
+    tagged = m[m.role != ROLE_IDS["other"]]
+    assert len(tagged) and all(lb.split() == [r, str(v)] for lb, r, v in
+                               zip(tagged.label, tagged.role.map(dict(enumerate(ROLE_LABELS))), tagged.Vehicle_ID))
     # the controlled cars are role A exactly in their control windows (decisions frames)
     dec = res.decisions
     ctl_rows = m.merge(dec[["frame", "a_id"]], left_on=["Frame_ID", "Vehicle_ID"], right_on=["frame", "a_id"])
@@ -196,3 +207,118 @@ def test_rrd_table_of_training_traces(tmp_path):
     assert read_rrd_table(path, "/nothing").empty
     with pytest.raises(FileNotFoundError, match="missing.rrd"):
         read_rrd_table(tmp_path / "missing.rrd")
+
+
+@pytest.mark.sumo
+def test_blueprint_is_shipped_with_the_recording(logged):
+    path, res = logged
+    views = {v["name"]: v for v in read_blueprint(path)}
+    a_ids = list(dict.fromkeys(int(a) for a in res.controls.sort_values(["start_frame", "a_id"]).a_id))
+    merge, section = views["merge (follows car A)"], views["section"]
+    assert merge["kind"] == section["kind"] == "2D"
+    assert merge["origin"] == "/follow" and merge["contents"] == ["/world/**"] and section["origin"] == "/"
+    series = {n: v for n, v in views.items() if v["kind"] == "TimeSeries"}
+    for q in ("speed", "d_AB", "d_AC", "ttc"):
+        (v,) = [v for v in series.values() if v["contents"] and v["contents"][0].endswith("/" + q)]
+        assert v["contents"] == [f"/metrics/A_{a}/{q}" for a in a_ids]
+    assert any(v["contents"] == [f"/policy/A_{a}/action" for a in a_ids] for v in series.values())
+    (bars,) = [v for v in views.values() if v["kind"] == "BarChart"]
+    assert bars["origin"] == "/policy/action_probs"
+    assert not any(n.startswith(("log-likelihood", "weights")) for n in views)  # no training logged here
+    # every entity a view names is in the file; the follow transform has one row per frame
+    ents = read_entities(path)
+    for v in views.values():
+        for c in v["contents"]:
+            if not c.endswith("**"):
+                assert c in ents, c
+    follow = read_rrd_table(path, "/follow")
+    assert len(follow) == res.table.Frame_ID.nunique()
+    probs = read_rrd_table(path, "/policy/action_probs")
+    assert len(probs) == len(res.decisions)  # one bar chart per decision (the latest at a time is shown)
+
+
+def test_blueprint_training_tab(tmp_path):
+    from analysis.rerun_log import merge_blueprint
+
+    path = tmp_path / "bp.rrd"
+    rec, tmp = open_recording(path, recording_id="bp-test")
+    log_training(rec, "qsm", np.array([-3.0, -2.0]), np.ones((2, 3)))
+    rec.send_blueprint(merge_blueprint([5, 9], training_methods=["qsm", "reirl"], first_control=(10, 40)))
+    close_recording(rec, tmp, path)
+    views = {v["name"]: v for v in read_blueprint(path)}
+    assert views["log-likelihood"]["contents"] == ["/train/qsm/loglik", "/train/reirl/loglik"]
+    assert views["weights theta"]["contents"] == ["/train/qsm/theta/**", "/train/reirl/theta/**"]
+    assert views["speed of A (ft/s)"]["contents"] == ["/metrics/A_5/speed", "/metrics/A_9/speed"]
+    with pytest.raises(ValueError, match="no blueprint"):
+        p2 = tmp_path / "plain.rrd"
+        r2, t2 = open_recording(p2, recording_id="plain")
+        log_training(r2, "qsm", np.array([-3.0]), np.ones((1, 3)))
+        close_recording(r2, t2, p2)
+        read_blueprint(p2)
+
+
+@pytest.mark.sumo
+def test_a_run_with_two_policies_holds_two_named_recordings(tmp_path):
+    from analysis.evaluate import evaluate
+
+    rep = evaluate([], "synthetic", 1, 5, tmp_path / "eval", duration_s=90.0, baselines=("sumo", "uniform"),
+                   workers=1, progress=False)
+    files = sorted((tmp_path / "eval" / "rerun").glob("*.rrd"))
+    assert [f.name for f in files] == ["sumo.rrd", "uniform.rrd"]
+    infos = [recording_info(f) for f in files]
+    assert [i["recording_id"] for i in infos] == ["merge-irl/synthetic/sumo/seed5", "merge-irl/synthetic/uniform/seed5"]
+    assert [i["name"] for i in infos] == ["sumo on synthetic, seed 5", "uniform on synthetic, seed 5"]
+    for f in files:
+        assert {v["name"] for v in read_blueprint(f)} >= {"merge (follows car A)", "section", "speed of A (ft/s)"}
+    # the SUMO baseline's As are observed, not driven: their own role and colour
+    roles = np.concatenate(read_rrd_table(files[0], "/world/vehicles")["Boxes2D:class_ids"].to_numpy())
+    assert (roles == ROLE_IDS["A observed"]).any() and not (roles == ROLE_IDS["A"]).any()
+    roles = np.concatenate(read_rrd_table(files[1], "/world/vehicles")["Boxes2D:class_ids"].to_numpy())
+    assert (roles == ROLE_IDS["A"]).any() and not (roles == ROLE_IDS["A observed"]).any()
+    assert set(rep.rrd) == {"sumo", "uniform"}
+    assert {p.name for p in rep.plots} >= {"speed_profiles.png", "acceleration.png", "headway.png"}
+
+
+@pytest.mark.sumo
+def test_screenshot_blueprint_is_recovered_from_the_recording(logged):
+    from tools.render_screenshots import blueprint_inputs
+
+    path, res = logged
+    args = blueprint_inputs(path)
+    c = res.controls.sort_values(["start_frame", "a_id"])
+    assert args["a_ids"] == list(dict.fromkeys(int(a) for a in c.a_id))
+    assert args["training_methods"] == []
+    # the first take-over: from its first to its last logged frame
+    first = c.iloc[0]
+    assert args["first_control"][0] == int(first.start_frame)
+    assert int(first.start_frame) < args["first_control"][1] <= (int(first.end_frame) if first.end_frame >= 0
+                                                                 else int(res.table.Frame_ID.max()))
+    x0, x1, y0, y1 = args["section_bounds"]
+    assert x0 < res.table.Global_X.min() and x1 > res.table.Global_X.max()
+    assert y0 < -res.table.Global_Y.max() and y1 > -res.table.Global_Y.min()  # mirrored y
+    assert args["play"] >= 4.0
+
+
+def test_screenshot_tool_rejects_missing_files(tmp_path, capsys):
+    from tools.render_screenshots import main
+
+    assert main([str(tmp_path / "none.rrd")]) == 2
+    assert "none.rrd" in capsys.readouterr().err
+
+
+def test_bar_chart_column_matches_rerun_bar_charts(tmp_path):
+    from analysis.rerun_log import bar_chart_column
+
+    vals = np.random.default_rng(2).random((7, 5))
+    a, b = tmp_path / "cols.rrd", tmp_path / "log.rrd"
+    rec, tmp = open_recording(a, recording_id="cols")
+    rec.send_columns("p", indexes=[rr.TimeColumn("step", sequence=np.arange(7))], columns=[bar_chart_column(vals)])
+    close_recording(rec, tmp, a)
+    rec, tmp = open_recording(b, recording_id="log")
+    for i, v in enumerate(vals):
+        rec.set_time("step", sequence=i)
+        rec.log("p", rr.BarChart(v))
+    close_recording(rec, tmp, b)
+    ta, tb = read_rrd_table(a, "/p"), read_rrd_table(b, "/p")
+    assert list(ta["BarChart:values"]) == list(tb["BarChart:values"])
+    assert len(ta) == 7 and ta["BarChart:values"].iloc[3]["buffer"] == list(vals[3])

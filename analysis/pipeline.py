@@ -38,7 +38,7 @@ import pandas as pd
 
 from analysis.episode import frame_from_dict, frame_to_dict
 from analysis.evaluate import EvaluationReport, evaluate, learned_policy, prepare_encounters, resolve_executor
-from analysis.evaluate_report import report_table
+from analysis.evaluate_report import flag_lines, report_table
 from analysis.learn import fit_problem, saved_model
 from analysis.provenance import provenance, provenance_markdown, text_digest, write_timings
 from analysis.sweep import Task, run_sweep
@@ -110,6 +110,7 @@ class DemoResult:
             *[f"  left out: {k} ({v})" for k, v in self.fit_messages.items() if k not in self.models],
             "",
             report_table(self.evaluation.aggregates),
+            *flag_lines(self.evaluation.aggregates),
             "",
             f"  report:  {self.evaluation.report_md}",
             f"  metrics: {self.evaluation.metrics_json}",
@@ -136,6 +137,9 @@ def encounters_task(run: EncounterRun, seed: int) -> dict:
     spec = load_scenario(run.scenario) if isinstance(run.scenario, (str, Path)) else run.scenario
     res = run_scenario(spec, seed=run.seed, duration_s=run.duration_s)
     frames = extract_encounters(res.table)
+    # A's speed at each encounter frame, for the closed loop's Wasserstein distance of speed
+    speed = res.table.set_index(["Vehicle_ID", "Frame_ID"])["v_Vel"]
+    frames["v_A"] = speed.reindex(pd.MultiIndex.from_arrays([frames["A_id"], frames["Frame_ID"]])).to_numpy(float)
     frames["encounter_id"] = frames["encounter_id"].astype("int64") + 1_000_000 * int(run.seed)
     return frame_to_dict(frames)
 
@@ -219,9 +223,10 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     _run_logged_episode(config, pol, logger)
     close_recording(rec, tmp_rrd, out / "demo.rrd")
 
-    _say(f"[5/5] evaluating {len(models)} models + sumo + uniform, {config.eval_episodes} episodes each", quiet)
+    _say(f"[5/5] evaluating {len(models)} models + sumo, uniform, marginal, markov, bc, "
+         f"{config.eval_episodes} episodes each", quiet)
     report = evaluate(list(models.values()), config.scenario, config.eval_episodes, config.eval_seed,
-                      out / "evaluation", duration_s=config.eval_duration_s, demos=held_path,
+                      out / "evaluation", duration_s=config.eval_duration_s, demos=held_path, train_demos=train_path,
                       workers=config.workers, executor=config.executor, progress=progress)
     wall = time.perf_counter() - t0
     result = DemoResult(out, models, report, out / "demo.rrd", out / "summary.md", int(train["encounter_id"].nunique()),

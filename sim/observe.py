@@ -34,6 +34,7 @@ class MergeObservation:
         b_is_truck: whether B is a truck.
         state: discrete state index in ``[0, 1250)`` (-1 when no encoder was given).
         speed_A: A's speed (ft/s), for logging.
+        prev_action: A's action at the previous decision of this control episode (-1: none).
     """
 
     d_AC: float
@@ -43,6 +44,7 @@ class MergeObservation:
     b_is_truck: bool
     state: int = -1
     speed_A: float = 0.0
+    prev_action: int = -1
 
     def as_array(self) -> np.ndarray:
         """``[5]``: d_AC, d_AB, v_AC, v_AB, B_is_truck."""

@@ -6,7 +6,8 @@
    one held-out seed (in worker processes), extract the merge encounters (``sim.encounters``);
 2. **discretize**: quantile bin edges fitted on the training encounters (``irl.domains.merge``);
    encounter frames without a lead car C get the closed loop's open-road values;
-3. **learn** Q-Avg, Q-SM, MLIRL and REIRL (``analysis.learn``), one ``model.json`` each;
+3. **learn** Q-Avg and MLIRL by default (Q-SM and REIRL on request; ``analysis.learn``), one
+   ``model.json`` each;
 4. **re-inject and evaluate**: every model drives the lag cars A of new episodes (other seeds),
    against SUMO's own driver and uniform random (``analysis.evaluate``), with the held-out
    encounters for the action divergence and the held-out log-likelihood;
@@ -66,7 +67,9 @@ class DemoConfig:
         data_duration_s: simulated seconds of each data run (None: the scenario's).
         eval_seed: first seed of the evaluation episodes; eval_episodes: episodes per policy.
         eval_duration_s: simulated seconds per evaluation episode.
-        methods: IRL methods to learn.
+        methods: IRL methods to learn (default Q-Avg and MLIRL: Q-SM's fixed-point
+            iteration took 26-57 s of the demo and REIRL's dual is unbounded on this data, so
+            both are optional, ``methods=METHODS`` or ``merge-irl demo --methods ...``).
         fit_seed: seed of the IRL fits.
         workers: processes (``process:<workers>``).
         executor: where the data runs and evaluation episodes run (``analysis.sweep``
@@ -80,7 +83,7 @@ class DemoConfig:
     eval_seed: int = 1
     eval_episodes: int = 3
     eval_duration_s: float | None = 240.0
-    methods: tuple[str, ...] = METHODS
+    methods: tuple[str, ...] = ("qavg", "mlirl")
     fit_seed: int = 0
     workers: int = 2
     executor: str | None = None

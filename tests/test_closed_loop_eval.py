@@ -119,8 +119,8 @@ def test_safety_filter_intervenes_and_prevents_rear_end_collisions():
     from sim.controller import ControllerConfig
     from sim.policy import ConstantPolicy
 
-    raw = run_episode("synthetic", ConstantPolicy(4), 3, duration_s=150.0)
-    safe = run_episode("synthetic", ConstantPolicy(4), 3, duration_s=150.0,
+    raw = run_episode("synthetic", ConstantPolicy(4), 5, duration_s=150.0)
+    safe = run_episode("synthetic", ConstantPolicy(4), 5, duration_s=150.0,
                        controller=ControllerConfig(safety_ttc_s=3.0))
     assert raw.metrics.a_collisions >= 1 and raw.metrics.safety_interventions == 0
     assert safe.metrics.safety_interventions > 0

@@ -157,6 +157,29 @@ def test_evaluate_cli(tmp_path):
     assert "FAIL" in gate.stderr and "n_episodes" in gate.stderr
 
 
+@pytest.mark.sumo
+def test_evaluate_cli_baselines_safety_filter_and_flag_gate(tmp_path):
+    from dataclasses import replace
+
+    model_path = replace(_model(), converged=False).save(tmp_path / "qavg.json")
+    demos = tmp_path / "demos.parquet"
+    _encounters(120, seed=4).to_parquet(demos)
+    out = tmp_path / "ev"
+    r = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--model", str(model_path), "--episodes", "1",
+                        "--duration", "100", "--baselines", "markov,bc", "--train-demos", str(demos),
+                        "--demos", str(demos), "--safety-ttc", "2.5", "--no-rrd", "--no-progress", "--seed", "5",
+                        "--executor", "process:2", "--out", str(out), "--fail-if", "flagged>0"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 1, r.stderr  # the not-converged model trips the gate
+    assert "qavg: flagged = 1" in r.stderr and "WARNING: model qavg is flagged (not_converged)" in r.stderr
+    data = json.loads((out / "metrics.json").read_text())
+    assert list(data["policies"]) == ["qavg", "markov", "bc"]
+    assert data["policies"]["qavg"]["aggregate"]["flags"] == ["not_converged"]
+    assert data["controller"]["safety_ttc_s"] == 2.5
+    md = (out / "report.md").read_text()
+    assert "FLAGGED: not_converged" in md and "safety filter on (TTC >= 2.5 s)" in md
+
+
 def test_view_cli_prints_recordings(tmp_path):
     from analysis.rerun_log import close_recording, log_training, open_recording
 

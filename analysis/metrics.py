@@ -46,7 +46,6 @@ from scipy.stats import binomtest, wasserstein_distance
 from irl.domains.merge import N_ACTIONS
 from irl.units import FRAME_S, FT_PER_M
 
-
 #: TTC values above this (s) are set to it before the Wasserstein distance.
 TTC_CAP_S = 30.0
 

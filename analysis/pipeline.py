@@ -46,7 +46,6 @@ from analysis.sweep import Task, run_sweep
 from irl.atomic import write_text_atomic
 from irl.config import IRLConfig
 from irl.errors import IRLError
-from irl.fit import METHODS
 from irl.domains.merge import fit_quantile_bins
 from irl.problems import load_problem
 from scenarios.loader import load_scenario
@@ -69,7 +68,7 @@ class DemoConfig:
         eval_duration_s: simulated seconds per evaluation episode.
         methods: IRL methods to learn (default Q-Avg and MLIRL: Q-SM's fixed-point
             iteration took 26-57 s of the demo and REIRL's dual is unbounded on this data, so
-            both are optional, ``methods=METHODS`` or ``merge-irl demo --methods ...``).
+            both are optional, ``methods=irl.fit.METHODS`` or ``merge-irl demo --methods ...``).
         fit_seed: seed of the IRL fits.
         workers: processes (``process:<workers>``).
         executor: where the data runs and evaluation episodes run (``analysis.sweep``

@@ -24,6 +24,7 @@ import numpy as np
 from sim.hooks import FrameState
 from sim.schema import RIGHTMOST_MAIN_LANE, V_CLASS_TRUCK
 
+
 @dataclass(frozen=True)
 class MergeObservation:
     """What car A sees at one decision step.

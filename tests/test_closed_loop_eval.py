@@ -7,7 +7,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.metrics import EpisodeMetrics, aggregate, rate_ci95, ttc_to_c, w1_to_demos, TTC_CAP_S
+from analysis.metrics import (
+    TTC_CAP_S,
+    EpisodeMetrics,
+    aggregate,
+    rate_ci95,
+    ttc_to_c,
+    w1_to_demos,
+)
 from analysis.thresholds import check_thresholds, parse_thresholds
 from irl.baselines import BaselinePolicy
 from irl.config import IRLConfig
@@ -24,7 +31,7 @@ def test_collision_rate_interval_is_wilson():
     assert rate == 0 and lo == pytest.approx(0.0, abs=1e-12)
     assert hi == pytest.approx(1.96 ** 2 / (30 + 1.96 ** 2), rel=1e-3)  # Wilson upper bound at k = 0
     rate, lo, hi = rate_ci95(3, 10)
-    assert lo < 0.3 < hi and hi < 0.61
+    assert lo < 0.3 < hi < 0.61
     assert all(np.isnan(rate_ci95(0, 0)))
 
 

@@ -81,7 +81,7 @@ class DemoConfig:
     data_duration_s: float | None = None
     eval_seed: int = 1
     eval_episodes: int = 3
-    eval_duration_s: float | None = 240.0
+    eval_duration_s: float | None = 180.0
     methods: tuple[str, ...] = ("qavg", "mlirl")
     fit_seed: int = 0
     workers: int = 2

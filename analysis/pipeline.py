@@ -203,7 +203,8 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
         log_training(rec, method, fit.loglik_trace, fit.theta_trace, problem.feature_names)
         usable = math.isfinite(fit.loglik) and np.all(np.isfinite(fit.q)) and np.all(np.isfinite(fit.theta))
         _say(f"      {method}: loglik {fit.loglik:.2f}, theta {[round(float(x), 3) for x in fit.theta]} "
-             f"({fit.wall_time_s:.2f} s){'' if usable else ' -- not usable, left out: ' + fit.message}", quiet)
+             f"({fit.wall_time_s:.2f} s){' FLAGGED ' + ', '.join(fit.flags) if fit.flags else ''}"
+             f"{'' if usable else ' -- not usable, left out: ' + fit.message}", quiet)
         if usable:
             model = saved_model(fit, problem, seed=config.fit_seed, source=str(train_path), provenance=model_prov)
             models[method] = model.save(out / "models" / f"{method}.json")

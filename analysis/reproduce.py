@@ -3,10 +3,11 @@
 Table 1: gridworld without noise; Table 2: gridworld with 10 % slip; Table 3: the 12 NGSIM merge
 trajectories. Every method (MLIRL, Q-Avg, Q-SM, REIRL) runs over N random initialisations (the
 same N trial seeds for every method, so trials pair up); the report gives mean +- std of each
-weight and of the final log-likelihood, the Wilcoxon signed-rank p-value of each method's final
-log-likelihoods against MLIRL's, and what the paper lacks: the leave-one-trajectory-out
+weight and of the final log-likelihood, and what the paper lacks: the leave-one-trajectory-out
 log-likelihood (sum over folds of the held-out trajectory's log-likelihood, one fit per fold
-with the first trial seed).
+with the first trial seed), Wilcoxon signed-rank p-values of the paired held-out trajectories
+(per-fold LOO log-likelihoods) against MLIRL's and the marginal's, and the baselines
+``uniform``, ``marginal``, ``markov`` and ``bc`` (:mod:`irl.baselines`) as rows.
 
 Example::
 
@@ -33,13 +34,15 @@ from analysis.sweep import ResultStore, SweepReport, Task, TaskFailure, run_swee
 from analysis.trials import (TrialOutcome, TrialSpec, cached_table_problem, config_label, resolve_data_dir,
                              run_trial_spec, trial_seeds)
 from irl.atomic import write_json_atomic
+from irl.baselines import BASELINES, baseline_leave_one_out, fit_baseline, paired_test
 from irl.config import IRLConfig
 from irl.errors import ConfigError
 from irl.reirl import DEFAULT_EPSILON
 
 #: Row order of the paper's tables.
 METHOD_ORDER = ("mlirl", "qavg", "qsm", "reirl")
-METHOD_LABELS = {"mlirl": "MLIRL", "qavg": "Q-Avg", "qsm": "Q-SM", "reirl": "REIRL"}
+METHOD_LABELS = {"mlirl": "MLIRL", "qavg": "Q-Avg", "qsm": "Q-SM", "reirl": "REIRL", "uniform": "uniform",
+                 "marginal": "marginal", "markov": "markov", "bc": "bc"}
 DEFAULT_TRIALS = {1: 30, 2: 30, 3: 10}
 TITLES = {
     1: "Table 1: gridworld, no transition noise",
@@ -76,9 +79,14 @@ class MethodSummary:
     Attributes:
         theta_mean, theta_std: ``[K]`` over trials (sample std, ddof 1).
         loglik_mean, loglik_std: final in-sample log-likelihood over trials.
-        p_vs_mlirl: two-sided Wilcoxon signed-rank p-value of the paired final log-likelihoods
-            against MLIRL's (NaN for MLIRL itself or too few trials; 1.0 if all differences are 0).
+        p_vs_mlirl: two-sided Wilcoxon signed-rank p-value of the paired held-out trajectories
+            (per-fold LOO log-likelihoods) against MLIRL's (:func:`irl.baselines.paired_test`; NaN
+            for MLIRL itself or without the LOO evaluation; 1.0 if all differences are 0).
         heldout_loglik: leave-one-trajectory-out log-likelihood (NaN if not run).
+        heldout_folds: ``[n_trajectories]`` the per-fold values summed in ``heldout_loglik``.
+        p_vs_marginal: as ``p_vs_mlirl``, against the ``marginal`` baseline.
+        Baseline rows (``uniform``, ``marginal``, ``markov``, ``bc``) have no weights and one
+        deterministic fit on all trajectories.
         n_converged, n_unbounded: trial counts.
         time_mean_s: mean wall time per trial.
     """
@@ -94,6 +102,8 @@ class MethodSummary:
     n_converged: int
     n_unbounded: int
     time_mean_s: float
+    heldout_folds: tuple[float, ...] = ()
+    p_vs_marginal: float = float("nan")
 
 
 @dataclass(frozen=True)
@@ -162,42 +172,52 @@ def save_reports_json(reports: Sequence[ReproductionReport], path: str | os.Path
 
 
 
-def wilcoxon_p(x: np.ndarray, y: np.ndarray) -> float:
-    """Two-sided Wilcoxon signed-rank p-value of paired samples; 1.0 when every difference is
-    zero (no evidence of a difference), NaN with fewer than 2 pairs."""
-    from scipy.stats import wilcoxon
+#: Two-sided Wilcoxon signed-rank p-value of paired samples (one home: :mod:`irl.baselines`).
+wilcoxon_p = paired_test
 
-    d = np.asarray(x, dtype=float) - np.asarray(y, dtype=float)
-    d = d[np.isfinite(d)]
-    if d.size < 2:
+
+def _folds(holdout: list[TrialOutcome]) -> np.ndarray:
+    """``[n]`` held-out log-likelihoods ordered by fold (held-out trajectory index)."""
+    return np.array([o.heldout_loglik for o in sorted(holdout, key=lambda o: o.holdout)])
+
+
+def _p_against(folds: np.ndarray, ref: np.ndarray | None) -> float:
+    if ref is None or folds.size == 0 or folds.shape != ref.shape:
         return float("nan")
-    if np.all(np.abs(d) <= 1e-12 * max(1.0, float(np.max(np.abs(x))))):
-        return 1.0
-    try:
-        return float(wilcoxon(d).pvalue)
-    except ValueError:
-        return float("nan")
+    return paired_test(folds, ref)
 
 
-def summarize(method: str, outcomes: list[TrialOutcome], mlirl: list[TrialOutcome] | None,
-              holdout: list[TrialOutcome]) -> MethodSummary:
+def summarize(method: str, outcomes: list[TrialOutcome], mlirl_folds: np.ndarray | None,
+              holdout: list[TrialOutcome], marginal_folds: np.ndarray | None = None) -> MethodSummary:
+    """One method's row; p-values pair its held-out folds with MLIRL's and the marginal's."""
     theta = np.array([o.theta for o in outcomes])
     ll = np.array([o.loglik for o in outcomes])
     ddof = 1 if len(outcomes) > 1 else 0
-    p = float("nan")
-    if mlirl is not None and method != "mlirl":
-        ref = {o.seed: o.loglik for o in mlirl}  # pair by trial seed (a failed trial drops its pair)
-        pairs = [(o.loglik, ref[o.seed]) for o in outcomes if o.seed in ref]
-        if pairs:
-            x, y = np.array(pairs).T
-            p = wilcoxon_p(x, y)
-    held = float(np.sum([o.heldout_loglik for o in holdout])) if holdout else float("nan")
+    folds = _folds(holdout)
+    p = _p_against(folds, mlirl_folds) if method != "mlirl" else float("nan")
+    held = float(np.sum(folds)) if holdout else float("nan")
     return MethodSummary(
         method=method, theta_mean=tuple(theta.mean(axis=0)), theta_std=tuple(theta.std(axis=0, ddof=ddof)),
         loglik_mean=float(ll.mean()), loglik_std=float(ll.std(ddof=ddof)), p_vs_mlirl=p, heldout_loglik=held,
         n_trials=len(outcomes), n_converged=sum(o.converged for o in outcomes),
         n_unbounded=sum(o.unbounded for o in outcomes),
         time_mean_s=float(np.mean([o.wall_time_s for o in outcomes])),
+        heldout_folds=tuple(float(x) for x in folds), p_vs_marginal=_p_against(folds, marginal_folds),
+    )
+
+
+def baseline_summary(name: str, problem: Problem, holdout: bool, mlirl_folds: np.ndarray | None,
+                     marginal_folds: np.ndarray | None) -> MethodSummary:
+    """The row of baseline ``name``: in-sample log-likelihood of its fit on every trajectory and,
+    with ``holdout``, its per-fold LOO values (:func:`irl.baselines.baseline_leave_one_out`)."""
+    demos = problem.demos
+    folds = baseline_leave_one_out(name, demos) if holdout else np.empty(0)
+    return MethodSummary(
+        method=name, theta_mean=(), theta_std=(), loglik_mean=fit_baseline(name, demos).loglik(demos),
+        loglik_std=0.0, p_vs_mlirl=_p_against(folds, mlirl_folds),
+        heldout_loglik=float(folds.sum()) if holdout else float("nan"), n_trials=1, n_converged=1,
+        n_unbounded=0, time_mean_s=0.0, heldout_folds=tuple(float(x) for x in folds),
+        p_vs_marginal=_p_against(folds, marginal_folds) if name != "marginal" else float("nan"),
     )
 
 
@@ -312,13 +332,16 @@ def _table_report(table: int, data_dir: str, config: IRLConfig, methods: Sequenc
     main = [o for o in outcomes if o.holdout is None]
     folds = [o for o in outcomes if o.holdout is not None]
     by_method = {m: [o for o in main if o.method == m] for m in methods}
-    mlirl = by_method.get("mlirl")
     # a method with a failed fold gets no held-out sum (NaN) rather than a partial one
     fold_failed = {f.key.split("/")[1] for f in failures if "/holdout" in f.key}
-    rows = tuple(summarize(m, by_method[m], mlirl,
-                           [] if m in fold_failed else [o for o in folds if o.method == m])
-                 for m in methods if by_method[m])
-    names = tuple(cached_table_problem(table, data_dir).feature_names)
+    held = {m: [] if m in fold_failed else [o for o in folds if o.method == m] for m in methods}
+    problem = cached_table_problem(table, data_dir)
+    with_holdout = bool(folds)
+    marginal = baseline_leave_one_out("marginal", problem.demos) if with_holdout else None
+    mlirl = _folds(held["mlirl"]) if held.get("mlirl") else None
+    rows = tuple(summarize(m, by_method[m], mlirl, held[m], marginal) for m in methods if by_method[m])
+    rows += tuple(baseline_summary(b, problem, with_holdout, mlirl, marginal) for b in BASELINES)
+    names = tuple(problem.feature_names)
     return ReproductionReport(table, TITLES[table], config, names, rows, tuple(main), tuple(folds), int(seed),
                               failures, provenance=prov)
 
@@ -361,14 +384,15 @@ def format_report(report: ReproductionReport) -> str:
     """The paper's table layout plus p-values and held-out log-likelihood, and the paper's means."""
     k = len(report.feature_names)
     head = ["Method"] + [f"θ_{i + 1} ({n})" for i, n in enumerate(report.feature_names)] + \
-        ["Final log-likelihood", "p vs MLIRL", "LOO held-out LL", "conv/unb", "s/trial"]
-    lines = [[METHOD_LABELS[r.method]] + [_pm(m, s) for m, s in zip(r.theta_mean, r.theta_std)]
-             + [_pm(r.loglik_mean, r.loglik_std), _p(r.p_vs_mlirl),
+        ["Final log-likelihood", "LOO held-out LL", "p vs MLIRL", "p vs marginal", "conv/unb", "s/trial"]
+    lines = [[METHOD_LABELS[r.method]] + ([_pm(m, s) for m, s in zip(r.theta_mean, r.theta_std)] or ["-"] * k)
+             + [_pm(r.loglik_mean, r.loglik_std),
                 f"{r.heldout_loglik:.2f}" if math.isfinite(r.heldout_loglik) else "-",
+                _p(r.p_vs_mlirl), _p(r.p_vs_marginal),
                 f"{r.n_converged}/{r.n_unbounded}", f"{r.time_mean_s:.3f}"] for r in report.rows]
     paper = PAPER.get(report.table, {})
     paper_lines = [[f"paper {METHOD_LABELS[m]}"] + [f"{v:.2f}" for v in paper[m][:k]] + [f"{paper[m][k]:.2f}", "", "",
-                                                                                        "", ""]
+                                                                                        "", "", ""]
                    for m in METHOD_ORDER if m in paper and len(paper[m]) == k + 1]
     table = [head] + lines + paper_lines
     widths = [max(len(row[c]) for row in table) for c in range(len(head))]
@@ -379,9 +403,11 @@ def format_report(report: ReproductionReport) -> str:
         if i == 0 or (paper_lines and i == len(lines)):
             out.append("  ".join("-" * w for w in widths))
     out.append("Final log-likelihood: Eq. 5 sum of log pi(a|s) over the training steps, without log Pr(s_1). "
-               "p: two-sided Wilcoxon signed-rank test of paired trials vs MLIRL. LOO held-out LL: sum over "
-               "trajectories of its log-likelihood under the policy fitted on the others (first trial seed). "
-               "conv/unb: trials converged / with unbounded weights.")
+               "LOO held-out LL: sum over trajectories of its log-likelihood under the policy fitted on the "
+               "others (first trial seed). p: two-sided Wilcoxon signed-rank test of the paired held-out "
+               "trajectories (per-fold LOO LL) vs MLIRL / the marginal. Baselines (add-one smoothed): uniform; "
+               "marginal = action frequencies; markov = next action given the previous one (first step: "
+               "marginal); bc = tabular behaviour cloning. conv/unb: trials converged / with unbounded weights.")
     for f in report.failures:
         out.append(f"FAILED {f.key} after {f.attempts} attempt(s): {f.error}")
     return "\n".join(out)

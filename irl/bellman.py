@@ -326,6 +326,50 @@ def boltzmann_fixed_point(
     return FixedPoint(fp.q, True, iterations, fp.residual, "converged")
 
 
+def iteration_fixed_point(
+    r: np.ndarray,
+    succ: SuccessorModel,
+    beta: float,
+    gamma: float,
+    *,
+    max_iter: int = 200,
+    max_backups: int = 20000,
+    tol: float | None = None,
+) -> FixedPoint:
+    """The fixed point of ``Q = R + gamma P V_beta(Q)`` that the damped iteration of the paper's
+    Eq. 15 reaches from ``Q = 0`` (the paper's algorithm; the Boltzmann backup may have several).
+
+    Damped synchronous backups ``q <- q - omega F(q)`` (:func:`boltzmann_fixed_point`'s fallback,
+    ``omega`` from 1/2) run from zero until ``max|F|`` is below ``1e-4`` of the Q scale
+    ``max|R|/(1-gamma)``; Newton then polishes the point the iteration is settling on (if Newton
+    stalls, the backups continue to ``1e-8`` of the scale, then to ``tol``). ``r`` is ``[S, A]``;
+    ``converged`` is False when the backups do not settle within ``max_backups`` (they cycle, or
+    diverge) or Newton fails. Deterministic: no warm start, so the answer depends on theta alone.
+    """
+    S, A = succ.n_states, succ.n_actions
+    r_flat = np.asarray(r, dtype=np.float64).ravel()
+    tol = fixed_point_tolerance(r, gamma) if tol is None else tol
+    scale = max(1.0, float(np.max(np.abs(r_flat))) / (1.0 - gamma))
+    q, total, iterations = np.zeros_like(r_flat), 0, 0
+    fp = None
+    for settle in (1e-4 * scale, 1e-8 * scale, tol):
+        q, used, settled = _damped_backups(r_flat, succ, beta, gamma, q, max_backups - total, settle)
+        total += used
+        if not settled:
+            f, _ = _residual(q, r_flat, succ, beta, gamma)
+            res = float(np.max(np.abs(f)))
+            if settle == tol and _at_roundoff_floor(res, tol):
+                return FixedPoint(q.reshape(S, A), True, iterations + total, res, "converged (round-off floor)")
+            return FixedPoint(q.reshape(S, A), False, iterations + total, res,
+                              f"the Eq. 15 iteration from Q = 0 does not settle (residual {res:.3g} after "
+                              f"{total} damped backups)")
+        fp = _newton(r_flat, succ, beta, gamma, q, max_iter, tol)
+        iterations += fp.iterations
+        if fp.converged:
+            return FixedPoint(fp.q, True, iterations + total, fp.residual, "converged")
+    return FixedPoint(fp.q, False, iterations + total, fp.residual, f"Newton after damped backups: {fp.message}")
+
+
 def boltzmann_dq(q: np.ndarray, succ: SuccessorModel, features: np.ndarray, beta: float,
                  gamma: float) -> np.ndarray:
     """``dQ/dtheta [S, A, K]`` at a Boltzmann fixed point ``q [S, A]`` (implicit differentiation).

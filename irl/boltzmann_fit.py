@@ -23,16 +23,17 @@ import numpy as np
 
 from irl.ascent import Evaluation, lbfgs_ascent
 from irl.bellman import (
-    FixedPoint, backup_operator, boltzmann_dq, boltzmann_fixed_point, iteration_stability,
-    mean_weights,
+    FixedPoint, backup_operator, boltzmann_dq, boltzmann_fixed_point, iteration_fixed_point,
+    iteration_stability, mean_weights,
 )
-from irl.boltzmann import demo_counts, loglik_grad_from_counts
+from irl.boltzmann import demo_counts, loglik_from_counts, loglik_grad_from_counts
 from irl.config import IRLConfig
 from irl.demonstrations import Demonstrations
 from irl.faithful import FaithfulSolver
 from irl.fit_common import result_from_ascent
 from irl.result import FitResult
 from irl.transitions import SuccessorModel, reachable_states, restrict
+from irl.unbounded import boltzmann_recession
 
 #: Newton iterations allowed per fixed point (``config.max_inner`` caps it further).
 NEWTON_CAP = 200
@@ -52,9 +53,16 @@ class ExactBoltzmann:
     within one line search ``L`` is one smooth function of theta (the branch continued from the
     anchor), and the result depends only on the seed. Without an anchor, Newton starts from
     ``Q = R``. :meth:`full_q` extends the solution to all states.
+
+    With ``from_zero`` (Q-SM) the first evaluation (no anchor) takes the fixed point that the
+    damped Eq. 15 iteration reaches from ``Q = 0`` (:func:`irl.bellman.iteration_fixed_point`),
+    the paper's algorithm's answer; :func:`fit_exact` checks the final one the same way.
     """
 
-    def __init__(self, demos: Demonstrations, succ: SuccessorModel, config: IRLConfig):
+    def __init__(self, demos: Demonstrations, succ: SuccessorModel, config: IRLConfig,
+                 from_zero: bool = False):
+        self.from_zero = from_zero
+        self.branch_loglik: float | None = None  # set when the final branch is not the one from Q = 0
         states, _, _ = demos.flat()
         self.full_succ = succ
         self.full_features = demos.features
@@ -91,6 +99,8 @@ class ExactBoltzmann:
             return fp
 
         if self.anchor is None:
+            if self.from_zero:
+                return self.from_zero_point(theta)
             return at(theta, None)
         th0, q = self.anchor
         fp = at(theta, q, fallback=False)
@@ -115,6 +125,14 @@ class ExactBoltzmann:
         return FixedPoint(fp.q, False, fp.iterations, fp.residual,
                           f"no fixed point continues the anchor's branch to this theta, and the "
                           f"damped backup from the anchor does not settle ({fp.message})")
+
+    def from_zero_point(self, theta: np.ndarray) -> FixedPoint:
+        """The fixed point the damped Eq. 15 iteration reaches from ``Q = 0`` at theta."""
+        c = self.config
+        fp = iteration_fixed_point(self.features @ theta, self.succ, c.beta, c.gamma,
+                                   max_iter=min(NEWTON_CAP, c.max_inner), max_backups=c.max_inner)
+        self.newton_iterations += fp.iterations
+        return fp
 
     def evaluate(self, theta: np.ndarray) -> Evaluation:
         """``L``, gradient and the reachable states' ``Q [S', A]`` at theta."""
@@ -151,15 +169,20 @@ class ExactBoltzmann:
 
 
 def fit_exact(method: str, demos: Demonstrations, succ: SuccessorModel, config: IRLConfig,
-              theta: np.ndarray, progress: bool, start: float) -> FitResult:
-    """L-BFGS over theta with exact Boltzmann fixed points; checks Eq. 15 stability at the end."""
-    ev = ExactBoltzmann(demos, succ, config)
+              theta: np.ndarray, progress: bool, start: float, *, from_zero: bool = False) -> FitResult:
+    """L-BFGS over theta with exact Boltzmann fixed points (``from_zero``: see
+    :class:`ExactBoltzmann`); checks Eq. 15 stability and unbounded weights at the end."""
+    ev = ExactBoltzmann(demos, succ, config, from_zero=from_zero)
     asc = lbfgs_ascent(ev.evaluate, theta, config, progress=progress, desc=f"{method} exact",
                        on_accept=ev.accept)
     message, converged = asc.message, asc.converged
+    if from_zero:
+        asc, message, converged = _follow_from_zero_branch(ev, asc, config, progress, method)
     extra = {"newton_iterations": float(ev.newton_iterations),
              "branch_jumps": float(ev.branch_jumps),
              "reachable_states": float(ev.closure.size)}
+    if ev.branch_loglik is not None:
+        extra["loglik_branch"] = float(ev.branch_loglik)
     final = asc.evaluation
     if final.ok:
         stable, lam = iteration_stability(final.q, ev.succ, config.beta, config.gamma)
@@ -169,14 +192,71 @@ def fit_exact(method: str, demos: Demonstrations, succ: SuccessorModel, config: 
             message = (f"{message}; the fixed point found repels the damped iteration of Eq. 15 "
                        f"(backup Jacobian eigenvalue with real part {lam:.4g} >= 1): the iterative "
                        f"{method} does not converge to it and the fixed point is not unique")
+        unbounded, message = _check_unbounded(ev, theta, asc, message, extra)
         final = replace(final, q=ev.full_q(asc.theta, final.q))
     else:
         converged = False
         full = np.asarray(ev.full_features @ asc.theta)  # Q unknown: report R, flagged not converged
         full[ev.closure] = final.q
         final = replace(final, q=full)
+        unbounded = False
     asc = replace(asc, evaluation=final, converged=converged, message=message)
-    return result_from_ascent(method, config, asc, time.perf_counter() - start, extra=extra)
+    return result_from_ascent(method, config, asc, time.perf_counter() - start, extra=extra,
+                              unbounded=unbounded)
+
+
+def _follow_from_zero_branch(ev: ExactBoltzmann, asc, config: IRLConfig, progress: bool, method: str):
+    """Q-SM's branch rule: the fixed point is the one the Eq. 15 iteration reaches from ``Q = 0``.
+
+    L-BFGS follows a branch of fixed points by continuation; where several fixed points exist the
+    branch can end on another one than the iteration from zero reaches at the final theta. The
+    result then reports the fixed point from ``Q = 0`` (its ``Q`` and ``L``), the optimised
+    branch's ``L`` in ``extra["loglik_branch"]``, and ``converged = False`` (theta was optimised
+    on the other branch). Returns ``(ascent, message, converged)``.
+    """
+    del progress, method
+    message, converged = asc.message, asc.converged
+    if not asc.evaluation.ok:
+        return asc, message, False
+    fz = ev.from_zero_point(asc.theta)
+    if not fz.converged:
+        return asc, (f"{message}; the Eq. 15 iteration from Q = 0 does not settle at the final theta "
+                     f"({fz.message}): Q-SM's fixed point is undefined there"), False
+    tol = 1e-6 * max(1.0, float(np.max(np.abs(fz.q))))
+    if float(np.max(np.abs(fz.q - asc.evaluation.q))) <= tol:
+        return asc, f"{message}; Q is the fixed point the Eq. 15 iteration reaches from Q = 0", converged
+    branch_ll = asc.evaluation.loglik
+    ll = loglik_from_counts(fz.q, config.beta, ev.counts)
+    ev.branch_loglik = branch_ll
+    asc = replace(asc, evaluation=replace(asc.evaluation, q=fz.q, loglik=ll))
+    return asc, (f"{message}; the optimised branch of fixed points (L {branch_ll:.6g}) is not the one the "
+                 f"Eq. 15 iteration reaches from Q = 0 at the final theta: reported Q and L ({ll:.6g}) are "
+                 f"that iteration's; theta is not its optimum"), False
+
+
+def _check_unbounded(ev: ExactBoltzmann, theta0: np.ndarray, asc, message: str,
+                     extra: dict) -> tuple[bool, str]:
+    """Whether the fit ran off along a recession direction (:mod:`irl.unbounded`): candidates are
+    the final theta, its displacement from ``theta0`` and the final gradient. With ``l2 > 0`` the
+    weights stay finite and the message says so instead."""
+    def loglik(th):
+        e = ev.evaluate(th)
+        return e.loglik if e.ok else None
+
+    theta = np.asarray(asc.theta, dtype=np.float64)
+    found = boltzmann_recession(theta, (theta, theta - theta0, asc.evaluation.grad), ev.features, ev.succ,
+                                ev.counts, ev.config.gamma, loglik)
+    extra["separable"] = float(found is not None)
+    if found is None:
+        return False, message
+    d, further = found
+    if ev.config.l2 > 0:
+        return False, f"{message}; finite only thanks to l2 = {ev.config.l2} (data are separable)"
+    return True, (f"weights unbounded: the demonstrations are separable along direction "
+                  f"{np.array2string(d, precision=3)} (the demonstrated actions are optimal under it, "
+                  f"so L rises toward its supremum as theta grows along it; L further along: "
+                  f"{further:.6g}); loglik {asc.evaluation.loglik:.6g} is where the fit stopped. "
+                  f"Set l2 > 0 for finite weights. ({message})")
 
 
 class DampedBoltzmann(FaithfulSolver):

@@ -46,7 +46,7 @@ REGISTRY: dict[str, Method] = {
         Method("qsm", "Q-SM", fit_qsm),
         Method("mlirl", "MLIRL", fit_mlirl, uses_transitions=True),
         Method("reirl", "REIRL", fit_reirl, uses_transitions=True,
-               options=("baseline", "epsilon", "n_baseline", "pad_step", "theta_cap")),
+               options=("baseline", "epsilon", "delta", "n_baseline", "pad_step", "theta_cap")),
     )
 }
 METHODS: tuple[str, ...] = tuple(REGISTRY)
@@ -68,7 +68,8 @@ def fit(method: str, demos: Demonstrations, config: IRLConfig, rng: np.random.Ge
             (REIRL ignores it: its dual is convex).
         progress: show a progress bar on stderr (only when it is a terminal).
         **options: the method's own options (``Method.options``); REIRL's: ``baseline``
-            (sampling trajectories, default generated), ``epsilon`` (L1 weight), ``n_baseline``,
+            (sampling trajectories, default generated), ``epsilon`` (L1 weight; None: the
+            Hoeffding bound at confidence ``1 - delta``), ``delta``, ``n_baseline``,
             ``pad_step`` (how trajectories are prolonged), ``theta_cap``
             (see :func:`irl.reirl.fit_reirl`).
 

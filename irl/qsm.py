@@ -73,7 +73,8 @@ def fit_qsm(demos: Demonstrations, config: IRLConfig, rng: np.random.Generator, 
     start = time.perf_counter()
     theta = initial_theta(demos, config, rng, theta0)
     if config.solver == "exact":
-        return fit_exact("qsm", demos, model_free_successors(demos), config, theta, progress, start)
+        return fit_exact("qsm", demos, model_free_successors(demos), config, theta, progress, start,
+                         from_zero=True)
     solver = FaithfulQSM(demos, config)
     asc = unit_step_ascent(solver.evaluate, theta, config, progress=progress, desc="qsm faithful")
     return finish_faithful("qsm", config, asc, solver, start)

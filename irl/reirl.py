@@ -14,6 +14,17 @@ Padding (paper section 4.1): every trajectory, expert or baseline, is prolonged 
 of the longest one by repeating its last (state, action) pair; a caller may pass ``pad_step``
 instead (for the merge domain, constant-velocity motion: see ``irl.merge_mdp``).
 
+The L1 weight ``eps`` (one per feature) is by default the confidence bound of the experts'
+feature-count estimate, as Boularias et al. derive it with Hoeffding's inequality: with ``n``
+expert trajectories whose discounted counts of feature ``k`` lie in an interval of width
+``w_k = (max phi_k - min phi_k) (1 - gamma^T) / (1 - gamma)`` (``T`` the padded length),
+``|f_E,k - E f_k| <= eps_k = w_k sqrt(ln(2 / delta) / (2 n))`` with probability ``1 - delta``
+(:func:`hoeffding_epsilon`, ``delta`` 0.05). Two outcomes are reported as what they are, never as
+a fit: the dual unbounded below (the primal is **infeasible**: no reweighting of the baseline
+matches the experts' counts within eps; theta is capped at ``theta_cap``) and all weights zero
+(the experts are indistinguishable from the baseline at this confidence: **uninformative**).
+Both set ``converged = False`` and appear in ``FitResult.flags``.
+
 The problem is convex with one optimum: ``theta0`` and ``rng`` do not change the solution
 (``rng`` only draws the baseline trajectories when none are given). The final log-likelihood
 (Eq. 5 sum) is computed by solving the MDP for the learned theta with ``irl.mlirl.solve_q``
@@ -35,8 +46,10 @@ from irl.mlirl import solve_q
 from irl.result import FitResult
 from irl.transitions import estimate_transitions
 
-#: Default L1 weight ``eps`` of the dual.
-DEFAULT_EPSILON = 0.01
+#: Default L1 weight ``eps`` of the dual: None means the Hoeffding bound (:func:`hoeffding_epsilon`).
+DEFAULT_EPSILON = None
+#: Default ``delta`` of the Hoeffding bound (confidence ``1 - delta``).
+DEFAULT_DELTA = 0.05
 #: Default number of generated baseline trajectories.
 DEFAULT_N_BASELINE = 100
 #: Box bound on ``|theta_k|`` applied when the dual is unbounded below.
@@ -89,11 +102,32 @@ def discounted_counts(states: np.ndarray, actions: np.ndarray, features: np.ndar
     return np.einsum("t,ntk->nk", disc, features[states, actions])
 
 
-def dual_objective(theta: np.ndarray, f_base: np.ndarray, f_expert: np.ndarray, log_w: np.ndarray, eps: float) -> float:
-    """The dual's value at ``theta [K]`` (``f_base [n, K]``, ``f_expert [K]``, ``log_w [n]``)."""
+def hoeffding_epsilon(features: np.ndarray, n_trajectories: int, length: int, gamma: float,
+                      delta: float = DEFAULT_DELTA) -> np.ndarray:
+    """``[K]`` confidence bound of the experts' mean discounted feature counts (Hoeffding).
+
+    ``eps_k = w_k sqrt(ln(2/delta) / (2 n))`` with ``w_k = (max phi_k - min phi_k) sum_{t<T} gamma^t``
+    (Boularias, Kober and Peters 2011, section 3: the counts of one trajectory lie in an
+    interval of width ``w_k``). ``features`` is ``[S, A, K]``; ``length`` is ``T``.
+
+    Raises:
+        ConfigError: ``delta`` not in (0, 1) or ``n_trajectories < 1``.
+    """
+    if not 0.0 < delta < 1.0:
+        raise ConfigError(f"REIRL delta must be in (0, 1), got {delta}")
+    if int(n_trajectories) < 1:
+        raise ConfigError(f"n_trajectories must be >= 1, got {n_trajectories}")
+    phi = np.asarray(features, dtype=np.float64).reshape(-1, features.shape[-1])
+    width = (phi.max(axis=0) - phi.min(axis=0)) * float(np.sum(gamma ** np.arange(int(length))))
+    return width * np.sqrt(np.log(2.0 / delta) / (2.0 * int(n_trajectories)))
+
+
+def dual_objective(theta: np.ndarray, f_base: np.ndarray, f_expert: np.ndarray, log_w: np.ndarray, eps) -> float:
+    """The dual's value at ``theta [K]`` (``f_base [n, K]``, ``f_expert [K]``, ``log_w [n]``;
+    ``eps`` a number or ``[K]``)."""
     from scipy.special import logsumexp
 
-    return float(logsumexp(f_base @ theta + log_w) - f_expert @ theta + eps * np.abs(theta).sum())
+    return float(logsumexp(f_base @ theta + log_w) - f_expert @ theta + np.sum(eps * np.abs(theta)))
 
 
 def dual_smooth_grad(theta: np.ndarray, f_base: np.ndarray, f_expert: np.ndarray, log_w: np.ndarray) -> np.ndarray:
@@ -105,13 +139,13 @@ def dual_smooth_grad(theta: np.ndarray, f_base: np.ndarray, f_expert: np.ndarray
 
 
 def solve_dual(
-    f_base: np.ndarray, f_expert: np.ndarray, log_w: np.ndarray, eps: float, theta_cap: float | None = None
+    f_base: np.ndarray, f_expert: np.ndarray, log_w: np.ndarray, eps, theta_cap: float | None = None
 ) -> tuple[np.ndarray, str, float]:
     """Minimise the dual with cvxpy (Clarabel, then SCS if Clarabel fails).
 
     Args:
         f_base: ``[n, K]`` baseline feature counts; f_expert: ``[K]``; log_w: ``[n]`` log weights.
-        eps: L1 weight (>= 0).
+        eps: L1 weight (>= 0), a number or one per feature ``[K]``.
         theta_cap: if given, constrain ``|theta_k| <= theta_cap``.
 
     Returns:
@@ -122,7 +156,8 @@ def solve_dual(
 
     k = f_base.shape[1]
     theta = cp.Variable(k)
-    objective = cp.log_sum_exp(f_base @ theta + log_w) - f_expert @ theta + eps * cp.norm1(theta)
+    eps_k = np.broadcast_to(np.asarray(eps, dtype=np.float64), (k,))
+    objective = cp.log_sum_exp(f_base @ theta + log_w) - f_expert @ theta + eps_k @ cp.abs(theta)
     constraints = [cp.abs(theta) <= theta_cap] if theta_cap is not None else []
     problem = cp.Problem(cp.Minimize(objective), constraints)
     status = "solver_error"
@@ -171,8 +206,9 @@ def fit_reirl(
     baseline: Demonstrations | None = None,
     transitions: np.ndarray | None = None,
     theta0: np.ndarray | None = None,
-    epsilon: float = DEFAULT_EPSILON,
+    epsilon: float | None = DEFAULT_EPSILON,
     n_baseline: int = DEFAULT_N_BASELINE,
+    delta: float = DEFAULT_DELTA,
     pad_step: PadStep | None = None,
     theta_cap: float = THETA_CAP,
     progress: bool = False,
@@ -188,18 +224,24 @@ def fit_reirl(
         transitions: ``[S, A, S]`` model, for generating the baseline and for the final
             log-likelihood; default: estimated from ``demos`` (``irl.transitions``).
         theta0: ignored (the dual is convex with one optimum); accepted for the shared interface.
-        epsilon: L1 weight ``eps`` of the dual.
+        epsilon: L1 weight ``eps`` of the dual; None: per feature, the Hoeffding bound of the
+            experts' feature-count estimate at confidence ``1 - delta`` (:func:`hoeffding_epsilon`).
         pad_step: how trajectories are prolonged (see ``pad_trajectories``).
         theta_cap: bound on ``|theta_k|`` used only when the dual is unbounded below.
         progress: unused (a single convex solve).
 
     Returns:
-        FitResult with ``loglik_trace``/``theta_trace`` of length 1; ``unbounded`` when the dual
-        has no minimiser (theta is then the minimiser within ``|theta_k| <= theta_cap``).
+        FitResult with ``loglik_trace``/``theta_trace`` of length 1; ``unbounded`` and
+        ``extra["infeasible"] = 1`` when the dual has no minimiser (theta is then the minimiser
+        within ``|theta_k| <= theta_cap``); ``extra["uninformative"] = 1`` when every weight is 0.
+        Either sets ``converged = False`` (see ``FitResult.flags``).
+
+    Raises:
+        ConfigError: negative ``epsilon``, bad ``delta``, ``theta_cap`` or transitions shape.
     """
     del theta0, progress
     start = time.perf_counter()
-    if not epsilon >= 0:
+    if epsilon is not None and not epsilon >= 0:
         raise ConfigError(f"REIRL epsilon must be >= 0, got {epsilon}")
     if not theta_cap > 0:
         raise ConfigError(f"REIRL theta_cap must be positive, got {theta_cap}")
@@ -228,10 +270,12 @@ def fit_reirl(
     f_expert = discounted_counts(es, ea, phi, config.gamma).mean(axis=0)
     f_base = discounted_counts(bs, ba, phi, config.gamma)
     log_w = np.full(f_base.shape[0], -np.log(f_base.shape[0]))
-    theta, status, value = solve_dual(f_base, f_expert, log_w, epsilon)
+    eps = (hoeffding_epsilon(phi, demos.n_trajectories, length, config.gamma, delta) if epsilon is None
+           else np.full(phi.shape[2], float(epsilon)))
+    theta, status, value = solve_dual(f_base, f_expert, log_w, eps)
     unbounded = status == "unbounded"
     if unbounded:
-        theta, status, value = solve_dual(f_base, f_expert, log_w, epsilon, theta_cap=theta_cap)
+        theta, status, value = solve_dual(f_base, f_expert, log_w, eps, theta_cap=theta_cap)
     message = f"cvxpy status {status}; dual value {value:.6g}"
     converged = status == "optimal"
     try:
@@ -241,9 +285,18 @@ def fit_reirl(
         converged = False
         message += f"; solving the MDP for the learned theta failed ({e}): loglik uses Q = R"
     ll = loglik_from_counts(q, config.beta, step_counts(*demos.flat()[:2], demos.n_states, demos.n_actions))
+    eps_text = np.array2string(eps, precision=3)
+    uninformative = not unbounded and bool(np.all(np.abs(theta) <= 1e-6 * max(1.0, float(np.max(np.abs(f_base))))))
     if unbounded:
-        message += (f"; the dual is unbounded below (experts' feature counts outside what eps={epsilon} "
-                    f"allows): theta bounded by |theta_k| <= {theta_cap:g}")
+        converged = False
+        message += (f"; INFEASIBLE: the dual is unbounded below (no reweighting of the baseline matches the "
+                    f"experts' feature counts within eps = {eps_text}); theta is only the minimiser within "
+                    f"|theta_k| <= {theta_cap:g} and must not be used as a driver")
+    elif uninformative:
+        converged = False
+        theta = np.zeros_like(theta)
+        message += (f"; UNINFORMATIVE: every weight is 0 (the experts' feature counts lie within eps = "
+                    f"{eps_text} of the baseline's: indistinguishable at this confidence)")
     return FitResult(
         method="reirl",
         theta=theta,
@@ -256,6 +309,8 @@ def fit_reirl(
         message=message,
         wall_time_s=time.perf_counter() - start,
         unbounded=unbounded,
-        extra={"dual_value": value, "epsilon": float(epsilon), "n_baseline": float(f_base.shape[0]),
-               "pad_length": float(length), "init_independent": 1.0},
+        extra={"dual_value": value, "epsilon": float(np.mean(eps)), "n_baseline": float(f_base.shape[0]),
+               "pad_length": float(length), "init_independent": 1.0, "infeasible": float(unbounded),
+               "uninformative": float(uninformative), "epsilon_hoeffding": float(epsilon is None),
+               **{f"epsilon_{k}": float(e) for k, e in enumerate(eps)}},
     )

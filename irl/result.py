@@ -63,6 +63,20 @@ class FitResult:
     def n_iterations(self) -> int:
         return int(len(self.loglik_trace))
 
+    @property
+    def flags(self) -> tuple[str, ...]:
+        """What downstream code must check before ranking or deploying the model (empty: none).
+
+        ``"not_converged"``, ``"unbounded"`` (no finite maximiser; for REIRL the dual is
+        unbounded below), ``"infeasible"`` (REIRL: the experts' counts are out of reach within
+        eps), ``"uninformative"`` (REIRL: every weight is 0).
+        """
+        out = [] if self.converged else ["not_converged"]
+        if self.unbounded:
+            out.append("unbounded")
+        out += [k for k in ("infeasible", "uninformative") if self.extra.get(k)]
+        return tuple(out)
+
     def log_policy(self) -> np.ndarray:
         """``[S, A]`` log pi(a|s) of the learned policy."""
         return log_policy(self.q, self.config.beta)

@@ -6,6 +6,7 @@ import pytest
 from irl.domains import gridworld
 from irl.config import IRLConfig
 from irl.demonstrations import Demonstrations
+from irl.errors import ConfigError
 from irl.reirl import (
     discounted_counts,
     dual_objective,
@@ -119,3 +120,51 @@ def test_given_baseline_is_used():
     r2 = fit_reirl(experts, IRLConfig.paper(), np.random.default_rng(99), baseline=base, transitions=t)
     np.testing.assert_allclose(r1.theta, r2.theta, atol=1e-6)  # rng unused when the baseline is given
     assert r1.extra["n_baseline"] == 40 and r1.extra["pad_length"] == 4
+
+
+def test_hoeffding_epsilon_formula():
+    from irl.reirl import hoeffding_epsilon
+
+    phi = np.zeros((3, 2, 2))
+    phi[0, 0] = [2.0, 0.5]
+    phi[1, 1] = [-1.0, 0.0]
+    eps = hoeffding_epsilon(phi, n_trajectories=8, length=4, gamma=0.5, delta=0.1)
+    width = np.array([3.0, 0.5]) * (1 + 0.5 + 0.25 + 0.125)
+    np.testing.assert_allclose(eps, width * np.sqrt(np.log(20.0) / 16.0))
+    # more trajectories, tighter bound (1/sqrt(n))
+    np.testing.assert_allclose(hoeffding_epsilon(phi, 32, 4, 0.5, 0.1), eps / 2)
+    with pytest.raises(ConfigError, match="delta"):
+        hoeffding_epsilon(phi, 8, 4, 0.5, delta=1.0)
+
+
+def _biased_experts(n):
+    """``n`` trajectories of 5 steps on a 4-state chain always taking action 0; features one-hot action."""
+    rng = np.random.default_rng(0)
+    S, A = 4, 3
+    phi = np.zeros((S, A, A))
+    phi[:, np.arange(A), np.arange(A)] = 1.0
+    t = np.full((S, A, S), 1.0 / S)
+    states = tuple(rng.integers(S, size=5) for _ in range(n))
+    actions = tuple(np.zeros(5, dtype=int) for _ in range(n))
+    return Demonstrations(states, actions, phi, S, A), t
+
+
+def test_default_epsilon_is_the_hoeffding_bound_and_informative_with_enough_experts():
+    experts, t = _biased_experts(400)
+    r = fit_reirl(experts, IRLConfig.paper(), np.random.default_rng(1), transitions=t, n_baseline=300)
+    assert r.extra["epsilon_hoeffding"] == 1.0 and r.flags == ()
+    assert r.theta[0] > 0 and r.theta[0] > r.theta[1] and r.theta[0] > r.theta[2]
+
+
+def test_infeasible_and_uninformative_are_flagged_not_fits():
+    experts, t = _biased_experts(3)
+    # 3 experts: the confidence bound is wide, every weight 0
+    r = fit_reirl(experts, IRLConfig.paper(), np.random.default_rng(1), transitions=t, n_baseline=300)
+    assert r.flags == ("not_converged", "uninformative") and np.all(r.theta == 0)
+    assert "UNINFORMATIVE" in r.message
+    # the experts' counts (always action 0) are outside every baseline's hull unless one baseline
+    # trajectory took action 0 throughout: with a tiny eps the dual is unbounded (primal infeasible)
+    base = Demonstrations(tuple(np.arange(5) % 4 for _ in range(6)),
+                          tuple(np.array([1, 0, 2, 0, 1]) for _ in range(6)), experts.features, 4, 3)
+    r = fit_reirl(experts, IRLConfig.paper(), np.random.default_rng(1), transitions=t, baseline=base, epsilon=1e-3)
+    assert r.flags == ("not_converged", "unbounded", "infeasible") and "INFEASIBLE" in r.message

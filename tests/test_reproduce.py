@@ -44,9 +44,10 @@ def test_cli_table_1_two_trials(railusm, tmp_path, capsys):
     data = json.loads(out.read_text())
     assert data["table"] == 1 and len(data["trials"]) == 8 and data["holdout"] == []
     rows = {r["method"]: r for r in data["rows"]}
-    assert set(rows) == {"mlirl", "qavg", "qsm", "reirl"}
-    for r in rows.values():
-        assert len(r["theta_mean"]) == 5 and r["n_trials"] == 2
+    assert set(rows) == {"mlirl", "qavg", "qsm", "reirl", "uniform", "marginal", "markov", "bc"}
+    for m in ("mlirl", "qavg", "qsm", "reirl"):
+        assert len(rows[m]["theta_mean"]) == 5 and rows[m]["n_trials"] == 2
+    assert rows["bc"]["theta_mean"] == [] and rows["bc"]["heldout_loglik"] is None
     qavg = [t for t in data["trials"] if t["method"] == "qavg"]
     assert rows["qavg"]["loglik_mean"] == pytest.approx(np.mean([t["loglik"] for t in qavg]))
     assert rows["mlirl"]["p_vs_mlirl"] is None
@@ -146,3 +147,53 @@ def test_table_3_problem_is_the_authors_merge_data(railusm):
     assert p.bins is not None and p.pad_step() is not None
     sub = p.subset(range(11))
     assert sub.demos.n_trajectories == 11 and not np.array_equal(sub.transitions, p.transitions)
+
+
+def test_baseline_rows_and_paired_held_out_tests(railusm, capsys):
+    from irl.baselines import baseline_leave_one_out, fit_baseline, paired_test
+
+    report = reproduce(1, railusm, trials=1, methods=("mlirl", "qavg"), config=IRLConfig.paper(l2=0.01),
+                       executor="serial")
+    rows = {r.method: r for r in report.rows}
+    demos = table_problem(1, railusm).demos
+    for name in ("uniform", "marginal", "markov", "bc"):
+        assert rows[name].loglik_mean == pytest.approx(fit_baseline(name, demos).loglik(demos))
+        folds = baseline_leave_one_out(name, demos)
+        assert rows[name].heldout_folds == pytest.approx(tuple(folds))
+        assert rows[name].heldout_loglik == pytest.approx(folds.sum())
+    # the IRL rows' folds are the sweep's held-out trials, in fold order; p pairs them by trajectory
+    qavg_folds = [o.heldout_loglik for o in sorted(report.holdout, key=lambda o: o.holdout) if o.method == "qavg"]
+    mlirl_folds = [o.heldout_loglik for o in sorted(report.holdout, key=lambda o: o.holdout) if o.method == "mlirl"]
+    assert rows["qavg"].heldout_folds == pytest.approx(qavg_folds)
+    assert rows["qavg"].p_vs_mlirl == pytest.approx(paired_test(np.array(qavg_folds), np.array(mlirl_folds)))
+    assert rows["qavg"].p_vs_marginal == pytest.approx(
+        paired_test(np.array(qavg_folds), baseline_leave_one_out("marginal", demos)))
+    assert np.isnan(rows["mlirl"].p_vs_mlirl) and np.isnan(rows["marginal"].p_vs_marginal)
+    from analysis.reproduce import format_report
+
+    text = format_report(report)
+    for label in ("uniform", "marginal", "markov", "bc", "p vs marginal"):
+        assert label in text
+
+
+def test_heldout_module_uses_the_same_folds_as_reproduce(railusm):
+    from analysis.heldout import method_leave_one_out
+
+    problem = table_problem(1, railusm)
+    config = IRLConfig.paper(l2=0.01)
+    folds = method_leave_one_out(problem, "qavg", config, seed=1)
+    out = run_trial(TrialTask("qavg", problem, config, seed=1, holdout=3))
+    assert folds[3] == pytest.approx(out.heldout_loglik)
+    assert folds.shape == (problem.demos.n_trajectories,)
+
+
+def test_heldout_script_prints_the_baseline_table(railusm, capsys):
+    from analysis.heldout import main as heldout_main
+
+    assert heldout_main([str(railusm), "--table", "1", "--methods", "uniform,marginal,markov,bc"]) == 0
+    text = capsys.readouterr().out
+    demos = table_problem(1, railusm).demos
+    from irl.baselines import baseline_leave_one_out
+
+    for name in ("uniform", "marginal", "markov", "bc"):
+        assert f"{name:10s} {baseline_leave_one_out(name, demos).sum():10.1f}" in text

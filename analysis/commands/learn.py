@@ -48,7 +48,8 @@ def register(subparsers) -> None:
     p.add_argument("--bins", help="merge: JSON file of bin edges (default: assumed edges for text files, "
                                   "quantile bins fitted on an encounter table)")
     p.add_argument("--dt", type=float, default=0.1, help="merge: decision step (s) of the kinematic fallback")
-    p.add_argument("--epsilon", type=float, default=None, help="REIRL L1 weight of the dual")
+    p.add_argument("--epsilon", type=float, default=None, help="REIRL L1 weight of the dual (default: per feature, the "
+                                                           "Hoeffding bound of the experts' feature-count estimate)")
     add_config_arguments(p)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", required=True, help="model.json to write")

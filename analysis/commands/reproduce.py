@@ -18,7 +18,9 @@ def register(subparsers) -> None:
         "reproduce", help="reproduce the paper's Table 1, 2 or 3 (all four methods, N trials)",
         description="Run MLIRL, Q-Avg, Q-SM and REIRL over N random initialisations on the authors' data and "
                     "print the paper's table: mean ± std of each weight and of the final log-likelihood, "
-                    "Wilcoxon p-values against MLIRL, and the leave-one-trajectory-out log-likelihood.")
+                    "the leave-one-trajectory-out log-likelihood with Wilcoxon p-values of the paired held-out "
+                    "trajectories against MLIRL and the marginal, and the baselines uniform, marginal, markov "
+                    "and bc as rows.")
     p.add_argument("--table", type=int, choices=(1, 2, 3), required=True, nargs="+",
                    help="1: gridworld no noise, 2: gridworld 10%% noise, 3: NGSIM merge "
                         "(several, e.g. '--table 1 2 3', run as one sweep)")
@@ -28,7 +30,8 @@ def register(subparsers) -> None:
     p.add_argument("--trials", type=int, help="random initialisations per method (default 30, 30, 10)")
     add_config_arguments(p)
     p.add_argument("--seed", type=int, default=0, help="master seed of the trials")
-    p.add_argument("--epsilon", type=float, default=None, help="REIRL L1 weight of the dual (default 0.01)")
+    p.add_argument("--epsilon", type=float, default=None, help="REIRL L1 weight of the dual (default: per feature, the Hoeffding bound "
+                                                           "of the experts' feature-count estimate)")
     p.add_argument("--no-holdout", action="store_true", help="skip the leave-one-trajectory-out evaluation")
     p.add_argument("--json", help="also write every trial and the summary to this JSON file "
                                   "(several tables: {\"tables\": [...]})")

@@ -35,11 +35,11 @@ from analysis.metrics import AggregateMetrics, MetricsConfig, aggregate, heldout
 from analysis.provenance import provenance, text_digest, write_timings
 from analysis.sweep import Task, parse_executor, run_sweep
 from irl.baselines import fit_baseline
-from irl.domains.merge import N_ACTIONS, MergeBins, actions_of, fit_quantile_bins
+from irl.domains.merge import N_ACTIONS, ZERO_ACTION, MergeBins, actions_of, fit_quantile_bins
 from irl.merge_mdp import discretize, read_encounters
 from irl.result import SavedModel
 from scenarios.loader import load_scenario
-from sim.controller import ZERO_ACTION, ControllerConfig
+from sim.controller import ControllerConfig
 from sim.errors import SimError
 from sim.observe import MergeObservation
 from sim.policy import BaselineTabularPolicy, LearnedPolicy, Policy, PolicyError, SumoPolicy, UniformPolicy
@@ -96,9 +96,8 @@ def policy_heldout_loglik(policy: Policy, heldout: HeldOut) -> tuple[float, floa
     df = heldout.encounters
     actions = actions_of(df["acc_A"].to_numpy(float))
     if isinstance(policy, LearnedPolicy):
-        states = policy.encoder.encode(df)
-        if policy.state_encoding != "paper":
-            states = states * N_ACTIONS + _previous_actions(df, actions, first=ZERO_ACTION)
+        prev = _previous_actions(df, actions, first=ZERO_ACTION) if policy.state_encoding != "paper" else None
+        states = policy.encoder.encode(df, prev, policy.state_encoding)
         return heldout_loglik(policy.log_pi, states, actions)
     if isinstance(policy, BaselineTabularPolicy):
         b = policy.baseline

@@ -35,16 +35,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from irl.domains.merge import ACTION_ACC_FT_S2, action_of
+from irl.domains.merge import ACTION_ACC_FT_S2, ZERO_ACTION, action_of
 from irl.units import M_PER_FT
 from sim.errors import SimError
 from sim.hooks import FrameState, RunContext
 from sim.observe import MergeObservation, lag_of, lead_of, observe
 from sim.policy import Policy, choose_action
 from sim.schema import RAMP_LANE, RIGHTMOST_MAIN_LANE
-
-#: The action assumed before A's first decision in the ``driver`` state encoding (Zero).
-ZERO_ACTION = 2
 
 #: A that reaches the end of its route within this of the section end has left the section (ft).
 EXIT_MARGIN_FT = 150.0
@@ -359,8 +356,10 @@ class Controller:
             state = -1
         elif encoding == "paper":
             state = encoder.state(d_ac, d_ab, v_ac, v_ab, truck)
-        else:  # paper state x A's previous action (Zero before the first decision)
-            prev = c.prev_action if c.prev_action >= 0 else ZERO_ACTION
+        else:  # paper state x A's previous action; before the first decision, the bin of A's
+            # acceleration in the last frame (SUMO's, over 0.1 s), Zero if it is not finite
+            acc_now = float(frame.acc[ia])
+            prev = c.prev_action if c.prev_action >= 0 else (action_of(acc_now) if math.isfinite(acc_now) else ZERO_ACTION)
             state = encoder.state(d_ac, d_ab, v_ac, v_ab, truck, prev_action=prev, encoding=encoding)
         obs = MergeObservation(d_ac, d_ab, v_ac, v_ab, truck, state, float(frame.speed[ia]), c.prev_action)
         probs = np.asarray(self.policy.probs(obs), dtype=np.float64)

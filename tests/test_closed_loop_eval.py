@@ -135,3 +135,26 @@ def test_safety_filter_intervenes_and_prevents_rear_end_collisions():
     f = safe.decisions[safe.decisions.filtered.astype(bool)]
     assert len(f) == safe.metrics.safety_interventions and (f.action < 4).all()
     assert (safe.controls.n_interventions.sum()) == safe.metrics.safety_interventions
+
+
+def test_driver_encoded_model_reaches_the_policy_and_the_heldout_loglik():
+    from analysis.evaluate import HeldOut, policy_heldout_loglik
+    from irl.domains.merge import actions_of
+
+    rng = np.random.default_rng(3)
+    m = SavedModel(method="mlirl", theta=np.zeros(3), loglik=-1.0, q=rng.normal(size=(6250, 5)), config=IRLConfig(),
+                   domain="merge", bin_edges={k: tuple(v) for k, v in EDGES.to_dict().items()},
+                   state_encoding="driver", decision_step_s=0.3, action_acc_ft_s2=(-12.3, -3.0, 0.1, 3.0, 7.5))
+    pol = LearnedPolicy.from_model(m)
+    assert pol.state_encoding == "driver" and pol.decision_step_s == 0.3
+    assert pol.action_acc_ft_s2 == (-12.3, -3.0, 0.1, 3.0, 7.5)
+    n = 40
+    df = pd.DataFrame({"encounter_id": np.repeat([1, 2], n // 2), "d_AC": rng.uniform(10, 200, n),
+                       "d_AB": rng.uniform(-20, 120, n), "v_AC": rng.normal(0, 5, n), "v_AB": rng.normal(0, 5, n),
+                       "B_is_truck": rng.random(n) < 0.2, "acc_A": rng.normal(0, 4, n)})
+    a = actions_of(df["acc_A"].to_numpy())
+    prev = np.r_[2, a[:-1]]
+    prev[n // 2] = 2  # each encounter starts from Zero
+    s = EDGES.encode(df) * 5 + prev
+    total, per_step = policy_heldout_loglik(pol, HeldOut(df, np.bincount(a, minlength=5)))
+    assert total == pytest.approx(pol.log_pi[s, a].sum()) and per_step == pytest.approx(total / n)

@@ -64,8 +64,6 @@ def run(args: argparse.Namespace) -> int:
     bad = [b for b in baselines if b not in known]
     if bad:
         raise SimError(f"--baselines: unknown baseline(s) {bad}; expected {', '.join(known)}")
-    if args.train_demos is None and any(b in ("marginal", "markov", "bc") for b in baselines):
-        print("note: marginal, markov and bc are left out without --train-demos", file=sys.stderr)
     if not args.model and not baselines:
         raise SimError("nothing to evaluate: give --model and/or --baselines")
     scen = Path(args.scenario).stem if args.scenario.endswith(".toml") else args.scenario
@@ -81,6 +79,8 @@ def run(args: argparse.Namespace) -> int:
     print(report_table(report.aggregates))
     for line in flag_lines(report.aggregates):
         print(line, file=sys.stderr)
+    if args.train_demos is None and any(b in ("marginal", "markov", "bc") for b in baselines):
+        print("note: marginal, markov and bc are left out without --train-demos", file=sys.stderr)
     print(f"report:  {report.report_md}")
     print(f"metrics: {report.metrics_json}")
     for name, path in report.rrd.items():

@@ -159,9 +159,16 @@ def run_calibration_check(
     keep_drivers: bool = False,
 ) -> CalibrationCheck:
     """Simulate ``scenario`` with the calibrated drivers (the scenario's own with
-    ``keep_drivers``; nothing is simulated when ``table`` is given) and compare."""
+    ``keep_drivers``; nothing is simulated when ``table`` is given) and compare.
+
+    Raises:
+        FileNotFoundError: ``params_path`` or ``pairs_dir`` does not exist.
+        SpecError: ``params_path`` is not valid TOML, ``pairs_dir`` holds no pair CSV files, or ``scenario``
+            is no preset nor scenario file.
+        SimulationError: SUMO fails to start or to step.
+    """
     result = load_result(params_path)
-    pairs = list(load_pairs(pairs_dir))
+    pairs = list(load_pairs(Path(pairs_dir)))
     spec = load_scenario(scenario)
     if table is None:
         if not keep_drivers:

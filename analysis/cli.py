@@ -11,7 +11,9 @@ from __future__ import annotations
 import argparse
 import importlib
 import pkgutil
+import signal
 import sys
+import threading
 
 from irl.errors import IRLError
 from scenarios.errors import ScenarioError
@@ -51,13 +53,32 @@ class _VersionAction(argparse.Action):
         parser.exit()
 
 
+def _terminate_as_interrupt(signum, frame) -> None:
+    """SIGTERM handler: stop like Ctrl-C (finished work stored, workers stopped, nothing half
+    published)."""
+    raise KeyboardInterrupt(f"signal {signal.Signals(signum).name}")
+
+
+def os_error_line(e: OSError) -> str:
+    """One line for an OS error: what failed and on which path (``[Errno 13] ...`` without
+    the number)."""
+    what = e.strerror or type(e).__name__
+    paths = [str(p) for p in (e.filename, e.filename2) if p is not None]
+    return f"{what}: {' -> '.join(paths)}" if paths else str(e) or what
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, _terminate_as_interrupt)
     try:
         return int(args.func(args) or 0)
     except USER_ERRORS as e:
         print(f"merge-irl {args.command}: error: {e}", file=sys.stderr)
+        return 2
+    except OSError as e:  # permission, full disk, a path that is a file, a locked output folder
+        print(f"merge-irl {args.command}: error: {os_error_line(e)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"merge-irl {args.command}: interrupted", file=sys.stderr)

@@ -19,6 +19,7 @@ from analysis.metrics import EpisodeMetrics, MetricsConfig, episode_metrics
 from irl.units import FT_PER_M
 from scenarios.loader import load_scenario
 from sim.controller import Controller, ControllerConfig
+from sim.hooks import StepHook
 from sim.policy import Policy
 from sim.run import run_scenario
 
@@ -60,7 +61,7 @@ class EpisodeResult:
         return d
 
     @classmethod
-    def from_dict(cls, d: dict) -> "EpisodeResult":
+    def from_dict(cls, d: dict) -> EpisodeResult:
         """Inverse of :meth:`to_dict`."""
         return cls(
             metrics=EpisodeMetrics.from_dict(d["metrics"]), controls=frame_from_dict(d["controls"]),
@@ -152,7 +153,7 @@ def run_episode(
     t0 = time.perf_counter()
     spec = load_scenario(scenario) if isinstance(scenario, (str, Path)) else scenario
     ctl = Controller(policy, controller)
-    hooks = [ctl]
+    hooks: list[StepHook] = [ctl]
     if rrd_path is not None:
         # rerun takes about 0.8 s to import: only when recording
         from analysis.rerun_log import RerunLogger

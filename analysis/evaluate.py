@@ -22,8 +22,8 @@ from __future__ import annotations
 
 import os
 import sys
-from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, is_dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -38,6 +38,7 @@ from irl.baselines import fit_baseline
 from irl.domains.merge import N_ACTIONS, ZERO_ACTION, MergeBins, actions_of, fit_quantile_bins
 from irl.merge_mdp import discretize, read_encounters
 from irl.result import SavedModel
+from irl.run_folder import check_writable
 from scenarios.loader import load_scenario
 from sim.controller import ControllerConfig
 from sim.errors import SimError
@@ -146,7 +147,12 @@ def baseline_policies(names: Sequence[str], train_demos: str | os.PathLike | pd.
 
 
 def learned_policy(model: SavedModel | str | os.PathLike, name: str = "") -> LearnedPolicy:
-    """A :class:`LearnedPolicy` from a saved model (path or object) with its bin edges."""
+    """A :class:`LearnedPolicy` from a saved model (path or object) with its bin edges.
+
+    Raises:
+        ModelFileError: ``model`` is a path to a missing, unreadable or malformed ``model.json``.
+        PolicyError: the model is not a merge model (message prefixed with the file).
+    """
     where = "model"
     if not isinstance(model, SavedModel):
         path = Path(model)
@@ -213,7 +219,11 @@ def run_episodes(tasks: Sequence[tuple], *, workers: int | None = None, executor
 
 def resolve_executor(executor: str | None, workers: int | None) -> str:
     """``executor`` if given, else ``process:<workers>``, else ``process`` (every core);
-    raises SimError on a malformed value."""
+    raises SimError on a malformed value.
+
+    Raises:
+        SimError: both ``executor`` and ``workers`` given, or an executor spec that does not parse.
+    """
     if executor is None:
         executor = "process" if workers is None else f"process:{max(1, int(workers))}"
     try:
@@ -264,7 +274,12 @@ def evaluate(
             models) for every policy, so all decide on the same step.
 
     Raises:
-        SimError: ``episodes < 1`` or an unknown baseline name.
+        SimError: ``episodes`` < 1 or an unknown baseline name.
+        PolicyError: a model is not a merge model, or two policies share a name and one of them is not a
+            dataclass that can be renamed.
+        ModelFileError: a model file is missing or malformed.
+        DemonstrationError: the training encounters of the fitted baselines cannot be read.
+        SimulationError: SUMO fails to start or to step.
     """
     if episodes < 1:
         raise SimError(f"evaluate: episodes must be >= 1, got {episodes}")
@@ -278,6 +293,7 @@ def evaluate(
         controller = replace(controller, decision_s=learned[0].decision_step_s if learned else 0.3)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    check_writable(out / "report.md")  # before the episodes, not after
     fitted = [b for b in baselines if b in FITTED_BASELINES]
     fitted_pols = baseline_policies(fitted, train_demos, learned[0].encoder if learned else None) \
         if fitted and train_demos is not None else []
@@ -287,7 +303,7 @@ def evaluate(
             if b in by_name:
                 pols.append(by_name[b])
         else:
-            pols.append({"sumo": SumoPolicy, "uniform": UniformPolicy}[b]())
+            pols.append(_BASELINES[b]())
     pols.extend(policies)
     names = [p.name for p in pols]
     dup = {n for n in names if names.count(n) > 1}
@@ -345,5 +361,11 @@ def evaluation_provenance(models: Sequence, pols: Sequence[Policy], scenario, sp
                       extra={"scenario_sha256": text_digest(spec.to_toml())})
 
 
+_BASELINES: dict[str, Callable[[], Policy]] = {"sumo": SumoPolicy, "uniform": UniformPolicy}
+
+
 def _renamed(p: Policy, name: str) -> Policy:
+    if not is_dataclass(p) or isinstance(p, type):
+        raise PolicyError(f"evaluate: two policies are named {p.name!r} and {type(p).__name__} is not a "
+                          "dataclass that could be renamed; give each policy a distinct name")
     return replace(p, name=name)

@@ -21,14 +21,16 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import pandas as pd
 
 from analysis.provenance import provenance, text_digest, write_timings
 from analysis.sweep import ResultStore, SweepReport, Task, derive_seed, run_sweep, task_digest
+from analysis.sweep.store import NOT_IN_DIGEST
 from irl.atomic import write_atomic
+from irl.run_folder import locked, remove_temporaries
 from scenarios.spec import ScenarioSpec
 from scenarios.spec_parse import spec_from_toml, with_overrides
 from sim.generate import generate
@@ -48,7 +50,9 @@ class GenerateRun:
         demand_scale: factor on every demand flow, or None for the spec's demand.
         duration_s: simulated seconds, or None for the spec's.
         csv: also write ``trajectories.csv``.
-        run_dir: absolute output folder of this run.
+        run: the run's folder name inside the sweep folder.
+        run_dir: absolute output folder of this run (not part of the digest: a sweep folder
+            moved elsewhere still finds its finished runs).
     """
 
     spec_toml: str
@@ -56,7 +60,8 @@ class GenerateRun:
     demand_scale: float | None
     duration_s: float | None
     csv: bool
-    run_dir: str
+    run: str
+    run_dir: str = field(default="", metadata=NOT_IN_DIGEST)
 
 
 def run_name(scenario: str, seed: int, demand_scale: float | None) -> str:
@@ -92,6 +97,9 @@ def generate_one(config: GenerateRun, seed: int) -> dict:
         "n_rows": int(sim.n_vehicle_steps),
         "n_merges": int(len(res.encounters.merges)),
         "n_encounter_frames": int(len(res.encounters.frames)),
+        **{k: sim.events.as_dict()[k] for k in ("requested_veh_h", "served_veh_h", "insertion_backlog", "teleports",
+                                                "collisions")},
+        "warnings": sim.events.warnings(),
         "files": [p.name for p in res.files],
         "sim_wall_time_s": float(sim.wall_time_s),
         "table_sha256": table_checksum(sim.table),
@@ -108,7 +116,11 @@ def generate_tasks(
     duration_s: float | None = None,
     csv: bool = False,
 ) -> list[Task]:
-    """The sweep's tasks, seeds outermost. Validates every override before anything runs."""
+    """The sweep's tasks, seeds outermost. Validates every override before anything runs.
+
+    Raises:
+        ValueError: no seeds, or an empty ``demand_scales``.
+    """
     out = Path(out_dir).resolve()
     if not seeds:
         raise ValueError("generate_many: no seeds given")
@@ -123,7 +135,7 @@ def generate_tasks(
             name = run_name(spec.name, s, k)
             cfg = GenerateRun(spec_toml=text, seed=int(s), demand_scale=None if k is None else float(k),
                               duration_s=None if duration_s is None else float(duration_s), csv=bool(csv),
-                              run_dir=str(out / name))
+                              run=name, run_dir=str(out / name))
             tasks.append(Task(key=name, func=generate_one, config=cfg))
     return tasks
 
@@ -146,10 +158,12 @@ def _forget_missing_outputs(tasks: Sequence[Task], store: ResultStore) -> int:
 def write_summary(report: SweepReport, path: str | Path) -> Path:
     """``sweep.csv``: one line per finished run, in task order (atomic write), with the
     provenance of each line: package and SUMO versions, git commit (empty outside a checkout)
-    and the SHA-256 of the run's ``scenario.toml``. The runs' wall times go to
+    and the SHA-256 of the run's ``scenario.toml``; requested and served flow, the insertion
+    backlog, teleports and collisions (SUMO's, see ``run.toml``). The runs' wall times go to
     ``sweep.timings.json`` (:func:`analysis.provenance.write_timings`), so that two sweeps'
     ``sweep.csv`` can be compared by hash."""
-    cols = ["run", "seed", "demand_scale", "n_vehicles", "n_rows", "n_merges", "n_encounter_frames",
+    cols = ["run", "seed", "demand_scale", "requested_veh_h", "served_veh_h", "insertion_backlog", "teleports",
+            "collisions", "n_vehicles", "n_rows", "n_merges", "n_encounter_frames",
             "table_sha256", "scenario_sha256", "out_dir"]
     rows = [{c: r.get(c) for c in cols} for r in report.results.values()]
     table = pd.DataFrame(rows, columns=cols)
@@ -196,17 +210,46 @@ def generate_many(
     """
     out = Path(out_dir)
     tasks = generate_tasks(spec, seeds, demand_scales, out, duration_s=duration_s, csv=csv)
-    out.mkdir(parents=True, exist_ok=True)
-    store = ResultStore(out / STORE_DIR)
-    _forget_missing_outputs(tasks, store)
-    report = run_sweep(tasks, seed=SWEEP_SEED, executor=executor, store=store, retries=retries,
-                       progress=progress, desc=f"generate {spec.name}")
-    write_summary(report, out / SUMMARY)
+    with locked(out):
+        out.mkdir(parents=True, exist_ok=True)
+        remove_temporaries(out)
+        store = ResultStore(out / STORE_DIR)
+        store.remove_temporaries()
+        _forget_missing_outputs(tasks, store)
+        try:
+            report = run_sweep(tasks, seed=SWEEP_SEED, executor=executor, store=store, retries=retries,
+                               progress=progress, desc=f"generate {spec.name}")
+        except KeyboardInterrupt:  # what finished is in the store: summarise it, then stop
+            write_summary(_stored(tasks, store), out / SUMMARY)
+            raise
+        write_summary(_here(report, tasks), out / SUMMARY)
     return report
 
 
+def _here(report: SweepReport, tasks: Sequence[Task]) -> SweepReport:
+    """``report`` with each result's ``out_dir`` where the run is now (a stored result keeps
+    the folder it was written to; the sweep folder may have moved since)."""
+    where = {t.key: t.config.run_dir for t in tasks}
+    return replace(report, results={k: {**r, "out_dir": where.get(k, r.get("out_dir"))}
+                                    for k, r in report.results.items()})
+
+
+def _stored(tasks: Sequence[Task], store: ResultStore) -> SweepReport:
+    """A report of the finished runs found in ``store`` (after an interrupted sweep)."""
+    results = {}
+    for t in tasks:
+        record = store.get(task_digest(t.func_name, t.config, derive_seed(SWEEP_SEED, t.key)))
+        if record is not None:
+            results[t.key] = {**record["result"], "out_dir": t.config.run_dir}
+    return SweepReport(results=results, seeds={}, failures=(), n_cached=len(results), n_run=0, wall_time_s=0.0)
+
+
 def parse_seeds(text: str) -> tuple[int, ...]:
-    """``"1,2,3"``, ``"1-10"`` or a mix (``"1-3,7"``) -> distinct seeds in the order given."""
+    """``"1,2,3"``, ``"1-10"`` or a mix (``"1-3,7"``) -> distinct seeds in the order given.
+
+    Raises:
+        ValueError: a part is not ``N`` or ``N-M`` (``N <= M``, integers >= 0).
+    """
     out: list[int] = []
     for part in text.split(","):
         part = part.strip()
@@ -216,7 +259,7 @@ def parse_seeds(text: str) -> tuple[int, ...]:
                 a, b = int(lo), int(hi)
                 if b < a:
                     raise ValueError
-                values = range(a, b + 1)
+                values: range | list[int] = range(a, b + 1)
             else:
                 values = [int(part)]
         except ValueError:
@@ -230,7 +273,11 @@ def parse_seeds(text: str) -> tuple[int, ...]:
 
 
 def parse_scales(text: str) -> tuple[float, ...]:
-    """``"0.5,1,2"`` -> distinct positive demand factors in the order given."""
+    """``"0.5,1,2"`` -> distinct positive demand factors in the order given.
+
+    Raises:
+        ValueError: a part is not a positive finite number.
+    """
     out: list[float] = []
     for part in text.split(","):
         try:

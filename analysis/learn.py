@@ -13,8 +13,9 @@ Example::
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 import os
-from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -27,6 +28,7 @@ from irl.fit import METHODS, fit
 from irl.problems import Problem, load_problem
 from irl.reirl import DEFAULT_EPSILON, DEFAULT_N_BASELINE
 from irl.result import FitResult, SavedModel
+from irl.run_folder import check_writable
 
 
 def fit_problem(
@@ -36,7 +38,7 @@ def fit_problem(
     seed: int,
     *,
     progress: bool = False,
-    epsilon: float = DEFAULT_EPSILON,
+    epsilon: float | None = DEFAULT_EPSILON,
     n_baseline: int = DEFAULT_N_BASELINE,
 ) -> FitResult:
     """Fit ``method`` on ``problem`` with ``numpy.random.default_rng(seed)``.
@@ -44,10 +46,14 @@ def fit_problem(
     Q-Avg and Q-SM see only the demonstrations; MLIRL gets ``problem.transitions``; REIRL gets
     the transitions (for its baseline and final log-likelihood), the baseline and the padding
     rule of the domain. A pure function of its arguments.
+
+    Raises:
+        ConfigError: ``method`` is not one of :data:`irl.fit.METHODS`.
+        DemonstrationError, ConvergenceError: from the method (see :func:`irl.fit.fit`).
     """
     if method not in METHODS:
         raise ConfigError(f"method must be one of {METHODS}, got {method!r}")
-    options = {}
+    options: dict[str, Any] = {}
     if method == "reirl":
         options = dict(baseline=problem.baseline, epsilon=epsilon, n_baseline=n_baseline, pad_step=problem.pad_step())
     return fit(method, problem.demos, config, np.random.default_rng(seed), transitions=problem.transitions,
@@ -101,7 +107,7 @@ def saved_model(fit: FitResult, problem: Problem, *, seed: int, source: str = ""
 def learn(
     method: str,
     domain: str,
-    demos_path: str | os.PathLike,
+    demos_path: str | os.PathLike | Sequence[str | os.PathLike],
     *,
     config: IRLConfig | None = None,
     seed: int = 0,
@@ -109,7 +115,7 @@ def learn(
     baseline_path: str | os.PathLike | None = None,
     bins: MergeBins | str | os.PathLike | None = None,
     dt: float = 0.1,
-    epsilon: float = DEFAULT_EPSILON,
+    epsilon: float | None = DEFAULT_EPSILON,
     out: str | os.PathLike | None = None,
     progress: bool = False,
 ) -> SavedModel:
@@ -121,17 +127,27 @@ def learn(
     SHA-256 of every input file). With ``out``, the fit's wall time goes to
     ``<out stem>.timings.json`` beside it, not into ``model.json``: identical runs write
     identical model files.
+
+    Raises:
+        ConfigError: unknown ``domain`` or ``method``.
+        DemonstrationError: ``demos_path`` is missing or not a valid trajectory/encounter file.
+        ConvergenceError: the fit failed; no model is written.
+        OSError: ``out`` cannot be written (checked before loading and fitting).
     """
+    if out is not None:
+        check_writable(out)  # an unwritable --out fails now, not after the fit
     config = config or IRLConfig.paper()
     bins_path = None
     if bins is not None and not isinstance(bins, MergeBins):
         bins_path, bins = bins, MergeBins.load(bins)
     problem = load_problem(domain, demos_path, noise=noise, baseline_path=baseline_path, bins=bins, dt=dt)
-    prov = provenance_record({"demos": demos_path, "baseline": baseline_path, "bins": bins_path})
+    demos_list = [demos_path] if isinstance(demos_path, (str, os.PathLike)) else list(demos_path)
+    inputs = {("demos" if len(demos_list) == 1 else f"demos{i}"): p for i, p in enumerate(demos_list, start=1)}
+    prov = provenance_record({**inputs, "baseline": baseline_path, "bins": bins_path})
     result = fit_problem(problem, method, config, seed, progress=progress, epsilon=epsilon)
     if not math.isfinite(result.loglik):
-        raise ConvergenceError(f"{method} on {demos_path}: the fit failed ({result.message}); no model written")
-    model = saved_model(result, problem, seed=seed, source=str(Path(demos_path)), provenance=prov)
+        raise ConvergenceError(f"{method} on {problem.name}: the fit failed ({result.message}); no model written")
+    model = saved_model(result, problem, seed=seed, source=problem.name, provenance=prov)
     if out is not None:
         model.save(out)
         write_timings(out, {"fit_wall_time_s": float(result.wall_time_s)})

@@ -93,7 +93,7 @@ class EpisodeMetrics:
         return d
 
     @classmethod
-    def from_dict(cls, d: dict) -> "EpisodeMetrics":
+    def from_dict(cls, d: dict) -> EpisodeMetrics:
         kw = {f.name: d[f.name] for f in fields(cls) if f.name in d}
         kw["action_counts"] = tuple(int(x) for x in kw["action_counts"])
         for k in ("min_ttc_s", "b_ahead_rate", "travel_time_s", "mean_speed_A_ft_s", "js_divergence"):
@@ -364,7 +364,11 @@ def aggregate(
     flags: tuple[str, ...] = (),
 ) -> AggregateMetrics:
     """Aggregate the episodes of one policy (all must share ``policy``); ``w1``: the
-    :func:`w1_to_demos` distances of its decisions; ``flags``: its model's fit flags."""
+    :func:`w1_to_demos` distances of its decisions; ``flags``: its model's fit flags.
+
+    Raises:
+        ValueError: no episodes, or episodes of more than one policy.
+    """
     if not episodes:
         raise ValueError("aggregate: no episodes")
     names = {e.policy for e in episodes}

@@ -49,6 +49,7 @@ from irl.errors import IRLError
 from irl.domains.merge import fit_quantile_bins
 from irl.problems import load_problem
 from scenarios.loader import load_scenario
+from scenarios.spec import ScenarioSpec
 from sim.controller import Controller
 from sim.encounters import extract_encounters
 from sim.errors import SimError
@@ -127,7 +128,7 @@ class EncounterRun:
     """One data run as a sweep task config: ``scenario`` (name, TOML path or ScenarioSpec)
     simulated with SUMO ``seed`` for ``duration_s`` (None: the scenario's)."""
 
-    scenario: object
+    scenario: str | Path | ScenarioSpec
     seed: int
     duration_s: float | None = None
 
@@ -152,6 +153,9 @@ def generate_encounters(scenario, seeds: Sequence[int], duration_s: float | None
 
     Runs through :func:`analysis.sweep.run_sweep` (``executor``, default ``process:<workers>``;
     one simulation per worker process at a time). Raises SimError if a run failed twice.
+
+    Raises:
+        SimError: a data run failed (the message lists each failed run and its error).
     """
     tasks = [Task(f"{i:03d}/seed{int(s)}", encounters_task, EncounterRun(scenario, int(s), duration_s))
              for i, s in enumerate(seeds)]
@@ -169,7 +173,11 @@ def _say(msg: str, quiet: bool) -> None:
 
 def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(), *, quiet: bool = False,
              progress: bool = True) -> DemoResult:
-    """Run the whole pipeline (see the module docstring) and return where the outputs are."""
+    """Run the whole pipeline (see the module docstring) and return where the outputs are.
+
+    Raises:
+        IRLError: no IRL method produced a usable model (the message gives each method's reason).
+    """
     # rerun takes about 0.8 s to import; the sweep workers that import this module for
     # encounters_task never record
     from analysis.rerun_log import RerunLogger, close_recording, log_training, open_recording, recording_identity

@@ -25,7 +25,7 @@ import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -37,6 +37,7 @@ from irl.atomic import write_json_atomic
 from irl.baselines import BASELINES, baseline_leave_one_out, fit_baseline, paired_test
 from irl.config import IRLConfig
 from irl.errors import ConfigError
+from irl.problems import Problem
 from irl.reirl import DEFAULT_EPSILON
 
 #: Row order of the paper's tables.
@@ -50,7 +51,7 @@ TITLES = {
     3: "Table 3: NGSIM I-80 merge, 12 trajectories",
 }
 #: The paper's reported means (theta..., final LL) per table and method, for side-by-side reading.
-PAPER = {
+PAPER: dict[int, dict[str, tuple[float, ...]]] = {
     1: {"mlirl": (43.04, 33.31, 54.23, 53.93, -49.09, -36.50), "qavg": (152.33, 92.06, 1526.06, 151.51, 0.03, -29.25),
         "qsm": (17.92, 11.96, 109.88, 17.87, 0.02, -40.39), "reirl": (0.87, 28.27, 40.43, 44.62, -3.10, -43.58)},
     2: {"mlirl": (94.00, 86.91, 93.26, 95.35, -71.57, -45.05), "qavg": (227.72, 89.83, 157.59, 3368.95, 151.43, -40.49),
@@ -61,7 +62,12 @@ PAPER = {
 
 
 def table_inputs(table: int, data_dir: str | os.PathLike) -> dict[str, Path]:
-    """The folders ``table`` reads under ``data_dir`` (role -> path), for its provenance."""
+    """The folders ``table`` reads under ``data_dir`` (role -> path), for its provenance.
+
+    Raises:
+        ConfigError: ``table`` is not 1, 2 or 3.
+        DemonstrationError: ``data_dir`` does not hold the authors' data layout.
+    """
     d = resolve_data_dir(data_dir)
     if table in (1, 2):
         tag = f"noise_{0.0 if table == 1 else 0.1:.1f}"
@@ -178,7 +184,7 @@ wilcoxon_p = paired_test
 
 def _folds(holdout: list[TrialOutcome]) -> np.ndarray:
     """``[n]`` held-out log-likelihoods ordered by fold (held-out trajectory index)."""
-    return np.array([o.heldout_loglik for o in sorted(holdout, key=lambda o: o.holdout)])
+    return np.array([o.heldout_loglik for o in sorted(holdout, key=lambda o: -1 if o.holdout is None else o.holdout)])
 
 
 def _p_against(folds: np.ndarray, ref: np.ndarray | None) -> float:
@@ -222,7 +228,7 @@ def baseline_summary(name: str, problem: Problem, holdout: bool, mlirl_folds: np
 
 
 def _trial_specs(table: int, data_dir: str, config: IRLConfig, n: int, seed: int,
-                 methods: tuple[str, ...], holdout: bool, epsilon: float) -> list[TrialSpec]:
+                 methods: tuple[str, ...], holdout: bool, epsilon: float | None) -> list[TrialSpec]:
     seeds = trial_seeds(seed, n)
     specs = [TrialSpec(table, data_dir, m, config, j, s, epsilon=epsilon)
              for m in methods for j, s in enumerate(seeds)]
@@ -267,7 +273,7 @@ def reproduce_tables(
     seed: int = 0,
     methods: tuple[str, ...] = METHOD_ORDER,
     holdout: bool = True,
-    epsilon: float = DEFAULT_EPSILON,
+    epsilon: float | None = DEFAULT_EPSILON,
     executor: str = "process",
     store: ResultStore | str | os.PathLike | None = None,
     retries: int = 1,
@@ -288,6 +294,11 @@ def reproduce_tables(
         store: a result directory: finished trials are stored there and skipped when re-run.
         retries: re-runs of a failing trial before it is reported in ``sweep.failures``; the
             tables are summarised from the trials that succeeded.
+
+    Raises:
+        ConfigError: no table, a table other than 1, 2 or 3, unknown ``settings`` or ``methods``, or
+            ``trials`` < 1.
+        DemonstrationError: ``data_dir`` does not hold the authors' data layout.
     """
     tables = tuple(int(t) for t in tables)
     for table in tables:
@@ -356,7 +367,7 @@ def reproduce(
     seed: int = 0,
     methods: tuple[str, ...] = METHOD_ORDER,
     holdout: bool = True,
-    epsilon: float = DEFAULT_EPSILON,
+    epsilon: float | None = DEFAULT_EPSILON,
     executor: str = "process",
     store: ResultStore | str | os.PathLike | None = None,
     retries: int = 1,

@@ -21,8 +21,9 @@
 
 Timelines: ``sim_time`` (duration, s) and ``step`` (sequence: Frame_ID). Frames are buffered
 and sent in columns (``send_columns``) every ``flush_every`` frames, which keeps logging well
-under 10 microseconds per vehicle-frame. The file is written under a temporary name and
-renamed when the run ends, so an interrupted run leaves no complete-looking ``.rrd``.
+under 10 microseconds per vehicle-frame. The file is written under a temporary name
+(``<name>.partial``) and renamed only when the run succeeds (``on_end``); a run that fails or
+is interrupted (``on_abort``) leaves the ``.partial`` file, never a complete-looking ``.rrd``.
 """
 
 from __future__ import annotations
@@ -72,13 +73,15 @@ def recording_identity(scenario: str, policy: str, seed: int, episode: int | Non
 
 def open_recording(path: str | os.PathLike, *, application_id: str = "merge-irl",
                    recording_id: str | None = None, name: str | None = None) -> tuple[rr.RecordingStream, Path]:
-    """A recording stream saving to a temporary name next to ``path`` (see :func:`close_recording`).
+    """A recording stream saving to a temporary name next to ``path`` (see :func:`close_recording`);
+    an existing file at ``path`` is removed first.
 
     ``recording_id``: what the viewer groups data by (two files with one id merge into one
     recording); ``name``: the recording's display name.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    path.unlink(missing_ok=True)  # a previous run's file must not pass for this run's
     rec = rr.RecordingStream(application_id, recording_id=recording_id)
     tmp = _tmp_path(path)
     rec.save(str(tmp))
@@ -138,6 +141,8 @@ class RerunLogger:
         self.log_vehicles = log_vehicles
         self._own = recording is None
         self._app = application_id
+        self._rec: rr.RecordingStream | None
+        self._tmp: Path | None
         self._rec, self._tmp = recording if recording is not None else (None, None)
         self._reset_buffers()
         # per controlled car: rows (step, t, speed, d_AC, d_AB, ttc) and decision rows
@@ -156,6 +161,12 @@ class RerunLogger:
         self._wid: list[np.ndarray] = []
         self._roles: list[np.ndarray] = []
         self._ids: list[np.ndarray] = []
+
+    @property
+    def _stream(self) -> rr.RecordingStream:
+        if self._rec is None:
+            raise RuntimeError("RerunLogger: the recording opens in on_start; nothing can be logged before")
+        return self._rec
 
     # -- hook protocol -------------------------------------------------------------------
     def on_start(self, ctx: RunContext) -> None:
@@ -194,8 +205,16 @@ class RerunLogger:
     def on_end(self, ctx: RunContext) -> None:
         self._flush()
         self._flush_scalars()
-        if self._own and self._rec is not None:
+        if self._own and self._rec is not None and self._tmp is not None:
             close_recording(self._rec, self._tmp, self.path)
+            self._rec = None
+
+    def on_abort(self, ctx: RunContext) -> None:
+        """The run failed or was interrupted: close the stream and leave it under its temporary
+        ``.partial`` name, never under the final one."""
+        if self._own and self._rec is not None:
+            self._rec.flush()
+            self._rec.disconnect()
             self._rec = None
 
     # -- internals ----------------------------------------------------------------------
@@ -253,7 +272,7 @@ class RerunLogger:
             # an arrow array, not numpy: rerun turns a numpy column into one Python list per value
             *rr.AnyValues.columns(vehicle_id=pa.array(ids)).partition(lens),
         ]
-        self._rec.send_columns(
+        self._stream.send_columns(
             "world/vehicles",
             indexes=[rr.TimeColumn("step", sequence=np.asarray(self._steps)),
                      rr.TimeColumn("sim_time", duration=np.asarray(self._times))],
@@ -271,7 +290,7 @@ class RerunLogger:
         for a_id, rows in self._decision_rows.items():
             d = np.asarray(rows, dtype=np.float64)  # [n, 2 + 5 + 1 + 3]
             base = f"policy/A_{a_id}"
-            self._rec.log(f"{base}/probs", rr.SeriesLines(names=[n.lower() for n in ACTION_NAMES]), static=True)
+            self._stream.log(f"{base}/probs", rr.SeriesLines(names=[n.lower() for n in ACTION_NAMES]), static=True)
             self._send_series(f"{base}/probs", d[:, 0], d[:, 1], d[:, 2:7])
             self._send_series(f"{base}/action", d[:, 0], d[:, 1], d[:, 7])
             for k, name in enumerate(FEATURE_NAMES, start=8):
@@ -285,7 +304,7 @@ class RerunLogger:
         cols = rr.Scalars.columns(scalars=values.reshape(-1))
         if values.ndim == 2:
             cols = cols.partition(np.full(values.shape[0], values.shape[1]))
-        self._rec.send_columns(
+        self._stream.send_columns(
             entity,
             indexes=[rr.TimeColumn("step", sequence=steps.astype(np.int64)),
                      rr.TimeColumn("sim_time", duration=times)],

@@ -8,7 +8,8 @@ evaluation. A metric that is ``(mean, std)`` is compared by its mean. A metric w
 NaN (not measurable in that run) counts as a breach, so a CI gate never passes by accident.
 
 Metric names are those of :class:`analysis.metrics.AggregateMetrics` (the ``aggregate`` object
-of each policy in ``metrics.json``).
+of each policy in ``metrics.json``), plus :data:`EPISODE_TOTALS` (``teleports``: SUMO's teleports
+summed over the policy's episodes).
 """
 
 from __future__ import annotations
@@ -68,7 +69,12 @@ class Breach:
 
 
 def parse_threshold(text: str) -> Threshold:
-    """One ``[POLICY.]METRIC OP NUMBER``; ``ThresholdError`` explaining the syntax otherwise."""
+    """One ``[POLICY.]METRIC OP NUMBER``; ``ThresholdError`` explaining the syntax otherwise.
+
+    Raises:
+        ThresholdError: ``text`` is not ``[POLICY.]METRIC OP NUMBER`` with a known metric and a number (not
+            NaN).
+    """
     m = _PATTERN.match(text)
     if not m:
         raise ThresholdError(
@@ -142,7 +148,12 @@ def check_thresholds(thresholds: Iterable[Threshold],
 
 
 def metrics_from_file(path: str | Path) -> dict[str, dict[str, Any]]:
-    """``policy -> aggregate metrics`` of an evaluation's ``metrics.json``."""
+    """``policy -> aggregate metrics`` of an evaluation's ``metrics.json``.
+
+    Raises:
+        ThresholdError: the file is missing, not readable JSON, or has no ``policies`` object of ``{name:
+            {"aggregate": {...}}}``.
+    """
     path = Path(path)
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
@@ -154,7 +165,19 @@ def metrics_from_file(path: str | Path) -> dict[str, dict[str, Any]]:
     if not isinstance(policies, dict) or not all(
             isinstance(p, dict) and isinstance(p.get("aggregate"), dict) for p in policies.values()):
         raise ThresholdError(f"{path}: expected an object 'policies' of {{name: {{'aggregate': {{...}}}}}}")
-    return {name: p["aggregate"] for name, p in policies.items()}
+    return {name: {**_episode_totals(p.get("episodes")), **p["aggregate"]} for name, p in policies.items()}
+
+
+#: Whole-run counts of the episodes that a ``metrics.json`` aggregate may lack; thresholds see
+#: their total over the policy's episodes (``--fail-if 'teleports>0'``).
+EPISODE_TOTALS = ("teleports",)
+
+
+def _episode_totals(episodes: Any) -> dict[str, int]:
+    if not isinstance(episodes, list) or not all(isinstance(e, dict) for e in episodes):
+        return {}
+    return {k: sum(int(e[k]) for e in episodes) for k in EPISODE_TOTALS
+            if episodes and all(isinstance(e.get(k), int) and not isinstance(e.get(k), bool) for e in episodes)}
 
 
 def check_file(path: str | Path, thresholds: Iterable[str] | str) -> list[Breach]:

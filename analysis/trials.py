@@ -19,7 +19,7 @@ import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 
 import numpy as np
 
@@ -51,7 +51,7 @@ class TrialTask:
     config: IRLConfig
     seed: int
     holdout: int | None = None
-    epsilon: float = DEFAULT_EPSILON
+    epsilon: float | None = DEFAULT_EPSILON
 
 
 @dataclass(frozen=True)
@@ -79,7 +79,7 @@ class TrialOutcome:
         return d
 
     @classmethod
-    def from_dict(cls, d: dict) -> "TrialOutcome":
+    def from_dict(cls, d: dict) -> TrialOutcome:
         """Inverse of :meth:`to_dict` (None log-likelihoods back to NaN)."""
         def num(x) -> float:
             return float("nan") if x is None else float(x)
@@ -117,7 +117,7 @@ class TrialSpec:
     trial: int
     trial_seed: int
     holdout: int | None = None
-    epsilon: float = DEFAULT_EPSILON
+    epsilon: float | None = DEFAULT_EPSILON
 
     @property
     def key(self) -> str:
@@ -127,7 +127,12 @@ class TrialSpec:
 
 
 def resolve_data_dir(data_dir: str | os.PathLike) -> Path:
-    """``data_dir`` itself if it holds ``gridworld/`` or ``merge_ngsim/``, else its ``railusm/``."""
+    """``data_dir`` itself if it holds ``gridworld/`` or ``merge_ngsim/``, else its ``railusm/``.
+
+    Raises:
+        DemonstrationError: the folder does not hold the authors' data layout (``gridworld/``,
+            ``merge_ngsim/``).
+    """
     d = Path(data_dir)
     if (d / "gridworld").is_dir() or (d / "merge_ngsim").is_dir():
         return d
@@ -137,7 +142,11 @@ def resolve_data_dir(data_dir: str | os.PathLike) -> Path:
 
 
 def table_problem(table: int, data_dir: str | os.PathLike) -> Problem:
-    """The data set of ``table`` (1, 2 or 3) under ``data_dir`` (the ``railusm`` layout)."""
+    """The data set of ``table`` (1, 2 or 3) under ``data_dir`` (the ``railusm`` layout).
+
+    Raises:
+        ConfigError: ``table`` is not 1, 2 or 3.
+    """
     d = resolve_data_dir(data_dir)
     if table in (1, 2):
         noise = 0.0 if table == 1 else 0.1

@@ -15,6 +15,9 @@ def find_recordings(target: str | os.PathLike) -> list[Path]:
     """``target`` itself if it is an ``.rrd`` file, else every ``.rrd`` under the folder, sorted.
 
     Raises ``SimError`` naming ``target`` if there is nothing to open.
+
+    Raises:
+        SimError: a path does not exist, is not a ``.rrd`` file, or is a folder without recordings.
     """
     p = Path(target)
     if p.is_file():

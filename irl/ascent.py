@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import sys
 from dataclasses import dataclass, field
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 import scipy.optimize as so
@@ -97,6 +97,7 @@ def unit_step_ascent(evaluate: Callable[[np.ndarray], Evaluation], theta0: np.nd
                 theta = theta + config.step_size * g / norm
                 if n % 64 == 0:
                     bar.set_postfix(L=f"{ev.loglik:.4f}")
+    assert ev is not None, "IRLConfig validates max_outer >= 1, so the loop evaluated at least once"
     return AscentResult(theta, ev, np.array(lls), np.array(thetas).reshape(len(thetas), -1),
                         converged, message, {"outer_steps": float(len(lls))})
 
@@ -206,6 +207,9 @@ def newton_concave(evaluate: Callable[[np.ndarray], Evaluation], theta0: np.ndar
     ``theta_cap``, when an accepted step gains less than ``ftol max(1, |f|)`` (use a positive
     ``ftol`` when the weights are known to diverge, where the gains only shrink geometrically),
     or after ``min(max_iter, config.max_outer)`` iterations.
+
+    Raises:
+        ValueError: ``evaluate`` returned an :class:`Evaluation` without ``hess``.
     """
     theta = np.asarray(theta0, dtype=np.float64).copy()
     l2 = config.l2
@@ -216,6 +220,8 @@ def newton_concave(evaluate: Callable[[np.ndarray], Evaluation], theta0: np.ndar
     converged, message = False, f"Newton: reached {n_iter} iterations"
     with progress_bar(progress, n_iter, desc) as bar:
         for it in range(n_iter):
+            if ev.hess is None:
+                raise ValueError("newton_concave: evaluate returned no Hessian (Evaluation.hess is None)")
             h = -(ev.hess - l2 * np.eye(theta.size))  # PSD
             lam, vec = np.linalg.eigh(0.5 * (h + h.T))
             radius = 10.0 * (1.0 + float(np.linalg.norm(theta)))  # |theta| grows at most 11x a step

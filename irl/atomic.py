@@ -17,7 +17,8 @@ import json
 import os
 import secrets
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
+from collections.abc import Callable
 
 
 def temporary_path(path: str | os.PathLike, suffix: str | None = None) -> Path:

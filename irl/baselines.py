@@ -23,7 +23,8 @@ fold, so paired tests can compare two methods on the same held-out trajectories
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Protocol
+from typing import Protocol
+from collections.abc import Callable
 
 import numpy as np
 from scipy.stats import wilcoxon
@@ -187,6 +188,9 @@ def paired_test(x: np.ndarray, y: np.ndarray) -> float:
     observation. Pairs with a non-finite value are dropped. Returns NaN with fewer than 2 pairs,
     1.0 when every difference is zero (``scipy.stats.wilcoxon``, exact distribution for small
     ``n`` without ties).
+
+    Raises:
+        ValueError: ``x`` and ``y`` differ in shape.
     """
     x, y = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
     if x.shape != y.shape:

@@ -367,6 +367,7 @@ def iteration_fixed_point(
         iterations += fp.iterations
         if fp.converged:
             return FixedPoint(fp.q, True, iterations + total, fp.residual, "converged")
+    assert fp is not None, "each of the three passes returns or runs Newton"
     return FixedPoint(fp.q, False, iterations + total, fp.residual, f"Newton after damped backups: {fp.message}")
 
 

@@ -279,7 +279,7 @@ class DampedBoltzmann(FaithfulSolver):
         r = self.phi @ theta
         a, keep = c.alpha, 1.0 - c.alpha
         ok_q = ok_d = False
-        for n1 in range(1, c.max_inner + 1):
+        for n1 in range(1, c.max_inner + 1):  # noqa: B007 - the sweep count is reported after the loop
             v, _, _ = mean_weights(self.q.reshape(S, A), c.beta)
             new = keep * self.q + a * (r + c.gamma * (self.p @ v))
             change = float(np.max(np.abs(new - self.q)))
@@ -294,7 +294,7 @@ class DampedBoltzmann(FaithfulSolver):
             m = c.gamma * (self.p[:, :, None] * w[None, :, :]).reshape(S * A, S * A)
         else:
             m = backup_operator(self.succ, w, c.gamma)
-        for n2 in range(1, c.max_inner + 1):
+        for n2 in range(1, c.max_inner + 1):  # noqa: B007 - the sweep count is reported after the loop
             new = keep * self.dq + a * (self.phi + m @ self.dq)
             change = float(np.max(np.abs(new - self.dq)))
             self.dq = new

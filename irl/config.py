@@ -77,12 +77,12 @@ class IRLConfig:
         return self.tol
 
     @classmethod
-    def paper(cls, **overrides: Any) -> "IRLConfig":
+    def paper(cls, **overrides: Any) -> IRLConfig:
         """The paper's settings (gamma 0.99, alpha 0.01, beta 0.01)."""
         return replace(cls(), **overrides)
 
     @classmethod
-    def reference(cls, **overrides: Any) -> "IRLConfig":
+    def reference(cls, **overrides: Any) -> IRLConfig:
         """The authors' code's settings: gamma 0.9, alpha 0.1, stop at ``|dL| <= 1e-4`` unscaled."""
         return replace(cls(gamma=0.9, alpha=0.1, tol=1e-4, stop_scale_by_gamma=False), **overrides)
 
@@ -90,7 +90,12 @@ class IRLConfig:
         return asdict(self)
 
     @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> "IRLConfig":
+    def from_dict(cls, data: dict[str, Any]) -> IRLConfig:
+        """The settings in ``data`` (as written by :meth:`to_dict`); missing ones take the defaults.
+
+        Raises:
+            ConfigError: an unknown setting, or a value the settings' checks reject.
+        """
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(data) - known)
         if unknown:

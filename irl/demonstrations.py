@@ -127,7 +127,7 @@ class Demonstrations:
         s2 = np.concatenate([x[1:] for x in self.states])
         return s, a, s2
 
-    def subset(self, indices) -> "Demonstrations":
+    def subset(self, indices) -> Demonstrations:
         """The demonstrations restricted to the trajectories at ``indices`` (same features)."""
         idx = [int(i) for i in indices]
         return Demonstrations(
@@ -140,7 +140,7 @@ class Demonstrations:
             names=tuple(self.names[i] for i in idx) if self.names else (),
         )
 
-    def deduplicated(self) -> "Demonstrations":
+    def deduplicated(self) -> Demonstrations:
         """Drop trajectories identical (same states and actions) to an earlier one."""
         seen: set[bytes] = set()
         keep = []

@@ -16,7 +16,11 @@ from irl.result import FitResult
 
 def initial_theta(demos: Demonstrations, config: IRLConfig, rng: np.random.Generator,
                   theta0: np.ndarray | None) -> np.ndarray:
-    """``theta0`` (checked to be ``[K]`` finite) or ``rng.uniform(init_low, init_high, K)``."""
+    """``theta0`` (checked to be ``[K]`` finite) or ``rng.uniform(init_low, init_high, K)``.
+
+    Raises:
+        ConfigError: ``theta0`` is not ``K`` finite numbers.
+    """
     k = demos.n_features
     if theta0 is None:
         return rng.uniform(config.init_low, config.init_high, size=k)

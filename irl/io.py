@@ -39,6 +39,9 @@ def trajectory_files(path: str | os.PathLike) -> list[Path]:
     """The trajectory files a text-format path stands for, in natural order.
 
     A file stands for itself; a directory for its ``*.txt`` files.
+
+    Raises:
+        DemonstrationError: ``path`` does not exist, or is a folder without ``*.txt`` files.
     """
     path = Path(path)
     if not path.exists():
@@ -63,7 +66,12 @@ def _parse_int(token: str, what: str, where: str, limit: int) -> int:
 
 
 def read_text_trajectory(path: Path, n_states: int, n_actions: int) -> tuple[np.ndarray, np.ndarray]:
-    """One text-format trajectory: ``states [T]``, ``actions [T]`` (int64)."""
+    """One text-format trajectory: ``states [T]``, ``actions [T]`` (int64).
+
+    Raises:
+        DemonstrationError: the file is empty, not text, or has a line that is not ``state<TAB>action``
+            integers (file and line named).
+    """
     try:
         text = path.read_text()
     except UnicodeDecodeError:
@@ -254,7 +262,11 @@ def load_feature_names(path: str | os.PathLike) -> tuple[str, ...]:
 
 
 def save_npz(demos: Demonstrations, path: str | os.PathLike, feature_names: tuple[str, ...] = ()) -> Path:
-    """Write ``demos`` in the generic ``.npz`` format, atomically."""
+    """Write ``demos`` in the generic ``.npz`` format, atomically.
+
+    Raises:
+        DemonstrationError: the number of feature names is not the number of features.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     states, actions, offsets = demos.flat()
@@ -270,6 +282,6 @@ def save_npz(demos: Demonstrations, path: str | os.PathLike, feature_names: tupl
         arrays["names"] = np.asarray(demos.names, dtype=str)
     def write(tmp: Path) -> None:
         with open(tmp, "wb") as f:  # a file object: np.savez would add ".npz" to a path
-            np.savez(f, **arrays)
+            np.savez(f, **arrays)  # type: ignore[arg-type]  # numpy stub: a ** dict might hold allow_pickle
 
     return write_atomic(path, write)

@@ -18,8 +18,17 @@ import pandas as pd
 
 from irl.demonstrations import Demonstrations
 from irl.domains.merge import (
-    ACTION_ACC_FT_S2, N_ACTIONS, N_STATES, VARIABLES, ZERO_ACTION, MergeBins, actions_of, features,
-    state_index, state_parts, validate_encounters,
+    ACTION_ACC_FT_S2,
+    N_ACTIONS,
+    N_STATES,
+    VARIABLES,
+    ZERO_ACTION,
+    MergeBins,
+    actions_of,
+    features,
+    state_index,
+    state_parts,
+    validate_encounters,
 )
 from irl.errors import ConfigError, DemonstrationError
 from irl.io import load_railusm
@@ -27,7 +36,9 @@ from irl.transitions import estimate_transitions
 
 
 def discretize(encounters_df, bins: MergeBins, *, where: str = "encounters") -> Demonstrations:
-    """One trajectory per ``encounter_id`` (rows taken in table order = frame order).
+    """One trajectory per run of rows with one ``encounter_id`` (rows in table order = frame order;
+    a new trajectory also starts where ``Frame_ID``, when present, does not increase), so tables
+    concatenated from several files keep same-numbered encounters apart.
 
     Args:
         encounters_df: the encounter table of :mod:`irl.domains.merge` (columns
@@ -47,9 +58,17 @@ def discretize(encounters_df, bins: MergeBins, *, where: str = "encounters") -> 
     states = bins.encode(encounters_df)
     actions = actions_of(encounters_df["acc_A"].to_numpy(dtype=np.float64))
     ids = encounters_df["encounter_id"].to_numpy()
+    # a trajectory is a run of rows with one id (and increasing Frame_ID when present): tables
+    # concatenated from several files or runs may reuse ids, and must not be glued together
+    brk = np.ones(len(ids), dtype=bool)
+    brk[1:] = ids[1:] != ids[:-1]
+    if "Frame_ID" in encounters_df.columns and len(ids) > 1:
+        fr = encounters_df["Frame_ID"].to_numpy()
+        brk[1:] |= fr[1:] <= fr[:-1]
+    run = np.cumsum(brk)
     order: dict = {}
-    for i, k in enumerate(ids):
-        order.setdefault(k, []).append(i)
+    for i, (k, r) in enumerate(zip(ids, run)):
+        order.setdefault((k, r), []).append(i)
     return Demonstrations(
         states=tuple(states[idx] for idx in order.values()),
         actions=tuple(actions[idx] for idx in order.values()),
@@ -57,7 +76,7 @@ def discretize(encounters_df, bins: MergeBins, *, where: str = "encounters") -> 
         n_states=N_STATES,
         n_actions=N_ACTIONS,
         source=where,
-        names=tuple(f"encounter {k}" for k in order),
+        names=tuple(f"encounter {k}" for k, _ in order),
     )
 
 
@@ -80,6 +99,9 @@ def kinematic_next_state(states, actions, bins: MergeBins, dt: float = 0.1) -> n
 
     Returns:
         next states, same shape.
+
+    Raises:
+        ConfigError: ``dt`` is not positive.
     """
     if not dt > 0:
         raise ConfigError(f"decision step dt must be positive, got {dt}")

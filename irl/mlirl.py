@@ -34,6 +34,9 @@ def solve_q(theta: np.ndarray, features: np.ndarray, transitions: np.ndarray,
 
     ``features`` is ``[S, A, K]``. Raises :class:`~irl.errors.ConvergenceError` when the fixed
     point cannot be found.
+
+    Raises:
+        ConvergenceError: the Boltzmann fixed point was not reached.
     """
     succ = model_successors(transitions)
     r = np.asarray(features, dtype=np.float64) @ np.asarray(theta, dtype=np.float64)
@@ -46,7 +49,12 @@ def solve_q(theta: np.ndarray, features: np.ndarray, transitions: np.ndarray,
 def fit_mlirl(demos: Demonstrations, config: IRLConfig, rng: np.random.Generator, *,
               theta0: np.ndarray | None = None, progress: bool = False,
               transitions: np.ndarray | None = None) -> FitResult:
-    """Fit MLIRL weights under ``transitions [S, A, S]`` (required); see the module doc."""
+    """Fit MLIRL weights under ``transitions [S, A, S]`` (required); see the module doc.
+
+    Raises:
+        ConfigError: no ``transitions``, or ``transitions`` not of shape ``[S, A, S]``.
+        ConvergenceError: the inner fixed point fails.
+    """
     start = time.perf_counter()
     if transitions is None:
         raise ConfigError("MLIRL needs a transition model: pass transitions [S, A, S] "

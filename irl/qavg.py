@@ -87,7 +87,7 @@ def _fit_exact(demos: Demonstrations, config: IRLConfig, theta: np.ndarray, prog
     asc = newton_concave(evaluate, theta, config, progress=progress, desc="qavg exact",
                          ftol=1e-12 if unbounded else 0.0)
     message = asc.message
-    if unbounded:
+    if unbounded and direction is not None:
         d = direction / np.linalg.norm(direction)
         message = (f"weights unbounded: the demonstrations are separable along direction "
                    f"{np.array2string(d, precision=3)} (L never decreases along it), so L has no "

@@ -34,7 +34,7 @@ under ``transitions``.
 from __future__ import annotations
 
 import time
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -75,6 +75,9 @@ def pad_trajectories(
 
     Returns:
         ``states [n, length]``, ``actions [n, length]``.
+
+    Raises:
+        DemonstrationError: a trajectory is longer than ``length``.
     """
     n = len(states)
     out_s = np.empty((n, length), dtype=np.int64)
@@ -151,6 +154,9 @@ def solve_dual(
     Returns:
         ``(theta [K], cvxpy status, optimal value)``; status ``"unbounded"`` when the dual has no
         minimiser (only possible without ``theta_cap``).
+
+    Raises:
+        REIRLError: neither Clarabel nor SCS solves the dual.
     """
     import cvxpy as cp
 

@@ -124,7 +124,7 @@ class SavedModel:
     unvisited_rule: str = "none"
 
     @classmethod
-    def from_fit(cls, fit: FitResult, **kw: Any) -> "SavedModel":
+    def from_fit(cls, fit: FitResult, **kw: Any) -> SavedModel:
         return cls(
             method=fit.method, theta=np.asarray(fit.theta), loglik=fit.loglik, q=np.asarray(fit.q),
             config=fit.config, converged=fit.converged, unbounded=fit.unbounded, **kw,
@@ -160,7 +160,7 @@ class SavedModel:
         return write_json_atomic(path, self.to_json_dict())
 
     @classmethod
-    def load(cls, path: str | os.PathLike) -> "SavedModel":
+    def load(cls, path: str | os.PathLike) -> SavedModel:
         """Read a ``model.json``.
 
         Raises:

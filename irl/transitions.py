@@ -46,7 +46,7 @@ class SuccessorModel:
         return self.n_states * self.n_actions
 
     @cached_property
-    def jacobian_pattern(self) -> "JacobianPattern":
+    def jacobian_pattern(self) -> JacobianPattern:
         """Precomputed sparsity of ``I - gamma P W(c)`` (see :func:`irl.bellman.backup_jacobian`)."""
         return JacobianPattern.of(self)
 
@@ -70,7 +70,7 @@ class JacobianPattern:
     n: int
 
     @classmethod
-    def of(cls, succ: "SuccessorModel") -> "JacobianPattern":
+    def of(cls, succ: SuccessorModel) -> JacobianPattern:
         A, n = succ.n_actions, succ.n_pairs
         p = succ.p.tocoo()
         rows = np.repeat(p.row, A)
@@ -117,7 +117,12 @@ def model_free_successors(demos: Demonstrations) -> SuccessorModel:
 
 
 def model_successors(transitions: np.ndarray, where: str = "transitions") -> SuccessorModel:
-    """Wrap a full model ``T [S, A, S]`` (rows must be probability distributions)."""
+    """Wrap a full model ``T [S, A, S]`` (rows must be probability distributions).
+
+    Raises:
+        DemonstrationError: ``T`` is not ``[S, A, S]``, has negative or non-finite entries, or a row that does
+            not sum to 1.
+    """
     t = np.asarray(transitions, dtype=np.float64)
     if t.ndim != 3 or t.shape[0] != t.shape[2]:
         raise DemonstrationError(f"{where}: expected shape [S, A, S], got {t.shape}")
@@ -140,6 +145,9 @@ def estimate_transitions(demos: Demonstrations, fallback: np.ndarray | None = No
     trajectory's last). A pair never observed with a successor takes ``fallback[s, a, :]`` when
     ``fallback`` (``[S, A, S]``, row-stochastic) is given, else stays in place
     (``T[s, a, s] = 1``, a self-loop). The result is row-stochastic.
+
+    Raises:
+        DemonstrationError: ``fallback`` is not of shape ``[S, A, S]``.
     """
     counts = successor_counts(demos)
     S, A = demos.n_states, demos.n_actions
@@ -177,7 +185,11 @@ def reachable_states(succ: SuccessorModel, start: np.ndarray) -> np.ndarray:
 
 
 def restrict(succ: SuccessorModel, states: np.ndarray) -> SuccessorModel:
-    """The successor model on ``states`` only (closed: every successor must be among them)."""
+    """The successor model on ``states`` only (closed: every successor must be among them).
+
+    Raises:
+        ValueError: the state set is not closed under the successor model.
+    """
     states = np.asarray(states, dtype=np.int64)
     A = succ.n_actions
     rows = (states[:, None] * A + np.arange(A)[None, :]).ravel()

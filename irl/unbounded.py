@@ -18,7 +18,7 @@ that the likelihood does not fall when moving further along the direction found.
 
 from __future__ import annotations
 
-from typing import Callable, Iterable
+from collections.abc import Callable, Iterable
 
 import numpy as np
 

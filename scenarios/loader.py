@@ -19,7 +19,11 @@ def preset_names() -> tuple[str, ...]:
 
 
 def load_preset(name: str) -> ScenarioSpec:
-    """The preset ``name``; ``SpecError`` listing the presets if there is none of that name."""
+    """The preset ``name``; ``SpecError`` listing the presets if there is none of that name.
+
+    Raises:
+        SpecError: there is no preset of that name (the message lists the presets).
+    """
     if name not in preset_names():
         raise SpecError(f"scenario: unknown preset {name!r} (presets: {', '.join(preset_names())}; or give a .toml file)")
     text = (resources.files("scenarios") / "presets" / f"{name}.toml").read_text(encoding="utf-8")

@@ -12,6 +12,8 @@ spreading to the right (negative y), SUMO lane index 0 = rightmost. Edges:
 Networks are cached in ``$MERGE_IRL_CACHE/networks/<hash>/net.net.xml`` (default cache
 ``~/.cache/merge-irl``). The hash covers the road spec and this module's format version, so a
 rerun reuses the file; a build happens in a temporary folder renamed into place atomically.
+Each entry holds the SHA-256 of its network file (``net.sha256``): an entry whose file is
+missing, truncated or altered (a damaged disk, a hand edit) is detected and rebuilt.
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from scenarios.spec import RoadSpec
 
 NETWORK_FORMAT_VERSION = 1
 NET_FILE = "net.net.xml"
+CHECKSUM_FILE = "net.sha256"
 
 
 class NetworkBuildError(ScenarioError, RuntimeError):
@@ -89,12 +92,23 @@ def netconvert_binary() -> str:
 
 
 def build_network(road: RoadSpec, *, cache_dir: Path | None = None) -> Path:
-    """Path of the ``.net.xml`` for ``road``; runs netconvert only if it is not cached yet."""
+    """Path of the ``.net.xml`` for ``road``; runs netconvert only if it is not cached yet.
+
+    Raises:
+        NetworkBuildError: netconvert fails (its error output is in the message).
+    """
     root = (cache_dir or cache_root()) / "networks"
     final = root / network_key(road)
     net = final / NET_FILE
-    if net.is_file():
+    if _intact(final):
         return net
+    if final.exists():  # damaged: moved aside (one rename) and removed, then built again
+        aside = root / f".{final.name}-{secrets.token_hex(6)}-damaged"
+        try:
+            os.rename(final, aside)
+        except FileNotFoundError:  # another process moved it first
+            pass
+        shutil.rmtree(aside, ignore_errors=True)
     root.mkdir(parents=True, exist_ok=True)
     tmp = root / f".{final.name}-{secrets.token_hex(6)}"
     tmp.mkdir()  # mode 0777 minus umask, readable like the files (mkdtemp would give 0700)
@@ -115,15 +129,28 @@ def build_network(road: RoadSpec, *, cache_dir: Path | None = None) -> Path:
         if proc.returncode != 0 or not (tmp / NET_FILE).is_file():
             raise NetworkBuildError(f"netconvert failed for road {road}: {proc.stderr.strip()[-2000:]}")
         (tmp / "road.json").write_text(json.dumps(asdict(road), indent=1), encoding="utf-8")
+        (tmp / CHECKSUM_FILE).write_text(_sha256(tmp / NET_FILE) + "\n", encoding="utf-8")
         try:
             os.rename(tmp, final)
         except OSError:
-            if not net.is_file():  # someone else's build did not win either
+            if not _intact(final):  # someone else's build did not win either
                 raise
     finally:
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
     return net
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _intact(entry: Path) -> bool:
+    """Whether the cache ``entry`` holds its network file with the checksum recorded at build."""
+    try:
+        return (entry / CHECKSUM_FILE).read_text(encoding="utf-8").strip() == _sha256(entry / NET_FILE)
+    except (OSError, UnicodeDecodeError):
+        return False
 
 
 __all__ = ["build_network", "cache_root", "network_key", "NetworkBuildError"]

@@ -133,7 +133,7 @@ class ScenarioSpec:
 
 def _to_plain(obj: Any) -> Any:
     if isinstance(obj, ScenarioSpec):
-        out = {"name": obj.name}
+        out: dict[str, Any] = {"name": obj.name}
         for part in ("road", "demand", "simulation"):
             out[part] = _to_plain(getattr(obj, part))
         out["drivers"] = {c: [_to_plain(v) for v in getattr(obj.drivers, c)] for c in VEHICLE_CLASSES}

@@ -99,6 +99,20 @@ def _str(ctx: _Ctx, path: str, v: Any, choices: tuple[str, ...] | None = None) -
     return v
 
 
+#: Plausible ranges of the road's sizes and speeds (inclusive): outside them a value is a typo
+#: or a unit mix-up (a 0.1 m lane, a 1 m road), not a road SUMO should build. Lengths hold a
+#: few cars (5 m each); lanes are 2.5-5 m wide in practice; speeds up to 250 km/h.
+ROAD_RANGES: dict[str, tuple[float, float, str]] = {
+    "main_length_m": (50.0, 20_000.0, "m"),
+    "merge_position_m": (10.0, 20_000.0, "m"),
+    "ramp_length_m": (20.0, 5_000.0, "m"),
+    "aux_length_m": (10.0, 5_000.0, "m"),
+    "lane_width_m": (2.5, 5.0, "m"),
+    "speed_limit_mps": (1.0, 70.0, "m/s"),
+    "ramp_speed_limit_mps": (1.0, 70.0, "m/s"),
+}
+
+
 def _road(ctx: _Ctx, data: Any) -> RoadSpec:
     names = [f.name for f in fields(RoadSpec)]
     d = _check_keys(ctx, "road", data, names)
@@ -117,6 +131,9 @@ def _road(ctx: _Ctx, data: Any) -> RoadSpec:
                 raise ctx.fail(p, f"must be in (0, 45) degrees, got {d[n]!r}")
         else:
             kw[n] = _positive(ctx, p, d[n])
+            lo, hi, unit = ROAD_RANGES.get(n, (0.0, math.inf, ""))
+            if not lo <= kw[n] <= hi:
+                raise ctx.fail(p, f"{kw[n]:g} {unit} is implausible; expected {lo:g} to {hi:g} {unit}")
     r = RoadSpec(**kw)
     if r.merge_position_m + r.aux_length_m >= r.main_length_m:
         raise ctx.fail(
@@ -238,7 +255,7 @@ def _drivers(ctx: _Ctx, data: Any) -> DriversSpec:
             if isinstance(items, dict):
                 items = [items]
             if not isinstance(items, list) or not items:
-                raise ctx.fail(f"drivers.{cls}", "must be a non-empty array of vType tables ([[drivers.%s]])" % cls)
+                raise ctx.fail(f"drivers.{cls}", f"must be a non-empty array of vType tables ([[drivers.{cls}]])")
             kw[cls] = tuple(_vtype(ctx, f"drivers.{cls}[{i}]", it, cls) for i, it in enumerate(items))
         for i, vt in enumerate(kw[cls]):
             if vt.id in seen:
@@ -273,7 +290,11 @@ def _simulation(ctx: _Ctx, data: Any) -> SimulationSpec:
 
 
 def spec_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> ScenarioSpec:
-    """Validate a parsed TOML mapping and build the spec; raises ``SpecError`` naming the field."""
+    """Validate a parsed TOML mapping and build the spec; raises ``SpecError`` naming the field.
+
+    Raises:
+        SpecError: a missing or invalid field (the message names it and what was expected).
+    """
     ctx = _Ctx(source)
     d = _check_keys(ctx, "", data, ["name", "road", "demand", "drivers", "simulation"])
     if "name" not in d:
@@ -293,7 +314,11 @@ def spec_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> ScenarioS
 
 
 def spec_from_toml(text: str, *, source: str = "<toml>") -> ScenarioSpec:
-    """Parse TOML text and validate it."""
+    """Parse TOML text and validate it.
+
+    Raises:
+        SpecError: invalid TOML, or a missing or invalid field (see :func:`spec_from_dict`).
+    """
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
@@ -302,6 +327,12 @@ def spec_from_toml(text: str, *, source: str = "<toml>") -> ScenarioSpec:
 
 
 def spec_from_file(path: str | Path) -> ScenarioSpec:
+    """The scenario in the UTF-8 TOML file ``path``.
+
+    Raises:
+        SpecError: the file cannot be read, is not UTF-8 text, or does not hold a valid scenario (see
+            :func:`spec_from_toml`).
+    """
     p = Path(path)
     try:
         text = p.read_text(encoding="utf-8")

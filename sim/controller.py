@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -194,7 +195,7 @@ class Controller:
         self._every = 1
         self._zone_start = 0.0
         self._section_end = math.inf
-        self._traci = None
+        self._traci: Any = None  # the libsumo module (untyped), set by on_start
         self._collision_pairs: set[tuple[str, str]] = set()
         self.n_teleports = 0  # teleports in the whole run, all vehicles
 
@@ -365,6 +366,7 @@ class Controller:
         probs = np.asarray(self.policy.probs(obs), dtype=np.float64)
         filtered = False
         if c.commanded:
+            assert self._rng is not None, "on_start seeds the generator before any step"
             action = choose_action(probs, self._rng, mode=self.config.mode)
             acc_table = getattr(self.policy, "action_acc_ft_s2", ACTION_ACC_FT_S2)
             if self.config.safety_ttc_s is not None:

@@ -1,6 +1,8 @@
 """Merge encounters (merging car B, lag car A, lead car C) from any NGSIM-schema trajectory table.
 
-Definitions (the paper's section 4.2; feet, ft/s, ft/s^2; positions are NGSIM's front bumper):
+Definitions (the paper's section 4.2; feet, ft/s, ft/s^2; positions are NGSIM's front bumper).
+Lane numbers are I-80's (ramp 7, merge lane 6); other sites pass ``site`` (:mod:`sim.sites`:
+its ramp lanes for 7, its merge lane for 6; unknown lane codes are an error):
 
 * **B** is a vehicle with a row in lane 7 (ramp / auxiliary lane) followed later by a row in
   lane 6 (the rightmost main lane). Its **merge frame** is its first lane-6 frame after its
@@ -30,7 +32,8 @@ Definitions (the paper's section 4.2; feet, ft/s, ft/s^2; positions are NGSIM's 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Collection
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -38,7 +41,8 @@ import pandas as pd
 from irl.domains.merge import ENCOUNTER_COLUMNS, forward_acceleration
 from sim.errors import TrajectoryFormatError
 from sim.observe import lag_lead_positions
-from sim.schema import FRAME_S, RAMP_LANE, RIGHTMOST_MAIN_LANE, V_CLASS_TRUCK
+from sim.schema import FRAME_S, V_CLASS_TRUCK
+from sim.sites import I80, SiteProfile, check_lanes
 
 #: Columns of the per-merge summary table, in order.
 MERGE_COLUMNS: dict[str, str] = {
@@ -70,12 +74,67 @@ class EncounterWindow:
             raise ValueError(f"EncounterWindow.frames_after must be >= 0, got {self.frames_after}")
 
 
+#: A merge whose B moves this much more (ft) than its speed explains, between its last row
+#: before the merge frame and the merge frame, is a jump (a SUMO teleport), not a merge. Over a
+#: gap of dt seconds (missing frames) the allowance grows by what NGSIM's largest acceleration
+#: (11.2 ft/s^2) can make the trapezoid rule miss, 11.2 * dt^2 / 4.
+MAX_MERGE_JUMP_FT = 10.0
+_MAX_ACC_FT_S2 = 11.2
+
+#: Columns of the table of merges left out (``Encounters.excluded``).
+EXCLUDED_COLUMNS: dict[str, str] = {"B_id": "int64", "merge_frame": "int64", "reason": "object"}
+
+
 @dataclass(frozen=True)
 class Encounters:
-    """``frames``: one row per encounter frame (ENCOUNTER_COLUMNS); ``merges``: one row per B."""
+    """``frames``: one row per encounter frame (ENCOUNTER_COLUMNS); ``merges``: one row per B;
+    ``excluded``: merges left out (EXCLUDED_COLUMNS: teleported B, position jump at the merge)."""
 
     frames: pd.DataFrame
     merges: pd.DataFrame
+    excluded: pd.DataFrame = field(default_factory=lambda: _empty(EXCLUDED_COLUMNS))
+
+
+def screen_merges(table: pd.DataFrame, merges: pd.DataFrame,
+                  teleported: Collection[int] = ()) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Split ``merges`` (``B_id, merge_frame``) into real merges and non-physical ones.
+
+    A merge is left out when B is in ``teleported`` (Vehicle_IDs SUMO reported as teleported)
+    or when, between B's last row before the merge frame and the merge frame, ``Local_Y``
+    moves more than :data:`MAX_MERGE_JUMP_FT` beyond what ``v_Vel`` explains (trapezoid rule,
+    0.1 s frames): a vehicle put ahead without driving, as SUMO's jam teleport does.
+
+    Returns:
+        (kept merges, same columns; excluded, EXCLUDED_COLUMNS).
+
+    Raises:
+        TrajectoryFormatError: duplicate (Vehicle_ID, Frame_ID) rows.
+    """
+    if merges.empty:
+        return merges, _empty(EXCLUDED_COLUMNS)
+    vid = table["Vehicle_ID"].to_numpy(np.int64)
+    frame = table["Frame_ID"].to_numpy(np.int64)
+    o = np.lexsort((frame, vid))
+    sv, sf = vid[o], frame[o]
+    y = table["Local_Y"].to_numpy(np.float64)[o]
+    v = table["v_Vel"].to_numpy(np.float64)[o]
+    b = merges["B_id"].to_numpy(np.int64)
+    mf = merges["merge_frame"].to_numpy(np.int64)
+    idx = pd.MultiIndex.from_arrays([sv, sf])
+    if not idx.is_unique:
+        raise TrajectoryFormatError("trajectory table: duplicate (Vehicle_ID, Frame_ID) rows")
+    pos = idx.get_indexer(pd.MultiIndex.from_arrays([b, mf]))
+    prev = np.maximum(pos - 1, 0)
+    has_prev = (pos > 0) & (sv[prev] == b)
+    dt = (sf[pos] - sf[prev]) * FRAME_S
+    jump = np.where(has_prev, np.abs(y[pos] - y[prev] - (v[pos] + v[prev]) * 0.5 * dt), 0.0)
+    allowed = MAX_MERGE_JUMP_FT + _MAX_ACC_FT_S2 * dt * dt / 4.0
+    tele = np.isin(b, np.fromiter(teleported, dtype=np.int64)) if len(teleported) else np.zeros(len(b), bool)
+    bad = tele | (jump > allowed)
+    reasons = [("teleported (SUMO's list)" if t else f"Local_Y jumps {j:.1f} ft beyond what v_Vel explains at the merge")
+               for t, j in zip(tele[bad], jump[bad])]
+    excluded = pd.DataFrame({"B_id": b[bad], "merge_frame": mf[bad], "reason": reasons}).astype(EXCLUDED_COLUMNS)
+    return merges.loc[~bad].reset_index(drop=True), excluded
 
 
 def _empty(cols: dict[str, str]) -> pd.DataFrame:
@@ -88,29 +147,47 @@ def _check(table: pd.DataFrame) -> None:
         raise TrajectoryFormatError(f"trajectory table: missing columns {missing} needed for merge encounters")
 
 
-def find_merges(table: pd.DataFrame) -> pd.DataFrame:
-    """One row per merging vehicle B: ``B_id, merge_frame`` (int64), sorted by merge frame, B."""
+def find_merges(table: pd.DataFrame, *, site: SiteProfile = I80) -> pd.DataFrame:
+    """One row per merging vehicle B: ``B_id, merge_frame`` (int64), sorted by merge frame, B.
+
+    ``site`` gives the lane coding (:mod:`sim.sites`): B has a row in one of its ramp lanes
+    and later one in its merge lane.
+
+    Raises:
+        TrajectoryFormatError: a needed column is missing, or ``Lane_ID`` holds codes the
+            site does not list.
+    """
     _check(table)
     vid = table["Vehicle_ID"].to_numpy(np.int64)
     frame = table["Frame_ID"].to_numpy(np.int64)
     lane = table["Lane_ID"].to_numpy(np.int64)
-    on7 = lane == RAMP_LANE
+    check_lanes(lane, site)
+    on7 = np.isin(lane, np.asarray(site.ramp_lanes, dtype=np.int64))
     if not on7.any():
         return pd.DataFrame({"B_id": pd.Series(dtype="int64"), "merge_frame": pd.Series(dtype="int64")})
     first7 = pd.Series(frame[on7]).groupby(vid[on7]).min()
     f7 = first7.reindex(vid).to_numpy()  # NaN for vehicles never in lane 7
-    cand = (lane == RIGHTMOST_MAIN_LANE) & ~np.isnan(f7) & (frame > np.nan_to_num(f7, nan=np.inf))
+    cand = (lane == site.merge_lane) & ~np.isnan(f7) & (frame > np.nan_to_num(f7, nan=np.inf))
     merge = pd.Series(frame[cand]).groupby(vid[cand]).min()
     out = pd.DataFrame({"B_id": merge.index.to_numpy(np.int64), "merge_frame": merge.to_numpy(np.int64)})
     return out.sort_values(["merge_frame", "B_id"], kind="stable").reset_index(drop=True)
 
 
-def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow()) -> Encounters:
-    """Every merge of ``table`` with its A and C, and the per-frame encounter variables."""
+def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),
+            site: SiteProfile = I80, teleported: Collection[int] = ()) -> Encounters:
+    """Every merge of ``table`` with its A and C, and the per-frame encounter variables.
+
+    ``site``: the lane coding (:mod:`sim.sites`; I-80's by default, as in simulated runs).
+    ``teleported``: Vehicle_IDs SUMO teleported; their merges, and merges with a position jump,
+    are left out (listed in ``excluded``, see :func:`screen_merges`).
+
+    Raises:
+        TrajectoryFormatError: see :func:`find_merges`; duplicate (Vehicle_ID, Frame_ID) rows.
+    """
     _check(table)
-    merges = find_merges(table)
+    merges, excluded = screen_merges(table, find_merges(table, site=site), teleported)
     if merges.empty:
-        return Encounters(_empty(ENCOUNTER_COLUMNS), _empty(MERGE_COLUMNS))
+        return Encounters(_empty(ENCOUNTER_COLUMNS), _empty(MERGE_COLUMNS), excluded)
     vid = table["Vehicle_ID"].to_numpy(np.int64)
     frame = table["Frame_ID"].to_numpy(np.int64)
     lane = table["Lane_ID"].to_numpy(np.int64)
@@ -124,7 +201,7 @@ def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow())
     first_frame = pd.Series(frame).groupby(vid).min()
 
     # lane-6 rows sorted by (frame, Local_Y): A/C lookups with searchsorted
-    r6 = np.flatnonzero(lane == RIGHTMOST_MAIN_LANE)
+    r6 = np.flatnonzero(lane == site.merge_lane)
     r6 = r6[np.lexsort((y[r6], frame[r6]))]
     f6 = frame[r6]
 
@@ -171,9 +248,14 @@ def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow())
     frames_df = pd.concat(chunks, ignore_index=True) if chunks else _empty(ENCOUNTER_COLUMNS)
     frames_df = frames_df.astype(ENCOUNTER_COLUMNS).loc[:, list(ENCOUNTER_COLUMNS)]
     merges_df = pd.DataFrame(summary, columns=list(MERGE_COLUMNS)).astype(MERGE_COLUMNS)
-    return Encounters(frames_df, merges_df)
+    return Encounters(frames_df, merges_df, excluded)
 
 
-def extract_encounters(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow()) -> pd.DataFrame:
-    """The per-frame encounter table (ENCOUNTER_COLUMNS) of every merge in ``table``."""
-    return extract(table, window=window).frames
+def extract_encounters(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),
+                       site: SiteProfile = I80) -> pd.DataFrame:
+    """The per-frame encounter table (ENCOUNTER_COLUMNS) of every merge in ``table``.
+
+    Raises:
+        TrajectoryFormatError: see :func:`extract`.
+    """
+    return extract(table, window=window, site=site).frames

@@ -6,21 +6,36 @@ Files written into the output folder (each atomically; see ``sim.outputs``):
 * ``encounters.parquet``    per-frame merge encounters (``irl.domains.merge.ENCOUNTER_SCHEMA``);
 * ``merges.parquet``        one row per merging vehicle (``sim.encounters.MERGE_COLUMNS``);
 * ``scenario.toml``         the spec simulated, with the seed and duration actually used;
+* ``run.toml``              what SUMO reported (:class:`sim.run.RunEvents`): requested and served
+  flow, insertion backlog, teleports, collisions, emergency stops, and the merges left out;
 * ``trajectories.csv``      on request, in NGSIM's text format (``sim.ngsim_io``).
 
-Before simulating, these names are removed from the folder, so an aborted rerun never leaves
-the previous run's files looking like the result of this one.
+The files are published as a set (:mod:`irl.run_folder`): written into a hidden staging folder
+beside the output folder, then renamed into place in one step, so a run killed at any point
+publishes nothing under the final name. The output folder is locked for the run (a second run
+into it fails at once), must hold nothing but a previous run's files (removed before simulating,
+so an aborted rerun never leaves them looking like this run's), and is checked writable before
+the simulation starts. Leftovers of killed runs (staging folders, temporary files) are removed.
 """
 
 from __future__ import annotations
 
+import shutil
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 from irl.atomic import write_text_atomic
+from irl.run_folder import (
+    check_replaceable,
+    locked,
+    publish,
+    remove_temporaries,
+    staging_folder,
+)
 from scenarios.spec import ScenarioSpec
 from scenarios.spec_parse import with_overrides
+from scenarios.toml_write import dumps
 from sim.encounters import Encounters, EncounterWindow, extract
 from sim.hooks import StepHook
 from sim.outputs import write_parquet
@@ -30,8 +45,9 @@ TRAJECTORIES = "trajectories.parquet"
 ENCOUNTERS = "encounters.parquet"
 MERGES = "merges.parquet"
 SCENARIO = "scenario.toml"
+RUN_REPORT = "run.toml"
 CSV = "trajectories.csv"
-OUTPUT_FILES = (TRAJECTORIES, ENCOUNTERS, MERGES, SCENARIO, CSV)
+OUTPUT_FILES = (TRAJECTORIES, ENCOUNTERS, MERGES, SCENARIO, RUN_REPORT, CSV)
 
 
 @dataclass(frozen=True)
@@ -60,23 +76,57 @@ def generate(
     window: EncounterWindow = EncounterWindow(),
     hooks: Sequence[StepHook] = (),
 ) -> GenerateResult:
-    """Simulate ``spec`` (optionally with another seed / duration) and write the output files."""
+    """Simulate ``spec`` (optionally with another seed / duration) and write the output files.
+
+    Raises:
+        SimulationError: SUMO fails to start or to step.
+        OutputLockedError: another run is writing into the output folder.
+        FileExistsError: the output folder holds files that are not a previous run's outputs.
+        OSError: the output folder cannot be written (checked before simulating).
+    """
     if seed is not None or duration_s is not None:
         spec = with_overrides(spec, seed=seed, duration_s=duration_s)
-    out = Path(out_dir) if out_dir is not None else default_out_dir(spec)
-    out.mkdir(parents=True, exist_ok=True)
-    for name in OUTPUT_FILES:
-        (out / name).unlink(missing_ok=True)
+    final = Path(out_dir) if out_dir is not None else default_out_dir(spec)
+    with locked(final):
+        check_replaceable(final, OUTPUT_FILES)
+        remove_temporaries(final.resolve().parent, final.resolve().name)  # stale staging folders
+        remove_temporaries(final)
+        for name in OUTPUT_FILES:
+            (final / name).unlink(missing_ok=True)
+        stage = staging_folder(final)
+        try:
+            res = _generate_into(stage, spec, csv=csv, progress=progress, window=window, hooks=hooks)
+            publish(stage, final)
+        finally:
+            if stage.exists():
+                shutil.rmtree(stage, ignore_errors=True)
+    files = tuple(final / p.name for p in res.files)
+    return GenerateResult(out_dir=final, files=files, simulation=res.simulation, encounters=res.encounters)
+
+
+def _generate_into(out: Path, spec: ScenarioSpec, *, csv: bool, progress: bool, window: EncounterWindow,
+                   hooks: Sequence[StepHook]) -> GenerateResult:
+    """Simulate and write every output file into the (staging) folder ``out``."""
     result = run_scenario(spec, hooks=hooks, progress=progress)
-    enc = extract(result.table, window=window)
+    enc = extract(result.table, window=window, teleported=result.teleported_vehicle_ids)
     files = [
         write_parquet(result.table, out / TRAJECTORIES),
         write_parquet(enc.frames, out / ENCOUNTERS),
         write_parquet(enc.merges, out / MERGES),
         write_text_atomic(out / SCENARIO, spec.to_toml()),
+        write_text_atomic(out / RUN_REPORT, run_report_toml(result, enc)),
     ]
     if csv:
         from sim.ngsim_io import write_ngsim_csv
 
         files.append(Path(write_ngsim_csv(result.table, out / CSV)))
     return GenerateResult(out_dir=out, files=tuple(files), simulation=result, encounters=enc)
+
+
+def run_report_toml(result: SimulationResult, enc: Encounters) -> str:
+    """``run.toml``: SUMO's events and the served demand of ``result``, and the merges left out."""
+    ev = result.events.as_dict()
+    ev["merges_left_out"] = [{"B_id": int(b), "merge_frame": int(f), "reason": str(r)}
+                             for b, f, r in enc.excluded.itertuples(index=False)]
+    ev["warnings"] = result.events.warnings()
+    return dumps({"run": ev})

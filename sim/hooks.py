@@ -8,7 +8,12 @@ Call order for one run::
 
     hook.on_start(ctx)                 # once, after SUMO started and the network is loaded
     hook.on_step(ctx, frame)           # once per recorded frame (after warm-up), in order
-    hook.on_end(ctx)                   # once, before the SUMO session is closed (also on errors)
+    hook.on_end(ctx)                   # once, before the SUMO session is closed, when the run succeeded
+    hook.on_abort(ctx)                 # instead of on_end when the run ends with an error or Ctrl-C
+                                       # (optional; hooks without it get on_end also then)
+
+A hook that writes files commits them (renames them to their final names) only in ``on_end``,
+so an aborted run never leaves a complete-looking output.
 
 Hooks are called in the order given. Frames of the warm-up period are neither recorded nor
 passed to hooks.

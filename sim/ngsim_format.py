@@ -16,6 +16,8 @@ else integer.
 
 from __future__ import annotations
 
+import unicodedata
+
 from sim.schema import COLUMNS
 
 #: The 18 NGSIM columns in file order (the schema's order).
@@ -51,13 +53,22 @@ KNOWN_EXTRA_COLUMNS: tuple[str, ...] = (
 ALIASES: dict[str, str] = {"space_hdwy": "Space_Headway", "time_hdwy": "Time_Headway"}
 
 
+def visible(text: str) -> str:
+    """``text`` without invisible characters (byte-order marks, zero-width and other format
+    characters, control characters), outer whitespace (including no-break spaces) and quotes."""
+    kept = "".join(ch for ch in text if unicodedata.category(ch) not in ("Cf", "Cc"))
+    return kept.strip().strip('"').strip()
+
+
 def canonical_name(name: str) -> str:
-    """Map a header field to the schema's spelling (case-insensitive, with :data:`ALIASES`);
-    unknown names unchanged."""
-    key = name.strip().strip('"').lower()
+    """Map a header field to the schema's spelling (case-insensitive, with :data:`ALIASES`,
+    ignoring invisible characters such as a byte-order mark); unknown names are returned
+    without their invisible characters."""
+    shown = visible(name)
+    key = shown.lower()
     if key in ALIASES:
         return ALIASES[key]
     for c in NGSIM_COLUMNS:
         if c.lower() == key:
             return c
-    return name.strip().strip('"')
+    return shown

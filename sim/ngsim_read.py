@@ -23,7 +23,7 @@ see :mod:`sim.ngsim_smooth`).
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -34,8 +34,9 @@ import pyarrow.csv as pacsv
 
 from sim.errors import TrajectoryFormatError
 from sim.ngsim_format import NGSIM_COLUMNS, canonical_name
+from sim.ngsim_recordings import RecordingTally, choose_location, choose_recording, normalise_location
 from sim.ngsim_smooth import SmoothingConfig, jerk_rms, smooth_table
-from sim.ngsim_validate import ChunkValidator
+from sim.ngsim_validate import ChunkValidator, check_kinematic_units
 from sim.schema import COLUMNS
 
 _COL = {c: i for i, c in enumerate(NGSIM_COLUMNS)}
@@ -62,6 +63,8 @@ class NgsimReport:
     smoothing: str  #: "none" or the filter's description
     jerk_rms_smoothed_ft_s3: float | None
     extra_columns_dropped: tuple[str, ...]
+    location: str | None = None  #: the site kept (``Location`` column), None: not selected
+    recording: str = ""  #: the recording kept when the file holds several, described
 
     def summary(self) -> str:
         """A few human-readable lines."""
@@ -77,6 +80,8 @@ class NgsimReport:
             + (f" (RMS jerk after {self.jerk_rms_smoothed_ft_s3:.1f} ft/s^3)"
                if self.jerk_rms_smoothed_ft_s3 is not None else ""),
         ]
+        if self.location is not None or self.recording:
+            lines.append(f"  recording kept: site {self.location or '-'} {self.recording}".rstrip())
         if self.extra_columns_dropped:
             lines.append(f"  extra columns dropped: {', '.join(self.extra_columns_dropped)}")
         return "\n".join(lines)
@@ -96,6 +101,7 @@ class _Layout:
     names: tuple[str, ...]  # all columns of the file, canonical spelling
     header_lines: int
     bytes_per_row: float
+    encoding: str = "utf-8"  # "utf-8-sig" when a UTF-8 byte-order mark starts the file
 
 
 def _is_number(text: str) -> bool:
@@ -106,45 +112,94 @@ def _is_number(text: str) -> bool:
     return True
 
 
-def _sniff(path: Path) -> _Layout:
+#: Byte-order marks -> the encoding they announce (longest first).
+_BOMS: tuple[tuple[bytes, str], ...] = (
+    (b"\xef\xbb\xbf", "utf-8-sig"), (b"\xff\xfe", "utf-16"), (b"\xfe\xff", "utf-16"),
+)
+
+
+def _encoding(path: Path) -> str:
+    """The file's text encoding from its byte-order mark (Excel's "CSV UTF-8" writes one);
+    UTF-8 without a mark."""
     with open(path, "rb") as fh:
-        head = [fh.readline() for _ in range(50)]
-    head = [h.decode("utf-8", "replace") for h in head if h.strip()]
+        start = fh.read(4)
+    for bom, enc in _BOMS:
+        if start.startswith(bom):
+            return enc
+    return "utf-8"
+
+
+#: Longest line (characters) read while sniffing or locating a bad line: NGSIM rows are a few
+#: hundred; a longer "line" (a damaged or sparse file, binary data) is refused without reading
+#: it whole, so the memory of error reporting stays bounded.
+MAX_LINE_CHARS = 1 << 16
+
+
+def _bounded_lines(fh, path: Path) -> Iterator[tuple[int, str]]:
+    """``(line number, line)`` of a text file, each line read at most :data:`MAX_LINE_CHARS` long.
+
+    Raises:
+        TrajectoryFormatError: a line longer than that (named by number).
+    """
+    lineno = 0
+    while True:
+        line = fh.readline(MAX_LINE_CHARS + 1)
+        if not line:
+            return
+        lineno += 1
+        if len(line) > MAX_LINE_CHARS:
+            raise TrajectoryFormatError(
+                f"{path}: line {lineno}: longer than {MAX_LINE_CHARS} characters without a line end; "
+                "expected NGSIM rows (a few hundred characters each): a damaged or binary file?")
+        yield lineno, line
+
+
+def _sniff(path: Path) -> _Layout:
+    encoding = _encoding(path)
+    with open(path, encoding=encoding, errors="replace", newline="") as fh:
+        head = [line for _, (_, line) in zip(range(50), _bounded_lines(fh, path))]
+    head = [h for h in head if h.strip()]
     if not head:
         raise TrajectoryFormatError(f"{path}: line 1: the file is empty; expected NGSIM rows")
+    if encoding == "utf-16":
+        raise TrajectoryFormatError(
+            f"{path}: line 1: the file is UTF-16 text (Excel's \"Unicode text\"); expected UTF-8 "
+            "CSV: save it as \"CSV UTF-8 (comma delimited)\""
+        )
     first = head[0]
     bpr = max(1.0, sum(len(h) for h in head[1:] or head) / max(1, len(head[1:] or head)))
     if "," in first:
-        fields = [canonical_name(f) for f in first.rstrip("\r\n").split(",")]
+        raw = first.rstrip("\r\n").split(",")
+        fields = [canonical_name(f) for f in raw]
         if not all(_is_number(f) for f in fields):
             missing = [c for c in NGSIM_COLUMNS if c not in fields]
             if missing:
                 raise TrajectoryFormatError(
                     f"{path}: line 1 (header): missing column(s) {missing}; expected NGSIM's "
-                    f"columns {list(NGSIM_COLUMNS)}"
+                    f"columns {list(NGSIM_COLUMNS)}; the header has {fields}"
                 )
-            return _Layout("csv", tuple(fields), 1, bpr)
+            return _Layout("csv", tuple(fields), 1, bpr, encoding)
         if len(fields) < len(NGSIM_COLUMNS):
             raise TrajectoryFormatError(
                 f"{path}: line 1: {len(fields)} fields and no header; expected a header line or "
                 f"the {len(NGSIM_COLUMNS)} NGSIM columns"
             )
         extra = tuple(f"extra_{i}" for i in range(len(fields) - len(NGSIM_COLUMNS)))
-        return _Layout("csv", NGSIM_COLUMNS + extra, 0, bpr)
+        return _Layout("csv", NGSIM_COLUMNS + extra, 0, bpr, encoding)
     n = len(first.split())
     if n != len(NGSIM_COLUMNS):
         raise TrajectoryFormatError(
             f"{path}: line 1: {n} whitespace-separated fields; expected the {len(NGSIM_COLUMNS)} "
             f"NGSIM columns {list(NGSIM_COLUMNS)}"
         )
-    return _Layout("txt", NGSIM_COLUMNS, 0, bpr)
+    return _Layout("txt", NGSIM_COLUMNS, 0, bpr, encoding)
 
 
 def _locate_bad_line(path: Path, layout: _Layout, start_line: int, cause: Exception) -> TrajectoryFormatError:
     """Error path: find the first unparsable line at or after ``start_line`` (1-based)."""
     idx = {c: layout.names.index(c) for c in NGSIM_COLUMNS}
-    with open(path, encoding="utf-8", errors="replace") as fh:
-        for lineno, line in enumerate(fh, start=1):
+    with open(path, encoding=layout.encoding, errors="replace") as fh:
+        for lineno, line in _bounded_lines(fh, path):
             if lineno < start_line or lineno <= layout.header_lines or not line.strip():
                 continue
             fields = line.rstrip("\r\n").split(",") if layout.kind == "csv" else line.split()
@@ -167,51 +222,76 @@ def _locate_bad_line(path: Path, layout: _Layout, start_line: int, cause: Except
 MAX_BLOCK_BYTES = 1 << 20
 
 
-def _chunks(path: Path, layout: _Layout, chunksize: int) -> Iterator[np.ndarray]:
-    """Yield float64[18, n] arrays (one row per schema column), in file order, n = ``chunksize``
-    except for the last. The array may be reused for the next chunk: copy what you keep."""
+def _location_column(layout: _Layout) -> str | None:
+    """The file's ``Location`` column (any case), if it has one."""
+    for n in layout.names:
+        if n.lower() == "location":
+            return n
+    return None
+
+
+def _chunks(path: Path, layout: _Layout, chunksize: int) -> Iterator[tuple[np.ndarray, np.ndarray | None]]:
+    """Yield (float64[18, n], object[n] or None) pairs: one row per schema column, and the
+    ``Location`` value of every row when the file has that column; in file order, n =
+    ``chunksize`` except for the last. The arrays may be reused for the next chunk: copy what
+    you keep."""
     cols = list(NGSIM_COLUMNS)
+    loc = _location_column(layout)
     if layout.kind == "csv":
         block = int(min(MAX_BLOCK_BYTES, max(1 << 12, chunksize * layout.bytes_per_row)))
+        types = {c: pa.float64() for c in cols}
+        if loc is not None:
+            types[loc] = pa.string()
         reader = pacsv.open_csv(
             path,
             read_options=pacsv.ReadOptions(
                 skip_rows=layout.header_lines, column_names=list(layout.names), block_size=block,
+                encoding=layout.encoding,
             ),
             parse_options=pacsv.ParseOptions(delimiter=","),
             convert_options=pacsv.ConvertOptions(
-                include_columns=cols, column_types={c: pa.float64() for c in cols},
+                include_columns=cols + ([loc] if loc is not None else []), column_types=types,
             ),
         )
         # batches (~5k rows) are copied straight into a reused chunk buffer, column by column
         buf = np.empty((len(cols), chunksize), dtype=np.float64)
+        lbuf = np.empty(chunksize, dtype=object) if loc is not None else None
         n_buf = 0
         for batch in reader:
             at, m = 0, batch.num_rows
             arrays = [batch.column(j).to_numpy(zero_copy_only=False) for j in range(len(cols))]
+            larr = batch.column(loc).to_numpy(zero_copy_only=False) if loc is not None else None
             while at < m:
                 take = min(m - at, chunksize - n_buf)
                 for j in range(len(cols)):
                     buf[j, n_buf:n_buf + take] = arrays[j][at:at + take]
+                if lbuf is not None and larr is not None:
+                    lbuf[n_buf:n_buf + take] = larr[at:at + take]
                 n_buf += take
                 at += take
                 if n_buf == chunksize:
-                    yield buf
+                    yield buf, lbuf
                     n_buf = 0
         if n_buf:
-            yield buf[:, :n_buf]
+            yield buf[:, :n_buf], (lbuf[:n_buf] if lbuf is not None else None)
     else:
         it = pd.read_csv(
             path, sep=r"\s+", header=None, names=cols, dtype=np.float64,
-            chunksize=chunksize, engine="c",
+            chunksize=chunksize, engine="c", encoding=layout.encoding,
         )
         for df in it:
-            yield np.ascontiguousarray(df.to_numpy(dtype=np.float64).T)
+            yield np.ascontiguousarray(df.to_numpy(dtype=np.float64).T), None
+
+
+class _NeedsSorting(Exception):
+    """The streaming (file-order) pass met rows it cannot check in file order."""
 
 
 def read_ngsim(
     path: str | os.PathLike,
     *,
+    location: str | None = None,
+    recording: int | None = None,
     lanes: Iterable[int] | None = None,
     frames: tuple[int, int] | None = None,
     vehicles: Iterable[int] | None = None,
@@ -221,8 +301,19 @@ def read_ngsim(
 ) -> NgsimLoad:
     """Load an NGSIM trajectory file (``.csv`` with header or whitespace ``.txt``).
 
+    A file may hold several recordings (sites in a ``Location`` column, periods or days told
+    apart by ``Global_Time``; see :mod:`sim.ngsim_recordings`): one is returned, the one
+    ``location`` / ``recording`` select, and a file holding several is refused without them.
+    Rows may come in any order (the newer public layout is unsorted): a file sorted by vehicle
+    and frame is validated while streaming; otherwise the rows of the selected recording are
+    held in memory, sorted and then validated.
+
     Args:
         path: the file.
+        location: keep the rows whose ``Location`` is this site (case-insensitive, e.g.
+            ``"i-80"``); required when the column holds several sites.
+        recording: keep recording N (1-based, in Global_Time order); required when the
+            (selected site of the) file holds several.
         lanes: keep only rows with these ``Lane_ID`` (e.g. ``(6, 7)``); None keeps all.
         frames: keep only ``first <= Frame_ID <= last``; None keeps all.
         vehicles: keep only these ``Vehicle_ID``; None keeps all.
@@ -233,10 +324,12 @@ def read_ngsim(
 
     Returns:
         :class:`NgsimLoad`: ``.table`` in the schema dtypes, sorted by (Vehicle_ID, Frame_ID),
-        and ``.report``. Validation covers every row of the file, not only the kept ones.
+        and ``.report``. Validation covers every row of the selected recording, not only the
+        kept ones.
 
     Raises:
-        TrajectoryFormatError: naming file, line and column (see the module docstring).
+        TrajectoryFormatError: naming file, line and column (see the module docstring);
+            several sites or recordings and no choice (naming the column and what was found).
         FileNotFoundError: ``path`` does not exist.
     """
     path = Path(path)
@@ -245,49 +338,19 @@ def read_ngsim(
     if chunksize < 1:
         raise ValueError(f"chunksize must be >= 1, got {chunksize}")
     layout = _sniff(path)
-    lane_set = None if lanes is None else np.unique(np.asarray(list(lanes), dtype=np.float64))
-    veh_set = None if vehicles is None else np.unique(np.asarray(list(vehicles), dtype=np.float64))
-    validator = ChunkValidator(str(path))
-    parts: list[np.ndarray] = []  # kept rows of every chunk, float64[18, k]
-    chunks = rows_read = 0
-    bar = None
-    if progress:
-        import sys
-
-        from tqdm import tqdm
-        bar = tqdm(total=path.stat().st_size, unit="B", unit_scale=True, desc=path.name,
-                   disable=not sys.stderr.isatty())
-    try:
-        gen = _chunks(path, layout, chunksize)
-        while True:
-            try:
-                data = next(gen)
-            except StopIteration:
-                break
-            except (pa.ArrowInvalid, ValueError, pd.errors.ParserError) as e:
-                raise _locate_bad_line(path, layout, rows_read + layout.header_lines + 1, e) from None
-            n = data.shape[1]
-            lines = np.arange(n, dtype=np.int64) + rows_read + layout.header_lines + 1
-            keep = validator.check(data, lines)
-            if lane_set is not None:
-                keep &= np.isin(data[_COL["Lane_ID"]], lane_set)
-            if frames is not None:
-                f = data[_COL["Frame_ID"]]
-                keep &= (f >= frames[0]) & (f <= frames[1])
-            if veh_set is not None:
-                keep &= np.isin(data[_COL["Vehicle_ID"]], veh_set)
-            parts.append(data[:, keep])  # a copy: ``data`` is reused for the next chunk
-            del data
-            chunks += 1
-            rows_read += n
-            if bar is not None:
-                bar.update(int(n * layout.bytes_per_row))
-    finally:
-        if bar is not None:
-            bar.close()
-    validator.check_units()
-    table = _assemble(parts)
-    table = _sorted(table)
+    if location is not None and _location_column(layout) is None:
+        raise TrajectoryFormatError(
+            f"{path}: line 1 (header): no Location column, so location={location!r} cannot be "
+            "applied; expected the newer public layout's Location column"
+        )
+    args = (path, layout, location, recording, lanes, frames, vehicles, chunksize, progress)
+    if recording is None:
+        try:
+            table, validator, rows_read, chunks, rec = _read_pass(*args, ordered=True)
+        except _NeedsSorting:
+            table, validator, rows_read, chunks, rec = _read_pass(*args, ordered=False)
+    else:
+        table, validator, rows_read, chunks, rec = _read_pass(*args, ordered=False)
     jerk = jerk_rms(table)
     smoothing, jerk_after = "none", None
     if smooth:
@@ -303,8 +366,108 @@ def read_ngsim(
         acc_saturated_rows=t.acc_saturated_rows, jerk_rms_ft_s3=jerk, smoothing=smoothing,
         jerk_rms_smoothed_ft_s3=jerk_after,
         extra_columns_dropped=tuple(n for n in layout.names if n not in COLUMNS),
+        location=None if location is None else normalise_location(location),
+        recording="" if rec is None else rec.describe(),
     )
     return NgsimLoad(table=table, report=report)
+
+
+def _read_pass(path, layout, location, recording, lanes, frames, vehicles, chunksize, progress, *, ordered):
+    """One pass over the file; see :func:`read_ngsim`. Returns (table, validator, rows read,
+    chunks, the recording chosen or None). ``ordered``: validate in file order (raises
+    :class:`_NeedsSorting` at the first order problem); else hold, sort, then validate."""
+    lane_set = None if lanes is None else np.unique(np.asarray(list(lanes), dtype=np.float64))
+    veh_set = None if vehicles is None else np.unique(np.asarray(list(vehicles), dtype=np.float64))
+    target = None if location is None else normalise_location(location)
+    validator = ChunkValidator(str(path))
+    tally = RecordingTally()
+    loc_counts: dict[str, int] = {}
+    parts: list[np.ndarray] = []  # kept rows of every chunk, float64[18, k]
+    line_parts: list[np.ndarray] = []  # unordered: their file lines
+    off_parts: list[np.ndarray] = []  # unordered: their Global_Time offsets
+    chunks = rows_read = 0
+    bar = None
+    if progress:
+        import sys
+
+        from tqdm import tqdm
+        bar = tqdm(total=path.stat().st_size, unit="B", unit_scale=True, desc=path.name,
+                   disable=not sys.stderr.isatty())
+
+    def filters(data: np.ndarray, keep: np.ndarray) -> np.ndarray:
+        if lane_set is not None:
+            keep &= np.isin(data[_COL["Lane_ID"]], lane_set)
+        if frames is not None:
+            f = data[_COL["Frame_ID"]]
+            keep &= (f >= frames[0]) & (f <= frames[1])
+        if veh_set is not None:
+            keep &= np.isin(data[_COL["Vehicle_ID"]], veh_set)
+        return keep
+
+    try:
+        gen = _chunks(path, layout, chunksize)
+        while True:
+            try:
+                data, locs = next(gen)
+            except StopIteration:
+                break
+            except (pa.ArrowInvalid, ValueError, pd.errors.ParserError) as e:
+                raise _locate_bad_line(path, layout, rows_read + layout.header_lines + 1, e) from None
+            n = data.shape[1]
+            lines = np.arange(n, dtype=np.int64) + rows_read + layout.header_lines + 1
+            if locs is not None:
+                codes, uniq = pd.factorize(locs, use_na_sentinel=False)  # hashing in C: few sites
+                names = [normalise_location("" if v is None or v != v else v) for v in uniq]
+                for k, m in zip(names, np.bincount(codes, minlength=len(names)).tolist()):
+                    loc_counts[k] = loc_counts.get(k, 0) + m
+                if target is not None:
+                    sel = np.isin(codes, [i for i, k in enumerate(names) if k == target])
+                    data, lines = data[:, sel], lines[sel]
+            if ordered:
+                try:
+                    keep = validator.check(data, lines)
+                except TrajectoryFormatError as e:
+                    raise _NeedsSorting(str(e)) from e
+                tally.add(data[_COL["Frame_ID"]], data[_COL["Global_Time"]])
+                parts.append(data[:, filters(data, keep)])  # a copy: ``data`` is reused
+            else:
+                validator.check(data, lines, order=False)
+                off = tally.add(data[_COL["Frame_ID"]], data[_COL["Global_Time"]])
+                parts.append(data.copy())
+                line_parts.append(lines)
+                off_parts.append(off)
+            del data
+            chunks += 1
+            rows_read += n
+            if bar is not None:
+                bar.update(int(n * layout.bytes_per_row))
+    finally:
+        if bar is not None:
+            bar.close()
+    loc_col = _location_column(layout)
+    if loc_col is not None:
+        choose_location(str(path), loc_col, loc_counts, location)
+    rec = choose_recording(str(path), tally.recordings(), recording)
+    if not ordered:
+        data = np.concatenate(parts, axis=1) if parts else np.empty((len(NGSIM_COLUMNS), 0))
+        lines = np.concatenate(line_parts) if line_parts else np.empty(0, np.int64)
+        parts.clear()
+        if rec is not None:
+            off = np.concatenate(off_parts)
+            sel = (off >= rec.offset_lo_ms) & (off <= rec.offset_hi_ms)
+            data, lines = data[:, sel], lines[sel]
+        order = np.lexsort((lines, data[_COL["Frame_ID"]], data[_COL["Vehicle_ID"]]))
+        data, lines = data[:, order], lines[order]
+        validator = ChunkValidator(str(path))
+        keep = validator.check(data, lines)
+        parts.append(data[:, filters(data, keep)])
+        del data
+    validator.check_units()
+    table = _sorted(_assemble(parts))
+    vehicle, frame, lane, x, y, speed = (table[c].to_numpy() for c in (
+        "Vehicle_ID", "Frame_ID", "Lane_ID", "Local_X", "Local_Y", "v_Vel"))
+    check_kinematic_units(vehicle, frame, lane, x, y, speed, str(path))
+    return table, validator, rows_read, chunks, rec
 
 
 _FLOAT_POS = np.array([j for j, c in enumerate(NGSIM_COLUMNS) if COLUMNS[c] == "float64"])
@@ -324,11 +487,11 @@ def _release_freed_memory() -> None:
             _MALLOC_TRIM = ctypes.CDLL("libc.so.6").malloc_trim
         except (OSError, AttributeError):
             _MALLOC_TRIM = False
-    if _MALLOC_TRIM:
+    if callable(_MALLOC_TRIM):
         _MALLOC_TRIM(0)
 
 
-_MALLOC_TRIM = None
+_MALLOC_TRIM: Callable[[int], int] | bool | None = None  # None: not looked up yet
 
 
 def _assemble(parts: list[np.ndarray]) -> pd.DataFrame:

@@ -5,6 +5,7 @@ column, plus the file line number of every row) and
 
 * raises :class:`~sim.errors.TrajectoryFormatError` naming file, line and column for: missing
   values, non-integral ids / frames / classes / lanes / times, negative vehicle length or width,
+  a negative speed, a lane number below 1,
   frames out of order for a vehicle, a frame repeated for a vehicle with different values;
 * marks exact duplicate rows (a known NGSIM defect) for dropping and counts them;
 * counts vehicles with gaps in their frames and the frames missing (reported, data kept);
@@ -73,14 +74,20 @@ class ChunkValidator:
     def _fail(self, line: int, column: str, msg: str) -> TrajectoryFormatError:
         return TrajectoryFormatError(f"{self.path}: line {line}, column {column}: {msg}")
 
-    def check(self, data: np.ndarray, lines: np.ndarray) -> np.ndarray:
+    def check(self, data: np.ndarray, lines: np.ndarray, *, order: bool = True) -> np.ndarray:
         """Validate one chunk; return a keep mask (False for exact duplicate rows).
 
         Args:
             data: float64[18, N], one row per NGSIM column in schema order.
             lines: int64[N], the 1-based file line of every row.
+            order: also check frame order, duplicates and gaps per vehicle (False: values
+                only, nothing is tallied; for files read unsorted, checked after sorting).
         Returns:
             bool[N], True for rows to keep.
+
+        Raises:
+            TrajectoryFormatError: a missing or non-finite value, a non-integer or out-of-range integer
+                column, a negative length or width, or rows out of order (file, line and column named).
         """
         n = data.shape[1]
         keep = np.ones(n, dtype=bool)
@@ -89,14 +96,14 @@ class ChunkValidator:
         nan = np.isnan(data)
         if nan.any():
             r = int(np.flatnonzero(nan.any(axis=0))[0])
-            c = int(np.flatnonzero(nan[:, r])[0])
-            raise self._fail(int(lines[r]), NGSIM_COLUMNS[c], "missing value; expected a number")
+            j = int(np.flatnonzero(nan[:, r])[0])
+            raise self._fail(int(lines[r]), NGSIM_COLUMNS[j], "missing value; expected a number")
         inf = np.isinf(data)
         if inf.any():
             r = int(np.flatnonzero(inf.any(axis=0))[0])
-            c = int(np.flatnonzero(inf[:, r])[0])
-            raise self._fail(int(lines[r]), NGSIM_COLUMNS[c],
-                             f"value {data[c, r]!r} is not finite; expected a number")
+            j = int(np.flatnonzero(inf[:, r])[0])
+            raise self._fail(int(lines[r]), NGSIM_COLUMNS[j],
+                             f"value {data[j, r]!r} is not finite; expected a number")
         for c in INT_COLUMNS:
             col = data[_COL[c]]
             bad = col != np.round(col)
@@ -109,11 +116,19 @@ class ChunkValidator:
                 r = int(np.argmax(big))
                 raise self._fail(int(lines[r]), c,
                                  f"integer {col[r]:.17g} is out of range; expected |value| <= 2**53")
+        for c, lo, expected in (("v_Vel", 0.0, "a speed >= 0 ft/s (NGSIM speeds have no sign)"),
+                                ("Lane_ID", 1.0, "a lane number >= 1 (NGSIM numbers lanes from 1)")):
+            col = data[_COL[c]]
+            if (col < lo).any():
+                r = int(np.argmax(col < lo))
+                raise self._fail(int(lines[r]), c, f"{c} {col[r]:g}; expected {expected}")
         for c in ("v_Length", "v_Width"):
             col = data[_COL[c]]
             if (col < 0).any():
                 r = int(np.argmax(col < 0))
                 raise self._fail(int(lines[r]), c, f"negative {c} {col[r]}; expected a length >= 0 ft")
+        if not order:
+            return keep
         self._check_order(data, lines, keep)
         t = self.totals
         t.rows += n
@@ -195,7 +210,11 @@ class ChunkValidator:
         self._ids, self._last, self._last_line = uniq, rows[idx], lns[idx]
 
     def check_units(self) -> None:
-        """After the last chunk: raise if vehicle sizes look like metres, not feet."""
+        """After the last chunk: raise if vehicle sizes look like metres, not feet.
+
+        Raises:
+            TrajectoryFormatError: mean vehicle length or width looks like metres, not NGSIM's feet.
+        """
         t = self.totals
         rows = t.rows - t.duplicate_rows
         if rows == 0:
@@ -211,3 +230,77 @@ class ChunkValidator:
                 f"NGSIM files are in feet (expected a mean of at least {lim} ft, cars are about "
                 "15 ft long and 6 ft wide). Convert the file to NGSIM units (ft, ft/s) first."
             )
+
+
+#: Local_Y advance over what v_Vel implies, accepted as consistent (ratio of sums).
+KINEMATIC_TOLERANCE = 0.07
+#: 99th percentile speed above this (ft/s, ~100 mph) is implausible for NGSIM freeway data.
+MAX_P99_SPEED_FT_S = 147.0
+#: Adjacent lanes' median Local_X this close (ft) mean Local_X is in metres (lanes ~12 ft).
+METRIC_LANE_SPACING_FT = (2.0, 7.5)
+
+#: Known unit mix-ups: Local_Y advance / v_Vel distance ratio -> likely cause.
+_RATIO_CAUSES: tuple[tuple[float, str, str], ...] = (
+    (0.3048, "Local_Y", "Local_Y in metres with v_Vel in ft/s"),
+    (1.0 / 0.3048, "v_Vel", "v_Vel in m/s with Local_Y in feet"),
+    (1.0 / 1.09728, "v_Vel", "v_Vel in km/h with Local_Y in feet"),
+    (1.0 / 0.681818, "v_Vel", "v_Vel in mph with Local_Y in feet"),
+    (1.0 / 3.6, "v_Vel", "v_Vel in km/h with Local_Y in metres"),
+)
+
+
+def check_kinematic_units(vehicle: np.ndarray, frame: np.ndarray, lane: np.ndarray, local_x: np.ndarray,
+                          local_y: np.ndarray, speed: np.ndarray, path: str) -> None:
+    """Check that positions and speeds are in NGSIM's units (feet, ft/s), not only sizes.
+
+    Arrays are [N] rows sorted by (vehicle, frame). Three tests, each needing enough data:
+
+    * kinematic consistency: over consecutive frames of a vehicle, the sum of ``Local_Y``
+      advances must match the distance ``v_Vel`` implies (trapezoid, 0.1 s frames) within
+      :data:`KINEMATIC_TOLERANCE`; unit mix-ups give 0.30, 3.28, 0.91 (km/h), ...;
+    * plausible speeds: the 99th percentile of ``v_Vel`` at most :data:`MAX_P99_SPEED_FT_S`;
+    * lateral scale: adjacent lanes' median ``Local_X`` about a lane width (12 ft) apart, not
+      3.7 (skipped when ``Local_X`` does not follow the lanes).
+
+    Raises:
+        TrajectoryFormatError: naming the file, the column and the likely cause.
+    """
+    same = (vehicle[1:] == vehicle[:-1]) & (frame[1:] == frame[:-1] + 1)
+    if same.sum() >= 50:
+        dy = float(np.sum((local_y[1:] - local_y[:-1])[same]))
+        dv = float(np.sum(((speed[1:] + speed[:-1]) * 0.05)[same]))
+        if dv > 100.0:
+            ratio = dy / dv
+            if abs(ratio - 1.0) > KINEMATIC_TOLERANCE:
+                col, cause = "Local_Y", "Local_Y and v_Vel in different units"
+                for r, c, why in _RATIO_CAUSES:
+                    if abs(ratio / r - 1.0) < KINEMATIC_TOLERANCE:
+                        col, cause = c, why
+                        break
+                raise TrajectoryFormatError(
+                    f"{path}: column {col}: Local_Y advances {ratio:.3f} times the distance v_Vel "
+                    f"implies over {int(same.sum())} consecutive frames (expected 1 +- "
+                    f"{KINEMATIC_TOLERANCE}); looks like {cause}. NGSIM files are in ft and ft/s: "
+                    "convert the file first."
+                )
+    if speed.size >= 50:
+        p99 = float(np.percentile(speed, 99))
+        if p99 > MAX_P99_SPEED_FT_S:
+            raise TrajectoryFormatError(
+                f"{path}: column v_Vel: 99th percentile speed {p99:.1f}; expected ft/s (at most "
+                f"{MAX_P99_SPEED_FT_S:.0f}, about 100 mph): km/h or another unit? Convert to ft/s first."
+            )
+    lanes, counts = np.unique(lane, return_counts=True)
+    lanes = lanes[counts >= 20]
+    if lanes.size >= 2:
+        med = np.array([np.median(local_x[lane == k]) for k in lanes])
+        adj = np.diff(lanes) == 1
+        if adj.sum() >= 1:
+            spacing = float(np.median(np.abs(np.diff(med))[adj]))
+            lo, hi = METRIC_LANE_SPACING_FT
+            if lo < spacing < hi:
+                raise TrajectoryFormatError(
+                    f"{path}: column Local_X: adjacent lanes' median positions are {spacing:.2f} "
+                    "apart; lanes are about 12 ft wide, so Local_X looks like metres. Convert the "
+                    "file to NGSIM units (ft, ft/s) first."
+                )

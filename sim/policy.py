@@ -52,10 +52,14 @@ class Policy(Protocol):
             only observes it.
     """
 
-    name: str
-    controls: bool
+    # read-only properties, so frozen dataclasses (the policies here) satisfy the protocol
+    @property
+    def name(self) -> str: ...
 
-    def probs(self, obs: "MergeObservation") -> np.ndarray:
+    @property
+    def controls(self) -> bool: ...
+
+    def probs(self, obs: MergeObservation) -> np.ndarray:
         """``[5]`` action probabilities (sum to 1)."""
         ...
 
@@ -77,7 +81,7 @@ class UniformPolicy:
     name: str = "uniform"
     controls: bool = True
 
-    def probs(self, obs: "MergeObservation") -> np.ndarray:
+    def probs(self, obs: MergeObservation) -> np.ndarray:
         return np.full(N_ACTIONS, 1.0 / N_ACTIONS)
 
 
@@ -95,7 +99,7 @@ class ConstantPolicy:
         if not self.name:
             object.__setattr__(self, "name", f"constant-{ACTION_NAMES[int(self.action)].lower().replace(' ', '-')}")
 
-    def probs(self, obs: "MergeObservation") -> np.ndarray:
+    def probs(self, obs: MergeObservation) -> np.ndarray:
         p = np.zeros(N_ACTIONS)
         p[int(self.action)] = 1.0
         return p
@@ -111,7 +115,7 @@ class SumoPolicy:
     name: str = "sumo"
     controls: bool = False
 
-    def probs(self, obs: "MergeObservation") -> np.ndarray:
+    def probs(self, obs: MergeObservation) -> np.ndarray:
         return np.full(N_ACTIONS, 1.0 / N_ACTIONS)
 
 
@@ -155,7 +159,7 @@ class LearnedPolicy:
         object.__setattr__(self, "action_acc_ft_s2", acc)
 
     @classmethod
-    def from_model(cls, model: "SavedModel", *, encoder: MergeBins | None = None, name: str = "") -> "LearnedPolicy":
+    def from_model(cls, model: SavedModel, *, encoder: MergeBins | None = None, name: str = "") -> LearnedPolicy:
         """From a saved merge model (``q [S, 5]``, ``bin_edges``, ``config.beta``).
 
         Raises:
@@ -188,7 +192,12 @@ class LearnedPolicy:
     def n_states(self) -> int:
         return int(self.log_pi.shape[0])
 
-    def probs(self, obs: "MergeObservation") -> np.ndarray:
+    def probs(self, obs: MergeObservation) -> np.ndarray:
+        """``[5]`` the learned policy's action probabilities in ``obs.state``.
+
+        Raises:
+            PolicyError: ``obs.state`` is outside ``[0, n_states)``.
+        """
         if not 0 <= obs.state < self.n_states:
             raise PolicyError(f"state {obs.state} out of range [0, {self.n_states}) for policy {self.name!r}")
         return np.exp(self.log_pi[obs.state])

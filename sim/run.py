@@ -45,6 +45,79 @@ from sim.recorder import TrajectoryRecorder
 from sim.schema import FRAME_S, FT_PER_M, RAMP_LANE, RIGHTMOST_MAIN_LANE, V_CLASS_AUTO, V_CLASS_TRUCK
 
 
+#: Served demand more than this share below the requested one is warned about.
+DEMAND_SHORTFALL_WARN = 0.05
+
+
+@dataclass(frozen=True)
+class RunEvents:
+    """SUMO's own reports of non-physical moves and of demand, read from its lists each step.
+
+    Times are simulated seconds; ids are SUMO's. Teleports (``getStartingTeleportIDList``: a
+    vehicle stuck ``time_to_teleport_s`` is moved ahead without driving), collisions
+    (``getCollidingVehiclesIDList``, one event per vehicle and step) and emergency stops
+    (``getEmergencyStoppingVehiclesIDList``) cover the whole run, warm-up included.
+    ``departed`` vehicles entered the network; ``backlog`` were due by the end but still
+    waiting to be inserted (``getPendingVehicles``): due = departed + backlog.
+    ``requested_veh_h`` is the spec's demand (all flows, after any demand scale).
+    """
+
+    teleports: tuple[tuple[float, str], ...] = ()
+    collisions: tuple[tuple[float, str], ...] = ()
+    emergency_stops: tuple[tuple[float, str], ...] = ()
+    departed: int = 0
+    backlog: int = 0
+    duration_s: float = 0.0
+    requested_veh_h: float = 0.0
+
+    @property
+    def teleported_ids(self) -> frozenset[str]:
+        return frozenset(s for _, s in self.teleports)
+
+    @property
+    def due_veh_h(self) -> float:
+        """Vehicles due in the run (departed + backlog; random arrivals), per simulated hour."""
+        return (self.departed + self.backlog) * 3600.0 / self.duration_s if self.duration_s else 0.0
+
+    @property
+    def served_veh_h(self) -> float:
+        """Vehicles that entered the network, per hour of simulated time."""
+        return self.departed * 3600.0 / self.duration_s if self.duration_s else 0.0
+
+    @property
+    def demand_shortfall(self) -> float:
+        """Share of the vehicles due that could not enter: backlog / (departed + backlog)."""
+        req = self.departed + self.backlog
+        return self.backlog / req if req else 0.0
+
+    def warnings(self) -> list[str]:
+        """One line per condition a user must know about (empty when the run was clean)."""
+        out = []
+        if self.demand_shortfall > DEMAND_SHORTFALL_WARN:
+            out.append(f"served demand {self.served_veh_h:.0f} veh/h against {self.requested_veh_h:.0f} veh/h "
+                       f"requested: {self.backlog} vehicles ({self.demand_shortfall:.0%} of those due) were still "
+                       "waiting to enter at the end; the network could not take the demand")
+        if self.teleports:
+            out.append(f"SUMO teleported {len(self.teleports)} vehicle(s) "
+                       f"({', '.join(sorted(self.teleported_ids)[:5])}{', ...' if len(self.teleported_ids) > 5 else ''}): "
+                       "their moves are not driving; merges by them are left out of the encounters")
+        if self.collisions:
+            out.append(f"SUMO reported {len(self.collisions)} collision event(s)")
+        return out
+
+    def as_dict(self) -> dict:
+        """Plain values for a TOML / JSON run report."""
+        return {
+            "requested_veh_h": round(self.requested_veh_h, 1), "due_veh_h": round(self.due_veh_h, 1),
+            "served_veh_h": round(self.served_veh_h, 1),
+            "departed": self.departed, "insertion_backlog": self.backlog,
+            "demand_shortfall": round(self.demand_shortfall, 4),
+            "teleports": len(self.teleports), "teleported_vehicles": sorted(self.teleported_ids),
+            "collisions": len(self.collisions), "colliding_vehicles": sorted({s for _, s in self.collisions}),
+            "emergency_stops": len(self.emergency_stops),
+        }
+
+
 @dataclass(frozen=True)
 class SimulationResult:
     """Outcome of :func:`run_scenario`.
@@ -57,6 +130,7 @@ class SimulationResult:
         sumo_time_s: wall-clock time spent inside ``simulationStep``.
         n_vehicle_steps: number of rows of the table (vehicle x recorded frame).
         sumo_ids: SUMO id of Vehicle_ID k at index k - 1.
+        events: teleports, collisions, emergency stops and served demand, from SUMO's lists.
     """
 
     table: pd.DataFrame
@@ -66,10 +140,17 @@ class SimulationResult:
     sumo_time_s: float
     n_vehicle_steps: int
     sumo_ids: tuple[str, ...]
+    events: RunEvents = RunEvents()
 
     @property
     def n_vehicles(self) -> int:
         return len(self.sumo_ids)
+
+    @property
+    def teleported_vehicle_ids(self) -> frozenset[int]:
+        """Vehicle_IDs (of this table) of the vehicles SUMO teleported."""
+        vid = {s: i for i, s in enumerate(self.sumo_ids, start=1)}
+        return frozenset(vid[s] for s in self.events.teleported_ids if s in vid)
 
 
 def sumo_binary(name: str = "sumo") -> str:
@@ -166,10 +247,10 @@ def run_scenario(
         wd = Path(work_dir) if work_dir is not None else Path(tmp)
         wd.mkdir(parents=True, exist_ok=True)
         net, routes = prepare_inputs(spec, wd)
-        table, sumo_time, sumo_ids = _simulate(spec, net, routes, hooks, progress, str(wd))
+        table, sumo_time, sumo_ids, events = _simulate(spec, net, routes, hooks, progress, str(wd))
     return SimulationResult(
         table=table, spec=spec, seed=sim.seed, wall_time_s=time.perf_counter() - t0,
-        sumo_time_s=sumo_time, n_vehicle_steps=len(table), sumo_ids=sumo_ids,
+        sumo_time_s=sumo_time, n_vehicle_steps=len(table), sumo_ids=sumo_ids, events=events,
     )
 
 
@@ -202,6 +283,12 @@ def _simulate(spec, net, routes, hooks, progress, work_dir):
     ctx: RunContext | None = None
     bar = None
     started_hooks: list[StepHook] = []
+    teleports: list[tuple[float, str]] = []
+    collisions: list[tuple[float, str]] = []
+    emergency: list[tuple[float, str]] = []
+    departed = backlog = 0
+    ok = False  # set once every step ran: hooks then commit their outputs
+    simulation = ls.simulation
     try:
         _, lane_shapes = _lane_tables(ls, spec)
         ctx = RunContext(
@@ -228,6 +315,13 @@ def _simulate(spec, net, routes, hooks, progress, work_dir):
             ts = time.perf_counter()
             ls.simulationStep()
             sumo_time += time.perf_counter() - ts
+            now = step * sim.step_s
+            for lst, get in ((teleports, simulation.getStartingTeleportIDList),
+                             (collisions, simulation.getCollidingVehiclesIDList),
+                             (emergency, simulation.getEmergencyStoppingVehiclesIDList)):
+                ids = get()
+                if ids:
+                    lst.extend((now, s) for s in ids)
             for sid in ls.simulation.getDepartedIDList():
                 depart_seq[sid] = len(depart_seq)
                 tid = ls.vehicle.getTypeID(sid)
@@ -273,6 +367,9 @@ def _simulate(spec, net, routes, hooks, progress, work_dir):
             )
             for h in hooks:
                 h.on_step(ctx, fs)
+        departed = len(depart_seq)
+        backlog = len(simulation.getPendingVehicles())
+        ok = True
     except (KeyboardInterrupt, SimulationError):
         raise
     except (ls.TraCIException, ls.FatalTraCIError) as e:
@@ -281,12 +378,15 @@ def _simulate(spec, net, routes, hooks, progress, work_dir):
         try:
             if ctx is not None:
                 for h in started_hooks:
-                    h.on_end(ctx)
+                    # an aborted run (error, Ctrl-C) must not publish outputs: on_abort if defined
+                    (getattr(h, "on_abort", h.on_end) if not ok else h.on_end)(ctx)
         finally:
             if bar is not None:
                 bar.close()
             _safe_close(ls)
-    return recorder.table(), sumo_time, tuple(sumo_ids)
+    events = RunEvents(tuple(teleports), tuple(collisions), tuple(emergency), departed, backlog, sim.duration_s,
+                       float(sum(spec.demand.main_veh_h) + spec.demand.ramp_veh_h))
+    return recorder.table(), sumo_time, tuple(sumo_ids), events
 
 
 def _frozen(a: np.ndarray) -> np.ndarray:

@@ -57,6 +57,9 @@ def conform(table: pd.DataFrame) -> pd.DataFrame:
     """Return ``table`` with exactly the schema's columns, in order, cast to the schema dtypes.
 
     Raises ``KeyError`` naming the missing columns.
+
+    Raises:
+        KeyError: the table lacks some of :data:`COLUMNS` (listed in the message).
     """
     missing = [c for c in COLUMNS if c not in table.columns]
     if missing:

@@ -165,7 +165,7 @@ def test_collision_and_removal_release_and_report(spec):
     # released cars (collided ones included) got SUMO's own speed and lane-change modes back
     collided = [v for v in probe.modes.values() if v[0] == "collision"]
     assert collided
-    for reason, sm, lcm, sm0, lcm0 in probe.modes.values():
+    for _reason, sm, lcm, sm0, lcm0 in probe.modes.values():
         assert (sm, lcm) == (sm0, lcm0)
         assert sm0 != 0 and lcm0 != 0
     assert all(r in RELEASE_REASONS for r in ct.reason)

@@ -138,12 +138,12 @@ def test_killed_sweep_resumes_to_the_same_tables(tmp_path):
     store = out / ".sweep-store"
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and proc.poll() is None:
-        if store.is_dir() and any(p.suffix == ".json" for p in store.iterdir()):
+        if store.is_dir() and any(p.suffix == ".json" and not p.name.startswith(".") for p in store.iterdir()):
             break
         time.sleep(0.05)
     proc.send_signal(signal.SIGKILL)
     proc.wait()
-    n_done = sum(1 for p in store.iterdir() if p.suffix == ".json")
+    n_done = sum(1 for p in store.iterdir() if p.suffix == ".json" and not p.name.startswith("."))  # not temporaries
     assert n_done >= 1
     # whatever was in flight left no file under a final name that is not complete
     for run in out.glob("synthetic-seed*"):

@@ -18,7 +18,7 @@ from sim.schema import COLUMNS
 def _table(rows):
     """rows: dicts with Vehicle_ID, Frame_ID, Local_Y, v_Vel, v_Acc, Lane_ID, Preceding, Following, v_Length."""
     df = pd.DataFrame(rows)
-    for c, t in COLUMNS.items():
+    for c in COLUMNS:
         if c not in df:
             df[c] = 0
     df["Global_X"] = df["Local_Y"]

@@ -86,10 +86,11 @@ def _rows(n: int = 3, vid: int = 1, lane: int = 2) -> list[str]:
         (lambda r: r.__setitem__(2, r[2].replace(",30.0,", ",,")), 4, "v_Vel", "missing value"),
         (lambda r: r.__setitem__(1, r[1].replace(",15.0,", ",-15.0,")), 3, "v_Length", "negative"),
         (lambda r: r.__setitem__(0, r[0].replace(",2,30.0", ",2.5,30.0")), 2, "v_Class", "not an integer"),
-        (lambda r: r.insert(3, r[0]), 5, "Frame_ID", "comes after"),
+        (lambda r: r.insert(3, r[0].replace(",30.0,", ",31.0,")), 5, "v_Vel", "appears again"),
         (lambda r: r.append(r[2].replace(",30.0,", ",31.0,")), 5, "v_Vel", "appears again"),
     ],
-    ids=["non-numeric", "missing-value", "negative-length", "non-integer-class", "frame-order", "duplicate-frame"],
+    ids=["non-numeric", "missing-value", "negative-length", "non-integer-class", "late-conflicting-frame",
+         "duplicate-frame"],
 )
 def test_bad_input_named_error(tmp_path: Path, mutate, line: int, column: str, words: str) -> None:
     rows = _rows(3)
@@ -188,6 +189,7 @@ def test_smoothing_reduces_acceleration_noise(tmp_path: Path) -> None:
     t = synthetic_table(1, n)
     t["Frame_ID"] = fr
     t["Local_Y"] = y_true + rng.normal(0, 0.05, n)
+    t["v_Vel"] = 20 + 2.0 * tt  # consistent with Local_Y (the reader checks units kinematically)
     t["v_Acc"] = 2.0 + rng.normal(0, 4.0, n)
     p = write_ngsim_csv(t, tmp_path / "noisy.csv", precision="exact")
     load = read_ngsim(p, smooth=SmoothingConfig(window_frames=31, polyorder=2))

@@ -77,3 +77,14 @@ def test_check_file_and_cli_exit_status(tmp_path, capsys):
     (tmp_path / "bad.json").write_text("{not json")
     assert main(["check-metrics", str(tmp_path / "bad.json"), "--fail-if", "collisions>0"]) == 2
     assert main(["check-metrics", str(tmp_path / "none.json"), "--fail-if", "collisions>0"]) == 2
+
+
+def test_teleports_threshold_sums_the_episodes(tmp_path, capsys):
+    p = tmp_path / "metrics.json"
+    p.write_text(json.dumps({"format": "merge-irl-evaluation/1", "policies": {
+        k: {"aggregate": v, "episodes": [{"teleports": n}, {"teleports": 0}]}
+        for (k, v), n in zip(METRICS.items(), (0, 3))}}))
+    names = list(METRICS)
+    assert [(b.policy, b.value) for b in check_file(p, "teleports>0")] == [(names[1], 3.0)]
+    assert main(["check-metrics", str(p), "--fail-if", "teleports>0"]) == 1
+    assert f"FAIL {names[1]}: teleports = 3 (fail if teleports>0)" in capsys.readouterr().err

@@ -47,7 +47,7 @@ def _read_blocks(path: Path, marker: str, named: bool) -> dict[str, np.ndarray]:
                 name, n, start = lines[i + 1].strip(), int(lines[i + 2]), i + 3
             else:
                 name, n, start = s, int(lines[i + 1]), i + 2
-            out[name] = np.array([[float(v) for v in l.split()] for l in lines[start:start + n]])
+            out[name] = np.array([[float(v) for v in ln.split()] for ln in lines[start:start + n]])
             i = start + n
         else:
             i += 1

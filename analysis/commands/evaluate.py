@@ -68,12 +68,15 @@ def run(args: argparse.Namespace) -> int:
         raise SimError("nothing to evaluate: give --model and/or --baselines")
     scen = Path(args.scenario).stem if args.scenario.endswith(".toml") else args.scenario
     out = Path(args.out) if args.out else Path("runs") / f"evaluate-{scen}-{args.seed}"
-    report = evaluate(
-        args.model, args.scenario, args.episodes, args.seed, out, duration_s=args.duration, demos=args.demos,
-        baselines=baselines, train_demos=args.train_demos,
-        controller=ControllerConfig(decision_s=args.decision_step, mode=args.mode, safety_ttc_s=args.safety_ttc),
-        executor=executor, rrd=not args.no_rrd, progress=not args.no_progress,
-    )
+    from irl.run_folder import locked
+
+    with locked(out):  # a second evaluate into the same folder fails at once (one line)
+        report = evaluate(
+            args.model, args.scenario, args.episodes, args.seed, out, duration_s=args.duration, demos=args.demos,
+            baselines=baselines, train_demos=args.train_demos,
+            controller=ControllerConfig(decision_s=args.decision_step, mode=args.mode, safety_ttc_s=args.safety_ttc),
+            executor=executor, rrd=not args.no_rrd, progress=not args.no_progress,
+        )
     from analysis.evaluate_report import flag_lines, report_table
 
     print(report_table(report.aggregates))

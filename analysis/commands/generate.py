@@ -68,6 +68,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"{sim.spec.name} seed {sim.seed}: {sim.n_vehicles} vehicles, {sim.n_vehicle_steps} rows, "
           f"{len(res.encounters.merges)} merges, {len(res.encounters.frames)} encounter frames "
           f"in {sim.wall_time_s:.1f} s", file=sys.stderr)
+    for w in sim.events.warnings():
+        print(f"warning: {w}", file=sys.stderr)
     for f in res.files:
         print(f)
     return 0
@@ -92,8 +94,10 @@ def _run_sweep(args: argparse.Namespace, spec) -> int:
     out = Path(args.out) if args.out else Path("runs") / f"{spec.name}-sweep"
     report = generate_many(spec, seeds, args.demand_scale, out, duration_s=args.duration, csv=args.csv,
                            executor=args.executor, progress=not args.no_progress)
-    for key, r in report.results.items():
+    for r in report.results.values():
         print(f"{r['out_dir']}\t{r['n_vehicles']} vehicles\t{r['n_merges']} merges")
+        for w in r.get("warnings", ()):
+            print(f"warning: {r['run']}: {w}", file=sys.stderr)
     print(report.summary(), file=sys.stderr)
     print(f"summary: {out / SUMMARY}", file=sys.stderr)
     for f in report.failures:

@@ -38,8 +38,9 @@ def register(subparsers) -> None:
         description="Fit one IRL method on tabular demonstrations and save the result as model.json "
                     "(theta, loglik, q, settings, merge bin edges).")
     p.add_argument("--method", choices=METHODS, required=True)
-    p.add_argument("--demos", required=True,
-                   help="trajectories: a directory/file in the authors' text format (gridworld, merge), "
+    p.add_argument("--demos", required=True, action="append",
+                   help="trajectories (merge encounter tables: repeat for several files or runs, kept apart): "
+                        "a directory/file in the authors' text format (gridworld, merge), "
                         "an encounter table .parquet/.csv (merge), or a .npz (npz)")
     p.add_argument("--domain", choices=DOMAINS, required=True)
     p.add_argument("--noise", type=float, default=0.0, help="gridworld slip probability of the true model")

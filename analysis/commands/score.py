@@ -7,6 +7,7 @@ import argparse
 import json
 import math
 from pathlib import Path
+from typing import Any
 
 from irl.problems import DOMAINS
 
@@ -54,7 +55,7 @@ def score(model, demos_path: str, domain: str | None = None) -> dict:
                                  f"pass --domain, one of {DOMAINS}")
     bins = MergeBins.from_dict(model.bin_edges, where="model bin_edges") if domain == "merge" and model.bin_edges \
         else None
-    kw = {"bins": bins, "dt": _info_number(model, "dt", 0.1)} if domain == "merge" else {}
+    kw: dict[str, Any] = {"bins": bins, "dt": _info_number(model, "dt", 0.1)} if domain == "merge" else {}
     if domain == "gridworld":
         kw["noise"] = _info_number(model, "noise", 0.0)
     demos = load_problem(domain, demos_path, **kw).demos

@@ -38,7 +38,12 @@ def default_workers() -> int:
 
 
 def parse_executor(text: str) -> ExecutorSpec:
-    """Parse ``serial``, ``process[:N]``, ``dask-local[:N]`` or ``dask://HOST:PORT``."""
+    """Parse ``serial``, ``process[:N]``, ``dask-local[:N]`` or ``dask://HOST:PORT``.
+
+    Raises:
+        ValueError: ``text`` names no known executor, a ``dask://`` address without ``HOST:PORT``, a worker
+            count for ``serial`` or a worker count that is not a positive integer.
+    """
     text = text.strip()
     if text.startswith("dask://"):
         rest = text[len("dask://"):]

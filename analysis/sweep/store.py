@@ -10,12 +10,19 @@ from pathlib import Path
 from typing import Any
 
 from irl.atomic import write_json_atomic
+from irl.run_folder import remove_temporaries
+
+
+#: Dataclass field metadata that leaves a field out of the task digest (e.g. an absolute output
+#: path, so that a sweep folder moved elsewhere still finds its finished tasks).
+NOT_IN_DIGEST = {"digest": False}
 
 
 def _canonical(value: Any) -> Any:
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
         return {"__type__": type(value).__qualname__, **{
-            f.name: _canonical(getattr(value, f.name)) for f in dataclasses.fields(value)}}
+            f.name: _canonical(getattr(value, f.name)) for f in dataclasses.fields(value)
+            if f.metadata.get("digest", True)}}
     if isinstance(value, dict):
         return {str(k): _canonical(v) for k, v in sorted(value.items(), key=lambda kv: str(kv[0]))}
     if isinstance(value, (list, tuple)):
@@ -28,7 +35,8 @@ def _canonical(value: Any) -> Any:
 
 
 def task_digest(func_name: str, config: Any, seed: int) -> str:
-    """Hex digest identifying a task by its function, full config and seed."""
+    """Hex digest identifying a task by its function, full config and seed (dataclass fields
+    marked :data:`NOT_IN_DIGEST` left out)."""
     payload = json.dumps(
         {"func": func_name, "config": _canonical(config), "seed": int(seed)},
         sort_keys=True, default=str,
@@ -47,6 +55,11 @@ class ResultStore:
     def __init__(self, root: str | os.PathLike) -> None:
         self.root = Path(root)
         self.root.mkdir(parents=True, exist_ok=True)
+
+    def remove_temporaries(self) -> int:
+        """Remove hidden temporary files left by writes that were killed; returns how many.
+        Only while no other process writes into this store (e.g. under the sweep's lock)."""
+        return len(remove_temporaries(self.root))
 
     def path(self, digest: str) -> Path:
         return self.root / f"{digest}.json"

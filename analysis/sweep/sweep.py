@@ -10,15 +10,15 @@ import time
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any, Callable, Iterable, Sequence
+from typing import Any
+from collections.abc import Callable, Iterable, Sequence
 
 from tqdm import tqdm
 
 from analysis.sweep.executors import ExecutorSpec, parse_executor
 from analysis.sweep.seeds import derive_seed
 from analysis.sweep.store import ResultStore, task_digest
-from analysis.sweep.worker import call_task
+from analysis.sweep.worker import call_task, die_with_parent
 
 
 @dataclass(frozen=True)
@@ -100,7 +100,7 @@ def run_sweep(
     *,
     seed: int = 0,
     executor: str | ExecutorSpec = "process",
-    store: ResultStore | str | Path | None = None,
+    store: ResultStore | str | os.PathLike | None = None,
     retries: int = 1,
     progress: bool = True,
     desc: str = "sweep",
@@ -113,6 +113,9 @@ def run_sweep(
     a sweep killed midway loses only the tasks in flight. A task that raises, or kills its
     worker process, is retried ``retries`` times and then reported in ``failures``; the other
     tasks go on.
+
+    Raises:
+        ValueError: two tasks share a key.
     """
     spec = parse_executor(executor) if isinstance(executor, str) else executor
     if store is not None and not isinstance(store, ResultStore):
@@ -211,15 +214,45 @@ def _single_threaded_workers():
             os.environ.pop(k, None)
 
 
+def _pool(workers: int, ctx) -> ProcessPoolExecutor:
+    """A process pool whose workers die with this process (:func:`die_with_parent`)."""
+    return ProcessPoolExecutor(workers, mp_context=ctx, initializer=die_with_parent, initargs=(os.getpid(),))
+
+
+def _store_finished(in_flight: dict[Future, _Pending], finish) -> None:
+    """On interrupt: record the tasks in flight that have finished all the same."""
+    for fut, p in list(in_flight.items()):
+        if fut.done() and not fut.cancelled() and fut.exception() is None:
+            record = fut.result()
+            if record.get("ok"):
+                finish(p, record)
+        in_flight.pop(fut)
+
+
+def _stop_workers(pool: ProcessPoolExecutor) -> None:
+    """End the pool now: queued tasks cancelled, the workers' runs in flight killed (their
+    output folders stay unpublished, see :mod:`irl.run_folder`)."""
+    procs = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for proc in procs:
+        if proc.is_alive():
+            proc.kill()
+    for proc in procs:
+        proc.join(5)
+
+
 def _run_isolated(p: _Pending, finish) -> None:
     """Run one task alone in a fresh process until it succeeds or runs out of retries."""
     ctx = multiprocessing.get_context("spawn")
     while True:
-        with _single_threaded_workers(), ProcessPoolExecutor(1, mp_context=ctx) as pool:
+        with _single_threaded_workers(), _pool(1, ctx) as pool:
             try:
                 record = pool.submit(call_task, p.task.func, p.task.config, p.seed).result()
             except BrokenProcessPool as e:
                 record = _crash_record(e)
+            except BaseException:
+                _stop_workers(pool)
+                raise
         if not finish(p, record):
             return
 
@@ -236,25 +269,30 @@ def _run_process_pool(todo: Sequence[_Pending], finish, workers: int) -> None:
     while queue:
         in_flight: dict[Future, _Pending] = {}
         crashed: list[_Pending] = []
-        with _single_threaded_workers(), ProcessPoolExecutor(workers, mp_context=ctx) as pool:
-            while queue or in_flight:
-                while queue and len(in_flight) < workers:
-                    p = queue.pop(0)
-                    in_flight[pool.submit(call_task, p.task.func, p.task.config, p.seed)] = p
-                finished, _ = wait(in_flight, return_when=FIRST_COMPLETED)
-                for fut in finished:
-                    p = in_flight.pop(fut)
-                    try:
-                        record = fut.result()
-                    except BrokenProcessPool:
-                        crashed.append(p)
-                        continue
-                    if finish(p, record):
-                        queue.append(p)
-                if crashed:
-                    crashed.extend(in_flight.values())
-                    in_flight.clear()
-                    break
+        with _single_threaded_workers(), _pool(workers, ctx) as pool:
+            try:
+                while queue or in_flight:
+                    while queue and len(in_flight) < workers:
+                        p = queue.pop(0)
+                        in_flight[pool.submit(call_task, p.task.func, p.task.config, p.seed)] = p
+                    finished, _ = wait(in_flight, return_when=FIRST_COMPLETED)
+                    for fut in finished:
+                        p = in_flight.pop(fut)
+                        try:
+                            record = fut.result()
+                        except BrokenProcessPool:
+                            crashed.append(p)
+                            continue
+                        if finish(p, record):
+                            queue.append(p)
+                    if crashed:
+                        crashed.extend(in_flight.values())
+                        in_flight.clear()
+                        break
+            except BaseException:  # Ctrl-C, SIGTERM (see analysis.cli), or an error storing a result
+                _store_finished(in_flight, finish)
+                _stop_workers(pool)
+                raise
         for p in crashed:  # the pool-wide crash is not counted: it cannot be attributed
             _run_isolated(p, finish)
 
@@ -278,9 +316,9 @@ def _run_dask(todo: Sequence[_Pending], finish, spec: ExecutorSpec) -> None:
     def submit(p: _Pending):
         # Dask itself reschedules a task whose worker died (up to its allowed-failures);
         # an exception or KilledWorker comes back here and is retried once like elsewhere.
-        fut = client.submit(call_task, p.task.func, p.task.config, p.seed,
-                            key=f"{p.task.key}-{p.digest[:12]}-{p.attempts}", pure=False)
-        futures[fut.key] = p
+        key = f"{p.task.key}-{p.digest[:12]}-{p.attempts}"
+        fut = client.submit(call_task, p.task.func, p.task.config, p.seed, key=key, pure=False)
+        futures[key] = p
         return fut
 
     try:

@@ -1,11 +1,47 @@
-"""What runs inside a worker: call the task, never let its exception escape."""
+"""What runs inside a worker: call the task, never let its exception escape; die with the parent."""
 
 from __future__ import annotations
 
+import ctypes
 import json
+import os
+import signal
+import threading
 import time
 import traceback
-from typing import Any, Callable
+from typing import Any
+from collections.abc import Callable
+
+#: Linux ``prctl`` option: the signal a process receives when its parent dies.
+PR_SET_PDEATHSIG = 1
+#: How often (s) a worker checks that its parent is alive (fallback of the death signal).
+PARENT_POLL_S = 0.5
+
+
+def die_with_parent(parent_pid: int) -> None:
+    """Pool-worker initializer: end this worker when the process ``parent_pid`` ends.
+
+    Two mechanisms: Linux's parent-death signal (``prctl(PR_SET_PDEATHSIG, SIGKILL)``, sent by
+    the kernel the moment the parent dies, even by SIGKILL), and a daemon thread that polls
+    the parent's pid every :data:`PARENT_POLL_S` s (other systems, or a parent that died before
+    the signal was armed). SIGINT is ignored: a Ctrl-C goes to the whole process group, and the
+    parent decides what happens to the runs in flight (it stops the workers itself).
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+    except (OSError, AttributeError):  # pragma: no cover - not Linux: polling only
+        pass
+    if os.getppid() != parent_pid:  # the parent died before the signal was armed
+        os._exit(1)
+    threading.Thread(target=_watch_parent, args=(parent_pid,), name="watch-parent", daemon=True).start()
+
+
+def _watch_parent(parent_pid: int) -> None:
+    while os.getppid() == parent_pid:
+        time.sleep(PARENT_POLL_S)
+    os._exit(1)
 
 
 def call_task(func: Callable[[Any, int], dict], config: Any, seed: int) -> dict[str, Any]:
@@ -13,6 +49,9 @@ def call_task(func: Callable[[Any, int], dict], config: Any, seed: int) -> dict[
 
     The result must be a JSON-serialisable dict (it is stored as JSON); anything else is
     reported as the task's error.
+
+    Raises:
+        TypeError: the task returned something other than a dict.
     """
     t0 = time.perf_counter()
     try:

@@ -59,7 +59,11 @@ def features() -> np.ndarray:
 
 
 def transition_model(noise: float = 0.0) -> np.ndarray:
-    """True model ``T[s, a, s']`` (``[25, 4, 25]``, rows sum to 1) for lateral slip ``noise``."""
+    """True model ``T[s, a, s']`` (``[25, 4, 25]``, rows sum to 1) for lateral slip ``noise``.
+
+    Raises:
+        ConfigError: ``noise`` is outside [0, 1].
+    """
     if not 0.0 <= noise <= 1.0:
         raise ConfigError(f"gridworld noise must be in [0, 1], got {noise}")
     t = np.zeros((N_STATES, N_ACTIONS, N_STATES))
@@ -129,7 +133,8 @@ def generate_experts(
     states, actions = [], []
     for _ in range(int(n)):
         s = int(rng.choice(starts))
-        ss, aa = [], []
+        ss: list[int] = []
+        aa: list[int] = []
         while s not in CORNERS and len(ss) < max_len:
             a = int(rng.choice(expert_actions(s, dist)))
             ss.append(s)
@@ -147,7 +152,11 @@ def generate_experts(
 def generate_baseline(
     n: int, length: int, noise: float, rng: np.random.Generator
 ) -> Demonstrations:
-    """``n`` uniform-random-policy trajectories of exactly ``length`` steps from ``start_states()``."""
+    """``n`` uniform-random-policy trajectories of exactly ``length`` steps from ``start_states()``.
+
+    Raises:
+        ConfigError: ``length`` < 1.
+    """
     if int(length) < 1:
         raise ConfigError(f"baseline trajectory length must be >= 1, got {length}")
     t = transition_model(noise)

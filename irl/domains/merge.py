@@ -60,9 +60,11 @@ from __future__ import annotations
 
 import json
 import os
+import warnings
 from bisect import bisect_right
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -260,7 +262,7 @@ class MergeBins:
             object.__setattr__(self, name, edges)
 
     @classmethod
-    def assumed_authors(cls) -> "MergeBins":
+    def assumed_authors(cls) -> MergeBins:
         """The edges we assume for the authors' 12 trajectories (none are published).
 
         ``d_AC`` (35, 60, 90, 130) ft, ``d_AB`` (10, 30, 60, 100) ft, ``v_AC`` and ``v_AB``
@@ -278,7 +280,7 @@ class MergeBins:
         return {name: list(getattr(self, name)) for name in VARIABLES}
 
     @classmethod
-    def from_dict(cls, data: dict, where: str = "bin edges") -> "MergeBins":
+    def from_dict(cls, data: dict, where: str = "bin edges") -> MergeBins:
         """From ``{variable: [4 edges]}`` (``to_dict``'s form, as saved in model.json).
 
         Raises:
@@ -301,7 +303,7 @@ class MergeBins:
         return write_json_atomic(path, self.to_dict())
 
     @classmethod
-    def load(cls, path: str | os.PathLike) -> "MergeBins":
+    def load(cls, path: str | os.PathLike) -> MergeBins:
         """Read a file written by :meth:`save`.
 
         Raises:
@@ -437,16 +439,23 @@ def fit_quantile_bins(table: pd.DataFrame, *, safe_distance: float = SAFE_DISTAN
     smallest edge is fixed at ``safe_distance`` (35 ft) so that bin 4 means ``d_AC < 35 ft`` as
     the Safe feature requires; the other three are the 25/50/75 % quantiles of the values
     ``>= safe_distance``. Edges that coincide (ties in the data) are spread apart by a tiny
-    amount to stay strictly increasing.
+    amount to stay strictly increasing, with a :class:`DegenerateBinsWarning`.
 
     Raises:
-        DemonstrationError: ``table`` breaks :func:`validate_encounters`.
+        DemonstrationError: ``table`` breaks :func:`validate_encounters`, or a variable is
+            constant over the table (no bins can be fitted).
     """
     validate_encounters(table, where)
-    edges: dict[str, tuple[float, ...]] = {}
+    edges: dict[str, Any] = {}  # four edges per variable: MergeBins.__post_init__ checks the count
     for name in VARIABLES:
         v = table[name].to_numpy(dtype=np.float64)
         v = v[~np.isnan(v)]
+        if v.size > 1 and np.all(v == v[0]):
+            raise DemonstrationError(
+                f"{where}: column {name!r}: all {v.size} rows are {v[0]:g}; quantile bins need values that "
+                "vary (a constant column carries no information: check how the encounters were extracted, "
+                "or give bin edges explicitly)"
+            )
         if name == "d_AC":
             far = v[v >= safe_distance]
             upper = np.quantile(far, [0.25, 0.5, 0.75]) if far.size else safe_distance + np.array([10.0, 20.0, 30.0])
@@ -455,8 +464,19 @@ def fit_quantile_bins(table: pd.DataFrame, *, safe_distance: float = SAFE_DISTAN
             e = np.asarray(getattr(MergeBins.assumed_authors(), name))
         else:
             e = np.quantile(v, [0.2, 0.4, 0.6, 0.8])
+        tied = int(np.sum(np.diff(e) <= 0))
+        if tied:
+            warnings.warn(
+                f"{where}: column {name!r}: {tied} of the quantile bin edges {np.round(e, 6).tolist()} coincide "
+                "(many equal values); they are spread 1e-6 apart, so some bins hold (almost) no data",
+                DegenerateBinsWarning, stacklevel=2,
+            )
         edges[name] = tuple(_strictly_increasing(e))
     return MergeBins(**edges)
+
+
+class DegenerateBinsWarning(UserWarning):
+    """Quantile bin edges that coincide because of ties in the data."""
 
 
 def _strictly_increasing(e: np.ndarray) -> np.ndarray:

@@ -164,6 +164,7 @@ def fit_population(
                             loss="cauchy", f_scale=1.0, x_scale=hi - lo, max_nfev=max_nfev)
         if best is None or sol.cost < best.cost:
             best = sol
+    assert best is not None, "starts holds one or two start points"
     pop = CFParams(**params_of(best.x))
     return pop, float(np.median(spacing_rmse(model, batch, pop.as_dict())))
 
@@ -195,7 +196,7 @@ def fit_per_pair(
     def jac(x: np.ndarray) -> csr_matrix:
         tick()
         cand, h = _fd_candidates(x.reshape(P, K), lo, hi)
-        pc = {**fixed, **{f: cand[:, k, :] for k, f in enumerate(fitted)}}  # each float64[P, K+1]
+        pc: dict[str, np.ndarray | float] = {**fixed, **{f: cand[:, k, :] for k, f in enumerate(fitted)}}  # each float64[P, K+1]
         err = spacing_errors(model, batch, pc, candidates=True)  # [P, K+1, T]
         d = (err[:, 1:, :] - err[:, :1, :]) / h[:, :, None] * w[:, None, None]  # [P, K, T]
         vals = np.moveaxis(d, 1, 2)[batch.mask]  # [n_res, K]

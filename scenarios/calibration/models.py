@@ -161,6 +161,9 @@ def simulate_follower(
             then copies of the last valid step).
     Returns:
         (x, v): float64[S..., T] follower position and speed; step 0 is the initial state.
+
+    Raises:
+        ValueError: ``lengths`` is not sorted in decreasing order.
     """
     step = MODELS[model]
     p = {k: np.asarray(params[k], dtype=np.float64) for k in PARAM_NAMES}
@@ -171,8 +174,8 @@ def simulate_follower(
     xl = np.broadcast_to(x_leader, shape + (T,))
     vl = np.broadcast_to(v_leader, shape + (T,))
     ll = np.broadcast_to(leader_length, shape)
-    x = np.empty(shape + (T,)); v = np.empty(shape + (T,))
-    x[..., 0] = x0; v[..., 0] = v0
+    x, v = np.empty(shape + (T,)), np.empty(shape + (T,))
+    x[..., 0], v[..., 0] = x0, v0
     if lengths is None:
         active = np.full(T, shape[0] if shape else 1)
     else:
@@ -183,7 +186,7 @@ def simulate_follower(
     for t in range(1, T):
         m = int(active[t]) if shape else None
         if shape and m < shape[0]:
-            x[m:, ..., t] = x[m:, ..., t - 1]; v[m:, ..., t] = v[m:, ..., t - 1]
+            x[m:, ..., t], v[m:, ..., t] = x[m:, ..., t - 1], v[m:, ..., t - 1]
         sl = slice(None, m) if shape else ...
         pm = {k: a[sl] for k, a in p.items()}
         v_old = v[sl][..., t - 1]

@@ -58,7 +58,12 @@ class CarFollowingPair:
 
 
 def read_pair(path: str | Path) -> CarFollowingPair:
-    """Read one pair CSV (feet) into a :class:`CarFollowingPair` (metres)."""
+    """Read one pair CSV (feet) into a :class:`CarFollowingPair` (metres).
+
+    Raises:
+        SpecError: not a pair CSV, a missing column, fewer than 10 steps, steps that are not uniform 0.1 s, or
+            a value that is not a finite number (file, column and line named).
+    """
     path = Path(path)
     try:
         df = pd.read_csv(path)
@@ -91,6 +96,10 @@ def load_pairs(directory: str | Path, *, limit: int | None = None) -> tuple[CarF
     """All pairs under ``directory`` (``*.csv`` there, or in its ``train/`` subfolder), sorted by name.
 
     ``manifest.csv`` is skipped. ``limit`` keeps the first ``limit`` files (name order).
+
+    Raises:
+        FileNotFoundError: ``directory`` does not exist.
+        SpecError: it holds no pair CSV files, or a file is not a valid pair (see :func:`read_pair`).
     """
     d = Path(directory)
     if not d.is_dir():
@@ -150,14 +159,20 @@ class PairBatch:
         return out
 
     @classmethod
-    def from_pairs(cls, pairs: Sequence[CarFollowingPair]) -> "PairBatch":
+    def from_pairs(cls, pairs: Sequence[CarFollowingPair]) -> PairBatch:
+        """The pairs as ``[P, T]`` arrays, longest first (leaders extended at constant speed), with the mask of
+        scored steps.
+
+        Raises:
+            SpecError: ``pairs`` is empty.
+        """
         if not pairs:
             raise SpecError("no pairs given")
         order = np.argsort([-len(p) for p in pairs], kind="stable")
         pairs = [pairs[i] for i in order]
         T = max(len(p) for p in pairs)
         P = len(pairs)
-        xl = np.empty((P, T)); vl = np.empty((P, T)); so = np.zeros((P, T))
+        xl, vl, so = np.empty((P, T)), np.empty((P, T)), np.zeros((P, T))
         mask = np.zeros((P, T), dtype=bool)
         for i, p in enumerate(pairs):
             n = len(p)

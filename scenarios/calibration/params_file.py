@@ -85,7 +85,13 @@ def _params(src: str, where: str, d: object) -> CFParams:
 
 def load_result(path: str | os.PathLike) -> CalibrationResult:
     """Read a params TOML written by :func:`save_result` (or hand-written with at least
-    ``model`` and ``[population]``)."""
+    ``model`` and ``[population]``).
+
+    Raises:
+        FileNotFoundError: ``path`` does not exist.
+        SpecError: not valid TOML, an unknown ``model``, no ``[population]`` table, or a malformed
+            ``[spread.*]`` or ``[[pair]]`` entry.
+    """
     path = Path(path)
     src = str(path)
     try:

@@ -80,7 +80,11 @@ def _build_net(workdir: Path, n: int, length: float) -> Path:
 def run_sumo_pairs(
     cases: Sequence[ReplayCase], params: Sequence[CFParams] | CFParams, *, model: str = "idm"
 ) -> ReplayResult:
-    """Simulate every case in one libsumo run; ``params`` per case or one for all."""
+    """Simulate every case in one libsumo run; ``params`` per case or one for all.
+
+    Raises:
+        ScenarioError: ``model`` has no SUMO car-following model, or SUMO did not insert a pair's follower.
+    """
     import libsumo as traci
 
     if model not in _SUMO_MODEL:

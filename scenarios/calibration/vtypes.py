@@ -38,7 +38,11 @@ class DriverMember:
 
 
 def driver_members(result: CalibrationResult, n: int = 8, *, seed: int = 0, prefix: str = "car_ngsim") -> tuple[DriverMember, ...]:
-    """``n`` equally likely members; member 0 is the population (both clipped to :data:`SIM_RANGE`)."""
+    """``n`` equally likely members; member 0 is the population (both clipped to :data:`SIM_RANGE`).
+
+    Raises:
+        ValueError: ``n`` < 1.
+    """
     if n < 1:
         raise ValueError(f"n must be >= 1, got {n}")
     rng = np.random.default_rng(seed)

@@ -1,0 +1,129 @@
+"""Process faults, injected for real: a sweep parent killed or interrupted; its workers must
+die with it, what finished must be stored (issue 13, items 1 and 4)."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import psutil
+import pytest
+from sweep_tasks import DrawConfig, draw
+
+from analysis.sweep import ResultStore, Task, run_sweep
+
+TESTS_DIR = Path(__file__).resolve().parent
+
+
+def _sweep_script(store: Path, tasks_src: str, workers: int = 2) -> str:
+    return textwrap.dedent(f"""
+        import sys
+        sys.path.insert(0, {str(TESTS_DIR)!r})
+        from analysis.sweep import Task, run_sweep
+        from sweep_tasks import DrawConfig, draw
+        tasks = {tasks_src}
+        run_sweep(tasks, seed=1, executor="process:{workers}", store={str(store)!r}, progress=False)
+    """)
+
+
+def _workers_of(pid: int, n: int, timeout: float = 60.0) -> list[psutil.Process]:
+    """Wait until process ``pid`` has ``n`` pool workers (and whatever else: resource tracker)."""
+    parent = psutil.Process(pid)
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        kids = parent.children(recursive=True)
+        workers = [k for k in kids if "spawn_main" in " ".join(_cmdline(k))]
+        if len(workers) >= n:
+            return kids
+        time.sleep(0.05)
+    raise AssertionError(f"no {n} pool workers under {pid} after {timeout} s")
+
+
+def _cmdline(p: psutil.Process) -> list[str]:
+    try:
+        return p.cmdline()
+    except psutil.Error:
+        return []
+
+
+def _gone_within(procs: list[psutil.Process], timeout: float) -> list[psutil.Process]:
+    _, alive = psutil.wait_procs(procs, timeout=timeout)
+    return alive
+
+
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM], ids=["SIGKILL", "SIGTERM"])
+def test_pool_workers_die_with_the_sweep_parent(tmp_path, sig):
+    tasks = "[Task(f'slow-{i}', draw, DrawConfig(n=2, sleep_s=120)) for i in range(4)]"
+    proc = subprocess.Popen([sys.executable, "-c", _sweep_script(tmp_path / "store", tasks)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        kids = _workers_of(proc.pid, 2)
+        time.sleep(0.5)  # the workers are inside their (two-minute) tasks
+        proc.send_signal(sig)  # to the parent alone, not its process group
+        proc.wait(timeout=30)
+        alive = _gone_within(kids, 5.0)
+        assert not alive, f"still running 5 s after the parent's {sig.name}: {[_cmdline(p) for p in alive]}"
+        # nobody holds the parent's output any more: reading it to the end returns
+        proc.communicate(timeout=5)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert not list((tmp_path / "store").glob("*.json"))
+
+
+def test_interrupted_sweep_stores_what_finished_and_stops_at_once(tmp_path):
+    store = tmp_path / "store"
+    tasks = ("[Task(f'quick-{i}', draw, DrawConfig(n=2)) for i in range(3)]"
+             " + [Task('slow', draw, DrawConfig(n=2, sleep_s=120))]")
+    proc = subprocess.Popen([sys.executable, "-c", _sweep_script(store, tasks)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.time() + 60
+        while len(list(store.glob("*.json"))) < 3 and time.time() < deadline:
+            time.sleep(0.05)
+        kids = _workers_of(proc.pid, 1)
+        time.sleep(0.3)
+        t0 = time.time()
+        proc.send_signal(signal.SIGINT)  # Ctrl-C to the parent
+        _, err = proc.communicate(timeout=30)
+        stopped_after = time.time() - t0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert "KeyboardInterrupt" in err
+    assert stopped_after < 10, f"the parent waited {stopped_after:.0f} s for the run in flight"
+    assert not _gone_within(kids, 5.0)
+    # the three finished tasks are stored and a rerun takes them from the store
+    full = [Task(f"quick-{i}", draw, DrawConfig(n=2)) for i in range(3)]
+    rerun = run_sweep(full, seed=1, executor="serial", store=ResultStore(store), progress=False)
+    assert rerun.n_cached == 3 and rerun.n_run == 0
+
+
+def test_generate_sweep_sigterm_stops_workers_and_publishes_nothing_half_done(tmp_path):
+    """The CLI: SIGTERM is handled like Ctrl-C (exit 130, one line), the SUMO workers die, no run
+    folder exists under its final name, and the lock is free for a rerun."""
+    out = tmp_path / "sweep"
+    env = dict(os.environ, MERGE_IRL_CACHE=str(tmp_path / "cache"))
+    proc = subprocess.Popen([sys.executable, "-m", "analysis", "generate", "--scenario", "i80", "--duration", "3000",
+                             "--seeds", "1-4", "--executor", "process:2", "--no-progress", "--out", str(out)],
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        kids = _workers_of(proc.pid, 2)
+        deadline = time.time() + 60  # both workers have started simulating (their staging folders exist)
+        while len(list(out.glob(".i80-seed*.tmpdir"))) < 2 and time.time() < deadline:
+            time.sleep(0.05)
+        time.sleep(0.5)
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, err
+    assert err.strip().splitlines()[-1] == "merge-irl generate: interrupted"
+    assert not _gone_within(kids, 5.0)
+    assert list(out.glob("i80-seed*")) == []  # no run folder published half-done

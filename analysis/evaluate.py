@@ -35,7 +35,7 @@ from analysis.metrics import AggregateMetrics, MetricsConfig, aggregate, heldout
 from analysis.provenance import provenance, text_digest, write_timings
 from analysis.sweep import Task, parse_executor, run_sweep
 from irl.baselines import fit_baseline
-from irl.domains.merge import N_ACTIONS, ZERO_ACTION, MergeBins, actions_of, fit_quantile_bins
+from irl.domains.merge import ACTION_ACC_FT_S2, N_ACTIONS, ZERO_ACTION, MergeBins, actions_of, fit_quantile_bins
 from irl.merge_mdp import discretize, read_encounters
 from irl.result import SavedModel
 from irl.run_folder import check_writable
@@ -142,7 +142,7 @@ def baseline_policies(names: Sequence[str], train_demos: str | os.PathLike | pd.
     acc = df["acc_A"].to_numpy(float)
     a = actions_of(acc)
     means = tuple(float(acc[a == k].mean()) if np.any(a == k) else float(m)
-                  for k, m in enumerate(LearnedPolicy.__dataclass_fields__["action_acc_ft_s2"].default))
+                  for k, m in enumerate(ACTION_ACC_FT_S2))
     return [BaselineTabularPolicy(fit_baseline(n, demos), bins, n, action_acc_ft_s2=means) for n in names]
 
 

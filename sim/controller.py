@@ -398,13 +398,14 @@ class Controller:
         if il is None:
             return action
         h = self._every * self._frame_s
+        ttc_min = float(self.config.safety_ttc_s or 0.0)
         va, vl = float(frame.speed[ia]), float(frame.speed[il])
         gap = float(frame.local_y[il]) - ya - float(frame.length[il])
         for a in range(action, -1, -1):
             v1 = max(0.0, va + float(acc_table[a]) * h)
             g1 = gap - 0.5 * (va + v1) * h + vl * h
             closing = v1 - vl
-            if g1 > 0 and (closing <= 1e-9 or g1 / closing >= self.config.safety_ttc_s):
+            if g1 > 0 and (closing <= 1e-9 or g1 / closing >= ttc_min):
                 return a
         return 0
 

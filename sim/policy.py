@@ -203,7 +203,7 @@ class LearnedPolicy:
         return np.exp(self.log_pi[obs.state])
 
 
-def model_flags(model: "SavedModel") -> tuple[str, ...]:
+def model_flags(model: SavedModel) -> tuple[str, ...]:
     """What a saved model's fit reported, as :attr:`irl.result.FitResult.flags` names it:
     ``not_converged``, ``unbounded``, ``infeasible``, ``uninformative`` (empty: none)."""
     out = [] if model.converged else ["not_converged"]
@@ -230,7 +230,7 @@ class BaselineTabularPolicy:
     closed loop) and falls back to the first-step table (the marginal) without one.
     """
 
-    baseline: "BaselinePolicy"
+    baseline: BaselinePolicy
     encoder: MergeBins
     name: str = ""
     controls: bool = True
@@ -240,7 +240,7 @@ class BaselineTabularPolicy:
         if not self.name:
             object.__setattr__(self, "name", self.baseline.name)
 
-    def probs(self, obs: "MergeObservation") -> np.ndarray:
+    def probs(self, obs: MergeObservation) -> np.ndarray:
         b = self.baseline
         if b.log_next is not None and 0 <= obs.prev_action < N_ACTIONS:
             return np.exp(b.log_next[obs.prev_action])

@@ -31,11 +31,12 @@ import pandas as pd
 
 from analysis.episode import EpisodeResult, EpisodeSpec, run_episode_task
 from analysis.evaluate_report import write_outputs
-from analysis.metrics import AggregateMetrics, MetricsConfig, aggregate, heldout_loglik
+from analysis.metrics import AggregateMetrics, MetricsConfig, aggregate, heldout_loglik, w1_to_demos
 from analysis.provenance import provenance, text_digest, write_timings
 from analysis.sweep import Task, parse_executor, run_sweep
-from irl.domains.merge import N_ACTIONS, actions_of
-from irl.merge_mdp import read_encounters
+from irl.baselines import fit_baseline
+from irl.domains.merge import ACTION_ACC_FT_S2, N_ACTIONS, ZERO_ACTION, MergeBins, actions_of, fit_quantile_bins
+from irl.merge_mdp import discretize, read_encounters
 from irl.result import SavedModel
 from irl.run_folder import check_writable
 from irl.units import FT_PER_M
@@ -43,7 +44,13 @@ from scenarios.loader import load_scenario
 from sim.controller import ControllerConfig
 from sim.errors import SimError
 from sim.observe import MergeObservation
-from sim.policy import LearnedPolicy, Policy, PolicyError, SumoPolicy, UniformPolicy
+from sim.policy import BaselineTabularPolicy, LearnedPolicy, Policy, PolicyError, SumoPolicy, UniformPolicy
+
+#: Baselines of every evaluation (issue 11): SUMO's own driver, uniform random, and the
+#: tabular baselines fitted on the training demonstrations (:mod:`irl.baselines`).
+BASELINES = ("sumo", "uniform", "marginal", "markov", "bc")
+#: The baselines that need training demonstrations.
+FITTED_BASELINES = ("marginal", "markov", "bc")
 
 
 @dataclass(frozen=True)
@@ -82,18 +89,62 @@ def load_heldout(demos: str | os.PathLike | pd.DataFrame) -> HeldOut:
 
 
 def policy_heldout_loglik(policy: Policy, heldout: HeldOut) -> tuple[float, float]:
-    """``(sum, per step)`` log-likelihood of the held-out steps under ``policy`` (NaN for SUMO)."""
+    """``(sum, per step)`` state-conditional log-likelihood of the held-out steps under
+    ``policy`` (NaN for SUMO). The previous action of a step (``markov`` and the ``driver``
+    state encoding) is the one of the frame before in the same encounter; Zero for the
+    first frame (``markov`` scores a first step by its marginal)."""
     if not policy.controls:
         return float("nan"), float("nan")
     df = heldout.encounters
     actions = actions_of(df["acc_A"].to_numpy(float))
     if isinstance(policy, LearnedPolicy):
-        return heldout_loglik(policy.log_pi, policy.encoder.encode(df), actions)
+        prev = _previous_actions(df, actions, first=ZERO_ACTION) if policy.state_encoding != "paper" else None
+        states = policy.encoder.encode(df, prev, policy.state_encoding)
+        return heldout_loglik(policy.log_pi, states, actions)
+    if isinstance(policy, BaselineTabularPolicy):
+        b = policy.baseline
+        lp = b.log_first[policy.encoder.encode(df), actions]
+        if b.log_next is not None:
+            prev = _previous_actions(df, actions, first=-1)
+            later = prev >= 0
+            lp = np.where(later, b.log_next[np.maximum(prev, 0), actions], lp)
+        return float(lp.sum()), float(lp.mean()) if lp.size else float("nan")
     # state-independent policies (uniform, constant): log p(a)
     p = np.asarray(policy.probs(MergeObservation(0, 0, 0, 0, False, 0)), dtype=float)
     with np.errstate(divide="ignore"):
         lp = np.log(p)[actions]
     return float(lp.sum()), float(lp.mean()) if lp.size else float("nan")
+
+
+def _previous_actions(df: pd.DataFrame, actions: np.ndarray, *, first: int) -> np.ndarray:
+    """``[N]`` the action of the row before in the same encounter (``first`` for a first row);
+    rows of an encounter are consecutive."""
+    prev = np.full(actions.shape, first, dtype=np.int64)
+    if actions.size > 1:
+        eid = df["encounter_id"].to_numpy()
+        same = eid[1:] == eid[:-1]
+        prev[1:][same] = actions[:-1][same]
+    return prev
+
+
+def baseline_policies(names: Sequence[str], train_demos: str | os.PathLike | pd.DataFrame,
+                      bins: MergeBins | None = None) -> list[BaselineTabularPolicy]:
+    """The fitted baselines ``names`` (of ``FITTED_BASELINES``) from training encounters, in
+    the paper state bins ``bins`` (None: quantile bins fitted on the training encounters).
+
+    Raises:
+        DemonstrationError: the training encounters cannot be read or discretized.
+    """
+    df = train_demos if isinstance(train_demos, pd.DataFrame) else read_encounters(train_demos)
+    df = prepare_encounters(df)
+    where = "training encounters" if isinstance(train_demos, pd.DataFrame) else str(train_demos)
+    bins = bins if bins is not None else fit_quantile_bins(df, where=where)
+    demos = discretize(df, bins, where=where)
+    acc = df["acc_A"].to_numpy(float)
+    a = actions_of(acc)
+    means = tuple(float(acc[a == k].mean()) if np.any(a == k) else float(m)
+                  for k, m in enumerate(ACTION_ACC_FT_S2))
+    return [BaselineTabularPolicy(fit_baseline(n, demos), bins, n, action_acc_ft_s2=means) for n in names]
 
 
 def learned_policy(model: SavedModel | str | os.PathLike, name: str = "") -> LearnedPolicy:
@@ -192,7 +243,8 @@ def evaluate(
     *,
     duration_s: float | None = None,
     demos: str | os.PathLike | pd.DataFrame | None = None,
-    baselines: Sequence[str] = ("sumo", "uniform"),
+    baselines: Sequence[str] = BASELINES,
+    train_demos: str | os.PathLike | pd.DataFrame | None = None,
     policies: Sequence[Policy] = (),
     controller: ControllerConfig = ControllerConfig(),
     metrics: MetricsConfig = MetricsConfig(),
@@ -211,28 +263,48 @@ def evaluate(
         duration_s: override the scenario's duration.
         demos: held-out encounters (Parquet/CSV/DataFrame) for the action divergence and the
             held-out log-likelihood; None: both are NaN.
-        baselines: any of ``"sumo"`` (not taken over) and ``"uniform"`` (random actions).
+        baselines: any of ``BASELINES``: ``"sumo"`` (not taken over), ``"uniform"`` (random
+            actions), ``"marginal"``, ``"markov"``, ``"bc"`` (fitted on ``train_demos`` in the
+            first model's state bins; left out, and said so in report.md, without them).
+        train_demos: training encounters (Parquet/CSV/DataFrame) of the fitted baselines.
         policies: further policies to evaluate (e.g. ``ConstantPolicy(0)``).
         workers: processes (shorthand for ``executor="process:<workers>"``).
         executor: where episodes run (see :func:`run_episodes`); overrides ``workers``.
         rrd: write a rerun recording of each policy's first episode.
+        controller: ``decision_s`` None: the first model's ``decision_step_s`` (0.3 s without
+            models) for every policy, so all decide on the same step.
 
     Raises:
-        SimError: ``episodes`` < 1.
+        SimError: ``episodes`` < 1 or an unknown baseline name.
         PolicyError: a model is not a merge model, or two policies share a name and one of them is not a
             dataclass that can be renamed.
         ModelFileError: a model file is missing or malformed.
+        DemonstrationError: the training encounters of the fitted baselines cannot be read.
         SimulationError: SUMO fails to start or to step.
     """
     if episodes < 1:
         raise SimError(f"evaluate: episodes must be >= 1, got {episodes}")
     spec = load_scenario(scenario) if isinstance(scenario, (str, Path)) else scenario  # validate before SUMO
-    pols: list[Policy] = [learned_policy(m) for m in models]
+    bad = [b for b in baselines if b not in BASELINES]
+    if bad:
+        raise SimError(f"evaluate: unknown baseline(s) {bad}; expected some of {', '.join(BASELINES)}")
+    learned: list[LearnedPolicy] = [learned_policy(m) for m in models]
+    pols: list[Policy] = list(learned)
+    if controller.decision_s is None:
+        controller = replace(controller, decision_s=learned[0].decision_step_s if learned else 0.3)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     check_writable(out / "report.md")  # before the episodes, not after
+    fitted = [b for b in baselines if b in FITTED_BASELINES]
+    fitted_pols = baseline_policies(fitted, train_demos, learned[0].encoder if learned else None) \
+        if fitted and train_demos is not None else []
+    by_name = {p.name: p for p in fitted_pols}
     for b in baselines:
-        pols.append(_BASELINES[b]())
+        if b in FITTED_BASELINES:
+            if b in by_name:
+                pols.append(by_name[b])
+        else:
+            pols.append(_BASELINES[b]())
     pols.extend(policies)
     names = [p.name for p in pols]
     dup = {n for n in names if names.count(n) > 1}
@@ -260,12 +332,17 @@ def evaluate(
     aggs = {}
     for p in pols:
         ho = policy_heldout_loglik(p, held) if held is not None else None
-        aggs[p.name] = aggregate([r.metrics for r in by_policy[p.name]], demo_action_counts=counts, heldout=ho)
+        rs = by_policy[p.name]
+        w1 = w1_to_demos(pd.concat([r.decisions for r in rs], ignore_index=True), held.encounters) \
+            if held is not None and rs else None
+        aggs[p.name] = aggregate([r.metrics for r in rs], demo_action_counts=counts, heldout=ho, w1=w1,
+                                 flags=tuple(getattr(p, "flags", ())))
     scen_name = scenario if isinstance(scenario, (str, Path)) else spec.name
     report_md, metrics_json, plots = write_outputs(
         out, aggs, by_policy, held, scenario=str(scen_name), seed=seed, episodes=episodes,
         duration_s=duration_s, controller=controller, metrics=metrics,
         provenance=prov, speed_limit_ft_s=spec.road.speed_limit_mps * FT_PER_M,
+        left_out=[b for b in fitted if b not in by_name],
     )
     write_timings(out, {"episode_wall_time_s": {name: [float(r.wall_time_s) for r in rs]
                                                 for name, rs in by_policy.items()}})

@@ -29,21 +29,42 @@ def _pm(t, nd=2) -> str:
     return f"{m:.{nd}f} ± {s:.{nd}f}" if math.isfinite(s) else f"{m:.{nd}f}"
 
 
+def _ci(a: AggregateMetrics) -> str:
+    lo, hi = a.a_collision_ci95
+    if not math.isfinite(a.a_collision_rate):
+        return "-"
+    return f"{a.a_collisions}/{a.n_controls} [{lo:.3f}, {hi:.3f}]"
+
+
+def _w1(a: AggregateMetrics) -> str:
+    xs = (a.w1_speed_A_ft_s, a.w1_acc_A_ft_s2, a.w1_d_AC_ft, a.w1_ttc_s)
+    return " / ".join(_fmt(x, 1) for x in xs)
+
+
 def report_table(aggs: dict[str, AggregateMetrics]) -> str:
-    """The markdown table, one row per policy."""
-    head = ("| policy | episodes | As controlled | merges | collisions (all / A) | emergency brakings (near / all) "
-            "| min TTC (s) | B merged ahead of A | A travel time (s) | A mean speed (ft/s) | JS div. vs demos "
-            "| held-out LL / step |")
-    sep = "|" + "---|" * 12
+    """The markdown table, one row per policy (flagged models marked ``FLAGGED``)."""
+    head = ("| policy | episodes | As controlled | merges | collisions (all / A) | A collisions / As [95 % CI] "
+            "| emergency brakings (near / all) | min TTC (s) | B merged ahead of A | A travel time (s) "
+            "| A mean speed (ft/s) | W1 speed / acc / d_AC / TTC | held-out LL / step | safety interventions "
+            "| flags |")
+    sep = "|" + "---|" * 15
     rows = [head, sep]
     for name, a in aggs.items():
+        inter = f"{a.safety_interventions} ({_fmt(a.intervention_rate, 3)})" if a.safety_interventions else "0"
+        flags = ("FLAGGED: " + ", ".join(a.flags)) if a.flags else ""
         rows.append(
             f"| {name} | {a.n_episodes} | {a.n_controls} | {a.n_merges} | {a.collisions} / {a.a_collisions} "
-            f"| {a.emergency_brakings} / {a.emergency_brakings_all} | {_fmt(a.min_ttc_s)} "
+            f"| {_ci(a)} | {a.emergency_brakings} / {a.emergency_brakings_all} | {_fmt(a.min_ttc_s)} "
             f"| {_pm(a.b_ahead_rate)} | {_pm(a.travel_time_s, 1)} | {_pm(a.mean_speed_A_ft_s, 1)} "
-            f"| {_fmt(a.js_divergence, 3)} | {_fmt(a.heldout_loglik_per_step, 3)} |"
+            f"| {_w1(a)} | {_fmt(a.heldout_loglik_per_step, 3)} | {inter} | {flags} |"
         )
     return "\n".join(rows)
+
+
+def flag_lines(aggs: dict[str, AggregateMetrics]) -> list[str]:
+    """One warning line per flagged model (empty: none)."""
+    return [f"WARNING: model {name} is flagged ({', '.join(a.flags)}): its fit did not reach a usable "
+            "maximum; do not rank or deploy it without checking" for name, a in aggs.items() if a.flags]
 
 
 def metrics_to_json(obj) -> str:
@@ -66,9 +87,11 @@ def metrics_to_json(obj) -> str:
 
 
 def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes, duration_s, controller, metrics,
-                  provenance: dict | None = None, speed_limit_ft_s: float | None = None):
+                  provenance: dict | None = None, speed_limit_ft_s: float | None = None,
+                  left_out: list[str] | tuple[str, ...] = ()):
     """Write report.md, metrics.json and the plots (:mod:`analysis.report_plots`); return their
-    paths. ``provenance`` (:func:`analysis.provenance.provenance`) goes into both."""
+    paths. ``provenance`` (:func:`analysis.provenance.provenance`) goes into both; ``left_out``
+    names the baselines that could not be fitted (no training demonstrations)."""
     plots = write_plots(out, aggs, by_policy, held, speed_limit_ft_s=speed_limit_ft_s)
     payload = {
         "format": "merge-irl-evaluation/1",
@@ -88,7 +111,8 @@ def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes,
         f"# Closed-loop evaluation: {scenario}",
         "",
         f"{episodes} episode(s) per policy, seeds {seed}..{seed + episodes - 1} (the same traffic for every "
-        f"policy); decision step {controller.decision_s} s, actions {'mode' if controller.mode else 'sampled'}.",
+        f"policy); decision step {controller.decision_s} s, actions {'mode' if controller.mode else 'sampled'}, "
+        f"safety filter {'off (raw)' if controller.safety_ttc_s is None else f'on (TTC >= {controller.safety_ttc_s} s)'}.",
         "Policy `sumo` is SUMO's own car-following model in role A (not taken over); `uniform` picks actions "
         "uniformly at random.",
         "",
@@ -98,7 +122,15 @@ def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes,
         f"(decel > {metrics.emergency_decel_m_s2} m/s^2) by A, B and A's follower while A is controlled / by "
         "every vehicle; min TTC over A->leader and follower->A while controlled; B merged ahead of A = share "
         "of merges (mean ± std over episodes); JS divergence (base 2) between A's action distribution and the "
-        "demonstrations'; held-out LL = mean log pi(a|s) per held-out demonstration step.",
+        "demonstrations'; held-out LL = mean log pi(a|s) per held-out demonstration step (state-conditional; "
+        "markov given the previous action). A collisions / As: control episodes ended by A colliding, with the "
+        "Wilson 95 % interval. W1: Wasserstein-1 distances of A's speed (ft/s), acceleration (ft/s^2), d_AC "
+        "(ft) and TTC to C (s) at the decisions to the held-out demonstrations; `sumo`'s row is the floor. "
+        "Baselines `marginal`, `markov`, `bc` are fitted on the training demonstrations (add-one smoothed). "
+        "Safety interventions: actions replaced by the safety filter (0 unless it is on).",
+        "",
+        *flag_lines(aggs),
+        *([f"Left out: {', '.join(left_out)} (no training demonstrations given)."] if left_out else []),
         "",
         "Release reasons (all episodes):",
         "",

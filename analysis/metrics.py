@@ -21,6 +21,18 @@ Definitions (NGSIM units in, SI where stated):
 * ``action_counts``: A's actions at the decisions (for the SUMO baseline, the bin of A's
   measured acceleration); ``js_divergence``: Jensen-Shannon divergence (base 2, in [0, 1])
   between that distribution and the demonstrations' action distribution.
+* ``a_collision_rate`` with ``a_collision_ci95``: control episodes ended by A colliding over
+  control episodes, with the Wilson score 95 % interval (``scipy.stats.binomtest``).
+* ``safety_interventions`` / ``intervention_rate``: decisions whose action the safety filter
+  replaced (0 in the raw default), and their share of the commanded decisions.
+* ``w1_speed_A_ft_s``, ``w1_acc_A_ft_s2``, ``w1_d_AC_ft``, ``w1_ttc_s``: Wasserstein-1
+  distances (``scipy.stats.wasserstein_distance``) between the closed-loop values at A's
+  decisions (speed, applied acceleration, d_AC, TTC to C) and the held-out demonstration
+  frames (``v_A`` when the table has it, ``acc_A``, ``d_AC``, TTC). TTC to C is front-to-front
+  ``d_AC / v_AC`` over the closing steps (``v_AC > 0``), capped at ``TTC_CAP_S``. The SUMO
+  driver's distances are the floor the learned drivers are compared to.
+* ``flags``: what the model's fit reported (``not_converged``, ``unbounded``, ``infeasible``,
+  ``uninformative``) and ``flagged`` (1 if any, for ``--fail-if 'flagged>0'``).
 """
 
 from __future__ import annotations
@@ -29,9 +41,13 @@ from dataclasses import asdict, dataclass, field, fields
 
 import numpy as np
 import pandas as pd
+from scipy.stats import binomtest, wasserstein_distance
 
 from irl.domains.merge import N_ACTIONS
 from irl.units import FRAME_S, FT_PER_M
+
+#: TTC values above this (s) are set to it before the Wasserstein distance.
+TTC_CAP_S = 30.0
 
 
 @dataclass(frozen=True)
@@ -68,6 +84,8 @@ class EpisodeMetrics:
     action_counts: tuple[int, ...]
     js_divergence: float
     release_reasons: dict[str, int] = field(default_factory=dict)
+    n_decisions: int = 0
+    safety_interventions: int = 0
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -208,6 +226,8 @@ def episode_metrics(
         b_ahead_rate=b_ahead, travel_time_s=float(np.nanmean(tt)) if np.isfinite(tt).any() else float("nan"),
         mean_speed_A_ft_s=mean_speed, action_counts=tuple(int(x) for x in counts), js_divergence=jsd,
         release_reasons={str(k): int(v) for k, v in reasons.items()},
+        n_decisions=int(len(decisions)),
+        safety_interventions=int(decisions["filtered"].astype(bool).sum()) if "filtered" in decisions else 0,
     )
 
 
@@ -267,6 +287,17 @@ class AggregateMetrics:
     heldout_loglik: float = float("nan")
     heldout_loglik_per_step: float = float("nan")
     release_reasons: dict[str, int] = field(default_factory=dict)
+    a_collision_rate: float = float("nan")
+    a_collision_ci95: tuple[float, float] = (float("nan"), float("nan"))
+    n_decisions: int = 0
+    safety_interventions: int = 0
+    intervention_rate: float = float("nan")
+    w1_speed_A_ft_s: float = float("nan")
+    w1_acc_A_ft_s2: float = float("nan")
+    w1_d_AC_ft: float = float("nan")
+    w1_ttc_s: float = float("nan")
+    flags: tuple[str, ...] = ()
+    flagged: int = 0
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -284,13 +315,56 @@ def _mean_std(x: list[float]) -> tuple[float, float]:
     return float(a.mean()), float(a.std(ddof=1)) if a.size > 1 else 0.0
 
 
+def rate_ci95(k: int, n: int) -> tuple[float, float, float]:
+    """``(k / n, low, high)``: a rate with its Wilson score 95 % interval (NaN when ``n == 0``)."""
+    if n <= 0:
+        return float("nan"), float("nan"), float("nan")
+    ci = binomtest(int(k), int(n)).proportion_ci(confidence_level=0.95, method="wilson")
+    return k / n, float(ci.low), float(ci.high)
+
+
+def ttc_to_c(d_ac: np.ndarray, v_ac: np.ndarray) -> np.ndarray:
+    """``[M]`` front-to-front TTC to C (s), ``d_AC / v_AC`` over the closing steps of ``d_ac,
+    v_ac [N]`` (``v_AC > 0``, finite), capped at ``TTC_CAP_S``."""
+    d = np.asarray(d_ac, dtype=np.float64)
+    v = np.asarray(v_ac, dtype=np.float64)
+    ok = np.isfinite(d) & np.isfinite(v) & (v > 1e-6)
+    return np.minimum(np.maximum(d[ok], 0.0) / v[ok], TTC_CAP_S)
+
+
+def wasserstein(x, y) -> float:
+    """Wasserstein-1 distance of two samples (finite values only; NaN if either is empty)."""
+    a = np.asarray(x, dtype=np.float64)
+    b = np.asarray(y, dtype=np.float64)
+    a, b = a[np.isfinite(a)], b[np.isfinite(b)]
+    if a.size == 0 or b.size == 0:
+        return float("nan")
+    return float(wasserstein_distance(a, b))
+
+
+def w1_to_demos(decisions: pd.DataFrame, demos: pd.DataFrame) -> dict[str, float]:
+    """Wasserstein-1 distances of the closed-loop decisions (``Controller.decision_table()``
+    rows, all episodes) to held-out encounter frames: keys ``w1_speed_A_ft_s`` (needs a
+    ``v_A`` column in ``demos``, else NaN), ``w1_acc_A_ft_s2``, ``w1_d_AC_ft``, ``w1_ttc_s``."""
+    speed = demos["v_A"] if "v_A" in demos else pd.Series(dtype="float64")
+    return {
+        "w1_speed_A_ft_s": wasserstein(decisions["speed_A"], speed),
+        "w1_acc_A_ft_s2": wasserstein(decisions["acc_cmd"], demos["acc_A"]),
+        "w1_d_AC_ft": wasserstein(decisions["d_AC"], demos["d_AC"]),
+        "w1_ttc_s": wasserstein(ttc_to_c(decisions["d_AC"], decisions["v_AC"]), ttc_to_c(demos["d_AC"], demos["v_AC"])),
+    }
+
+
 def aggregate(
     episodes: list[EpisodeMetrics],
     *,
     demo_action_counts: np.ndarray | None = None,
     heldout: tuple[float, float] | None = None,
+    w1: dict[str, float] | None = None,
+    flags: tuple[str, ...] = (),
 ) -> AggregateMetrics:
-    """Aggregate the episodes of one policy (all must share ``policy``).
+    """Aggregate the episodes of one policy (all must share ``policy``); ``w1``: the
+    :func:`w1_to_demos` distances of its decisions; ``flags``: its model's fit flags.
 
     Raises:
         ValueError: no episodes, or episodes of more than one policy.
@@ -306,6 +380,12 @@ def aggregate(
         for k, v in e.release_reasons.items():
             reasons[k] = reasons.get(k, 0) + v
     merges = sum(e.n_merges for e in episodes)
+    n_controls = sum(e.n_controls for e in episodes)
+    a_coll = sum(e.a_collisions for e in episodes)
+    rate, lo, hi = rate_ci95(a_coll, n_controls)
+    n_dec = sum(e.n_decisions for e in episodes)
+    n_int = sum(e.safety_interventions for e in episodes)
+    w1 = w1 or {}
     ahead = sum((e.b_ahead_rate * e.n_merges) for e in episodes if e.n_merges)
     return AggregateMetrics(
         policy=episodes[0].policy, n_episodes=len(episodes),
@@ -322,4 +402,9 @@ def aggregate(
         heldout_loglik=heldout[0] if heldout else float("nan"),
         heldout_loglik_per_step=heldout[1] if heldout else float("nan"),
         release_reasons=reasons,
+        a_collision_rate=rate, a_collision_ci95=(lo, hi), n_decisions=n_dec, safety_interventions=n_int,
+        intervention_rate=n_int / n_dec if n_dec else float("nan"),
+        w1_speed_A_ft_s=w1.get("w1_speed_A_ft_s", float("nan")), w1_acc_A_ft_s2=w1.get("w1_acc_A_ft_s2", float("nan")),
+        w1_d_AC_ft=w1.get("w1_d_AC_ft", float("nan")), w1_ttc_s=w1.get("w1_ttc_s", float("nan")),
+        flags=tuple(flags), flagged=int(bool(flags)),
     )

@@ -6,7 +6,8 @@
    one held-out seed (in worker processes), extract the merge encounters (``sim.encounters``);
 2. **discretize**: quantile bin edges fitted on the training encounters (``irl.domains.merge``);
    encounter frames without a lead car C get the closed loop's open-road values;
-3. **learn** Q-Avg, Q-SM, MLIRL and REIRL (``analysis.learn``), one ``model.json`` each;
+3. **learn** Q-Avg and MLIRL by default (Q-SM and REIRL on request; ``analysis.learn``), one
+   ``model.json`` each;
 4. **re-inject and evaluate**: every model drives the lag cars A of new episodes (other seeds),
    against SUMO's own driver and uniform random (``analysis.evaluate``), with the held-out
    encounters for the action divergence and the held-out log-likelihood;
@@ -38,14 +39,13 @@ import pandas as pd
 
 from analysis.episode import frame_from_dict, frame_to_dict
 from analysis.evaluate import EvaluationReport, evaluate, learned_policy, prepare_encounters, resolve_executor
-from analysis.evaluate_report import report_table
+from analysis.evaluate_report import flag_lines, report_table
 from analysis.learn import fit_problem, saved_model
 from analysis.provenance import provenance, provenance_markdown, text_digest, write_timings
 from analysis.sweep import Task, run_sweep
 from irl.atomic import write_text_atomic
 from irl.config import IRLConfig
 from irl.errors import IRLError
-from irl.fit import METHODS
 from irl.domains.merge import fit_quantile_bins
 from irl.problems import load_problem
 from scenarios.loader import load_scenario
@@ -67,7 +67,9 @@ class DemoConfig:
         data_duration_s: simulated seconds of each data run (None: the scenario's).
         eval_seed: first seed of the evaluation episodes; eval_episodes: episodes per policy.
         eval_duration_s: simulated seconds per evaluation episode.
-        methods: IRL methods to learn.
+        methods: IRL methods to learn (default Q-Avg and MLIRL: Q-SM's fixed-point
+            iteration took 26-57 s of the demo and REIRL's dual is unbounded on this data, so
+            both are optional, ``methods=irl.fit.METHODS`` or ``merge-irl demo --methods ...``).
         fit_seed: seed of the IRL fits.
         workers: processes (``process:<workers>``).
         executor: where the data runs and evaluation episodes run (``analysis.sweep``
@@ -80,8 +82,8 @@ class DemoConfig:
     data_duration_s: float | None = None
     eval_seed: int = 1
     eval_episodes: int = 3
-    eval_duration_s: float | None = 240.0
-    methods: tuple[str, ...] = METHODS
+    eval_duration_s: float | None = 180.0
+    methods: tuple[str, ...] = ("qavg", "mlirl")
     fit_seed: int = 0
     workers: int = 2
     executor: str | None = None
@@ -111,6 +113,7 @@ class DemoResult:
             *[f"  left out: {k} ({v})" for k, v in self.fit_messages.items() if k not in self.models],
             "",
             report_table(self.evaluation.aggregates),
+            *flag_lines(self.evaluation.aggregates),
             "",
             f"  report:  {self.evaluation.report_md}",
             f"  metrics: {self.evaluation.metrics_json}",
@@ -137,6 +140,9 @@ def encounters_task(run: EncounterRun, seed: int) -> dict:
     spec = load_scenario(run.scenario) if isinstance(run.scenario, (str, Path)) else run.scenario
     res = run_scenario(spec, seed=run.seed, duration_s=run.duration_s)
     frames = extract_encounters(res.table)
+    # A's speed at each encounter frame, for the closed loop's Wasserstein distance of speed
+    speed = res.table.set_index(["Vehicle_ID", "Frame_ID"])["v_Vel"]
+    frames["v_A"] = speed.reindex(pd.MultiIndex.from_arrays([frames["A_id"], frames["Frame_ID"]])).to_numpy(float)
     frames["encounter_id"] = frames["encounter_id"].astype("int64") + 1_000_000 * int(run.seed)
     return frame_to_dict(frames)
 
@@ -227,9 +233,10 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     _run_logged_episode(config, pol, logger)
     close_recording(rec, tmp_rrd, out / "demo.rrd")
 
-    _say(f"[5/5] evaluating {len(models)} models + sumo + uniform, {config.eval_episodes} episodes each", quiet)
+    _say(f"[5/5] evaluating {len(models)} models + sumo, uniform, marginal, markov, bc, "
+         f"{config.eval_episodes} episodes each", quiet)
     report = evaluate(list(models.values()), config.scenario, config.eval_episodes, config.eval_seed,
-                      out / "evaluation", duration_s=config.eval_duration_s, demos=held_path,
+                      out / "evaluation", duration_s=config.eval_duration_s, demos=held_path, train_demos=train_path,
                       workers=config.workers, executor=config.executor, progress=progress)
     wall = time.perf_counter() - t0
     result = DemoResult(out, models, report, out / "demo.rrd", out / "summary.md", int(train["encounter_id"].nunique()),

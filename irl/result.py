@@ -14,10 +14,13 @@ import numpy as np
 from irl.atomic import write_json_atomic
 from irl.boltzmann import log_policy
 from irl.config import IRLConfig
+from irl.domains.merge import ACTION_ACC_FT_S2, STATE_ENCODINGS
 from irl.errors import ModelFileError
 
 #: Method names a model file may carry (the methods themselves: :data:`irl.fit.REGISTRY`).
 METHODS = ("qavg", "qsm", "mlirl", "reirl")
+#: ``action_acc_ft_s2`` of files written before the field existed: the bin midpoints.
+DEFAULT_ACTION_ACC: tuple[float, ...] = tuple(float(x) for x in ACTION_ACC_FT_S2)
 
 
 @dataclass(frozen=True)
@@ -91,6 +94,16 @@ class SavedModel:
             (``{"d_AC": [...4 inner edges...], ...}``); empty otherwise.
         domain: ``"gridworld" | "merge" | "npz"``.
         info: free-form provenance (data path, seed, trials, versions).
+        state_encoding: merge state encoding, ``"paper"`` (1250 states) or ``"driver"``
+            (6250: times A's previous action); :data:`irl.domains.merge.STATE_ENCODINGS`.
+        decision_step_s: seconds between decisions the demonstrations were resampled at (and
+            the kinematic fallback used); files without it load as 0.1.
+        action_acc_ft_s2: ``[5]`` acceleration (ft/s^2) the closed loop applies per action:
+            each action's conditional mean in the training data; files without it load as
+            the bin midpoints.
+        feature_set: name of the feature set (``"paper"``, ``"driver"`` or ``"custom"``).
+        unvisited_rule: how ``q`` is defined in states never seen in training
+            (``"none"``: the method's own value; see :mod:`irl.unvisited`).
     """
 
     method: str
@@ -104,6 +117,11 @@ class SavedModel:
     converged: bool = True
     unbounded: bool = False
     info: dict[str, Any] = field(default_factory=dict)
+    state_encoding: str = "paper"
+    decision_step_s: float = 0.1
+    action_acc_ft_s2: tuple[float, ...] = DEFAULT_ACTION_ACC
+    feature_set: str = ""
+    unvisited_rule: str = "none"
 
     @classmethod
     def from_fit(cls, fit: FitResult, **kw: Any) -> SavedModel:
@@ -130,6 +148,11 @@ class SavedModel:
             "unbounded": bool(self.unbounded),
             "q": np.asarray(self.q, dtype=float).tolist(),
             "info": self.info,
+            "state_encoding": self.state_encoding,
+            "decision_step_s": float(self.decision_step_s),
+            "action_acc_ft_s2": [float(x) for x in self.action_acc_ft_s2],
+            "feature_set": self.feature_set,
+            "unvisited_rule": self.unvisited_rule,
         }
 
     def save(self, path: str | os.PathLike) -> Path:
@@ -207,11 +230,35 @@ class SavedModel:
             info = {}
         if not isinstance(info, dict):
             raise ModelFileError(f"{path}: field 'info' must be an object, got {_json_type(info)}")
+        extra = _driver_fields(path, data)
         return cls(
             method=data["method"], theta=theta, loglik=loglik, q=q, config=config,
             domain=domain, feature_names=tuple(names), bin_edges=edges,
-            converged=flags["converged"], unbounded=flags["unbounded"], info=dict(info),
+            converged=flags["converged"], unbounded=flags["unbounded"], info=dict(info), **extra,
         )
+
+
+def _driver_fields(path: Path, data: dict) -> dict[str, Any]:
+    """The issue-11 fields, with the defaults of files written before them."""
+    out: dict[str, Any] = {}
+    enc = data.get("state_encoding", "paper")
+    if enc not in STATE_ENCODINGS:
+        raise ModelFileError(f"{path}: field 'state_encoding' must be one of {STATE_ENCODINGS}, got {_brief(enc)}")
+    out["state_encoding"] = enc
+    step = data.get("decision_step_s", 0.1)
+    if isinstance(step, bool) or not isinstance(step, (int, float)) or not math.isfinite(step) or step <= 0:
+        raise ModelFileError(f"{path}: field 'decision_step_s' must be a positive number of seconds, got {_brief(step)}")
+    out["decision_step_s"] = float(step)
+    acc = _number_array(path, "action_acc_ft_s2", data.get("action_acc_ft_s2", list(DEFAULT_ACTION_ACC)), 1)
+    if acc.size != len(DEFAULT_ACTION_ACC) or not np.all(np.isfinite(acc)):
+        raise ModelFileError(f"{path}: field 'action_acc_ft_s2' must be {len(DEFAULT_ACTION_ACC)} finite numbers")
+    out["action_acc_ft_s2"] = tuple(float(x) for x in acc)
+    for key, default in (("feature_set", ""), ("unvisited_rule", "none")):
+        val = data.get(key, default)
+        if not isinstance(val, str):
+            raise ModelFileError(f"{path}: field {key!r} must be a string, got {_brief(val)}")
+        out[key] = val
+    return out
 
 
 def _json_type(value: Any) -> str:

@@ -73,7 +73,7 @@ def remove_temporaries(folder: str | os.PathLike, name: str | None = None) -> li
     this final name (``.NAME.<hex>.tmp*``). Returns what was removed.
     """
     folder = Path(folder)
-    removed = []
+    removed: list[Path] = []
     try:
         entries = list(os.scandir(folder))
     except (FileNotFoundError, NotADirectoryError):

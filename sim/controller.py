@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from irl.domains.merge import ACTION_ACC_FT_S2, action_of
+from irl.domains.merge import ACTION_ACC_FT_S2, ZERO_ACTION, action_of
 from irl.units import M_PER_FT
 from sim.errors import SimError
 from sim.hooks import FrameState, RunContext
@@ -62,7 +62,9 @@ class ControllerConfig:
     """Settings of :class:`Controller`.
 
     Attributes:
-        decision_s: time between two decisions (s); rounded to whole frames.
+        decision_s: time between two decisions (s); rounded to whole frames. None: the
+            policy's own ``decision_step_s`` (a learned model decides on the step its
+            demonstrations were resampled to), else 0.3 s.
         mode: take the most likely action instead of sampling.
         zone_start_ft: B is taken into account once its ``Local_Y`` is at least this (ft);
             None = ``zone_margin_ft`` before the start of the auxiliary lane (from the lane
@@ -72,9 +74,16 @@ class ControllerConfig:
         hold_after_merge_s: keep controlling A this long after B merged (s).
         max_control_s: release A after this long under control (s).
         seed: seed of the action-sampling generator (None: the run's seed).
+        safety_ttc_s: the safety-filter variant (issue 11, cause 9): None (default) = raw, the
+            policy's action is applied as chosen. A number: before applying an action, A's gap
+            and time-to-collision to its leader in lane 6 at the end of the decision step are
+            predicted (constant accelerations of A, constant speed of the leader); an action
+            that would end with the bumper gap below 0 or a closing TTC below this (s) is
+            replaced by the nearest harder-braking action that does not (High Brake if none
+            does). Interventions are counted per control episode and logged per decision.
     """
 
-    decision_s: float = 0.3
+    decision_s: float | None = None
     mode: bool = False
     zone_start_ft: float | None = None
     zone_margin_ft: float = 100.0
@@ -82,10 +91,13 @@ class ControllerConfig:
     hold_after_merge_s: float = 3.0
     max_control_s: float = 60.0
     seed: int | None = None
+    safety_ttc_s: float | None = None
 
     def __post_init__(self) -> None:
-        for name in ("decision_s", "max_lag_ft", "max_control_s"):
+        for name in ("decision_s", "max_lag_ft", "max_control_s", "safety_ttc_s"):
             v = getattr(self, name)
+            if v is None and name in ("decision_s", "safety_ttc_s"):
+                continue
             if not (v > 0 and math.isfinite(v)):
                 raise ControllerError(f"controller.{name}: must be a positive number, got {v}")
         if not self.hold_after_merge_s >= 0:
@@ -105,6 +117,8 @@ class Control:
         commanded: whether the policy actually drove A (False for the SUMO baseline).
         gap_AB_start_ft: d_AB at the take-over (ft).
         n_decisions: decisions taken.
+        n_interventions: decisions whose action the safety filter replaced.
+        prev_action: A's action at the latest decision (-1: none yet).
     """
 
     a_id: int
@@ -118,6 +132,8 @@ class Control:
     merge_frame: int = -1
     b_ahead: bool | None = None
     n_decisions: int = 0
+    n_interventions: int = 0
+    prev_action: int = -1
     speed_mode: int = -1
     lane_change_mode: int = -1
     last_y: float = 0.0
@@ -129,14 +145,15 @@ class Control:
 
 _DECISION_FIELDS = (
     "frame", "time_s", "a_id", "b_id", "c_id", "state", "action", "acc_cmd", "speed_A",
-    "d_AC", "d_AB", "v_AC", "v_AB", "b_is_truck", "p0", "p1", "p2", "p3", "p4",
+    "d_AC", "d_AB", "v_AC", "v_AB", "b_is_truck", "p0", "p1", "p2", "p3", "p4", "filtered",
 )
 
 
 @dataclass
 class DecisionLog:
     """Column buffers, one row per decision (units ft, ft/s, ft/s^2; ``acc_cmd`` is the
-    commanded acceleration, or for the SUMO baseline A's measured one; ``action`` likewise).
+    commanded acceleration, or for the SUMO baseline A's measured one; ``action`` likewise;
+    ``filtered``: the safety filter replaced the policy's action).
     """
 
     rows: list[tuple] = field(default_factory=list)
@@ -182,13 +199,21 @@ class Controller:
         self._collision_pairs: set[tuple[str, str]] = set()
         self.n_teleports = 0  # teleports in the whole run, all vehicles
 
+    @property
+    def decision_s(self) -> float:
+        """Seconds between two decisions: the config's, else the policy's ``decision_step_s``,
+        else 0.3."""
+        if self.config.decision_s is not None:
+            return float(self.config.decision_s)
+        return float(getattr(self.policy, "decision_step_s", 0.3) or 0.3)
+
     # -- hook protocol -------------------------------------------------------------------
     def on_start(self, ctx: RunContext) -> None:
         import libsumo
 
         self._traci = libsumo
         cfg = self.config
-        self._every = max(1, int(round(cfg.decision_s / ctx.frame_s)))
+        self._every = max(1, int(round(self.decision_s / ctx.frame_s)))
         self._hold_frames = int(round(cfg.hold_after_merge_s / ctx.frame_s))
         self._max_frames = int(round(cfg.max_control_s / ctx.frame_s))
         self._frame_s = ctx.frame_s
@@ -327,25 +352,62 @@ class Controller:
     def _decide(self, c: Control, frame: FrameState, ia: int, ib: int, ic: int | None) -> None:
         d_ac, d_ab, v_ac, v_ab, truck = observe(frame, ia, ib, ic)
         encoder = getattr(self.policy, "encoder", None)
-        state = encoder.state(d_ac, d_ab, v_ac, v_ab, truck) if encoder is not None else -1
-        obs = MergeObservation(d_ac, d_ab, v_ac, v_ab, truck, state, float(frame.speed[ia]))
+        encoding = getattr(self.policy, "state_encoding", "paper")
+        if encoder is None:
+            state = -1
+        elif encoding == "paper":
+            state = encoder.state(d_ac, d_ab, v_ac, v_ab, truck)
+        else:  # paper state x A's previous action; before the first decision, the bin of A's
+            # acceleration in the last frame (SUMO's, over 0.1 s), Zero if it is not finite
+            acc_now = float(frame.acc[ia])
+            prev = c.prev_action if c.prev_action >= 0 else (action_of(acc_now) if math.isfinite(acc_now) else ZERO_ACTION)
+            state = encoder.state(d_ac, d_ab, v_ac, v_ab, truck, prev_action=prev, encoding=encoding)
+        obs = MergeObservation(d_ac, d_ab, v_ac, v_ab, truck, state, float(frame.speed[ia]), c.prev_action)
         probs = np.asarray(self.policy.probs(obs), dtype=np.float64)
+        filtered = False
         if c.commanded:
             assert self._rng is not None, "on_start seeds the generator before any step"
             action = choose_action(probs, self._rng, mode=self.config.mode)
-            acc = ACTION_ACC_FT_S2[action]
+            acc_table = getattr(self.policy, "action_acc_ft_s2", ACTION_ACC_FT_S2)
+            if self.config.safety_ttc_s is not None:
+                safe = self._safe_action(frame, ia, action, acc_table)
+                filtered = safe != action
+                action = safe
+                c.n_interventions += int(filtered)
+            acc = float(acc_table[action])
             self._traci.vehicle.setAcceleration(c.a_sumo, acc * M_PER_FT, self._every * self._frame_s)
         else:
             acc = float(frame.acc[ia])
             action = action_of(acc)
+        c.prev_action = action
         c.n_decisions += 1
         self.decided.add(c.a_id)
         c_id = int(frame.vehicle_id[ic]) if ic is not None else 0
         self.last[c.a_id] = (obs, probs, action)
         self.decisions.append((
             frame.frame, frame.time_s, c.a_id, c.b_id, c_id, state, action, acc, obs.speed_A,
-            d_ac, d_ab, v_ac, v_ab, truck, *probs.tolist(),
+            d_ac, d_ab, v_ac, v_ab, truck, *probs.tolist(), filtered,
         ))
+
+    def _safe_action(self, frame: FrameState, ia: int, action: int, acc_table) -> int:
+        """``action``, or the nearest harder-braking one whose predicted gap to A's leader in
+        lane 6 stays positive with a closing TTC of at least ``safety_ttc_s`` after one decision
+        step (see :class:`ControllerConfig`); High Brake (0) if none does."""
+        ya = float(frame.local_y[ia])
+        il = lead_of(frame, ya, exclude=(ia,))
+        if il is None:
+            return action
+        h = self._every * self._frame_s
+        ttc_min = float(self.config.safety_ttc_s or 0.0)
+        va, vl = float(frame.speed[ia]), float(frame.speed[il])
+        gap = float(frame.local_y[il]) - ya - float(frame.length[il])
+        for a in range(action, -1, -1):
+            v1 = max(0.0, va + float(acc_table[a]) * h)
+            g1 = gap - 0.5 * (va + v1) * h + vl * h
+            closing = v1 - vl
+            if g1 > 0 and (closing <= 1e-9 or g1 / closing >= ttc_min):
+                return a
+        return 0
 
     # -- results ------------------------------------------------------------------------
     def decision_table(self):
@@ -358,7 +420,7 @@ class Controller:
         import pandas as pd
 
         cols = ("a_id", "b_id", "a_sumo", "start_frame", "end_frame", "reason", "merge_frame",
-                "b_ahead", "commanded", "gap_AB_start_ft", "n_decisions")
+                "b_ahead", "commanded", "gap_AB_start_ft", "n_decisions", "n_interventions")
         return pd.DataFrame([{k: getattr(c, k) for k in cols} for c in self.controls], columns=list(cols))
 
 

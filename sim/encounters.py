@@ -40,6 +40,7 @@ import pandas as pd
 
 from irl.domains.merge import ENCOUNTER_COLUMNS, forward_acceleration
 from sim.errors import TrajectoryFormatError
+from sim.observe import lag_lead_positions
 from sim.schema import FRAME_S, V_CLASS_TRUCK
 from sim.sites import I80, SiteProfile, check_lanes
 
@@ -213,9 +214,9 @@ def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),
         lo, hi = np.searchsorted(f6, mf, "left"), np.searchsorted(f6, mf, "right")
         cand = r6[lo:hi]
         cand = cand[vid[cand] != b]
-        behind, ahead = cand[y[cand] < y[rb]], cand[y[cand] > y[rb]]
-        a = int(vid[behind[-1]]) if behind.size else 0
-        c = int(vid[ahead[0]]) if ahead.size else 0
+        ia, ic = lag_lead_positions(y[cand].tolist(), float(y[rb]))  # the controller's rule too
+        a = int(vid[cand[ia]]) if ia >= 0 else 0
+        c = int(vid[cand[ic]]) if ic >= 0 else 0
         truck = bool(vclass[rb] == V_CLASS_TRUCK)
         start = mf
         if a:

@@ -15,7 +15,7 @@ the model's saved bin edges (state = 625 truck + 125 x1 + 25 x2 + 5 x3 + x4).
 from __future__ import annotations
 
 import math
-from bisect import bisect_right
+from bisect import bisect_left, bisect_right
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -23,6 +23,7 @@ import numpy as np
 
 from sim.hooks import FrameState
 from sim.schema import RIGHTMOST_MAIN_LANE, V_CLASS_TRUCK
+
 
 @dataclass(frozen=True)
 class MergeObservation:
@@ -34,6 +35,7 @@ class MergeObservation:
         b_is_truck: whether B is a truck.
         state: discrete state index in ``[0, 1250)`` (-1 when no encoder was given).
         speed_A: A's speed (ft/s), for logging.
+        prev_action: A's action at the previous decision of this control episode (-1: none).
     """
 
     d_AC: float
@@ -43,6 +45,7 @@ class MergeObservation:
     b_is_truck: bool
     state: int = -1
     speed_A: float = 0.0
+    prev_action: int = -1
 
     def as_array(self) -> np.ndarray:
         """``[5]``: d_AC, d_AB, v_AC, v_AB, B_is_truck."""
@@ -65,6 +68,17 @@ def observe(frame: FrameState, ia: int, ib: int, ic: int | None) -> tuple[float,
     return d_ac, d_ab, v_ac, v_ab, bool(frame.v_class[ib] == V_CLASS_TRUCK)
 
 
+def lag_lead_positions(ys: Sequence[float], y_b: float) -> tuple[int, int]:
+    """The one A/C selection rule of the merge (shared by :mod:`sim.encounters` and the
+    closed-loop controller): in ``ys`` (the lane-6 ``Local_Y`` values, ascending, ft), the
+    position of the lag car A (the last one strictly behind B's ``y_b``) and of the lead car C
+    (the first one strictly ahead of it); -1 where there is none. A car level with B is
+    neither."""
+    lag = bisect_left(ys, y_b) - 1
+    lead = bisect_right(ys, y_b)
+    return lag, (lead if lead < len(ys) else -1)
+
+
 def lead_of(frame: FrameState, y_ref: float, *, lane: int = RIGHTMOST_MAIN_LANE, exclude: Sequence[int | None] = ()) -> int | None:
     """Row of the nearest vehicle in ``lane`` strictly ahead of ``y_ref`` (ft), or None.
 
@@ -78,12 +92,13 @@ def lead_of(frame: FrameState, y_ref: float, *, lane: int = RIGHTMOST_MAIN_LANE,
 
 
 def lag_of(frame: FrameState, y_ref: float, *, lane: int = RIGHTMOST_MAIN_LANE, max_gap_ft: float = np.inf) -> int | None:
-    """Row of the nearest vehicle in ``lane`` at or behind ``y_ref`` within ``max_gap_ft``, or None.
+    """Row of the nearest vehicle in ``lane`` strictly behind ``y_ref`` within ``max_gap_ft``, or
+    None (the lag car A of :func:`lag_lead_positions`).
 
     Among vehicles at the same position the lowest row wins.
     """
     ys, rows = frame.lane_order(lane)
-    k = bisect_right(ys, y_ref) - 1
+    k, _ = lag_lead_positions(ys, y_ref)
     if k < 0 or ys[k] < y_ref - max_gap_ft:
         return None
     while k > 0 and ys[k - 1] == ys[k]:

@@ -14,6 +14,8 @@ Policies in the same harness:
 * :class:`SumoPolicy`: the baseline; the vehicle is *not* taken over, SUMO's car-following
   model drives it (``controls = False``); the controller still observes it.
 * :class:`UniformPolicy`: uniform random over the 5 actions.
+* :class:`BaselineTabularPolicy`: ``marginal``, ``markov`` or ``bc`` fitted on the training
+  demonstrations (:mod:`irl.baselines`); ``markov`` conditions on A's previous action.
 * :class:`ConstantPolicy`: always the same action (e.g. always brake hard, for tests).
 """
 
@@ -26,11 +28,12 @@ from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import numpy as np
 
-from irl.domains.merge import ACTION_NAMES, N_ACTIONS, MergeBins
+from irl.domains.merge import ACTION_ACC_FT_S2, ACTION_NAMES, N_ACTIONS, MergeBins
 from irl.errors import ConfigError
 from sim.errors import SimError
 
 if TYPE_CHECKING:  # pragma: no cover
+    from irl.baselines import BaselinePolicy
     from irl.result import SavedModel
     from sim.observe import MergeObservation
 
@@ -125,18 +128,35 @@ class LearnedPolicy:
         encoder: the state bins the model was trained with (:class:`irl.domains.merge.MergeBins`,
             the one merge-state encoder; see :meth:`from_model`).
         name: label (e.g. the method).
+        action_acc_ft_s2: ``[5]`` acceleration applied for each action (ft/s^2): the model's
+            conditional mean of each action bin in its training data (cause 8 of issue 11);
+            the bin midpoints for models that do not save it.
+        decision_step_s: the step the demonstrations were resampled to (s); the controller
+            decides this often unless told otherwise.
+        state_encoding: ``"paper"`` (the 1250 paper states) or ``"driver"`` (paper state x A's
+            previous action, ``5 s + prev``).
+        flags: what the model's fit reported (``not_converged``, ``unbounded``, ``infeasible``,
+            ``uninformative``); empty: none.
     """
 
     log_pi: np.ndarray
     encoder: MergeBins
     name: str = "learned"
     controls: bool = True
+    action_acc_ft_s2: tuple[float, ...] = tuple(float(x) for x in ACTION_ACC_FT_S2)
+    decision_step_s: float = 0.1
+    state_encoding: str = "paper"
+    flags: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         lp = np.asarray(self.log_pi, dtype=np.float64)
         if lp.ndim != 2 or lp.shape[1] != N_ACTIONS or not np.all(np.isfinite(lp)):
             raise PolicyError(f"policy {self.name!r}: log_pi must be a finite [S, {N_ACTIONS}] table, got {lp.shape}")
         object.__setattr__(self, "log_pi", lp)
+        acc = tuple(float(x) for x in self.action_acc_ft_s2)
+        if len(acc) != N_ACTIONS or not all(np.isfinite(acc)):
+            raise PolicyError(f"policy {self.name!r}: action_acc_ft_s2 must be {N_ACTIONS} finite numbers, got {acc}")
+        object.__setattr__(self, "action_acc_ft_s2", acc)
 
     @classmethod
     def from_model(cls, model: SavedModel, *, encoder: MergeBins | None = None, name: str = "") -> LearnedPolicy:
@@ -161,7 +181,12 @@ class LearnedPolicy:
                 encoder = MergeBins.from_dict(dict(model.bin_edges), where=f"model {model.method!r} bin_edges")
             except ConfigError as e:
                 raise PolicyError(str(e)) from None
-        return cls(log_pi=model.log_policy(), encoder=encoder, name=name or model.method)
+        acc = getattr(model, "action_acc_ft_s2", None)
+        return cls(log_pi=model.log_policy(), encoder=encoder, name=name or model.method,
+                   action_acc_ft_s2=tuple(ACTION_ACC_FT_S2) if acc is None or len(acc) == 0 else tuple(acc),
+                   decision_step_s=float(getattr(model, "decision_step_s", 0.1) or 0.1),
+                   state_encoding=str(getattr(model, "state_encoding", "paper") or "paper"),
+                   flags=model_flags(model))
 
     @property
     def n_states(self) -> int:
@@ -176,3 +201,48 @@ class LearnedPolicy:
         if not 0 <= obs.state < self.n_states:
             raise PolicyError(f"state {obs.state} out of range [0, {self.n_states}) for policy {self.name!r}")
         return np.exp(self.log_pi[obs.state])
+
+
+def model_flags(model: SavedModel) -> tuple[str, ...]:
+    """What a saved model's fit reported, as :attr:`irl.result.FitResult.flags` names it:
+    ``not_converged``, ``unbounded``, ``infeasible``, ``uninformative`` (empty: none)."""
+    out = [] if model.converged else ["not_converged"]
+    if model.unbounded:
+        out.append("unbounded")
+    extra = model.info.get("extra", {}) if isinstance(model.info, dict) else {}
+    out += [k for k in ("infeasible", "uninformative") if isinstance(extra, dict) and extra.get(k)]
+    return tuple(out)
+
+
+@dataclass(frozen=True)
+class BaselineTabularPolicy:
+    """A baseline of :mod:`irl.baselines` (``marginal``, ``markov``, ``bc``) as a driver.
+
+    Attributes:
+        baseline: the fitted :class:`irl.baselines.BaselinePolicy` (``log_first [S, 5]``,
+            ``log_next [5, 5]`` or None).
+        encoder: the paper state bins (for ``bc``; the others ignore the state).
+        name: label (the baseline's name).
+        action_acc_ft_s2: ``[5]`` acceleration applied per action (ft/s^2), as
+            :class:`LearnedPolicy`.
+
+    ``markov`` scores ``pi(a | a_prev)`` with ``obs.prev_action`` (A's previous action in the
+    closed loop) and falls back to the first-step table (the marginal) without one.
+    """
+
+    baseline: BaselinePolicy
+    encoder: MergeBins
+    name: str = ""
+    controls: bool = True
+    action_acc_ft_s2: tuple[float, ...] = tuple(float(x) for x in ACTION_ACC_FT_S2)
+
+    def __post_init__(self) -> None:
+        if not self.name:
+            object.__setattr__(self, "name", self.baseline.name)
+
+    def probs(self, obs: MergeObservation) -> np.ndarray:
+        b = self.baseline
+        if b.log_next is not None and 0 <= obs.prev_action < N_ACTIONS:
+            return np.exp(b.log_next[obs.prev_action])
+        s = obs.state if 0 <= obs.state < b.log_first.shape[0] else 0
+        return np.exp(b.log_first[s])

@@ -45,9 +45,10 @@ def test_evaluate_writes_report_metrics_plots(tmp_path):
 
     model_path = _model().save(tmp_path / "m" / "qavg.json")
     demos = _encounters()
+    train = _encounters(120, seed=2)
     rep = evaluate([model_path], "synthetic", 2, 3, tmp_path / "out", duration_s=110.0, demos=demos,
-                   policies=[ConstantPolicy(0)], workers=2, progress=False)
-    names = ["qavg", "sumo", "uniform", "constant-high-brake"]
+                   train_demos=train, policies=[ConstantPolicy(0)], workers=2, progress=False)
+    names = ["qavg", "sumo", "uniform", "marginal", "markov", "bc", "constant-high-brake"]
     assert list(rep.aggregates) == names
     md = rep.report_md.read_text()
     for n in names:
@@ -64,6 +65,22 @@ def test_evaluate_writes_report_metrics_plots(tmp_path):
     assert data["policies"]["qavg"]["aggregate"]["heldout_loglik_per_step"] == pytest.approx(expected)
     assert data["policies"]["uniform"]["aggregate"]["heldout_loglik_per_step"] == pytest.approx(np.log(0.2))
     assert data["policies"]["sumo"]["aggregate"]["heldout_loglik_per_step"] is None
+    # the fitted baselines: held-out LL as irl.baselines scores the held-out trajectories
+    from irl.baselines import fit_baseline
+
+    train_demo = merge_mdp.discretize(train, EDGES)
+    for b in ("marginal", "markov", "bc"):
+        fit = fit_baseline(b, train_demo)
+        assert data["policies"][b]["aggregate"]["heldout_loglik_per_step"] == pytest.approx(fit.loglik(demo) / len(a))
+    # collision rate with its Wilson interval, Wasserstein distances, decision step of the model (0.1 s)
+    for n in names:
+        agg = data["policies"][n]["aggregate"]
+        lo, hi = agg["a_collision_ci95"]
+        assert 0 <= lo <= agg["a_collision_rate"] <= hi <= 1
+        assert agg["w1_acc_A_ft_s2"] >= 0 and agg["w1_d_AC_ft"] >= 0 and agg["w1_ttc_s"] >= 0
+        assert agg["w1_speed_A_ft_s"] is None  # the held-out table has no v_A column
+        assert agg["flags"] == [] and agg["flagged"] == 0
+    assert data["controller"]["decision_s"] == pytest.approx(0.1)
     assert data["demos"]["action_counts"] == np.bincount(a, minlength=5).tolist()
     # same traffic for every policy: the SUMO baseline never commands, the others do
     for r in rep.episodes["sumo"]:
@@ -88,7 +105,7 @@ def test_evaluate_writes_report_metrics_plots(tmp_path):
 
     prov = data["provenance"]
     assert prov["models"] == {"qavg": {"path": str(model_path), "sha256": hashlib.sha256(model_path.read_bytes()).hexdigest()},
-                              "sumo": None, "uniform": None, "constant-high-brake": None}
+                              **{n: None for n in names[1:]}}
     assert prov["scenario_sha256"] == text_digest(load_scenario("synthetic").to_toml())
     assert prov["merge_irl"] == package_version() and prov["inputs"] == {}  # demos given as a DataFrame
     assert "## Provenance" in md and hashlib.sha256(model_path.read_bytes()).hexdigest() in md
@@ -138,6 +155,29 @@ def test_evaluate_cli(tmp_path):
                            "--out", str(tmp_path / "gate")], capture_output=True, text=True, timeout=300)
     assert gate.returncode == 1, gate.stderr
     assert "FAIL" in gate.stderr and "n_episodes" in gate.stderr
+
+
+@pytest.mark.sumo
+def test_evaluate_cli_baselines_safety_filter_and_flag_gate(tmp_path):
+    from dataclasses import replace
+
+    model_path = replace(_model(), converged=False).save(tmp_path / "qavg.json")
+    demos = tmp_path / "demos.parquet"
+    _encounters(120, seed=4).to_parquet(demos)
+    out = tmp_path / "ev"
+    r = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--model", str(model_path), "--episodes", "1",
+                        "--duration", "100", "--baselines", "markov,bc", "--train-demos", str(demos),
+                        "--demos", str(demos), "--safety-ttc", "2.5", "--no-rrd", "--no-progress", "--seed", "5",
+                        "--executor", "process:2", "--out", str(out), "--fail-if", "flagged>0"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 1, r.stderr  # the not-converged model trips the gate
+    assert "qavg: flagged = 1" in r.stderr and "WARNING: model qavg is flagged (not_converged)" in r.stderr
+    data = json.loads((out / "metrics.json").read_text())
+    assert list(data["policies"]) == ["qavg", "markov", "bc"]
+    assert data["policies"]["qavg"]["aggregate"]["flags"] == ["not_converged"]
+    assert data["controller"]["safety_ttc_s"] == 2.5
+    md = (out / "report.md").read_text()
+    assert "FLAGGED: not_converged" in md and "safety filter on (TTC >= 2.5 s)" in md
 
 
 def test_view_cli_prints_recordings(tmp_path):

@@ -22,7 +22,14 @@ def test_run_demo_small(tmp_path):
     assert set(model.bin_edges) == {"d_AC", "d_AB", "v_AC", "v_AB"}
     assert res.n_train_steps > 100
     data = json.loads(res.evaluation.metrics_json.read_text())
-    assert set(data["policies"]) == {"qavg", "sumo", "uniform"}
+    assert set(data["policies"]) == {"qavg", "sumo", "uniform", "marginal", "markov", "bc"}
+    # the held-out frames carry A's speed: every policy has the Wasserstein distances (TTC only
+    # when A closed in on C at some decision of this short run)
+    for p in data["policies"].values():
+        agg = p["aggregate"]
+        assert all(agg[k] is not None and agg[k] >= 0 for k in ("w1_speed_A_ft_s", "w1_acc_A_ft_s2", "w1_d_AC_ft"))
+        assert agg["w1_ttc_s"] is None or agg["w1_ttc_s"] >= 0
+        assert "a_collision_ci95" in agg
     assert data["demos"]["n_steps"] > 0
     ents = read_entities(res.demo_rrd)
     assert "/train/qavg/loglik" in ents and "/train/qavg/theta/safe" in ents

@@ -36,7 +36,7 @@ def brute_lead(frame, y_ref, lane, exclude):
 
 
 def brute_lag(frame, y_ref, lane, max_gap):
-    mask = (frame.lane_id == lane) & (frame.local_y <= y_ref) & (frame.local_y >= y_ref - max_gap)
+    mask = (frame.lane_id == lane) & (frame.local_y < y_ref) & (frame.local_y >= y_ref - max_gap)
     rows = np.flatnonzero(mask)
     return None if rows.size == 0 else int(rows[np.argmax(frame.local_y[rows])])
 

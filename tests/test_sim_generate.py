@@ -59,7 +59,8 @@ def test_learn_merge_accepts_what_generate_writes_with_frames_without_car_c(tmp_
         # no frame without C in this short run: take a C off the road for part of its encounter
         # (drop its trajectory rows) and extract the encounters again, as a user would
         t = pd.read_parquet(out / "trajectories.parquet")
-        row = enc[enc.C_id != 0].iloc[0]
+        sizes = enc[enc.C_id != 0].groupby("encounter_id").size()  # the longest window: frames to drop
+        row = enc[enc.encounter_id == sizes.idxmax()].iloc[0]
         drop = (t.Vehicle_ID == row.C_id) & (t.Frame_ID <= row.merge_frame - 3)
         assert drop.any()
         t[~drop].to_parquet(tmp_path / "t.parquet")

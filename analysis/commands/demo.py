@@ -26,7 +26,8 @@ def register(subparsers) -> None:
     p.add_argument("--episodes", type=int, default=None, metavar="N",
                    help="evaluation episodes per policy (default 3)")
     p.add_argument("--methods", default=None, metavar="LIST",
-                   help="comma-separated IRL methods (default: qavg,qsm,mlirl,reirl)")
+                   help="comma-separated IRL methods (default: qavg,mlirl; qsm and reirl are slower or unbounded on "
+                        "this data, add them here)")
     p.add_argument("--workers", type=int, default=None, metavar="N", help="processes (default 2)")
     p.add_argument("--executor", default=None,
                    help="where data runs and episodes run: serial, process[:N], dask-local[:N], dask://HOST:PORT "

@@ -22,9 +22,16 @@ def register(subparsers) -> None:
     p.add_argument("--duration", type=float, default=None, help="simulated seconds per episode (default: the scenario's)")
     p.add_argument("--demos", default=None,
                    help="held-out encounter table (.parquet/.csv) for the action divergence and held-out LL")
-    p.add_argument("--baselines", default="sumo,uniform",
-                   help="comma-separated baselines among sumo, uniform ('' for none)")
-    p.add_argument("--decision-step", type=float, default=0.3, help="seconds between two decisions of A")
+    p.add_argument("--train-demos", default=None,
+                   help="training encounter table (.parquet/.csv) of the marginal, markov and bc baselines")
+    p.add_argument("--baselines", default="sumo,uniform,marginal,markov,bc",
+                   help="comma-separated baselines among sumo, uniform, marginal, markov, bc ('' for none; "
+                        "marginal, markov and bc need --train-demos)")
+    p.add_argument("--decision-step", type=float, default=None,
+                   help="seconds between two decisions of A (default: the first model's decision step, else 0.3)")
+    p.add_argument("--safety-ttc", type=float, default=None, metavar="S",
+                   help="safety-filter variant: replace an action that would bring A's TTC to its leader "
+                        "below S seconds (default: raw, no filter); interventions are reported")
     p.add_argument("--mode", action="store_true", help="take the most likely action instead of sampling")
     p.add_argument("--executor", default=None,
                    help="where episodes run: serial, process[:N] (default: every core), dask-local[:N], "
@@ -53,9 +60,10 @@ def run(args: argparse.Namespace) -> int:
     executor = resolve_executor(args.executor, args.workers)
 
     baselines = tuple(b.strip() for b in args.baselines.split(",") if b.strip())
-    bad = [b for b in baselines if b not in ("sumo", "uniform")]
+    known = ("sumo", "uniform", "marginal", "markov", "bc")
+    bad = [b for b in baselines if b not in known]
     if bad:
-        raise SimError(f"--baselines: unknown baseline(s) {bad}; expected sumo, uniform")
+        raise SimError(f"--baselines: unknown baseline(s) {bad}; expected {', '.join(known)}")
     if not args.model and not baselines:
         raise SimError("nothing to evaluate: give --model and/or --baselines")
     scen = Path(args.scenario).stem if args.scenario.endswith(".toml") else args.scenario
@@ -65,12 +73,17 @@ def run(args: argparse.Namespace) -> int:
     with locked(out):  # a second evaluate into the same folder fails at once (one line)
         report = evaluate(
             args.model, args.scenario, args.episodes, args.seed, out, duration_s=args.duration, demos=args.demos,
-            baselines=baselines, controller=ControllerConfig(decision_s=args.decision_step, mode=args.mode),
+            baselines=baselines, train_demos=args.train_demos,
+            controller=ControllerConfig(decision_s=args.decision_step, mode=args.mode, safety_ttc_s=args.safety_ttc),
             executor=executor, rrd=not args.no_rrd, progress=not args.no_progress,
         )
-    from analysis.evaluate_report import report_table
+    from analysis.evaluate_report import flag_lines, report_table
 
     print(report_table(report.aggregates))
+    for line in flag_lines(report.aggregates):
+        print(line, file=sys.stderr)
+    if args.train_demos is None and any(b in ("marginal", "markov", "bc") for b in baselines):
+        print("note: marginal, markov and bc are left out without --train-demos", file=sys.stderr)
     print(f"report:  {report.report_md}")
     print(f"metrics: {report.metrics_json}")
     for name, path in report.rrd.items():

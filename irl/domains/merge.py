@@ -47,6 +47,13 @@ no row (see :data:`ENCOUNTER_SCHEMA`).
 **Features** (the paper's three, binary): f0 Safe = 0 when ``d_AC < 35 ft`` and ``acc >= 0.6``
 (``x1 == 4`` and ``a >= 3``), else 1; f1 Time-to-travel = 1 when ``acc > -0.6`` (``a >= 2``);
 f2 Ahead-of-truck = 1 when B is a truck and ``acc >= 0.6`` (``a >= 3``).
+
+**State encodings** (:data:`STATE_ENCODINGS`): ``"paper"`` is the index above (1250 states);
+``"driver"`` adds A's previous action (issue 11, cause 5: human acceleration persists),
+``s_driver = s_paper * N_ACTIONS + prev_action`` (6250 states, :func:`n_states`). The previous
+action at an encounter's first decision is the bin of A's acceleration over the decision step
+before it, from A's speed history (:func:`previous_action`); :data:`ZERO_ACTION` when that
+history is unknown.
 """
 
 from __future__ import annotations
@@ -154,6 +161,63 @@ VARIABLES = ("d_AC", "d_AB", "v_AC", "v_AB")
 DESCENDING = frozenset({"d_AC"})
 #: d_AC below this (ft) is the closest bin and makes accelerating unsafe (the Safe feature).
 SAFE_DISTANCE_FT = 35.0
+
+
+#: The state encodings: the paper's 1250 states, or those times A's previous action.
+STATE_ENCODINGS = ("paper", "driver")
+
+
+def n_states(encoding: str = "paper") -> int:
+    """Number of states of ``encoding``: 1250 (``"paper"``) or 6250 (``"driver"``).
+
+    Raises:
+        ConfigError: an unknown encoding.
+    """
+    if encoding == "paper":
+        return N_STATES
+    if encoding == "driver":
+        return N_STATES * N_ACTIONS
+    raise ConfigError(f"state encoding must be one of {STATE_ENCODINGS}, got {encoding!r}")
+
+
+def driver_state(s_paper, prev_action):
+    """``s_paper * N_ACTIONS + prev_action`` (integer arrays broadcast)."""
+    return np.asarray(s_paper, dtype=np.int64) * N_ACTIONS + np.asarray(prev_action, dtype=np.int64)
+
+
+def split_driver_state(s):
+    """Inverse of :func:`driver_state`: ``(s_paper, prev_action)`` arrays of ``s``'s shape."""
+    s = np.asarray(s, dtype=np.int64)
+    return s // N_ACTIONS, s % N_ACTIONS
+
+
+def previous_action(speed_before, speed_now, dt: float) -> int:
+    """A's previous action at a decision: the bin of ``(speed_now - speed_before) / dt``.
+
+    Args:
+        speed_before: A's speed (ft/s) one decision step ``dt`` (s) before, or None/NaN when
+            unknown (A's history starts at this frame).
+        speed_now: A's speed (ft/s) now.
+
+    Returns:
+        the action index; :data:`ZERO_ACTION` when either speed is unknown.
+    """
+    if speed_before is None or speed_now is None or speed_before != speed_before or speed_now != speed_now:
+        return ZERO_ACTION
+    return action_of((speed_now - speed_before) / dt)
+
+
+def _check_prev_action(prev_action, encoding: str):
+    if encoding not in STATE_ENCODINGS:
+        raise ConfigError(f"state encoding must be one of {STATE_ENCODINGS}, got {encoding!r}")
+    if encoding == "paper":
+        return None
+    if prev_action is None:
+        raise EncodingError("state encoding 'driver' needs prev_action (A's previous action, 0..4), got None")
+    p = np.asarray(prev_action)
+    if p.dtype.kind not in "iub" or np.any((p < 0) | (p >= N_ACTIONS)):
+        raise EncodingError(f"prev_action must be action indices 0..{N_ACTIONS - 1}, got {prev_action!r}")
+    return p.astype(np.int64)
 
 
 def state_index(truck, x1, x2, x3, x4):
@@ -271,21 +335,30 @@ class MergeBins:
         """The ``v_AC`` bin of a frame without car C: the bin holding zero relative speed."""
         return bisect_right(self.v_AC, 0.0)
 
-    def states(self, d_AC, d_AB, v_AC, v_AB, truck) -> np.ndarray:
+    def states(self, d_AC, d_AB, v_AC, v_AB, truck, prev_action=None, encoding: str = "paper") -> np.ndarray:
         """State indices of continuous merge variables (the module docstring's rules).
 
         Args:
             d_AC, d_AB: gaps (ft); v_AC, v_AB: relative speeds (ft/s); truck: B is a truck
                 (bool or 0/1). Arrays of one broadcast shape ``[...]``; ``d_AC`` and ``v_AC``
                 both NaN where there is no car C.
+            prev_action: A's previous action (0..4), broadcast with the others; required by
+                the ``"driver"`` encoding, ignored by ``"paper"``.
+            encoding: one of :data:`STATE_ENCODINGS`.
 
         Returns:
-            int64 ``[...]`` in ``[0, 1250)``.
+            int64 ``[...]`` in ``[0, n_states(encoding))``.
 
         Raises:
             EncodingError: NaN in ``d_AB``, ``v_AB`` or ``truck``, or in only one of ``d_AC``
-                and ``v_AC``.
+                and ``v_AC``; ``prev_action`` None or outside 0..4 with encoding ``"driver"``.
+            ConfigError: an unknown encoding.
         """
+        prev = _check_prev_action(prev_action, encoding)
+        s = self._paper_states(d_AC, d_AB, v_AC, v_AB, truck)
+        return s if prev is None else driver_state(s, prev)
+
+    def _paper_states(self, d_AC, d_AB, v_AC, v_AB, truck) -> np.ndarray:
         d_ac, d_ab, v_ac, v_ab = np.broadcast_arrays(*(np.asarray(x, dtype=np.float64) for x in (d_AC, d_AB, v_AC, v_AB)))
         no_c = np.isnan(d_ac)
         odd = no_c != np.isnan(v_ac)
@@ -301,13 +374,26 @@ class MergeBins:
         t = np.broadcast_to(t != 0, d_ac.shape).astype(np.int64)
         return state_index(t, x1, self.bin_index("d_AB", d_ab), x3, self.bin_index("v_AB", v_ab)).astype(np.int64)
 
-    def state(self, d_AC: float, d_AB: float, v_AC: float, v_AB: float, truck: bool) -> int:
+    def state(self, d_AC: float, d_AB: float, v_AC: float, v_AB: float, truck: bool,
+              prev_action: int | None = None, encoding: str = "paper") -> int:
         """One state index, for the closed loop: the scalar twin of :meth:`states` (same
-        bins, same NaN rules), without numpy.
+        bins, same NaN rules, same encodings), without numpy.
 
         Raises:
             EncodingError: as :meth:`states`.
+            ConfigError: an unknown encoding.
         """
+        if encoding == "driver":
+            if prev_action is None:
+                raise EncodingError("state encoding 'driver' needs prev_action (A's previous action, 0..4), got None")
+            if isinstance(prev_action, bool) or int(prev_action) != prev_action or not 0 <= prev_action < N_ACTIONS:
+                raise EncodingError(f"prev_action must be an action index 0..{N_ACTIONS - 1}, got {prev_action!r}")
+            return self._paper_state(d_AC, d_AB, v_AC, v_AB, truck) * N_ACTIONS + int(prev_action)
+        if encoding != "paper":
+            raise ConfigError(f"state encoding must be one of {STATE_ENCODINGS}, got {encoding!r}")
+        return self._paper_state(d_AC, d_AB, v_AC, v_AB, truck)
+
+    def _paper_state(self, d_AC: float, d_AB: float, v_AC: float, v_AB: float, truck: bool) -> int:
         if d_AC != d_AC:  # NaN: no car C
             if v_AC == v_AC:
                 raise EncodingError(f"d_AC is NaN but v_AC={v_AC!r}; without car C both are NaN")
@@ -320,10 +406,12 @@ class MergeBins:
             raise EncodingError(f"NaN in d_AB={d_AB!r}, v_AB={v_AB!r} or B_is_truck={truck!r}")
         return (625 if truck else 0) + 125 * x1 + 25 * bisect_right(self.d_AB, d_AB) + 5 * x3 + bisect_right(self.v_AB, v_AB)
 
-    def encode(self, table: pd.DataFrame) -> np.ndarray:
-        """``[rows]`` state index of every row of an encounter table (columns by name)."""
+    def encode(self, table: pd.DataFrame, prev_action=None, encoding: str = "paper") -> np.ndarray:
+        """``[rows]`` state index of every row of an encounter table (columns by name);
+        ``prev_action [rows]`` as in :meth:`states`."""
         d_AC, d_AB, v_AC, v_AB = (table[c].to_numpy(dtype=np.float64) for c in VARIABLES)
-        return self.states(d_AC, d_AB, v_AC, v_AB, table["B_is_truck"].to_numpy(dtype=np.float64))
+        return self.states(d_AC, d_AB, v_AC, v_AB, table["B_is_truck"].to_numpy(dtype=np.float64),
+                           prev_action, encoding)
 
     def representatives(self, name: str) -> np.ndarray:
         """``[5]`` a finite representative value of each bin of ``name``, in bin-index order.

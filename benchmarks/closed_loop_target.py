@@ -1,0 +1,96 @@
+"""Benchmark: the synthetic closed-loop target of issue 11, printed side by side (not timed).
+
+One run of the whole pipeline (:func:`analysis.pipeline.run_demo`): SUMO's drivers of the
+scenario generate the training encounters (``--train-seeds``, at least 3 runs) and one held-out
+run; the IRL methods learn; every learned driver and every baseline (``sumo``, ``uniform``,
+``marginal``, ``markov``, ``bc``) drives the lag cars A of ``--episodes`` (default 30)
+evaluation episodes. Printed:
+
+* the demonstrators' signal: how often A's action bin changes between successive decisions
+  (NGSIM humans: 26 % of 0.1 s frames), and the share of frames at the braking cap;
+* per policy: A collisions / controlled As with the Wilson 95 % interval, W1 distances of A's
+  speed and d_AC to the held-out demonstrations and their ratio to the SUMO-driver floor,
+  W1 of acceleration and TTC, held-out log-likelihood per step, travel time, flags;
+* the target checks for the default learned driver (``--driver``, default the first
+  method): 0 collisions by controlled cars with the 95 % upper bound, held-out LL per step
+  above ``marginal`` and ``bc``, W1 of speed and of d_AC within 1.5x the SUMO floor.
+
+Run: ``python -m benchmarks.closed_loop_target [--episodes 30] [--methods qavg,mlirl]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from pathlib import Path
+
+import pandas as pd
+
+from analysis.demo_signal import bin_change_rate, braking_cap_share
+from analysis.pipeline import DemoConfig, run_demo
+
+
+def _f(x: float, nd: int = 3) -> str:
+    return "-" if x is None or not math.isfinite(x) else f"{x:.{nd}f}"
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--scenario", default="synthetic")
+    ap.add_argument("--episodes", type=int, default=30)
+    ap.add_argument("--train-seeds", default="101,102,103")
+    ap.add_argument("--methods", default="qavg,mlirl")
+    ap.add_argument("--driver", default=None, help="the learned driver the targets are checked on (default: first method)")
+    ap.add_argument("--eval-duration", type=float, default=240.0)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--out", default="runs/closed-loop-target")
+    args = ap.parse_args(argv)
+    methods = tuple(m for m in args.methods.split(",") if m)
+    cfg = DemoConfig(scenario=args.scenario, train_seeds=tuple(int(s) for s in args.train_seeds.split(",")),
+                     eval_episodes=args.episodes, eval_duration_s=args.eval_duration, methods=methods,
+                     workers=args.workers)
+    t0 = time.perf_counter()
+    res = run_demo(args.out, cfg, quiet=True, progress=False)
+    wall = time.perf_counter() - t0
+    train = pd.read_parquet(Path(args.out) / "data" / "train_encounters.parquet")
+    print(f"closed-loop target: {args.scenario}, {len(cfg.train_seeds)} training runs "
+          f"({res.n_train_encounters} encounters, {res.n_train_steps} steps), {args.episodes} episodes per policy, "
+          f"{wall:.0f} s wall")
+    print(f"demonstrators: action bin changes in {100 * bin_change_rate(train, 1):.1f} % of successive 0.1 s frames, "
+          f"{100 * bin_change_rate(train, 3):.1f} % at 0.3 s (NGSIM humans: 26 % of frames); "
+          f"{100 * braking_cap_share(train):.1f} % of frames at or below -12 ft/s^2")
+    aggs = res.evaluation.aggregates
+    sumo = aggs["sumo"]
+    print()
+    print("| policy | A collisions / As | 95 % CI | W1 speed (ft/s) | x SUMO | W1 d_AC (ft) | x SUMO | W1 acc | W1 TTC "
+          "| held-out LL/step | travel time (s) | flags |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for name, a in aggs.items():
+        lo, hi = a.a_collision_ci95
+        print(f"| {name} | {a.a_collisions}/{a.n_controls} | [{_f(lo)}, {_f(hi)}] | {_f(a.w1_speed_A_ft_s, 2)} "
+              f"| {_f(a.w1_speed_A_ft_s / sumo.w1_speed_A_ft_s, 2)} | {_f(a.w1_d_AC_ft, 1)} "
+              f"| {_f(a.w1_d_AC_ft / sumo.w1_d_AC_ft, 2)} | {_f(a.w1_acc_A_ft_s2, 2)} | {_f(a.w1_ttc_s, 2)} "
+              f"| {_f(a.heldout_loglik_per_step)} | {_f(a.travel_time_s[0], 1)} | {', '.join(a.flags)} |")
+    driver = args.driver or next(iter(res.models))
+    d = aggs[driver]
+    checks = [
+        (f"{driver}: 0 collisions by controlled cars (95 % upper bound {_f(d.a_collision_ci95[1])})",
+         d.a_collisions == 0),
+        (f"{driver}: held-out LL/step {_f(d.heldout_loglik_per_step)} > marginal {_f(aggs['marginal'].heldout_loglik_per_step)}"
+         f" and bc {_f(aggs['bc'].heldout_loglik_per_step)}",
+         d.heldout_loglik_per_step > max(aggs["marginal"].heldout_loglik_per_step, aggs["bc"].heldout_loglik_per_step)),
+        (f"{driver}: W1 speed {_f(d.w1_speed_A_ft_s, 2)} <= 1.5 x SUMO {_f(sumo.w1_speed_A_ft_s, 2)}",
+         d.w1_speed_A_ft_s <= 1.5 * sumo.w1_speed_A_ft_s),
+        (f"{driver}: W1 d_AC {_f(d.w1_d_AC_ft, 1)} <= 1.5 x SUMO {_f(sumo.w1_d_AC_ft, 1)}",
+         d.w1_d_AC_ft <= 1.5 * sumo.w1_d_AC_ft),
+    ]
+    print()
+    for text, ok in checks:
+        print(f"  {'met    ' if ok else 'NOT MET'}  {text}")
+    print(f"\nreport: {res.evaluation.report_md}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -101,6 +101,10 @@ def run_evaluate(args: argparse.Namespace) -> int:
     print(f"{'median':<{width}}  {ev.median_rmse_m:8.3f}  {ev.default_median_rmse_m:14.3f}")
     print(f"{'mean':<{width}}  {ev.mean_rmse_m:8.3f}  {ev.default_mean_rmse_m:14.3f}")
     print(f"calibrated better on {100 * ev.win_fraction:.0f}% of {len(ev.pairs)} pairs")
+    if ev.intervals:
+        print("95% bootstrap intervals over pairs (pairs weighted equally):")
+        for name, iv in ev.intervals:
+            print(f"  {name:<22} {iv.value:8.3f}  [{iv.low:.3f}, {iv.high:.3f}]")
     return 0
 
 

@@ -30,14 +30,18 @@ from scenarios.calibration.objective import spacing_errors, spacing_rmse
 from scenarios.calibration.pairs import CarFollowingPair, PairBatch
 from scenarios.errors import SpecError
 
-#: Parameters fitted by default, and their bounds (SI units).
+#: Parameters fitted by default, and their bounds (SI units). The bounds keep the values
+#: physical for passenger cars in freeway traffic (ranges reported for IDM calibrations on
+#: NGSIM-like data, Treiber & Kesting, *Traffic Flow Dynamics*, 2013, Table 11.2 and ch. 16):
+#: comfortable deceleration at least 1 m/s^2 (a fit at 0.7 m/s^2 is a symptom of pairs the
+#: model cannot follow, not of a driver), time headway 0.3 .. 3 s, desired speed 10 .. 40 m/s.
 FITTED: tuple[str, ...] = ("accel", "decel", "tau", "minGap", "maxSpeed")
 BOUNDS: dict[str, tuple[float, float]] = {
-    "accel": (0.1, 6.0),
-    "decel": (0.1, 8.9),
-    "tau": (0.05, 4.0),
-    "minGap": (0.1, 10.0),
-    "maxSpeed": (5.0, 45.0),
+    "accel": (0.3, 4.0),
+    "decel": (1.0, 6.0),
+    "tau": (0.3, 3.0),
+    "minGap": (0.5, 6.0),
+    "maxSpeed": (10.0, 40.0),
     "delta": (1.0, 10.0),
 }
 #: Second start of the population fit: a guess for congested freeway traffic.

@@ -7,12 +7,19 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from shared_data import PAIRS_DIR
 
-from scenarios.calibration import BOUNDS, FITTED, CFParams, evaluate, fit_population, load_pairs, simulate_follower
+from scenarios.calibration import (
+    BOUNDS,
+    FITTED,
+    CFParams,
+    evaluate,
+    fit_population,
+    load_pairs,
+    simulate_follower,
+)
 from scenarios.calibration.objective import spacing_rmse, spacing_rmspe, theil_u
 from scenarios.calibration.pairs import CarFollowingPair, PairBatch
-
-from shared_data import PAIRS_DIR
 
 TRUE = CFParams(accel=1.4, decel=2.2, tau=1.3, minGap=2.0, maxSpeed=22.0)
 

@@ -262,15 +262,29 @@ def calibrate(
                 if per_pair else ())
     finally:
         bar.close()
+    return assemble_result(pairs, model=model, fitted=fitted, population=pop, median_rmse_m=med,
+                           per_pair=fits, seconds_population=t1 - t0, seconds_per_pair=time.perf_counter() - t1)
+
+
+def assemble_result(
+    pairs: Sequence[CarFollowingPair], *, model: str, fitted: Sequence[str], population: CFParams,
+    median_rmse_m: float, per_pair: Sequence[PairFit], seconds_population: float, seconds_per_pair: float,
+) -> CalibrationResult:
+    """The :class:`CalibrationResult` of a population fit and per-pair fits (however they were run).
+
+    With per-pair fits, the "median driver" (every fitted parameter at its median over the
+    per-pair fits) replaces the population parameters if its median spacing RMSE over ``pairs``
+    is lower.
+    """
+    pop, med, fits = population, median_rmse_m, tuple(per_pair)
     if fits:
         median_driver = replace(pop, **{f: float(np.median([getattr(x.params, f) for x in fits])) for f in fitted})
         batch = PairBatch.from_pairs(pairs)
         med2 = float(np.median(spacing_rmse(model, batch, median_driver.as_dict())))
         if med2 < med:
             pop, med = median_driver, med2
-    t2 = time.perf_counter()
     return CalibrationResult(
         model=model, fitted=tuple(fitted), population=pop, population_median_rmse_m=med,
         per_pair=fits, spread=spread_of(fits, fitted) if fits else (), n_pairs=len(pairs),
-        seconds_population=t1 - t0, seconds_per_pair=t2 - t1,
+        seconds_population=seconds_population, seconds_per_pair=seconds_per_pair,
     )

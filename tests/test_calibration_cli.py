@@ -48,8 +48,12 @@ def test_evaluate_json_and_table(params: Path) -> None:
     r = _cli("calibrate", "evaluate", "--params", str(params), "--pairs", str(PAIRS_DIR))
     assert r.returncode == 0
     lines = r.stdout.splitlines()
-    assert lines[0].split() == ["pair", "rmse_m", "default_rmse_m"] and len(lines) == N_PAIRS + 4
-    assert lines[-3].split()[0] == "median" and float(lines[-3].split()[1]) == pytest.approx(d["median_rmse_m"], abs=1e-3)
+    n_iv = len(d["intervals"])  # one line per bootstrap interval, after a heading
+    assert lines[0].split() == ["pair", "rmse_m", "default_rmse_m"] and len(lines) == N_PAIRS + 5 + n_iv
+    med = lines[N_PAIRS + 1].split()
+    assert med[0] == "median" and float(med[1]) == pytest.approx(d["median_rmse_m"], abs=1e-3)
+    iv = d["intervals"]["mean_ratio"]
+    assert iv["low"] <= iv["value"] <= iv["high"]
 
 
 def test_user_errors_are_one_line_exit_2(tmp_path: Path) -> None:

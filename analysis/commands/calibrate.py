@@ -4,7 +4,10 @@
 * ``calibrate evaluate --params FILE --pairs DIR [--json]``
 * ``calibrate check --params FILE --pairs DIR [--out report.md] [--json]``
 
-Thin layer over :mod:`scenarios.calibration` and :mod:`analysis.calibration_check`.
+Thin layer over :mod:`scenarios.calibration`, :mod:`analysis.calibration_sweep` (per-pair fits
+on every core through the sweep runner) and :mod:`analysis.calibration_check`. ``evaluate``
+prints 95 % bootstrap intervals (pairs weighted equally) of the median, mean, win share and the
+calibrated / default ratios.
 """
 
 from __future__ import annotations
@@ -34,6 +37,8 @@ def register(subparsers) -> None:
     f.add_argument("--seed", type=int, default=0, help="seed of the held-out split (default 0)")
     f.add_argument("--limit", type=int, default=None, metavar="N", help="use only the first N pair files")
     f.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    f.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="processes for the per-pair fits (default: one per core)")
     f.set_defaults(func=run_fit)
 
     e = sub.add_parser("evaluate", help="per-pair and median spacing RMSE vs SUMO's defaults")
@@ -72,11 +77,16 @@ def _pairs(args: argparse.Namespace, *, held_out: bool):
 
 
 def run_fit(args: argparse.Namespace) -> int:
-    from scenarios.calibration import calibrate, save_result
+    from analysis.calibration_sweep import calibrate_parallel
+    from scenarios.calibration import save_result
+    from scenarios.calibration.pairs import pair_files
 
     pairs = _pairs(args, held_out=False)
+    file_of = {f.stem: f for f in pair_files(args.pairs, limit=args.limit)}
     print(f"fitting {args.model} on {len(pairs)} pairs ...", file=sys.stderr)
-    result = calibrate(pairs, model=args.model, per_pair=not args.no_per_pair, progress=not args.no_progress)
+    result = calibrate_parallel(pairs, [file_of[p.name] for p in pairs], model=args.model,
+                                per_pair=not args.no_per_pair, workers=args.workers,
+                                progress=not args.no_progress)
     save_result(result, args.out)
     p = result.population
     print(f"population: accel={p.accel:.3f} decel={p.decel:.3f} tau={p.tau:.3f} minGap={p.minGap:.3f} "
@@ -101,6 +111,10 @@ def run_evaluate(args: argparse.Namespace) -> int:
     print(f"{'median':<{width}}  {ev.median_rmse_m:8.3f}  {ev.default_median_rmse_m:14.3f}")
     print(f"{'mean':<{width}}  {ev.mean_rmse_m:8.3f}  {ev.default_mean_rmse_m:14.3f}")
     print(f"calibrated better on {100 * ev.win_fraction:.0f}% of {len(ev.pairs)} pairs")
+    if ev.intervals:
+        print("95% bootstrap intervals over pairs (pairs weighted equally):")
+        for name, iv in ev.intervals:
+            print(f"  {name:<22} {iv.value:8.3f}  [{iv.low:.3f}, {iv.high:.3f}]")
     return 0
 
 

@@ -1,4 +1,5 @@
-"""Spacing RMSE of calibrated parameters beside SUMO's defaults, per pair and median."""
+"""Spacing RMSE of calibrated parameters beside SUMO's defaults, per pair, median, mean and win
+share, each with a bootstrap confidence interval over pairs (``scipy.stats.bootstrap``, percentile)."""
 
 from __future__ import annotations
 
@@ -6,6 +7,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.stats import bootstrap
 
 from scenarios.calibration.models import SUMO_DEFAULTS, CFParams
 from scenarios.calibration.objective import spacing_rmse
@@ -19,11 +21,40 @@ class PairScore:
     default_rmse_m: float
 
 
+#: Confidence level and resamples of the bootstrap intervals.
+CONFIDENCE = 0.95
+N_RESAMPLES = 2000
+
+
+@dataclass(frozen=True)
+class Interval:
+    """A statistic over pairs and its bootstrap confidence interval (same unit)."""
+
+    value: float
+    low: float
+    high: float
+
+
+def _interval(stat, samples: tuple[np.ndarray, ...], seed: int) -> Interval:
+    """``stat`` over paired per-pair samples (each float64[P]) with a BCa bootstrap interval."""
+    value = float(stat(*samples))
+    if len(samples[0]) < 3 or np.all(samples[0] == samples[0][0]):
+        return Interval(value, value, value)
+    ci = bootstrap(samples, stat, paired=True, vectorized=False, n_resamples=N_RESAMPLES,
+                   confidence_level=CONFIDENCE, method="percentile",
+                   rng=np.random.default_rng(seed)).confidence_interval
+    return Interval(value, float(ci.low), float(ci.high))
+
+
 @dataclass(frozen=True)
 class Evaluation:
     """Spacing RMSE (m) per pair with the given parameters and with SUMO's defaults.
 
     ``win_fraction``: share of pairs where the given parameters have the lower RMSE.
+    ``intervals``: (statistic name, :class:`Interval`) for ``median_rmse_m``,
+    ``default_median_rmse_m``, ``mean_rmse_m``, ``default_mean_rmse_m``, ``win_fraction`` and
+    the ratios ``median_ratio`` / ``mean_ratio`` (calibrated over default), pairs resampled
+    together (95 % percentile bootstrap, ``N_RESAMPLES`` resamples, seeded).
     """
 
     model: str
@@ -35,6 +66,10 @@ class Evaluation:
     mean_rmse_m: float
     default_mean_rmse_m: float
     win_fraction: float
+    intervals: tuple[tuple[str, Interval], ...] = ()
+
+    def interval(self, name: str) -> Interval:
+        return dict(self.intervals)[name]
 
     def to_json_dict(self) -> dict:
         return {
@@ -45,6 +80,8 @@ class Evaluation:
             "mean_rmse_m": self.mean_rmse_m,
             "default_mean_rmse_m": self.default_mean_rmse_m,
             "win_fraction": self.win_fraction,
+            "intervals": {k: {"value": v.value, "low": v.low, "high": v.high} for k, v in self.intervals},
+            "confidence": CONFIDENCE,
             "params": self.params.as_dict(),
             "defaults": self.defaults.as_dict(),
             "pairs": [{"name": p.name, "rmse_m": p.rmse_m, "default_rmse_m": p.default_rmse_m} for p in self.pairs],
@@ -53,16 +90,30 @@ class Evaluation:
 
 def evaluate(
     params: CFParams, pairs: Sequence[CarFollowingPair], *, model: str = "idm",
-    defaults: CFParams = SUMO_DEFAULTS,
+    defaults: CFParams = SUMO_DEFAULTS, seed: int = 0,
 ) -> Evaluation:
-    """Replay every pair's leader and score the follower simulated with ``params`` and ``defaults``."""
+    """Replay every pair's leader and score the follower simulated with ``params`` and ``defaults``.
+
+    Every pair weighs the same in every statistic. ``seed`` seeds the bootstrap.
+
+    Raises:
+        SpecError: ``pairs`` is empty.
+    """
     batch = PairBatch.from_pairs(pairs)
     r = batch.unsort(spacing_rmse(model, batch, params.as_dict()))
     d = batch.unsort(spacing_rmse(model, batch, defaults.as_dict()))
+    stats = {
+        "median_rmse_m": (np.median, (r,)), "default_median_rmse_m": (np.median, (d,)),
+        "mean_rmse_m": (np.mean, (r,)), "default_mean_rmse_m": (np.mean, (d,)),
+        "win_fraction": (lambda a, b: np.mean(a < b), (r, d)),
+        "median_ratio": (lambda a, b: np.median(a) / np.median(b), (r, d)),
+        "mean_ratio": (lambda a, b: np.mean(a) / np.mean(b), (r, d)),
+    }
+    intervals = tuple((k, _interval(f, x, seed + i)) for i, (k, (f, x)) in enumerate(stats.items()))
     return Evaluation(
         model=model, params=params, defaults=defaults,
         pairs=tuple(PairScore(p.name, float(a), float(b)) for p, a, b in zip(pairs, r, d)),
         median_rmse_m=float(np.median(r)), default_median_rmse_m=float(np.median(d)),
         mean_rmse_m=float(np.mean(r)), default_mean_rmse_m=float(np.mean(d)),
-        win_fraction=float(np.mean(r < d)),
+        win_fraction=float(np.mean(r < d)), intervals=intervals,
     )

@@ -30,14 +30,18 @@ from scenarios.calibration.objective import spacing_errors, spacing_rmse
 from scenarios.calibration.pairs import CarFollowingPair, PairBatch
 from scenarios.errors import SpecError
 
-#: Parameters fitted by default, and their bounds (SI units).
+#: Parameters fitted by default, and their bounds (SI units). The bounds keep the values
+#: physical for passenger cars in freeway traffic (ranges reported for IDM calibrations on
+#: NGSIM-like data, Treiber & Kesting, *Traffic Flow Dynamics*, 2013, Table 11.2 and ch. 16):
+#: comfortable deceleration at least 1 m/s^2 (a fit at 0.7 m/s^2 is a symptom of pairs the
+#: model cannot follow, not of a driver), time headway 0.3 .. 3 s, desired speed 10 .. 40 m/s.
 FITTED: tuple[str, ...] = ("accel", "decel", "tau", "minGap", "maxSpeed")
 BOUNDS: dict[str, tuple[float, float]] = {
-    "accel": (0.1, 6.0),
-    "decel": (0.1, 8.9),
-    "tau": (0.05, 4.0),
-    "minGap": (0.1, 10.0),
-    "maxSpeed": (5.0, 45.0),
+    "accel": (0.3, 4.0),
+    "decel": (1.0, 6.0),
+    "tau": (0.3, 3.0),
+    "minGap": (0.5, 6.0),
+    "maxSpeed": (10.0, 40.0),
     "delta": (1.0, 10.0),
 }
 #: Second start of the population fit: a guess for congested freeway traffic.
@@ -259,15 +263,29 @@ def calibrate(
                 if per_pair else ())
     finally:
         bar.close()
+    return assemble_result(pairs, model=model, fitted=fitted, population=pop, median_rmse_m=med,
+                           per_pair=fits, seconds_population=t1 - t0, seconds_per_pair=time.perf_counter() - t1)
+
+
+def assemble_result(
+    pairs: Sequence[CarFollowingPair], *, model: str, fitted: Sequence[str], population: CFParams,
+    median_rmse_m: float, per_pair: Sequence[PairFit], seconds_population: float, seconds_per_pair: float,
+) -> CalibrationResult:
+    """The :class:`CalibrationResult` of a population fit and per-pair fits (however they were run).
+
+    With per-pair fits, the "median driver" (every fitted parameter at its median over the
+    per-pair fits) replaces the population parameters if its median spacing RMSE over ``pairs``
+    is lower.
+    """
+    pop, med, fits = population, median_rmse_m, tuple(per_pair)
     if fits:
         median_driver = replace(pop, **{f: float(np.median([getattr(x.params, f) for x in fits])) for f in fitted})
         batch = PairBatch.from_pairs(pairs)
         med2 = float(np.median(spacing_rmse(model, batch, median_driver.as_dict())))
         if med2 < med:
             pop, med = median_driver, med2
-    t2 = time.perf_counter()
     return CalibrationResult(
         model=model, fitted=tuple(fitted), population=pop, population_median_rmse_m=med,
         per_pair=fits, spread=spread_of(fits, fitted) if fits else (), n_pairs=len(pairs),
-        seconds_population=t1 - t0, seconds_per_pair=t2 - t1,
+        seconds_population=seconds_population, seconds_per_pair=seconds_per_pair,
     )

@@ -101,6 +101,16 @@ def load_pairs(directory: str | Path, *, limit: int | None = None) -> tuple[CarF
         FileNotFoundError: ``directory`` does not exist.
         SpecError: it holds no pair CSV files, or a file is not a valid pair (see :func:`read_pair`).
     """
+    return tuple(read_pair(f) for f in pair_files(directory, limit=limit))
+
+
+def pair_files(directory: str | Path, *, limit: int | None = None) -> list[Path]:
+    """The pair CSV files :func:`load_pairs` reads, in the same order.
+
+    Raises:
+        FileNotFoundError: ``directory`` does not exist.
+        SpecError: it holds no pair CSV.
+    """
     d = Path(directory)
     if not d.is_dir():
         raise FileNotFoundError(f"pairs directory not found: {d}")
@@ -111,7 +121,7 @@ def load_pairs(directory: str | Path, *, limit: int | None = None) -> tuple[CarF
         raise SpecError(f"{d}: no pair CSV files found (expected *.csv or train/*.csv)")
     if limit is not None:
         files = files[:limit]
-    return tuple(read_pair(f) for f in files)
+    return files
 
 
 def split_by_follower(

@@ -27,6 +27,7 @@ from irl.fit import METHODS, fit
 from irl.problems import Problem, load_problem
 from irl.reirl import DEFAULT_EPSILON, DEFAULT_N_BASELINE
 from irl.result import FitResult, SavedModel
+from irl.unvisited import apply_unvisited_rule, visited_states
 
 
 def fit_problem(
@@ -64,7 +65,7 @@ def _json_scalar(v):
 
 
 def saved_model(fit: FitResult, problem: Problem, *, seed: int, source: str = "",
-                provenance: dict | None = None) -> SavedModel:
+                provenance: dict | None = None, unvisited: str = "none") -> SavedModel:
     """The ``model.json`` record of ``fit`` on ``problem``.
 
     It holds no wall-clock time (``fit.wall_time_s`` goes to a timings file, see
@@ -89,8 +90,18 @@ def saved_model(fit: FitResult, problem: Problem, *, seed: int, source: str = ""
         info["dt"] = problem.dt
     if provenance is not None:
         info["provenance"] = provenance
-    return SavedModel.from_fit(
-        fit,
+    merge = problem.domain == "merge"
+    q = fit.q
+    if merge and unvisited != "none":
+        q = apply_unvisited_rule(fit.q, visited_states(problem.demos), unvisited)
+    return SavedModel(
+        method=fit.method, theta=np.asarray(fit.theta), loglik=fit.loglik, q=np.asarray(q), config=fit.config,
+        converged=fit.converged, unbounded=fit.unbounded,
+        state_encoding=problem.state_encoding if merge else "paper",
+        decision_step_s=float(problem.dt),
+        action_acc_ft_s2=tuple(problem.action_acc_ft_s2),
+        feature_set=problem.feature_set if merge else "",
+        unvisited_rule=unvisited if merge else "none",
         domain=problem.domain,
         feature_names=tuple(problem.feature_names),
         bin_edges={k: tuple(v) for k, v in problem.bins.to_dict().items()} if problem.bins else {},
@@ -108,10 +119,13 @@ def learn(
     noise: float = 0.0,
     baseline_path: str | os.PathLike | None = None,
     bins: MergeBins | str | os.PathLike | None = None,
-    dt: float = 0.1,
+    dt: float | None = None,
     epsilon: float = DEFAULT_EPSILON,
     out: str | os.PathLike | None = None,
     progress: bool = False,
+    encoding: str = "paper",
+    features=None,
+    unvisited: str = "none",
 ) -> SavedModel:
     """Load ``demos_path`` as ``domain``, fit ``method``, and (if ``out``) save ``model.json``.
 
@@ -121,17 +135,27 @@ def learn(
     SHA-256 of every input file). With ``out``, the fit's wall time goes to
     ``<out stem>.timings.json`` beside it, not into ``model.json``: identical runs write
     identical model files.
+
+    Merge options: ``dt`` the decision step (s) the encounters are resampled at (default 0.3
+    s; 0.1 for the authors' text files), ``encoding`` ``"paper"`` or ``"driver"`` (A's previous
+    action in the state), ``features`` a set name (``"paper"``, ``"driver"``), a tuple of names
+    or your own :class:`irl.domains.merge_features.FeatureSet`, ``unvisited`` the rule for
+    states never seen in training (:mod:`irl.unvisited`). Each is recorded in ``model.json``
+    (``decision_step_s``, ``state_encoding``, ``feature_set`` + ``feature_names``,
+    ``unvisited_rule``), with ``action_acc_ft_s2``, the training data's mean acceleration per
+    action.
     """
     config = config or IRLConfig.paper()
     bins_path = None
     if bins is not None and not isinstance(bins, MergeBins):
         bins_path, bins = bins, MergeBins.load(bins)
-    problem = load_problem(domain, demos_path, noise=noise, baseline_path=baseline_path, bins=bins, dt=dt)
+    problem = load_problem(domain, demos_path, noise=noise, baseline_path=baseline_path, bins=bins, dt=dt,
+                           encoding=encoding, features=features)
     prov = provenance_record({"demos": demos_path, "baseline": baseline_path, "bins": bins_path})
     result = fit_problem(problem, method, config, seed, progress=progress, epsilon=epsilon)
     if not math.isfinite(result.loglik):
         raise ConvergenceError(f"{method} on {demos_path}: the fit failed ({result.message}); no model written")
-    model = saved_model(result, problem, seed=seed, source=str(Path(demos_path)), provenance=prov)
+    model = saved_model(result, problem, seed=seed, source=str(Path(demos_path)), provenance=prov, unvisited=unvisited)
     if out is not None:
         model.save(out)
         write_timings(out, {"fit_wall_time_s": float(result.wall_time_s)})

@@ -9,7 +9,7 @@ each domain (``gridworld``, ``merge``, ``npz``).
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Callable
 
@@ -18,7 +18,8 @@ import numpy as np
 from irl import merge_mdp
 from irl.demonstrations import Demonstrations
 from irl.domains import gridworld
-from irl.domains.merge import FEATURE_NAMES, MergeBins, fit_quantile_bins
+from irl.domains.merge import ACTION_ACC_FT_S2, MergeBins, fit_quantile_bins
+from irl.domains.merge_features import FeatureSet, feature_set
 from irl.errors import ConfigError, DemonstrationError
 from irl.io import load_feature_names, load_npz
 from irl.transitions import estimate_transitions
@@ -43,6 +44,10 @@ class Problem:
         bins: merge state bin edges (merge domain only).
         dt: merge decision step (s) of the kinematic fallback and REIRL's padding.
         noise: gridworld slip probability.
+        state_encoding: merge state encoding (``"paper"`` or ``"driver"``).
+        feature_set: merge feature set name (``"paper"``, ``"driver"``, ``"custom"``).
+        action_acc_ft_s2: ``[5]`` per-action mean acceleration of the training data (merge
+            encounter tables), else the bin midpoints.
     """
 
     name: str
@@ -55,19 +60,21 @@ class Problem:
     bins: MergeBins | None = None
     dt: float = 0.1
     noise: float = 0.0
+    state_encoding: str = "paper"
+    feature_set: str = "paper"
+    action_acc_ft_s2: tuple[float, ...] = tuple(ACTION_ACC_FT_S2)
 
     def subset(self, indices) -> "Problem":
         """The same problem on the trajectories at ``indices`` (model re-estimated if estimated)."""
         demos = self.demos.subset(indices)
         transitions = estimate_model(demos, self.domain, self.bins, self.dt) if self.transitions_estimated \
             else self.transitions
-        return Problem(self.name, self.domain, demos, transitions, self.transitions_estimated, self.baseline,
-                       self.feature_names, self.bins, self.dt, self.noise)
+        return replace(self, demos=demos, transitions=transitions)
 
     def pad_step(self) -> Callable[[int], tuple[int, int]] | None:
         """REIRL's padding rule: constant velocity for merge, repeat the last pair otherwise."""
         if self.domain == "merge" and self.bins is not None:
-            return merge_mdp.ConstantVelocityPad(self.bins, self.dt)
+            return merge_mdp.ConstantVelocityPad(self.bins, self.dt, self.state_encoding)
         return None
 
 
@@ -82,18 +89,47 @@ def _is_text_format(path: Path) -> bool:
     return path.is_dir() or path.suffix == ".txt"
 
 
-def load_merge_demos(path: str | os.PathLike, bins: MergeBins | None) -> tuple[Demonstrations, MergeBins]:
+def load_merge_demos(path: str | os.PathLike, bins: MergeBins | None, *, encoding: str = "paper",
+                     features=None, decision_step_s: float | None = None
+                     ) -> tuple[Demonstrations, MergeBins, FeatureSet, tuple[float, ...], float]:
     """Merge demonstrations from the authors' text files (state indices as they are; ``bins``
-    default to ``MergeBins.assumed_authors()``) or from an encounter table (``.parquet``/
-    ``.csv``; ``bins`` default to quantile bins fitted on it)."""
+    default to ``MergeBins.assumed_authors()``; their 0.1 s steps cannot be resampled, so
+    ``decision_step_s`` must be None or 0.1; the driver encoding takes the previous action from
+    the sequence) or from an encounter table (``.parquet``/``.csv``; ``bins`` default to quantile
+    bins fitted on it; resampled at ``decision_step_s``, default 0.3 s).
+
+    Args:
+        features: a feature set name, a tuple of names or a :class:`FeatureSet`; None: the
+            paper's three.
+
+    Returns:
+        ``(demos, bins, feature set, per-action acceleration [5] ft/s^2, decision step s)``.
+
+    Raises:
+        DemonstrationError: missing or bad files. ConfigError: bad encoding/features/step.
+    """
     path = Path(path)
     if not path.exists():
         raise DemonstrationError(f"{path}: no such file or directory")
     if _is_text_format(path):
-        return merge_mdp.load(path), bins or MergeBins.assumed_authors()
+        if decision_step_s not in (None, 0.1):
+            raise ConfigError(f"{path}: the authors' trajectories are 0.1 s steps and cannot be resampled "
+                              f"at {decision_step_s} s")
+        bins = bins or MergeBins.assumed_authors()
+        fs = feature_set(features or "paper", bins, encoding, dt=0.1)
+        demos = merge_mdp.load(path)
+        if encoding == "driver":
+            demos = merge_mdp.driver_encoded(demos, fs.array)
+        else:
+            demos = replace(demos, features=fs.array)
+        return demos, bins, fs, tuple(ACTION_ACC_FT_S2), 0.1
+    step = merge_mdp.DEFAULT_DECISION_STEP_S if decision_step_s is None else decision_step_s
     table = merge_mdp.read_encounters(path)
     bins = bins or fit_quantile_bins(table, where=str(path))
-    return merge_mdp.discretize(table, bins, where=str(path)), bins
+    fs = feature_set(features or "paper", bins, encoding, dt=step)
+    r = merge_mdp.resample_encounters(table, bins, where=str(path), encoding=encoding, decision_step_s=step,
+                                      features=fs)
+    return r.demos, bins, fs, r.action_acc_ft_s2, step
 
 
 def load_problem(
@@ -103,8 +139,10 @@ def load_problem(
     noise: float = 0.0,
     baseline_path: str | os.PathLike | None = None,
     bins: MergeBins | None = None,
-    dt: float = 0.1,
+    dt: float | None = None,
     name: str = "",
+    encoding: str = "paper",
+    features=None,
 ) -> Problem:
     """Build a :class:`Problem` from files.
 
@@ -116,12 +154,19 @@ def load_problem(
         baseline_path: REIRL baseline trajectories in the same format (merge encounter tables
             are discretized with the experts' bins).
         bins: merge bin edges (default: assumed for text files, quantile-fitted for tables).
-        dt: merge decision step of the kinematic fallback, seconds.
+        dt: merge decision step (s): encounter tables are resampled at it and the kinematic
+            fallback uses it (default 0.3 s for tables, 0.1 s for text files and other domains).
+        encoding: merge state encoding, ``"paper"`` or ``"driver"``.
+        features: merge features: a set name (``"paper"``, ``"driver"``), a tuple of names, or
+            your own :class:`irl.domains.merge_features.FeatureSet` (``FeatureSet.custom(names,
+            array [S, A, K])``); None: the paper's three.
     """
     if domain not in DOMAINS:
         raise ConfigError(f"domain must be one of {DOMAINS}, got {domain!r}")
     label = name or str(demos_path)
     baseline = None
+    if domain != "merge":
+        dt = 0.1 if dt is None else dt
     if domain == "gridworld":
         demos = gridworld.load(demos_path)
         if baseline_path is not None:
@@ -129,11 +174,12 @@ def load_problem(
         return Problem(label, domain, demos, gridworld.transition_model(noise), False, baseline,
                        gridworld.FEATURE_NAMES, None, dt, noise)
     if domain == "merge":
-        demos, bins = load_merge_demos(demos_path, bins)
+        demos, bins, fs, acc, step = load_merge_demos(demos_path, bins, encoding=encoding, features=features,
+                                                      decision_step_s=dt)
         if baseline_path is not None:
-            baseline, _ = load_merge_demos(baseline_path, bins)
-        return Problem(label, domain, demos, merge_mdp.estimated_transitions(demos, bins, dt), True, baseline,
-                       FEATURE_NAMES, bins, dt, 0.0)
+            baseline = load_merge_demos(baseline_path, bins, encoding=encoding, features=fs, decision_step_s=dt)[0]
+        return Problem(label, domain, demos, merge_mdp.estimated_transitions(demos, bins, step), True, baseline,
+                       fs.names, bins, step, 0.0, encoding, fs.name, acc)
     demos = load_npz(demos_path)
     if baseline_path is not None:
         baseline = load_npz(baseline_path)

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -26,6 +27,9 @@ from irl.unvisited import apply_unvisited_rule, visited_states
 
 def method_loo(problem, method: str, config: IRLConfig, unvisited: str, seed: int = 0) -> np.ndarray:
     """``[n_trajectories]`` held-out log-likelihoods of ``method`` with the ``unvisited`` rule."""
+    if method in ("qavg", "qsm"):  # model-free: the transition model is not used, do not re-estimate it per fold
+        problem = replace(problem, transitions_estimated=False)
+
     def fold(train):
         sub = problem.subset(train)
         fit = fit_problem(sub, method, config, seed)
@@ -49,6 +53,9 @@ def main(argv=None) -> int:
     p.add_argument("--methods", default="qavg,qsm,mlirl,reirl")
     p.add_argument("--features", default="paper,driver")
     p.add_argument("--unvisited", default="none,nearest")
+    p.add_argument("--driver-methods", default="qavg,qsm",
+                   help="methods run with the driver features (MLIRL and REIRL need the dense [6250, 5, 6250] "
+                        "model, 1.5 GB per fold: add them here to run them)")
     args = p.parse_args(argv)
     config = IRLConfig.paper(beta=1.0, gamma=args.gamma, l2=args.l2)
     rows: dict[str, dict[str, float]] = {}
@@ -57,7 +64,8 @@ def main(argv=None) -> int:
         problem = load_problem("merge", args.data, encoding=enc, features=fs)
         for b in BASELINES:
             rows.setdefault(b, {})[fs] = baseline_leave_one_out(b, problem.demos).sum()
-        for m in args.methods.split(","):
+        methods = [m for m in args.methods.split(",") if fs != "driver" or m in args.driver_methods.split(",")]
+        for m in methods:
             for rule in args.unvisited.split(","):
                 t = time.perf_counter()
                 try:

@@ -21,8 +21,8 @@ import numpy as np
 from analysis.provenance import provenance as provenance_record
 from analysis.provenance import write_timings
 from irl.config import IRLConfig
-from irl.errors import ConfigError, ConvergenceError
 from irl.domains.merge import MergeBins
+from irl.errors import ConfigError, ConvergenceError
 from irl.fit import METHODS, fit
 from irl.problems import Problem, load_problem
 from irl.reirl import DEFAULT_EPSILON, DEFAULT_N_BASELINE

@@ -19,7 +19,12 @@ from dataclasses import replace
 import numpy as np
 
 from analysis.learn import fit_problem
-from irl.baselines import BASELINES, TabularPolicy, baseline_leave_one_out, leave_one_out
+from irl.baselines import (
+    BASELINES,
+    TabularPolicy,
+    baseline_leave_one_out,
+    leave_one_out,
+)
 from irl.config import IRLConfig
 from irl.problems import load_problem
 from irl.unvisited import apply_unvisited_rule, visited_states

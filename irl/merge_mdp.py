@@ -18,15 +18,25 @@ import pandas as pd
 
 from irl.demonstrations import Demonstrations
 from irl.domains.merge import (
-    ACTION_ACC_FT_S2, N_ACTIONS, N_STATES, VARIABLES, ZERO_ACTION, MergeBins, actions_of, features, n_states,
-    split_driver_state, state_index, state_parts, validate_encounters,
+    ACTION_ACC_FT_S2,
+    N_ACTIONS,
+    N_STATES,
+    VARIABLES,
+    ZERO_ACTION,
+    MergeBins,
+    actions_of,
+    features,
+    n_states,
+    split_driver_state,
+    state_index,
+    state_parts,
+    validate_encounters,
 )
 from irl.domains.merge_features import driver_encode_sequence, feature_set
 from irl.errors import ConfigError, DemonstrationError
 from irl.io import load_railusm
 from irl.transitions import estimate_transitions
 from irl.units import FRAME_S
-
 
 #: Default decision step (s) at which merge demonstrations are resampled: the controller's.
 DEFAULT_DECISION_STEP_S = 0.3

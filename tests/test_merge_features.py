@@ -4,7 +4,12 @@ import numpy as np
 import pytest
 
 from irl.domains import merge as dm
-from irl.domains.merge_features import DRIVER_FEATURES, FeatureSet, feature_array, feature_set
+from irl.domains.merge_features import (
+    DRIVER_FEATURES,
+    FeatureSet,
+    feature_array,
+    feature_set,
+)
 from irl.errors import ConfigError
 from irl.unvisited import apply_unvisited_rule
 
@@ -53,6 +58,7 @@ def test_custom_features_from_python(tmp_path):
     with pytest.raises(ConfigError, match=r"\[S, A, 2\]"):
         FeatureSet.custom(["a", "b"], arr[..., :1])
     import pandas as pd
+
     from irl.problems import load_problem
     n = 12
     df = pd.DataFrame({"encounter_id": 1, "d_AC": np.linspace(20, 100, n), "d_AB": 5.0, "v_AC": 0.0, "v_AB": 0.0,

@@ -35,8 +35,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from irl.domains.merge import (
-    ACTION_ACC_FT_S2, ACTION_NAMES, N_ACTIONS, VARIABLES, ZERO_ACTION, MergeBins, features,
-    n_states, split_driver_state, state_parts,
+    ACTION_ACC_FT_S2,
+    ACTION_NAMES,
+    N_ACTIONS,
+    VARIABLES,
+    ZERO_ACTION,
+    MergeBins,
+    features,
+    n_states,
+    split_driver_state,
+    state_parts,
 )
 from irl.errors import ConfigError
 

@@ -22,13 +22,14 @@ import numpy as np
 from analysis.provenance import provenance as provenance_record
 from analysis.provenance import write_timings
 from irl.config import IRLConfig
-from irl.errors import ConfigError, ConvergenceError
 from irl.domains.merge import MergeBins
+from irl.errors import ConfigError, ConvergenceError
 from irl.fit import METHODS, fit
 from irl.problems import Problem, load_problem
 from irl.reirl import DEFAULT_EPSILON, DEFAULT_N_BASELINE
 from irl.result import FitResult, SavedModel
 from irl.run_folder import check_writable
+from irl.unvisited import apply_unvisited_rule, visited_states
 
 
 def fit_problem(
@@ -70,7 +71,7 @@ def _json_scalar(v):
 
 
 def saved_model(fit: FitResult, problem: Problem, *, seed: int, source: str = "",
-                provenance: dict | None = None) -> SavedModel:
+                provenance: dict | None = None, unvisited: str = "none") -> SavedModel:
     """The ``model.json`` record of ``fit`` on ``problem``.
 
     It holds no wall-clock time (``fit.wall_time_s`` goes to a timings file, see
@@ -95,8 +96,18 @@ def saved_model(fit: FitResult, problem: Problem, *, seed: int, source: str = ""
         info["dt"] = problem.dt
     if provenance is not None:
         info["provenance"] = provenance
-    return SavedModel.from_fit(
-        fit,
+    merge = problem.domain == "merge"
+    q = fit.q
+    if merge and unvisited != "none":
+        q = apply_unvisited_rule(fit.q, visited_states(problem.demos), unvisited)
+    return SavedModel(
+        method=fit.method, theta=np.asarray(fit.theta), loglik=fit.loglik, q=np.asarray(q), config=fit.config,
+        converged=fit.converged, unbounded=fit.unbounded,
+        state_encoding=problem.state_encoding if merge else "paper",
+        decision_step_s=float(problem.dt),
+        action_acc_ft_s2=tuple(problem.action_acc_ft_s2),
+        feature_set=problem.feature_set if merge else "",
+        unvisited_rule=unvisited if merge else "none",
         domain=problem.domain,
         feature_names=tuple(problem.feature_names),
         bin_edges={k: tuple(v) for k, v in problem.bins.to_dict().items()} if problem.bins else {},
@@ -114,10 +125,13 @@ def learn(
     noise: float = 0.0,
     baseline_path: str | os.PathLike | None = None,
     bins: MergeBins | str | os.PathLike | None = None,
-    dt: float = 0.1,
+    dt: float | None = None,
     epsilon: float | None = DEFAULT_EPSILON,
     out: str | os.PathLike | None = None,
     progress: bool = False,
+    encoding: str = "paper",
+    features=None,
+    unvisited: str = "none",
 ) -> SavedModel:
     """Load ``demos_path`` as ``domain``, fit ``method``, and (if ``out``) save ``model.json``.
 
@@ -127,6 +141,15 @@ def learn(
     SHA-256 of every input file). With ``out``, the fit's wall time goes to
     ``<out stem>.timings.json`` beside it, not into ``model.json``: identical runs write
     identical model files.
+
+    Merge options: ``dt`` the decision step (s) the encounters are resampled at (default 0.3
+    s; 0.1 for the authors' text files), ``encoding`` ``"paper"`` or ``"driver"`` (A's previous
+    action in the state), ``features`` a set name (``"paper"``, ``"driver"``), a tuple of names
+    or your own :class:`irl.domains.merge_features.FeatureSet`, ``unvisited`` the rule for
+    states never seen in training (:mod:`irl.unvisited`). Each is recorded in ``model.json``
+    (``decision_step_s``, ``state_encoding``, ``feature_set`` + ``feature_names``,
+    ``unvisited_rule``), with ``action_acc_ft_s2``, the training data's mean acceleration per
+    action.
 
     Raises:
         ConfigError: unknown ``domain`` or ``method``.
@@ -140,14 +163,15 @@ def learn(
     bins_path = None
     if bins is not None and not isinstance(bins, MergeBins):
         bins_path, bins = bins, MergeBins.load(bins)
-    problem = load_problem(domain, demos_path, noise=noise, baseline_path=baseline_path, bins=bins, dt=dt)
+    problem = load_problem(domain, demos_path, noise=noise, baseline_path=baseline_path, bins=bins, dt=dt,
+                           encoding=encoding, features=features)
     demos_list = [demos_path] if isinstance(demos_path, (str, os.PathLike)) else list(demos_path)
     inputs = {("demos" if len(demos_list) == 1 else f"demos{i}"): p for i, p in enumerate(demos_list, start=1)}
     prov = provenance_record({**inputs, "baseline": baseline_path, "bins": bins_path})
     result = fit_problem(problem, method, config, seed, progress=progress, epsilon=epsilon)
     if not math.isfinite(result.loglik):
         raise ConvergenceError(f"{method} on {problem.name}: the fit failed ({result.message}); no model written")
-    model = saved_model(result, problem, seed=seed, source=problem.name, provenance=prov)
+    model = saved_model(result, problem, seed=seed, source=problem.name, provenance=prov, unvisited=unvisited)
     if out is not None:
         model.save(out)
         write_timings(out, {"fit_wall_time_s": float(result.wall_time_s)})

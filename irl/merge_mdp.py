@@ -26,37 +26,100 @@ from irl.domains.merge import (
     MergeBins,
     actions_of,
     features,
+    n_states,
+    split_driver_state,
     state_index,
     state_parts,
     validate_encounters,
 )
+from irl.domains.merge_features import driver_encode_sequence, feature_set
 from irl.errors import ConfigError, DemonstrationError
 from irl.io import load_railusm
 from irl.transitions import estimate_transitions
+from irl.units import FRAME_S
+
+#: Default decision step (s) at which merge demonstrations are resampled: the controller's.
+DEFAULT_DECISION_STEP_S = 0.3
 
 
-def discretize(encounters_df, bins: MergeBins, *, where: str = "encounters") -> Demonstrations:
-    """One trajectory per run of rows with one ``encounter_id`` (rows in table order = frame order;
-    a new trajectory also starts where ``Frame_ID``, when present, does not increase), so tables
-    concatenated from several files keep same-numbered encounters apart.
+@dataclass(frozen=True)
+class Discretized:
+    """What :func:`discretize` returns.
+
+    Attributes:
+        demos: the tabular demonstrations.
+        action_acc_ft_s2: ``[5]`` mean acceleration (ft/s^2) of the decisions of each action;
+            the bin midpoint (``ACTION_ACC_FT_S2``) for an action that never occurs.
+    """
+
+    demos: Demonstrations
+    action_acc_ft_s2: tuple[float, ...]
+
+
+def action_mean_acc(acc, actions) -> tuple[float, ...]:
+    """``[5]`` conditional mean of ``acc`` (ft/s^2) per action; bin midpoint where absent."""
+    acc = np.asarray(acc, dtype=np.float64)
+    actions = np.asarray(actions, dtype=np.int64)
+    out = []
+    for a in range(N_ACTIONS):
+        sel = acc[actions == a]
+        out.append(float(sel.mean()) if sel.size else float(ACTION_ACC_FT_S2[a]))
+    return tuple(out)
+
+
+def _frames_per_step(decision_step_s: float) -> int:
+    k = int(round(decision_step_s / FRAME_S))
+    if not decision_step_s > 0 or abs(k * FRAME_S - decision_step_s) > 1e-9:
+        raise ConfigError(f"decision_step_s must be a positive multiple of {FRAME_S} s, got {decision_step_s}")
+    return k
+
+
+def discretize(encounters_df, bins: MergeBins, *, where: str = "encounters", encoding: str = "paper",
+               decision_step_s: float = DEFAULT_DECISION_STEP_S, features=None) -> Demonstrations:
+    """The demonstrations of :func:`resample_encounters` (same arguments and errors)."""
+    return resample_encounters(encounters_df, bins, where=where, encoding=encoding,
+                               decision_step_s=decision_step_s, features=features).demos
+
+
+def resample_encounters(encounters_df, bins: MergeBins, *, where: str = "encounters", encoding: str = "paper",
+                        decision_step_s: float = DEFAULT_DECISION_STEP_S, features=None) -> Discretized:
+    """Resample each encounter at the decision step and encode it (issue 11, cause 2).
+
+    One trajectory per ``encounter_id`` (rows in table order = frame order). With ``k =
+    decision_step_s / 0.1 s`` frames per decision, decision ``j`` of an encounter is its row
+    ``j k`` (the state at that frame); its action is the forward difference of A's speed over
+    the step, ``(v_A(t + k) - v_A(t)) / (k 0.1 s)``, i.e. the mean of ``acc_A`` over rows
+    ``t .. t+k-1`` (each row's ``acc_A`` is a one-frame forward difference). An incomplete
+    last step is dropped. With the ``"driver"`` encoding the first decision is row ``k``
+    so that its previous action (the step over rows ``0 .. k-1``) comes from A's speed history;
+    an encounter shorter than ``2k`` rows keeps row 0 with previous action Zero (unknown).
 
     Args:
-        encounters_df: the encounter table of :mod:`irl.domains.merge` (columns
-            ``REQUIRED_COLUMNS``, others ignored); frames without car C follow the domain's
-            no-lead-car rule.
+        encounters_df: the encounter table of :mod:`irl.domains.merge`.
         bins: state bin edges.
+        encoding: ``"paper"`` or ``"driver"`` (:data:`irl.domains.merge.STATE_ENCODINGS`).
+        decision_step_s: seconds per decision, a multiple of 0.1 (0.1 keeps every frame).
+        features: a :class:`~irl.domains.merge_features.FeatureSet` (``[S, A, K]``), a set name
+            or None (the paper's three).
 
     Returns:
-        Demonstrations over 1250 states and 5 actions with the merge features; trajectories in
-        order of first appearance of their encounter id, named ``encounter <id>``.
+        :class:`Discretized`: demonstrations over ``n_states(encoding)`` states and 5 actions,
+        trajectories in order of first appearance, named ``encounter <id>``; and the per-action
+        mean acceleration of the decisions.
 
     Raises:
-        DemonstrationError: the table breaks :func:`irl.domains.merge.validate_encounters`.
-        EncodingError: (a DemonstrationError) a value the domain cannot encode.
+        DemonstrationError: the table breaks :func:`irl.domains.merge.validate_encounters`, or an
+            encounter has fewer than ``k`` rows (no whole decision step).
+        ConfigError: a bad encoding or decision step.
     """
     validate_encounters(encounters_df, where)
-    states = bins.encode(encounters_df)
-    actions = actions_of(encounters_df["acc_A"].to_numpy(dtype=np.float64))
+    k = _frames_per_step(decision_step_s)
+    S = n_states(encoding)
+    fs = feature_set(features or "paper", bins, encoding, dt=decision_step_s)
+    if fs.array.shape[0] != S:
+        raise ConfigError(f"features have {fs.array.shape[0]} states, the {encoding!r} encoding {S}")
+    paper_states = bins.encode(encounters_df)
+    acc = encounters_df["acc_A"].to_numpy(dtype=np.float64)
     ids = encounters_df["encounter_id"].to_numpy()
     # a trajectory is a run of rows with one id (and increasing Frame_ID when present): tables
     # concatenated from several files or runs may reuse ids, and must not be glued together
@@ -67,20 +130,50 @@ def discretize(encounters_df, bins: MergeBins, *, where: str = "encounters") -> 
         brk[1:] |= fr[1:] <= fr[:-1]
     run = np.cumsum(brk)
     order: dict = {}
-    for i, (k, r) in enumerate(zip(ids, run)):
-        order.setdefault((k, r), []).append(i)
-    return Demonstrations(
-        states=tuple(states[idx] for idx in order.values()),
-        actions=tuple(actions[idx] for idx in order.values()),
-        features=features(),
-        n_states=N_STATES,
-        n_actions=N_ACTIONS,
-        source=where,
-        names=tuple(f"encounter {k}" for k, _ in order),
-    )
+    for i, (key, r) in enumerate(zip(ids, run)):
+        order.setdefault((key, r), []).append(i)
+    states, actions, all_acc, all_act = [], [], [], []
+    for (key, _), rows in order.items():
+        rows = np.asarray(rows)
+        n = rows.size // k
+        if n == 0:
+            raise DemonstrationError(f"{where}: encounter {key} has {rows.size} rows, fewer than one decision "
+                                     f"step of {k} frames ({decision_step_s} s)")
+        step_acc = acc[rows[: n * k]].reshape(n, k).mean(axis=1)  # [n]
+        step_act = actions_of(step_acc)
+        s = paper_states[rows[: n * k: k]]
+        if encoding == "driver":
+            if n >= 2:
+                s, prev, step_acc, step_act = s[1:], step_act[:-1], step_acc[1:], step_act[1:]
+            else:
+                prev = np.array([ZERO_ACTION])
+            s = s * N_ACTIONS + prev
+        states.append(s.astype(np.int64))
+        actions.append(step_act)
+        all_acc.append(step_acc)
+        all_act.append(step_act)
+    demos = Demonstrations(states=tuple(states), actions=tuple(actions), features=fs.array, n_states=S,
+                           n_actions=N_ACTIONS, source=where, names=tuple(f"encounter {key}" for key, _ in order))
+    return Discretized(demos, action_mean_acc(np.concatenate(all_acc), np.concatenate(all_act)))
 
 
-def kinematic_next_state(states, actions, bins: MergeBins, dt: float = 0.1) -> np.ndarray:
+def driver_encoded(demos: Demonstrations, features: np.ndarray) -> Demonstrations:
+    """Paper-encoded demonstrations (e.g. the authors' files) in the ``"driver"`` encoding: the
+    previous action of step t is action t-1 of the trajectory; of step 0, Zero (unknown).
+
+    Args:
+        demos: over the 1250 paper states.
+        features: ``[6250, 5, K]``.
+    """
+    if demos.n_states != N_STATES:
+        raise DemonstrationError(f"{demos.source}: expected {N_STATES} paper states, got {demos.n_states}")
+    states = tuple(driver_encode_sequence(s, a) for s, a in zip(demos.states, demos.actions))
+    return Demonstrations(states=states, actions=demos.actions, features=features, n_states=n_states("driver"),
+                          n_actions=N_ACTIONS, source=demos.source, names=demos.names)
+
+
+def kinematic_next_state(states, actions, bins: MergeBins, dt: float = 0.1, *, encoding: str = "paper",
+                         action_acc=ACTION_ACC_FT_S2) -> np.ndarray:
     """Next state predicted by constant-acceleration kinematics (the paper's fallback model).
 
     Takes each state's bin representatives (``MergeBins.representatives``) and the action's
@@ -94,8 +187,11 @@ def kinematic_next_state(states, actions, bins: MergeBins, dt: float = 0.1) -> n
 
     (``d_AX`` is the gap from A forward to X, so it shrinks when A is faster than X.)
 
+    With the ``"driver"`` encoding the next state's previous action is ``actions``.
+
     Args:
         states, actions: integer arrays of equal shape.
+        action_acc: ``[5]`` acceleration per action (ft/s^2).
 
     Returns:
         next states, same shape.
@@ -105,8 +201,12 @@ def kinematic_next_state(states, actions, bins: MergeBins, dt: float = 0.1) -> n
     """
     if not dt > 0:
         raise ConfigError(f"decision step dt must be positive, got {dt}")
+    if encoding == "driver":
+        s_paper, _ = split_driver_state(states)
+        nxt = kinematic_next_state(s_paper, actions, bins, dt, action_acc=action_acc)
+        return (nxt * N_ACTIONS + np.asarray(actions, dtype=np.int64)).astype(np.int64)
     parts = state_parts(states)
-    acc = np.asarray(ACTION_ACC_FT_S2)[np.asarray(actions, dtype=np.int64)]
+    acc = np.asarray(action_acc, dtype=np.float64)[np.asarray(actions, dtype=np.int64)]
     rep = {name: bins.representatives(name)[parts[..., i + 1]] for i, name in enumerate(VARIABLES)}
     v_ac = rep["v_AC"] + acc * dt
     v_ab = rep["v_AB"] + acc * dt
@@ -117,20 +217,24 @@ def kinematic_next_state(states, actions, bins: MergeBins, dt: float = 0.1) -> n
     return state_index(parts[..., 0], *new).astype(np.int64)
 
 
-def kinematic_model(bins: MergeBins, dt: float = 0.1) -> np.ndarray:
-    """``[1250, 5, 1250]`` deterministic transition model of ``kinematic_next_state``."""
-    s = np.repeat(np.arange(N_STATES), N_ACTIONS)
-    a = np.tile(np.arange(N_ACTIONS), N_STATES)
-    nxt = kinematic_next_state(s, a, bins, dt)
-    t = np.zeros((N_STATES, N_ACTIONS, N_STATES))
+def kinematic_model(bins: MergeBins, dt: float = 0.1, encoding: str = "paper") -> np.ndarray:
+    """``[S, 5, S]`` deterministic transition model of ``kinematic_next_state`` (``S`` of the
+    encoding: 1250 or 6250)."""
+    S = n_states(encoding)
+    s = np.repeat(np.arange(S), N_ACTIONS)
+    a = np.tile(np.arange(N_ACTIONS), S)
+    nxt = kinematic_next_state(s, a, bins, dt, encoding=encoding)
+    t = np.zeros((S, N_ACTIONS, S))
     t[s, a, nxt] = 1.0
     return t
 
 
 def estimated_transitions(demos: Demonstrations, bins: MergeBins, dt: float = 0.1) -> np.ndarray:
-    """``[1250, 5, 1250]`` relative transition counts of ``demos``, with the kinematic model for
-    every (s, a) never observed (the paper's MLIRL model for the merge domain)."""
-    return estimate_transitions(demos, fallback=kinematic_model(bins, dt))
+    """``[S, 5, S]`` relative transition counts of ``demos``, with the kinematic model at the
+    decision step ``dt`` for every (s, a) never observed (the paper's MLIRL model for the merge
+    domain); the encoding follows ``demos.n_states``."""
+    encoding = "driver" if demos.n_states == n_states("driver") else "paper"
+    return estimate_transitions(demos, fallback=kinematic_model(bins, dt, encoding))
 
 
 @dataclass(frozen=True)
@@ -141,9 +245,11 @@ class ConstantVelocityPad:
 
     bins: MergeBins
     dt: float = 0.1
+    encoding: str = "paper"
 
     def __call__(self, state: int) -> tuple[int, int]:
-        return int(kinematic_next_state(np.array([state]), np.array([ZERO_ACTION]), self.bins, self.dt)[0]), ZERO_ACTION
+        nxt = kinematic_next_state(np.array([state]), np.array([ZERO_ACTION]), self.bins, self.dt, encoding=self.encoding)
+        return int(nxt[0]), ZERO_ACTION
 
 
 def load(path) -> Demonstrations:

@@ -21,7 +21,8 @@ import pandas as pd
 from irl import merge_mdp
 from irl.demonstrations import Demonstrations
 from irl.domains import gridworld
-from irl.domains.merge import FEATURE_NAMES, MergeBins, fit_quantile_bins
+from irl.domains.merge import ACTION_ACC_FT_S2, MergeBins, fit_quantile_bins
+from irl.domains.merge_features import FeatureSet, feature_set
 from irl.errors import ConfigError, DemonstrationError
 from irl.io import load_feature_names, load_npz
 from irl.transitions import estimate_transitions
@@ -46,6 +47,10 @@ class Problem:
         bins: merge state bin edges (merge domain only).
         dt: merge decision step (s) of the kinematic fallback and REIRL's padding.
         noise: gridworld slip probability.
+        state_encoding: merge state encoding (``"paper"`` or ``"driver"``).
+        feature_set: merge feature set name (``"paper"``, ``"driver"``, ``"custom"``).
+        action_acc_ft_s2: ``[5]`` per-action mean acceleration of the training data (merge
+            encounter tables), else the bin midpoints.
     """
 
     name: str
@@ -58,19 +63,21 @@ class Problem:
     bins: MergeBins | None = None
     dt: float = 0.1
     noise: float = 0.0
+    state_encoding: str = "paper"
+    feature_set: str = "paper"
+    action_acc_ft_s2: tuple[float, ...] = tuple(ACTION_ACC_FT_S2)
 
     def subset(self, indices) -> Problem:
         """The same problem on the trajectories at ``indices`` (model re-estimated if estimated)."""
         demos = self.demos.subset(indices)
         transitions = estimate_model(demos, self.domain, self.bins, self.dt) if self.transitions_estimated \
             else self.transitions
-        return Problem(self.name, self.domain, demos, transitions, self.transitions_estimated, self.baseline,
-                       self.feature_names, self.bins, self.dt, self.noise)
+        return replace(self, demos=demos, transitions=transitions)
 
     def pad_step(self) -> Callable[[int], tuple[int, int]] | None:
         """REIRL's padding rule: constant velocity for merge, repeat the last pair otherwise."""
         if self.domain == "merge" and self.bins is not None:
-            return merge_mdp.ConstantVelocityPad(self.bins, self.dt)
+            return merge_mdp.ConstantVelocityPad(self.bins, self.dt, self.state_encoding)
         return None
 
 
@@ -85,16 +92,28 @@ def _is_text_format(path: Path) -> bool:
     return path.is_dir() or path.suffix == ".txt"
 
 
-def load_merge_demos(path: str | os.PathLike | Sequence[str | os.PathLike],
-                     bins: MergeBins | None) -> tuple[Demonstrations, MergeBins]:
+def load_merge_demos(path: str | os.PathLike | Sequence[str | os.PathLike], bins: MergeBins | None, *,
+                     encoding: str = "paper", features=None, decision_step_s: float | None = None
+                     ) -> tuple[Demonstrations, MergeBins, FeatureSet, tuple[float, ...], float]:
     """Merge demonstrations from the authors' text files (state indices as they are; ``bins``
-    default to ``MergeBins.assumed_authors()``) or from encounter tables (``.parquet``/``.csv``;
-    ``bins`` default to quantile bins fitted on all of them). Several tables (files or runs)
-    keep their encounters apart even where encounter ids repeat: each file's trajectories are
-    named ``<file>: encounter <id>``.
+    default to ``MergeBins.assumed_authors()``; their 0.1 s steps cannot be resampled, so
+    ``decision_step_s`` must be None or 0.1; the driver encoding takes the previous action from
+    the sequence) or from encounter tables (``.parquet``/``.csv``; ``bins`` default to quantile
+    bins fitted on all of them; resampled at ``decision_step_s``, default 0.3 s). Several tables
+    (files or runs) keep their encounters apart even where encounter ids repeat: each file's
+    trajectories are named ``<file>: encounter <id>``.
+
+    Args:
+        features: a feature set name, a tuple of names or a :class:`FeatureSet`; None: the
+            paper's three.
+
+    Returns:
+        ``(demos, bins, feature set, per-action acceleration [5] ft/s^2, decision step s)``; with
+        several tables the per-action acceleration is over all of them.
 
     Raises:
-        DemonstrationError: a path is missing, or several paths include text-format ones.
+        DemonstrationError: a path is missing or bad, or several paths include text-format ones.
+        ConfigError: bad encoding/features/step.
     """
     paths = [Path(p) for p in ([path] if isinstance(path, (str, os.PathLike)) else path)]
     if not paths:
@@ -103,25 +122,44 @@ def load_merge_demos(path: str | os.PathLike | Sequence[str | os.PathLike],
         if not p.exists():
             raise DemonstrationError(f"{p}: no such file or directory")
     if len(paths) == 1 and _is_text_format(paths[0]):
-        return merge_mdp.load(paths[0]), bins or MergeBins.assumed_authors()
+        if decision_step_s not in (None, 0.1):
+            raise ConfigError(f"{paths[0]}: the authors' trajectories are 0.1 s steps and cannot be resampled "
+                              f"at {decision_step_s} s")
+        bins = bins or MergeBins.assumed_authors()
+        fs = feature_set(features or "paper", bins, encoding, dt=0.1)
+        demos = merge_mdp.load(paths[0])
+        if encoding == "driver":
+            demos = merge_mdp.driver_encoded(demos, fs.array)
+        else:
+            demos = replace(demos, features=fs.array)
+        return demos, bins, fs, tuple(ACTION_ACC_FT_S2), 0.1
     text = [str(p) for p in paths if _is_text_format(p)]
     if text:
         raise DemonstrationError(f"{text[0]}: several demonstration sources must all be encounter tables "
                                  "(.parquet/.csv); the authors' text format is read alone")
+    step = merge_mdp.DEFAULT_DECISION_STEP_S if decision_step_s is None else decision_step_s
     tables = [merge_mdp.read_encounters(p) for p in paths]
     for p, t in zip(paths, tables):
         _warn_raw_accelerations(t, p)
     where = ", ".join(str(p) for p in paths)
-    bins = bins or fit_quantile_bins(pd.concat(tables, ignore_index=True) if len(tables) > 1 else tables[0],
-                                     where=where)
-    parts = [merge_mdp.discretize(t, bins, where=str(p)) for p, t in zip(paths, tables)]
-    if len(parts) == 1:
-        return parts[0], bins
-    first = parts[0]
-    return replace(
-        first, states=tuple(s for d in parts for s in d.states), actions=tuple(a for d in parts for a in d.actions),
-        source=where, names=tuple(f"{p}: {n}" for p, d in zip(paths, parts) for n in d.names),
-    ), bins
+    joined = pd.concat(tables, ignore_index=True) if len(tables) > 1 else tables[0]
+    bins = bins or fit_quantile_bins(joined, where=where)
+    fs = feature_set(features or "paper", bins, encoding, dt=step)
+    if len(tables) == 1:
+        r = merge_mdp.resample_encounters(tables[0], bins, where=where, encoding=encoding, decision_step_s=step,
+                                          features=fs)
+        return r.demos, bins, fs, r.action_acc_ft_s2, step
+    parts = [merge_mdp.resample_encounters(t, bins, where=str(p), encoding=encoding, decision_step_s=step,
+                                           features=fs) for p, t in zip(paths, tables)]
+    demos = replace(
+        parts[0].demos, states=tuple(s for r in parts for s in r.demos.states),
+        actions=tuple(a for r in parts for a in r.demos.actions), source=where,
+        names=tuple(f"{p}: {n}" for p, r in zip(paths, parts) for n in r.demos.names),
+    )
+    # the per-action mean acceleration over all tables, weighted by their decisions
+    acc = merge_mdp.resample_encounters(joined, bins, where=where, encoding=encoding, decision_step_s=step,
+                                        features=fs).action_acc_ft_s2
+    return demos, bins, fs, acc, step
 
 
 #: NGSIM's acceleration cap (ft/s^2) and the share of rows at it that marks raw accelerations.
@@ -157,8 +195,10 @@ def load_problem(
     noise: float = 0.0,
     baseline_path: str | os.PathLike | None = None,
     bins: MergeBins | None = None,
-    dt: float = 0.1,
+    dt: float | None = None,
     name: str = "",
+    encoding: str = "paper",
+    features=None,
 ) -> Problem:
     """Build a :class:`Problem` from files.
 
@@ -171,7 +211,12 @@ def load_problem(
         baseline_path: REIRL baseline trajectories in the same format (merge encounter tables
             are discretized with the experts' bins).
         bins: merge bin edges (default: assumed for text files, quantile-fitted for tables).
-        dt: merge decision step of the kinematic fallback, seconds.
+        dt: merge decision step (s): encounter tables are resampled at it and the kinematic
+            fallback uses it (default 0.3 s for tables, 0.1 s for text files and other domains).
+        encoding: merge state encoding, ``"paper"`` or ``"driver"``.
+        features: merge features: a set name (``"paper"``, ``"driver"``), a tuple of names, or
+            your own :class:`irl.domains.merge_features.FeatureSet` (``FeatureSet.custom(names,
+            array [S, A, K])``); None: the paper's three.
 
     Raises:
         ConfigError: ``domain`` is not one of :data:`DOMAINS`.
@@ -186,21 +231,23 @@ def load_problem(
                           "several are read for the merge domain's encounter tables only")
     label = name or ", ".join(str(p) for p in paths)
     baseline = None
+    step_other = 0.1 if dt is None else dt  # gridworld and npz: the step is not resampled
     if domain == "gridworld":
         demos = gridworld.load(paths[0])
         if baseline_path is not None:
             baseline = gridworld.load(baseline_path)
         return Problem(label, domain, demos, gridworld.transition_model(noise), False, baseline,
-                       gridworld.FEATURE_NAMES, None, dt, noise)
+                       gridworld.FEATURE_NAMES, None, step_other, noise)
     if domain == "merge":
-        demos, bins = load_merge_demos(paths, bins)
+        demos, bins, fs, acc, step = load_merge_demos(paths, bins, encoding=encoding, features=features,
+                                                      decision_step_s=dt)
         if baseline_path is not None:
-            baseline, _ = load_merge_demos(baseline_path, bins)
-        return Problem(label, domain, demos, merge_mdp.estimated_transitions(demos, bins, dt), True, baseline,
-                       FEATURE_NAMES, bins, dt, 0.0)
+            baseline = load_merge_demos(baseline_path, bins, encoding=encoding, features=fs, decision_step_s=dt)[0]
+        return Problem(label, domain, demos, merge_mdp.estimated_transitions(demos, bins, step), True, baseline,
+                       fs.names, bins, step, 0.0, encoding, fs.name, acc)
     demos = load_npz(paths[0])
     if baseline_path is not None:
         baseline = load_npz(baseline_path)
     names = load_feature_names(paths[0]) or tuple(f"f{k}" for k in range(demos.n_features))
-    return Problem(label, domain, demos, estimate_model(demos, domain, None, dt), True, baseline, names,
-                   None, dt, 0.0)
+    return Problem(label, domain, demos, estimate_model(demos, domain, None, step_other), True, baseline, names,
+                   None, step_other, 0.0)

@@ -132,12 +132,13 @@ def test_several_demo_tables_keep_encounters_apart(tmp_path: Path) -> None:
     a, b = tmp_path / "a.parquet", tmp_path / "b.parquet"
     frames.to_parquet(a)
     frames.to_parquet(b)
-    demos, _ = load_merge_demos([a, b], None)
+    demos = load_merge_demos([a, b], None, decision_step_s=0.1)[0]
     assert len(demos.states) == 2 and all(len(s) == 71 for s in demos.states)
+    assert [len(s) for s in load_merge_demos([a, b], None)[0].states] == [71 // 3] * 2  # 0.3 s decisions
     assert demos.names[0].startswith(str(a)) and demos.names[1].startswith(str(b))
     # one table concatenated from two runs reusing encounter id 1: still two trajectories
     bins = fit_quantile_bins(frames)
-    cat = merge_mdp.discretize(pd.concat([frames, frames], ignore_index=True), bins)
+    cat = merge_mdp.discretize(pd.concat([frames, frames], ignore_index=True), bins, decision_step_s=0.1)
     assert [len(s) for s in cat.states] == [71, 71]
 
 

@@ -57,7 +57,9 @@ def test_learn_merge_encounter_table_saves_fitted_bins(tmp_path):
     m = SavedModel.load(out)
     bins = MergeBins.from_dict({k: list(v) for k, v in m.bin_edges.items()})
     assert bins == fit_quantile_bins(df)
-    assert m.config.gamma == 0.9 and m.q.shape == (1250, 5)
+    assert m.config.gamma == 0.9 and m.q.shape == (6250, 5)  # encounter tables: driver features by default
+    assert (m.state_encoding, m.feature_set, m.decision_step_s, m.config.beta) == ("driver", "driver", 0.3, 1.0)
+    assert m.action_acc_ft_s2 != (-8.0, -2.7, 0.0, 2.7, 8.0)  # the data's per-action means
 
 
 def test_learn_npz_reirl(tmp_path):

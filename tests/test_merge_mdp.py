@@ -9,7 +9,7 @@ import pytest
 
 from irl import merge_mdp as m
 from irl.domains import merge as dm
-from irl.errors import DemonstrationError
+from irl.errors import ConfigError, DemonstrationError
 
 
 def encounters(n=3, rows=40, seed=0):
@@ -33,7 +33,7 @@ def test_quantile_bins_and_discretize_are_consistent():
     for name in ("d_AB", "v_AC", "v_AB"):
         counts = np.bincount(bins.bin_index(name, df[name]), minlength=5)
         assert np.all(np.abs(counts - len(df) / 5) <= 2)  # quantile bins: equal counts
-    d = m.discretize(df, bins)
+    d = m.discretize(df, bins, decision_step_s=0.1)
     assert d.n_trajectories == 3 and d.names == ("encounter 100", "encounter 101", "encounter 102")
     s = np.concatenate(d.states)
     parts = dm.state_parts(s)
@@ -104,7 +104,7 @@ def test_frames_without_car_c_discretize_by_the_no_lead_rule():
     df = encounters()
     df.loc[[3, 50], ["d_AC", "v_AC"]] = np.nan
     bins = dm.fit_quantile_bins(df)
-    d = m.discretize(df, bins)
+    d = m.discretize(df, bins, decision_step_s=0.1)
     parts = dm.state_parts(np.concatenate(d.states))
     assert parts[3, 1] == parts[50, 1] == 0  # farthest d_AC bin
     assert parts[3, 3] == bins.bin_index("v_AC", 0.0) == bins.no_lead_v_AC_bin()
@@ -112,3 +112,38 @@ def test_frames_without_car_c_discretize_by_the_no_lead_rule():
     df.loc[7, "d_AC"] = np.nan
     with pytest.raises(DemonstrationError, match=r"row 7, column 'd_AC'.*no car C"):
         m.discretize(df, bins)
+
+
+def test_resampling_at_the_decision_step_averages_the_forward_differences():
+    df = encounters()
+    bins = dm.fit_quantile_bins(df)
+    r = m.resample_encounters(df, bins, decision_step_s=0.3)
+    rows = df[df.encounter_id == 100]
+    n = len(rows) // 3
+    acc = rows["acc_A"].to_numpy()[: 3 * n].reshape(n, 3).mean(axis=1)
+    np.testing.assert_array_equal(r.demos.actions[0], dm.actions_of(acc))
+    np.testing.assert_array_equal(r.demos.states[0], bins.encode(rows)[: 3 * n: 3])
+    # the driver encoding starts one step later, the previous action from the step before
+    d = m.resample_encounters(df, bins, decision_step_s=0.3, encoding="driver", features="driver").demos
+    assert d.n_states == 6250 and d.features.shape[2] == len(m.feature_set("driver", bins, "driver").names)
+    np.testing.assert_array_equal(d.states[0] % 5, dm.actions_of(acc)[:-1])
+    np.testing.assert_array_equal(d.states[0] // 5, bins.encode(rows)[3: 3 * n: 3])
+    # per-action mean acceleration of the decisions; midpoint for an action never taken
+    all_acc = np.concatenate([g["acc_A"].to_numpy()[: 3 * (len(g) // 3)].reshape(-1, 3).mean(axis=1)
+                              for _, g in df.groupby("encounter_id", sort=False)])
+    acts = dm.actions_of(all_acc)
+    for a in range(5):
+        want = all_acc[acts == a].mean() if (acts == a).any() else dm.ACTION_ACC_FT_S2[a]
+        assert r.action_acc_ft_s2[a] == pytest.approx(want)
+    assert m.action_mean_acc([1.0, 2.0], [3, 3]) == (-8.0, -2.7, 0.0, 1.5, 8.0)
+    with pytest.raises(ConfigError, match="multiple of 0.1"):
+        m.discretize(df, bins, decision_step_s=0.25)
+
+
+def test_kinematic_driver_encoding_sets_previous_action():
+    bins = dm.MergeBins.assumed_authors()
+    s = np.array([7, 400, 1249])
+    for a in range(5):
+        nd = m.kinematic_next_state(s * 5 + 1, np.full(3, a), bins, 0.3, encoding="driver")
+        np.testing.assert_array_equal(nd % 5, a)
+        np.testing.assert_array_equal(nd // 5, m.kinematic_next_state(s, np.full(3, a), bins, 0.3))

@@ -83,7 +83,7 @@ def test_score_merge_table_uses_the_model_bins(tmp_path, capsys):
     capsys.readouterr()
     assert main(["score", "--model", str(out), "--demos", str(tmp_path / "all.parquet"), "--json"]) == 0
     full = json.loads(capsys.readouterr().out)
-    assert full["loglik"] == pytest.approx(SavedModel.load(out).loglik, rel=1e-9) and full["n_steps"] == n * rows
+    assert full["loglik"] == pytest.approx(SavedModel.load(out).loglik, rel=1e-9) and full["n_steps"] == n * (rows // 3 - 1)  # 0.3 s decisions, driver encoding from the 2nd
     assert main(["score", "--model", str(out), "--demos", str(tmp_path / "part.parquet"), "--json"]) == 0
     part = json.loads(capsys.readouterr().out)
     # discretized with the model's bins (not bins refitted on the part): the same per-trajectory values

@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import sys
 from dataclasses import replace
+from pathlib import Path
 
 from irl.config import SOLVERS, IRLConfig
 from irl.problems import DOMAINS
@@ -48,7 +49,14 @@ def register(subparsers) -> None:
                                       "default: uniform-random ones generated under the model")
     p.add_argument("--bins", help="merge: JSON file of bin edges (default: assumed edges for text files, "
                                   "quantile bins fitted on an encounter table)")
-    p.add_argument("--dt", type=float, default=0.1, help="merge: decision step (s) of the kinematic fallback")
+    p.add_argument("--dt", type=float, default=None,
+                   help="merge: decision step (s) the encounters are resampled at and the kinematic fallback uses "
+                        "(default 0.3 for encounter tables, 0.1 for the authors' text files)")
+    p.add_argument("--features", choices=("paper", "driver"), default=None,
+                   help="merge feature set (default: driver for encounter tables, paper for the authors' files); "
+                        "driver also puts A's previous action in the state")
+    p.add_argument("--unvisited", choices=("none", "nearest"), default="none",
+                   help="merge: policy in states never seen in training (irl.unvisited)")
     p.add_argument("--epsilon", type=float, default=None, help="REIRL L1 weight of the dual (default: per feature, the "
                                                            "Hoeffding bound of the experts' feature-count estimate)")
     add_config_arguments(p)
@@ -62,11 +70,21 @@ def run(args: argparse.Namespace) -> int:
     from analysis.learn import learn
     from irl.reirl import DEFAULT_EPSILON
 
+    config = config_from_args(args)
+    if args.domain == "merge" and args.beta is None:
+        # beta is not identifiable (the policy depends on beta * theta): merge fits use beta 1, scale in theta
+        config = replace(config, beta=1.0)
+    features = args.features
+    if features is None and args.domain == "merge":
+        # the authors' text trajectories (a folder or .txt) keep the paper's features; encounter tables: driver
+        demos = [Path(d) for d in (args.demos if isinstance(args.demos, list) else [args.demos])]
+        features = "paper" if any(d.is_dir() or d.suffix == ".txt" for d in demos) else "driver"
     model = learn(
-        args.method, args.domain, args.demos, config=config_from_args(args), seed=args.seed,
+        args.method, args.domain, args.demos, config=config, seed=args.seed,
         noise=args.noise, baseline_path=args.baseline, bins=args.bins or None, dt=args.dt,
         epsilon=DEFAULT_EPSILON if args.epsilon is None else args.epsilon,
         out=args.out, progress=not args.no_progress and sys.stderr.isatty(),
+        encoding="driver" if features == "driver" else "paper", features=features, unvisited=args.unvisited,
     )
     theta = ", ".join(f"{n or k}={t:.4g}" for k, (n, t) in enumerate(
         zip(model.feature_names or [""] * len(model.theta), model.theta)))

@@ -55,7 +55,10 @@ def score(model, demos_path: str, domain: str | None = None) -> dict:
                                  f"pass --domain, one of {DOMAINS}")
     bins = MergeBins.from_dict(model.bin_edges, where="model bin_edges") if domain == "merge" and model.bin_edges \
         else None
-    kw: dict[str, Any] = {"bins": bins, "dt": _info_number(model, "dt", 0.1)} if domain == "merge" else {}
+    # merge: the model's decision step and state encoding (features only shape the demonstrations, not the score)
+    kw: dict[str, Any] = {"bins": bins, "dt": model.decision_step_s, "encoding": model.state_encoding,
+                          "features": model.feature_set if model.feature_set in ("paper", "driver") else None
+                          } if domain == "merge" else {}
     if domain == "gridworld":
         kw["noise"] = _info_number(model, "noise", 0.0)
     demos = load_problem(domain, demos_path, **kw).demos

@@ -32,7 +32,19 @@ _EXPORTS = {
     "estimate_transitions": "irl.transitions",
 }
 
-__all__ = sorted(_EXPORTS)
+__all__ = [
+    "ConfigError",
+    "ConvergenceError",
+    "DemonstrationError",
+    "Demonstrations",
+    "FitResult",
+    "IRLConfig",
+    "IRLError",
+    "ModelFileError",
+    "SavedModel",
+    "estimate_transitions",
+]
+assert sorted(__all__) == sorted(_EXPORTS)
 
 
 def __getattr__(name: str) -> Any:

@@ -10,6 +10,7 @@ readers of the authors' files and of encounter tables.
 from __future__ import annotations
 
 import os
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -108,8 +109,9 @@ def resample_encounters(encounters_df, bins: MergeBins, *, where: str = "encount
         mean acceleration of the decisions.
 
     Raises:
-        DemonstrationError: the table breaks :func:`irl.domains.merge.validate_encounters`, or an
-            encounter has fewer than ``k`` rows (no whole decision step).
+        DemonstrationError: the table breaks :func:`irl.domains.merge.validate_encounters`, or
+            every encounter has fewer than ``k`` rows (no whole decision step). Shorter
+            encounters among longer ones are left out with a :class:`ShortEncounterWarning`.
         ConfigError: a bad encoding or decision step.
     """
     validate_encounters(encounters_df, where)
@@ -132,13 +134,15 @@ def resample_encounters(encounters_df, bins: MergeBins, *, where: str = "encount
     order: dict = {}
     for i, (key, r) in enumerate(zip(ids, run)):
         order.setdefault((key, r), []).append(i)
-    states, actions, all_acc, all_act = [], [], [], []
+    states, actions, all_acc, all_act, names = [], [], [], [], []
+    short = []  # encounters shorter than one decision step: no decision to learn from
     for (key, _), rows in order.items():
         rows = np.asarray(rows)
         n = rows.size // k
         if n == 0:
-            raise DemonstrationError(f"{where}: encounter {key} has {rows.size} rows, fewer than one decision "
-                                     f"step of {k} frames ({decision_step_s} s)")
+            short.append(f"{key} ({rows.size} rows)")
+            continue
+        names.append(f"encounter {key}")
         step_acc = acc[rows[: n * k]].reshape(n, k).mean(axis=1)  # [n]
         step_act = actions_of(step_acc)
         s = paper_states[rows[: n * k: k]]
@@ -152,9 +156,19 @@ def resample_encounters(encounters_df, bins: MergeBins, *, where: str = "encount
         actions.append(step_act)
         all_acc.append(step_acc)
         all_act.append(step_act)
+    if not states:
+        raise DemonstrationError(f"{where}: every encounter is shorter than one decision step of {k} frames "
+                                 f"({decision_step_s} s): {', '.join(short[:5])}")
+    if short:
+        warnings.warn(f"{where}: {len(short)} encounter(s) shorter than one decision step of {k} frames "
+                      f"({decision_step_s} s) left out: {', '.join(short[:5])}", ShortEncounterWarning, stacklevel=2)
     demos = Demonstrations(states=tuple(states), actions=tuple(actions), features=fs.array, n_states=S,
-                           n_actions=N_ACTIONS, source=where, names=tuple(f"encounter {key}" for key, _ in order))
+                           n_actions=N_ACTIONS, source=where, names=tuple(names))
     return Discretized(demos, action_mean_acc(np.concatenate(all_acc), np.concatenate(all_act)))
+
+
+class ShortEncounterWarning(UserWarning):
+    """Encounters left out because they are shorter than one decision step."""
 
 
 def driver_encoded(demos: Demonstrations, features: np.ndarray) -> Demonstrations:

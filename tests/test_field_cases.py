@@ -404,8 +404,8 @@ def test_learn_cli_several_demos_and_raw_acceleration_warning(tmp_path: Path, ca
                 "--out", str(out), "--no-progress"]) == 0
     info = json.loads(out.read_text())["info"]
     assert info["n_trajectories"] == 10 and str(a) in info["demos"] and str(b) in info["demos"]
-    # raw NGSIM accelerations (at the +-11.2 cap) as action labels: a warning naming the column
+    # raw NGSIM speeds differenced into action labels: a warning naming the column
     raw = tmp_path / "raw.parquet"
     cli(["encounters", str(NOISY / "noisy_with_dups.csv"), "--out", str(raw)])
-    with pytest.warns(RawAccelerationWarning, match=r"raw\.parquet: column acc_A: .* cap"):
+    with pytest.warns(RawAccelerationWarning, match=r"raw\.parquet: column acc_A: .*\(0\.7 g\)"):
         load_merge_demos(raw, None)

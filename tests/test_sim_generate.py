@@ -75,7 +75,9 @@ def test_learn_merge_accepts_what_generate_writes_with_frames_without_car_c(tmp_
              "--out", str(model), "--no-progress"], tmp_path / "cache")
     assert r.returncode == 0, r.stderr
     m = SavedModel.load(model)
-    assert m.domain == "merge" and m.q.shape == (1250, 5) and np.all(np.isfinite(m.theta))
+    # encounter tables default to the driver encoding: the paper's 1250 states x A's previous action
+    assert m.domain == "merge" and m.state_encoding == "driver" and m.q.shape == (6250, 5)
+    assert np.all(np.isfinite(m.theta))
     # the no-C frames were encoded by the no-lead-car rule (farthest d_AC bin), not rejected
     bins = MergeBins.from_dict({k: list(v) for k, v in m.bin_edges.items()})
     parts = state_parts(bins.encode(enc[no_c]))

@@ -35,7 +35,7 @@ from analysis.metrics import AggregateMetrics, MetricsConfig, aggregate, heldout
 from analysis.provenance import provenance, text_digest, write_timings
 from analysis.sweep import Task, parse_executor, run_sweep
 from irl.baselines import fit_baseline
-from irl.domains.merge import ACTION_ACC_FT_S2, N_ACTIONS, ZERO_ACTION, MergeBins, actions_of, fit_quantile_bins
+from irl.domains.merge import ACTION_ACC_FT_S2, N_ACTIONS, MergeBins, actions_of, fit_quantile_bins
 from irl.merge_mdp import discretize, read_encounters
 from irl.result import SavedModel
 from irl.run_folder import check_writable
@@ -88,47 +88,37 @@ def load_heldout(demos: str | os.PathLike | pd.DataFrame) -> HeldOut:
     return HeldOut(df, counts.astype(np.int64), src)
 
 
-def policy_heldout_loglik(policy: Policy, heldout: HeldOut) -> tuple[float, float]:
-    """``(sum, per step)`` state-conditional log-likelihood of the held-out steps under
-    ``policy`` (NaN for SUMO). The previous action of a step (``markov`` and the ``driver``
-    state encoding) is the one of the frame before in the same encounter; Zero for the
-    first frame (``markov`` scores a first step by its marginal)."""
+def policy_heldout_loglik(policy: Policy, heldout: HeldOut, decision_step_s: float = 0.1) -> tuple[float, float]:
+    """``(sum, per step)`` state-conditional log-likelihood of the held-out demonstrations under
+    ``policy`` (NaN for SUMO), scored as learning sees them: resampled at the decision step
+    (:func:`irl.merge_mdp.discretize`; a learned policy at its model's ``decision_step_s`` and
+    state encoding, every other policy at ``decision_step_s``), so an action is the forward
+    difference of A's speed over one decision. ``markov`` scores a trajectory's first step by
+    its marginal."""
     if not policy.controls:
         return float("nan"), float("nan")
     df = heldout.encounters
-    actions = actions_of(df["acc_A"].to_numpy(float))
     if isinstance(policy, LearnedPolicy):
-        prev = _previous_actions(df, actions, first=ZERO_ACTION) if policy.state_encoding != "paper" else None
-        states = policy.encoder.encode(df, prev, policy.state_encoding)
-        return heldout_loglik(policy.log_pi, states, actions)
+        d = discretize(df, policy.encoder, where=heldout.source, encoding=policy.state_encoding,
+                       decision_step_s=policy.decision_step_s)
+        s, a, _ = d.flat()
+        return heldout_loglik(policy.log_pi, s, a)
+    bins = policy.encoder if isinstance(policy, BaselineTabularPolicy) else MergeBins.assumed_authors()
+    d = discretize(df, bins, where=heldout.source, decision_step_s=decision_step_s)
+    n = sum(len(x) for x in d.actions)
     if isinstance(policy, BaselineTabularPolicy):
-        b = policy.baseline
-        lp = b.log_first[policy.encoder.encode(df), actions]
-        if b.log_next is not None:
-            prev = _previous_actions(df, actions, first=-1)
-            later = prev >= 0
-            lp = np.where(later, b.log_next[np.maximum(prev, 0), actions], lp)
-        return float(lp.sum()), float(lp.mean()) if lp.size else float("nan")
+        total = float(policy.baseline.loglik(d))
+        return total, total / n if n else float("nan")
     # state-independent policies (uniform, constant): log p(a)
+    _, actions, _ = d.flat()
     p = np.asarray(policy.probs(MergeObservation(0, 0, 0, 0, False, 0)), dtype=float)
     with np.errstate(divide="ignore"):
         lp = np.log(p)[actions]
     return float(lp.sum()), float(lp.mean()) if lp.size else float("nan")
 
 
-def _previous_actions(df: pd.DataFrame, actions: np.ndarray, *, first: int) -> np.ndarray:
-    """``[N]`` the action of the row before in the same encounter (``first`` for a first row);
-    rows of an encounter are consecutive."""
-    prev = np.full(actions.shape, first, dtype=np.int64)
-    if actions.size > 1:
-        eid = df["encounter_id"].to_numpy()
-        same = eid[1:] == eid[:-1]
-        prev[1:][same] = actions[:-1][same]
-    return prev
-
-
 def baseline_policies(names: Sequence[str], train_demos: str | os.PathLike | pd.DataFrame,
-                      bins: MergeBins | None = None) -> list[BaselineTabularPolicy]:
+                      bins: MergeBins | None = None, decision_step_s: float = 0.3) -> list[BaselineTabularPolicy]:
     """The fitted baselines ``names`` (of ``FITTED_BASELINES``) from training encounters, in
     the paper state bins ``bins`` (None: quantile bins fitted on the training encounters).
 
@@ -139,7 +129,7 @@ def baseline_policies(names: Sequence[str], train_demos: str | os.PathLike | pd.
     df = prepare_encounters(df)
     where = "training encounters" if isinstance(train_demos, pd.DataFrame) else str(train_demos)
     bins = bins if bins is not None else fit_quantile_bins(df, where=where)
-    demos = discretize(df, bins, where=where)
+    demos = discretize(df, bins, where=where, decision_step_s=decision_step_s)
     acc = df["acc_A"].to_numpy(float)
     a = actions_of(acc)
     means = tuple(float(acc[a == k].mean()) if np.any(a == k) else float(m)
@@ -290,13 +280,16 @@ def evaluate(
         raise SimError(f"evaluate: unknown baseline(s) {bad}; expected some of {', '.join(BASELINES)}")
     learned: list[LearnedPolicy] = [learned_policy(m) for m in models]
     pols: list[Policy] = list(learned)
-    if controller.decision_s is None:
-        controller = replace(controller, decision_s=learned[0].decision_step_s if learned else 0.3)
+    step = controller.decision_s
+    if step is None:
+        step = learned[0].decision_step_s if learned else 0.3
+        controller = replace(controller, decision_s=step)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     check_writable(out / "report.md")  # before the episodes, not after
     fitted = [b for b in baselines if b in FITTED_BASELINES]
-    fitted_pols = baseline_policies(fitted, train_demos, learned[0].encoder if learned else None) \
+    fitted_pols = baseline_policies(fitted, train_demos, learned[0].encoder if learned else None,
+                                    step) \
         if fitted and train_demos is not None else []
     by_name = {p.name: p for p in fitted_pols}
     for b in baselines:
@@ -331,7 +324,7 @@ def evaluate(
         by_policy[p.name].append(r)
     aggs = {}
     for p in pols:
-        ho = policy_heldout_loglik(p, held) if held is not None else None
+        ho = policy_heldout_loglik(p, held, step) if held is not None else None
         rs = by_policy[p.name]
         w1 = w1_to_demos(pd.concat([r.decisions for r in rs], ignore_index=True), held.encounters) \
             if held is not None and rs else None

@@ -153,8 +153,14 @@ def test_driver_encoded_model_reaches_the_policy_and_the_heldout_loglik():
                        "d_AB": rng.uniform(-20, 120, n), "v_AC": rng.normal(0, 5, n), "v_AB": rng.normal(0, 5, n),
                        "B_is_truck": rng.random(n) < 0.2, "acc_A": rng.normal(0, 4, n)})
     a = actions_of(df["acc_A"].to_numpy())
-    prev = np.r_[2, a[:-1]]
-    prev[n // 2] = 2  # each encounter starts from Zero
-    s = EDGES.encode(df) * 5 + prev
+    # scored as learning sees it: 0.3 s decisions (3 frames; action = mean acc_A over the step),
+    # driver states = paper state at the decision's first frame x the previous decision's action
+    # (an encounter's first decision only supplies that previous action)
+    paper = EDGES.encode(df)
+    s_exp, a_exp = [], []
+    for e in (0, n // 2):
+        step_act = actions_of(df["acc_A"].to_numpy()[e:e + 18].reshape(6, 3).mean(axis=1))
+        s_exp += [paper[e + 3 * j] * 5 + step_act[j - 1] for j in range(1, 6)]
+        a_exp += list(step_act[1:])
     total, per_step = policy_heldout_loglik(pol, HeldOut(df, np.bincount(a, minlength=5)))
-    assert total == pytest.approx(pol.log_pi[s, a].sum()) and per_step == pytest.approx(total / n)
+    assert total == pytest.approx(pol.log_pi[s_exp, a_exp].sum()) and per_step == pytest.approx(total / 10)

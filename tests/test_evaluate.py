@@ -58,7 +58,8 @@ def test_evaluate_writes_report_metrics_plots(tmp_path):
     assert all(len(v["episodes"]) == 2 for v in data["policies"].values())
     assert [e["seed"] for e in data["policies"]["qavg"]["episodes"]] == [3, 4]
     # held-out log-likelihood, recomputed through irl.merge_mdp's discretisation (no-lead rows too)
-    demo = merge_mdp.discretize(demos, EDGES)
+    # at the evaluation's decision step: the model's (0.1 s, a model file without decision_step_s)
+    demo = merge_mdp.discretize(demos, EDGES, decision_step_s=0.1)
     s, a, _ = demo.flat()
     lp = _model().log_policy()
     expected = lp[s, a].mean()
@@ -68,7 +69,7 @@ def test_evaluate_writes_report_metrics_plots(tmp_path):
     # the fitted baselines: held-out LL as irl.baselines scores the held-out trajectories
     from irl.baselines import fit_baseline
 
-    train_demo = merge_mdp.discretize(train, EDGES)
+    train_demo = merge_mdp.discretize(train, EDGES, decision_step_s=0.1)
     for b in ("marginal", "markov", "bc"):
         fit = fit_baseline(b, train_demo)
         assert data["policies"][b]["aggregate"]["heldout_loglik_per_step"] == pytest.approx(fit.loglik(demo) / len(a))

@@ -137,7 +137,7 @@ def log_training(rec: rr.RecordingStream, method: str, loglik_trace: np.ndarray,
 def merge_blueprint(a_ids: Sequence[int], *, training_methods: Sequence[str] = (),
                     section_bounds: tuple[float, float, float, float] | None = None,
                     first_control: tuple[int, int] | None = None, play: float | None = None,
-                    active_tab: int = 0):
+                    active_tab: int = 0, ttc_ids: Sequence[int] | None = None):
     """The viewer layout of a run's recording (``rerun.blueprint.Blueprint``).
 
     Tab "run": the merge view (2D, origin ``/follow``: follows the current merge), the whole
@@ -146,6 +146,7 @@ def merge_blueprint(a_ids: Sequence[int], *, training_methods: Sequence[str] = (
     the bar chart of the current action probabilities. Tab "training" (only when
     ``training_methods`` is not empty): log-likelihood and weights against the iteration.
     The time panel shows the ``step`` timeline, paused, with the first take-over selected.
+    ``ttc_ids``: the cars with a TTC series (None: all of ``a_ids``).
 
     Args:
         a_ids: Vehicle_IDs of the controlled cars (their ``metrics/A_<id>`` entities).
@@ -181,7 +182,7 @@ def merge_blueprint(a_ids: Sequence[int], *, training_methods: Sequence[str] = (
         series("speed of A (ft/s)", [f"/metrics/A_{a}/speed" for a in ids]),
         series("d_AB (ft)", [f"/metrics/A_{a}/d_AB" for a in ids]),
         series("d_AC (ft)", [f"/metrics/A_{a}/d_AC" for a in ids]),
-        series("TTC A to its leader (s)", [f"/metrics/A_{a}/ttc" for a in ids],
+        series("TTC A to its leader (s)", [f"/metrics/A_{a}/ttc" for a in (ids if ttc_ids is None else ttc_ids)],
                axis_y=rrb.ScalarAxis(range=TTC_RANGE_S, zoom_lock=True)),
         series("action of A (0 " + ACTION_NAMES[0].lower() + " .. 4 " + ACTION_NAMES[-1].lower() + ")",
                [f"/policy/A_{a}/action" for a in ids], axis_y=rrb.ScalarAxis(range=(-0.2, 4.2), zoom_lock=True)),
@@ -351,9 +352,12 @@ class RerunLogger:
     def on_end(self, ctx: RunContext) -> None:
         self._flush()
         a_ids, first = self._controls()
+        # TTC is logged only while A closes in on its leader: name only the series that exist
+        ttc_ids = [a for a in a_ids if any(r[5] == r[5] for r in self._metric_rows.get(a, ()))]
         self._flush_scalars()
         self._stream.send_blueprint(merge_blueprint(a_ids, training_methods=self.training_methods,
-                                                    section_bounds=self._section, first_control=first))
+                                                    section_bounds=self._section, first_control=first,
+                                                    ttc_ids=ttc_ids))
         if self._own and self._rec is not None and self._tmp is not None:
             close_recording(self._rec, self._tmp, self.path)
             self._rec = None

@@ -46,7 +46,13 @@ def blueprint_inputs(rrd: Path) -> dict:
     firsts = speed.groupby("entity")["step"].agg(["min", "max"]).sort_values("min")
     a_ids = [int(e.split("/")[2][2:]) for e in firsts.index]
     methods = sorted({e.split("/")[2] for e in ents[ents.str.match(r"^/train/[^/]+/loglik$")]})
-    first = (int(firsts["min"].iloc[0]), int(firsts["max"].iloc[0])) if len(firsts) else None
+    first = None
+    if len(firsts):
+        # the first take-over: the first car's first unbroken run of logged frames (the same car
+        # may be taken over again later)
+        steps = np.sort(speed.loc[speed.entity == firsts.index[0], "step"].to_numpy(np.int64))
+        gap = np.flatnonzero(np.diff(steps) > 1)
+        first = (int(steps[0]), int(steps[gap[0]] if gap.size else steps[-1]))
     t0 = float(table["step"].min()) if "step" in table and table["step"].notna().any() else 0.0
     bounds = None
     lanes = table[ents == "/world/lanes"]

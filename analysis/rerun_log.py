@@ -510,6 +510,15 @@ def read_entities(path: str | os.PathLike) -> dict[str, list]:
     return out
 
 
+def _open_rrd(path: str | os.PathLike):
+    """A ``rerun.chunk.RrdReader`` of ``path``; FileNotFoundError naming it when it is missing."""
+    from rerun.chunk import RrdReader  # rerun takes about 0.8 s to import
+
+    if not Path(path).is_file():
+        raise FileNotFoundError(f"{path}: no such recording")
+    return RrdReader(str(path))
+
+
 def read_blueprint(path: str | os.PathLike) -> list[dict]:
     """The views of the blueprint stored in an ``.rrd``: one dict per view, ``{"name",
     "kind"`` (e.g. ``"2D"``, ``"TimeSeries"``, ``"BarChart"``), ``"origin"``, ``"contents"``
@@ -519,11 +528,7 @@ def read_blueprint(path: str | os.PathLike) -> list[dict]:
         FileNotFoundError: no such file.
         ValueError: the file holds no blueprint.
     """
-    from rerun.chunk import RrdReader
-
-    if not Path(path).is_file():
-        raise FileNotFoundError(f"{path}: no such recording")
-    reader = RrdReader(str(path))
+    reader = _open_rrd(path)
     entries = reader.blueprints()
     if not entries:
         raise ValueError(f"{path}: no blueprint in this .rrd file")
@@ -552,11 +557,7 @@ def recording_info(path: str | os.PathLike) -> dict[str, str | None]:
         FileNotFoundError: no such file.
         ValueError: the file holds no recording.
     """
-    from rerun.chunk import RrdReader
-
-    if not Path(path).is_file():
-        raise FileNotFoundError(f"{path}: no such recording")
-    reader = RrdReader(str(path))
+    reader = _open_rrd(path)
     entries = reader.recordings()
     if not entries:
         raise ValueError(f"{path}: no recording in this .rrd file")
@@ -610,11 +611,7 @@ def read_rrd_table(path: str | os.PathLike, entity: str | None = None, *, proper
         ValueError: the file holds no recording.
     """
     import pandas as pd
-    from rerun.chunk import RrdReader
-
-    if not Path(path).is_file():
-        raise FileNotFoundError(f"{path}: no such recording")
-    reader = RrdReader(str(path))
+    reader = _open_rrd(path)
     if not reader.recordings():
         raise ValueError(f"{path}: no recording in this .rrd file")
     parts = []

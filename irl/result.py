@@ -245,10 +245,16 @@ def _driver_fields(path: Path, data: dict) -> dict[str, Any]:
     if enc not in STATE_ENCODINGS:
         raise ModelFileError(f"{path}: field 'state_encoding' must be one of {STATE_ENCODINGS}, got {_brief(enc)}")
     out["state_encoding"] = enc
-    step = data.get("decision_step_s", 0.1)
-    if isinstance(step, bool) or not isinstance(step, (int, float)) or not math.isfinite(step) or step <= 0:
-        raise ModelFileError(f"{path}: field 'decision_step_s' must be a positive number of seconds, got {_brief(step)}")
-    out["decision_step_s"] = float(step)
+    raw = data.get("decision_step_s", 0.1)
+    try:  # a JSON integer may be too large for a float
+        step = float(raw) if isinstance(raw, (int, float)) and not isinstance(raw, bool) else math.nan
+    except OverflowError:
+        step = math.nan
+    # a whole number of 0.1 s frames: the decision step the demonstrations were resampled to
+    frames = round(step / 0.1) if math.isfinite(step) else 0
+    if not (math.isfinite(step) and step > 0 and frames >= 1 and abs(frames * 0.1 - step) < 1e-9):
+        raise ModelFileError(f"{path}: field 'decision_step_s' must be a positive multiple of 0.1 s, got {_brief(raw)}")
+    out["decision_step_s"] = step
     acc = _number_array(path, "action_acc_ft_s2", data.get("action_acc_ft_s2", list(DEFAULT_ACTION_ACC)), 1)
     if acc.size != len(DEFAULT_ACTION_ACC) or not np.all(np.isfinite(acc)):
         raise ModelFileError(f"{path}: field 'action_acc_ft_s2' must be {len(DEFAULT_ACTION_ACC)} finite numbers")

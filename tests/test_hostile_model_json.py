@@ -131,3 +131,12 @@ def test_regressions(tmp_path):
         SavedModel.load(tmp_path)  # a directory
     m = _check(_write(tmp_path, json.dumps(VALID)))
     assert m is not None and m.feature_names == ("a", "b", "c")
+
+
+@pytest.mark.parametrize("step", [10**400, -0.3, 0.25, 0.0, "0.3", True])
+def test_decision_step_must_be_a_whole_number_of_frames(tmp_path, step):
+    # 10**400 once crashed with OverflowError (found by the property test above)
+    data = copy.deepcopy(VALID)
+    data["decision_step_s"] = step
+    with pytest.raises(ModelFileError, match="decision_step_s"):
+        SavedModel.load(_write(tmp_path, json.dumps(data)))

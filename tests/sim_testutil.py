@@ -26,3 +26,14 @@ def short_run(cache_dir, *, scenario="synthetic", seed=None, duration_s=150.0, h
     """A short real run (default: synthetic, 150 s with its 60 s warm-up)."""
     with cache_env(cache_dir):
         return run_scenario(load_scenario(scenario), seed=seed, duration_s=duration_s, hooks=hooks)
+
+
+def default_sigint() -> None:
+    """``preexec_fn`` of a child that a test interrupts with SIGINT, as Ctrl-C in a terminal would.
+
+    A job started in the background by a non-interactive shell (CI runners, ``cmd &``) inherits
+    SIGINT *ignored*, and Python then installs no KeyboardInterrupt handler: restore the default.
+    """
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_DFL)

@@ -13,6 +13,8 @@ from pathlib import Path
 
 import psutil
 import pytest
+
+from sim_testutil import default_sigint
 from sweep_tasks import DrawConfig, draw
 
 from analysis.sweep import ResultStore, Task, run_sweep
@@ -81,7 +83,7 @@ def test_interrupted_sweep_stores_what_finished_and_stops_at_once(tmp_path):
     tasks = ("[Task(f'quick-{i}', draw, DrawConfig(n=2)) for i in range(3)]"
              " + [Task('slow', draw, DrawConfig(n=2, sleep_s=120))]")
     proc = subprocess.Popen([sys.executable, "-c", _sweep_script(store, tasks)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=default_sigint)
     try:
         deadline = time.time() + 60
         while len(list(store.glob("*.json"))) < 3 and time.time() < deadline:

@@ -12,6 +12,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from sim_testutil import default_sigint
+
 from irl.domains.merge import ENCOUNTER_COLUMNS, MergeBins, state_parts
 from irl.result import SavedModel
 from scenarios.loader import load_scenario
@@ -110,7 +112,7 @@ def test_interrupted_generate_leaves_no_complete_looking_output(tmp_path, sig):
     env = dict(os.environ, MERGE_IRL_CACHE=str(tmp_path / "cache"))
     proc = subprocess.Popen([sys.executable, "-m", "analysis", "generate", "--scenario", "i80", "--duration",
                              "3000", "--no-progress", "--out", str(out)], env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=default_sigint)
     deadline = time.time() + 60
     while (out / "trajectories.parquet").exists() and time.time() < deadline:
         time.sleep(0.05)

@@ -270,7 +270,6 @@ def boltzmann_fixed_point(
     False (with the reason in ``message``) on non-finite values, when the damped backups
     oscillate at every damping, when only repelling points are found, or at the caps.
     """
-    S, A = succ.n_states, succ.n_actions
     r_flat = np.asarray(r, dtype=np.float64).ravel()
     tol = fixed_point_tolerance(r, gamma) if tol is None else tol
     start = (r_flat.copy() if q0 is None else np.asarray(q0, dtype=np.float64).ravel().copy())
@@ -296,25 +295,15 @@ def boltzmann_fixed_point(
             stable, lam, _ = _stability(cont.q, succ, beta, gamma) if attracting else (True, 0, 0)
             if stable is not False:
                 return FixedPoint(cont.q, True, iterations, cont.residual, "converged")
-    q, total = start, 0
-    for settle in (1e-4 * scale, 1e-8 * scale, tol):
-        q, used, settled = _damped_backups(r_flat, succ, beta, gamma, q, max_backups - total, settle)
-        total += used
-        if not settled:
-            f, _ = _residual(q, r_flat, succ, beta, gamma)
-            res = float(np.max(np.abs(f)))
-            if settle == tol and _at_roundoff_floor(res, tol):
-                fp = FixedPoint(q.reshape(S, A), True, used, res, "converged (round-off floor)")
-                break
-            why = "found only a repelling point" if fp.converged else "failed: " + fp.message
-            return FixedPoint(q.reshape(S, A), False, iterations + total, res,
-                              f"the damped backup does not settle (residual {res:.3g} after "
-                              f"{total} backups) and Newton {why}")
-        fp = _newton(r_flat, succ, beta, gamma, q, max_iter, tol)
-        iterations += fp.iterations
-        if fp.converged:
-            break
-    iterations += total
+    run = _backups_then_newton(r_flat, succ, beta, gamma, start, scale, tol, max_backups, max_iter)
+    iterations += run.iterations
+    if run.stuck:
+        newton = run.newton or fp  # the last Newton attempt before the backups stopped
+        why = "found only a repelling point" if newton.converged else "failed: " + newton.message
+        return FixedPoint(run.fp.q, False, iterations, run.fp.residual,
+                          f"the damped backup does not settle (residual {run.fp.residual:.3g} after "
+                          f"{run.backups} backups) and Newton {why}")
+    fp = run.fp
     if not fp.converged:
         return FixedPoint(fp.q, False, iterations, fp.residual, f"Newton after damped backups: {fp.message}")
     if attracting:
@@ -346,29 +335,67 @@ def iteration_fixed_point(
     ``converged`` is False when the backups do not settle within ``max_backups`` (they cycle, or
     diverge) or Newton fails. Deterministic: no warm start, so the answer depends on theta alone.
     """
-    S, A = succ.n_states, succ.n_actions
     r_flat = np.asarray(r, dtype=np.float64).ravel()
     tol = fixed_point_tolerance(r, gamma) if tol is None else tol
     scale = max(1.0, float(np.max(np.abs(r_flat))) / (1.0 - gamma))
-    q, total, iterations = np.zeros_like(r_flat), 0, 0
-    fp = None
+    run = _backups_then_newton(r_flat, succ, beta, gamma, np.zeros_like(r_flat), scale, tol, max_backups, max_iter)
+    fp = run.fp
+    if run.stuck:
+        return FixedPoint(fp.q, False, run.iterations, fp.residual,
+                          f"the Eq. 15 iteration from Q = 0 does not settle (residual {fp.residual:.3g} after "
+                          f"{run.backups} damped backups)")
+    if fp.converged:
+        return FixedPoint(fp.q, True, run.iterations, fp.residual, fp.message if run.at_floor else "converged")
+    return FixedPoint(fp.q, False, run.iterations, fp.residual, f"Newton after damped backups: {fp.message}")
+
+
+@dataclass(frozen=True)
+class _BackupRun:
+    """What :func:`_backups_then_newton` reached.
+
+    Attributes:
+        fp: the last Newton result; or, when the backups stopped (``stuck``) or settled only to
+            the round-off floor (``at_floor``), the backups' own point ``[S, A]`` and residual.
+        iterations: damped backups plus Newton iterations.
+        backups: damped backups alone.
+        stuck: the backups stopped before settling (cycling, diverging, or the cap).
+        at_floor: the last pass settled only to the round-off floor of ``tol`` (``fp`` converged).
+        newton: the last Newton result (None when the first backup pass already stopped).
+    """
+
+    fp: FixedPoint
+    iterations: int
+    backups: int
+    stuck: bool = False
+    at_floor: bool = False
+    newton: FixedPoint | None = None
+
+
+def _backups_then_newton(r_flat: np.ndarray, succ: SuccessorModel, beta: float, gamma: float, q: np.ndarray,
+                         scale: float, tol: float, max_backups: int, max_iter: int) -> _BackupRun:
+    """Damped backups (the Eq. 15 iteration) from ``q [S*A]`` until ``max|F|`` is below ``1e-4``
+    of ``scale``, then Newton; while Newton fails, backups to ``1e-8`` of ``scale`` and to
+    ``tol`` with Newton after each pass. Shared by :func:`boltzmann_fixed_point`'s fallback and
+    :func:`iteration_fixed_point`."""
+    S, A = succ.n_states, succ.n_actions
+    total, newton_its = 0, 0
+    fp: FixedPoint | None = None
     for settle in (1e-4 * scale, 1e-8 * scale, tol):
         q, used, settled = _damped_backups(r_flat, succ, beta, gamma, q, max_backups - total, settle)
         total += used
         if not settled:
             f, _ = _residual(q, r_flat, succ, beta, gamma)
             res = float(np.max(np.abs(f)))
-            if settle == tol and _at_roundoff_floor(res, tol):
-                return FixedPoint(q.reshape(S, A), True, iterations + total, res, "converged (round-off floor)")
-            return FixedPoint(q.reshape(S, A), False, iterations + total, res,
-                              f"the Eq. 15 iteration from Q = 0 does not settle (residual {res:.3g} after "
-                              f"{total} damped backups)")
+            floor = settle == tol and _at_roundoff_floor(res, tol)
+            point = FixedPoint(q.reshape(S, A), floor, total, res,
+                               "converged (round-off floor)" if floor else "the damped backups do not settle")
+            return _BackupRun(point, newton_its + total, total, stuck=not floor, at_floor=floor, newton=fp)
         fp = _newton(r_flat, succ, beta, gamma, q, max_iter, tol)
-        iterations += fp.iterations
+        newton_its += fp.iterations
         if fp.converged:
-            return FixedPoint(fp.q, True, iterations + total, fp.residual, "converged")
+            break
     assert fp is not None, "each of the three passes returns or runs Newton"
-    return FixedPoint(fp.q, False, iterations + total, fp.residual, f"Newton after damped backups: {fp.message}")
+    return _BackupRun(fp, newton_its + total, total, newton=fp)
 
 
 def boltzmann_dq(q: np.ndarray, succ: SuccessorModel, features: np.ndarray, beta: float,

@@ -94,7 +94,7 @@ def test_evaluate_writes_report_metrics_plots(tmp_path):
         assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert set(rep.rrd) == set(names) and all(p.exists() for p in rep.rrd.values())
     # each policy's recording is its own (the viewer would merge files sharing an id)
-    from analysis.rerun_log import recording_info
+    from analysis.rrd_read import recording_info
 
     ids = {n: recording_info(p)["recording_id"] for n, p in rep.rrd.items()}
     assert ids == {n: f"merge-irl/synthetic/{n}/seed3" for n in names}

@@ -7,7 +7,7 @@ import json
 import pytest
 
 from analysis.pipeline import DemoConfig, run_demo
-from analysis.rerun_log import read_entities
+from analysis.rrd_read import read_entities
 from irl.result import SavedModel
 
 pytestmark = pytest.mark.sumo

@@ -13,12 +13,9 @@ from analysis.rerun_log import (
     close_recording,
     log_training,
     open_recording,
-    read_blueprint,
-    read_entities,
-    read_rrd_table,
     recording_identity,
-    recording_info,
 )
+from analysis.rrd_read import read_blueprint, read_entities, read_rrd_table, recording_info
 from irl.domains.merge import MergeBins
 from scenarios.loader import load_scenario
 from sim.policy import LearnedPolicy

@@ -33,7 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.rerun_log import MIRROR_Y, merge_blueprint, read_rrd_table, recording_info
+from analysis.rerun_log import MIRROR_Y, merge_blueprint
+from analysis.rrd_read import read_rrd_table, recording_info
 
 
 def blueprint_inputs(rrd: Path) -> dict:

@@ -7,7 +7,12 @@ spreading to the right (negative y), SUMO lane index 0 = rightmost. Edges:
 * ``aux``      x in [merge_position, merge_position + aux_length]: main lanes + the auxiliary
   lane as SUMO lane 0 (I-80 lane 7), which has no successor: its vehicles must merge;
 * ``main_out`` to ``main_length``: the main lanes;
-* ``ramp``     one lane joining from the right at ``merge_position`` into the auxiliary lane.
+* ``ramp``     one lane joining from the right at ``merge_position`` into the auxiliary lane;
+* ``bottleneck``, ``bottleneck_out`` (only when ``bottleneck_length_m`` > 0) past
+  ``main_length``: the downstream bottleneck whose queue reaches back into the section
+  (vehicles on it have Local_Y beyond the study area): ``bottleneck_length_m`` of the main
+  lanes at ``bottleneck_speed_mps``, then :data:`BOTTLENECK_EXIT_M` of ``bottleneck_lanes``
+  lanes (the rightmost lanes end there: a lane drop) at the same speed.
 
 Networks are cached in ``$MERGE_IRL_CACHE/networks/<hash>/net.net.xml`` (default cache
 ``~/.cache/merge-irl``). The hash covers the road spec and this module's format version, so a
@@ -32,6 +37,8 @@ from scenarios.errors import ScenarioError
 from scenarios.spec import RoadSpec
 
 NETWORK_FORMAT_VERSION = 1
+#: Length (m) of the bottleneck's last edge, past the lane drop.
+BOTTLENECK_EXIT_M = 200.0
 NET_FILE = "net.net.xml"
 CHECKSUM_FILE = "net.sha256"
 
@@ -48,7 +55,11 @@ def cache_root() -> Path:
 
 def network_key(road: RoadSpec) -> str:
     """Hex hash of everything the network depends on."""
-    payload = json.dumps({"v": NETWORK_FORMAT_VERSION, "road": asdict(road)}, sort_keys=True)
+    d = asdict(road)
+    if not road.bottleneck_length_m > 0:  # roads without a bottleneck keep their cached networks
+        for k in ("bottleneck_length_m", "bottleneck_speed_mps", "bottleneck_lanes"):
+            d.pop(k)
+    payload = json.dumps({"v": NETWORK_FORMAT_VERSION, "road": d}, sort_keys=True)
     return hashlib.sha256(payload.encode()).hexdigest()[:16]
 
 
@@ -66,6 +77,11 @@ def _xml_files(road: RoadSpec) -> dict[str, str]:
   <node id="ramp_start" x="{rx0:.3f}" y="{ry0:.3f}" type="priority"/>
 </nodes>
 """
+    if road.bottleneck_length_m > 0:
+        xb = L + road.bottleneck_length_m
+        nodes = nodes.replace("</nodes>", f'  <node id="bottleneck_mid" x="{xb:.3f}" y="0.00" type="priority"/>\n'
+                                          f'  <node id="bottleneck_end" x="{xb + BOTTLENECK_EXIT_M:.3f}" y="0.00" '
+                                          'type="priority"/>\n</nodes>')
     v, vr = road.speed_limit_mps, road.ramp_speed_limit_mps
     edges = f"""<edges>
   <edge id="main_in" from="start" to="merge" numLanes="{n}" speed="{v:.3f}" width="{w:.3f}" priority="3" spreadType="right"/>
@@ -75,11 +91,24 @@ def _xml_files(road: RoadSpec) -> dict[str, str]:
         shape="{rx0:.3f},{ry0:.3f} {xm:.3f},{y_join:.3f}"/>
 </edges>
 """
+    nb = road.bottleneck_lanes or n
+    if road.bottleneck_length_m > 0:
+        vb = road.bottleneck_speed_mps
+        edges = edges.replace("</edges>", "".join(
+            f'  <edge id="{eid}" from="{a}" to="{b}" numLanes="{k}" speed="{vb:.3f}" width="{w:.3f}" priority="3" '
+            'spreadType="right"/>\n'
+            for eid, a, b, k in (("bottleneck", "end", "bottleneck_mid", n),
+                                 ("bottleneck_out", "bottleneck_mid", "bottleneck_end", nb))) + "</edges>")
     cons = ["<connections>"]
     for i in range(n):
         cons.append(f'  <connection from="main_in" to="aux" fromLane="{i}" toLane="{i + 1}"/>')
         cons.append(f'  <connection from="aux" to="main_out" fromLane="{i + 1}" toLane="{i}"/>')
     cons.append('  <connection from="ramp" to="aux" fromLane="0" toLane="0"/>')
+    if road.bottleneck_length_m > 0:  # the leftmost lanes go on; the rightmost n - nb lanes end
+        for i in range(n):
+            cons.append(f'  <connection from="main_out" to="bottleneck" fromLane="{i}" toLane="{i}"/>')
+        for i in range(nb):
+            cons.append(f'  <connection from="bottleneck" to="bottleneck_out" fromLane="{i + n - nb}" toLane="{i}"/>')
     cons.append("</connections>\n")
     return {"nodes.nod.xml": nodes, "edges.edg.xml": edges, "connections.con.xml": "\n".join(cons)}
 

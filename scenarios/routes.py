@@ -59,8 +59,9 @@ def routes_xml(spec: ScenarioSpec) -> str:
             if p > 0:
                 lines.append(vtype_xml(vt, cls).replace("/>", f' probability="{p:.9g}"/>'))
     lines.append("  </vTypeDistribution>")
-    lines.append('  <route id="main" edges="main_in aux main_out"/>')
-    lines.append('  <route id="ramp" edges="ramp aux main_out"/>')
+    tail = " bottleneck bottleneck_out" if spec.road.bottleneck_length_m > 0 else ""
+    lines.append(f'  <route id="main" edges="main_in aux main_out{tail}"/>')
+    lines.append(f'  <route id="ramp" edges="ramp aux main_out{tail}"/>')
     end = spec.simulation.duration_s
     n = spec.road.main_lanes
 

@@ -110,6 +110,8 @@ ROAD_RANGES: dict[str, tuple[float, float, str]] = {
     "lane_width_m": (2.5, 5.0, "m"),
     "speed_limit_mps": (1.0, 70.0, "m/s"),
     "ramp_speed_limit_mps": (1.0, 70.0, "m/s"),
+    "bottleneck_length_m": (0.0, 20_000.0, "m"),
+    "bottleneck_speed_mps": (0.0, 70.0, "m/s"),
 }
 
 
@@ -129,6 +131,15 @@ def _road(ctx: _Ctx, data: Any) -> RoadSpec:
             kw[n] = _num(ctx, p, d[n])
             if not 0 < kw[n] < 45:
                 raise ctx.fail(p, f"must be in (0, 45) degrees, got {d[n]!r}")
+        elif n == "bottleneck_lanes":  # 0 = as many as the main road
+            kw[n] = _num(ctx, p, d[n], integer=True)
+            if not 0 <= kw[n] <= 6:
+                raise ctx.fail(p, f"must be 0 (as the main road) to 6, got {d[n]}")
+        elif n.startswith("bottleneck_"):  # 0 = no bottleneck
+            kw[n] = _num(ctx, p, d[n])
+            lo, hi, unit = ROAD_RANGES[n]
+            if not lo <= kw[n] <= hi:
+                raise ctx.fail(p, f"{kw[n]:g} {unit} is implausible; expected {lo:g} to {hi:g} {unit}")
         else:
             kw[n] = _positive(ctx, p, d[n])
             lo, hi, unit = ROAD_RANGES.get(n, (0.0, math.inf, ""))
@@ -141,6 +152,13 @@ def _road(ctx: _Ctx, data: Any) -> RoadSpec:
             f"merge_position_m + aux_length_m = {r.merge_position_m + r.aux_length_m:g} m must be "
             f"shorter than main_length_m = {r.main_length_m:g} m (the auxiliary lane ends on the road)",
         )
+    if r.bottleneck_length_m > 0 and not r.bottleneck_speed_mps >= 1.0:
+        raise ctx.fail("road.bottleneck_speed_mps",
+                       f"a bottleneck of {r.bottleneck_length_m:g} m needs a speed limit of at least 1 m/s, "
+                       f"got {r.bottleneck_speed_mps:g}")
+    if r.bottleneck_lanes > r.main_lanes:
+        raise ctx.fail("road.bottleneck_lanes", f"{r.bottleneck_lanes} lanes: a bottleneck has at most main_lanes = "
+                                                f"{r.main_lanes}")
     ramp_dx = r.ramp_length_m * math.cos(math.radians(r.ramp_angle_deg))
     if ramp_dx > r.merge_position_m:
         raise ctx.fail(

@@ -78,9 +78,10 @@ def test_distribution_comparison_detects_difference() -> None:
     for i, p in enumerate(pairs[:3]):
         n = len(p)
         rows.append(pd.DataFrame({"Vehicle_ID": 2 * i + 2, "Frame_ID": np.arange(n), "Lane_ID": 3,
-                                  "Preceding": 2 * i + 1, "v_Vel": p.v_follower / M_PER_FT,
+                                  "Local_Y": p.x_follower / M_PER_FT, "Preceding": 2 * i + 1, "v_Vel": p.v_follower / M_PER_FT,
                                   "Space_Headway": (p.spacing + p.leader_length) / M_PER_FT, "v_Length": 15.0}))
-        rows.append(pd.DataFrame({"Vehicle_ID": 2 * i + 1, "Frame_ID": np.arange(n), "Lane_ID": 3, "Preceding": 0,
+        rows.append(pd.DataFrame({"Vehicle_ID": 2 * i + 1, "Frame_ID": np.arange(n), "Lane_ID": 3,
+                                  "Local_Y": p.x_leader / M_PER_FT, "Preceding": 0,
                                   "v_Vel": p.v_leader / M_PER_FT, "Space_Headway": 0.0, "v_Length": p.leader_length / M_PER_FT}))
     st = table_states(pd.concat(rows, ignore_index=True))
     ref = pair_states(pairs[:3])
@@ -91,7 +92,7 @@ def test_distribution_comparison_detects_difference() -> None:
 @pytest.mark.sumo
 def test_check_runs_i80_with_calibrated_drivers(params: Path, tmp_path: Path) -> None:
     out = tmp_path / "check.md"
-    r = _cli("calibrate", "check", "--params", str(params), "--pairs", str(PAIRS_DIR), "--duration", "100",
+    r = _cli("calibrate", "check", "--params", str(params), "--pairs", str(PAIRS_DIR), "--duration", "270",
              "--seed", "2", "--out", str(out), "--json", timeout=600)
     assert r.returncode == 0, r.stderr
     d = json.loads(r.stdout)

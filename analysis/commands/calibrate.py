@@ -54,7 +54,8 @@ def register(subparsers) -> None:
     c.add_argument("--params", required=True, metavar="FILE", help="params TOML from 'calibrate fit'")
     c.add_argument("--pairs", required=True, metavar="DIR")
     c.add_argument("--scenario", default="i80", metavar="NAME|FILE", help="scenario preset or TOML (default i80)")
-    c.add_argument("--duration", type=float, default=300.0, metavar="S", help="simulated seconds (default 300)")
+    c.add_argument("--duration", type=float, default=None, metavar="S",
+                   help="simulated seconds, warm-up included (default: the scenario's own)")
     c.add_argument("--seed", type=int, default=0)
     c.add_argument("--keep-drivers", action="store_true",
                    help="simulate the scenario's own drivers (default: the params file's driver distribution)")
@@ -92,6 +93,10 @@ def run_fit(args: argparse.Namespace) -> int:
     print(f"population: accel={p.accel:.3f} decel={p.decel:.3f} tau={p.tau:.3f} minGap={p.minGap:.3f} "
           f"maxSpeed={p.maxSpeed:.2f}; median spacing RMSE {result.population_median_rmse_m:.3f} m "
           f"({result.seconds_population:.1f} s + per-pair {result.seconds_per_pair:.1f} s)", file=sys.stderr)
+    if result.spread:
+        print(f"spread of the {len(result.per_pair)} per-pair fits (10% / median / 90%):", file=sys.stderr)
+        for name, sp in result.spread:
+            print(f"  {name:<9} {sp.q10:7.3f} {sp.median:7.3f} {sp.q90:7.3f}", file=sys.stderr)
     print(args.out)
     return 0
 

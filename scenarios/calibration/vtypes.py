@@ -1,6 +1,10 @@
 """Calibrated driver population -> a distribution of SUMO vTypes (so drivers differ).
 
-Members are drawn from a log-normal per parameter centred on the population value, with the
+:func:`resample_members` (used when the per-pair fits exist) draws whole per-pair parameter
+vectors, so the members keep the fitted joint distribution (a driver with a short time
+headway keeps the acceleration fitted with it); each vector is clipped to :data:`SIM_RANGE`.
+
+:func:`driver_members` (the fallback with only the spread) draws members from a log-normal per parameter centred on the population value, with the
 log-spread of the per-pair fits' 10-90 % range (``sigma = (ln q90 - ln q10) / 2.563``),
 truncated to that range and to :data:`SIM_RANGE` (per-pair fits of badly identified
 parameters reach the fit bounds, e.g. decel 0.1 m/s^2, which would make SUMO's safety logic
@@ -65,6 +69,40 @@ def driver_members(result: CalibrationResult, n: int = 8, *, seed: int = 0, pref
             vals[name] = float(min(max(val, lo), hi))
         members.append(DriverMember(f"{prefix}_{i}", 1.0 / n, replace(pop, **vals)))
     return tuple(members)
+
+
+def resample_members(result: CalibrationResult, n: int = 32, *, seed: int = 0,
+                     prefix: str = "car_ngsim") -> tuple[DriverMember, ...]:
+    """``n`` equally likely members, each the parameter vector of one per-pair fit drawn with
+    replacement (``numpy.random.default_rng(seed)``; pairs equally likely), clipped to
+    :data:`SIM_RANGE`: a bootstrap of the fitted joint distribution. Deterministic per seed.
+
+    Raises:
+        ValueError: ``n`` < 1, or ``result`` holds no per-pair fits.
+    """
+    if n < 1:
+        raise ValueError(f"n must be >= 1, got {n}")
+    if not result.per_pair:
+        raise ValueError("the calibration result holds no per-pair fits to resample (fit without --no-per-pair)")
+    idx = np.random.default_rng(seed).integers(0, len(result.per_pair), size=n)
+    out = []
+    for i, k in enumerate(idx):
+        p = result.per_pair[int(k)].params
+        clipped = {name: float(min(max(getattr(p, name), lo), hi)) for name, (lo, hi) in SIM_RANGE.items()}
+        out.append(DriverMember(f"{prefix}_{i}", 1.0 / n, replace(p, **clipped)))
+    return tuple(out)
+
+
+def member_spread(members) -> dict[str, tuple[float, float, float]]:
+    """(10 %, 50 %, 90 %) quantiles of each fitted parameter over ``members`` (equal weights).
+
+    Args:
+        members: sequence of :class:`DriverMember`.
+    Returns:
+        parameter name -> (q10, median, q90), SI units.
+    """
+    return {name: tuple(float(q) for q in np.quantile([getattr(m.params, name) for m in members], [0.1, 0.5, 0.9]))
+            for name in ("accel", "decel", "tau", "minGap", "maxSpeed")}
 
 
 def to_vtype_specs(members, template, model: str = "idm"):

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import sumolib
 
-from analysis.calibration_check import pair_states, table_states
+from analysis.calibration_check import accepted_gaps, pair_states, table_states
 from analysis.calibration_preset import preset_with_drivers
 from irl.units import M_PER_FT
 from scenarios.calibration import CFParams, PairFit, load_result
@@ -176,3 +176,24 @@ def test_preset_writer_round_trips(tmp_path) -> None:
     assert text.startswith("# written by a test\n# line two\n")
     spec = spec_from_toml(text, source="written.toml")
     assert [c.tau for c in spec.drivers.car] == [m.params.tau for m in resample_members(load_result(p), 6, seed=2)]
+
+
+def test_accepted_gaps_of_a_hand_made_merge() -> None:
+    """B drives on lane 7 for two frames and is in lane 6 at frame 3, between lag A and lead C."""
+    rows = []  # (vid, frame, lane, Local_Y, length)
+    for f in (1, 2, 3, 4):
+        rows.append((1, f, 6, 100.0 + f, 15.0))           # A: lag
+        rows.append((3, f, 6, 200.0 + f, 20.0))           # C: lead
+        rows.append((2, f, 7 if f < 3 else 6, 140.0 + f, 14.0))  # B: the ramp car
+    rows.append((4, 3, 6, 400.0, 15.0))                  # a main-lane car never on the ramp: not a merge
+    a = np.array(rows)
+    cols = {c: np.zeros(len(a), dtype=COLUMNS[c]) for c in COLUMNS if c not in DERIVED}
+    cols.update(Vehicle_ID=a[:, 0].astype(int), Frame_ID=a[:, 1].astype(int), Lane_ID=a[:, 2].astype(int),
+                Local_Y=a[:, 3], v_Length=a[:, 4], v_Vel=np.full(len(a), 20.0))
+    gaps = accepted_gaps(table_from_columns(cols))
+    assert gaps.n == 1
+    # at frame 3: A front 103, B front 143 (rear 129), C front 203 (rear 183)
+    assert gaps.lag_ft == pytest.approx([129.0 - 103.0])
+    assert gaps.lead_ft == pytest.approx([183.0 - 143.0])
+    assert gaps.total_ft == pytest.approx([183.0 - 103.0])
+    assert gaps.quantiles()["total_ft"][2] == pytest.approx(80.0)

@@ -32,7 +32,7 @@ def preset_with_drivers(scenario: str | os.PathLike, params_path: str | os.PathL
         SpecError: an invalid scenario or params file.
         ValueError: the params file holds no per-pair fits.
     """
-    spec = load_scenario(scenario)
+    spec = load_scenario(str(scenario))
     result = load_result(params_path)
     if not result.per_pair:
         raise ValueError(f"{params_path}: no per-pair fits to resample drivers from (fit without --no-per-pair)")

@@ -101,8 +101,11 @@ def member_spread(members) -> dict[str, tuple[float, float, float]]:
     Returns:
         parameter name -> (q10, median, q90), SI units.
     """
-    return {name: tuple(float(q) for q in np.quantile([getattr(m.params, name) for m in members], [0.1, 0.5, 0.9]))
-            for name in ("accel", "decel", "tau", "minGap", "maxSpeed")}
+    out: dict[str, tuple[float, float, float]] = {}
+    for name in ("accel", "decel", "tau", "minGap", "maxSpeed"):
+        q10, q50, q90 = np.quantile([getattr(m.params, name) for m in members], [0.1, 0.5, 0.9])
+        out[name] = (float(q10), float(q50), float(q90))
+    return out
 
 
 def to_vtype_specs(members, template, model: str = "idm"):

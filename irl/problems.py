@@ -25,7 +25,7 @@ from irl.domains.merge import ACTION_ACC_FT_S2, MergeBins, fit_quantile_bins
 from irl.domains.merge_features import FeatureSet, feature_set
 from irl.errors import ConfigError, DemonstrationError
 from irl.io import load_feature_names, load_npz
-from irl.transitions import SuccessorModel, estimate_transitions, model_successors
+from irl.transitions import SuccessorModel, TransitionModel, estimate_transitions, model_successors
 
 DOMAINS = ("gridworld", "merge", "npz")
 
@@ -38,8 +38,9 @@ class Problem:
         name: short label (``"gridworld 0%"``, a path, ...).
         domain: one of ``DOMAINS``.
         demos: the expert demonstrations.
-        transitions: ``[S, A, S]`` model for MLIRL and for REIRL's final log-likelihood, stored
-            sparse (:class:`~irl.transitions.SuccessorModel`; ``.to_dense()`` gives the array).
+        transitions: ``[S, A, S]`` model for MLIRL and for REIRL's final log-likelihood;
+            :func:`load_problem` stores it sparse (:class:`~irl.transitions.SuccessorModel`,
+            ``.to_dense()`` gives the array); a dense array works too.
         transitions_estimated: whether ``transitions`` were estimated from ``demos`` (then a
             subset of the trajectories re-estimates them, so held-out data never leaks in).
         baseline: REIRL baseline trajectories, or None (REIRL then generates uniform-random ones
@@ -57,7 +58,7 @@ class Problem:
     name: str
     domain: str
     demos: Demonstrations
-    transitions: SuccessorModel
+    transitions: TransitionModel
     transitions_estimated: bool = False
     baseline: Demonstrations | None = None
     feature_names: tuple[str, ...] = ()

@@ -199,3 +199,17 @@ def test_bad_models_are_named():
         model_successors(model_free_successors(d))
     with pytest.raises(ConfigError, match=r"sparse: \[S\*A, S\]"):
         fit("mlirl", d, IRLConfig(), np.random.default_rng(0), transitions=sp.csr_matrix(t.reshape(-1, 6))[:12])
+
+
+def test_mlirl_on_the_authors_merge_data_dense_equals_sparse(railusm):
+    from irl.problems import load_problem
+
+    p = load_problem("merge", railusm / "merge_ngsim")
+    assert p.bins is not None
+    dense = dense_estimate(p.demos, merge_mdp.kinematic_model(p.bins, p.dt).to_dense())
+    np.testing.assert_array_equal(p.transitions.to_dense(), dense)
+    config = IRLConfig.paper(beta=1.0, gamma=0.99, l2=0.01)
+    a = fit("mlirl", p.demos, config, np.random.default_rng(0), transitions=dense)
+    b = fit("mlirl", p.demos, config, np.random.default_rng(0), transitions=p.transitions)
+    assert a.converged and abs(a.loglik - b.loglik) < 1e-10
+    np.testing.assert_allclose(b.theta, a.theta, rtol=0, atol=1e-10)

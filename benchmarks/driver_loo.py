@@ -90,9 +90,9 @@ def main(argv=None) -> int:
     feats = args.features.split(",")
     marginal = rows["marginal"]
     print(f"\nLOO log-likelihood (nats, sum over 12 held-out trajectories), gamma {args.gamma}, beta 1, l2 {args.l2}")
-    print(f"{'method':20s}" + "".join(f"{f:>12s}{'vs marg.':>10s}" for f in feats))
+    print(f"{'method':20s}" + "".join(f"{f:>12s} {'vs marg.':>10s}" for f in feats))
     for name, r in rows.items():
-        print(f"{name:20s}" + "".join(f"{r[f]:12.1f}{r[f] - marginal[f]:+10.1f}" if f in r else f"{'not run':>22s}"
+        print(f"{name:20s}" + "".join(f"{r[f]:12.1f} {r[f] - marginal[f]:+10.1f}" if f in r else f"{'not run':>23s}"
                                       for f in feats))
     return 0
 

@@ -36,10 +36,17 @@ def method_loo(problem, method: str, config: IRLConfig, unvisited: str, seed: in
         problem = replace(problem, transitions_estimated=False)
 
     def fold(train):
+        start = time.perf_counter()
         sub = problem.subset(train)
         fit = fit_problem(sub, method, config, seed)
         q = apply_unvisited_rule(fit.q, visited_states(sub.demos), unvisited)
-        return TabularPolicy(method, _log_softmax(q, config.beta))
+        policy = TabularPolicy(method, _log_softmax(q, config.beta))
+        held = np.setdiff1d(np.arange(problem.demos.n_trajectories), train)
+        ll = policy.trajectory_logliks(problem.demos.subset(held))[0]
+        flags = ",".join(fit.flags) or "ok"
+        print(f"    fold {int(held[0]):2d}: held-out LL {ll:9.1f}  {time.perf_counter() - start:6.1f} s  {flags}",
+              flush=True)
+        return policy
 
     return leave_one_out(problem.demos, fold)
 
@@ -59,8 +66,8 @@ def main(argv=None) -> int:
     p.add_argument("--features", default="paper,driver")
     p.add_argument("--unvisited", default="none,nearest")
     p.add_argument("--driver-methods", default="qavg,qsm",
-                   help="methods run with the driver features (MLIRL and REIRL need the dense [6250, 5, 6250] "
-                        "model, 1.5 GB per fold: add them here to run them)")
+                   help="methods run with the driver features (MLIRL and REIRL use the sparse [6250, 5, 6250] "
+                        "model; MLIRL takes minutes per fold there: add them here to run them)")
     args = p.parse_args(argv)
     config = IRLConfig.paper(beta=1.0, gamma=args.gamma, l2=args.l2)
     rows: dict[str, dict[str, float]] = {}
@@ -83,9 +90,9 @@ def main(argv=None) -> int:
     feats = args.features.split(",")
     marginal = rows["marginal"]
     print(f"\nLOO log-likelihood (nats, sum over 12 held-out trajectories), gamma {args.gamma}, beta 1, l2 {args.l2}")
-    print(f"{'method':20s}" + "".join(f"{f:>12s}{'vs marg.':>10s}" for f in feats))
+    print(f"{'method':20s}" + "".join(f"{f:>12s} {'vs marg.':>10s}" for f in feats))
     for name, r in rows.items():
-        print(f"{name:20s}" + "".join(f"{r[f]:12.1f}{r[f] - marginal[f]:+10.1f}" if f in r else f"{'not run':>22s}"
+        print(f"{name:20s}" + "".join(f"{r[f]:12.1f} {r[f] - marginal[f]:+10.1f}" if f in r else f"{'not run':>23s}"
                                       for f in feats))
     return 0
 

@@ -17,6 +17,7 @@ from irl.qavg import fit_qavg
 from irl.qsm import fit_qsm
 from irl.reirl import fit_reirl
 from irl.result import FitResult
+from irl.transitions import TransitionModel
 
 
 @dataclass(frozen=True)
@@ -54,7 +55,7 @@ METHODS: tuple[str, ...] = tuple(REGISTRY)
 
 
 def fit(method: str, demos: Demonstrations, config: IRLConfig, rng: np.random.Generator, *,
-        transitions: np.ndarray | None = None, theta0: np.ndarray | None = None, progress: bool = False,
+        transitions: TransitionModel | None = None, theta0: np.ndarray | None = None, progress: bool = False,
         **options: Any) -> FitResult:
     """Learn reward weights with ``method`` (a key of :data:`REGISTRY`).
 
@@ -63,7 +64,8 @@ def fit(method: str, demos: Demonstrations, config: IRLConfig, rng: np.random.Ge
         demos: the expert demonstrations (with features ``[S, A, K]``).
         config: settings; ``config.solver`` picks ``"exact"`` or ``"faithful"``.
         rng: the only source of randomness (theta initialisation, REIRL's baseline sampling).
-        transitions: ``[S, A, S]`` row-stochastic model; required by MLIRL, used by REIRL for
+        transitions: ``[S, A, S]`` row-stochastic model (dense, sparse ``[S*A, S]`` or a
+            :class:`~irl.transitions.SuccessorModel`); required by MLIRL, used by REIRL for
             its baseline and final log-likelihood; ignored by Q-Avg and Q-SM (model-free).
         theta0: ``[K]`` start; default ``rng.uniform(config.init_low, config.init_high, K)``
             (REIRL ignores it: its dual is convex).

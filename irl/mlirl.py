@@ -2,8 +2,12 @@
 
 ``Q = R + gamma T (sum_b pi(b|s') Q(s', b))`` over every (s, a) with a full row-stochastic
 ``T [S, A, S]``: the true model (gridworld), or :func:`irl.transitions.estimate_transitions`
-with a domain-supplied fallback for unseen pairs (merge). The fixed-point code is shared with
-Q-SM (:mod:`irl.boltzmann_fit`); only the successor model differs (no terminal pairs).
+with a domain-supplied fallback for unseen pairs (merge). ``T`` may be dense ``[S, A, S]``, a
+sparse ``[S*A, S]`` matrix or a :class:`~irl.transitions.SuccessorModel`
+(:data:`~irl.transitions.TransitionModel`); every form becomes the same sparse successor model,
+so the fit is one code path and a dense and a sparse ``T`` give the same numbers. The fixed-point
+code is shared with Q-SM (:mod:`irl.boltzmann_fit`); only the successor model differs (no
+terminal pairs).
 
 * ``exact``: Newton fixed point, implicit gradient, L-BFGS.
 * ``faithful``: the damped synchronous Boltzmann backup ``Q <- (1-alpha) Q + alpha (R + gamma T V(Q))``
@@ -25,21 +29,23 @@ from irl.demonstrations import Demonstrations
 from irl.errors import ConfigError, ConvergenceError
 from irl.fit_common import finish_faithful, initial_theta
 from irl.result import FitResult
-from irl.transitions import model_successors
+from irl.transitions import TransitionModel, checked_model, model_successors
 
 
-def solve_q(theta: np.ndarray, features: np.ndarray, transitions: np.ndarray,
+def solve_q(theta: np.ndarray, features: np.ndarray, transitions: TransitionModel,
             config: IRLConfig) -> np.ndarray:
-    """``[S, A]`` Q of the Boltzmann backup under ``transitions [S, A, S]`` for ``R = features @ theta``.
+    """``[S, A]`` Q of the Boltzmann backup under ``transitions [S, A, S]`` (any
+    :data:`~irl.transitions.TransitionModel` form) for ``R = features @ theta``.
 
-    ``features`` is ``[S, A, K]``. Raises :class:`~irl.errors.ConvergenceError` when the fixed
-    point cannot be found.
+    ``features`` is ``[S, A, K]``.
 
     Raises:
         ConvergenceError: the Boltzmann fixed point was not reached.
+        DemonstrationError: ``transitions`` is not a row-stochastic model.
     """
-    succ = model_successors(transitions)
-    r = np.asarray(features, dtype=np.float64) @ np.asarray(theta, dtype=np.float64)
+    features = np.asarray(features, dtype=np.float64)
+    succ = model_successors(transitions, n_actions=features.shape[1])
+    r = features @ np.asarray(theta, dtype=np.float64)
     fp = boltzmann_fixed_point(r, succ, config.beta, config.gamma)
     if not fp.converged:
         raise ConvergenceError(f"MLIRL Boltzmann fixed point: {fp.message}")
@@ -48,22 +54,21 @@ def solve_q(theta: np.ndarray, features: np.ndarray, transitions: np.ndarray,
 
 def fit_mlirl(demos: Demonstrations, config: IRLConfig, rng: np.random.Generator, *,
               theta0: np.ndarray | None = None, progress: bool = False,
-              transitions: np.ndarray | None = None) -> FitResult:
-    """Fit MLIRL weights under ``transitions [S, A, S]`` (required); see the module doc.
+              transitions: TransitionModel | None = None) -> FitResult:
+    """Fit MLIRL weights under ``transitions [S, A, S]`` (required; dense, sparse ``[S*A, S]`` or a
+    :class:`~irl.transitions.SuccessorModel`); see the module doc.
 
     Raises:
-        ConfigError: no ``transitions``, or ``transitions`` not of shape ``[S, A, S]``.
+        ConfigError: no ``transitions``, or ``transitions`` not of shape ``[S, A, S]`` for these
+            demonstrations.
+        DemonstrationError: ``transitions`` is not row-stochastic.
         ConvergenceError: the inner fixed point fails.
     """
     start = time.perf_counter()
     if transitions is None:
         raise ConfigError("MLIRL needs a transition model: pass transitions [S, A, S] "
                           "(the true one, or irl.transitions.estimate_transitions(demos, fallback))")
-    t = np.asarray(transitions, dtype=np.float64)
-    if t.shape != (demos.n_states, demos.n_actions, demos.n_states):
-        raise ConfigError(f"transitions must have shape {(demos.n_states, demos.n_actions, demos.n_states)}"
-                          f" for these demonstrations, got {t.shape}")
-    succ = model_successors(t)
+    succ = checked_model(transitions, demos)
     theta = initial_theta(demos, config, rng, theta0)
     if config.solver == "exact":
         return fit_exact("mlirl", demos, succ, config, theta, progress, start)

@@ -25,7 +25,7 @@ from irl.domains.merge import ACTION_ACC_FT_S2, MergeBins, fit_quantile_bins
 from irl.domains.merge_features import FeatureSet, feature_set
 from irl.errors import ConfigError, DemonstrationError
 from irl.io import load_feature_names, load_npz
-from irl.transitions import estimate_transitions
+from irl.transitions import SuccessorModel, TransitionModel, estimate_transitions, model_successors
 
 DOMAINS = ("gridworld", "merge", "npz")
 
@@ -38,7 +38,9 @@ class Problem:
         name: short label (``"gridworld 0%"``, a path, ...).
         domain: one of ``DOMAINS``.
         demos: the expert demonstrations.
-        transitions: ``[S, A, S]`` model for MLIRL and for REIRL's final log-likelihood.
+        transitions: ``[S, A, S]`` model for MLIRL and for REIRL's final log-likelihood;
+            :func:`load_problem` stores it sparse (:class:`~irl.transitions.SuccessorModel`,
+            ``.to_dense()`` gives the array); a dense array works too.
         transitions_estimated: whether ``transitions`` were estimated from ``demos`` (then a
             subset of the trajectories re-estimates them, so held-out data never leaks in).
         baseline: REIRL baseline trajectories, or None (REIRL then generates uniform-random ones
@@ -56,7 +58,7 @@ class Problem:
     name: str
     domain: str
     demos: Demonstrations
-    transitions: np.ndarray
+    transitions: TransitionModel
     transitions_estimated: bool = False
     baseline: Demonstrations | None = None
     feature_names: tuple[str, ...] = ()
@@ -81,8 +83,8 @@ class Problem:
         return None
 
 
-def estimate_model(demos: Demonstrations, domain: str, bins: MergeBins | None, dt: float) -> np.ndarray:
-    """Relative-count model of ``demos``; unseen pairs: kinematic (merge) or self-loop."""
+def estimate_model(demos: Demonstrations, domain: str, bins: MergeBins | None, dt: float) -> SuccessorModel:
+    """Relative-count model of ``demos`` (sparse); unseen pairs: kinematic (merge) or self-loop."""
     if domain == "merge" and bins is not None:
         return merge_mdp.estimated_transitions(demos, bins, dt)
     return estimate_transitions(demos)
@@ -238,7 +240,7 @@ def load_problem(
         demos = gridworld.load(paths[0])
         if baseline_path is not None:
             baseline = gridworld.load(baseline_path)
-        return Problem(label, domain, demos, gridworld.transition_model(noise), False, baseline,
+        return Problem(label, domain, demos, model_successors(gridworld.transition_model(noise)), False, baseline,
                        gridworld.FEATURE_NAMES, None, step_other, noise)
     if domain == "merge":
         demos, bins, fs, acc, step = load_merge_demos(paths, bins, encoding=encoding, features=features,

@@ -44,7 +44,7 @@ from irl.demonstrations import Demonstrations
 from irl.errors import ConfigError, DemonstrationError, IRLError
 from irl.mlirl import solve_q
 from irl.result import FitResult
-from irl.transitions import estimate_transitions
+from irl.transitions import TransitionModel, checked_model, estimate_transitions, model_successors
 
 #: Default L1 weight ``eps`` of the dual: None means the Hoeffding bound (:func:`hoeffding_epsilon`).
 DEFAULT_EPSILON = None
@@ -183,21 +183,35 @@ def solve_dual(
 
 
 def uniform_baseline(
-    demos: Demonstrations, transitions: np.ndarray, n: int, length: int, rng: np.random.Generator
+    demos: Demonstrations, transitions: TransitionModel, n: int, length: int, rng: np.random.Generator
 ) -> Demonstrations:
-    """``n`` uniform-random-policy trajectories of ``length`` steps under ``transitions [S, A, S]``,
-    each starting in a uniformly drawn expert start state."""
+    """``n`` uniform-random-policy trajectories of ``length`` steps under ``transitions [S, A, S]``
+    (any :data:`~irl.transitions.TransitionModel` form), each starting in a uniformly drawn expert
+    start state.
+
+    Each step draws ``u`` uniform and moves to the first successor whose cumulative probability
+    exceeds ``u`` times the row total (the successors in state order), so a dense and a sparse
+    ``T`` give the same trajectories for one seed.
+    """
+    succ = model_successors(transitions, n_actions=demos.n_actions)
+    indptr, indices, data = succ.p.indptr, succ.p.indices, succ.p.data
+    cum = np.empty_like(data)  # per row, the cumulative sum of its stored probabilities
+    for i in range(succ.n_pairs):
+        lo, hi = indptr[i], indptr[i + 1]
+        np.cumsum(data[lo:hi], out=cum[lo:hi])
     starts = np.array([s[0] for s in demos.states])
-    cum = np.cumsum(transitions, axis=2)
+    A = demos.n_actions
     states, actions = [], []
     for _ in range(int(n)):
         s = int(rng.choice(starts))
         ss = np.empty(length, dtype=np.int64)
-        aa = rng.integers(demos.n_actions, size=length)
+        aa = rng.integers(A, size=length)
         for t in range(length):
             ss[t] = s
-            row = cum[s, aa[t]]
-            s = int(min(np.searchsorted(row, rng.random() * row[-1], side="right"), demos.n_states - 1))
+            i = s * A + int(aa[t])
+            row = cum[indptr[i]:indptr[i + 1]]
+            k = min(int(np.searchsorted(row, rng.random() * row[-1], side="right")), row.size - 1)
+            s = int(indices[indptr[i] + k])
         states.append(ss)
         actions.append(aa.astype(np.int64))
     return Demonstrations(tuple(states), tuple(actions), demos.features, demos.n_states, demos.n_actions,
@@ -210,7 +224,7 @@ def fit_reirl(
     rng: np.random.Generator,
     *,
     baseline: Demonstrations | None = None,
-    transitions: np.ndarray | None = None,
+    transitions: TransitionModel | None = None,
     theta0: np.ndarray | None = None,
     epsilon: float | None = DEFAULT_EPSILON,
     n_baseline: int = DEFAULT_N_BASELINE,
@@ -227,8 +241,9 @@ def fit_reirl(
         rng: draws the baseline trajectories when ``baseline`` is None.
         baseline: non-expert trajectories over the same MDP; default: ``n_baseline`` uniform-
             random trajectories under ``transitions``, as long as the longest expert trajectory.
-        transitions: ``[S, A, S]`` model, for generating the baseline and for the final
-            log-likelihood; default: estimated from ``demos`` (``irl.transitions``).
+        transitions: ``[S, A, S]`` model (dense, sparse ``[S*A, S]`` or a
+            :class:`~irl.transitions.SuccessorModel`), for generating the baseline and for the
+            final log-likelihood; default: estimated from ``demos`` (``irl.transitions``).
         theta0: ignored (the dual is convex with one optimum); accepted for the shared interface.
         epsilon: L1 weight ``eps`` of the dual; None: per feature, the Hoeffding bound of the
             experts' feature-count estimate at confidence ``1 - delta`` (:func:`hoeffding_epsilon`).
@@ -251,19 +266,12 @@ def fit_reirl(
         raise ConfigError(f"REIRL epsilon must be >= 0, got {epsilon}")
     if not theta_cap > 0:
         raise ConfigError(f"REIRL theta_cap must be positive, got {theta_cap}")
-    if transitions is None:
-        transitions = estimate_transitions(demos)
-    transitions = np.asarray(transitions, dtype=np.float64)
-    if transitions.shape != (demos.n_states, demos.n_actions, demos.n_states):
-        raise ConfigError(
-            f"transitions must have shape [S, A, S] = {(demos.n_states, demos.n_actions, demos.n_states)}, "
-            f"got {transitions.shape}"
-        )
+    model = estimate_transitions(demos) if transitions is None else checked_model(transitions, demos)
     longest = max(s.size for s in demos.states)
     if baseline is None:
         if int(n_baseline) < 1:
             raise ConfigError(f"n_baseline must be >= 1, got {n_baseline}")
-        baseline = uniform_baseline(demos, transitions, int(n_baseline), longest, rng)
+        baseline = uniform_baseline(demos, model, int(n_baseline), longest, rng)
     elif (baseline.n_states, baseline.n_actions) != (demos.n_states, demos.n_actions):
         raise DemonstrationError(
             f"baseline {baseline.source}: {baseline.n_states} states x {baseline.n_actions} actions, "
@@ -285,7 +293,7 @@ def fit_reirl(
     message = f"cvxpy status {status}; dual value {value:.6g}"
     converged = status == "optimal"
     try:
-        q = np.asarray(solve_q(theta, phi, transitions, config))
+        q = np.asarray(solve_q(theta, phi, model, config))
     except IRLError as e:  # the MDP for this theta has no computable Boltzmann fixed point
         q = phi @ theta
         converged = False

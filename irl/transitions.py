@@ -7,8 +7,13 @@ Two sources, one representation (:class:`SuccessorModel`):
   over the pair's non-final occurrences. A pair with no observed successor (never seen, or only
   seen as a trajectory's final step) is **terminal**: its Q is its reward, ``Q(s,a) = R(s,a)``
   (the authors' code pulls every such pair to ``R``; see REFERENCE.md).
-* **model-based** (MLIRL): a full row-stochastic transition model ``T [S, A, S]`` (the true one,
-  or :func:`estimate_transitions` with a domain-supplied fallback). No pair is terminal.
+* **model-based** (MLIRL, REIRL): a full row-stochastic transition model (the true one, or
+  :func:`estimate_transitions` with a domain-supplied fallback). No pair is terminal. Stored
+  sparse: a model of the merge domain's ``driver`` encoding, ``[6250, 5, 6250]`` dense, is 1.5 GB
+  of float64 but has a handful of non-zeros per row. Callers may hand a dense ``[S, A, S]``
+  array, a ``[S*A, S]`` scipy sparse matrix or a :class:`SuccessorModel`
+  (:data:`TransitionModel`); :func:`model_successors` turns any of them into the one
+  representation every solver uses.
 
 Pairs are flattened as ``i = s * A + a``.
 """
@@ -17,12 +22,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
+from typing import TypeAlias
 
 import numpy as np
 import scipy.sparse as sp
 
 from irl.demonstrations import Demonstrations
-from irl.errors import DemonstrationError
+from irl.errors import ConfigError, DemonstrationError
 
 
 @dataclass(frozen=True)
@@ -44,6 +50,10 @@ class SuccessorModel:
     @property
     def n_pairs(self) -> int:
         return self.n_states * self.n_actions
+
+    def to_dense(self) -> np.ndarray:
+        """``[S, A, S]`` float64 array of ``p`` (``S * A * S * 8`` bytes: 1.5 GB for 6250 states)."""
+        return self.p.toarray().reshape(self.n_states, self.n_actions, self.n_states)
 
     @cached_property
     def jacobian_pattern(self) -> JacobianPattern:
@@ -116,53 +126,121 @@ def model_free_successors(demos: Demonstrations) -> SuccessorModel:
     return SuccessorModel(p=sp.csr_matrix(p), terminal=terminal, n_states=S, n_actions=A)
 
 
-def model_successors(transitions: np.ndarray, where: str = "transitions") -> SuccessorModel:
-    """Wrap a full model ``T [S, A, S]`` (rows must be probability distributions).
+#: What callers may pass as a transition model: dense ``[S, A, S]``, sparse ``[S*A, S]`` or a
+#: :class:`SuccessorModel` without terminal pairs.
+TransitionModel: TypeAlias = np.ndarray | sp.spmatrix | sp.sparray | SuccessorModel
+
+
+def model_successors(transitions: TransitionModel, where: str = "transitions", *,
+                     n_actions: int | None = None) -> SuccessorModel:
+    """A full transition model as a :class:`SuccessorModel` (rows must be probability distributions).
+
+    Args:
+        transitions: dense ``T [S, A, S]``; a scipy sparse ``[S*A, S]`` matrix (row ``s*A + a``
+            is ``T[s, a, :]``; ``n_actions`` required); or a :class:`SuccessorModel` (returned as
+            it is once checked).
+        where: names the model in error messages.
+        n_actions: ``A`` of a sparse matrix.
 
     Raises:
-        DemonstrationError: ``T`` is not ``[S, A, S]``, has negative or non-finite entries, or a row that does
-            not sum to 1.
+        DemonstrationError: not ``[S, A, S]`` (or ``[S*A, S]``), negative or non-finite entries, a
+            row that does not sum to 1, terminal pairs in a :class:`SuccessorModel`, or a sparse
+            matrix without ``n_actions``.
     """
-    t = np.asarray(transitions, dtype=np.float64)
-    if t.ndim != 3 or t.shape[0] != t.shape[2]:
-        raise DemonstrationError(f"{where}: expected shape [S, A, S], got {t.shape}")
-    if not np.all(np.isfinite(t)) or np.any(t < 0):
+    if isinstance(transitions, SuccessorModel):
+        if np.any(transitions.terminal):
+            raise DemonstrationError(f"{where}: a transition model has no terminal pairs "
+                                     f"({int(transitions.terminal.sum())} given)")
+        S, A, p = transitions.n_states, transitions.n_actions, transitions.p
+    elif sp.issparse(transitions):
+        if n_actions is None or n_actions < 1:
+            raise DemonstrationError(f"{where}: a sparse [S*A, S] model needs n_actions")
+        A = int(n_actions)
+        p = sp.csr_matrix(transitions, dtype=np.float64)
+        S = p.shape[1]
+        if p.shape[0] != S * A:
+            raise DemonstrationError(f"{where}: expected shape [S*A, S] = [{S * A}, {S}], got {p.shape}")
+    else:
+        t = np.asarray(transitions, dtype=np.float64)
+        if t.ndim != 3 or t.shape[0] != t.shape[2]:
+            raise DemonstrationError(f"{where}: expected shape [S, A, S], got {t.shape}")
+        S, A = t.shape[:2]
+        p = sp.csr_matrix(t.reshape(S * A, S))
+    if not np.all(np.isfinite(p.data)) or np.any(p.data < 0):
         raise DemonstrationError(f"{where}: entries must be finite and non-negative")
-    sums = t.sum(axis=2)
-    bad = np.argwhere(np.abs(sums - 1.0) > 1e-8)
+    sums = np.asarray(p.sum(axis=1)).ravel()
+    bad = np.flatnonzero(np.abs(sums - 1.0) > 1e-8)
     if bad.size:
-        s, a = bad[0]
-        raise DemonstrationError(f"{where}: row T[{s}, {a}, :] sums to {sums[s, a]:.6g}, expected 1")
-    S, A = t.shape[:2]
-    p = sp.csr_matrix(t.reshape(S * A, S))
+        s, a = divmod(int(bad[0]), A)
+        raise DemonstrationError(f"{where}: row T[{s}, {a}, :] sums to {sums[bad[0]]:.6g}, expected 1")
+    if isinstance(transitions, SuccessorModel):
+        return transitions
+    p.sum_duplicates()
+    p.eliminate_zeros()
+    p.sort_indices()
     return SuccessorModel(p=p, terminal=np.zeros(S * A, dtype=bool), n_states=S, n_actions=A)
 
 
-def estimate_transitions(demos: Demonstrations, fallback: np.ndarray | None = None) -> np.ndarray:
-    """Relative-count transition model ``T [S, A, S]`` from the demonstrations.
-
-    ``T[s, a, :]`` is the distribution of observed successors of ``(s, a)`` (every step but each
-    trajectory's last). A pair never observed with a successor takes ``fallback[s, a, :]`` when
-    ``fallback`` (``[S, A, S]``, row-stochastic) is given, else stays in place
-    (``T[s, a, s] = 1``, a self-loop). The result is row-stochastic.
+def checked_model(transitions: TransitionModel, demos: Demonstrations, where: str = "transitions") -> SuccessorModel:
+    """:func:`model_successors` of ``transitions``, checked to cover the states and actions of ``demos``.
 
     Raises:
-        DemonstrationError: ``fallback`` is not of shape ``[S, A, S]``.
+        ConfigError: not ``[S, A, S]`` (dense), ``[S*A, S]`` (sparse) or a model over ``S`` states
+            and ``A`` actions, for ``demos``' ``S`` and ``A``.
+        DemonstrationError: not row-stochastic, or terminal pairs (see :func:`model_successors`).
     """
-    counts = successor_counts(demos)
     S, A = demos.n_states, demos.n_actions
-    totals = counts.sum(axis=2, keepdims=True)
-    seen = totals[..., 0] > 0
-    t = np.divide(counts, totals, out=np.zeros_like(counts), where=totals > 0)
-    if fallback is not None:
-        fb = np.asarray(fallback, dtype=np.float64)
-        if fb.shape != (S, A, S):
-            raise DemonstrationError(f"fallback transitions: expected shape {(S, A, S)}, got {fb.shape}")
-        t[~seen] = fb[~seen]
+    if isinstance(transitions, SuccessorModel):
+        got, ok = (transitions.n_states, transitions.n_actions, transitions.n_states), None
+    elif sp.issparse(transitions):
+        got, ok = tuple(transitions.shape), (S * A, S)
     else:
-        ss, aa = np.nonzero(~seen)
-        t[ss, aa, ss] = 1.0
-    return t
+        got, ok = np.shape(transitions), None
+    if got != (ok or (S, A, S)):
+        raise ConfigError(f"{where} must have shape [S, A, S] = {(S, A, S)} (sparse: [S*A, S] = {(S * A, S)}) "
+                          f"for these demonstrations, got {got}")
+    return model_successors(transitions, where, n_actions=A)
+
+
+def _relative_counts(demos: Demonstrations) -> tuple[sp.csr_matrix, np.ndarray]:
+    """``([S*A, S] CSR of P_hat(s'|s,a) over observed successors, [S*A] bool seen)``; unseen rows empty."""
+    S, A = demos.n_states, demos.n_actions
+    s, a, s2 = demos.transitions()
+    m = sp.csr_matrix((np.ones(s.size), (s * A + a, s2)), shape=(S * A, S))
+    m.sum_duplicates()
+    m.sort_indices()
+    totals = np.diff(m.indptr)  # entries per row, replaced by the row's count total below
+    row_total = np.asarray(m.sum(axis=1)).ravel()
+    m.data = m.data / np.repeat(row_total, totals)
+    return m, row_total > 0
+
+
+def estimate_transitions(demos: Demonstrations, fallback: TransitionModel | None = None) -> SuccessorModel:
+    """Relative-count transition model ``T [S, A, S]`` from the demonstrations, sparse.
+
+    ``T[s, a, :]`` is the distribution of observed successors of ``(s, a)`` (every step but each
+    trajectory's last). A pair never observed with a successor takes the fallback's row when
+    ``fallback`` (``[S, A, S]`` row-stochastic, in any form :func:`model_successors` takes) is
+    given, else stays in place (``T[s, a, s] = 1``, a self-loop). The result is row-stochastic;
+    ``.to_dense()`` gives the ``[S, A, S]`` array.
+
+    Raises:
+        DemonstrationError: ``fallback`` is not a row-stochastic model over ``[S, A, S]``.
+    """
+    S, A = demos.n_states, demos.n_actions
+    observed, seen = _relative_counts(demos)
+    if fallback is None:
+        fb = sp.csr_matrix((np.ones(S * A), (np.arange(S * A), np.repeat(np.arange(S), A))), shape=(S * A, S))
+    else:
+        fbm = model_successors(fallback, "fallback transitions", n_actions=A)
+        if (fbm.n_states, fbm.n_actions) != (S, A):
+            raise DemonstrationError(f"fallback transitions: expected shape {(S, A, S)}, "
+                                     f"got {(fbm.n_states, fbm.n_actions, fbm.n_states)}")
+        fb = fbm.p
+    p = sp.csr_matrix(sp.diags(seen.astype(np.float64)) @ observed + sp.diags((~seen).astype(np.float64)) @ fb)
+    p.eliminate_zeros()
+    p.sort_indices()
+    return SuccessorModel(p=p, terminal=np.zeros(S * A, dtype=bool), n_states=S, n_actions=A)
 
 
 def reachable_states(succ: SuccessorModel, start: np.ndarray) -> np.ndarray:

@@ -27,13 +27,13 @@ def test_model_free_successors_are_relative_counts_with_terminals():
 
 
 def test_estimate_transitions_self_loop_and_fallback():
-    t = estimate_transitions(demos())
+    t = estimate_transitions(demos()).to_dense()
     np.testing.assert_allclose(t.sum(axis=2), 1.0)
     np.testing.assert_allclose(t[0, 1], [0, 3 / 4, 1 / 4])
     np.testing.assert_allclose(t[2, 1], [0, 0, 1])  # unseen: stays in place
     np.testing.assert_allclose(t[1, 1], [0, 1, 0])  # seen only as a final step: no successor
     fallback = np.full((3, 2, 3), 1 / 3)
-    tf = estimate_transitions(demos(), fallback)
+    tf = estimate_transitions(demos(), fallback).to_dense()
     np.testing.assert_allclose(tf[2, 1], 1 / 3)
     np.testing.assert_allclose(tf[0, 1], [0, 3 / 4, 1 / 4])  # observed rows keep their counts
     with pytest.raises(DemonstrationError, match="fallback"):

@@ -225,3 +225,16 @@ def test_learn_default_rule_for_merge_and_old_files(tmp_path):
     del data["settings"]["unobserved"]
     out.write_text(json.dumps(data))
     assert SavedModel.load(out).config.unobserved == "terminal"
+
+
+def test_kinematic_successors_are_the_kinematic_model():
+    from irl.merge_mdp import kinematic_model
+
+    bins = MergeBins.assumed_authors()
+    nxt = kinematic_successors(bins, 0.3, "paper")
+    assert nxt.shape == (1250, 5)
+    np.testing.assert_array_equal(nxt, np.argmax(kinematic_model(bins, 0.3), axis=2))
+    drv = kinematic_successors(bins, 0.3, "driver")
+    assert drv.shape == (6250, 5)
+    np.testing.assert_array_equal(drv % 5, np.broadcast_to(np.arange(5), (6250, 5)))  # previous action := a
+    np.testing.assert_array_equal(drv // 5, np.repeat(nxt, 5, axis=0))  # the paper part moves as without it

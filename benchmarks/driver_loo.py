@@ -123,21 +123,20 @@ def main(argv=None) -> int:
                     base = IRLConfig.paper(beta=1.0, l2=l2, unobserved=rule if m in MODEL_FREE else "terminal")
                     for g in gammas:
                         for unv in args.unvisited.split(","):
-                            v = _timed(lambda: method_loo(problem, m, replace(base, gamma=g), unv).sum(),
-                                       f"{m} {fs} unobserved={rule} gamma={g} l2={l2} unvisited={unv}")
+                            v = _timed(f"{m} {fs} unobserved={rule} gamma={g} l2={l2} unvisited={unv}",
+                                       method_loo, problem, m, replace(base, gamma=g), unv)
                             rows.setdefault((m, rule, f"{g:g}", f"{l2:g}", unv), {})[fs] = v
                     if args.nested_gamma:
                         unv = args.unvisited.split(",")[0]
-                        res = _timed(lambda: nested_gamma_loo(problem, m, base, gammas, unv),
-                                     f"{m} {fs} unobserved={rule} nested gamma l2={l2} unvisited={unv}")
+                        res = _timed(f"{m} {fs} unobserved={rule} nested gamma l2={l2} unvisited={unv}",
+                                     nested_gamma_loo, problem, m, base, gammas, unv)
+                        v = res
                         if isinstance(res, tuple):
-                            v, chosen = res[0].sum(), res[1]
-                            notes.append(f"{m} {fs} {rule} l2 {l2:g}: nested gamma per fold {chosen}")
-                        else:
-                            v = res
+                            v = float(res[0].sum())
+                            notes.append(f"{m} {fs} {rule} l2 {l2:g}: nested gamma per fold {res[1]}")
                         rows.setdefault((m, rule, "nested", f"{l2:g}", unv), {})[fs] = v
     marginal = rows[("marginal", "", "", "", "")]
-    print(f"\nLOO log-likelihood (nats, sum over the held-out trajectories), beta 1; vs marg. = minus `marginal`")
+    print("\nLOO log-likelihood (nats, sum over the held-out trajectories), beta 1; vs marg. = minus `marginal`")
     head = f"{'method':9s}{'unobserved':>11s}{'gamma':>8s}{'l2':>7s}{'unvisited':>10s}"
     print(head + "".join(f"{f:>11s}{'vs marg.':>10s}" for f in feats))
     for key, r in rows.items():
@@ -158,16 +157,18 @@ def main(argv=None) -> int:
     return 0
 
 
-def _timed(run, label: str):
+def _timed(label: str, run, *args):
+    """``run(*args)`` (per-trajectory LL, or a tuple starting with it), its sum and time printed;
+    the per-trajectory array becomes its sum; NaN when it raised."""
     t = time.perf_counter()
     try:
-        v = run()
+        v = run(*args)
     except Exception as e:  # a failing method is a row of the table, not the end of it
         print(f"  {label}: failed ({type(e).__name__}: {e})", flush=True)
         return float("nan")
-    total = v[0].sum() if isinstance(v, tuple) else v
+    total = float(v[0].sum() if isinstance(v, tuple) else v.sum())
     print(f"  {label:70s} {total:10.1f}  {time.perf_counter() - t:6.1f} s", flush=True)
-    return v
+    return v if isinstance(v, tuple) else total
 
 
 if __name__ == "__main__":

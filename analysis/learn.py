@@ -25,6 +25,7 @@ from irl.config import IRLConfig
 from irl.domains.merge import MergeBins
 from irl.errors import ConfigError, ConvergenceError
 from irl.fit import METHODS, fit
+from irl.merge_mdp import kinematic_successors
 from irl.problems import Problem, load_problem
 from irl.reirl import DEFAULT_EPSILON, DEFAULT_N_BASELINE
 from irl.result import FitResult, SavedModel
@@ -44,7 +45,9 @@ def fit_problem(
 ) -> FitResult:
     """Fit ``method`` on ``problem`` with ``numpy.random.default_rng(seed)``.
 
-    Q-Avg and Q-SM see only the demonstrations; MLIRL gets ``problem.transitions``; REIRL gets
+    Q-Avg and Q-SM see only the demonstrations (and, with ``config.unobserved == "kinematic"``, the
+    merge domain's kinematic successors at ``problem.dt``: :func:`irl.merge_mdp.kinematic_successors`
+    with the problem's per-action accelerations); MLIRL gets ``problem.transitions``; REIRL gets
     the transitions (for its baseline and final log-likelihood), the baseline and the padding
     rule of the domain. A pure function of its arguments.
 
@@ -55,6 +58,9 @@ def fit_problem(
     if method not in METHODS:
         raise ConfigError(f"method must be one of {METHODS}, got {method!r}")
     options: dict[str, Any] = {}
+    if method in ("qavg", "qsm") and config.unobserved == "kinematic" and problem.bins is not None:
+        options["fallback_next"] = kinematic_successors(problem.bins, problem.dt, problem.state_encoding,
+                                                        problem.action_acc_ft_s2)
     if method == "reirl":
         options = dict(baseline=problem.baseline, epsilon=epsilon, n_baseline=n_baseline, pad_step=problem.pad_step())
     return fit(method, problem.demos, config, np.random.default_rng(seed), transitions=problem.transitions,

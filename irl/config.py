@@ -8,6 +8,9 @@ from typing import Any
 from irl.errors import ConfigError
 
 SOLVERS = ("exact", "faithful")
+#: What a model-free method (Q-Avg, Q-SM) bootstraps from at a pair with no observed successor
+#: (:mod:`irl.unobserved`).
+UNOBSERVED_RULES = ("terminal", "self", "kinematic")
 
 
 @dataclass(frozen=True)
@@ -33,6 +36,11 @@ class IRLConfig:
         inner_tol: inner loop stops when the largest change of Q is below this.
         step_size: length of the faithful solver's unit-normalised gradient step.
         l2: L2 penalty ``l2/2 ||theta||^2`` subtracted from the objective (0 = none).
+        unobserved: Q-Avg and Q-SM only: the successor of a pair with no observed successor,
+            one of :data:`UNOBSERVED_RULES` (:mod:`irl.unobserved`): ``"terminal"`` (``Q = R``,
+            the paper's and the authors' code's), ``"self"`` (the state itself,
+            ``Q = R + gamma V(s)``) or ``"kinematic"`` (a domain model's next state, passed to
+            the fit as ``fallback_next``). The exact solver only.
     """
 
     beta: float = 0.01
@@ -48,6 +56,7 @@ class IRLConfig:
     inner_tol: float = 1e-4
     step_size: float = 0.1
     l2: float = 0.0
+    unobserved: str = "terminal"
 
     def __post_init__(self) -> None:
         if not (self.beta > 0 and self.beta < float("inf")):
@@ -68,6 +77,11 @@ class IRLConfig:
                 raise ConfigError(f"{name} must be >= 1, got {getattr(self, name)}")
         if not self.l2 >= 0:
             raise ConfigError(f"l2 must be >= 0, got {self.l2}")
+        if self.unobserved not in UNOBSERVED_RULES:
+            raise ConfigError(f"unobserved must be one of {UNOBSERVED_RULES}, got {self.unobserved!r}")
+        if self.unobserved != "terminal" and self.solver == "faithful":
+            raise ConfigError(f"unobserved={self.unobserved!r} needs the exact solver (the faithful one "
+                              "reproduces the authors' terminal pairs)")
 
     @property
     def outer_tol(self) -> float:

@@ -44,8 +44,8 @@ class Method:
 #: The methods, in the order of the paper's tables' columns (Q-Avg, Q-SM, MLIRL, REIRL).
 REGISTRY: dict[str, Method] = {
     m.name: m for m in (
-        Method("qavg", "Q-Avg", fit_qavg),
-        Method("qsm", "Q-SM", fit_qsm),
+        Method("qavg", "Q-Avg", fit_qavg, options=("fallback_next",)),
+        Method("qsm", "Q-SM", fit_qsm, options=("fallback_next",)),
         Method("mlirl", "MLIRL", fit_mlirl, uses_transitions=True),
         Method("reirl", "REIRL", fit_reirl, uses_transitions=True,
                options=("baseline", "epsilon", "delta", "n_baseline", "pad_step", "theta_cap")),
@@ -70,7 +70,9 @@ def fit(method: str, demos: Demonstrations, config: IRLConfig, rng: np.random.Ge
         theta0: ``[K]`` start; default ``rng.uniform(config.init_low, config.init_high, K)``
             (REIRL ignores it: its dual is convex).
         progress: show a progress bar on stderr (only when it is a terminal).
-        **options: the method's own options (``Method.options``); REIRL's: ``baseline``
+        **options: the method's own options (``Method.options``); Q-Avg's and Q-SM's:
+            ``fallback_next`` (``[S, A]`` int next states for ``config.unobserved ==
+            "kinematic"``, :mod:`irl.unobserved`); REIRL's: ``baseline``
             (sampling trajectories, default generated), ``epsilon`` (L1 weight; None: the
             Hoeffding bound at confidence ``1 - delta``), ``delta``, ``n_baseline``,
             ``pad_step`` (how trajectories are prolonged), ``theta_cap``

@@ -232,6 +232,20 @@ def kinematic_next_state(states, actions, bins: MergeBins, dt: float = 0.1, *, e
     return state_index(parts[..., 0], *new).astype(np.int64)
 
 
+def kinematic_successors(bins: MergeBins, dt: float = 0.1, encoding: str = "paper",
+                         action_acc=ACTION_ACC_FT_S2) -> np.ndarray:
+    """``[S, 5]`` int: :func:`kinematic_next_state` of every (state, action) pair (``S`` of the
+    encoding), the ``fallback_next`` of Q-Avg/Q-SM's ``unobserved="kinematic"`` (:mod:`irl.unobserved`).
+
+    Raises:
+        ConfigError: ``dt`` is not positive.
+    """
+    S = n_states(encoding)
+    s = np.repeat(np.arange(S), N_ACTIONS)
+    a = np.tile(np.arange(N_ACTIONS), S)
+    return kinematic_next_state(s, a, bins, dt, encoding=encoding, action_acc=action_acc).reshape(S, N_ACTIONS)
+
+
 def kinematic_model(bins: MergeBins, dt: float = 0.1, encoding: str = "paper") -> SuccessorModel:
     """The deterministic transition model of ``kinematic_next_state``: ``[S, 5, S]`` (``S`` of the
     encoding: 1250 or 6250), stored sparse (one entry per (s, a) row; ``.to_dense()`` for the array).
@@ -240,9 +254,7 @@ def kinematic_model(bins: MergeBins, dt: float = 0.1, encoding: str = "paper") -
         ConfigError: ``dt`` is not positive.
     """
     S = n_states(encoding)
-    s = np.repeat(np.arange(S), N_ACTIONS)
-    a = np.tile(np.arange(N_ACTIONS), S)
-    nxt = kinematic_next_state(s, a, bins, dt, encoding=encoding)
+    nxt = kinematic_successors(bins, dt, encoding).ravel()
     p = sp.csr_matrix((np.ones(S * N_ACTIONS), nxt, np.arange(S * N_ACTIONS + 1)), shape=(S * N_ACTIONS, S))
     return SuccessorModel(p=p, terminal=np.zeros(S * N_ACTIONS, dtype=bool), n_states=S, n_actions=N_ACTIONS)
 

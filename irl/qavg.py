@@ -1,7 +1,8 @@
 """Q-Avg: model-free maximum-likelihood IRL with the averaging backup (paper Eq. 12/13).
 
 Model-free successors (see :mod:`irl.transitions`): the observed transitions only; pairs with
-no observed successor are terminal (``Q = R``). The fixed point of the damped sweep with
+no observed successor are terminal (``Q = R``), or follow ``config.unobserved``
+(:mod:`irl.unobserved`; the exact solver only). The fixed point of the damped sweep with
 averaged successors is ``Q = R + gamma P_hat (mean_b Q(s', b))``, linear in theta:
 ``Q = D theta`` with ``D = (I - gamma M)^-1 Phi`` (:func:`irl.bellman.average_basis`).
 
@@ -32,17 +33,25 @@ from irl.demonstrations import Demonstrations
 from irl.faithful import PlannedSweeps
 from irl.fit_common import finish_faithful, initial_theta, result_from_ascent
 from irl.result import FitResult
-from irl.transitions import model_free_successors
+from irl.transitions import SuccessorModel, model_free_successors
+from irl.unobserved import free_successors
 
 
-def qavg_basis(demos: Demonstrations, gamma: float) -> np.ndarray:
-    """``D [S, A, K]`` with ``Q_avg(theta) = D @ theta`` (exact model-free fixed point)."""
-    return average_basis(model_free_successors(demos), demos.features, gamma)
+def qavg_basis(demos: Demonstrations, gamma: float, succ: SuccessorModel | None = None) -> np.ndarray:
+    """``D [S, A, K]`` with ``Q_avg(theta) = D @ theta`` (exact model-free fixed point).
+
+    ``succ``: the successor model (default: :func:`irl.transitions.model_free_successors`,
+    terminal where no successor was observed).
+    """
+    return average_basis(succ or model_free_successors(demos), demos.features, gamma)
 
 
-def qavg_q(theta: np.ndarray, demos: Demonstrations, config: IRLConfig) -> np.ndarray:
-    """``[S, A]`` exact Q-Avg fixed point at ``theta [K]`` (for held-out likelihoods / policies)."""
-    return qavg_basis(demos, config.gamma) @ np.asarray(theta, dtype=np.float64)
+def qavg_q(theta: np.ndarray, demos: Demonstrations, config: IRLConfig,
+           fallback_next: np.ndarray | None = None) -> np.ndarray:
+    """``[S, A]`` exact Q-Avg fixed point at ``theta [K]`` (for held-out likelihoods / policies),
+    with ``config.unobserved`` (and ``fallback_next [S, A]`` for ``"kinematic"``)."""
+    succ = free_successors(demos, config, fallback_next)
+    return qavg_basis(demos, config.gamma, succ) @ np.asarray(theta, dtype=np.float64)
 
 
 def logit_hessian(q: np.ndarray, basis: np.ndarray, beta: float, counts: np.ndarray) -> np.ndarray:
@@ -70,8 +79,9 @@ def observed_differences(basis: np.ndarray, counts: np.ndarray) -> np.ndarray:
     return rows[keep]
 
 
-def _fit_exact(demos: Demonstrations, config: IRLConfig, theta: np.ndarray, progress: bool):
-    basis = qavg_basis(demos, config.gamma)
+def _fit_exact(demos: Demonstrations, config: IRLConfig, theta: np.ndarray, progress: bool,
+               succ: SuccessorModel):
+    basis = qavg_basis(demos, config.gamma, succ)
     states, actions, _ = demos.flat()
     counts = step_counts(states, actions, demos.n_states, demos.n_actions)
     beta = config.beta
@@ -118,12 +128,21 @@ class FaithfulQAvg(PlannedSweeps):
 
 
 def fit_qavg(demos: Demonstrations, config: IRLConfig, rng: np.random.Generator, *,
-             theta0: np.ndarray | None = None, progress: bool = False) -> FitResult:
-    """Fit Q-Avg weights (``config.solver`` ``"exact"`` or ``"faithful"``); see the module doc."""
+             theta0: np.ndarray | None = None, progress: bool = False,
+             fallback_next: np.ndarray | None = None) -> FitResult:
+    """Fit Q-Avg weights (``config.solver`` ``"exact"`` or ``"faithful"``); see the module doc.
+
+    ``fallback_next``: ``[S, A]`` int next states of a domain model, for
+    ``config.unobserved == "kinematic"`` (:mod:`irl.unobserved`).
+
+    Raises:
+        ConfigError: ``fallback_next`` missing or given against ``config.unobserved``.
+    """
     start = time.perf_counter()
     theta = initial_theta(demos, config, rng, theta0)
+    succ = free_successors(demos, config, fallback_next)
     if config.solver == "exact":
-        asc, unbounded, message, extra = _fit_exact(demos, config, theta, progress)
+        asc, unbounded, message, extra = _fit_exact(demos, config, theta, progress, succ)
         return result_from_ascent("qavg", config, asc, time.perf_counter() - start,
                                   unbounded=unbounded, message=message, extra=extra)
     solver = FaithfulQAvg(demos, config)

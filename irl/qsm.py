@@ -1,6 +1,7 @@
 """Q-SM: model-free maximum-likelihood IRL with the Boltzmann-weighted backup (paper Eq. 15/16).
 
-Same model-free successors and terminal pairs as Q-Avg (:mod:`irl.transitions`); the backup
+Same model-free successors and terminal pairs as Q-Avg (:mod:`irl.transitions`), or
+``config.unobserved``'s successors (:mod:`irl.unobserved`, exact solver); the backup
 bootstraps from ``sum_b pi(b|s') Q(s', b)`` with ``pi = softmax(beta Q)``. Not a
 non-expansion: the iteration may fail to converge, and both solvers report it.
 
@@ -30,7 +31,7 @@ from irl.demonstrations import Demonstrations
 from irl.faithful import PlannedSweeps
 from irl.fit_common import finish_faithful, initial_theta
 from irl.result import FitResult
-from irl.transitions import model_free_successors
+from irl.unobserved import free_successors
 
 
 class FaithfulQSM(PlannedSweeps):
@@ -68,13 +69,21 @@ class FaithfulQSM(PlannedSweeps):
 
 
 def fit_qsm(demos: Demonstrations, config: IRLConfig, rng: np.random.Generator, *,
-            theta0: np.ndarray | None = None, progress: bool = False) -> FitResult:
-    """Fit Q-SM weights (``config.solver`` ``"exact"`` or ``"faithful"``); see the module doc."""
+            theta0: np.ndarray | None = None, progress: bool = False,
+            fallback_next: np.ndarray | None = None) -> FitResult:
+    """Fit Q-SM weights (``config.solver`` ``"exact"`` or ``"faithful"``); see the module doc.
+
+    ``fallback_next``: ``[S, A]`` int next states of a domain model, for
+    ``config.unobserved == "kinematic"`` (:mod:`irl.unobserved`).
+
+    Raises:
+        ConfigError: ``fallback_next`` missing or given against ``config.unobserved``.
+    """
     start = time.perf_counter()
     theta = initial_theta(demos, config, rng, theta0)
+    succ = free_successors(demos, config, fallback_next)
     if config.solver == "exact":
-        return fit_exact("qsm", demos, model_free_successors(demos), config, theta, progress, start,
-                         from_zero=True)
+        return fit_exact("qsm", demos, succ, config, theta, progress, start, from_zero=True)
     solver = FaithfulQSM(demos, config)
     asc = unit_step_ascent(solver.evaluate, theta, config, progress=progress, desc="qsm faithful")
     return finish_faithful("qsm", config, asc, solver, start)

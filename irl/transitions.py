@@ -6,7 +6,8 @@ Two sources, one representation (:class:`SuccessorModel`):
   but each trajectory's last, ``(s_t, a_t) -> s_{t+1}``; ``P_hat(s'|s,a)`` is the relative count
   over the pair's non-final occurrences. A pair with no observed successor (never seen, or only
   seen as a trajectory's final step) is **terminal**: its Q is its reward, ``Q(s,a) = R(s,a)``
-  (the authors' code pulls every such pair to ``R``; see REFERENCE.md).
+  (the authors' code pulls every such pair to ``R``; see REFERENCE.md), unless a fallback
+  successor table is given (:mod:`irl.unobserved`).
 * **model-based** (MLIRL, REIRL): a full row-stochastic transition model (the true one, or
   :func:`estimate_transitions` with a domain-supplied fallback). No pair is terminal. Stored
   sparse: a model of the merge domain's ``driver`` encoding, ``[6250, 5, 6250]`` dense, is 1.5 GB
@@ -112,8 +113,16 @@ def successor_counts(demos: Demonstrations) -> np.ndarray:
     return counts
 
 
-def model_free_successors(demos: Demonstrations) -> SuccessorModel:
-    """The demonstrations' empirical successor model (terminal where no successor was seen)."""
+def model_free_successors(demos: Demonstrations, fallback_next: np.ndarray | None = None) -> SuccessorModel:
+    """The demonstrations' empirical successor model.
+
+    A pair with no observed successor is terminal, or, with ``fallback_next`` (``[S, A]`` int,
+    see :mod:`irl.unobserved`), moves to ``fallback_next[s, a]`` with probability 1 (then no
+    pair is terminal). Observed pairs keep their relative counts either way.
+
+    Raises:
+        DemonstrationError: ``fallback_next`` is not ``[S, A]`` states in ``0 .. S-1``.
+    """
     S, A = demos.n_states, demos.n_actions
     s, a, s2 = demos.transitions()
     rows = s * A + a
@@ -123,6 +132,14 @@ def model_free_successors(demos: Demonstrations) -> SuccessorModel:
     terminal = totals == 0
     scale = np.where(terminal, 0.0, 1.0 / np.where(terminal, 1.0, totals))
     p = sp.diags(scale) @ m
+    if fallback_next is not None:
+        nxt = np.asarray(fallback_next)
+        if nxt.shape != (S, A) or not np.issubdtype(nxt.dtype, np.integer) or nxt.min() < 0 or nxt.max() >= S:
+            raise DemonstrationError(f"fallback successors: expected [{S}, {A}] states in 0..{S - 1}, "
+                                     f"got shape {nxt.shape} dtype {nxt.dtype}")
+        idx = np.flatnonzero(terminal)
+        p = p + sp.csr_matrix((np.ones(idx.size), (idx, nxt.ravel()[idx])), shape=(S * A, S))
+        terminal = np.zeros(S * A, dtype=bool)
     return SuccessorModel(p=sp.csr_matrix(p), terminal=terminal, n_states=S, n_actions=A)
 
 

@@ -8,9 +8,13 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-from irl.config import SOLVERS, IRLConfig
+from irl.config import SOLVERS, UNOBSERVED_RULES, IRLConfig
 from irl.problems import DOMAINS
 from irl.result import METHODS  # names only: irl.fit loads scipy.optimize
+
+#: ``learn``'s Q-Avg/Q-SM rule for unobserved pairs in the merge domain (exact solver), chosen by
+#: leave-one-trajectory-out likelihood on the authors' NGSIM data (docs/irl.md, benchmarks/driver_loo.py).
+MERGE_UNOBSERVED = "kinematic"
 
 
 def add_config_arguments(p: argparse.ArgumentParser) -> None:
@@ -24,11 +28,16 @@ def add_config_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--solver", choices=SOLVERS, help="exact (default) or faithful (paper-literal)")
     p.add_argument("--l2", type=float, help="L2 penalty l2/2 ||theta||^2 (0 = none)")
     p.add_argument("--max-outer", type=int, help="cap on outer (gradient) iterations")
+    p.add_argument("--unobserved", choices=UNOBSERVED_RULES,
+                   help="Q-Avg/Q-SM: what a pair with no observed successor bootstraps from (irl.unobserved): "
+                        "terminal (Q = R, the paper's), self (its own state) or kinematic (the merge domain's "
+                        f"kinematic next state); default terminal, {MERGE_UNOBSERVED} for learn on merge data")
 
 
 def config_from_args(args: argparse.Namespace) -> IRLConfig:
     base = IRLConfig.reference() if args.settings == "reference" else IRLConfig.paper()
-    overrides = {name: getattr(args, name) for name in ("gamma", "beta", "alpha", "solver", "l2", "max_outer")
+    overrides = {name: getattr(args, name) for name in ("gamma", "beta", "alpha", "solver", "l2", "max_outer",
+                                                        "unobserved")
                  if getattr(args, name, None) is not None}
     return replace(base, **overrides)
 
@@ -74,6 +83,9 @@ def run(args: argparse.Namespace) -> int:
     if args.domain == "merge" and args.beta is None:
         # beta is not identifiable (the policy depends on beta * theta): merge fits use beta 1, scale in theta
         config = replace(config, beta=1.0)
+    if args.domain == "merge" and args.unobserved is None and config.solver == "exact" \
+            and args.method in ("qavg", "qsm"):
+        config = replace(config, unobserved=MERGE_UNOBSERVED)  # chosen by held-out likelihood (docs/irl.md)
     features = args.features
     if features is None and args.domain == "merge":
         # the authors' text trajectories (a folder or .txt) keep the paper's features; encounter tables: driver

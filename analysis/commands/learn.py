@@ -6,7 +6,6 @@ from __future__ import annotations
 import argparse
 import sys
 from dataclasses import replace
-from pathlib import Path
 
 from irl.config import SOLVERS, IRLConfig
 from irl.problems import DOMAINS
@@ -67,24 +66,20 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from analysis.learn import learn
+    from analysis.learn import learn, merge_config, merge_encoding, merge_features
     from irl.reirl import DEFAULT_EPSILON
 
     config = config_from_args(args)
-    if args.domain == "merge" and args.beta is None:
-        # beta is not identifiable (the policy depends on beta * theta): merge fits use beta 1, scale in theta
-        config = replace(config, beta=1.0)
     features = args.features
-    if features is None and args.domain == "merge":
-        # the authors' text trajectories (a folder or .txt) keep the paper's features; encounter tables: driver
-        demos = [Path(d) for d in (args.demos if isinstance(args.demos, list) else [args.demos])]
-        features = "paper" if any(d.is_dir() or d.suffix == ".txt" for d in demos) else "driver"
+    if args.domain == "merge":  # the merge defaults (beta 1, driver features for tables) live in analysis.learn
+        config = merge_config(config, beta=args.beta, l2=args.l2)
+        features = merge_features(args.demos, features)
     model = learn(
         args.method, args.domain, args.demos, config=config, seed=args.seed,
         noise=args.noise, baseline_path=args.baseline, bins=args.bins or None, dt=args.dt,
         epsilon=DEFAULT_EPSILON if args.epsilon is None else args.epsilon,
         out=args.out, progress=not args.no_progress and sys.stderr.isatty(),
-        encoding="driver" if features == "driver" else "paper", features=features, unvisited=args.unvisited,
+        encoding=merge_encoding(features), features=features, unvisited=args.unvisited,
     )
     theta = ", ".join(f"{n or k}={t:.4g}" for k, (n, t) in enumerate(
         zip(model.feature_names or [""] * len(model.theta), model.theta)))

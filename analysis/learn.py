@@ -43,14 +43,20 @@ MERGE_BETA = 1.0
 MERGE_L2 = 0.0
 
 
-def merge_config(base: IRLConfig | None = None, *, beta: float | None = None, l2: float | None = None) -> IRLConfig:
+def merge_config(base: IRLConfig | None = None, *, beta: float | None = None, l2: float | None = None,
+                 gamma: float | None = None) -> IRLConfig:
     """The IRL settings of a merge fit on encounter tables: ``base`` (default the paper's) with
-    beta :data:`MERGE_BETA` and L2 :data:`MERGE_L2`, unless ``beta`` / ``l2`` are given.
+    beta :data:`MERGE_BETA` and L2 :data:`MERGE_L2`, unless ``beta`` / ``l2`` are given;
+    ``gamma`` (None: ``base``'s) overrides the discount.
 
     The one home of these defaults for ``merge-irl learn`` and ``merge-irl demo``.
+
+    Raises:
+        ConfigError: a value :class:`irl.config.IRLConfig` rejects.
     """
     base = base or IRLConfig.paper()
-    return replace(base, beta=MERGE_BETA if beta is None else float(beta), l2=MERGE_L2 if l2 is None else float(l2))
+    cfg = replace(base, beta=MERGE_BETA if beta is None else float(beta), l2=MERGE_L2 if l2 is None else float(l2))
+    return cfg if gamma is None else replace(cfg, gamma=float(gamma))
 
 
 def merge_features(demos_paths, features: str | None = None) -> str:

@@ -3,8 +3,8 @@
 Selection (default): every vehicle B on the ramp / auxiliary lane (lane 7) that reaches the
 take-over zone (``Local_Y >= zone_start_ft``) gets, once, a lag car A: the nearest lane-6
 vehicle at or behind B's ``Local_Y`` within ``max_lag_ft`` that is not already controlled.
-From then on, every ``decision_s`` seconds the controller observes A, B and C (C = nearest
-lane-6 vehicle ahead of B, other than A), encodes the state, asks the policy for its action
+From then on, every ``decision_s`` seconds the controller observes A, B and C (C = A's lead
+car: the nearest lane-6 vehicle ahead of A, other than B), encodes the state, asks the policy for its action
 distribution, samples an action (or takes its mode, ``mode=True``) and applies the action's
 acceleration with ``vehicle.setSpeedMode(A, 0)`` + ``setLaneChangeMode(A, 0)`` +
 ``setAcceleration``: SUMO neither changes A's lane nor its speed on its own. A policy with
@@ -274,7 +274,11 @@ class Controller:
         for a_id, c in self._active.items():
             ia, ib = rows[a_id], rows[c.b_id]
             c.last_y = float(frame.local_y[ia])
-            ic = lead_of(frame, float(frame.local_y[ib]), exclude=(ia, ib))
+            # C is A's lead car in lane 6 other than B: in every demonstration (sim.encounters) C is
+            # the lead of the gap A-C that B merges into, so it is ahead of A and nothing is between
+            # them; B's lead would be a car behind A while B is behind A, and would hide A's real
+            # lead car while B drives ahead of it on the ramp (collisions "A into other")
+            ic = lead_of(frame, float(frame.local_y[ia]), exclude=(ia, ib))
             self.roles[a_id] = "A"
             self.roles[c.b_id] = "B"
             self.role_rows[ia] = "A"

@@ -19,6 +19,9 @@ from typing import Any
 
 import numpy as np
 
+from dataclasses import replace
+from pathlib import Path
+
 from analysis.provenance import provenance as provenance_record
 from analysis.provenance import write_timings
 from irl.config import IRLConfig
@@ -31,6 +34,56 @@ from irl.reirl import DEFAULT_EPSILON, DEFAULT_N_BASELINE
 from irl.result import FitResult, SavedModel
 from irl.run_folder import check_writable
 from irl.unvisited import apply_unvisited_rule, visited_states
+
+
+#: beta of merge fits: the policy depends only on beta * theta (issue 11, cause 7), so beta is 1
+#: and theta carries the scale.
+MERGE_BETA = 1.0
+#: L2 penalty of merge fits: 0, because with the driver features the Q-Avg likelihood of the
+#: simulated encounters is bounded (checked by the fit's unbounded test, flagged if not).
+MERGE_L2 = 0.0
+#: Q-Avg/Q-SM rule for pairs with no observed successor in merge fits (exact solver), chosen by
+#: leave-one-trajectory-out likelihood on the authors' NGSIM data (docs/irl.md, benchmarks/driver_loo.py).
+MERGE_UNOBSERVED = "kinematic"
+
+
+def merge_config(base: IRLConfig | None = None, *, beta: float | None = None, l2: float | None = None,
+                 gamma: float | None = None, method: str | None = None, unobserved: str | None = None) -> IRLConfig:
+    """The IRL settings of a merge fit on encounter tables: ``base`` (default the paper's) with
+    beta :data:`MERGE_BETA` and L2 :data:`MERGE_L2`, unless ``beta`` / ``l2`` are given;
+    ``gamma`` (None: ``base``'s) overrides the discount; ``unobserved`` (None: :data:`MERGE_UNOBSERVED`
+    when ``method`` is Q-Avg or Q-SM with the exact solver, else ``base``'s) the rule for pairs with
+    no observed successor (:mod:`irl.unobserved`).
+
+    The one home of these defaults for ``merge-irl learn`` and ``merge-irl demo``.
+
+    Raises:
+        ConfigError: a value :class:`irl.config.IRLConfig` rejects.
+    """
+    base = base or IRLConfig.paper()
+    cfg = replace(base, beta=MERGE_BETA if beta is None else float(beta), l2=MERGE_L2 if l2 is None else float(l2))
+    if gamma is not None:
+        cfg = replace(cfg, gamma=float(gamma))
+    if unobserved is not None:
+        return replace(cfg, unobserved=unobserved)
+    if method in ("qavg", "qsm") and cfg.solver == "exact":
+        return replace(cfg, unobserved=MERGE_UNOBSERVED)
+    return cfg
+
+
+def merge_features(demos_paths, features: str | None = None) -> str:
+    """The merge feature set name: ``features`` if given, else ``"paper"`` for the authors' text
+    trajectories (a folder or ``.txt``) and ``"driver"`` for encounter tables (issue 11, cause 6)."""
+    if features is not None:
+        return features
+    paths = [demos_paths] if isinstance(demos_paths, (str, os.PathLike)) else list(demos_paths)
+    return "paper" if any(Path(d).is_dir() or Path(d).suffix == ".txt" for d in paths) else "driver"
+
+
+def merge_encoding(features) -> str:
+    """The state encoding that goes with a feature set: ``"driver"`` (A's previous action in the
+    state) for the driver features, else the paper's."""
+    return "driver" if features == "driver" else "paper"
 
 
 def fit_problem(

@@ -3,8 +3,8 @@
 Selection (default): every vehicle B on the ramp / auxiliary lane (lane 7) that reaches the
 take-over zone (``Local_Y >= zone_start_ft``) gets, once, a lag car A: the nearest lane-6
 vehicle at or behind B's ``Local_Y`` within ``max_lag_ft`` that is not already controlled.
-From then on, every ``decision_s`` seconds the controller observes A, B and C (C = nearest
-lane-6 vehicle ahead of B, other than A), encodes the state, asks the policy for its action
+From then on, every ``decision_s`` seconds the controller observes A, B and C (C = A's lead
+car: the nearest lane-6 vehicle ahead of A, other than B), encodes the state, asks the policy for its action
 distribution, samples an action (or takes its mode, ``mode=True``) and applies the action's
 acceleration with ``vehicle.setSpeedMode(A, 0)`` + ``setLaneChangeMode(A, 0)`` +
 ``setAcceleration``: SUMO neither changes A's lane nor its speed on its own. A policy with
@@ -16,7 +16,8 @@ back to SUMO) and records why, in :class:`Control.reason`:
 
 ``merge_done``  B merged (first lane-6 frame) and ``hold_after_merge_s`` has passed;
 ``left_section`` A's ``Local_Y`` passed the end of the section (or A's route ended there);
-``collision``   A was in a collision (``simulation.getCollidingVehiclesIDList``);
+``collision``   A was in a collision (``simulation.getCollidingVehiclesIDList``); who hit whom is
+                in :attr:`Control.collision_kind` (one of ``COLLISION_KINDS``);
 ``teleported``  SUMO teleported A;
 ``arrived``     A reached the end of its route elsewhere;
 ``removed``     A vanished from the network for any other reason;
@@ -51,6 +52,12 @@ RELEASE_REASONS = (
     "merge_done", "left_section", "collision", "teleported", "arrived", "removed", "b_lost",
     "timeout", "end_of_run",
 )
+
+
+#: Who hit whom in a collision that ended a control (:attr:`Control.collision_kind`): A ran into
+#: its lead car C, into the merging car B, or into another vehicle; B or another vehicle (a
+#: follower, or a car changing lanes) ran into A.
+COLLISION_KINDS = ("A into C", "A into B", "A into other", "B into A", "other into A")
 
 
 class ControllerError(SimError, ValueError):
@@ -119,6 +126,8 @@ class Control:
         n_decisions: decisions taken.
         n_interventions: decisions whose action the safety filter replaced.
         prev_action: A's action at the latest decision (-1: none yet).
+        c_id: Vehicle_ID of C at the latest decision (0: none).
+        collision_kind: for ``reason == "collision"``, one of ``COLLISION_KINDS``; else "".
     """
 
     a_id: int
@@ -134,6 +143,8 @@ class Control:
     n_decisions: int = 0
     n_interventions: int = 0
     prev_action: int = -1
+    c_id: int = 0
+    collision_kind: str = ""
     speed_mode: int = -1
     lane_change_mode: int = -1
     last_y: float = 0.0
@@ -197,6 +208,8 @@ class Controller:
         self._section_end = math.inf
         self._traci: Any = None  # the libsumo module (untyped), set by on_start
         self._collision_pairs: set[tuple[str, str]] = set()
+        self._frame_collisions: list[tuple[str, str]] = []  # (collider, victim) SUMO ids of the current frame
+        self._vehicle_id_of: Any = None
         self.n_teleports = 0  # teleports in the whole run, all vehicles
 
     @property
@@ -221,6 +234,7 @@ class Controller:
         self._zone_start = cfg.zone_start_ft if cfg.zone_start_ft is not None else aux_lane_start_ft(ctx) - cfg.zone_margin_ft
         seed = cfg.seed if cfg.seed is not None else int(ctx.seed)
         self._rng = np.random.default_rng(seed)
+        self._vehicle_id_of = ctx.vehicle_id_of
 
     def on_step(self, ctx: RunContext, frame: FrameState) -> None:
         sim = self._traci.simulation
@@ -229,9 +243,11 @@ class Controller:
         colliding = sim.getCollidingVehiclesIDList()
         teleported = sim.getStartingTeleportIDList()
         arrived = sim.getArrivedIDList() if self._active else ()
+        self._frame_collisions = []
         if colliding:
             for col in sim.getCollisions():
                 self._collision_pairs.add((col.collider, col.victim))
+                self._frame_collisions.append((col.collider, col.victim))
         self.n_teleports += len(teleported)
         rows = self._rows_of(frame) if self._active else {}
         self.rows = rows
@@ -258,7 +274,11 @@ class Controller:
         for a_id, c in self._active.items():
             ia, ib = rows[a_id], rows[c.b_id]
             c.last_y = float(frame.local_y[ia])
-            ic = lead_of(frame, float(frame.local_y[ib]), exclude=(ia, ib))
+            # C is A's lead car in lane 6 other than B: in every demonstration (sim.encounters) C is
+            # the lead of the gap A-C that B merges into, so it is ahead of A and nothing is between
+            # them; B's lead would be a car behind A while B is behind A, and would hide A's real
+            # lead car while B drives ahead of it on the ramp (collisions "A into other")
+            ic = lead_of(frame, float(frame.local_y[ia]), exclude=(ia, ib))
             self.roles[a_id] = "A"
             self.roles[c.b_id] = "B"
             self.role_rows[ia] = "A"
@@ -310,6 +330,8 @@ class Controller:
     def _release(self, c: Control, frame_no: int, reason: str, *, present: bool) -> None:
         c.end_frame = frame_no
         c.reason = reason
+        if reason == "collision":
+            c.collision_kind = self._collision_kind(c)
         self._active.pop(c.a_id, None)
         self.last.pop(c.a_id, None)
         if not (c.commanded and present):
@@ -321,6 +343,18 @@ class Controller:
             v.setLaneChangeMode(c.a_sumo, c.lane_change_mode)
         except self._traci.TraCIException:  # the vehicle is gone after all
             pass
+
+    def _collision_kind(self, c: Control) -> str:
+        """Who hit whom (``COLLISION_KINDS``) in the current frame's collisions involving A."""
+        for collider, victim in self._frame_collisions:
+            if c.a_sumo not in (collider, victim):
+                continue
+            other = victim if collider == c.a_sumo else collider
+            vid = self._vehicle_id_of(other) if self._vehicle_id_of is not None else None
+            if collider == c.a_sumo:
+                return "A into B" if vid == c.b_id else "A into C" if vid is not None and vid == c.c_id else "A into other"
+            return "B into A" if vid == c.b_id else "other into A"
+        return "A into other"  # SUMO listed A as colliding without a pair (not seen)
 
     def _take_over_new(self, frame: FrameState, rows: dict[int, int]) -> None:
         ramp = np.flatnonzero((frame.lane_id == RAMP_LANE) & (frame.local_y >= self._zone_start))
@@ -381,8 +415,9 @@ class Controller:
             action = action_of(acc)
         c.prev_action = action
         c.n_decisions += 1
-        self.decided.add(c.a_id)
         c_id = int(frame.vehicle_id[ic]) if ic is not None else 0
+        c.c_id = c_id
+        self.decided.add(c.a_id)
         self.last[c.a_id] = (obs, probs, action)
         self.decisions.append((
             frame.frame, frame.time_s, c.a_id, c.b_id, c_id, state, action, acc, obs.speed_A,
@@ -420,7 +455,7 @@ class Controller:
         import pandas as pd
 
         cols = ("a_id", "b_id", "a_sumo", "start_frame", "end_frame", "reason", "merge_frame",
-                "b_ahead", "commanded", "gap_AB_start_ft", "n_decisions", "n_interventions")
+                "b_ahead", "commanded", "gap_AB_start_ft", "n_decisions", "n_interventions", "collision_kind")
         return pd.DataFrame([{k: getattr(c, k) for k in cols} for c in self.controls], columns=list(cols))
 
 

@@ -10,7 +10,7 @@ from analysis.episode import run_episode
 from analysis.metrics import js_divergence
 from irl.domains.merge import ACTION_ACC_FT_S2
 from scenarios.loader import load_scenario
-from sim.controller import RELEASE_REASONS, Controller, ControllerConfig
+from sim.controller import COLLISION_KINDS, RELEASE_REASONS, Controller, ControllerConfig
 from sim.policy import ConstantPolicy, SumoPolicy, UniformPolicy
 
 pytestmark = pytest.mark.sumo
@@ -145,6 +145,21 @@ class _Probe:
         pass
 
 
+def test_lead_car_c_is_a_s_lead_in_lane_6_other_than_b(uniform_run):
+    """At every decision, C is ahead of A in lane 6 and no lane-6 car other than B is between them
+    (as in every demonstration, where C leads the gap A-C that B merges into). The As are
+    commanded, so they stay in lane 6."""
+    table, dec = uniform_run.table, uniform_run.decisions
+    assert len(dec) > 50 and (dec.c_id > 0).mean() > 0.9
+    by_frame = {f: g for f, g in table[table.Lane_ID == 6].groupby("Frame_ID")}
+    for r in dec[dec.c_id > 0].itertuples(index=False):
+        lane6 = by_frame[r.frame].set_index("Vehicle_ID")["Local_Y"]
+        y_a = lane6[r.a_id]
+        assert r.d_AC > 0 and lane6[r.c_id] > y_a
+        between = lane6[(lane6 > y_a) & (lane6 < lane6[r.c_id])].drop([r.b_id], errors="ignore")
+        assert between.empty, (r.frame, r.a_id, r.c_id, between.to_dict())
+
+
 def test_collision_and_removal_release_and_report(spec):
     """High Accel makes A run into its leader; one A is removed by hand; the run goes on."""
     from sim.run import run_scenario
@@ -158,6 +173,10 @@ def test_collision_and_removal_release_and_report(spec):
     assert probe.removed is not None and reasons[probe.removed] == "removed"
     assert (ct.reason == "collision").sum() >= 1
     assert ctl.n_collisions >= 1
+    # who hit whom: A accelerating at the cap runs into its lead car (C, or B once B merged ahead)
+    kinds = ct.loc[ct.reason == "collision", "collision_kind"]
+    assert set(kinds) <= set(COLLISION_KINDS) and kinds.isin(("A into C", "A into B")).any()
+    assert (ct.loc[ct.reason != "collision", "collision_kind"] == "").all()
     # control went on after the removal: later take-overs happened
     removed_row = ct[ct.a_sumo == probe.removed].iloc[0]
     assert (ct.start_frame > removed_row.end_frame).any()

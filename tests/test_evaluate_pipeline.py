@@ -20,6 +20,10 @@ def test_run_demo_small(tmp_path):
     out = tmp_path / "demo"
     model = SavedModel.load(res.models["qavg"])
     assert set(model.bin_edges) == {"d_AC", "d_AB", "v_AC", "v_AB"}
+    # learned as `merge-irl learn` learns on encounter tables (driver features and encoding, beta 1),
+    # at the demo's gamma and L2
+    assert (model.feature_set, model.state_encoding, model.q.shape) == ("driver", "driver", (6250, 5))
+    assert (model.config.beta, model.config.gamma, model.config.l2) == (1.0, cfg.gamma, cfg.l2)
     assert res.n_train_steps > 100
     data = json.loads(res.evaluation.metrics_json.read_text())
     assert set(data["policies"]) == {"qavg", "sumo", "uniform", "marginal", "markov", "bc"}

@@ -9,7 +9,7 @@ import pytest
 from irl_testdata import random_mdp
 
 from analysis.cli import main
-from analysis.commands.learn import MERGE_UNOBSERVED
+from analysis.learn import MERGE_UNOBSERVED
 
 from irl.bellman import iteration_fixed_point
 from irl.boltzmann import demo_counts, loglik_from_counts, loglik_grad_from_counts

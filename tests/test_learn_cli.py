@@ -81,3 +81,22 @@ def test_learn_bad_input_is_one_line_exit_2(tmp_path):
     assert r.returncode == 2
     assert "t_0.txt:2: state 99 out of range [0, 25)" in r.stderr
     assert not (tmp_path / "m.json").exists()
+
+
+def test_merge_defaults_have_one_home(tmp_path):
+    """``merge-irl learn`` and ``merge-irl demo`` take the merge settings from analysis.learn."""
+    from analysis.learn import MERGE_BETA, MERGE_L2, merge_config, merge_encoding, merge_features
+    from irl.config import IRLConfig
+
+    cfg = merge_config()
+    assert (cfg.beta, cfg.l2, cfg.gamma) == (MERGE_BETA, MERGE_L2, IRLConfig.paper().gamma) == (1.0, 0.0, 0.99)
+    ref = merge_config(IRLConfig.reference(), l2=0.5, gamma=0.0)
+    assert (ref.beta, ref.l2, ref.gamma, ref.alpha) == (1.0, 0.5, 0.0, IRLConfig.reference().alpha)
+    assert merge_config(beta=5.0).beta == 5.0
+    folder = tmp_path / "merge_ngsim"
+    folder.mkdir()
+    assert merge_features(folder) == "paper" and merge_features(tmp_path / "a.txt") == "paper"
+    assert merge_features(tmp_path / "enc.parquet") == "driver"
+    assert merge_features([tmp_path / "enc.parquet", tmp_path / "b.csv"]) == "driver"
+    assert merge_features(tmp_path / "enc.parquet", "paper") == "paper"
+    assert (merge_encoding("driver"), merge_encoding("paper"), merge_encoding(("safe",))) == ("driver", "paper", "paper")

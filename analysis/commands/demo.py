@@ -1,6 +1,6 @@
 """``merge-irl demo``: the whole pipeline on the default scenario, in one command.
 
-Generate synthetic merges, learn Q-Avg, Q-SM, MLIRL and REIRL, re-inject the learned drivers
+Generate synthetic merges, learn Q-Avg (MLIRL, Q-SM, REIRL on request), re-inject the learned drivers
 into SUMO, evaluate them against SUMO's own driver and a uniform-random one, write the report
 and the ``.rrd`` log, and print where they are. See :func:`analysis.pipeline.run_demo`.
 """
@@ -15,7 +15,7 @@ from dataclasses import replace
 def register(subparsers) -> None:
     p = subparsers.add_parser(
         "demo", help="the whole pipeline on the default scenario (generate, learn, evaluate, log)",
-        description="Generate synthetic merges, learn with Q-Avg, Q-SM, MLIRL and REIRL, re-inject "
+        description="Generate synthetic merges, learn with Q-Avg (--methods adds MLIRL, Q-SM, REIRL), re-inject "
                     "the learned drivers into SUMO, evaluate against SUMO's driver and a random one, "
                     "write report.md, metrics.json and a rerun .rrd; print where they are.")
     p.add_argument("--out", default=None, metavar="DIR", help="output folder (default: ./runs/demo)")
@@ -26,8 +26,8 @@ def register(subparsers) -> None:
     p.add_argument("--episodes", type=int, default=None, metavar="N",
                    help="evaluation episodes per policy (default 3)")
     p.add_argument("--methods", default=None, metavar="LIST",
-                   help="comma-separated IRL methods (default: qavg,mlirl; qsm and reirl are slower or unbounded on "
-                        "this data, add them here)")
+                   help="comma-separated IRL methods (default: qavg; mlirl, qsm and reirl are slower at the driver "
+                        "encoding's 6250 states, add them here)")
     p.add_argument("--workers", type=int, default=None, metavar="N", help="processes (default 2)")
     p.add_argument("--executor", default=None,
                    help="where data runs and episodes run: serial, process[:N], dask-local[:N], dask://HOST:PORT "

@@ -6,16 +6,10 @@ from __future__ import annotations
 import argparse
 import sys
 from dataclasses import replace
-from pathlib import Path
 
 from irl.config import SOLVERS, UNOBSERVED_RULES, IRLConfig
 from irl.problems import DOMAINS
 from irl.result import METHODS  # names only: irl.fit loads scipy.optimize
-
-#: ``learn``'s Q-Avg/Q-SM rule for unobserved pairs in the merge domain (exact solver), chosen by
-#: leave-one-trajectory-out likelihood on the authors' NGSIM data (docs/irl.md, benchmarks/driver_loo.py).
-MERGE_UNOBSERVED = "kinematic"
-
 
 def add_config_arguments(p: argparse.ArgumentParser) -> None:
     """The IRL settings shared by ``learn`` and ``reproduce``."""
@@ -31,7 +25,7 @@ def add_config_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--unobserved", choices=UNOBSERVED_RULES,
                    help="Q-Avg/Q-SM: what a pair with no observed successor bootstraps from (irl.unobserved): "
                         "terminal (Q = R, the paper's), self (its own state) or kinematic (the merge domain's "
-                        f"kinematic next state); default terminal, {MERGE_UNOBSERVED} for learn on merge data")
+                        "kinematic next state); default terminal, kinematic for learn on merge data (analysis.learn.merge_config)")
 
 
 def config_from_args(args: argparse.Namespace) -> IRLConfig:
@@ -76,27 +70,20 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from analysis.learn import learn
+    from analysis.learn import learn, merge_config, merge_encoding, merge_features
     from irl.reirl import DEFAULT_EPSILON
 
     config = config_from_args(args)
-    if args.domain == "merge" and args.beta is None:
-        # beta is not identifiable (the policy depends on beta * theta): merge fits use beta 1, scale in theta
-        config = replace(config, beta=1.0)
-    if args.domain == "merge" and args.unobserved is None and config.solver == "exact" \
-            and args.method in ("qavg", "qsm"):
-        config = replace(config, unobserved=MERGE_UNOBSERVED)  # chosen by held-out likelihood (docs/irl.md)
     features = args.features
-    if features is None and args.domain == "merge":
-        # the authors' text trajectories (a folder or .txt) keep the paper's features; encounter tables: driver
-        demos = [Path(d) for d in (args.demos if isinstance(args.demos, list) else [args.demos])]
-        features = "paper" if any(d.is_dir() or d.suffix == ".txt" for d in demos) else "driver"
+    if args.domain == "merge":  # the merge defaults (beta 1, driver features for tables) live in analysis.learn
+        config = merge_config(config, beta=args.beta, l2=args.l2, method=args.method, unobserved=args.unobserved)
+        features = merge_features(args.demos, features)
     model = learn(
         args.method, args.domain, args.demos, config=config, seed=args.seed,
         noise=args.noise, baseline_path=args.baseline, bins=args.bins or None, dt=args.dt,
         epsilon=DEFAULT_EPSILON if args.epsilon is None else args.epsilon,
         out=args.out, progress=not args.no_progress and sys.stderr.isatty(),
-        encoding="driver" if features == "driver" else "paper", features=features, unvisited=args.unvisited,
+        encoding=merge_encoding(features), features=features, unvisited=args.unvisited,
     )
     theta = ", ".join(f"{n or k}={t:.4g}" for k, (n, t) in enumerate(
         zip(model.feature_names or [""] * len(model.theta), model.theta)))

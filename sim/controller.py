@@ -16,8 +16,7 @@ back to SUMO) and records why, in :class:`Control.reason`:
 
 ``merge_done``  B merged (first lane-6 frame) and ``hold_after_merge_s`` has passed;
 ``left_section`` A's ``Local_Y`` passed the end of the section (or A's route ended there);
-``collision``   A was in a collision (``simulation.getCollidingVehiclesIDList``); who hit whom is
-                in :attr:`Control.collision_kind` (one of ``COLLISION_KINDS``);
+``collision``   A was in a collision (``simulation.getCollidingVehiclesIDList``);
 ``teleported``  SUMO teleported A;
 ``arrived``     A reached the end of its route elsewhere;
 ``removed``     A vanished from the network for any other reason;
@@ -25,6 +24,7 @@ back to SUMO) and records why, in :class:`Control.reason`:
 ``timeout``     A was controlled for ``max_control_s``;
 ``end_of_run``  the run ended first.
 
+Who hit whom in a collision is in :attr:`Control.collision_kind` (one of ``COLLISION_KINDS``).
 The run continues after every release. Decisions are kept in :attr:`Controller.decisions`
 (one row per decision) and control episodes in :attr:`Controller.controls`.
 """

@@ -38,8 +38,9 @@ from irl.problems import load_problem
 from irl.transitions import TransitionModel, model_successors
 
 
-def dense_estimate(demos: Demonstrations, fallback: np.ndarray) -> np.ndarray:
-    """The former dense estimator: ``[S, A, S]`` relative counts with the fallback's rows where unseen."""
+def dense_estimate(demos: Demonstrations, fallback: np.ndarray | None) -> np.ndarray:
+    """The former dense estimator (also the reference of tests/test_sparse_models.py): ``[S, A, S]``
+    relative counts, the fallback's rows (None: self-loops) where a pair is unseen."""
     S, A = demos.n_states, demos.n_actions
     s, a, s2 = demos.transitions()
     counts = np.zeros((S, A, S))
@@ -47,7 +48,11 @@ def dense_estimate(demos: Demonstrations, fallback: np.ndarray) -> np.ndarray:
     totals = counts.sum(axis=2, keepdims=True)
     seen = totals[..., 0] > 0
     t = np.divide(counts, totals, out=np.zeros_like(counts), where=totals > 0)
-    t[~seen] = fallback[~seen]
+    if fallback is not None:
+        t[~seen] = fallback[~seen]
+    else:
+        ss, aa = np.nonzero(~seen)
+        t[ss, aa, ss] = 1.0
     return t
 
 

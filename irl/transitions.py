@@ -105,14 +105,6 @@ class JacobianPattern:
         return sp.csc_matrix((summed, self.indices, self.indptr), shape=(self.n, self.n))
 
 
-def successor_counts(demos: Demonstrations) -> np.ndarray:
-    """``[S, A, S]`` counts of observed transitions ``(s_t, a_t) -> s_{t+1}``."""
-    s, a, s2 = demos.transitions()
-    counts = np.zeros((demos.n_states, demos.n_actions, demos.n_states))
-    np.add.at(counts, (s, a, s2), 1.0)
-    return counts
-
-
 def model_free_successors(demos: Demonstrations, fallback_next: np.ndarray | None = None) -> SuccessorModel:
     """The demonstrations' empirical successor model.
 

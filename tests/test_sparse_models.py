@@ -1,14 +1,17 @@
 """Sparse transition models: the same numbers as the dense [S, A, S] arrays they replace.
 
 The reference here is the dense construction the project used before (relative counts in an
-[S, A, S] array, fallback rows copied in, cumulative sums over full rows for sampling), written
-out in the test, so that the sparse code is checked against an independent computation.
+[S, A, S] array, fallback rows copied in: ``benchmarks.sparse_model_bench.dense_estimate``, which the
+benchmark times; cumulative sums over full rows for sampling, written out here), so that the sparse
+code is checked against an independent computation.
 """
 
 import numpy as np
 import pytest
 import scipy.sparse as sp
 from irl_testdata import gridworld_demos, random_mdp
+
+from benchmarks.sparse_model_bench import dense_estimate
 
 from irl import merge_mdp
 from irl.config import IRLConfig
@@ -20,23 +23,6 @@ from irl.errors import ConfigError, DemonstrationError
 from irl.fit import fit
 from irl.reirl import uniform_baseline
 from irl.transitions import SuccessorModel, estimate_transitions, model_successors
-
-
-def dense_estimate(demos: Demonstrations, fallback: np.ndarray | None) -> np.ndarray:
-    """The former dense estimator: ``[S, A, S]`` relative counts, fallback (or self-loop) rows elsewhere."""
-    S, A = demos.n_states, demos.n_actions
-    s, a, s2 = demos.transitions()
-    counts = np.zeros((S, A, S))
-    np.add.at(counts, (s, a, s2), 1.0)
-    totals = counts.sum(axis=2, keepdims=True)
-    seen = totals[..., 0] > 0
-    t = np.divide(counts, totals, out=np.zeros_like(counts), where=totals > 0)
-    if fallback is not None:
-        t[~seen] = fallback[~seen]
-    else:
-        ss, aa = np.nonzero(~seen)
-        t[ss, aa, ss] = 1.0
-    return t
 
 
 def dense_baseline(demos: Demonstrations, t: np.ndarray, n: int, length: int, rng: np.random.Generator):

@@ -13,14 +13,13 @@ Example::
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 import os
+from collections.abc import Sequence
+from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
-
-from dataclasses import replace
-from pathlib import Path
 
 from analysis.provenance import provenance as provenance_record
 from analysis.provenance import write_timings

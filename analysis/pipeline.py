@@ -69,9 +69,9 @@ class DemoConfig:
         eval_seed: first seed of the evaluation episodes; eval_episodes: episodes per policy.
         eval_duration_s: simulated seconds per evaluation episode.
         methods: IRL methods to learn (default Q-Avg alone: with the driver state encoding
-            (6250 states) MLIRL's and REIRL's dense ``[S, 5, S]`` transition model does not fit
-            the demo's minute, and Q-SM's fixed-point iteration took 26-57 s of it; all are
-            optional, ``methods=irl.fit.METHODS`` or ``merge-irl demo --methods ...``).
+            (6250 states) MLIRL's Boltzmann backups take minutes per fit (its transition model is
+            sparse, memory is not the limit), and Q-SM's fixed-point iteration took 26-57 s of the
+            demo; all are optional, ``methods=irl.fit.METHODS`` or ``merge-irl demo --methods ...``).
         features: merge feature set (None: as ``merge-irl learn`` on encounter tables,
             :func:`analysis.learn.merge_features`, the driver set with A's previous action in the
             state); the IRL settings are :func:`analysis.learn.merge_config`'s (beta 1).
@@ -82,8 +82,10 @@ class DemoConfig:
             (s, a) pairs their reward alone, so at gamma > 0 observed and unobserved pairs are
             on different scales; at gamma 0 every pair is R = theta . phi and the policy is a
             conditional logit on the driver features), and it drives with fewer collisions
-            (3 vs 9 A collisions in 6 episodes). Revisit when Q-Avg backs unobserved pairs up
-            through a transition model.
+            (3 vs 9 A collisions in 6 episodes). Measured with the terminal rule for unobserved
+            pairs; at gamma 0 the rule changes nothing, and the kinematic backup that the merge
+            defaults now use at gamma > 0 (:data:`analysis.learn.MERGE_UNOBSERVED`) has not been
+            compared in the closed loop yet.
         l2: L2 penalty of the IRL fits. Default 1: the likelihood is bounded without it, but at
             l2 0 the fit trades a positive weight on the inverse TTC to C (a reward for closing
             in) against a negative one on the relative speed to C; l2 1 keeps the held-out

@@ -82,6 +82,11 @@ class AcceptedGaps:
         return out
 
 
+def _vehicle_lengths(table: pd.DataFrame) -> pd.Series:
+    """Vehicle_ID -> v_Length (ft) of a trajectory table (first row of each vehicle)."""
+    return table.drop_duplicates("Vehicle_ID").set_index("Vehicle_ID")["v_Length"]
+
+
 def accepted_gaps(table: pd.DataFrame) -> AcceptedGaps:
     """The gaps accepted by the ramp cars of a trajectory table (NGSIM schema, ft); see
     :class:`AcceptedGaps`. Cars never seen on lane 7 before lane 6 are left out."""
@@ -90,7 +95,7 @@ def accepted_gaps(table: pd.DataFrame) -> AcceptedGaps:
     was_ramp = on_ramp.groupby(t["Vehicle_ID"]).cummax()
     merged = t[(t["Lane_ID"] == RIGHTMOST_MAIN_LANE) & was_ramp].drop_duplicates("Vehicle_ID")
     where = table.set_index(["Vehicle_ID", "Frame_ID"])["Local_Y"]
-    lengths = table.drop_duplicates("Vehicle_ID").set_index("Vehicle_ID")["v_Length"]
+    lengths = _vehicle_lengths(table)
 
     def y_of(ids: pd.Series) -> np.ndarray:
         keys = list(zip(ids.to_numpy(), merged["Frame_ID"].to_numpy()))
@@ -188,7 +193,7 @@ def table_states(table: pd.DataFrame, *, lanes: tuple[int, ...] = REAL_LANES,
     """
     y = table["Local_Y"]
     t = table[table["Lane_ID"].isin(lanes) & (table["Preceding"] != 0) & (y >= 0) & (y <= study_length_ft)]
-    lengths = table.drop_duplicates("Vehicle_ID").set_index("Vehicle_ID")["v_Length"]
+    lengths = _vehicle_lengths(table)
     lead_len = t["Preceding"].map(lengths).to_numpy(dtype=float)
     front = t["Space_Headway"].to_numpy(dtype=float)
     spacing = front - np.nan_to_num(lead_len, nan=np.inf)

@@ -14,10 +14,10 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from analysis.calibration_check import N_MEMBERS, calibrated_spec
 from irl.atomic import write_text_atomic
 from scenarios.calibration import load_result
 from scenarios.loader import load_scenario
-from analysis.calibration_check import N_MEMBERS, calibrated_spec
 
 
 def preset_with_drivers(scenario: str | os.PathLike, params_path: str | os.PathLike, *, n: int = N_MEMBERS,

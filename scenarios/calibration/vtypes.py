@@ -17,7 +17,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from scenarios.calibration.fit import CalibrationResult
+from scenarios.calibration.fit import FITTED, CalibrationResult
 from scenarios.calibration.models import CFParams
 
 #: Range allowed in simulation (SI units).
@@ -102,7 +102,7 @@ def member_spread(members) -> dict[str, tuple[float, float, float]]:
         parameter name -> (q10, median, q90), SI units.
     """
     out: dict[str, tuple[float, float, float]] = {}
-    for name in ("accel", "decel", "tau", "minGap", "maxSpeed"):
+    for name in FITTED:
         q10, q50, q90 = np.quantile([getattr(m.params, name) for m in members], [0.1, 0.5, 0.9])
         out[name] = (float(q10), float(q50), float(q90))
     return out

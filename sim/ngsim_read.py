@@ -218,7 +218,10 @@ def _locate_bad_line(path: Path, layout: _Layout, start_line: int, cause: Except
     return TrajectoryFormatError(f"{path}: unreadable NGSIM data after line {start_line}: {cause}")
 
 
-#: pyarrow's streaming reader keeps about 40 blocks in flight: 1 MB blocks bound that to ~40 MB.
+#: Block size of pyarrow's streaming reader. It runs without threads (``use_threads=False``): with
+#: them it reads blocks ahead while the main thread is busy, and on a busy machine a 2 GB file
+#: without line ends reached a 5 GB peak; serial reading keeps the speed (0.45x pandas' with and
+#: without threads, ``python -m benchmarks.ngsim_bench --size-mb 100``) and bounds the blocks held.
 MAX_BLOCK_BYTES = 1 << 20
 
 
@@ -246,7 +249,7 @@ def _chunks(path: Path, layout: _Layout, chunksize: int) -> Iterator[tuple[np.nd
             path,
             read_options=pacsv.ReadOptions(
                 skip_rows=layout.header_lines, column_names=list(layout.names), block_size=block,
-                encoding=layout.encoding,
+                encoding=layout.encoding, use_threads=False,
             ),
             parse_options=pacsv.ParseOptions(delimiter=","),
             convert_options=pacsv.ConvertOptions(

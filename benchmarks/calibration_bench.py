@@ -102,7 +102,7 @@ def main() -> None:
         for stat in ("median_rmse_m", "default_median_rmse_m", "mean_rmse_m", "default_mean_rmse_m",
                      "win_fraction", "median_ratio", "mean_ratio"):
             line(stat, eb.interval(stat).value, et.interval(stat).value)
-        for label, (_, _, res, ev) in rows.items():
+        for label, (_, _, _, ev) in rows.items():
             ivs = "; ".join(f"{k} [{ev.interval(k).low:.3f}, {ev.interval(k).high:.3f}]"
                             for k in ("median_ratio", "mean_ratio", "win_fraction"))
             print(f"  {label} 95% intervals: {ivs}")

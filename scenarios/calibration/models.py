@@ -35,6 +35,7 @@ All functions are vectorised: parameters and states are arrays broadcastable to 
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
+from types import EllipsisType
 
 import numpy as np
 
@@ -177,7 +178,7 @@ def simulate_follower(
     # time-major, contiguous per step: row t of xl / vl / x / v is one step of every follower
     xl = np.ascontiguousarray(np.moveaxis(np.broadcast_to(x_leader, lead + (T,)), -1, 0))
     vl = np.ascontiguousarray(np.moveaxis(np.broadcast_to(v_leader, lead + (T,)), -1, 0))
-    lsl = ...
+    lsl: slice | EllipsisType = ...
     ll = np.broadcast_to(leader_length, shape)
     x, v = np.empty((T,) + shape), np.empty((T,) + shape)
     x[0], v[0] = x0, v0
@@ -188,7 +189,8 @@ def simulate_follower(
         if np.any(np.diff(lengths) > 0):
             raise ValueError("lengths must be sorted in decreasing order")
         active = (lengths[None, :] > np.arange(T)[:, None]).sum(axis=1)
-    m_prev, pm, llm = -1, p, ll
+    m_prev: int | None = -1
+    pm, llm = p, ll
     for t in range(1, T):
         m = int(active[t]) if shape else None
         if shape and m < shape[0]:

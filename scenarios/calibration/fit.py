@@ -229,7 +229,7 @@ def fit_per_pair(
     forward-difference neighbours in one vectorised simulation (``K + 1`` candidates per pair),
     then solves each pair's K x K damped normal equations
     ``(J^T J + lambda diag(J^T J)) dz = -J^T e`` in variables scaled by the bound range
-    (Marquardt 1963, *J. SIAM* 11(2), eq. 9), projects the step onto the bounds (parameters
+    (Levenberg 1944; Marquardt 1963, *J. SIAM* 11(2)), projects the step onto the bounds (parameters
     at a bound with the gradient pointing out are held) and keeps it where the pair's squared
     error decreased (lambda / 3, else lambda x 4 and the old point). ``max_nfev`` is the
     number of iterations (simulations of the batch); a pair stops once its relative decrease

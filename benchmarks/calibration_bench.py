@@ -29,6 +29,7 @@ import os
 import resource
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -66,16 +67,16 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--models", nargs="+", default=["idm", "krauss"])
     ap.add_argument("--workers", type=int, default=None)
-    ap.add_argument("--out-dir", default="calibration_bench_out")
+    ap.add_argument("--out-dir", default=None, help="where the params files go (default: a new temporary folder)")
     ap.add_argument("--reuse", action="store_true", help="use params files already in --out-dir")
     a = ap.parse_args()
     here = Path(__file__).resolve().parents[1]
     checkouts = {"baseline": Path(a.baseline).resolve(), "this": here}
-    out_dir = Path(a.out_dir)
+    out_dir = Path(a.out_dir) if a.out_dir else Path(tempfile.mkdtemp(prefix="calibration-bench-"))
     out_dir.mkdir(parents=True, exist_ok=True)
     _, test = split_by_follower(load_pairs(a.pairs), a.holdout, a.seed)
     print(f"held-out: {len(test)} pairs (holdout {a.holdout}, seed {a.seed}); baseline {checkouts['baseline']}, "
-          f"this {here}")
+          f"this {here}; params files in {out_dir}")
     for model in a.models:
         rows = {}
         for label, checkout in checkouts.items():

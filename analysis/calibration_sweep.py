@@ -21,6 +21,7 @@ from scenarios.calibration import (
     read_pair,
 )
 from scenarios.calibration.fit import (
+    DEFAULT_OBJECTIVE,
     FITTED,
     CalibrationResult,
     assemble_result,
@@ -43,26 +44,29 @@ def fit_chunk_task(config: dict, seed: int) -> dict:
 
 def calibrate_parallel(
     pairs: Sequence[CarFollowingPair], files: Sequence[Path], *, model: str = "idm",
-    fitted: Sequence[str] = FITTED, per_pair: bool = True, max_nfev_population: int = 60,
-    max_nfev_per_pair: int = 40, workers: int | None = None, progress: bool = False,
+    fitted: Sequence[str] = FITTED, per_pair: bool = True, max_nfev_population: int = 40,
+    max_nfev_per_pair: int = 40, objective: str = DEFAULT_OBJECTIVE, workers: int | None = None,
+    progress: bool = False,
 ) -> CalibrationResult:
     """Population fit in this process, then per-pair fits in ``workers`` processes.
 
     Args:
         pairs: the training pairs; ``files[i]`` is the CSV ``pairs[i]`` was read from.
-        workers: processes (default: one per core); the pairs are split in ``2 * workers``
-            chunks of similar total length.
+        objective: the population fit's objective (:data:`scenarios.calibration.fit.OBJECTIVES`).
+        workers: processes (default: one per core); the pairs are split in ``workers`` chunks
+            of similar total length.
 
     Raises:
         SpecError: bad model or fitted names (from the fits).
         RuntimeError: a chunk failed in every attempt (its error named).
     """
     t0 = time.perf_counter()
-    pop, med = fit_population(pairs, model=model, fitted=fitted, max_nfev=max_nfev_population)
+    pop, med = fit_population(pairs, model=model, fitted=fitted, max_nfev=max_nfev_population, objective=objective)
     t1 = time.perf_counter()
     fits: list[PairFit] = []
     if per_pair:
-        n_chunks = max(1, min(len(pairs), 2 * (workers or default_workers())))
+        # one chunk per process: a chunk's cost is its simulations, which barely grow with its size
+        n_chunks = max(1, min(len(pairs), workers or default_workers()))
         order = sorted(range(len(pairs)), key=lambda i: -len(pairs[i]))
         chunks = [order[c::n_chunks] for c in range(n_chunks)]  # round-robin: similar lengths
         tasks = [Task(key=f"chunk{c:03d}", func=fit_chunk_task, config={
@@ -77,4 +81,5 @@ def calibrate_parallel(
         fits = [PairFit(name=p.name, group=p.group, params=CFParams(**by_name[p.name]["params"]),
                         rmse_m=float(by_name[p.name]["rmse_m"])) for p in pairs]
     return assemble_result(pairs, model=model, fitted=fitted, population=pop, median_rmse_m=med,
-                           per_pair=fits, seconds_population=t1 - t0, seconds_per_pair=time.perf_counter() - t1)
+                           per_pair=fits, seconds_population=t1 - t0, seconds_per_pair=time.perf_counter() - t1,
+                           objective=objective)

@@ -27,7 +27,8 @@ def _cli(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:
 @pytest.fixture(scope="module")
 def params(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("cal") / "params.toml"
-    r = _cli("calibrate", "fit", "--pairs", str(PAIRS_DIR), "--out", str(out), "--limit", "8", "--no-per-pair")
+    r = _cli("calibrate", "fit", "--pairs", str(PAIRS_DIR), "--out", str(out), "--limit", "8", "--no-per-pair",
+             "--objective", "rmse")
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip() == str(out)
     return out
@@ -35,7 +36,7 @@ def params(tmp_path_factory) -> Path:
 
 def test_fit_writes_loadable_params(params: Path) -> None:
     res = load_result(params)
-    assert res.model == "idm" and res.n_pairs == 8 and res.per_pair == ()
+    assert res.model == "idm" and res.n_pairs == 8 and res.per_pair == () and res.objective == "rmse"
     assert res.population != CFParams()  # moved away from SUMO's defaults
 
 

@@ -103,6 +103,7 @@ def test_per_pair_fits_and_toml_round_trip(real_pairs, tmp_path: Path) -> None:
     path = save_result(res, tmp_path / "params.toml")
     back = load_result(path)
     assert back.population == res.population and back.per_pair == res.per_pair and back.spread == res.spread
+    assert back.objective == res.objective
     members = driver_members(back, 6, seed=1)
     assert len(members) == 6
     for name in FITTED:  # member 0 is the population, within the simulation range
@@ -123,6 +124,9 @@ def test_params_file_errors_name_the_field(tmp_path: Path) -> None:
         load_result(p)
     p.write_text('model = "gipps"\n[population]\naccel = 1.0\n')
     with pytest.raises(SpecError, match="model = 'gipps'"):
+        load_result(p)
+    p.write_text('model = "idm"\nobjective = "median"\n[population]\naccel = 1.0\n')
+    with pytest.raises(SpecError, match=r"bad\.toml: objective = 'median'; expected one of"):
         load_result(p)
 
 

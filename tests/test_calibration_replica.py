@@ -10,7 +10,11 @@ import textwrap
 import numpy as np
 import pytest
 
+from shared_data import PAIRS_DIR
+
+from scenarios.calibration import PairBatch, load_pairs
 from scenarios.calibration.models import CFParams, simulate_follower
+from scenarios.calibration.objective import spacing_rmse
 
 PARAMS = [
     CFParams(),
@@ -80,3 +84,44 @@ def test_replica_broadcasts_candidates() -> None:
             xs, _ = simulate_follower("idm", xl[i, 0], vl[i, 0], 4.5, [70.0, 72.0][i], 12.0,
                                       {**CFParams().as_dict(), "tau": tau[c]})
             np.testing.assert_array_equal(x[i, c], xs)
+
+
+def _run_sumo_on_real_pairs(model: str, params: CFParams, names: list[str]) -> dict:
+    """Real pairs in real SUMO: the recorded leader speeds replayed, the follower started from
+    its recorded gap and speed; SUMO's leader and follower positions (m, shifted) per step."""
+    code = textwrap.dedent(f"""
+        import json, numpy as np
+        from scenarios.calibration import load_pairs
+        from scenarios.calibration.models import CFParams
+        from scenarios.calibration.sumo_replay import ReplayCase, run_sumo_pairs
+        pairs = {{p.name: p for p in load_pairs({str(PAIRS_DIR)!r})}}
+        sel = [pairs[n] for n in {names!r}]
+        cases = [ReplayCase(v_leader=p.v_leader, x_leader0=100.0,
+                            x_follower0=100.0 - (p.x_leader[0] - p.x_follower[0]),
+                            v_follower0=float(p.v_follower[0]), leader_length=p.leader_length) for p in sel]
+        r = run_sumo_pairs(cases, CFParams(**{params.as_dict()!r}), model={model!r})
+        print(json.dumps({{"x_leader": r.x_leader.tolist(), "x_follower": r.x_follower.tolist()}}))
+    """)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=300)
+    return {k: np.array(a) for k, a in json.loads(out.stdout.splitlines()[-1]).items()}
+
+
+@pytest.mark.sumo
+@pytest.mark.parametrize("model", ["idm", "krauss"])
+@pytest.mark.parametrize("params", [CFParams(), CFParams(accel=1.6, decel=1.5, tau=1.3, minGap=2.5, maxSpeed=23.0)],
+                         ids=["defaults", "calibrated"])
+def test_replica_rmse_equals_sumo_on_real_pairs(model: str, params: CFParams) -> None:
+    """What the fit minimises is what SUMO does: on real NGSIM pairs, the spacing RMSE the
+    replica computes from the recorded leader positions equals the RMSE of real SUMO replaying
+    the recorded leader speeds (the two leader paths differ by the data's few centimetres of
+    position/speed inconsistency, hence the 2 cm tolerance)."""
+    pairs = load_pairs(PAIRS_DIR)[::6]
+    r = _run_sumo_on_real_pairs(model, params, [p.name for p in pairs])
+    batch = PairBatch.from_pairs(pairs)
+    replica = batch.unsort(spacing_rmse(model, batch, params.as_dict()))
+    for i, p in enumerate(pairs):
+        n = len(p)
+        sumo_gap = r["x_leader"][i, :n] - p.leader_length - r["x_follower"][i, :n]
+        sumo_rmse = np.sqrt(np.mean((sumo_gap[1:] - p.spacing[1:]) ** 2))
+        assert sumo_rmse == pytest.approx(replica[i], abs=0.02), p.name
+    assert replica.max() > 1.0  # the pairs are not trivially followed: the check has teeth

@@ -14,12 +14,15 @@ from scenarios.calibration import (
     FITTED,
     CFParams,
     evaluate,
+    fit_per_pair,
     fit_population,
     load_pairs,
     simulate_follower,
 )
+from scenarios.calibration.fit import OBJECTIVES
 from scenarios.calibration.objective import spacing_rmse, spacing_rmspe, theil_u
 from scenarios.calibration.pairs import CarFollowingPair, PairBatch
+from scenarios.errors import SpecError
 
 TRUE = CFParams(accel=1.4, decel=2.2, tau=1.3, minGap=2.0, maxSpeed=22.0)
 
@@ -92,3 +95,40 @@ def test_evaluate_bootstrap_intervals_bracket_values(real_pairs) -> None:
     again = evaluate(TRUE, real_pairs, model="idm", seed=3)
     assert again.intervals == ev.intervals  # deterministic per seed
     assert "intervals" in ev.to_json_dict()
+
+
+def test_per_pair_fits_recover_each_drivers_parameters(real_pairs) -> None:
+    """Six drivers with different parameters behind real leaders (the replica, which is SUMO):
+    the per-pair Levenberg-Marquardt fits, all started from one population point, find each
+    driver's own parameters; a driver beyond a bound is held at it."""
+    drivers = [
+        CFParams(accel=1.4, decel=2.2, tau=1.3, minGap=2.0, maxSpeed=22.0),
+        CFParams(accel=0.8, decel=1.5, tau=0.8, minGap=3.5, maxSpeed=18.0),
+        CFParams(accel=2.5, decel=3.0, tau=1.8, minGap=1.5, maxSpeed=26.0),
+        CFParams(accel=1.0, decel=1.2, tau=1.0, minGap=4.5, maxSpeed=15.0),
+        CFParams(accel=1.8, decel=2.6, tau=0.6, minGap=2.5, maxSpeed=30.0),
+        CFParams(accel=1.4, decel=2.2, tau=3.5, minGap=2.0, maxSpeed=22.0),  # tau beyond its bound (3 s)
+    ]
+    pairs = [_replica_pairs(real_pairs[i:], d, n=1, steps=500)[0] for i, d in enumerate(drivers)]
+    fits = fit_per_pair(pairs, CFParams(accel=1.2, decel=2.0, tau=1.2, minGap=2.5, maxSpeed=20.0), max_nfev=60)
+    assert [f.name for f in fits] == [p.name for p in pairs]
+    for f, d in zip(fits[:5], drivers[:5]):
+        assert f.rmse_m < 0.05, f.name  # metres
+        for name in ("accel", "tau", "minGap"):  # the parameters congested following identifies
+            assert getattr(f.params, name) == pytest.approx(getattr(d, name), rel=0.05), (f.name, name)
+    for f in fits:
+        for name in FITTED:
+            lo, hi = BOUNDS[name]
+            assert lo <= getattr(f.params, name) <= hi
+    assert fits[5].params.tau == pytest.approx(BOUNDS["tau"][1])
+    assert fits[5].rmse_m > 0.05  # it cannot reach the driver
+
+
+def test_population_objectives(real_pairs) -> None:
+    pairs = _replica_pairs(real_pairs, TRUE, n=8, steps=300)
+    for objective in OBJECTIVES:
+        pop, med = fit_population(pairs, model="idm", max_nfev=30, objective=objective)
+        assert med < 0.05, objective
+        assert pop.tau == pytest.approx(TRUE.tau, rel=0.05), objective
+    with pytest.raises(SpecError, match="objective: expected one of"):
+        fit_population(pairs, objective="median")

@@ -32,6 +32,10 @@ def register(subparsers) -> None:
     f.add_argument("--out", required=True, metavar="FILE", help="output params TOML")
     f.add_argument("--model", choices=("idm", "krauss"), default="idm")
     f.add_argument("--no-per-pair", action="store_true", help="population fit only (faster, no spread)")
+    f.add_argument("--objective", choices=("log", "rmse", "ratio"), default=None,
+                   help="population objective over the per-pair spacing RMSEs: log (geometric mean, "
+                        "the default), rmse (Cauchy loss, 1 m), ratio (each pair's RMSE over its RMSE under "
+                        "SUMO's defaults); see docs/calibration.md")
     f.add_argument("--holdout", type=float, default=0.0, metavar="FRACTION",
                    help="leave this share of followers out of the fit (split by follower; see --seed)")
     f.add_argument("--seed", type=int, default=0, help="seed of the held-out split (default 0)")
@@ -80,6 +84,7 @@ def _pairs(args: argparse.Namespace, *, held_out: bool):
 def run_fit(args: argparse.Namespace) -> int:
     from analysis.calibration_sweep import calibrate_parallel
     from scenarios.calibration import save_result
+    from scenarios.calibration.fit import DEFAULT_OBJECTIVE
     from scenarios.calibration.pairs import pair_files
 
     pairs = _pairs(args, held_out=False)
@@ -87,6 +92,7 @@ def run_fit(args: argparse.Namespace) -> int:
     print(f"fitting {args.model} on {len(pairs)} pairs ...", file=sys.stderr)
     result = calibrate_parallel(pairs, [file_of[p.name] for p in pairs], model=args.model,
                                 per_pair=not args.no_per_pair, workers=args.workers,
+                                objective=args.objective or DEFAULT_OBJECTIVE,
                                 progress=not args.no_progress)
     save_result(result, args.out)
     p = result.population

@@ -35,6 +35,7 @@ All functions are vectorised: parameters and states are arrays broadcastable to 
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
+from types import EllipsisType
 
 import numpy as np
 
@@ -170,12 +171,17 @@ def simulate_follower(
     T = np.shape(x_leader)[-1]
     shape = np.broadcast_shapes(np.shape(x0), np.shape(leader_length), *(np.shape(a) for a in p.values()),
                                 np.shape(x_leader)[:-1])
+    own = np.shape(x_leader)[:-1]  # leader arrays keep their own (broadcastable) leading shape
+    lead = (1,) * (len(shape) - len(own)) + own
+    cut = bool(lead) and lead[0] != 1  # the leader has a row per follower row: slice it too
     p = {k: np.broadcast_to(a, shape) for k, a in p.items()}
-    xl = np.broadcast_to(x_leader, shape + (T,))
-    vl = np.broadcast_to(v_leader, shape + (T,))
+    # time-major, contiguous per step: row t of xl / vl / x / v is one step of every follower
+    xl = np.ascontiguousarray(np.moveaxis(np.broadcast_to(x_leader, lead + (T,)), -1, 0))
+    vl = np.ascontiguousarray(np.moveaxis(np.broadcast_to(v_leader, lead + (T,)), -1, 0))
+    lsl: slice | EllipsisType = ...
     ll = np.broadcast_to(leader_length, shape)
-    x, v = np.empty(shape + (T,)), np.empty(shape + (T,))
-    x[..., 0], v[..., 0] = x0, v0
+    x, v = np.empty((T,) + shape), np.empty((T,) + shape)
+    x[0], v[0] = x0, v0
     if lengths is None:
         active = np.full(T, shape[0] if shape else 1)
     else:
@@ -183,20 +189,29 @@ def simulate_follower(
         if np.any(np.diff(lengths) > 0):
             raise ValueError("lengths must be sorted in decreasing order")
         active = (lengths[None, :] > np.arange(T)[:, None]).sum(axis=1)
+    m_prev: int | None = -1
+    pm, llm = p, ll
     for t in range(1, T):
         m = int(active[t]) if shape else None
         if shape and m < shape[0]:
-            x[m:, ..., t], v[m:, ..., t] = x[m:, ..., t - 1], v[m:, ..., t - 1]
-        sl = slice(None, m) if shape else ...
-        pm = {k: a[sl] for k, a in p.items()}
-        v_old = v[sl][..., t - 1]
-        x_old = x[sl][..., t - 1]
-        gap = xl[sl][..., t - 1] - ll[sl] - x_old
-        v_raw = step(v_old, gap, vl[sl][..., t - 1], pm)
+            x[t, m:], v[t, m:] = x[t - 1, m:], v[t - 1, m:]
+        if m != m_prev:  # the active rows change only where a pair ends
+            sl = slice(None, m) if shape else ...
+            pm = {k: a[sl] for k, a in p.items()}
+            llm = ll[sl]
+            lsl = sl if cut else ...
+            m_prev = m
+        v_old = v[t - 1, sl]
+        x_old = x[t - 1, sl]
+        gap = xl[t - 1, lsl] - llm - x_old
+        v_raw = step(v_old, gap, vl[t - 1, lsl], pm)
         stop = v_raw < 0  # stops within the step at constant deceleration
         v_new = np.where(v_raw < EPS_SPEED, 0.0, v_raw)
-        acc = np.where(stop, (v_raw - v_old) / DT, -1.0)
-        dx = np.where(stop, -0.5 * v_old * v_old / acc, 0.5 * (v_old + v_new) * DT)
-        v[sl][..., t] = v_new
-        x[sl][..., t] = x_old + dx
-    return x, v
+        if stop.any():
+            acc = np.where(stop, (v_raw - v_old) / DT, -1.0)
+            dx = np.where(stop, -0.5 * v_old * v_old / acc, 0.5 * (v_old + v_new) * DT)
+        else:
+            dx = 0.5 * (v_old + v_new) * DT
+        v[t, sl] = v_new
+        x[t, sl] = x_old + dx
+    return np.moveaxis(x, 0, -1), np.moveaxis(v, 0, -1)

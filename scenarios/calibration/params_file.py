@@ -3,6 +3,7 @@
 Layout::
 
     model = "idm"
+    objective = "log"         # the population fit's objective (fit.OBJECTIVES)
     fitted = ["accel", "decel", "tau", "minGap", "maxSpeed"]
     n_pairs = 211
     population_median_rmse_m = 3.41
@@ -34,7 +35,7 @@ from dataclasses import asdict, fields
 from pathlib import Path
 
 from irl.atomic import write_text_atomic
-from scenarios.calibration.fit import CalibrationResult, PairFit, ParamSpread
+from scenarios.calibration.fit import DEFAULT_OBJECTIVE, OBJECTIVES, CalibrationResult, PairFit, ParamSpread
 from scenarios.calibration.models import MODELS, PARAM_NAMES, CFParams
 from scenarios.errors import SpecError
 from scenarios.toml_write import dumps
@@ -43,6 +44,7 @@ from scenarios.toml_write import dumps
 def result_to_dict(r: CalibrationResult) -> dict:
     return {
         "model": r.model,
+        "objective": r.objective,
         "fitted": list(r.fitted),
         "n_pairs": r.n_pairs,
         "population_median_rmse_m": r.population_median_rmse_m,
@@ -103,6 +105,9 @@ def load_result(path: str | os.PathLike) -> CalibrationResult:
     model = data.get("model", "idm")
     if model not in MODELS:
         raise SpecError(f"{src}: model = {model!r}; expected one of {sorted(MODELS)}")
+    objective = data.get("objective", DEFAULT_OBJECTIVE)
+    if objective not in OBJECTIVES:
+        raise SpecError(f"{src}: objective = {objective!r}; expected one of {sorted(OBJECTIVES)}")
     if "population" not in data:
         raise SpecError(f"{src}: missing [population] table")
     pop = _params(src, "population", data["population"])
@@ -124,5 +129,5 @@ def load_result(path: str | os.PathLike) -> CalibrationResult:
         population_median_rmse_m=float(data.get("population_median_rmse_m", float("nan"))),
         per_pair=tuple(pairs), spread=tuple(spread), n_pairs=int(data.get("n_pairs", len(pairs))),
         seconds_population=float(data.get("seconds_population", 0.0)),
-        seconds_per_pair=float(data.get("seconds_per_pair", 0.0)),
+        seconds_per_pair=float(data.get("seconds_per_pair", 0.0)), objective=objective,
     )

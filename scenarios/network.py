@@ -12,7 +12,9 @@ spreading to the right (negative y), SUMO lane index 0 = rightmost. Edges:
   ``main_length``: the downstream bottleneck whose queue reaches back into the section
   (vehicles on it have Local_Y beyond the study area): ``bottleneck_length_m`` of the main
   lanes at ``bottleneck_speed_mps``, then :data:`BOTTLENECK_EXIT_M` of ``bottleneck_lanes``
-  lanes (the rightmost lanes end there: a lane drop) at the same speed.
+  lanes at the same speed: a lane drop, the rightmost lanes end there (``bottleneck_drop`` =
+  "right") or the leftmost (``"left"``; ``bottleneck_out`` is then shifted right so that the
+  lanes going on keep their lateral position).
 
 Networks are cached in ``$MERGE_IRL_CACHE/networks/<hash>/net.net.xml`` (default cache
 ``~/.cache/merge-irl``). The hash covers the road spec and this module's format version, so a
@@ -57,8 +59,10 @@ def network_key(road: RoadSpec) -> str:
     """Hex hash of everything the network depends on."""
     d = asdict(road)
     if not road.bottleneck_length_m > 0:  # roads without a bottleneck keep their cached networks
-        for k in ("bottleneck_length_m", "bottleneck_speed_mps", "bottleneck_lanes"):
+        for k in ("bottleneck_length_m", "bottleneck_speed_mps", "bottleneck_lanes", "bottleneck_drop"):
             d.pop(k)
+    elif road.bottleneck_drop == "right":  # the layout before the field existed: same key
+        d.pop("bottleneck_drop")
     payload = json.dumps({"v": NETWORK_FORMAT_VERSION, "road": d}, sort_keys=True)
     return hashlib.sha256(payload.encode()).hexdigest()[:16]
 
@@ -77,10 +81,13 @@ def _xml_files(road: RoadSpec) -> dict[str, str]:
   <node id="ramp_start" x="{rx0:.3f}" y="{ry0:.3f}" type="priority"/>
 </nodes>
 """
+    nb = road.bottleneck_lanes or n
+    left = road.bottleneck_drop == "left"
     if road.bottleneck_length_m > 0:
         xb = L + road.bottleneck_length_m
+        y_out = -(n - nb) * w if left else 0.0  # left edge of bottleneck_out's lanes
         nodes = nodes.replace("</nodes>", f'  <node id="bottleneck_mid" x="{xb:.3f}" y="0.00" type="priority"/>\n'
-                                          f'  <node id="bottleneck_end" x="{xb + BOTTLENECK_EXIT_M:.3f}" y="0.00" '
+                                          f'  <node id="bottleneck_end" x="{xb + BOTTLENECK_EXIT_M:.3f}" y="{y_out:.3f}" '
                                           'type="priority"/>\n</nodes>')
     v, vr = road.speed_limit_mps, road.ramp_speed_limit_mps
     edges = f"""<edges>
@@ -91,24 +98,27 @@ def _xml_files(road: RoadSpec) -> dict[str, str]:
         shape="{rx0:.3f},{ry0:.3f} {xm:.3f},{y_join:.3f}"/>
 </edges>
 """
-    nb = road.bottleneck_lanes or n
     if road.bottleneck_length_m > 0:
         vb = road.bottleneck_speed_mps
+        xb = L + road.bottleneck_length_m
+        out_shape = f' shape="{xb:.3f},{y_out:.3f} {xb + BOTTLENECK_EXIT_M:.3f},{y_out:.3f}"' if left else ""
         edges = edges.replace("</edges>", "".join(
             f'  <edge id="{eid}" from="{a}" to="{b}" numLanes="{k}" speed="{vb:.3f}" width="{w:.3f}" priority="3" '
-            'spreadType="right"/>\n'
-            for eid, a, b, k in (("bottleneck", "end", "bottleneck_mid", n),
-                                 ("bottleneck_out", "bottleneck_mid", "bottleneck_end", nb))) + "</edges>")
+            f'spreadType="right"{shape}/>\n'
+            for eid, a, b, k, shape in (("bottleneck", "end", "bottleneck_mid", n, ""),
+                                        ("bottleneck_out", "bottleneck_mid", "bottleneck_end", nb, out_shape)))
+            + "</edges>")
     cons = ["<connections>"]
     for i in range(n):
         cons.append(f'  <connection from="main_in" to="aux" fromLane="{i}" toLane="{i + 1}"/>')
         cons.append(f'  <connection from="aux" to="main_out" fromLane="{i + 1}" toLane="{i}"/>')
     cons.append('  <connection from="ramp" to="aux" fromLane="0" toLane="0"/>')
-    if road.bottleneck_length_m > 0:  # the leftmost lanes go on; the rightmost n - nb lanes end
+    if road.bottleneck_length_m > 0:  # nb lanes go on; the n - nb rightmost (or leftmost) lanes end
         for i in range(n):
             cons.append(f'  <connection from="main_out" to="bottleneck" fromLane="{i}" toLane="{i}"/>')
         for i in range(nb):
-            cons.append(f'  <connection from="bottleneck" to="bottleneck_out" fromLane="{i + n - nb}" toLane="{i}"/>')
+            src = i if left else i + n - nb  # SUMO lane index 0 = rightmost
+            cons.append(f'  <connection from="bottleneck" to="bottleneck_out" fromLane="{src}" toLane="{i}"/>')
     cons.append("</connections>\n")
     return {"nodes.nod.xml": nodes, "edges.edg.xml": edges, "connections.con.xml": "\n".join(cons)}
 

@@ -6,7 +6,8 @@ Layout of a scenario TOML file (SI units, as SUMO uses them)::
     name = "synthetic"
     [road]          main_lanes, main_length_m, merge_position_m, ramp_length_m, aux_length_m,
                     lane_width_m, speed_limit_mps, ramp_speed_limit_mps, ramp_angle_deg,
-                    bottleneck_length_m, bottleneck_speed_mps, bottleneck_lanes (optional, 0 = none)
+                    bottleneck_length_m, bottleneck_speed_mps, bottleneck_lanes (optional, 0 = none),
+                    bottleneck_drop ("right" | "left": the side whose lanes end)
     [demand]        main_veh_h (one value per main lane, leftmost first, or one value for all),
                     ramp_veh_h, truck_share, arrivals ("poisson" | "uniform"), depart_speed
     [simulation]    step_s, duration_s, warmup_s, seed
@@ -43,12 +44,16 @@ class RoadSpec:
     speed_limit_mps: float = 29.0
     ramp_speed_limit_mps: float = 22.0
     ramp_angle_deg: float = 4.0
-    #: A section past the study area (``main_length_m``) with fewer lanes (a lane drop on the
-    #: right) and / or a lower speed limit: the downstream bottleneck whose queue congests the
-    #: section; length 0 = none, lanes 0 = as many as the main road.
+    #: A section past the study area (``main_length_m``) with fewer lanes (a lane drop) and / or
+    #: a lower speed limit: the downstream bottleneck whose queue congests the section; length
+    #: 0 = none, lanes 0 = as many as the main road.
     bottleneck_length_m: float = 0.0
     bottleneck_speed_mps: float = 0.0
     bottleneck_lanes: int = 0
+    #: Which side's lanes end at the lane drop: ``"right"`` (the rightmost lanes, I-80 lane 6
+    #: first) or ``"left"`` (the leftmost, I-80 lane 1 = the HOV lane first, so that the
+    #: dropped lane's cars do not crowd the rightmost lanes the ramp merges into).
+    bottleneck_drop: str = "right"
 
 
 @dataclass(frozen=True)

@@ -131,6 +131,8 @@ def _road(ctx: _Ctx, data: Any) -> RoadSpec:
             kw[n] = _num(ctx, p, d[n])
             if not 0 < kw[n] < 45:
                 raise ctx.fail(p, f"must be in (0, 45) degrees, got {d[n]!r}")
+        elif n == "bottleneck_drop":
+            kw[n] = _str(ctx, p, d[n], ("right", "left"))
         elif n == "bottleneck_lanes":  # 0 = as many as the main road
             kw[n] = _num(ctx, p, d[n], integer=True)
             if not 0 <= kw[n] <= 6:

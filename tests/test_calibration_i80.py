@@ -150,10 +150,34 @@ def test_bottleneck_network_lane_drop_and_speed(tmp_path) -> None:
     assert (table["Local_Y"] > road.main_length_m / M_PER_FT).any()  # vehicles drive on past the section
 
 
+def test_bottleneck_left_drop_ends_the_leftmost_lane(tmp_path) -> None:
+    right = RoadSpec(main_lanes=3, bottleneck_length_m=120.0, bottleneck_speed_mps=8.0, bottleneck_lanes=2)
+    road = replace(right, bottleneck_drop="left")
+    net = sumolib.net.readNet(str(build_network(road, cache_dir=tmp_path)))
+    b, out = net.getEdge("bottleneck"), net.getEdge("bottleneck_out")
+    assert len(out.getLanes()) == 2
+    assert not b.getLanes()[2].getOutgoing()  # SUMO index 2 = the leftmost lane ends
+    for i in (0, 1):  # the others go on in their own lateral position
+        (con,) = b.getLanes()[i].getOutgoing()
+        assert con.getToLane().getID() == f"bottleneck_out_{i}"
+        assert out.getLanes()[i].getShape()[0][1] == pytest.approx(b.getLanes()[i].getShape()[-1][1])
+    assert network_key(road) != network_key(right)
+    # the right drop keeps the key it had before the field existed
+    old = {k: v for k, v in asdict(right).items() if k != "bottleneck_drop"}
+    payload = json.dumps({"v": NETWORK_FORMAT_VERSION, "road": old}, sort_keys=True)
+    assert network_key(right) == hashlib.sha256(payload.encode()).hexdigest()[:16]
+    spec = ScenarioSpec(name="bn", road=road, demand=DemandSpec(main_veh_h=(900.0, 900.0, 900.0), ramp_veh_h=200.0),
+                        simulation=SimulationSpec(duration_s=90.0, warmup_s=10.0))
+    table = run_scenario(spec, seed=2).table
+    past = table[table["Local_Y"] > (road.main_length_m + road.bottleneck_length_m + 20.0) / M_PER_FT]
+    assert len(past) and set(past["Lane_ID"]) <= {5, 6}  # I-80 lanes 5, 6 go on; lane 4 (leftmost here) ended
+
+
 @pytest.mark.parametrize("road, field", [
     ("bottleneck_length_m = 100.0\nbottleneck_speed_mps = 0.0", "road.bottleneck_speed_mps"),
     ("bottleneck_length_m = 100.0\nbottleneck_speed_mps = 8.0\nbottleneck_lanes = 4", "road.bottleneck_lanes"),
     ("bottleneck_lanes = 1.5", "road.bottleneck_lanes"),
+    ('bottleneck_drop = "middle"', "road.bottleneck_drop"),
 ])
 def test_bottleneck_fields_checked(road: str, field: str) -> None:
     with pytest.raises(SpecError, match=field.replace(".", r"\.")):

@@ -76,9 +76,9 @@ def test_eidm_fit_recovers_known_driver(synthetic) -> None:
                                          starts=(base,), max_evals=80, objective="rmse", workers=1)
     assert runs <= 80
     assert med < 0.1  # defaults: metres (test above)
-    assert pop.tau == pytest.approx(TRUE.tau, abs=0.1)
-    assert pop.minGap == pytest.approx(TRUE.minGap, abs=0.3)
-    assert pop.accel == pytest.approx(TRUE.accel, abs=0.3)
+    assert pop.tau == pytest.approx(TRUE.tau, abs=0.05)  # measured: 1.598, 3.489, 1.398 (start 1.0, 2.5, 2.6)
+    assert pop.minGap == pytest.approx(TRUE.minGap, abs=0.15)
+    assert pop.accel == pytest.approx(TRUE.accel, abs=0.1)
 
 
 @pytest.mark.sumo

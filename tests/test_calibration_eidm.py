@@ -144,3 +144,18 @@ def test_cli_rejects_bad_model_and_budget(tmp_path: Path) -> None:
     r = _cli("calibrate", "evaluate", "--params", str(bad), "--pairs", str(PAIRS_DIR))
     assert r.returncode == 2 and "eidm2" in r.stderr and "'eidm'" in r.stderr
     assert not (tmp_path / "x.toml").exists()
+
+
+def test_eidm_vtypes_carry_the_fitted_attributes() -> None:
+    """An EIDM population becomes EIDM vTypes with delta and the noise off, as fitted."""
+    from scenarios.calibration import CalibrationResult, driver_members
+    from scenarios.calibration.vtypes import to_vtype_specs
+    from scenarios.spec import VTypeSpec
+
+    res = CalibrationResult(model="eidm", fitted=FITTED3, population=TRUE, population_median_rmse_m=1.0,
+                            per_pair=(), spread=(), n_pairs=3, seconds_population=1.0, seconds_per_pair=0.0)
+    template = VTypeSpec(id="car", car_follow_model="IDM", cf_params=(("delta", 3.0), ("sigmagap", 0.1)))
+    (spec,) = to_vtype_specs(driver_members(res, 1), template, "eidm")
+    cf = dict(spec.cf_params)
+    assert spec.car_follow_model == "EIDM" and spec.tau == TRUE.tau and spec.sigma == 0.0
+    assert cf == {"delta": 4.0, "sigmaleader": 0.0, "sigmagap": 0.0, "sigmaerror": 0.0}

@@ -7,7 +7,8 @@
 Thin layer over :mod:`scenarios.calibration`, :mod:`analysis.calibration_sweep` (per-pair fits
 on every core through the sweep runner) and :mod:`analysis.calibration_check`. ``evaluate``
 prints 95 % bootstrap intervals (pairs weighted equally) of the median, mean, win share and the
-calibrated / default ratios.
+calibrated / default ratios. EIDM (no numpy replica) is fitted and scored through real SUMO
+runs (:mod:`scenarios.calibration.sumo_fit`): population fit only, ``--max-evals`` SUMO runs.
 """
 
 from __future__ import annotations

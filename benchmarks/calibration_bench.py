@@ -36,7 +36,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from scenarios.calibration import evaluate, load_pairs, load_result, split_by_follower
+from scenarios.calibration import CalibrationResult, Evaluation, evaluate, load_pairs, load_result, split_by_follower
 
 TARGET_RATIO = 0.8
 TARGET_POPULATION_S = 60.0
@@ -81,7 +81,7 @@ def main() -> None:
     print(f"held-out: {len(test)} pairs (holdout {a.holdout}, seed {a.seed}); baseline {checkouts['baseline']}, "
           f"this {here}; params files in {out_dir}")
     for model in a.models:
-        rows = {}
+        rows: dict[str, tuple[float | None, float | None, CalibrationResult, Evaluation] | None] = {}
         for label, checkout in checkouts.items():
             out = out_dir / f"{label}_{model}.toml"
             wall = cpu = None
@@ -105,15 +105,18 @@ def main() -> None:
             ratio = f"{t / b:.2f}" if b and t is not None else "-"
             print(f"  {name:<22} {bs:>20} {ts:>24} {ratio:>14}")
 
-        (wb, cb, rb, eb) = rows["baseline"] or (None, None, None, None)
-        (wt, ct, rt, et) = rows["this"]
+        base_row, this_row = rows["baseline"], rows["this"]
+        assert this_row is not None, "this checkout's fit either ran or raised"
+        wb, cb = base_row[:2] if base_row else (None, None)
+        rb, eb = (base_row[2], base_row[3]) if base_row else (None, None)
+        (wt, ct, rt, et) = this_row
         line("fit wall (s)", wb, wt, "{:.1f}")
         line("fit CPU, all procs (s)", cb, ct, "{:.1f}")
-        line("population fit (s)", rb and rb.seconds_population, rt.seconds_population, "{:.1f}")
-        line("per-pair fits (s)", rb and rb.seconds_per_pair, rt.seconds_per_pair, "{:.1f}")
+        line("population fit (s)", rb.seconds_population if rb else None, rt.seconds_population, "{:.1f}")
+        line("per-pair fits (s)", rb.seconds_per_pair if rb else None, rt.seconds_per_pair, "{:.1f}")
         for stat in ("median_rmse_m", "default_median_rmse_m", "mean_rmse_m", "default_mean_rmse_m",
                      "win_fraction", "median_ratio", "mean_ratio"):
-            line(stat, eb and eb.interval(stat).value, et.interval(stat).value)
+            line(stat, eb.interval(stat).value if eb else None, et.interval(stat).value)
         for label, (_, _, _, ev) in ((k, v) for k, v in rows.items() if v is not None):
             ivs = "; ".join(f"{k} [{ev.interval(k).low:.3f}, {ev.interval(k).high:.3f}]"
                             for k in ("median_ratio", "mean_ratio", "win_fraction"))

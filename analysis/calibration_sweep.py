@@ -8,7 +8,7 @@ each) and joined. The population fit stays in the parent (one vectorised problem
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from analysis.sweep import Task, run_sweep
@@ -27,6 +27,8 @@ from scenarios.calibration.fit import (
     assemble_result,
     fit_population,
 )
+from scenarios.calibration.models import MODELS
+from scenarios.calibration.sumo_fit import DEFAULT_MAX_EVALS, calibrate_sumo
 
 
 def fit_chunk_task(config: dict, seed: int) -> dict:
@@ -46,9 +48,14 @@ def calibrate_parallel(
     pairs: Sequence[CarFollowingPair], files: Sequence[Path], *, model: str = "idm",
     fitted: Sequence[str] = FITTED, per_pair: bool = True, max_nfev_population: int = 40,
     max_nfev_per_pair: int = 40, objective: str = DEFAULT_OBJECTIVE, workers: int | None = None,
-    progress: bool = False,
+    progress: bool = False, max_evals_sumo: int | None = None, tick: Callable[[], None] | None = None,
 ) -> CalibrationResult:
     """Population fit in this process, then per-pair fits in ``workers`` processes.
+
+    A model without a numpy replica (EIDM) is fitted through SUMO instead
+    (:func:`scenarios.calibration.sumo_fit.calibrate_sumo`: population only, ``max_evals_sumo``
+    SUMO runs at most, default ``sumo_fit.DEFAULT_MAX_EVALS``, each split over ``workers``
+    processes; ``per_pair`` is ignored, ``tick`` is called once per run).
 
     Args:
         pairs: the training pairs; ``files[i]`` is the CSV ``pairs[i]`` was read from.
@@ -58,8 +65,13 @@ def calibrate_parallel(
 
     Raises:
         SpecError: bad model or fitted names (from the fits).
+        ScenarioError: SUMO failed (EIDM).
         RuntimeError: a chunk failed in every attempt (its error named).
     """
+    if model not in MODELS:  # no numpy replica (EIDM): population fit through SUMO, no per-pair fits
+        return calibrate_sumo(pairs, model=model, fitted=fitted, objective=objective, workers=workers,
+                              max_evals=max_evals_sumo if max_evals_sumo is not None else DEFAULT_MAX_EVALS,
+                              tick=tick)
     t0 = time.perf_counter()
     pop, med = fit_population(pairs, model=model, fitted=fitted, max_nfev=max_nfev_population, objective=objective)
     t1 = time.perf_counter()

@@ -1,13 +1,14 @@
 """``merge-irl calibrate``: fit SUMO car-following parameters to real leader-follower pairs.
 
-* ``calibrate fit --pairs DIR --out params.toml [--model idm|krauss]``
+* ``calibrate fit --pairs DIR --out params.toml [--model idm|krauss|eidm]``
 * ``calibrate evaluate --params FILE --pairs DIR [--json]``
 * ``calibrate check --params FILE --pairs DIR [--out report.md] [--json]``
 
 Thin layer over :mod:`scenarios.calibration`, :mod:`analysis.calibration_sweep` (per-pair fits
 on every core through the sweep runner) and :mod:`analysis.calibration_check`. ``evaluate``
 prints 95 % bootstrap intervals (pairs weighted equally) of the median, mean, win share and the
-calibrated / default ratios.
+calibrated / default ratios. EIDM (no numpy replica) is fitted and scored through real SUMO
+runs (:mod:`scenarios.calibration.sumo_fit`): population fit only, ``--max-evals`` SUMO runs.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ import sys
 def register(subparsers) -> None:
     p = subparsers.add_parser(
         "calibrate", help="fit / evaluate / check car-following parameters on real NGSIM pairs",
-        description="Calibrate SUMO car-following models (IDM, Krauss) on real leader-follower pairs: "
+        description="Calibrate SUMO car-following models (IDM, Krauss, EIDM) on real leader-follower pairs: "
                     "the leader is replayed, the follower simulated, the spacing error minimised.",
     )
     sub = p.add_subparsers(dest="calibrate_command", metavar="ACTION")
@@ -30,7 +31,11 @@ def register(subparsers) -> None:
     f = sub.add_parser("fit", help="population + per-pair fits, written as TOML")
     f.add_argument("--pairs", required=True, metavar="DIR", help="folder of pair CSVs (or with a train/ subfolder)")
     f.add_argument("--out", required=True, metavar="FILE", help="output params TOML")
-    f.add_argument("--model", choices=("idm", "krauss"), default="idm")
+    f.add_argument("--model", choices=("idm", "krauss", "eidm"), default="idm",
+                   help="idm / krauss: numpy replica of SUMO, population + per-pair fits; eidm: real SUMO "
+                        "runs, population fit only (Nelder-Mead, see --max-evals)")
+    f.add_argument("--max-evals", type=int, default=None, metavar="N",
+                   help="eidm: SUMO runs over the training pairs the population fit may use (default 60)")
     f.add_argument("--no-per-pair", action="store_true", help="population fit only (faster, no spread)")
     f.add_argument("--objective", choices=("log", "rmse", "ratio"), default=None,
                    help="population objective over the per-pair spacing RMSEs: log (geometric mean, "
@@ -52,6 +57,8 @@ def register(subparsers) -> None:
                    help="evaluate only the held-out followers of 'fit --holdout FRACTION --seed S'")
     e.add_argument("--seed", type=int, default=0)
     e.add_argument("--json", action="store_true", help="print one JSON object")
+    e.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="eidm: processes for the SUMO runs (default: one per core)")
     e.set_defaults(func=run_evaluate)
 
     c = sub.add_parser("check", help="compare the i80 scenario's simulated traffic with the real pairs")
@@ -82,18 +89,37 @@ def _pairs(args: argparse.Namespace, *, held_out: bool):
 
 
 def run_fit(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
     from analysis.calibration_sweep import calibrate_parallel
     from scenarios.calibration import save_result
     from scenarios.calibration.fit import DEFAULT_OBJECTIVE
+    from scenarios.calibration.models import MODELS
     from scenarios.calibration.pairs import pair_files
+    from scenarios.calibration.sumo_fit import DEFAULT_MAX_EVALS
+    from scenarios.errors import SpecError
 
     pairs = _pairs(args, held_out=False)
     file_of = {f.stem: f for f in pair_files(args.pairs, limit=args.limit)}
+    if args.max_evals is not None and args.max_evals < 1:
+        raise SpecError(f"--max-evals: expected a positive number of SUMO runs, got {args.max_evals}")
     print(f"fitting {args.model} on {len(pairs)} pairs ...", file=sys.stderr)
-    result = calibrate_parallel(pairs, [file_of[p.name] for p in pairs], model=args.model,
-                                per_pair=not args.no_per_pair, workers=args.workers,
-                                objective=args.objective or DEFAULT_OBJECTIVE,
-                                progress=not args.no_progress)
+    bar = None
+    if args.model not in MODELS:
+        if not args.no_per_pair:
+            print(f"{args.model}: no numpy replica; population fit through SUMO only, no per-pair fits",
+                  file=sys.stderr)
+        bar = tqdm(total=args.max_evals or DEFAULT_MAX_EVALS, desc=f"calibrate {args.model} (SUMO runs)",
+                   unit="run", file=sys.stderr, disable=args.no_progress or not sys.stderr.isatty())
+    try:
+        result = calibrate_parallel(pairs, [file_of[p.name] for p in pairs], model=args.model,
+                                    per_pair=not args.no_per_pair, workers=args.workers,
+                                    objective=args.objective or DEFAULT_OBJECTIVE,
+                                    progress=not args.no_progress, max_evals_sumo=args.max_evals,
+                                    tick=(lambda: bar.update(1)) if bar is not None else None)
+    finally:
+        if bar is not None:
+            bar.close()
     save_result(result, args.out)
     p = result.population
     print(f"population: accel={p.accel:.3f} decel={p.decel:.3f} tau={p.tau:.3f} minGap={p.minGap:.3f} "
@@ -111,7 +137,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
     from scenarios.calibration import evaluate, load_result
 
     result = load_result(args.params)
-    ev = evaluate(result.population, _pairs(args, held_out=True), model=result.model)
+    ev = evaluate(result.population, _pairs(args, held_out=True), model=result.model, workers=args.workers)
     if args.json:
         print(json.dumps(ev.to_json_dict()))
         return 0

@@ -3,13 +3,15 @@
 Replay the recorded leader, simulate the follower with a numpy replica of SUMO 1.28's
 car-following update (IDM, or Krauss with sigma = 0), and fit the parameters that minimise the
 spacing error (``scipy.optimize.least_squares``): a population fit plus per-pair fits, whose
-spread describes how drivers differ. The calibrated population feeds the ``i80`` scenario's
-vType distribution.
+spread describes how drivers differ. EIDM, which has no replica, is fitted and evaluated through
+real SUMO runs (:mod:`.sumo_fit`, population fit only). The calibrated population feeds the
+``i80`` scenario's vType distribution.
 
 Modules: :mod:`.pairs` (loading, batches, split by follower), :mod:`.models` (the SUMO
 replica), :mod:`.objective` (spacing error), :mod:`.fit` (fits),
 :mod:`~scenarios.calibration.evaluate` (calibrated vs default RMSE), :mod:`.params_file` (TOML),
-:mod:`.vtypes` (driver distribution), :mod:`.sumo_replay` (the same pairs in real SUMO, for checks).
+:mod:`.vtypes` (driver distribution), :mod:`.sumo_replay` (the same pairs in real SUMO, for checks),
+:mod:`.sumo_fit` (fits and scores through SUMO: EIDM).
 """
 
 from scenarios.calibration.evaluate import Evaluation, PairScore, evaluate
@@ -19,11 +21,13 @@ from scenarios.calibration.fit import (
 from scenarios.calibration.models import PARAM_NAMES, SUMO_DEFAULTS, CFParams, simulate_follower
 from scenarios.calibration.pairs import CarFollowingPair, PairBatch, load_pairs, read_pair, split_by_follower
 from scenarios.calibration.params_file import load_result, save_result
+from scenarios.calibration.sumo_fit import SumoRmse, calibrate_sumo, fit_population_sumo
 from scenarios.calibration.vtypes import DriverMember, driver_members
 
 __all__ = [
     "BOUNDS", "FITTED", "PARAM_NAMES", "SUMO_DEFAULTS", "CFParams", "CalibrationResult",
     "CarFollowingPair", "DriverMember", "Evaluation", "PairBatch", "PairFit", "PairScore",
-    "ParamSpread", "calibrate", "driver_members", "evaluate", "fit_per_pair", "fit_population",
+    "ParamSpread", "SumoRmse", "calibrate", "calibrate_sumo", "driver_members", "evaluate", "fit_per_pair",
+    "fit_population", "fit_population_sumo",
     "load_pairs", "load_result", "read_pair", "save_result", "simulate_follower", "split_by_follower",
 ]

@@ -26,7 +26,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.optimize import least_squares
 
-from scenarios.calibration.models import MODELS, SUMO_DEFAULTS, CFParams
+from scenarios.calibration.models import CALIBRATION_MODELS, MODELS, SUMO_DEFAULTS, CFParams
 from scenarios.calibration.objective import spacing_errors, spacing_rmse
 from scenarios.calibration.pairs import CarFollowingPair, PairBatch
 from scenarios.errors import SpecError
@@ -91,7 +91,7 @@ class CalibrationResult:
     """Population fit + per-pair fits of one model.
 
     Attributes:
-        model: "idm" or "krauss".
+        model: "idm", "krauss" or "eidm" (a key of ``models.CALIBRATION_MODELS``).
         fitted: names of the fitted parameters (the others stay at ``population``'s values).
         population: the population parameters.
         population_median_rmse_m: median over training pairs of the spacing RMSE (m).
@@ -119,7 +119,9 @@ class CalibrationResult:
 
 def _check(model: str, fitted: Sequence[str]) -> None:
     if model not in MODELS:
-        raise SpecError(f"model: expected one of {sorted(MODELS)}, got {model!r}")
+        hint = (f"; {model!r} has no numpy replica, fit it through SUMO (scenarios.calibration.sumo_fit)"
+                if model in CALIBRATION_MODELS else "")
+        raise SpecError(f"model: expected one of {sorted(MODELS)}, got {model!r}{hint}")
     bad = [f for f in fitted if f not in BOUNDS]
     if bad:
         raise SpecError(f"fitted: cannot fit {bad}; fittable: {sorted(BOUNDS)}")

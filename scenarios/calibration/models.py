@@ -143,6 +143,18 @@ def krauss_next_speed(v, gap, v_leader, p):
 
 
 MODELS = {"idm": idm_next_speed, "krauss": krauss_next_speed}
+#: Every model the calibration knows -> its SUMO ``carFollowModel``. ``MODELS`` (the numpy
+#: replica) covers IDM and Krauss; EIDM keeps internal state between steps (reaction-time
+#: action points, jerk limit, drive-off curve) and is simulated by real SUMO only
+#: (:mod:`scenarios.calibration.sumo_fit`).
+CALIBRATION_MODELS = {"idm": "IDM", "krauss": "Krauss", "eidm": "EIDM"}
+#: EIDM vType attributes written besides the common ones: its three noise sources (the Human
+#: Driver Model's estimation and driving errors; SUMO 1.28 defaults sigmaleader 0.02, sigmagap
+#: 0.1, sigmaerror 0.04) switched off, so that a run is deterministic, like Krauss with sigma 0.
+#: Every other EIDM attribute stays at SUMO's default (treaction 0.5 s, tpreview 4 s, tPersDrive
+#: 3 s, tPersEstimate 10 s, ccoolness 0.99, jerkmax 3 m/s^3, epsilonacc 1 m/s^2, taccmax 1.2 s,
+#: Mflatness 2, Mbegin 0.7, stepping 0.25 s; SUMO's ``MSCFModel_EIDM`` constructor).
+EIDM_NOISE_OFF: dict[str, float] = {"sigmaleader": 0.0, "sigmagap": 0.0, "sigmaerror": 0.0}
 
 
 def simulate_follower(

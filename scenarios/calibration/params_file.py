@@ -36,7 +36,7 @@ from pathlib import Path
 
 from irl.atomic import write_text_atomic
 from scenarios.calibration.fit import DEFAULT_OBJECTIVE, OBJECTIVES, CalibrationResult, PairFit, ParamSpread
-from scenarios.calibration.models import MODELS, PARAM_NAMES, CFParams
+from scenarios.calibration.models import CALIBRATION_MODELS, PARAM_NAMES, CFParams
 from scenarios.errors import SpecError
 from scenarios.toml_write import dumps
 
@@ -103,8 +103,8 @@ def load_result(path: str | os.PathLike) -> CalibrationResult:
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
         raise SpecError(f"{src}: not valid TOML: {e}") from e
     model = data.get("model", "idm")
-    if model not in MODELS:
-        raise SpecError(f"{src}: model = {model!r}; expected one of {sorted(MODELS)}")
+    if model not in CALIBRATION_MODELS:
+        raise SpecError(f"{src}: model = {model!r}; expected one of {sorted(CALIBRATION_MODELS)}")
     objective = data.get("objective", DEFAULT_OBJECTIVE)
     if objective not in OBJECTIVES:
         raise SpecError(f"{src}: objective = {objective!r}; expected one of {sorted(OBJECTIVES)}")

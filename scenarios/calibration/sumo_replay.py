@@ -21,10 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from scenarios.calibration.models import DT, CFParams
+from scenarios.calibration.models import CALIBRATION_MODELS, DT, EIDM_NOISE_OFF, CFParams
 from scenarios.errors import ScenarioError
-
-_SUMO_MODEL = {"idm": "IDM", "krauss": "Krauss"}
 
 
 @dataclass(frozen=True)
@@ -82,13 +80,17 @@ def run_sumo_pairs(
 ) -> ReplayResult:
     """Simulate every case in one libsumo run; ``params`` per case or one for all.
 
+    ``model`` is a key of :data:`~scenarios.calibration.models.CALIBRATION_MODELS` (Krauss with
+    sigma 0, EIDM with its noise off). libsumo runs one simulation at a time per process; runs
+    may follow each other in the same process.
+
     Raises:
         ScenarioError: ``model`` has no SUMO car-following model, or SUMO did not insert a pair's follower.
     """
     import libsumo as traci
 
-    if model not in _SUMO_MODEL:
-        raise ScenarioError(f"model must be one of {sorted(_SUMO_MODEL)}, got {model!r}")
+    if model not in CALIBRATION_MODELS:
+        raise ScenarioError(f"model must be one of {sorted(CALIBRATION_MODELS)}, got {model!r}")
     n = len(cases)
     plist = [params] * n if isinstance(params, CFParams) else list(params)
     T = max(len(c.v_leader) for c in cases)
@@ -99,12 +101,14 @@ def run_sumo_pairs(
         rou = ["<routes>"]
         for i, (c, p) in enumerate(zip(cases, plist)):
             extra = ' sigma="0"' if model == "krauss" else f' delta="{float(p.delta)!r}"'
+            if model == "eidm":  # deterministic: noise off (models.EIDM_NOISE_OFF)
+                extra += "".join(f' {k}="{v!r}"' for k, v in EIDM_NOISE_OFF.items())
             rou.append(
                 f'  <vType id="L{i}" length="{float(c.leader_length)!r}" maxSpeed="70" accel="20" decel="{float(p.decel)!r}" '
                 f'emergencyDecel="{float(max(p.emergencyDecel, p.decel))!r}" speedFactor="1" speedDev="0" minGap="0"/>'
             )
             rou.append(
-                f'  <vType id="F{i}" carFollowModel="{_SUMO_MODEL[model]}" accel="{float(p.accel)!r}" '
+                f'  <vType id="F{i}" carFollowModel="{CALIBRATION_MODELS[model]}" accel="{float(p.accel)!r}" '
                 f'decel="{float(p.decel)!r}" tau="{float(p.tau)!r}" minGap="{float(p.minGap)!r}" maxSpeed="{float(p.maxSpeed)!r}" '
                 f'emergencyDecel="{float(p.emergencyDecel)!r}" speedFactor="1" speedDev="0"{extra}/>'
             )
@@ -116,7 +120,7 @@ def run_sumo_pairs(
             )
             rou.append(
                 f'  <vehicle id="f{i}" type="F{i}" route="r{i}" depart="0" departPos="{float(c.x_follower0)!r}" '
-                f'departSpeed="{float(c.v_follower0)!r}" insertionChecks="none"/>'
+                f'departSpeed="{min(float(c.v_follower0), float(plist[i].maxSpeed))!r}" insertionChecks="none"/>'
             )
         (wd / "r.rou.xml").write_text("\n".join(rou + ["</routes>"]))
         traci.start([
@@ -140,6 +144,8 @@ def run_sumo_pairs(
                     if k >= len(c.v_leader) or f"l{i}" not in present:
                         continue
                     if k == 0:
+                        if c.v_follower0 > plist[i].maxSpeed:  # SUMO inserts at most at maxSpeed
+                            traci.vehicle.setPreviousSpeed(f"f{i}", float(c.v_follower0))
                         traci.vehicle.setSpeedMode(f"l{i}", 0)
                         traci.vehicle.setLaneChangeMode(f"l{i}", 0)
                         traci.vehicle.setLaneChangeMode(f"f{i}", 0)

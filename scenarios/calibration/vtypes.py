@@ -18,7 +18,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from scenarios.calibration.fit import FITTED, CalibrationResult
-from scenarios.calibration.models import CFParams
+from scenarios.calibration.models import CALIBRATION_MODELS, EIDM_NOISE_OFF, CFParams
 
 #: Range allowed in simulation (SI units).
 SIM_RANGE: dict[str, tuple[float, float]] = {
@@ -110,7 +110,7 @@ def member_spread(members) -> dict[str, tuple[float, float, float]]:
 
 def to_vtype_specs(members, template, model: str = "idm"):
     """The members as :class:`scenarios.spec.VTypeSpec` of SUMO model ``model`` ("idm" /
-    "krauss"), other attributes (length, width, lane-change model) from ``template``;
+    "krauss" / "eidm", EIDM with its noise off as in the fit), other attributes (length, width, lane-change model) from ``template``;
     speedFactor 1 and speedDev 0, so ``maxSpeed`` is the desired speed as in the fit.
 
     Args:
@@ -119,13 +119,15 @@ def to_vtype_specs(members, template, model: str = "idm"):
     Returns:
         tuple of ``VTypeSpec``.
     """
-    sumo_model = {"idm": "IDM", "krauss": "Krauss"}[model]
+    sumo_model = CALIBRATION_MODELS[model]
     out = []
     for m in members:
         p = m.params
-        cf = {k: v for k, v in template.cf_params if k != "delta"}
-        if sumo_model == "IDM":
+        cf = {k: v for k, v in template.cf_params if k != "delta" and k not in EIDM_NOISE_OFF}
+        if sumo_model in ("IDM", "EIDM"):
             cf["delta"] = p.delta
+        if sumo_model == "EIDM":  # as fitted: noise off
+            cf.update(EIDM_NOISE_OFF)
         out.append(replace(
             template, id=m.id, probability=m.probability, car_follow_model=sumo_model,
             accel=p.accel, decel=p.decel, tau=p.tau,

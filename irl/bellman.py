@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from scipy.sparse.csgraph import connected_components
 
 from irl.transitions import SuccessorModel
 
@@ -453,10 +454,33 @@ def _stability(q: np.ndarray, succ: SuccessorModel, beta: float, gamma: float,
     bound = gamma * float(np.max(np.abs(sub).sum(axis=1)))
     if bound < 1.0:
         return True, bound, None
-    if used.size > max_dense:
+    top = _top_real_eigenvalue(sp.csr_matrix(gamma * sub), max_dense)
+    if top is None:
         return None, float("nan"), None
-    top = float(np.max(np.linalg.eigvals(gamma * sub.toarray()).real))
     return top < 1.0, top, None
+
+
+def _top_real_eigenvalue(m: sp.csr_matrix, max_dense: int) -> float | None:
+    """The largest real part of the eigenvalues of the square ``m``, or None when a strongly
+    connected block of ``m`` has more than ``max_dense`` rows.
+
+    Ordered by its strongly connected components ``m`` is block triangular, so its eigenvalues
+    are those of its diagonal blocks: each block's dense eigenvalues (a 1x1 block's is its entry)
+    instead of the whole matrix's (on the merge driver encoding the largest block has about a
+    quarter of the 820 successor states: ~60x less work than one dense problem).
+    """
+    _, labels = connected_components(m, directed=True, connection="strong")
+    sizes = np.bincount(labels)
+    if int(sizes.max()) > max_dense:
+        return None
+    single = sizes[labels] == 1
+    top = float(np.max(m.diagonal()[single])) if np.any(single) else -np.inf
+    order = np.argsort(labels, kind="stable")
+    bounds = np.concatenate([[0], np.cumsum(sizes)])
+    for b in np.flatnonzero(sizes > 1):
+        idx = order[bounds[b]:bounds[b + 1]]
+        top = max(top, float(np.max(np.linalg.eigvals(m[idx][:, idx].toarray()).real)))
+    return top
 
 
 def iteration_stability(q: np.ndarray, succ: SuccessorModel, beta: float, gamma: float,
@@ -468,8 +492,9 @@ def iteration_stability(q: np.ndarray, succ: SuccessorModel, beta: float, gamma:
     backup's Jacobian ``gamma P J`` has ``Re lambda < 1``. The non-zero eigenvalues of ``P J`` are
     those of ``J P`` restricted to the successor states, a small dense matrix. Returns
     ``(stable, x)``: ``x`` is the row-sum bound ``gamma ||J P||_inf`` when that is < 1 (then
-    every ``|lambda| < 1``), else the largest ``Re lambda``. ``stable`` is None when the dense
-    check would exceed ``max_dense`` successor states.
+    every ``|lambda| < 1``), else the largest ``Re lambda`` (from the dense eigenvalues of each
+    strongly connected block of ``J P``). ``stable`` is None when a block has more than
+    ``max_dense`` successor states.
     """
     stable, x, _ = _stability(q, succ, beta, gamma, max_dense)
     return stable, x

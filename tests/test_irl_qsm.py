@@ -147,10 +147,6 @@ def test_mlirl_solve_q_satisfies_the_bellman_equation():
 def test_stability_eigenvalue_equals_the_dense_one():
     """The stability check takes the largest real part of the eigenvalues of ``gamma J P`` block
     by block (strongly connected components); it equals the dense eigenvalue problem's."""
-    import scipy.sparse as sp
-
-    from irl.bellman import mean_weights, weight_matrix
-
     for seed in range(4):
         t, d = random_mdp(seed, n_states=12, n_actions=3, single_successor=True)
         succ = model_free_successors(d)

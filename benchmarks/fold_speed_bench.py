@@ -51,16 +51,16 @@ def worker(data: str, method: str, gamma: float, fold: int, encoding: str) -> di
     sub = problem.subset(train)
     cfg = replace(IRLConfig.paper(beta=1.0, l2=0.01, unobserved="kinematic" if method == "qsm" else "terminal"),
                   gamma=gamma)
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     fit = fit_problem(sub, method, cfg, 0)
-    seconds = time.perf_counter() - start
+    seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
     held = float("nan")
     if fold >= 0:
         z = cfg.beta * fit.q
         z = z - z.max(axis=1, keepdims=True)
         lp = z - np.log(np.exp(z).sum(axis=1, keepdims=True))
         held = float(lp[problem.demos.states[fold], problem.demos.actions[fold]].sum())
-    return {"seconds": seconds, "train_ll": float(fit.loglik), "heldout_ll": held,
+    return {"seconds": seconds, "cpu_seconds": cpu, "train_ll": float(fit.loglik), "heldout_ll": held,
             "evaluations": float(fit.extra.get("evaluations", float("nan"))),
             "branch_jumps": float(fit.extra.get("branch_jumps", float("nan"))),
             "flags": ",".join(fit.flags) or "ok", "theta": [float(x) for x in fit.theta]}
@@ -115,15 +115,17 @@ def main(argv=None) -> int:
             before = _run(tmp, common)
             after = _run(str(ROOT), common)
             label = f"{enc} fold {fold}" if fold >= 0 else f"{enc} all 12"
-            print(f"  {label} gamma {gamma:g}: before {before['seconds']:.1f} s, after {after['seconds']:.1f} s",
-                  flush=True)
+            print(f"  {label} gamma {gamma:g}: before {before['seconds']:.1f} s ({before['cpu_seconds']:.1f} s CPU), "
+                  f"after {after['seconds']:.1f} s ({after['cpu_seconds']:.1f} s CPU)", flush=True)
             rows.append((label, gamma, before, after))
     print(f"\n{args.method}: before = {args.base} ({base_rev}), after = HEAD ({head_rev}); beta 1, l2 0.01, seed 0")
-    print(f"{'case':16s}{'gamma':>6s}{'before s':>10s}{'after s':>9s}{'ratio':>7s}"
+    print("times: wall-clock seconds of the fit (CPU seconds of its process); ratio = before / after, of the CPU times")
+    print(f"{'case':16s}{'gamma':>6s}{'before s':>16s}{'after s':>15s}{'ratio':>7s}"
           f"{'train LL before':>17s}{'after':>11s}{'held-out before':>17s}{'after':>10s}"
           f"{'evals':>12s}{'jumps':>10s}  flags before / after")
     for label, gamma, b, a in rows:
-        print(f"{label:16s}{gamma:6g}{b['seconds']:10.1f}{a['seconds']:9.1f}{b['seconds'] / a['seconds']:7.1f}"
+        print(f"{label:16s}{gamma:6g}{b['seconds']:8.1f} ({b['cpu_seconds']:5.1f}){a['seconds']:7.1f} ({a['cpu_seconds']:5.1f})"
+              f"{b['cpu_seconds'] / a['cpu_seconds']:7.1f}"
               f"{b['train_ll']:17.3f}{a['train_ll']:11.3f}{b['heldout_ll']:17.2f}{a['heldout_ll']:10.2f}"
               f"{b['evaluations']:6.0f}/{a['evaluations']:<5.0f}{b['branch_jumps']:5.0f}/{a['branch_jumps']:<4.0f}"
               f"  {b['flags']} / {a['flags']}")

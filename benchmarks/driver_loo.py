@@ -111,7 +111,7 @@ def main(argv=None) -> int:
                    help="also choose gamma inside each fold by leave-one-out on its training trajectories")
     p.add_argument("--driver-methods", default="qavg,qsm",
                    help="methods run with the driver features (MLIRL and REIRL use the sparse [6250, 5, 6250] "
-                        "model; MLIRL takes minutes per fold there: add them here to run them)")
+                        "model; MLIRL takes 1-9 min per fold there under load: add them here to run them)")
     args = p.parse_args(argv)
     gammas, l2s = _floats(args.gamma), _floats(args.l2)
     feats = args.features.split(",")

@@ -89,13 +89,13 @@ class ExactBoltzmann:
         backups. Without an anchor (the first evaluation): from ``R``, with every fallback."""
         c = self.config
 
-        def at(th, q0, fallback=True, backups=c.max_inner):
+        def at(th, q0, fallback=True, backups=c.max_inner, newton=None):
             # continuing an attracting anchor's branch: stability only changes where Newton
             # meets a singular Jacobian, so the eigenvalue check is left to cold starts
             fp = boltzmann_fixed_point(self.features @ th, self.succ, c.beta, c.gamma, q0=q0,
-                                       fallback=fallback, attracting=q0 is None,
+                                       fallback=fallback, attracting=q0 is None, newton=newton,
                                        max_iter=min(NEWTON_CAP, c.max_inner), max_backups=backups)
-            self.newton_iterations += fp.iterations
+            self.newton_iterations += fp.iterations - (0 if newton is None else newton.iterations)
             return fp
 
         if self.anchor is None:
@@ -103,7 +103,7 @@ class ExactBoltzmann:
                 return self.from_zero_point(theta)
             return at(theta, None)
         th0, q = self.anchor
-        fp = at(theta, q, fallback=False)
+        first = fp = at(theta, q, fallback=False)
         if fp.converged:
             return fp
         s, ds = 0.0, 0.5
@@ -119,7 +119,8 @@ class ExactBoltzmann:
         # run from the anchor's Q to wherever it settles (what the warm-started Eq. 15 sweeps
         # would do); L jumps there
         self.branch_jumps += 1
-        fp = at(theta, self.anchor[1], backups=min(c.max_inner, JUMP_BACKUPS))
+        # (Newton from the anchor's Q at theta is ``first``: not run twice)
+        fp = at(theta, self.anchor[1], backups=min(c.max_inner, JUMP_BACKUPS), newton=first)
         if fp.converged:
             return fp
         return FixedPoint(fp.q, False, fp.iterations, fp.residual,

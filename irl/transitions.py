@@ -61,19 +61,26 @@ class SuccessorModel:
         """Precomputed sparsity of ``I - gamma P W(c)`` (see :func:`irl.bellman.backup_jacobian`)."""
         return JacobianPattern.of(self)
 
+    @cached_property
+    def state_pattern(self) -> JacobianPattern:
+        """Precomputed sparsity of the state system ``I - gamma W(c) P``, ``[S, S]`` (see
+        :func:`irl.bellman.solve_backup_system`)."""
+        return JacobianPattern.state_system(self)
+
 
 @dataclass(frozen=True)
 class JacobianPattern:
-    """CSC structure of ``I - gamma P W(c)`` for one successor model, so that building the matrix
-    for new weights ``c`` is one gather and one segmented sum.
+    """CSC structure of ``I - gamma P W(c)`` (``[S*A, S*A]``, :meth:`of`) or of the state system
+    ``I - gamma W(c) P`` (``[S, S]``, :meth:`state_system`) for one successor model, so that
+    building the matrix for new weights ``c`` is one gather and one segmented sum.
 
-    Entry ``e`` of ``P W`` is ``P[i, s'] * c[s', b]`` at ``(i, s'*A + b)``; ``order`` sorts the
-    diagonal entries followed by these into CSC order and ``starts`` marks where duplicates
-    (same position) begin.
+    Entry ``e`` of ``P W`` is ``P[i, s'] * c[s', b]`` at ``(i, s'*A + b)``; entry ``e`` of ``W P``
+    is ``c[s, b] * P[s*A + b, s']`` at ``(s, s')``. ``order`` sorts the diagonal entries followed
+    by these into CSC order and ``starts`` marks where duplicates (same position) begin.
     """
 
-    p_values: np.ndarray  # [E] P[i, s'] of each P W entry
-    c_index: np.ndarray  # [E] flat index s'*A + b into c
+    p_values: np.ndarray  # [E] P value of each P W (or W P) entry
+    c_index: np.ndarray  # [E] flat index into c of the weight it is multiplied by
     order: np.ndarray  # [n + E] permutation into CSC order
     starts: np.ndarray  # [nnz] first sorted entry of each stored position
     indices: np.ndarray  # [nnz] CSC row indices
@@ -82,11 +89,23 @@ class JacobianPattern:
 
     @classmethod
     def of(cls, succ: SuccessorModel) -> JacobianPattern:
+        """The pattern of the pair matrix ``I - gamma P W(c)``, ``[S*A, S*A]``."""
         A, n = succ.n_actions, succ.n_pairs
         p = succ.p.tocoo()
         rows = np.repeat(p.row, A)
         cols = (p.col[:, None] * A + np.arange(A)[None, :]).ravel()
-        vals = np.repeat(p.data, A)
+        return cls._build(np.repeat(p.data, A), cols, rows, cols, n)
+
+    @classmethod
+    def state_system(cls, succ: SuccessorModel) -> JacobianPattern:
+        """The pattern of the state matrix ``I - gamma W(c) P``, ``[S, S]``: entry
+        ``(s, s')`` sums ``c[s, b] P[s*A + b, s']`` over the actions ``b``."""
+        p = succ.p.tocoo()
+        return cls._build(p.data, p.row, p.row // succ.n_actions, p.col, succ.n_states)
+
+    @classmethod
+    def _build(cls, values: np.ndarray, c_index: np.ndarray, rows: np.ndarray, cols: np.ndarray,
+               n: int) -> JacobianPattern:
         all_rows = np.concatenate([np.arange(n), rows])
         all_cols = np.concatenate([np.arange(n), cols])
         order = np.lexsort((all_rows, all_cols))
@@ -95,11 +114,11 @@ class JacobianPattern:
         new[1:] = (r_sorted[1:] != r_sorted[:-1]) | (c_sorted[1:] != c_sorted[:-1])
         starts = np.flatnonzero(new)
         indptr = np.searchsorted(c_sorted[starts], np.arange(n + 1))
-        return cls(vals, cols, order, starts, r_sorted[starts].astype(np.int32),
-                   indptr.astype(np.int32), n)
+        return cls(np.asarray(values, dtype=np.float64), np.asarray(c_index, dtype=np.int64), order, starts,
+                   r_sorted[starts].astype(np.int32), indptr.astype(np.int32), n)
 
     def matrix(self, c: np.ndarray, gamma: float) -> sp.csc_matrix:
-        """``I - gamma P W(c)`` as CSC, ``c`` of shape ``[S, A]``."""
+        """``I - gamma P W(c)`` (or ``I - gamma W(c) P``) as CSC, ``c`` of shape ``[S, A]``."""
         data = np.concatenate([np.ones(self.n), -gamma * self.p_values * c.ravel()[self.c_index]])
         summed = np.add.reduceat(data[self.order], self.starts)
         return sp.csc_matrix((summed, self.indices, self.indptr), shape=(self.n, self.n))

@@ -5,9 +5,12 @@ import time
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 from irl_testdata import random_mdp
 
-from irl.bellman import boltzmann_fixed_point, iteration_stability
+from irl.bellman import (
+    _top_real_eigenvalue, boltzmann_fixed_point, iteration_stability, mean_weights, weight_matrix,
+)
 from irl.config import IRLConfig
 from irl.demonstrations import Demonstrations
 from irl.fit import fit
@@ -139,3 +142,26 @@ def test_mlirl_solve_q_satisfies_the_bellman_equation():
     res = fit("mlirl", demos, IRLConfig(beta=0.5, gamma=0.9, max_outer=100),
               np.random.default_rng(0), transitions=t)
     np.testing.assert_allclose(res.q, solve_q(res.theta, demos.features, t, cfg), atol=1e-8)
+
+
+def test_stability_eigenvalue_equals_the_dense_one():
+    """The stability check takes the largest real part of the eigenvalues of ``gamma J P`` block
+    by block (strongly connected components); it equals the dense eigenvalue problem's."""
+    for seed in range(4):
+        t, d = random_mdp(seed, n_states=12, n_actions=3, single_successor=True)
+        succ = model_free_successors(d)
+        q = np.random.default_rng(seed).normal(scale=3.0, size=(d.n_states, d.n_actions))
+        stable, lam = iteration_stability(q, succ, 1.0, 0.99)
+        _, _, c = mean_weights(q, 1.0)
+        used = np.unique(succ.p.indices)
+        jp = sp.csr_matrix(weight_matrix(c) @ succ.p)[used][:, used].toarray()
+        bound = 0.99 * np.max(np.abs(jp).sum(axis=1))
+        expected = bound if bound < 1.0 else float(np.max(np.linalg.eigvals(0.99 * jp).real))
+        assert lam == pytest.approx(expected, abs=1e-12)
+        assert stable == (expected < 1.0)
+    rng = np.random.default_rng(7)
+    for _ in range(5):  # block-triangular matrices with several strongly connected blocks
+        m = sp.random(40, 40, density=0.06, random_state=rng) * 3.0
+        top = _top_real_eigenvalue(sp.csr_matrix(m), 2000)
+        assert top == pytest.approx(float(np.max(np.linalg.eigvals(m.toarray()).real)), abs=1e-10)
+        assert _top_real_eigenvalue(sp.csr_matrix(m + sp.eye(40, k=1) + sp.eye(40, k=-1)), 10) is None

@@ -63,3 +63,27 @@ def test_jacobian_pattern_builds_the_backup_matrix():
             built = succ.jacobian_pattern.matrix(c, 0.9).toarray()
             direct = (sp.identity(succ.n_pairs) - backup_operator(succ, c, 0.9)).toarray()
             np.testing.assert_allclose(built, direct, atol=1e-15)
+
+
+def test_state_system_solves_the_pair_system():
+    """The backup system over the pairs, ``(I - gamma P W) x = b``, is solved through the state
+    system ``(I - gamma W P) y = W b``, ``x = b + gamma P y``: same solution as a dense solve of
+    the pair system, terminal pairs (Q = R) included, for one and for K right-hand sides."""
+    from irl_testdata import random_mdp
+
+    from irl.bellman import solve_backup_system, weight_matrix
+
+    for seed in range(3):
+        t, d = random_mdp(seed)
+        rng = np.random.default_rng(seed)
+        for succ in (model_successors(t), model_free_successors(d)):
+            c = rng.normal(size=(d.n_states, d.n_actions))
+            w, p = weight_matrix(c).toarray(), succ.p.toarray()
+            reduced = succ.state_pattern.matrix(c, 0.9).toarray()
+            np.testing.assert_allclose(reduced, np.eye(d.n_states) - 0.9 * w @ p, atol=1e-15)
+            pair = np.eye(succ.n_pairs) - 0.9 * p @ w
+            for rhs in (rng.normal(size=succ.n_pairs), rng.normal(size=(succ.n_pairs, 4))):
+                x = solve_backup_system(succ, c, 0.9, rhs)
+                assert x.shape == rhs.shape
+                np.testing.assert_allclose(x, np.linalg.solve(pair, rhs), rtol=1e-10, atol=1e-10)
+            assert succ.state_pattern.matrix(c, 0.9).format == "csc"

@@ -64,6 +64,18 @@ def test_user_errors_are_one_line_exit_2(tmp_path: Path) -> None:
     assert r.returncode == 2 and "accel" in r.stderr and len(r.stderr.strip().splitlines()) == 1
     r = _cli("calibrate", "fit", "--pairs", str(tmp_path), "--out", str(tmp_path / "x.toml"))
     assert r.returncode == 2 and "no pair CSV files" in r.stderr
+    for cmd in (("fit", "--out", str(tmp_path / "x.toml")), ("evaluate", "--params", str(bad))):
+        for n in ("0", "-2", "two"):
+            r = _cli("calibrate", *cmd, "--pairs", str(PAIRS_DIR), "--workers", n)
+            assert r.returncode == 2 and "--workers: expected a positive whole number" in r.stderr, r.stderr
+    # checked before the pairs are read: the folder does not even exist
+    r = _cli("calibrate", "fit", "--model", "eidm", "--max-evals", "3", "--pairs", str(tmp_path / "nowhere"),
+             "--out", str(tmp_path / "x.toml"))
+    assert r.returncode == 2 and "--max-evals: expected at least 7 SUMO runs, got 3" in r.stderr, r.stderr
+    (tmp_path / "file").write_text("")
+    r = _cli("calibrate", "fit", "--pairs", str(tmp_path / "nowhere"), "--out", str(tmp_path / "file" / "x.toml"))
+    assert r.returncode == 2 and f"--out {tmp_path / 'file' / 'x.toml'}: cannot write" in r.stderr, r.stderr
+    assert not (tmp_path / "x.toml").exists()  # nothing written by the refused runs
 
 
 def test_distribution_comparison_detects_difference() -> None:

@@ -19,6 +19,17 @@ import json
 import sys
 
 
+def _positive_int(text: str) -> int:
+    """argparse type: a whole number >= 1 (argparse names the option and exits 2 otherwise)."""
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive whole number, got {text!r}") from None
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive whole number, got {n}")
+    return n
+
+
 def register(subparsers) -> None:
     p = subparsers.add_parser(
         "calibrate", help="fit / evaluate / check car-following parameters on real NGSIM pairs",
@@ -35,7 +46,8 @@ def register(subparsers) -> None:
                    help="idm / krauss: numpy replica of SUMO, population + per-pair fits; eidm: real SUMO "
                         "runs, population fit only (Nelder-Mead, see --max-evals)")
     f.add_argument("--max-evals", type=int, default=None, metavar="N",
-                   help="eidm: SUMO runs over the training pairs the population fit may use (default 60)")
+                   help="eidm: SUMO runs over the training pairs the population fit may use (default 60, "
+                        "at least 7: 2 starts + 5 simplex vertices)")
     f.add_argument("--no-per-pair", action="store_true", help="population fit only (faster, no spread)")
     f.add_argument("--objective", choices=("log", "rmse", "ratio"), default=None,
                    help="population objective over the per-pair spacing RMSEs: log (geometric mean, "
@@ -46,7 +58,7 @@ def register(subparsers) -> None:
     f.add_argument("--seed", type=int, default=0, help="seed of the held-out split (default 0)")
     f.add_argument("--limit", type=int, default=None, metavar="N", help="use only the first N pair files")
     f.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
-    f.add_argument("--workers", type=int, default=None, metavar="N",
+    f.add_argument("--workers", type=_positive_int, default=None, metavar="N",
                    help="processes for the per-pair fits (default: one per core)")
     f.set_defaults(func=run_fit)
 
@@ -57,7 +69,7 @@ def register(subparsers) -> None:
                    help="evaluate only the held-out followers of 'fit --holdout FRACTION --seed S'")
     e.add_argument("--seed", type=int, default=0)
     e.add_argument("--json", action="store_true", help="print one JSON object")
-    e.add_argument("--workers", type=int, default=None, metavar="N",
+    e.add_argument("--workers", type=_positive_int, default=None, metavar="N",
                    help="eidm: processes for the SUMO runs (default: one per core)")
     e.set_defaults(func=run_evaluate)
 
@@ -96,13 +108,19 @@ def run_fit(args: argparse.Namespace) -> int:
     from scenarios.calibration.fit import DEFAULT_OBJECTIVE
     from scenarios.calibration.models import MODELS
     from scenarios.calibration.pairs import pair_files
-    from scenarios.calibration.sumo_fit import DEFAULT_MAX_EVALS
+    from irl.run_folder import check_writable
+    from scenarios.calibration.sumo_fit import DEFAULT_MAX_EVALS, MIN_MAX_EVALS
     from scenarios.errors import SpecError
 
+    minimum = MIN_MAX_EVALS if args.model not in MODELS else 1
+    if args.max_evals is not None and args.max_evals < minimum:
+        raise SpecError(f"--max-evals: expected at least {minimum} SUMO runs, got {args.max_evals}")
+    try:
+        check_writable(args.out)  # an unwritable --out fails now, not after minutes of fitting
+    except OSError as e:
+        raise SpecError(f"--out {args.out}: cannot write a file there ({e.strerror or e})") from None
     pairs = _pairs(args, held_out=False)
     file_of = {f.stem: f for f in pair_files(args.pairs, limit=args.limit)}
-    if args.max_evals is not None and args.max_evals < 1:
-        raise SpecError(f"--max-evals: expected a positive number of SUMO runs, got {args.max_evals}")
     print(f"fitting {args.model} on {len(pairs)} pairs ...", file=sys.stderr)
     bar = None
     if args.model not in MODELS:

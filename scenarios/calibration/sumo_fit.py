@@ -43,6 +43,8 @@ from scenarios.errors import ScenarioError, SpecError
 
 #: SUMO runs (parameter sets simulated over all training pairs) of a population fit by default.
 DEFAULT_MAX_EVALS = 60
+#: Fewest SUMO runs of a default population fit: its 2 starts + one simplex vertex per fitted parameter.
+MIN_MAX_EVALS = 2 + len(FITTED)
 #: Edge of the initial Nelder-Mead simplex, as a fraction of each parameter's bound range.
 SIMPLEX_STEP = 0.1
 #: Where the recorded leader starts on the replay edge (m).

@@ -144,6 +144,11 @@ def test_evaluate_cli(tmp_path):
     bad = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--baselines", "human",
                           "--out", str(tmp_path / "x")], capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and "human" in bad.stderr
+    for cmd in (["evaluate", "--baselines", "sumo"], ["demo"]):  # --workers checked by argparse, before any run
+        bad = subprocess.run([sys.executable, "-m", "analysis", *cmd, "--workers", "0", "--out", str(tmp_path / "w")],
+                             capture_output=True, text=True, timeout=120)
+        assert bad.returncode == 2 and "--workers: expected a positive whole number, got 0" in bad.stderr, bad.stderr
+        assert not (tmp_path / "w").exists()
     for extra in (["--executor", "process:0"], ["--executor", "serial", "--workers", "2"]):
         bad = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--baselines", "sumo", *extra,
                               "--out", str(tmp_path / "z")], capture_output=True, text=True, timeout=120)

@@ -1,4 +1,5 @@
-"""One module per ``merge-irl`` subcommand; each defines ``register(subparsers)``.
+"""One module per ``merge-irl`` subcommand; each defines ``register(subparsers)`` (``_arg_types``,
+not a command: the argparse types they share).
 
 A command module imports the API it calls inside its functions, not at module top: every
 ``merge-irl`` call (``--help`` too) imports all command modules to build the parser, and the API

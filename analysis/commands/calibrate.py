@@ -18,16 +18,7 @@ import argparse
 import json
 import sys
 
-
-def _positive_int(text: str) -> int:
-    """argparse type: a whole number >= 1 (argparse names the option and exits 2 otherwise)."""
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive whole number, got {text!r}") from None
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive whole number, got {n}")
-    return n
+from analysis.commands._arg_types import positive_int
 
 
 def register(subparsers) -> None:
@@ -58,7 +49,7 @@ def register(subparsers) -> None:
     f.add_argument("--seed", type=int, default=0, help="seed of the held-out split (default 0)")
     f.add_argument("--limit", type=int, default=None, metavar="N", help="use only the first N pair files")
     f.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
-    f.add_argument("--workers", type=_positive_int, default=None, metavar="N",
+    f.add_argument("--workers", type=positive_int, default=None, metavar="N",
                    help="processes for the per-pair fits (default: one per core)")
     f.set_defaults(func=run_fit)
 
@@ -69,7 +60,7 @@ def register(subparsers) -> None:
                    help="evaluate only the held-out followers of 'fit --holdout FRACTION --seed S'")
     e.add_argument("--seed", type=int, default=0)
     e.add_argument("--json", action="store_true", help="print one JSON object")
-    e.add_argument("--workers", type=_positive_int, default=None, metavar="N",
+    e.add_argument("--workers", type=positive_int, default=None, metavar="N",
                    help="eidm: processes for the SUMO runs (default: one per core)")
     e.set_defaults(func=run_evaluate)
 
@@ -104,11 +95,11 @@ def run_fit(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from analysis.calibration_sweep import calibrate_parallel
+    from irl.run_folder import check_writable
     from scenarios.calibration import save_result
     from scenarios.calibration.fit import DEFAULT_OBJECTIVE
     from scenarios.calibration.models import MODELS
     from scenarios.calibration.pairs import pair_files
-    from irl.run_folder import check_writable
     from scenarios.calibration.sumo_fit import DEFAULT_MAX_EVALS, MIN_MAX_EVALS
     from scenarios.errors import SpecError
 

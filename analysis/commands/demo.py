@@ -11,6 +11,8 @@ from __future__ import annotations
 import argparse
 from dataclasses import replace
 
+from analysis.commands._arg_types import positive_int
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
@@ -28,7 +30,7 @@ def register(subparsers) -> None:
     p.add_argument("--methods", default=None, metavar="LIST",
                    help="comma-separated IRL methods (default: qavg; mlirl, qsm and reirl are slower at the driver "
                         "encoding's 6250 states, add them here)")
-    p.add_argument("--workers", type=int, default=None, metavar="N", help="processes (default 2)")
+    p.add_argument("--workers", type=positive_int, default=None, metavar="N", help="processes (default 2)")
     p.add_argument("--executor", default=None,
                    help="where data runs and episodes run: serial, process[:N], dask-local[:N], dask://HOST:PORT "
                         "(default: process:<workers>)")
@@ -49,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
     if args.methods:
         config = replace(config, methods=tuple(m.strip() for m in args.methods.split(",") if m.strip()))
     if args.workers is not None:
-        config = replace(config, workers=max(1, args.workers))
+        config = replace(config, workers=args.workers)
     if args.executor is not None:
         from analysis.evaluate import resolve_executor
         from sim.errors import SimError

@@ -7,6 +7,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from analysis.commands._arg_types import positive_int
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
@@ -36,7 +38,7 @@ def register(subparsers) -> None:
     p.add_argument("--executor", default=None,
                    help="where episodes run: serial, process[:N] (default: every core), dask-local[:N], "
                         "dask://HOST:PORT")
-    p.add_argument("--workers", type=int, default=None, help="processes (one SUMO each); same as --executor process:N")
+    p.add_argument("--workers", type=positive_int, default=None, help="processes (one SUMO each); same as --executor process:N")
     p.add_argument("--no-rrd", action="store_true", help="do not write rerun recordings")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--out", default=None, help="output folder (default ./runs/evaluate-<scenario>-<seed>/)")

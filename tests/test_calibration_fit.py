@@ -17,7 +17,7 @@ from scenarios.calibration import (
     CFParams, calibrate, driver_members, evaluate, fit_population, load_pairs, load_result,
     save_result, split_by_follower,
 )
-from scenarios.calibration.fit import FITTED, _bounds, _fd_candidates
+from scenarios.calibration.fit import FITTED, _fd_candidates, bounds_of
 from scenarios.calibration.objective import spacing_rmse
 from scenarios.calibration.pairs import CarFollowingPair, PairBatch
 from scenarios.calibration.vtypes import SIM_RANGE
@@ -136,7 +136,7 @@ def test_population_jacobian_matches_central_differences(real_pairs) -> None:
     batch = PairBatch.from_pairs(pairs)
     base = CFParams(accel=1.3, decel=2.0, tau=1.2, minGap=2.2, maxSpeed=24.0)
     x = np.array([getattr(base, f) for f in FITTED])
-    lo, hi = _bounds(FITTED)
+    lo, hi = bounds_of(FITTED)
     cand, h = _fd_candidates(x[None, :], lo, hi)
     pc = {**base.as_dict(), **{f: cand[0, k] for k, f in enumerate(FITTED)}}
     r = spacing_rmse("idm", batch, pc, candidates=True)

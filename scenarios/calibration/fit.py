@@ -122,6 +122,12 @@ def _check(model: str, fitted: Sequence[str]) -> None:
         hint = (f"; {model!r} has no numpy replica, fit it through SUMO (scenarios.calibration.sumo_fit)"
                 if model in CALIBRATION_MODELS else "")
         raise SpecError(f"model: expected one of {sorted(MODELS)}, got {model!r}{hint}")
+    check_fitted(fitted)
+
+
+def check_fitted(fitted: Sequence[str]) -> None:
+    """Raises:
+        SpecError: a name without bounds (:data:`BOUNDS`), or no name at all."""
     bad = [f for f in fitted if f not in BOUNDS]
     if bad:
         raise SpecError(f"fitted: cannot fit {bad}; fittable: {sorted(BOUNDS)}")
@@ -129,12 +135,13 @@ def _check(model: str, fitted: Sequence[str]) -> None:
         raise SpecError("fitted: at least one parameter must be fitted")
 
 
-def _bounds(fitted: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+def bounds_of(fitted: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+    """(lower float64[K], upper float64[K]) :data:`BOUNDS` of the parameters ``fitted``."""
     return (np.array([BOUNDS[f][0] for f in fitted]), np.array([BOUNDS[f][1] for f in fitted]))
 
 
 def _clip_start(p: CFParams, fitted: Sequence[str]) -> np.ndarray:
-    lo, hi = _bounds(fitted)
+    lo, hi = bounds_of(fitted)
     x = np.array([getattr(p, f) for f in fitted], dtype=np.float64)
     return np.clip(x, lo + 1e-6 * (hi - lo), hi - 1e-6 * (hi - lo))
 
@@ -182,7 +189,7 @@ def fit_population(
     loss, f_scale, normalised = OBJECTIVES[objective]
     batch = PairBatch.from_pairs(pairs)
     fitted = tuple(fitted)
-    lo, hi = _bounds(fitted)
+    lo, hi = bounds_of(fitted)
     fixed = base.as_dict()
     # per-pair scale of the residual: 1 m, or the pair's spacing RMSE under SUMO's defaults
     norm = spacing_rmse(model, batch, {**SUMO_DEFAULTS.as_dict(), "delta": fixed["delta"],
@@ -252,7 +259,7 @@ def fit_per_pair(
     batch = PairBatch.from_pairs(pairs)
     fitted = tuple(fitted)
     P, K = len(pairs), len(fitted)
-    lo, hi = _bounds(fitted)
+    lo, hi = bounds_of(fitted)
     scale = hi - lo
     fixed = start.as_dict()
 

@@ -34,7 +34,7 @@ import numpy as np
 from scipy.optimize import minimize
 
 from scenarios.calibration.fit import (
-    BOUNDS, CONGESTED_GUESS, DEFAULT_OBJECTIVE, FITTED, OBJECTIVES, CalibrationResult,
+    CONGESTED_GUESS, DEFAULT_OBJECTIVE, FITTED, OBJECTIVES, CalibrationResult, bounds_of, check_fitted,
 )
 from scenarios.calibration.models import CALIBRATION_MODELS, SUMO_DEFAULTS, CFParams
 from scenarios.calibration.pairs import CarFollowingPair
@@ -140,14 +140,6 @@ class SumoRmse:
         self.close()
 
 
-def _check_fitted(fitted: Sequence[str]) -> None:
-    bad = [f for f in fitted if f not in BOUNDS]
-    if bad:
-        raise SpecError(f"fitted: cannot fit {bad}; fittable: {sorted(BOUNDS)}")
-    if not fitted:
-        raise SpecError("fitted: at least one parameter must be fitted")
-
-
 def fit_population_sumo(
     pairs: Sequence[CarFollowingPair], *, model: str = "eidm", fitted: Sequence[str] = FITTED,
     base: CFParams = SUMO_DEFAULTS, starts: Sequence[CFParams] | None = None,
@@ -183,7 +175,7 @@ def fit_population_sumo(
     """
     tick = tick or (lambda: None)
     fitted = tuple(fitted)
-    _check_fitted(fitted)
+    check_fitted(fitted)
     if objective not in OBJECTIVES:
         raise SpecError(f"objective: expected one of {sorted(OBJECTIVES)}, got {objective!r}")
     if starts is None:
@@ -193,8 +185,7 @@ def fit_population_sumo(
         raise SpecError(f"max_evals: {max_evals} is below the {len(starts)} starts + {K} simplex vertices")
     loss, f_scale, normalised = OBJECTIVES[objective]
     assert loss == "cauchy", "every objective uses the Cauchy loss"
-    lo = np.array([BOUNDS[f][0] for f in fitted])
-    hi = np.array([BOUNDS[f][1] for f in fitted])
+    lo, hi = bounds_of(fitted)
     fixed = base.as_dict()
 
     def params_at(z: np.ndarray) -> CFParams:

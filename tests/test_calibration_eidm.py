@@ -4,6 +4,7 @@ the SUMO scoring equal to the replica's for IDM, and the CLI wiring of ``--model
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 import textwrap
@@ -106,6 +107,33 @@ def test_bad_model_names_are_rejected() -> None:
         SumoRmse(pairs, "wiedemann")
     with pytest.raises(SpecError, match="max_evals"):
         fit_population_sumo(pairs, max_evals=3)
+
+
+def test_unguarded_script_fails_with_a_hint_instead_of_hanging(tmp_path: Path) -> None:
+    """A script that calls the SUMO scoring at module level (no ``__main__`` guard): each spawned
+    worker re-imports it; the worker refuses to start a pool of its own, and the parent reports
+    the dead worker. The pairs (~0.5 MB pickled) exceed a pipe's buffer, which used to block the
+    parent forever writing them to a worker that had died before reading them."""
+    script = tmp_path / "unguarded.py"
+    script.write_text(textwrap.dedent("""
+        import numpy as np
+        from scenarios.calibration import CarFollowingPair
+        from scenarios.calibration.models import CFParams
+        from scenarios.calibration.sumo_fit import SumoRmse
+        t = np.arange(20000) * 0.1
+        pair = CarFollowingPair(name="p", group="g", t=t, x_follower=10 * t, v_follower=10 + 0 * t,
+                                x_leader=10 * t + 30, v_leader=10 + 0 * t, leader_length=4.5)
+        with SumoRmse([pair], "idm", workers=1) as sim:
+            sim([CFParams()])
+    """))
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=240, cwd=tmp_path,
+                         env={**os.environ, "TMPDIR": str(tmp)})
+    assert out.returncode == 1
+    assert "worker process imported the main script" in out.stderr  # the worker's own error
+    assert "a SUMO worker process died" in out.stderr  # the parent's
+    assert not list(tmp.iterdir())  # the pairs file removed
 
 
 def _cli(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:

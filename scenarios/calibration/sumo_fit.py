@@ -25,9 +25,12 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import pickle
+import tempfile
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import replace
 
 import numpy as np
@@ -61,8 +64,9 @@ def replay_case(pair: CarFollowingPair) -> ReplayCase:
 _WORKER: dict = {}
 
 
-def _init_worker(pairs: Sequence[CarFollowingPair]) -> None:
-    _WORKER["pairs"] = list(pairs)
+def _init_worker(pairs_file: str) -> None:
+    with open(pairs_file, "rb") as f:
+        _WORKER["pairs"] = pickle.load(f)
 
 
 def _rmse_task(idx: Sequence[int], params: Sequence[dict], model: str) -> np.ndarray:
@@ -100,9 +104,19 @@ class SumoRmse:
 
     Raises:
         SpecError: unknown ``model`` or no pairs.
+        ScenarioError: created while a ``spawn`` worker imports the main script (a script that
+            calls the SUMO fit at module level, without ``if __name__ == "__main__":``); without
+            this check the worker would start workers of its own and the fit would hang.
     """
 
     def __init__(self, pairs: Sequence[CarFollowingPair], model: str, workers: int | None = None) -> None:
+        # multiprocessing marks a spawned process as "inheriting" while it re-imports __main__
+        # (the same flag behind its own "bootstrapping phase" error, which here leaves the
+        # child waiting on its pool's threads and the parent waiting on the child).
+        if getattr(multiprocessing.current_process(), "_inheriting", False):
+            raise ScenarioError(
+                "the SUMO calibration was started while a worker process imported the main script: "
+                "put the script's calls under `if __name__ == \"__main__\":` (the workers re-import it)")
         if model not in CALIBRATION_MODELS:
             raise SpecError(f"model: expected one of {sorted(CALIBRATION_MODELS)}, got {model!r}")
         if not pairs:
@@ -112,8 +126,13 @@ class SumoRmse:
         w = max(1, min(len(pairs), workers or os.cpu_count() or 1))
         order = sorted(range(len(pairs)), key=lambda i: -len(pairs[i]))
         self._chunks = [order[c::w] for c in range(w)]  # round robin: similar total lengths
+        # The pairs go to the workers through a file: a large initializer argument is written to
+        # each new worker's pipe, and a worker that dies before reading it blocks that write forever.
+        fd, self._pairs_file = tempfile.mkstemp(prefix="merge-irl-pairs-", suffix=".pickle")
+        with os.fdopen(fd, "wb") as f:
+            pickle.dump(list(pairs), f, protocol=pickle.HIGHEST_PROTOCOL)
         self._pool = ProcessPoolExecutor(w, mp_context=multiprocessing.get_context("spawn"),
-                                         initializer=_init_worker, initargs=(tuple(pairs),))
+                                         initializer=_init_worker, initargs=(self._pairs_file,))
         self.runs = 0
 
     def __call__(self, params: Sequence[CFParams]) -> np.ndarray:
@@ -125,13 +144,20 @@ class SumoRmse:
         dicts = [p.as_dict() for p in params]
         futures = [self._pool.submit(_rmse_task, idx, dicts, self.model) for idx in self._chunks]
         out = np.empty((self.n_pairs, len(dicts)))
-        for idx, f in zip(self._chunks, futures):
-            out[idx] = f.result()
+        try:
+            for idx, f in zip(self._chunks, futures):
+                out[idx] = f.result()
+        except BrokenProcessPool:
+            raise ScenarioError(
+                "a SUMO worker process died before returning (see its traceback above; a script "
+                "that runs the fit must guard its calls with `if __name__ == \"__main__\":`)") from None
         self.runs += len(dicts)
         return out
 
     def close(self) -> None:
         self._pool.shutdown(cancel_futures=True)
+        if os.path.exists(self._pairs_file):
+            os.remove(self._pairs_file)
 
     def __enter__(self) -> SumoRmse:
         return self

@@ -48,7 +48,8 @@ def test_evaluate_json_and_table(params: Path) -> None:
     assert 0 < d["median_rmse_m"] < 20 and 0 < d["default_median_rmse_m"] < 20
     r = _cli("calibrate", "evaluate", "--params", str(params), "--pairs", str(PAIRS_DIR))
     assert r.returncode == 0
-    lines = r.stdout.splitlines()
+    title, *lines = r.stdout.splitlines()
+    assert title.startswith(f"{d['model']} parameters of {params} beside SUMO's {d['model']} defaults")
     n_iv = len(d["intervals"])  # one line per bootstrap interval, after a heading
     assert lines[0].split() == ["pair", "rmse_m", "default_rmse_m"] and len(lines) == N_PAIRS + 5 + n_iv
     med = lines[N_PAIRS + 1].split()
@@ -59,7 +60,7 @@ def test_evaluate_json_and_table(params: Path) -> None:
 
 def test_user_errors_are_one_line_exit_2(tmp_path: Path) -> None:
     bad = tmp_path / "p.toml"
-    bad.write_text("[population]\naccel = 'fast'\n")
+    bad.write_text("model = 'idm'\n[population]\naccel = 'fast'\n")
     r = _cli("calibrate", "evaluate", "--params", str(bad), "--pairs", str(PAIRS_DIR))
     assert r.returncode == 2 and "accel" in r.stderr and len(r.stderr.strip().splitlines()) == 1
     r = _cli("calibrate", "fit", "--pairs", str(tmp_path), "--out", str(tmp_path / "x.toml"))

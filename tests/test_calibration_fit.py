@@ -125,6 +125,9 @@ def test_params_file_errors_name_the_field(tmp_path: Path) -> None:
     p.write_text('model = "gipps"\n[population]\naccel = 1.0\n')
     with pytest.raises(SpecError, match="model = 'gipps'"):
         load_result(p)
+    p.write_text('[population]\naccel = 1.0\n')  # which model the numbers are for is not guessed
+    with pytest.raises(SpecError, match=r"bad\.toml: missing model = "):
+        load_result(p)
     p.write_text('model = "idm"\nobjective = "median"\n[population]\naccel = 1.0\n')
     with pytest.raises(SpecError, match=r"bad\.toml: objective = 'median'; expected one of"):
         load_result(p)

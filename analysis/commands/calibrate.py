@@ -150,6 +150,8 @@ def run_evaluate(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(ev.to_json_dict()))
         return 0
+    print(f"{result.model} parameters of {args.params} beside SUMO's {result.model} defaults, "
+          f"{len(ev.pairs)} pairs (spacing RMSE, m)")
     width = max(len(s.name) for s in ev.pairs)
     print(f"{'pair':<{width}}  {'rmse_m':>8}  {'default_rmse_m':>14}")
     for s in ev.pairs:

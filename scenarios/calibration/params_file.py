@@ -87,11 +87,11 @@ def _params(src: str, where: str, d: object) -> CFParams:
 
 def load_result(path: str | os.PathLike) -> CalibrationResult:
     """Read a params TOML written by :func:`save_result` (or hand-written with at least
-    ``model`` and ``[population]``).
+    ``model`` and ``[population]``; ``objective`` defaults to :data:`~.fit.DEFAULT_OBJECTIVE`).
 
     Raises:
         FileNotFoundError: ``path`` does not exist.
-        SpecError: not valid TOML, an unknown ``model``, no ``[population]`` table, or a malformed
+        SpecError: not valid TOML, no or an unknown ``model``, no ``[population]`` table, or a malformed
             ``[spread.*]`` or ``[[pair]]`` entry.
     """
     path = Path(path)
@@ -102,7 +102,10 @@ def load_result(path: str | os.PathLike) -> CalibrationResult:
         raise
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
         raise SpecError(f"{src}: not valid TOML: {e}") from e
-    model = data.get("model", "idm")
+    if "model" not in data:
+        raise SpecError(f"{src}: missing model = \"...\" (the car-following model the parameters are for; "
+                        f"one of {sorted(CALIBRATION_MODELS)})")
+    model = data["model"]
     if model not in CALIBRATION_MODELS:
         raise SpecError(f"{src}: model = {model!r}; expected one of {sorted(CALIBRATION_MODELS)}")
     objective = data.get("objective", DEFAULT_OBJECTIVE)

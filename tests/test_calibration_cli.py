@@ -73,6 +73,10 @@ def test_user_errors_are_one_line_exit_2(tmp_path: Path) -> None:
     r = _cli("calibrate", "fit", "--model", "eidm", "--max-evals", "3", "--pairs", str(tmp_path / "nowhere"),
              "--out", str(tmp_path / "x.toml"))
     assert r.returncode == 2 and "--max-evals: expected at least 7 SUMO runs, got 3" in r.stderr, r.stderr
+    r = _cli("calibrate", "fit", "--max-evals", "60", "--pairs", str(tmp_path / "nowhere"),
+             "--out", str(tmp_path / "x.toml"))  # idm: fitted by the replica, no SUMO runs to cap
+    assert r.returncode == 2 and "--max-evals: caps the SUMO runs of a model fitted through SUMO (eidm); idm" \
+        in r.stderr, r.stderr
     (tmp_path / "file").write_text("")
     r = _cli("calibrate", "fit", "--pairs", str(tmp_path / "nowhere"), "--out", str(tmp_path / "file" / "x.toml"))
     assert r.returncode == 2 and f"--out {tmp_path / 'file' / 'x.toml'}: cannot write" in r.stderr, r.stderr

@@ -37,8 +37,8 @@ def register(subparsers) -> None:
                    help="idm / krauss: numpy replica of SUMO, population + per-pair fits; eidm: real SUMO "
                         "runs, population fit only (Nelder-Mead, see --max-evals)")
     f.add_argument("--max-evals", type=int, default=None, metavar="N",
-                   help="eidm: SUMO runs over the training pairs the population fit may use (default 60, "
-                        "at least 7: 2 starts + 5 simplex vertices)")
+                   help="eidm only: SUMO runs over the training pairs the population fit may use (default 60, "
+                        "at least 7: 2 starts + 5 simplex vertices); refused for idm and krauss")
     f.add_argument("--no-per-pair", action="store_true", help="population fit only (faster, no spread)")
     f.add_argument("--objective", choices=("log", "rmse", "ratio"), default=None,
                    help="population objective over the per-pair spacing RMSEs: log (geometric mean, "
@@ -98,14 +98,17 @@ def run_fit(args: argparse.Namespace) -> int:
     from irl.run_folder import check_writable
     from scenarios.calibration import save_result
     from scenarios.calibration.fit import DEFAULT_OBJECTIVE
-    from scenarios.calibration.models import MODELS
+    from scenarios.calibration.models import CALIBRATION_MODELS, MODELS
     from scenarios.calibration.pairs import pair_files
     from scenarios.calibration.sumo_fit import DEFAULT_MAX_EVALS, MIN_MAX_EVALS
     from scenarios.errors import SpecError
 
-    minimum = MIN_MAX_EVALS if args.model not in MODELS else 1
-    if args.max_evals is not None and args.max_evals < minimum:
-        raise SpecError(f"--max-evals: expected at least {minimum} SUMO runs, got {args.max_evals}")
+    if args.max_evals is not None and args.model in MODELS:
+        raise SpecError(f"--max-evals: caps the SUMO runs of a model fitted through SUMO "
+                        f"({', '.join(m for m in CALIBRATION_MODELS if m not in MODELS)}); "
+                        f"{args.model} is fitted by its numpy replica")
+    if args.max_evals is not None and args.max_evals < MIN_MAX_EVALS:
+        raise SpecError(f"--max-evals: expected at least {MIN_MAX_EVALS} SUMO runs, got {args.max_evals}")
     try:
         check_writable(args.out)  # an unwritable --out fails now, not after minutes of fitting
     except OSError as e:

@@ -158,6 +158,19 @@ def _road(ctx: _Ctx, data: Any) -> RoadSpec:
         raise ctx.fail("road.bottleneck_speed_mps",
                        f"a bottleneck of {r.bottleneck_length_m:g} m needs a speed limit of at least 1 m/s, "
                        f"got {r.bottleneck_speed_mps:g}")
+    if not r.bottleneck_length_m > 0:
+        no_bottleneck = RoadSpec()
+        given = sorted(k for k in d if k.startswith("bottleneck_") and k != "bottleneck_length_m"
+                       and getattr(r, k) != getattr(no_bottleneck, k))  # a written spec repeats the defaults
+        if given:
+            raise ctx.fail("road.bottleneck_length_m",
+                           f"{', '.join(given)} given but no bottleneck: set bottleneck_length_m > 0 "
+                           f"(the bottleneck's length past main_length_m) or remove them")
+    elif (r.bottleneck_lanes in (0, r.main_lanes) and r.bottleneck_speed_mps >= r.speed_limit_mps):
+        raise ctx.fail("road.bottleneck_speed_mps",
+                       f"the bottleneck changes nothing: no lane drop (bottleneck_lanes {r.bottleneck_lanes or r.main_lanes}"
+                       f" of {r.main_lanes}) and a speed limit of {r.bottleneck_speed_mps:g} m/s, not below the road's "
+                       f"{r.speed_limit_mps:g} m/s")
     if r.bottleneck_lanes > r.main_lanes:
         raise ctx.fail("road.bottleneck_lanes", f"{r.bottleneck_lanes} lanes: a bottleneck has at most main_lanes = "
                                                 f"{r.main_lanes}")

@@ -178,10 +178,19 @@ def test_bottleneck_left_drop_ends_the_leftmost_lane(tmp_path) -> None:
     ("bottleneck_length_m = 100.0\nbottleneck_speed_mps = 8.0\nbottleneck_lanes = 4", "road.bottleneck_lanes"),
     ("bottleneck_lanes = 1.5", "road.bottleneck_lanes"),
     ('bottleneck_drop = "middle"', "road.bottleneck_drop"),
+    # a bottleneck that would silently not exist or change nothing
+    ("bottleneck_speed_mps = 8.0\nbottleneck_lanes = 2", "road.bottleneck_length_m: bottleneck_lanes, bottleneck_speed_mps given"),
+    ('bottleneck_drop = "left"', "road.bottleneck_length_m: bottleneck_drop given but no bottleneck"),
+    ("bottleneck_length_m = 100.0\nbottleneck_speed_mps = 29.0\nbottleneck_lanes = 3",
+     "road.bottleneck_speed_mps: the bottleneck changes nothing"),
 ])
 def test_bottleneck_fields_checked(road: str, field: str) -> None:
     with pytest.raises(SpecError, match=field.replace(".", r"\.")):
         spec_from_toml(f'name = "x"\n[road]\nmain_lanes = 3\n{road}\n', source="x.toml")
+    # the same bottleneck with a lower speed limit or a lane drop is accepted
+    ok = spec_from_toml('name = "x"\n[road]\nmain_lanes = 3\nbottleneck_length_m = 100.0\n'
+                        'bottleneck_speed_mps = 29.0\nbottleneck_lanes = 2\n', source="x.toml")
+    assert ok.road.bottleneck_lanes == 2
 
 
 def test_i80_preset_has_the_bottleneck_and_a_resampled_population() -> None:

@@ -18,7 +18,8 @@ import pandas as pd
 from analysis.metrics import EpisodeMetrics, MetricsConfig, episode_metrics
 from irl.units import FT_PER_M
 from scenarios.loader import load_scenario
-from sim.controller import Controller, ControllerConfig
+from sim.controller import Controller
+from sim.controller_config import ControllerConfig
 from sim.hooks import StepHook
 from sim.policy import Policy
 from sim.run import run_scenario

@@ -41,7 +41,7 @@ from irl.result import SavedModel
 from irl.run_folder import check_writable
 from irl.units import FT_PER_M
 from scenarios.loader import load_scenario
-from sim.controller import ControllerConfig
+from sim.controller_config import ControllerConfig
 from sim.errors import SimError
 from sim.observe import MergeObservation
 from sim.policy import BaselineTabularPolicy, LearnedPolicy, Policy, PolicyError, SumoPolicy, UniformPolicy

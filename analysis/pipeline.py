@@ -204,7 +204,8 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     """
     # rerun takes about 0.8 s to import; the sweep workers that import this module for
     # encounters_task never record
-    from analysis.rerun_log import RerunLogger, close_recording, log_training, open_recording, recording_identity
+    from analysis.rerun_log import RerunLogger, log_training
+    from analysis.rerun_recording import close_recording, open_recording, recording_identity
 
     t0 = time.perf_counter()
     out = Path(out_dir) if out_dir is not None else Path("runs") / "demo"

@@ -28,14 +28,15 @@
 
 Timelines: ``sim_time`` (duration, s) and ``step`` (sequence: Frame_ID).
 
-Every recording written by :class:`RerunLogger` carries a blueprint (:func:`merge_blueprint`),
+Every recording written by :class:`RerunLogger` carries a blueprint (:func:`~analysis.rerun_blueprint.merge_blueprint`),
 sent with the data, so the viewer opens on the merge view, car A's time series, the action
 probabilities and (when logged) the training traces instead of its automatic layout. Frames are buffered
 and sent in columns (``send_columns``) every ``flush_every`` frames, which keeps logging well
 under 10 microseconds per vehicle-frame. The file is written under a temporary name
 (``<name>.partial``) and renamed only when the run succeeds (``on_end``); a run that fails or
 is interrupted (``on_abort``) leaves the ``.partial`` file, never a complete-looking ``.rrd``.
-Reading a recording back: :mod:`analysis.rrd_read`.
+Naming, opening and closing the file: :mod:`analysis.rerun_recording`. Reading a recording back:
+:mod:`analysis.rrd_read`.
 """
 
 from __future__ import annotations
@@ -48,7 +49,9 @@ import numpy as np
 import pyarrow as pa
 import rerun as rr
 
-from irl.atomic import move_into_place, temporary_path
+from analysis.rerun_blueprint import merge_blueprint
+from analysis.rerun_columns import bar_chart_column
+from analysis.rerun_recording import close_recording, open_recording, recording_identity
 from irl.domains.merge import ACTION_NAMES, FEATURE_NAMES, paper_features
 from sim.hooks import FrameState, RunContext
 from sim.observe import lead_of
@@ -65,56 +68,6 @@ ROLE_COLORS = np.array(
 ROLE_RGBA_U32 = (ROLE_COLORS.astype(np.uint32) @ np.array([1 << 24, 1 << 16, 1 << 8, 1], dtype=np.uint32)).astype(np.uint32)
 #: The ``world`` transform: y mirrored (2D views draw y downwards).
 MIRROR_Y = np.diag([1.0, -1.0, 1.0])
-#: Half extent (ft) of the merge view around the followed car.
-FOLLOW_HALF_FT = (330.0, 75.0)
-#: TTC axis of the time series (s): larger values are off the chart.
-TTC_RANGE_S = (0.0, 10.0)
-#: Entity holding a recording's properties (name, start time).
-PROPERTIES = "/__properties"
-
-
-def _tmp_path(path: Path) -> Path:
-    return temporary_path(path, suffix=".partial")
-
-
-def recording_identity(scenario: str, policy: str, seed: int, episode: int | None = None) -> tuple[str, str]:
-    """``(recording id, recording name)`` of one run's ``.rrd``: distinct for every scenario,
-    policy, seed (and episode, when given), so the viewer keeps the files apart.
-
-    E.g. ``("merge-irl/synthetic/qavg/seed3", "qavg on synthetic, seed 3")``.
-    """
-    rid = f"merge-irl/{scenario}/{policy}/seed{int(seed)}"
-    name = f"{policy} on {scenario}, seed {int(seed)}"
-    if episode is not None:
-        rid += f"/episode{int(episode)}"
-        name += f", episode {int(episode)}"
-    return rid, name
-
-
-def open_recording(path: str | os.PathLike, *, application_id: str = "merge-irl",
-                   recording_id: str | None = None, name: str | None = None) -> tuple[rr.RecordingStream, Path]:
-    """A recording stream saving to a temporary name next to ``path`` (see :func:`close_recording`);
-    an existing file at ``path`` is removed first.
-
-    ``recording_id``: what the viewer groups data by (two files with one id merge into one
-    recording); ``name``: the recording's display name.
-    """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.unlink(missing_ok=True)  # a previous run's file must not pass for this run's
-    rec = rr.RecordingStream(application_id, recording_id=recording_id)
-    tmp = _tmp_path(path)
-    rec.save(str(tmp))
-    if name is not None:
-        rec.send_recording_name(name)
-    return rec, tmp
-
-
-def close_recording(rec: rr.RecordingStream, tmp: Path, path: str | os.PathLike) -> Path:
-    """Flush, close and atomically rename the file to ``path``."""
-    rec.flush()
-    rec.disconnect()
-    return move_into_place(tmp, path)
 
 
 def log_training(rec: rr.RecordingStream, method: str, loglik_trace: np.ndarray, theta_trace: np.ndarray,
@@ -135,118 +88,6 @@ def log_training(rec: rr.RecordingStream, method: str, loglik_trace: np.ndarray,
         rec.send_columns(f"train/{method}/theta/{name}", indexes=it, columns=rr.Scalars.columns(scalars=th[:, k]))
 
 
-def merge_blueprint(a_ids: Sequence[int], *, training_methods: Sequence[str] = (),
-                    section_bounds: tuple[float, float, float, float] | None = None,
-                    first_control: tuple[int, int] | None = None, play: float | None = None,
-                    active_tab: int = 0, ttc_ids: Sequence[int] | None = None):
-    """The viewer layout of a run's recording (``rerun.blueprint.Blueprint``).
-
-    Tab "run": the merge view (2D, origin ``/follow``: follows the current merge), the whole
-    section (2D, origin ``/``), and the group "car A": time series of speed, d_AB, d_AC, TTC
-    (y axis clipped to :data:`TTC_RANGE_S`) and the action taken of every controlled car, and
-    the bar chart of the current action probabilities. Tab "training" (only when
-    ``training_methods`` is not empty): log-likelihood and weights against the iteration.
-    The time panel shows the ``step`` timeline, paused, with the first take-over selected.
-    ``ttc_ids``: the cars with a TTC series (None: all of ``a_ids``).
-
-    Args:
-        a_ids: Vehicle_IDs of the controlled cars (their ``metrics/A_<id>`` entities).
-        training_methods: the ``<method>`` of the ``train/<method>`` entities.
-        section_bounds: ``(x_min, x_max, y_min, y_max)`` ft of the lanes in the mirrored
-            frame, the section view's bounds; None: the viewer's own.
-        first_control: ``(start_frame, end_frame)`` of the first take-over (Frame_IDs).
-        play: play at this speed (x real time) and loop over the selection once the cursor
-            reaches it, instead of pausing (for screenshots: the blueprint has no setting for
-            the time cursor, which starts at the first frame).
-        active_tab: the tab shown first (0 run, 1 training); with the training tab the time
-            panel shows the ``iteration`` timeline.
-    """
-    import rerun.blueprint as rrb
-    from rerun.blueprint.components import AbsoluteTimeRange
-
-    def series(name: str, paths: list[str], **kw):
-        return rrb.TimeSeriesView(name=name, origin="/", contents=paths or ["-/**"],
-                                  plot_legend=rrb.PlotLegend(visible=False), **kw)
-
-    ids = [int(a) for a in a_ids]
-    fx, fy = FOLLOW_HALF_FT
-    merge = rrb.Spatial2DView(
-        name="merge (follows car A)", origin="/follow", contents=["/world/**"],
-        visual_bounds=rrb.VisualBounds2D(x_range=(-fx, fx), y_range=(-fy, fy)), background=[30, 30, 30])
-    bounds = None
-    if section_bounds is not None:
-        x0, x1, y0, y1 = section_bounds
-        bounds = rrb.VisualBounds2D(x_range=(x0, x1), y_range=(y0, y1))
-    section = rrb.Spatial2DView(name="section", origin="/", contents=["/world/**"], background=[30, 30, 30],
-                                visual_bounds=bounds)
-    car_a = rrb.Vertical(
-        series("speed of A (ft/s)", [f"/metrics/A_{a}/speed" for a in ids]),
-        series("d_AB (ft)", [f"/metrics/A_{a}/d_AB" for a in ids]),
-        series("d_AC (ft)", [f"/metrics/A_{a}/d_AC" for a in ids]),
-        series("TTC A to its leader (s)", [f"/metrics/A_{a}/ttc" for a in (ids if ttc_ids is None else ttc_ids)],
-               axis_y=rrb.ScalarAxis(range=TTC_RANGE_S, zoom_lock=True)),
-        series("action of A (0 " + ACTION_NAMES[0].lower() + " .. 4 " + ACTION_NAMES[-1].lower() + ")",
-               [f"/policy/A_{a}/action" for a in ids], axis_y=rrb.ScalarAxis(range=(-0.2, 4.2), zoom_lock=True)),
-        rrb.BarChartView(name="action probabilities now (" + ", ".join(n.lower() for n in ACTION_NAMES) + ")",
-                         origin="/policy/action_probs"),
-        name="car A",
-    )
-    tabs: list[rrb.Container] = [rrb.Horizontal(rrb.Vertical(merge, section, row_shares=[3, 2]), car_a, column_shares=[3, 2], name="run")]
-    if training_methods:
-        tabs.append(rrb.Vertical(
-            series("log-likelihood", [f"/train/{m}/loglik" for m in training_methods]),
-            rrb.TimeSeriesView(name="weights theta", origin="/train", contents=[f"/train/{m}/theta/**" for m in training_methods]),
-            name="training"))
-    sel = None if first_control is None else AbsoluteTimeRange(min=int(first_control[0]), max=int(first_control[1]))
-    return rrb.Blueprint(
-        rrb.Tabs(*tabs, active_tab=min(int(active_tab), len(tabs) - 1)),
-        rrb.TimePanel(timeline="iteration" if active_tab == 1 and training_methods else "step", state="collapsed",
-                      time_selection=sel, play_state="playing" if play and sel is not None else "paused",
-                      playback_speed=float(play) if play else None,
-                      loop_mode="selection" if play and sel is not None else None),
-        rrb.BlueprintPanel(state="collapsed"), rrb.SelectionPanel(state="collapsed"),
-        auto_views=False,
-    )
-
-
-class _ArrowBatch:
-    """A ready arrow array as a rerun component batch (what ``rr.ComponentColumn`` takes)."""
-
-    def __init__(self, array: pa.Array, descriptor):
-        self._array, self._descriptor = array, descriptor
-
-    def as_arrow_array(self) -> pa.Array:
-        return self._array
-
-    def component_descriptor(self):
-        return self._descriptor
-
-
-def bar_chart_column(values: np.ndarray) -> rr.ComponentColumn:
-    """``BarChart`` values as one column of ``n`` bar charts (rows of ``values [n, k]``, float64).
-
-    rerun's Python API builds a bar chart's tensor one call at a time (about 1 ms each); this
-    builds the same arrow layout (TensorData: shape ``[k]``, no names, an F64 buffer) for all
-    rows at once, typed after a one-row sample.
-    """
-    values = np.ascontiguousarray(values, dtype=np.float64)
-    n, k = values.shape
-    sample = next(iter(rr.BarChart.columns(values=np.zeros(max(k, 1)))))
-    st = sample.component_batch.as_arrow_array().type
-    ut = st.field("buffer").type
-    names = [f.name for f in ut]
-    children = [pa.ListArray.from_arrays(pa.array(np.arange(0, n * k + 1, k, dtype=np.int32)), pa.array(values.reshape(-1)),
-                                         type=f.type) if f.name == "F64" else pa.array([], type=f.type) for f in ut]
-    buf = pa.UnionArray.from_dense(pa.array(np.full(n, ut.type_codes[names.index("F64")], dtype=np.int8)),
-                                   pa.array(np.arange(n, dtype=np.int32)), children, field_names=names,
-                                   type_codes=list(ut.type_codes)).view(ut)
-    shape = pa.ListArray.from_arrays(pa.array(np.arange(n + 1, dtype=np.int32)), pa.array(np.full(n, k, dtype=np.uint64)),
-                                     type=st.field("shape").type)
-    arr = pa.StructArray.from_arrays([shape, pa.nulls(n, st.field("names").type), buf], fields=list(st))
-    desc = sample.component_descriptor()
-    return rr.ComponentColumn(desc, _ArrowBatch(arr, desc))
-
-
 class RerunLogger:
     """Step hook writing the run to ``path`` (``.rrd``); see the module docstring.
 
@@ -254,12 +95,12 @@ class RerunLogger:
         path: output file.
         controller: the run's :class:`sim.controller.Controller` (must run *before* this hook);
             gives roles, decisions and controlled cars. Without it, lane-7 vehicles are shown as B.
-        recording: an open stream (from :func:`open_recording`) to add to instead of opening
+        recording: an open stream (from :func:`~analysis.rerun_recording.open_recording`) to add to instead of opening
             one; then the caller closes it.
         flush_every: frames buffered before they are sent.
         log_vehicles: log ``world/vehicles`` (False: only policy/metrics scalars).
         episode: the episode's index, if the file holds one episode of several; it goes into
-            the recording id and name (:func:`recording_identity`) with the scenario, the
+            the recording id and name (:func:`~analysis.rerun_recording.recording_identity`) with the scenario, the
             controller's policy (``sumo`` without a controller) and the seed.
         training_methods: methods whose traces (:func:`log_training`) the recording holds,
             for the blueprint's training tab.

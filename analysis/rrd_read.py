@@ -1,7 +1,7 @@
 """Reading ``.rrd`` recordings back for scripted inspection and tests (rerun's ``RrdReader``).
 
 :func:`read_rrd_table` gives a pandas table of a recording's rows, :func:`read_blueprint` the
-views of the layout shipped with it (:func:`analysis.rerun_log.merge_blueprint`),
+views of the layout shipped with it (:func:`analysis.rerun_blueprint.merge_blueprint`),
 :func:`recording_info` its ids and name, :func:`read_entities` the raw arrow batches. rerun is
 imported inside the functions: it takes about 0.8 s to import.
 """
@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pyarrow as pa
 
-from analysis.rerun_log import PROPERTIES
+from analysis.rerun_recording import PROPERTIES
 
 
 def read_entities(path: str | os.PathLike) -> dict[str, list]:

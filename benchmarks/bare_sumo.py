@@ -8,7 +8,7 @@ import time
 from pathlib import Path
 
 from scenarios.spec import ScenarioSpec
-from sim.run import prepare_inputs, sumo_args, sumo_binary
+from sim.sumo_inputs import prepare_inputs, sumo_args, sumo_binary
 
 
 def children_cpu_s() -> float:

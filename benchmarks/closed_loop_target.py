@@ -11,7 +11,7 @@ evaluation episodes. Printed:
 * per policy: A collisions / controlled As with the Wilson 95 % interval, W1 distances of A's
   speed and d_AC to the held-out demonstrations and their ratio to the SUMO-driver floor,
   W1 of acceleration and TTC, held-out log-likelihood per step, travel time, flags;
-* per policy: the A collisions by kind (who hit whom, ``sim.controller.COLLISION_KINDS``);
+* per policy: the A collisions by kind (who hit whom, ``sim.control_records.COLLISION_KINDS``);
 * the safety-filter variant of the default learned driver (``--safety-ttc``, same episodes):
   its collisions and how often the filter replaced the driver's action;
 * the target checks for the default learned driver (``--driver``, default the first
@@ -34,7 +34,8 @@ import pandas as pd
 from analysis.demo_signal import bin_change_rate, braking_cap_share
 from analysis.evaluate import evaluate
 from analysis.pipeline import DemoConfig, run_demo
-from sim.controller import COLLISION_KINDS, ControllerConfig
+from sim.control_records import COLLISION_KINDS
+from sim.controller_config import ControllerConfig
 
 
 def _f(x: float, nd: int = 3) -> str:

@@ -16,7 +16,7 @@ from typing import Any
 
 _EXPORTS = {
     "run_scenario": "sim.run",
-    "SimulationResult": "sim.run",
+    "SimulationResult": "sim.run_result",
     "generate": "sim.generate",
     "GenerateResult": "sim.generate",
     "extract": "sim.encounters",

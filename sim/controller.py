@@ -12,7 +12,7 @@ acceleration with ``vehicle.setSpeedMode(A, 0)`` + ``setLaneChangeMode(A, 0)`` +
 commanded.
 
 Release: the controller restores A's speed mode and lane-change mode (and hands the speed
-back to SUMO) and records why, in :class:`Control.reason`:
+back to SUMO) and records why, in :attr:`Control.reason <sim.control_records.Control.reason>`:
 
 ``merge_done``  B merged (first lane-6 frame) and ``hold_after_merge_s`` has passed;
 ``left_section`` A's ``Local_Y`` passed the end of the section (or A's route ended there);
@@ -24,7 +24,8 @@ back to SUMO) and records why, in :class:`Control.reason`:
 ``timeout``     A was controlled for ``max_control_s``;
 ``end_of_run``  the run ended first.
 
-Who hit whom in a collision is in :attr:`Control.collision_kind` (one of ``COLLISION_KINDS``).
+Who hit whom in a collision is in :attr:`Control.collision_kind <sim.control_records.Control.collision_kind>`
+(one of ``COLLISION_KINDS``). Settings: :mod:`sim.controller_config`; records: :mod:`sim.control_records`.
 The run continues after every release. Decisions are kept in :attr:`Controller.decisions`
 (one row per decision) and control episodes in :attr:`Controller.controls`.
 """
@@ -32,152 +33,22 @@ The run continues after every release. Decisions are kept in :attr:`Controller.d
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from irl.domains.merge import ACTION_ACC_FT_S2, ZERO_ACTION, action_of
 from irl.units import M_PER_FT
-from sim.errors import SimError
+from sim.control_records import Control, DecisionLog
+from sim.controller_config import ControllerConfig
 from sim.hooks import FrameState, RunContext
+from sim.lanes import aux_lane_start_ft
 from sim.observe import MergeObservation, lag_of, lead_of, observe
 from sim.policy import Policy, choose_action
 from sim.schema import RAMP_LANE, RIGHTMOST_MAIN_LANE
 
 #: A that reaches the end of its route within this of the section end has left the section (ft).
 EXIT_MARGIN_FT = 150.0
-
-RELEASE_REASONS = (
-    "merge_done", "left_section", "collision", "teleported", "arrived", "removed", "b_lost",
-    "timeout", "end_of_run",
-)
-
-
-#: Who hit whom in a collision that ended a control (:attr:`Control.collision_kind`): A ran into
-#: its lead car C, into the merging car B, or into another vehicle; B or another vehicle (a
-#: follower, or a car changing lanes) ran into A.
-COLLISION_KINDS = ("A into C", "A into B", "A into other", "B into A", "other into A")
-
-
-class ControllerError(SimError, ValueError):
-    """Bad controller settings."""
-
-
-@dataclass(frozen=True)
-class ControllerConfig:
-    """Settings of :class:`Controller`.
-
-    Attributes:
-        decision_s: time between two decisions (s); rounded to whole frames. None: the
-            policy's own ``decision_step_s`` (a learned model decides on the step its
-            demonstrations were resampled to), else 0.3 s.
-        mode: take the most likely action instead of sampling.
-        zone_start_ft: B is taken into account once its ``Local_Y`` is at least this (ft);
-            None = ``zone_margin_ft`` before the start of the auxiliary lane (from the lane
-            shapes of the run).
-        zone_margin_ft: see ``zone_start_ft``.
-        max_lag_ft: A must be at most this far behind B (ft).
-        hold_after_merge_s: keep controlling A this long after B merged (s).
-        max_control_s: release A after this long under control (s).
-        seed: seed of the action-sampling generator (None: the run's seed).
-        safety_ttc_s: the safety-filter variant (issue 11, cause 9): None (default) = raw, the
-            policy's action is applied as chosen. A number: before applying an action, A's gap
-            and time-to-collision to its leader in lane 6 at the end of the decision step are
-            predicted (constant accelerations of A, constant speed of the leader); an action
-            that would end with the bumper gap below 0 or a closing TTC below this (s) is
-            replaced by the nearest harder-braking action that does not (High Brake if none
-            does). Interventions are counted per control episode and logged per decision.
-    """
-
-    decision_s: float | None = None
-    mode: bool = False
-    zone_start_ft: float | None = None
-    zone_margin_ft: float = 100.0
-    max_lag_ft: float = 250.0
-    hold_after_merge_s: float = 3.0
-    max_control_s: float = 60.0
-    seed: int | None = None
-    safety_ttc_s: float | None = None
-
-    def __post_init__(self) -> None:
-        for name in ("decision_s", "max_lag_ft", "max_control_s", "safety_ttc_s"):
-            v = getattr(self, name)
-            if v is None and name in ("decision_s", "safety_ttc_s"):
-                continue
-            if not (v > 0 and math.isfinite(v)):
-                raise ControllerError(f"controller.{name}: must be a positive number, got {v}")
-        if not self.hold_after_merge_s >= 0:
-            raise ControllerError(f"controller.hold_after_merge_s: must be >= 0, got {self.hold_after_merge_s}")
-
-
-@dataclass
-class Control:
-    """One control episode of a lag car A for a merging car B (mutable while it runs).
-
-    Attributes:
-        a_id, b_id: Vehicle_IDs of A and B; a_sumo: A's SUMO id.
-        start_frame: frame of the take-over; end_frame: frame of the release (-1 while active).
-        reason: why A was released (one of ``RELEASE_REASONS``; "" while active).
-        merge_frame: B's first lane-6 frame (-1 if B had not merged at release).
-        b_ahead: at B's merge frame, B's Local_Y > A's (None if B had not merged).
-        commanded: whether the policy actually drove A (False for the SUMO baseline).
-        gap_AB_start_ft: d_AB at the take-over (ft).
-        n_decisions: decisions taken.
-        n_interventions: decisions whose action the safety filter replaced.
-        prev_action: A's action at the latest decision (-1: none yet).
-        c_id: Vehicle_ID of C at the latest decision (0: none).
-        collision_kind: for ``reason == "collision"``, one of ``COLLISION_KINDS``; else "".
-    """
-
-    a_id: int
-    b_id: int
-    a_sumo: str
-    start_frame: int
-    commanded: bool
-    gap_AB_start_ft: float
-    end_frame: int = -1
-    reason: str = ""
-    merge_frame: int = -1
-    b_ahead: bool | None = None
-    n_decisions: int = 0
-    n_interventions: int = 0
-    prev_action: int = -1
-    c_id: int = 0
-    collision_kind: str = ""
-    speed_mode: int = -1
-    lane_change_mode: int = -1
-    last_y: float = 0.0
-
-    @property
-    def active(self) -> bool:
-        return self.end_frame < 0
-
-
-_DECISION_FIELDS = (
-    "frame", "time_s", "a_id", "b_id", "c_id", "state", "action", "acc_cmd", "speed_A",
-    "d_AC", "d_AB", "v_AC", "v_AB", "b_is_truck", "p0", "p1", "p2", "p3", "p4", "filtered",
-)
-
-
-@dataclass
-class DecisionLog:
-    """Column buffers, one row per decision (units ft, ft/s, ft/s^2; ``acc_cmd`` is the
-    commanded acceleration, or for the SUMO baseline A's measured one; ``action`` likewise;
-    ``filtered``: the safety filter replaced the policy's action).
-    """
-
-    rows: list[tuple] = field(default_factory=list)
-
-    def append(self, row: tuple) -> None:
-        self.rows.append(row)
-
-    def to_frame(self):
-        import pandas as pd
-
-        if not self.rows:
-            return pd.DataFrame({k: pd.Series(dtype="float64") for k in _DECISION_FIELDS})
-        return pd.DataFrame(self.rows, columns=list(_DECISION_FIELDS))
 
 
 class Controller:
@@ -427,7 +298,7 @@ class Controller:
     def _safe_action(self, frame: FrameState, ia: int, action: int, acc_table) -> int:
         """``action``, or the nearest harder-braking one whose predicted gap to A's leader in
         lane 6 stays positive with a closing TTC of at least ``safety_ttc_s`` after one decision
-        step (see :class:`ControllerConfig`); High Brake (0) if none does."""
+        step (see :class:`~sim.controller_config.ControllerConfig`); High Brake (0) if none does."""
         ya = float(frame.local_y[ia])
         il = lead_of(frame, ya, exclude=(ia,))
         if il is None:
@@ -451,26 +322,9 @@ class Controller:
         return self.decisions.to_frame()
 
     def control_table(self):
-        """Control episodes as a DataFrame, one row per A (fields of :class:`Control`)."""
+        """Control episodes as a DataFrame, one row per A (fields of :class:`~sim.control_records.Control`)."""
         import pandas as pd
 
         cols = ("a_id", "b_id", "a_sumo", "start_frame", "end_frame", "reason", "merge_frame",
                 "b_ahead", "commanded", "gap_AB_start_ft", "n_decisions", "n_interventions", "collision_kind")
         return pd.DataFrame([{k: getattr(c, k) for k in cols} for c in self.controls], columns=list(cols))
-
-
-def aux_lane_start_ft(ctx: RunContext) -> float:
-    """``Local_Y`` (ft) where lane 7 first runs beside lane 6 (the auxiliary lane's start).
-
-    Taken from the lane shapes: the first point of lane 7 whose distance to lane 6's polyline
-    is at most 1.5 lane widths. Local_Y is measured from the first point of lane 6 along +x.
-    """
-    l6 = np.asarray(ctx.lane_shapes[str(RIGHTMOST_MAIN_LANE)], dtype=np.float64)
-    l7 = np.asarray(ctx.lane_shapes[str(RAMP_LANE)], dtype=np.float64)
-    x0 = float(l6[0, 0])
-    # lateral distance of each lane-7 point to lane 6 (interpolated in x; the main road runs along +x)
-    y6 = np.interp(l7[:, 0], l6[:, 0], l6[:, 1], left=np.nan, right=np.nan)
-    close = np.flatnonzero(np.abs(l7[:, 1] - y6) <= 1.5 * ctx.lane_width_ft)
-    if close.size == 0:
-        return 0.0
-    return float(l7[close[0], 0] - x0)

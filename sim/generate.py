@@ -6,7 +6,7 @@ Files written into the output folder (each atomically; see ``sim.outputs``):
 * ``encounters.parquet``    per-frame merge encounters (``irl.domains.merge.ENCOUNTER_SCHEMA``);
 * ``merges.parquet``        one row per merging vehicle (``sim.encounters.MERGE_COLUMNS``);
 * ``scenario.toml``         the spec simulated, with the seed and duration actually used;
-* ``run.toml``              what SUMO reported (:class:`sim.run.RunEvents`): requested and served
+* ``run.toml``              what SUMO reported (:class:`sim.run_result.RunEvents`): requested and served
   flow, insertion backlog, teleports, collisions, emergency stops, and the merges left out;
 * ``trajectories.csv``      on request, in NGSIM's text format (``sim.ngsim_io``).
 
@@ -39,7 +39,8 @@ from scenarios.toml_write import dumps
 from sim.encounters import Encounters, EncounterWindow, extract
 from sim.hooks import StepHook
 from sim.outputs import write_parquet
-from sim.run import SimulationResult, run_scenario
+from sim.run import run_scenario
+from sim.run_result import SimulationResult
 
 TRAJECTORIES = "trajectories.parquet"
 ENCOUNTERS = "encounters.parquet"

@@ -28,198 +28,21 @@ import sys
 import tempfile
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
 from itertools import chain
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
-from scenarios.network import build_network
-from scenarios.routes import type_class_map, write_routes
+from scenarios.routes import type_class_map
 from scenarios.spec import ScenarioSpec
 from scenarios.spec_parse import with_overrides
 from sim.errors import SimulationError
 from sim.hooks import FrameState, RunContext, StepHook
+from sim.lanes import LaneNumbering, lane_tables
 from sim.recorder import TrajectoryRecorder
-from sim.schema import FRAME_S, FT_PER_M, RAMP_LANE, RIGHTMOST_MAIN_LANE, V_CLASS_AUTO, V_CLASS_TRUCK
-
-
-#: Served demand more than this share below the requested one is warned about.
-DEMAND_SHORTFALL_WARN = 0.05
-
-
-@dataclass(frozen=True)
-class RunEvents:
-    """SUMO's own reports of non-physical moves and of demand, read from its lists each step.
-
-    Times are simulated seconds; ids are SUMO's. Teleports (``getStartingTeleportIDList``: a
-    vehicle stuck ``time_to_teleport_s`` is moved ahead without driving), collisions
-    (``getCollidingVehiclesIDList``, one event per vehicle and step) and emergency stops
-    (``getEmergencyStoppingVehiclesIDList``) cover the whole run, warm-up included.
-    ``departed`` vehicles entered the network; ``backlog`` were due by the end but still
-    waiting to be inserted (``getPendingVehicles``): due = departed + backlog.
-    ``requested_veh_h`` is the spec's demand (all flows, after any demand scale).
-    """
-
-    teleports: tuple[tuple[float, str], ...] = ()
-    collisions: tuple[tuple[float, str], ...] = ()
-    emergency_stops: tuple[tuple[float, str], ...] = ()
-    departed: int = 0
-    backlog: int = 0
-    duration_s: float = 0.0
-    requested_veh_h: float = 0.0
-
-    @property
-    def teleported_ids(self) -> frozenset[str]:
-        return frozenset(s for _, s in self.teleports)
-
-    @property
-    def due_veh_h(self) -> float:
-        """Vehicles due in the run (departed + backlog; random arrivals), per simulated hour."""
-        return (self.departed + self.backlog) * 3600.0 / self.duration_s if self.duration_s else 0.0
-
-    @property
-    def served_veh_h(self) -> float:
-        """Vehicles that entered the network, per hour of simulated time."""
-        return self.departed * 3600.0 / self.duration_s if self.duration_s else 0.0
-
-    @property
-    def demand_shortfall(self) -> float:
-        """Share of the vehicles due that could not enter: backlog / (departed + backlog)."""
-        req = self.departed + self.backlog
-        return self.backlog / req if req else 0.0
-
-    def warnings(self) -> list[str]:
-        """One line per condition a user must know about (empty when the run was clean)."""
-        out = []
-        if self.demand_shortfall > DEMAND_SHORTFALL_WARN:
-            out.append(f"served demand {self.served_veh_h:.0f} veh/h against {self.requested_veh_h:.0f} veh/h "
-                       f"requested: {self.backlog} vehicles ({self.demand_shortfall:.0%} of those due) were still "
-                       "waiting to enter at the end; the network could not take the demand")
-        if self.teleports:
-            out.append(f"SUMO teleported {len(self.teleports)} vehicle(s) "
-                       f"({', '.join(sorted(self.teleported_ids)[:5])}{', ...' if len(self.teleported_ids) > 5 else ''}): "
-                       "their moves are not driving; merges by them are left out of the encounters")
-        if self.collisions:
-            out.append(f"SUMO reported {len(self.collisions)} collision event(s)")
-        return out
-
-    def as_dict(self) -> dict:
-        """Plain values for a TOML / JSON run report."""
-        return {
-            "requested_veh_h": round(self.requested_veh_h, 1), "due_veh_h": round(self.due_veh_h, 1),
-            "served_veh_h": round(self.served_veh_h, 1),
-            "departed": self.departed, "insertion_backlog": self.backlog,
-            "demand_shortfall": round(self.demand_shortfall, 4),
-            "teleports": len(self.teleports), "teleported_vehicles": sorted(self.teleported_ids),
-            "collisions": len(self.collisions), "colliding_vehicles": sorted({s for _, s in self.collisions}),
-            "emergency_stops": len(self.emergency_stops),
-        }
-
-
-@dataclass(frozen=True)
-class SimulationResult:
-    """Outcome of :func:`run_scenario`.
-
-    Attributes:
-        table: trajectory table (NGSIM schema, sorted by Vehicle_ID, Frame_ID).
-        spec: the spec simulated (with the seed and duration actually used).
-        seed: SUMO seed.
-        wall_time_s: wall-clock time of the whole run (network, SUMO, recording, table).
-        sumo_time_s: wall-clock time spent inside ``simulationStep``.
-        n_vehicle_steps: number of rows of the table (vehicle x recorded frame).
-        sumo_ids: SUMO id of Vehicle_ID k at index k - 1.
-        events: teleports, collisions, emergency stops and served demand, from SUMO's lists.
-    """
-
-    table: pd.DataFrame
-    spec: ScenarioSpec
-    seed: int
-    wall_time_s: float
-    sumo_time_s: float
-    n_vehicle_steps: int
-    sumo_ids: tuple[str, ...]
-    events: RunEvents = RunEvents()
-
-    @property
-    def n_vehicles(self) -> int:
-        return len(self.sumo_ids)
-
-    @property
-    def teleported_vehicle_ids(self) -> frozenset[int]:
-        """Vehicle_IDs (of this table) of the vehicles SUMO teleported."""
-        vid = {s: i for i, s in enumerate(self.sumo_ids, start=1)}
-        return frozenset(vid[s] for s in self.events.teleported_ids if s in vid)
-
-
-def sumo_binary(name: str = "sumo") -> str:
-    """Path of a SUMO binary (``sumo``, ``netconvert``) via sumolib."""
-    import sumolib
-
-    return sumolib.checkBinary(name)
-
-
-def prepare_inputs(spec: ScenarioSpec, work_dir: Path) -> tuple[Path, Path]:
-    """Network (cached) and route file of ``spec``; returns (net.net.xml, routes.rou.xml)."""
-    net = build_network(spec.road)
-    routes = write_routes(spec, work_dir)
-    return net, routes
-
-
-def sumo_args(spec: ScenarioSpec, net: Path, routes: Path) -> list[str]:
-    """Command-line options shared by the libsumo run and the bare-binary benchmark."""
-    sim = spec.simulation
-    return [
-        "-n", str(net), "-r", str(routes),
-        "--step-length", f"{sim.step_s:g}",
-        "--begin", "0", "--end", f"{sim.duration_s:g}",
-        "--seed", str(sim.seed),
-        "--no-step-log", "true", "--no-warnings", "true",
-        "--collision.action", "warn",
-        # SUMO disables jam teleports for any value <= 0
-        "--time-to-teleport", f"{sim.time_to_teleport_s:g}" if sim.time_to_teleport_s > 0 else "-1",
-    ]
-
-
-def lane_numbers(local_x_ft: np.ndarray, n_main: int, lane_width_ft: float) -> np.ndarray:
-    """I-80 lane numbers (int64[V]) of lateral positions from the left road edge (float64[V], ft;
-    any unit works if ``lane_width_ft`` is in the same one).
-
-    Lane k (0-based from the left) covers ``[k w, (k + 1) w)``; positions left of the road go
-    to lane 1, positions right of the main lanes to lane 7 (ramp / auxiliary lane).
-    """
-    return _LaneNumbering(n_main, lane_width_ft)(local_x_ft)
-
-
-class _LaneNumbering:
-    """:func:`lane_numbers` for one road, as one ``searchsorted`` and one lookup per frame."""
-
-    def __init__(self, n_main: int, lane_width_ft: float):
-        self.edges = lane_width_ft * np.arange(1, n_main + 1, dtype=np.float64)
-        self.numbers = np.array([RIGHTMOST_MAIN_LANE - n_main + 1 + k for k in range(n_main)] + [RAMP_LANE],
-                                dtype=np.int64)
-
-    def __call__(self, local_x_ft: np.ndarray) -> np.ndarray:
-        return self.numbers[np.searchsorted(self.edges, local_x_ft, side="right")]
-
-
-def _lane_tables(ls, spec: ScenarioSpec) -> tuple[dict[str, int], dict[str, np.ndarray]]:
-    """SUMO lane id -> I-80 lane number, and I-80 lane (str) -> centre polyline float64[P, 2] ft."""
-    n, w = spec.road.main_lanes, spec.road.lane_width_m
-    lane_map: dict[str, int] = {}
-    pieces: dict[int, list[np.ndarray]] = {}
-    for lid in ls.lane.getIDList():
-        shape = np.asarray(ls.lane.getShape(lid), dtype=np.float64)
-        num = int(lane_numbers(np.array([-shape[:, 1].mean()]), n, w)[0])  # metres here
-        lane_map[lid] = num
-        if not lid.startswith(":"):
-            pieces.setdefault(num, []).append(shape)
-    shapes = {}
-    for num, parts in pieces.items():
-        pts = np.concatenate(sorted(parts, key=lambda p: p[0, 0]))
-        shapes[str(num)] = pts * FT_PER_M
-    return lane_map, shapes
+from sim.run_result import RunEvents, SimulationResult
+from sim.schema import FRAME_S, FT_PER_M, RIGHTMOST_MAIN_LANE, V_CLASS_AUTO, V_CLASS_TRUCK
+from sim.sumo_inputs import prepare_inputs, sumo_args
 
 
 def run_scenario(
@@ -266,7 +89,7 @@ def _simulate(spec, net, routes, hooks, progress, work_dir):
     # its lane's centre line), which saves a fourth call per vehicle
     veh = ls.vehicle
     get_pos, get_speed, get_acc = veh.getPosition, veh.getSpeed, veh.getAcceleration
-    lane_of = _LaneNumbering(spec.road.main_lanes, spec.road.lane_width_m * FT_PER_M)
+    lane_of = LaneNumbering(spec.road.main_lanes, spec.road.lane_width_m * FT_PER_M)
 
     try:
         ls.start(["sumo", *sumo_args(spec, net, routes)])
@@ -290,7 +113,7 @@ def _simulate(spec, net, routes, hooks, progress, work_dir):
     ok = False  # set once every step ran: hooks then commit their outputs
     simulation = ls.simulation
     try:
-        _, lane_shapes = _lane_tables(ls, spec)
+        _, lane_shapes = lane_tables(ls, spec)
         ctx = RunContext(
             spec=spec, seed=sim.seed, step_length_s=sim.step_s, frame_s=FRAME_S,
             lane_shapes=lane_shapes, lane_width_ft=spec.road.lane_width_m * FT_PER_M,

@@ -6,7 +6,8 @@ import os
 from contextlib import contextmanager
 
 from scenarios.loader import load_scenario
-from sim.run import SimulationResult, run_scenario
+from sim.run import run_scenario
+from sim.run_result import SimulationResult
 
 
 @contextmanager

@@ -10,7 +10,9 @@ from analysis.episode import run_episode
 from analysis.metrics import js_divergence
 from irl.domains.merge import ACTION_ACC_FT_S2
 from scenarios.loader import load_scenario
-from sim.controller import COLLISION_KINDS, RELEASE_REASONS, Controller, ControllerConfig
+from sim.control_records import COLLISION_KINDS, RELEASE_REASONS
+from sim.controller import Controller
+from sim.controller_config import ControllerConfig
 from sim.policy import ConstantPolicy, SumoPolicy, UniformPolicy
 
 pytestmark = pytest.mark.sumo

@@ -100,7 +100,7 @@ def test_old_model_defaults_and_bad_accelerations():
 def test_learned_driver_applies_its_action_accelerations_on_its_step():
     """A model that always picks Zero whose saved Zero acceleration is +3 ft/s^2, deciding every 0.5 s."""
     from analysis.episode import run_episode
-    from sim.controller import ControllerConfig
+    from sim.controller_config import ControllerConfig
 
     lp = np.full((1250, 5), -50.0)
     lp[:, 2] = 0.0
@@ -123,7 +123,7 @@ def test_learned_driver_applies_its_action_accelerations_on_its_step():
 def test_safety_filter_intervenes_and_prevents_rear_end_collisions():
     """Always High Accel runs A into its leader (raw); the filter brakes instead and says how often."""
     from analysis.episode import run_episode
-    from sim.controller import ControllerConfig
+    from sim.controller_config import ControllerConfig
     from sim.policy import ConstantPolicy
 
     raw = run_episode("synthetic", ConstantPolicy(4), 5, duration_s=150.0)

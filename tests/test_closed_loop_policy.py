@@ -8,7 +8,7 @@ import pytest
 from irl.config import IRLConfig
 from irl.domains.merge import MergeBins
 from irl.result import SavedModel
-from sim.controller import ControllerConfig, ControllerError
+from sim.controller_config import ControllerConfig, ControllerError
 from sim.errors import SimError
 from sim.observe import MergeObservation
 from sim.policy import ConstantPolicy, LearnedPolicy, PolicyError, SumoPolicy, UniformPolicy, choose_action

@@ -187,7 +187,8 @@ def test_evaluate_cli_baselines_safety_filter_and_flag_gate(tmp_path):
 
 
 def test_view_cli_prints_recordings(tmp_path):
-    from analysis.rerun_log import close_recording, log_training, open_recording
+    from analysis.rerun_log import log_training
+    from analysis.rerun_recording import close_recording, open_recording
 
     rec, tmp = open_recording(tmp_path / "run" / "a.rrd")
     log_training(rec, "qavg", np.array([-3.0, -2.0]), np.zeros((2, 3)))

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from sim.hooks import FrameState
 from sim.observe import lag_of, lead_of
-from sim.run import lane_numbers
+from sim.lanes import lane_numbers
 
 
 def make_frame(lanes: np.ndarray, ys: np.ndarray) -> FrameState:

@@ -7,14 +7,8 @@ import pytest
 import rerun as rr
 
 from analysis.episode import run_episode
-from analysis.rerun_log import (
-    ROLE_IDS,
-    ROLE_LABELS,
-    close_recording,
-    log_training,
-    open_recording,
-    recording_identity,
-)
+from analysis.rerun_log import ROLE_IDS, ROLE_LABELS, log_training
+from analysis.rerun_recording import close_recording, open_recording, recording_identity
 from analysis.rrd_read import read_blueprint, read_entities, read_rrd_table, recording_info
 from irl.domains.merge import MergeBins
 from scenarios.loader import load_scenario
@@ -238,7 +232,7 @@ def test_blueprint_is_shipped_with_the_recording(logged):
 
 
 def test_blueprint_training_tab(tmp_path):
-    from analysis.rerun_log import merge_blueprint
+    from analysis.rerun_blueprint import merge_blueprint
 
     path = tmp_path / "bp.rrd"
     rec, tmp = open_recording(path, recording_id="bp-test")
@@ -312,7 +306,7 @@ def test_screenshot_tool_rejects_missing_files(tmp_path, capsys):
 
 
 def test_bar_chart_column_matches_rerun_bar_charts(tmp_path):
-    from analysis.rerun_log import bar_chart_column
+    from analysis.rerun_columns import bar_chart_column
 
     vals = np.random.default_rng(2).random((7, 5))
     a, b = tmp_path / "cols.rrd", tmp_path / "log.rrd"

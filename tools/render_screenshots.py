@@ -1,7 +1,7 @@
 """Render rerun recordings to PNG screenshots for the docs, headless.
 
 For each ``.rrd`` this writes a blueprint file (``.rbl``) like the one the recording carries
-(:func:`analysis.rerun_log.merge_blueprint`) but *playing* the first take-over in a loop
+(:func:`analysis.rerun_blueprint.merge_blueprint`) but *playing* the first take-over in a loop
 (rerun's blueprint cannot place the time cursor, which otherwise stays on the first frame,
 before any car is controlled), then runs::
 
@@ -33,7 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.rerun_log import MIRROR_Y, merge_blueprint
+from analysis.rerun_blueprint import merge_blueprint
+from analysis.rerun_log import MIRROR_Y
 from analysis.rrd_read import read_rrd_table, recording_info
 
 

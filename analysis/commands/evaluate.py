@@ -51,7 +51,7 @@ def register(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from analysis.evaluate import evaluate
     from analysis.thresholds import check_file, parse_thresholds
-    from sim.controller import ControllerConfig
+    from sim.controller_config import ControllerConfig
     from sim.errors import SimError
 
     thresholds = parse_thresholds(args.fail_if) if args.fail_if else ()  # syntax errors before any work

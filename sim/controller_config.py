@@ -1,0 +1,60 @@
+"""Settings of the closed-loop controller (:class:`sim.controller.Controller`) and the error
+raised for bad ones."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from sim.errors import SimError
+
+
+class ControllerError(SimError, ValueError):
+    """Bad controller settings."""
+
+
+@dataclass(frozen=True)
+class ControllerConfig:
+    """Settings of :class:`~sim.controller.Controller`.
+
+    Attributes:
+        decision_s: time between two decisions (s); rounded to whole frames. None: the
+            policy's own ``decision_step_s`` (a learned model decides on the step its
+            demonstrations were resampled to), else 0.3 s.
+        mode: take the most likely action instead of sampling.
+        zone_start_ft: B is taken into account once its ``Local_Y`` is at least this (ft);
+            None = ``zone_margin_ft`` before the start of the auxiliary lane (from the lane
+            shapes of the run).
+        zone_margin_ft: see ``zone_start_ft``.
+        max_lag_ft: A must be at most this far behind B (ft).
+        hold_after_merge_s: keep controlling A this long after B merged (s).
+        max_control_s: release A after this long under control (s).
+        seed: seed of the action-sampling generator (None: the run's seed).
+        safety_ttc_s: the safety-filter variant (issue 11, cause 9): None (default) = raw, the
+            policy's action is applied as chosen. A number: before applying an action, A's gap
+            and time-to-collision to its leader in lane 6 at the end of the decision step are
+            predicted (constant accelerations of A, constant speed of the leader); an action
+            that would end with the bumper gap below 0 or a closing TTC below this (s) is
+            replaced by the nearest harder-braking action that does not (High Brake if none
+            does). Interventions are counted per control episode and logged per decision.
+    """
+
+    decision_s: float | None = None
+    mode: bool = False
+    zone_start_ft: float | None = None
+    zone_margin_ft: float = 100.0
+    max_lag_ft: float = 250.0
+    hold_after_merge_s: float = 3.0
+    max_control_s: float = 60.0
+    seed: int | None = None
+    safety_ttc_s: float | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("decision_s", "max_lag_ft", "max_control_s", "safety_ttc_s"):
+            v = getattr(self, name)
+            if v is None and name in ("decision_s", "safety_ttc_s"):
+                continue
+            if not (v > 0 and math.isfinite(v)):
+                raise ControllerError(f"controller.{name}: must be a positive number, got {v}")
+        if not self.hold_after_merge_s >= 0:
+            raise ControllerError(f"controller.hold_after_merge_s: must be >= 0, got {self.hold_after_merge_s}")

@@ -43,7 +43,7 @@ import numpy as np
 import pandas as pd
 from scipy.stats import binomtest, wasserstein_distance
 
-from irl.domains.merge import N_ACTIONS
+from irl.domains.merge_actions import N_ACTIONS
 from irl.units import FRAME_S, FT_PER_M
 
 #: TTC values above this (s) are set to it before the Wasserstein distance.

@@ -49,7 +49,8 @@ import pyarrow as pa
 import rerun as rr
 
 from irl.atomic import move_into_place, temporary_path
-from irl.domains.merge import ACTION_NAMES, FEATURE_NAMES, paper_features
+from irl.domains.merge_actions import ACTION_NAMES
+from irl.domains.merge_features import FEATURE_NAMES, paper_features
 from sim.hooks import FrameState, RunContext
 from sim.observe import lead_of
 from sim.schema import RAMP_LANE

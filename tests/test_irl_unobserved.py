@@ -16,7 +16,7 @@ from irl.boltzmann import demo_counts, loglik_from_counts, loglik_grad_from_coun
 from irl.boltzmann_fit import ExactBoltzmann
 from irl.config import IRLConfig
 from irl.demonstrations import Demonstrations
-from irl.domains.merge import MergeBins
+from irl.domains.merge_bins import MergeBins
 from irl.errors import ConfigError, DemonstrationError
 from irl.fit import fit
 from irl.merge_mdp import kinematic_successors

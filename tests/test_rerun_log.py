@@ -16,7 +16,7 @@ from analysis.rerun_log import (
     recording_identity,
 )
 from analysis.rrd_read import read_blueprint, read_entities, read_rrd_table, recording_info
-from irl.domains.merge import MergeBins
+from irl.domains.merge_bins import MergeBins
 from scenarios.loader import load_scenario
 from sim.policy import LearnedPolicy
 

@@ -31,7 +31,9 @@ import pandas as pd
 
 from analysis.episode import EpisodeResult, EpisodeSpec, run_episode_task
 from analysis.evaluate_report import write_outputs
-from analysis.metrics import AggregateMetrics, MetricsConfig, aggregate, heldout_loglik, w1_to_demos
+from analysis.metrics import MetricsConfig
+from analysis.metrics_aggregate import AggregateMetrics, aggregate
+from analysis.metrics_demos import heldout_loglik, w1_to_demos
 from analysis.provenance import provenance, text_digest, write_timings
 from analysis.sweep import Task, parse_executor, run_sweep
 from irl.baselines import fit_baseline

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.metrics import AggregateMetrics
+from analysis.metrics_aggregate import AggregateMetrics
 from analysis.provenance import provenance_markdown
 from analysis.report_plots import write_plots
 from irl.atomic import write_text_atomic

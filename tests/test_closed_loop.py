@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from analysis.episode import run_episode
-from analysis.metrics import js_divergence
+from analysis.metrics_demos import js_divergence
 from irl.domains.merge_actions import ACTION_ACC_FT_S2
 from scenarios.loader import load_scenario
 from sim.controller import COLLISION_KINDS, RELEASE_REASONS, Controller, ControllerConfig

@@ -7,14 +7,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.metrics import (
-    TTC_CAP_S,
-    EpisodeMetrics,
-    aggregate,
-    rate_ci95,
-    ttc_to_c,
-    w1_to_demos,
-)
+from analysis.metrics import EpisodeMetrics
+from analysis.metrics_aggregate import aggregate, rate_ci95
+from analysis.metrics_demos import TTC_CAP_S, ttc_to_c, w1_to_demos
 from analysis.thresholds import check_thresholds, parse_thresholds
 from irl.baselines import BaselinePolicy
 from irl.config import IRLConfig

@@ -94,7 +94,7 @@ def aggregate(
     flags: tuple[str, ...] = (),
 ) -> AggregateMetrics:
     """Aggregate the episodes of one policy (all must share ``policy``); ``w1``: the
-    :func:`w1_to_demos` distances of its decisions; ``flags``: its model's fit flags.
+    :func:`~analysis.metrics_demos.w1_to_demos` distances of its decisions; ``flags``: its model's fit flags.
 
     Raises:
         ValueError: no episodes, or episodes of more than one policy.

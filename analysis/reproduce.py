@@ -82,7 +82,7 @@ class ReproductionRun:
     """Result of :func:`reproduce_tables`: one report per table and the sweep that ran them.
 
     Attributes:
-        reports: one :class:`ReproductionReport` per requested table, in order.
+        reports: one :class:`~analysis.reproduce_report.ReproductionReport` per requested table, in order.
         sweep: the :class:`analysis.sweep.SweepReport` (timings, cached/run counts, failures).
     """
 

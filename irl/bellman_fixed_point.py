@@ -190,7 +190,7 @@ def boltzmann_fixed_point(
         fallback: when Newton from the start fails, try continuation and damped backups
             (False: report Newton's failure at once).
         attracting: only accept a fixed point that attracts the damped iteration of Eq. 15
-            (:func:`iteration_stability`). The Boltzmann backup can have several fixed points
+            (:func:`~irl.bellman_stability.iteration_stability`). The Boltzmann backup can have several fixed points
             and Newton alone may land on a repelling one.
         newton: the result of the first step, Newton from ``q0`` with these ``max_iter`` and
             ``tol``, when the caller has it already (it is deterministic: passing it skips

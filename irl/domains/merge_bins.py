@@ -170,7 +170,7 @@ class MergeBins:
                 both NaN where there is no car C.
             prev_action: A's previous action (0..4), broadcast with the others; required by
                 the ``"driver"`` encoding, ignored by ``"paper"``.
-            encoding: one of :data:`STATE_ENCODINGS`.
+            encoding: one of :data:`~irl.domains.merge_states.STATE_ENCODINGS`.
 
         Returns:
             int64 ``[...]`` in ``[0, n_states(encoding))``.
@@ -269,7 +269,7 @@ def fit_quantile_bins(table: pd.DataFrame, *, safe_distance: float = SAFE_DISTAN
     amount to stay strictly increasing, with a :class:`DegenerateBinsWarning`.
 
     Raises:
-        DemonstrationError: ``table`` breaks :func:`validate_encounters`, or a variable is
+        DemonstrationError: ``table`` breaks :func:`~irl.domains.merge_encounters.validate_encounters`, or a variable is
             constant over the table (no bins can be fitted).
     """
     validate_encounters(table, where)

@@ -19,9 +19,9 @@ states of the encoding (1250 ``"paper"``, 6250 ``"driver"``). Two named sets:
     action (persistence, cause 5), and ``keep_action``: 1 when the action repeats the previous
     one. Both need the ``"driver"`` encoding.
 
-Representatives: :meth:`MergeBins.representatives` for the state variables (no car C: the
+Representatives: :meth:`~irl.domains.merge_bins.MergeBins.representatives` for the state variables (no car C: the
 farthest ``d_AC`` bin and the zero ``v_AC`` bin stand for it), and an acceleration per action
-(``action_acc``, ft/s^2, default the bin midpoints :data:`ACTION_ACC_FT_S2`).
+(``action_acc``, ft/s^2, default the bin midpoints :data:`~irl.domains.merge_actions.ACTION_ACC_FT_S2`).
 
 Users pass their own features from Python: a :class:`FeatureSet` of names and an ``[S, A, K]``
 array (any function of the state index and action), e.g. ``FeatureSet.custom(names, array)``,

@@ -75,7 +75,7 @@ def previous_action(speed_before, speed_now, dt: float) -> int:
         speed_now: A's speed (ft/s) now.
 
     Returns:
-        the action index; :data:`ZERO_ACTION` when either speed is unknown.
+        the action index; :data:`~irl.domains.merge_actions.ZERO_ACTION` when either speed is unknown.
     """
     if speed_before is None or speed_now is None or speed_before != speed_before or speed_now != speed_now:
         return ZERO_ACTION

@@ -4,7 +4,7 @@ Issue 11 (cause 3): Krauss drivers with sigma 0.5 change action bin in 63 % of 0
 sit at the braking cap in 11 %; the authors' NGSIM humans change bin in 26 % of frames. A
 learner cannot tell such noise from a response to the state.
 
-:func:`bin_change_rate` measures it on an encounter table (``irl.domains.merge`` schema):
+:func:`bin_change_rate` measures it on an encounter table (``irl.domains.merge_encounters`` schema):
 the share of consecutive decision pairs of the same encounter whose action bins differ, at a
 decision step of ``step_frames`` 0.1 s frames (the action over a step is the mean of the
 per-frame ``acc_A`` over it: A's speed change over the step divided by its length).
@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from irl.domains.merge import ACTION_ACC_FT_S2, actions_of
+from irl.domains.merge_actions import ACTION_ACC_FT_S2, actions_of
 
 
 def step_actions(frames: pd.DataFrame, step_frames: int = 1) -> tuple[np.ndarray, np.ndarray]:

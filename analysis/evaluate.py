@@ -31,11 +31,14 @@ import pandas as pd
 
 from analysis.episode import EpisodeResult, EpisodeSpec, run_episode_task
 from analysis.evaluate_report import write_outputs
-from analysis.metrics import AggregateMetrics, MetricsConfig, aggregate, heldout_loglik, w1_to_demos
+from analysis.metrics import MetricsConfig
+from analysis.metrics_aggregate import AggregateMetrics, aggregate
+from analysis.metrics_demos import heldout_loglik, w1_to_demos
 from analysis.provenance import provenance, text_digest, write_timings
 from analysis.sweep import Task, parse_executor, run_sweep
 from irl.baselines import fit_baseline
-from irl.domains.merge import ACTION_ACC_FT_S2, N_ACTIONS, MergeBins, actions_of, fit_quantile_bins
+from irl.domains.merge_actions import ACTION_ACC_FT_S2, N_ACTIONS, actions_of
+from irl.domains.merge_bins import MergeBins, fit_quantile_bins
 from irl.merge_mdp import discretize, read_encounters
 from irl.result import SavedModel
 from irl.run_folder import check_writable
@@ -58,7 +61,7 @@ class HeldOut:
     """Demonstrations used for the divergence and the held-out log-likelihood.
 
     Attributes:
-        encounters: encounter frames (``irl.domains.merge.ENCOUNTER_SCHEMA``; NaN d_AC and
+        encounters: encounter frames (``irl.domains.merge_encounters.ENCOUNTER_SCHEMA``; NaN d_AC and
             v_AC = no lead car, encoded by the domain's no-lead-car rule).
         action_counts: ``[5]`` counts of the binned ``acc_A``.
         source: where they came from.

@@ -9,11 +9,11 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.metrics import AggregateMetrics
+from analysis.metrics_aggregate import AggregateMetrics
 from analysis.provenance import provenance_markdown
 from analysis.report_plots import write_plots
 from irl.atomic import write_text_atomic
-from irl.domains.merge import ACTION_NAMES, N_ACTIONS
+from irl.domains.merge_actions import ACTION_NAMES, N_ACTIONS
 
 
 def _fmt(x, nd=2) -> str:

@@ -24,7 +24,7 @@ import numpy as np
 from analysis.provenance import provenance as provenance_record
 from analysis.provenance import write_timings
 from irl.config import IRLConfig
-from irl.domains.merge import MergeBins
+from irl.domains.merge_bins import MergeBins
 from irl.errors import ConfigError, ConvergenceError
 from irl.fit import METHODS, fit
 from irl.merge_mdp import kinematic_successors

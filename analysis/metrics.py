@@ -1,4 +1,8 @@
-"""Closed-loop metrics: per episode (one simulation run) and aggregated over seeds.
+"""Closed-loop metrics of one episode (one simulation run): :func:`episode_metrics`.
+
+Aggregated over seeds they are :mod:`analysis.metrics_aggregate`'s; the distances to the
+demonstrations (Jensen-Shannon divergence, held-out log-likelihood, Wasserstein-1) are
+:mod:`analysis.metrics_demos`'.
 
 An episode is one run of a scenario with a :class:`sim.controller.Controller`; its inputs are
 the trajectory table, the controller's control episodes (one per lag car A) and decisions.
@@ -21,18 +25,6 @@ Definitions (NGSIM units in, SI where stated):
 * ``action_counts``: A's actions at the decisions (for the SUMO baseline, the bin of A's
   measured acceleration); ``js_divergence``: Jensen-Shannon divergence (base 2, in [0, 1])
   between that distribution and the demonstrations' action distribution.
-* ``a_collision_rate`` with ``a_collision_ci95``: control episodes ended by A colliding over
-  control episodes, with the Wilson score 95 % interval (``scipy.stats.binomtest``).
-* ``safety_interventions`` / ``intervention_rate``: decisions whose action the safety filter
-  replaced (0 in the raw default), and their share of the commanded decisions.
-* ``w1_speed_A_ft_s``, ``w1_acc_A_ft_s2``, ``w1_d_AC_ft``, ``w1_ttc_s``: Wasserstein-1
-  distances (``scipy.stats.wasserstein_distance``) between the closed-loop values at A's
-  decisions (speed, applied acceleration, d_AC, TTC to C) and the held-out demonstration
-  frames (``v_A`` when the table has it, ``acc_A``, ``d_AC``, TTC). TTC to C is front-to-front
-  ``d_AC / v_AC`` over the closing steps (``v_AC > 0``), capped at ``TTC_CAP_S``. The SUMO
-  driver's distances are the floor the learned drivers are compared to.
-* ``flags``: what the model's fit reported (``not_converged``, ``unbounded``, ``infeasible``,
-  ``uninformative``) and ``flagged`` (1 if any, for ``--fail-if 'flagged>0'``).
 """
 
 from __future__ import annotations
@@ -41,13 +33,10 @@ from dataclasses import asdict, dataclass, field, fields
 
 import numpy as np
 import pandas as pd
-from scipy.stats import binomtest, wasserstein_distance
 
-from irl.domains.merge import N_ACTIONS
+from analysis.metrics_demos import js_divergence
+from irl.domains.merge_actions import N_ACTIONS
 from irl.units import FRAME_S, FT_PER_M
-
-#: TTC values above this (s) are set to it before the Wasserstein distance.
-TTC_CAP_S = 30.0
 
 
 @dataclass(frozen=True)
@@ -99,43 +88,6 @@ class EpisodeMetrics:
         for k in ("min_ttc_s", "b_ahead_rate", "travel_time_s", "mean_speed_A_ft_s", "js_divergence"):
             kw[k] = float("nan") if kw[k] is None else float(kw[k])
         return cls(**kw)
-
-
-def js_divergence(p: np.ndarray, q: np.ndarray) -> float:
-    """Jensen-Shannon divergence (base 2, in [0, 1]) of two histograms ``[A]`` (normalised here).
-
-    NaN if either is all zero.
-    """
-    p = np.asarray(p, dtype=np.float64)
-    q = np.asarray(q, dtype=np.float64)
-    if p.sum() <= 0 or q.sum() <= 0:
-        return float("nan")
-    p, q = p / p.sum(), q / q.sum()
-    m = 0.5 * (p + q)
-
-    def kl(x, y):
-        nz = x > 0
-        return float(np.sum(x[nz] * np.log2(x[nz] / y[nz])))
-
-    return max(0.0, 0.5 * kl(p, m) + 0.5 * kl(q, m))
-
-
-def heldout_loglik(log_pi: np.ndarray, states: np.ndarray, actions: np.ndarray) -> tuple[float, float]:
-    """Log-likelihood of demonstration steps under a policy.
-
-    Args:
-        log_pi: ``[S, A]`` log pi(a|s).
-        states, actions: ``[N]`` int steps (all trajectories concatenated).
-
-    Returns:
-        ``(sum, mean per step)`` of ``log pi(a_t|s_t)`` (Eq. 5 without ``log Pr(s_1)``).
-    """
-    s = np.asarray(states, dtype=np.int64)
-    a = np.asarray(actions, dtype=np.int64)
-    if s.size == 0:
-        return float("nan"), float("nan")
-    total = float(np.sum(np.asarray(log_pi)[s, a]))
-    return total, total / s.size
 
 
 def _runs_below(acc: np.ndarray, vid: np.ndarray, frame: np.ndarray, thr: float) -> int:
@@ -261,150 +213,3 @@ def _travel_times(table: pd.DataFrame, a_ids: list[int], section_ft: float, marg
             if r.y0 <= margin and r.y1 >= section_ft - margin:
                 out[i] = (r.f1 - r.f0) * FRAME_S
     return out
-
-
-@dataclass(frozen=True)
-class AggregateMetrics:
-    """Metrics of one policy over several episodes (seeds).
-
-    Scalars are ``(mean, std)`` over episodes (NaN-aware); counts are totals.
-    """
-
-    policy: str
-    n_episodes: int
-    n_controls: int
-    n_merges: int
-    collisions: int
-    a_collisions: int
-    emergency_brakings: int
-    emergency_brakings_all: int
-    min_ttc_s: float
-    b_ahead_rate: tuple[float, float]
-    travel_time_s: tuple[float, float]
-    mean_speed_A_ft_s: tuple[float, float]
-    action_counts: tuple[int, ...]
-    js_divergence: float
-    heldout_loglik: float = float("nan")
-    heldout_loglik_per_step: float = float("nan")
-    release_reasons: dict[str, int] = field(default_factory=dict)
-    a_collision_rate: float = float("nan")
-    a_collision_ci95: tuple[float, float] = (float("nan"), float("nan"))
-    n_decisions: int = 0
-    safety_interventions: int = 0
-    intervention_rate: float = float("nan")
-    w1_speed_A_ft_s: float = float("nan")
-    w1_acc_A_ft_s2: float = float("nan")
-    w1_d_AC_ft: float = float("nan")
-    w1_ttc_s: float = float("nan")
-    flags: tuple[str, ...] = ()
-    flagged: int = 0
-
-    def to_dict(self) -> dict:
-        d = asdict(self)
-        for k, v in d.items():
-            if isinstance(v, tuple):
-                d[k] = list(v)
-        return d
-
-
-def _mean_std(x: list[float]) -> tuple[float, float]:
-    a = np.asarray(x, dtype=np.float64)
-    a = a[np.isfinite(a)]
-    if a.size == 0:
-        return float("nan"), float("nan")
-    return float(a.mean()), float(a.std(ddof=1)) if a.size > 1 else 0.0
-
-
-def rate_ci95(k: int, n: int) -> tuple[float, float, float]:
-    """``(k / n, low, high)``: a rate with its Wilson score 95 % interval (NaN when ``n == 0``)."""
-    if n <= 0:
-        return float("nan"), float("nan"), float("nan")
-    ci = binomtest(int(k), int(n)).proportion_ci(confidence_level=0.95, method="wilson")
-    return k / n, float(ci.low), float(ci.high)
-
-
-def ttc_to_c(d_ac: np.ndarray, v_ac: np.ndarray) -> np.ndarray:
-    """``[M]`` front-to-front TTC to C (s), ``d_AC / v_AC`` over the closing steps of ``d_ac,
-    v_ac [N]`` (``v_AC > 0``, finite), capped at ``TTC_CAP_S``."""
-    d = np.asarray(d_ac, dtype=np.float64)
-    v = np.asarray(v_ac, dtype=np.float64)
-    ok = np.isfinite(d) & np.isfinite(v) & (v > 1e-6)
-    return np.minimum(np.maximum(d[ok], 0.0) / v[ok], TTC_CAP_S)
-
-
-def wasserstein(x, y) -> float:
-    """Wasserstein-1 distance of two samples (finite values only; NaN if either is empty)."""
-    a = np.asarray(x, dtype=np.float64)
-    b = np.asarray(y, dtype=np.float64)
-    a, b = a[np.isfinite(a)], b[np.isfinite(b)]
-    if a.size == 0 or b.size == 0:
-        return float("nan")
-    return float(wasserstein_distance(a, b))
-
-
-def w1_to_demos(decisions: pd.DataFrame, demos: pd.DataFrame) -> dict[str, float]:
-    """Wasserstein-1 distances of the closed-loop decisions (``Controller.decision_table()``
-    rows, all episodes) to held-out encounter frames: keys ``w1_speed_A_ft_s`` (needs a
-    ``v_A`` column in ``demos``, else NaN), ``w1_acc_A_ft_s2``, ``w1_d_AC_ft``, ``w1_ttc_s``."""
-    speed = demos["v_A"] if "v_A" in demos else pd.Series(dtype="float64")
-    return {
-        "w1_speed_A_ft_s": wasserstein(decisions["speed_A"], speed),
-        "w1_acc_A_ft_s2": wasserstein(decisions["acc_cmd"], demos["acc_A"]),
-        "w1_d_AC_ft": wasserstein(decisions["d_AC"], demos["d_AC"]),
-        "w1_ttc_s": wasserstein(ttc_to_c(decisions["d_AC"], decisions["v_AC"]), ttc_to_c(demos["d_AC"], demos["v_AC"])),
-    }
-
-
-def aggregate(
-    episodes: list[EpisodeMetrics],
-    *,
-    demo_action_counts: np.ndarray | None = None,
-    heldout: tuple[float, float] | None = None,
-    w1: dict[str, float] | None = None,
-    flags: tuple[str, ...] = (),
-) -> AggregateMetrics:
-    """Aggregate the episodes of one policy (all must share ``policy``); ``w1``: the
-    :func:`w1_to_demos` distances of its decisions; ``flags``: its model's fit flags.
-
-    Raises:
-        ValueError: no episodes, or episodes of more than one policy.
-    """
-    if not episodes:
-        raise ValueError("aggregate: no episodes")
-    names = {e.policy for e in episodes}
-    if len(names) != 1:
-        raise ValueError(f"aggregate: episodes of several policies {sorted(names)}")
-    counts = np.sum([e.action_counts for e in episodes], axis=0)
-    reasons: dict[str, int] = {}
-    for e in episodes:
-        for k, v in e.release_reasons.items():
-            reasons[k] = reasons.get(k, 0) + v
-    merges = sum(e.n_merges for e in episodes)
-    n_controls = sum(e.n_controls for e in episodes)
-    a_coll = sum(e.a_collisions for e in episodes)
-    rate, lo, hi = rate_ci95(a_coll, n_controls)
-    n_dec = sum(e.n_decisions for e in episodes)
-    n_int = sum(e.safety_interventions for e in episodes)
-    w1 = w1 or {}
-    ahead = sum((e.b_ahead_rate * e.n_merges) for e in episodes if e.n_merges)
-    return AggregateMetrics(
-        policy=episodes[0].policy, n_episodes=len(episodes),
-        n_controls=sum(e.n_controls for e in episodes), n_merges=merges,
-        collisions=sum(e.collisions for e in episodes), a_collisions=sum(e.a_collisions for e in episodes),
-        emergency_brakings=sum(e.emergency_brakings for e in episodes),
-        emergency_brakings_all=sum(e.emergency_brakings_all for e in episodes),
-        min_ttc_s=float(min(e.min_ttc_s for e in episodes)),
-        b_ahead_rate=(ahead / merges if merges else float("nan"), _mean_std([e.b_ahead_rate for e in episodes])[1]),
-        travel_time_s=_mean_std([e.travel_time_s for e in episodes]),
-        mean_speed_A_ft_s=_mean_std([e.mean_speed_A_ft_s for e in episodes]),
-        action_counts=tuple(int(x) for x in counts),
-        js_divergence=js_divergence(counts, demo_action_counts) if demo_action_counts is not None else float("nan"),
-        heldout_loglik=heldout[0] if heldout else float("nan"),
-        heldout_loglik_per_step=heldout[1] if heldout else float("nan"),
-        release_reasons=reasons,
-        a_collision_rate=rate, a_collision_ci95=(lo, hi), n_decisions=n_dec, safety_interventions=n_int,
-        intervention_rate=n_int / n_dec if n_dec else float("nan"),
-        w1_speed_A_ft_s=w1.get("w1_speed_A_ft_s", float("nan")), w1_acc_A_ft_s2=w1.get("w1_acc_A_ft_s2", float("nan")),
-        w1_d_AC_ft=w1.get("w1_d_AC_ft", float("nan")), w1_ttc_s=w1.get("w1_ttc_s", float("nan")),
-        flags=tuple(flags), flagged=int(bool(flags)),
-    )

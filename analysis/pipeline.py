@@ -4,7 +4,7 @@
 
 1. **generate** merges: simulate the scenario with SUMO's own drivers for the training seeds and
    one held-out seed (in worker processes), extract the merge encounters (``sim.encounters``);
-2. **discretize**: quantile bin edges fitted on the training encounters (``irl.domains.merge``);
+2. **discretize**: quantile bin edges fitted on the training encounters (``irl.domains.merge_bins``);
    encounter frames without a lead car C get the closed loop's open-road values;
 3. **learn** Q-Avg by default (MLIRL, Q-SM and REIRL on request; ``analysis.learn``) with the
    settings of ``merge-irl learn`` on encounter tables (driver features and state encoding,
@@ -47,7 +47,7 @@ from analysis.provenance import provenance, provenance_markdown, text_digest, wr
 from analysis.sweep import Task, run_sweep
 from irl.atomic import write_text_atomic
 from irl.errors import IRLError
-from irl.domains.merge import fit_quantile_bins
+from irl.domains.merge_bins import fit_quantile_bins
 from irl.problems import load_problem
 from scenarios.loader import load_scenario
 from scenarios.spec import ScenarioSpec

@@ -21,7 +21,7 @@ from scipy.stats import binomtest
 
 from analysis.palette import policy_color
 from irl.atomic import write_atomic
-from irl.domains.merge import ACTION_NAMES, N_ACTIONS
+from irl.domains.merge_actions import ACTION_NAMES, N_ACTIONS
 from irl.units import FRAME_S, FT_PER_M
 
 #: Braking beyond 1 g (ft/s^2, negative) is beyond what tyres can do: marked implausible.

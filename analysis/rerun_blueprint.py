@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from irl.domains.merge import ACTION_NAMES
+from irl.domains.merge_actions import ACTION_NAMES
 
 #: Half extent (ft) of the merge view around the followed car.
 FOLLOW_HALF_FT = (330.0, 75.0)

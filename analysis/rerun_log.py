@@ -52,7 +52,8 @@ import rerun as rr
 from analysis.rerun_blueprint import merge_blueprint
 from analysis.rerun_columns import bar_chart_column
 from analysis.rerun_recording import close_recording, open_recording, recording_identity
-from irl.domains.merge import ACTION_NAMES, FEATURE_NAMES, paper_features
+from irl.domains.merge_actions import ACTION_NAMES
+from irl.domains.merge_features import FEATURE_NAMES, paper_features
 from sim.hooks import FrameState, RunContext
 from sim.observe import lead_of
 from sim.schema import RAMP_LANE

@@ -7,7 +7,7 @@ check fails if any of them holds. Without ``POLICY.`` a threshold applies to eve
 evaluation. A metric that is ``(mean, std)`` is compared by its mean. A metric whose value is
 NaN (not measurable in that run) counts as a breach, so a CI gate never passes by accident.
 
-Metric names are those of :class:`analysis.metrics.AggregateMetrics` (the ``aggregate`` object
+Metric names are those of :class:`analysis.metrics_aggregate.AggregateMetrics` (the ``aggregate`` object
 of each policy in ``metrics.json``), plus :data:`EPISODE_TOTALS` (``teleports``: SUMO's teleports
 summed over the policy's episodes).
 """

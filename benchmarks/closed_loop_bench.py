@@ -28,7 +28,7 @@ from benchmarks.bare_sumo import time_bare
 from scenarios.loader import load_scenario
 from scenarios.spec_parse import with_overrides
 from sim.controller import Controller
-from irl.domains.merge import MergeBins
+from irl.domains.merge_bins import MergeBins
 from sim.policy import LearnedPolicy
 from sim.run import run_scenario
 

@@ -21,7 +21,8 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
-from analysis.reproduce import METHOD_ORDER, reproduce_tables
+from analysis.reproduce import reproduce_tables
+from analysis.reproduce_report import METHOD_ORDER
 
 DEFAULT_DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "railusm"
 

@@ -4,10 +4,10 @@ Q-SM and MLIRL solve the same equation ``Q = R + gamma P (sum_b pi(b|s') Q(s', b
 only in ``P`` (a :class:`~irl.transitions.SuccessorModel`): the demonstrations' observed
 successors with terminal pairs (Q-SM), or a full transition model without any (MLIRL).
 
-* :class:`ExactBoltzmann` solves the fixed point by Newton (:func:`irl.bellman.boltzmann_fixed_point`,
+* :class:`ExactBoltzmann` solves the fixed point by Newton (:func:`irl.bellman_fixed_point.boltzmann_fixed_point`,
   warm-started from the previous outer step), differentiates it implicitly, and
   :func:`fit_exact` runs L-BFGS on ``-L``. After the fit it checks whether the damped iteration
-  of Eq. 15 could converge to the fixed point found (:func:`irl.bellman.iteration_stability`);
+  of Eq. 15 could converge to the fixed point found (:func:`irl.bellman_stability.iteration_stability`);
   if not, the result says so and ``converged`` is False.
 * :class:`DampedBoltzmann` is the synchronous damped backup over all pairs
   (``Q <- (1-alpha) Q + alpha (R + gamma P V(Q))`` and the same for dQ), used by MLIRL's
@@ -22,10 +22,9 @@ from dataclasses import replace
 import numpy as np
 
 from irl.ascent import Evaluation, lbfgs_ascent
-from irl.bellman import (
-    FixedPoint, backup_operator, boltzmann_dq, boltzmann_fixed_point, iteration_fixed_point,
-    iteration_stability, mean_weights,
-)
+from irl.bellman import backup_operator, boltzmann_dq, mean_weights
+from irl.bellman_fixed_point import FixedPoint, boltzmann_fixed_point, iteration_fixed_point
+from irl.bellman_stability import iteration_stability
 from irl.boltzmann import demo_counts, loglik_from_counts, loglik_grad_from_counts
 from irl.config import IRLConfig
 from irl.demonstrations import Demonstrations
@@ -55,7 +54,7 @@ class ExactBoltzmann:
     ``Q = R``. :meth:`full_q` extends the solution to all states.
 
     With ``from_zero`` (Q-SM) the first evaluation (no anchor) takes the fixed point that the
-    damped Eq. 15 iteration reaches from ``Q = 0`` (:func:`irl.bellman.iteration_fixed_point`),
+    damped Eq. 15 iteration reaches from ``Q = 0`` (:func:`irl.bellman_fixed_point.iteration_fixed_point`),
     the paper's algorithm's answer; :func:`fit_exact` checks the final one the same way.
     """
 

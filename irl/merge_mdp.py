@@ -1,7 +1,8 @@
 """The freeway-merge MDP (paper section 4.2): transitions and tabular demonstrations.
 
 The domain itself (state and action bins, encoding, encounter schema, the no-lead-car rule,
-features) is :mod:`irl.domains.merge`; this module builds the MDP from it: tabular
+features) is :mod:`irl.domains` (``merge_actions``, ``merge_states``, ``merge_bins``,
+``merge_encounters``, ``merge_features``); this module builds the MDP from it: tabular
 demonstrations from an encounter table (:func:`discretize`), the kinematic fallback model
 (:func:`kinematic_next_state`) and the estimated transition model, REIRL's padding, and
 readers of the authors' files and of encounter tables.
@@ -19,22 +20,11 @@ import pandas as pd
 import scipy.sparse as sp
 
 from irl.demonstrations import Demonstrations
-from irl.domains.merge import (
-    ACTION_ACC_FT_S2,
-    N_ACTIONS,
-    N_STATES,
-    VARIABLES,
-    ZERO_ACTION,
-    MergeBins,
-    actions_of,
-    features,
-    n_states,
-    split_driver_state,
-    state_index,
-    state_parts,
-    validate_encounters,
-)
-from irl.domains.merge_features import driver_encode_sequence, feature_set
+from irl.domains.merge_actions import ACTION_ACC_FT_S2, N_ACTIONS, ZERO_ACTION, actions_of
+from irl.domains.merge_bins import MergeBins
+from irl.domains.merge_encounters import validate_encounters
+from irl.domains.merge_features import driver_encode_sequence, feature_set, features
+from irl.domains.merge_states import N_STATES, VARIABLES, n_states, split_driver_state, state_index, state_parts
 from irl.errors import ConfigError, DemonstrationError
 from irl.io import load_railusm
 from irl.transitions import SuccessorModel, estimate_transitions
@@ -97,9 +87,9 @@ def resample_encounters(encounters_df, bins: MergeBins, *, where: str = "encount
     an encounter shorter than ``2k`` rows keeps row 0 with previous action Zero (unknown).
 
     Args:
-        encounters_df: the encounter table of :mod:`irl.domains.merge`.
+        encounters_df: the encounter table of :mod:`irl.domains.merge_encounters`.
         bins: state bin edges.
-        encoding: ``"paper"`` or ``"driver"`` (:data:`irl.domains.merge.STATE_ENCODINGS`).
+        encoding: ``"paper"`` or ``"driver"`` (:data:`irl.domains.merge_states.STATE_ENCODINGS`).
         decision_step_s: seconds per decision, a multiple of 0.1 (0.1 keeps every frame).
         features: a :class:`~irl.domains.merge_features.FeatureSet` (``[S, A, K]``), a set name
             or None (the paper's three).
@@ -110,7 +100,7 @@ def resample_encounters(encounters_df, bins: MergeBins, *, where: str = "encount
         mean acceleration of the decisions.
 
     Raises:
-        DemonstrationError: the table breaks :func:`irl.domains.merge.validate_encounters`, or
+        DemonstrationError: the table breaks :func:`irl.domains.merge_encounters.validate_encounters`, or
             every encounter has fewer than ``k`` rows (no whole decision step). Shorter
             encounters among longer ones are left out with a :class:`ShortEncounterWarning`.
         ConfigError: a bad encoding or decision step.

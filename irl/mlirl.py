@@ -22,7 +22,7 @@ import time
 import numpy as np
 
 from irl.ascent import unit_step_ascent
-from irl.bellman import boltzmann_fixed_point
+from irl.bellman_fixed_point import boltzmann_fixed_point
 from irl.boltzmann_fit import DampedBoltzmann, fit_exact
 from irl.config import IRLConfig
 from irl.demonstrations import Demonstrations

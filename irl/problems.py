@@ -21,7 +21,8 @@ import pandas as pd
 from irl import merge_mdp
 from irl.demonstrations import Demonstrations
 from irl.domains import gridworld
-from irl.domains.merge import ACTION_ACC_FT_S2, MergeBins, fit_quantile_bins
+from irl.domains.merge_actions import ACTION_ACC_FT_S2
+from irl.domains.merge_bins import MergeBins, fit_quantile_bins
 from irl.domains.merge_features import FeatureSet, feature_set
 from irl.errors import ConfigError, DemonstrationError
 from irl.io import load_feature_names, load_npz

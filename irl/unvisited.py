@@ -18,7 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from irl.domains.merge import N_ACTIONS, N_STATES, state_parts
+from irl.domains.merge_actions import N_ACTIONS
+from irl.domains.merge_states import N_STATES, state_parts
 from irl.errors import ConfigError
 
 UNVISITED_RULES = ("none", "nearest")

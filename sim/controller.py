@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from irl.domains.merge import ACTION_ACC_FT_S2, ZERO_ACTION, action_of
+from irl.domains.merge_actions import ACTION_ACC_FT_S2, ZERO_ACTION, action_of
 from irl.units import M_PER_FT
 from sim.control_records import Control, DecisionLog
 from sim.controller_config import ControllerConfig

@@ -3,7 +3,7 @@
 Files written into the output folder (each atomically; see ``sim.outputs``):
 
 * ``trajectories.parquet``  the NGSIM-schema trajectory table;
-* ``encounters.parquet``    per-frame merge encounters (``irl.domains.merge.ENCOUNTER_SCHEMA``);
+* ``encounters.parquet``    per-frame merge encounters (``irl.domains.merge_encounters.ENCOUNTER_SCHEMA``);
 * ``merges.parquet``        one row per merging vehicle (``sim.encounters.MERGE_COLUMNS``);
 * ``scenario.toml``         the spec simulated, with the seed and duration actually used;
 * ``run.toml``              what SUMO reported (:class:`sim.run_result.RunEvents`): requested and served

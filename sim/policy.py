@@ -4,8 +4,9 @@ A policy maps the merge observation of car A (:class:`sim.observe.MergeObservati
 continuous variables, B's truck flag and the discrete state) to probabilities over the merge
 domain's five acceleration actions (High Brake, Low Brake, Zero, Low Accel, High Accel). The
 controller samples an action (or takes the mode) and applies
-:data:`irl.domains.merge.ACTION_ACC_FT_S2`, the representative acceleration of each action bin
-(the action bins, names and state encoding are :mod:`irl.domains.merge`'s).
+:data:`irl.domains.merge_actions.ACTION_ACC_FT_S2`, the representative acceleration of each action bin
+(the action bins and names are :mod:`irl.domains.merge_actions`', the state encoding
+:mod:`irl.domains.merge_states`').
 
 Policies in the same harness:
 
@@ -28,7 +29,8 @@ from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import numpy as np
 
-from irl.domains.merge import ACTION_ACC_FT_S2, ACTION_NAMES, N_ACTIONS, MergeBins
+from irl.domains.merge_actions import ACTION_ACC_FT_S2, ACTION_NAMES, N_ACTIONS
+from irl.domains.merge_bins import MergeBins
 from irl.errors import ConfigError
 from sim.errors import SimError
 
@@ -125,7 +127,7 @@ class LearnedPolicy:
 
     Attributes:
         log_pi: ``[S, 5]`` log-policy table (``SavedModel.log_policy()``).
-        encoder: the state bins the model was trained with (:class:`irl.domains.merge.MergeBins`,
+        encoder: the state bins the model was trained with (:class:`irl.domains.merge_bins.MergeBins`,
             the one merge-state encoder; see :meth:`from_model`).
         name: label (e.g. the method).
         action_acc_ft_s2: ``[5]`` acceleration applied for each action (ft/s^2): the model's

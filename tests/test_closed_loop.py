@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from analysis.episode import run_episode
-from analysis.metrics import js_divergence
-from irl.domains.merge import ACTION_ACC_FT_S2
+from analysis.metrics_demos import js_divergence
+from irl.domains.merge_actions import ACTION_ACC_FT_S2
 from scenarios.loader import load_scenario
 from sim.control_records import COLLISION_KINDS, RELEASE_REASONS
 from sim.controller import Controller

@@ -7,18 +7,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.metrics import (
-    TTC_CAP_S,
-    EpisodeMetrics,
-    aggregate,
-    rate_ci95,
-    ttc_to_c,
-    w1_to_demos,
-)
+from analysis.metrics import EpisodeMetrics
+from analysis.metrics_aggregate import aggregate, rate_ci95
+from analysis.metrics_demos import TTC_CAP_S, ttc_to_c, w1_to_demos
 from analysis.thresholds import check_thresholds, parse_thresholds
 from irl.baselines import BaselinePolicy
 from irl.config import IRLConfig
-from irl.domains.merge import ACTION_ACC_FT_S2, MergeBins
+from irl.domains.merge_actions import ACTION_ACC_FT_S2
+from irl.domains.merge_bins import MergeBins
 from irl.result import SavedModel
 from sim.observe import MergeObservation
 from sim.policy import BaselineTabularPolicy, LearnedPolicy, model_flags
@@ -139,7 +135,7 @@ def test_safety_filter_intervenes_and_prevents_rear_end_collisions():
 
 def test_driver_encoded_model_reaches_the_policy_and_the_heldout_loglik():
     from analysis.evaluate import HeldOut, policy_heldout_loglik
-    from irl.domains.merge import actions_of
+    from irl.domains.merge_actions import actions_of
 
     rng = np.random.default_rng(3)
     m = SavedModel(method="mlirl", theta=np.zeros(3), loglik=-1.0, q=rng.normal(size=(6250, 5)), config=IRLConfig(),

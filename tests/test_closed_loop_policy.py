@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from irl.config import IRLConfig
-from irl.domains.merge import MergeBins
+from irl.domains.merge_bins import MergeBins
 from irl.result import SavedModel
 from sim.controller_config import ControllerConfig, ControllerError
 from sim.errors import SimError

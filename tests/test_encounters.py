@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 from sim_testutil import short_run
 
-from irl.domains.merge import ENCOUNTER_COLUMNS
+from irl.domains.merge_encounters import ENCOUNTER_COLUMNS
 from sim.encounters import MERGE_COLUMNS, EncounterWindow, extract, extract_encounters
 from sim.schema import COLUMNS
 from sim.table import add_derived_columns

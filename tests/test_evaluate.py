@@ -12,7 +12,8 @@ import pytest
 
 from irl import merge_mdp
 from irl.config import IRLConfig
-from irl.domains.merge import FEATURE_NAMES, MergeBins
+from irl.domains.merge_bins import MergeBins
+from irl.domains.merge_features import FEATURE_NAMES
 from irl.result import SavedModel
 
 EDGES = MergeBins.assumed_authors()

@@ -17,7 +17,7 @@ import pytest
 from analysis.cli import main as cli
 from analysis.rerun_log import RerunLogger
 from irl import merge_mdp
-from irl.domains.merge import DegenerateBinsWarning, fit_quantile_bins
+from irl.domains.merge_bins import DegenerateBinsWarning, fit_quantile_bins
 from irl.errors import DemonstrationError
 from irl.problems import RawAccelerationWarning, load_merge_demos
 from scenarios.loader import load_scenario

@@ -8,9 +8,9 @@ import pytest
 import scipy.sparse as sp
 from irl_testdata import random_mdp
 
-from irl.bellman import (
-    _top_real_eigenvalue, boltzmann_fixed_point, iteration_stability, mean_weights, weight_matrix,
-)
+from irl.bellman import mean_weights, weight_matrix
+from irl.bellman_fixed_point import boltzmann_fixed_point
+from irl.bellman_stability import _top_real_eigenvalue, iteration_stability
 from irl.config import IRLConfig
 from irl.demonstrations import Demonstrations
 from irl.fit import fit

@@ -11,7 +11,7 @@ import pytest
 
 from analysis.learn import fit_problem
 from irl.problems import load_problem
-from irl.bellman import iteration_fixed_point
+from irl.bellman_fixed_point import iteration_fixed_point
 from irl.boltzmann import loglik_from_counts, log_policy, demo_counts
 from irl.config import IRLConfig
 from irl.transitions import model_free_successors, model_successors

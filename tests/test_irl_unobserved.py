@@ -11,12 +11,12 @@ from irl_testdata import random_mdp
 from analysis.cli import main
 from analysis.learn import MERGE_UNOBSERVED
 
-from irl.bellman import iteration_fixed_point
+from irl.bellman_fixed_point import iteration_fixed_point
 from irl.boltzmann import demo_counts, loglik_from_counts, loglik_grad_from_counts
 from irl.boltzmann_fit import ExactBoltzmann
 from irl.config import IRLConfig
 from irl.demonstrations import Demonstrations
-from irl.domains.merge import MergeBins
+from irl.domains.merge_bins import MergeBins
 from irl.errors import ConfigError, DemonstrationError
 from irl.fit import fit
 from irl.merge_mdp import kinematic_successors

@@ -11,7 +11,7 @@ from irl_testdata import gridworld_demos
 from analysis.cli import main
 from irl.boltzmann import log_policy
 from irl.domains import gridworld
-from irl.domains.merge import MergeBins, fit_quantile_bins
+from irl.domains.merge_bins import MergeBins, fit_quantile_bins
 from irl.io import save_npz, save_railusm
 from irl.result import SavedModel
 

@@ -3,24 +3,26 @@
 import numpy as np
 import pytest
 
-from irl.domains import merge as dm
+from irl.domains.merge_actions import ACTION_ACC_FT_S2
+from irl.domains.merge_bins import MergeBins
 from irl.domains.merge_features import (
     DRIVER_FEATURES,
     FeatureSet,
     feature_array,
     feature_set,
+    features,
 )
 from irl.errors import ConfigError
 from irl.unvisited import apply_unvisited_rule
 
-BINS = dm.MergeBins.assumed_authors()
+BINS = MergeBins.assumed_authors()
 
 
 def test_paper_set_is_the_papers_three_features():
-    np.testing.assert_array_equal(feature_set("paper", BINS).array, dm.features())
+    np.testing.assert_array_equal(feature_set("paper", BINS).array, features())
     drv = feature_set("paper", BINS, "driver").array
     assert drv.shape == (6250, 5, 3)
-    np.testing.assert_array_equal(drv[::5], dm.features())
+    np.testing.assert_array_equal(drv[::5], features())
 
 
 def test_driver_features_values_at_representatives():
@@ -30,13 +32,13 @@ def test_driver_features_values_at_representatives():
     s_paper = BINS.state(20.0, 5.0, 5.0, 0.0, False)  # close to C, closing at 5 ft/s
     s = s_paper * 5 + 4  # previous action High Accel
     # jerk: |a - a_prev| / 8 with midpoints; keep_action one-hot of the previous action
-    np.testing.assert_allclose(col["jerk"][s], np.abs(np.array(dm.ACTION_ACC_FT_S2) - 8.0) / 8.0)
+    np.testing.assert_allclose(col["jerk"][s], np.abs(np.array(ACTION_ACC_FT_S2) - 8.0) / 8.0)
     np.testing.assert_array_equal(col["keep_action"][s], [0, 0, 0, 0, 1])
     np.testing.assert_array_equal(col["bias_high_brake"][s], [1, 0, 0, 0, 0])
     # braking lowers the inverse TTC to C; the exact value from the representatives
     d = BINS.representatives("d_AC")[4]
     v = BINS.representatives("v_AC")[3]  # 5 ft/s: bin 3
-    acc = np.array(dm.ACTION_ACC_FT_S2)
+    acc = np.array(ACTION_ACC_FT_S2)
     want = np.maximum(v + acc * 0.3, 0) / np.maximum(d - v * 0.3 - 0.5 * acc * 0.09, 1.0)
     np.testing.assert_allclose(col["ittc_C"][s], want)
     assert np.all(np.diff(col["ittc_C"][s]) >= 0)

@@ -8,9 +8,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.metrics import (
-    EpisodeMetrics, MetricsConfig, aggregate, episode_metrics, heldout_loglik, js_divergence,
-)
+from analysis.metrics import EpisodeMetrics, MetricsConfig, episode_metrics
+from analysis.metrics_aggregate import aggregate
+from analysis.metrics_demos import heldout_loglik, js_divergence
 from irl.units import FT_PER_M
 from sim.schema import COLUMNS
 

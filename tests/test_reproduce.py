@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from analysis.cli import main
-from analysis.reproduce import reproduce, reproduce_tables, wilcoxon_p
+from analysis.reproduce import reproduce, reproduce_tables
+from analysis.reproduce_report import wilcoxon_p
 from analysis.trials import TrialOutcome, TrialTask, run_trial, run_trials, table_problem, trial_seeds
 from irl.config import IRLConfig
 
@@ -169,7 +170,7 @@ def test_baseline_rows_and_paired_held_out_tests(railusm, capsys):
     assert rows["qavg"].p_vs_marginal == pytest.approx(
         paired_test(np.array(qavg_folds), baseline_leave_one_out("marginal", demos)))
     assert np.isnan(rows["mlirl"].p_vs_mlirl) and np.isnan(rows["marginal"].p_vs_marginal)
-    from analysis.reproduce import format_report
+    from analysis.reproduce_report import format_report
 
     text = format_report(report)
     for label in ("uniform", "marginal", "markov", "bc", "p vs marginal"):

@@ -10,7 +10,7 @@ from analysis.episode import run_episode
 from analysis.rerun_log import ROLE_IDS, ROLE_LABELS, log_training
 from analysis.rerun_recording import close_recording, open_recording, recording_identity
 from analysis.rrd_read import read_blueprint, read_entities, read_rrd_table, recording_info
-from irl.domains.merge import MergeBins
+from irl.domains.merge_bins import MergeBins
 from scenarios.loader import load_scenario
 from sim.policy import LearnedPolicy
 

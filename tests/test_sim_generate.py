@@ -14,7 +14,9 @@ import pytest
 
 from sim_testutil import default_sigint
 
-from irl.domains.merge import ENCOUNTER_COLUMNS, MergeBins, state_parts
+from irl.domains.merge_bins import MergeBins
+from irl.domains.merge_encounters import ENCOUNTER_COLUMNS
+from irl.domains.merge_states import state_parts
 from irl.result import SavedModel
 from scenarios.loader import load_scenario
 from scenarios.spec_parse import with_overrides

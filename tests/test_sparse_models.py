@@ -17,8 +17,10 @@ from irl import merge_mdp
 from irl.config import IRLConfig
 from irl.demonstrations import Demonstrations
 from irl.domains import gridworld
-from irl.domains import merge as dm
-from irl.domains.merge_features import feature_set
+from irl.domains.merge_actions import N_ACTIONS
+from irl.domains.merge_bins import MergeBins
+from irl.domains.merge_features import feature_set, features
+from irl.domains.merge_states import N_STATES
 from irl.errors import ConfigError, DemonstrationError
 from irl.fit import fit
 from irl.reirl import uniform_baseline
@@ -46,27 +48,27 @@ def merge_demos(seed: int, encoding: str = "paper", n_traj: int = 12, length: in
     """Synthetic merge demonstrations: kinematic moves at 0.3 s, one in four steps to a random state
     of a small pool (so that observed pairs have several successors), random actions."""
     rng = np.random.default_rng(seed)
-    bins = dm.MergeBins.assumed_authors()
-    pool = rng.integers(dm.N_STATES, size=30)
+    bins = MergeBins.assumed_authors()
+    pool = rng.integers(N_STATES, size=30)
     states, actions = [], []
     for _ in range(n_traj):
         s, ss, aa = int(rng.choice(pool)), [], []
         for _ in range(length):
-            a = int(rng.integers(dm.N_ACTIONS))
+            a = int(rng.integers(N_ACTIONS))
             ss.append(s)
             aa.append(a)
             nxt = int(merge_mdp.kinematic_next_state(np.array([s]), np.array([a]), bins, 0.3)[0])
             s = nxt if rng.random() < 0.75 else int(rng.choice(pool))
         states.append(np.array(ss))
         actions.append(np.array(aa))
-    demos = Demonstrations(tuple(states), tuple(actions), dm.features(), dm.N_STATES, dm.N_ACTIONS, source="synthetic")
+    demos = Demonstrations(tuple(states), tuple(actions), features(), N_STATES, N_ACTIONS, source="synthetic")
     if encoding == "driver":
         demos = merge_mdp.driver_encoded(demos, feature_set("driver", bins, "driver", dt=0.3).array)
     return demos
 
 
 def test_estimated_models_equal_the_dense_construction():
-    bins = dm.MergeBins.assumed_authors()
+    bins = MergeBins.assumed_authors()
     for seed in range(3):
         t, d = random_mdp(seed, n_states=7)
         np.testing.assert_array_equal(estimate_transitions(d).to_dense(), dense_estimate(d, None))
@@ -75,7 +77,7 @@ def test_estimated_models_equal_the_dense_construction():
                                       .to_dense(), dense_estimate(d, t))
     d = merge_demos(0)
     kin = merge_mdp.kinematic_model(bins, 0.3)
-    assert isinstance(kin, SuccessorModel) and kin.p.nnz == dm.N_STATES * dm.N_ACTIONS
+    assert isinstance(kin, SuccessorModel) and kin.p.nnz == N_STATES * N_ACTIONS
     est = merge_mdp.estimated_transitions(d, bins, 0.3)
     np.testing.assert_array_equal(est.to_dense(), dense_estimate(d, kin.to_dense()))
     assert est.p.has_sorted_indices and np.all(est.p.data > 0)
@@ -83,7 +85,7 @@ def test_estimated_models_equal_the_dense_construction():
 
 def test_driver_model_rows_follow_the_counts_and_the_kinematic_rule():
     # 6250 states: compared row by row (the dense array would be 1.5 GB)
-    bins = dm.MergeBins.assumed_authors()
+    bins = MergeBins.assumed_authors()
     d = merge_demos(1, "driver")
     est = merge_mdp.estimated_transitions(d, bins, 0.3)
     assert (est.n_states, est.n_actions) == (6250, 5) and est.p.nnz < 40_000
@@ -111,8 +113,8 @@ def test_mlirl_dense_and_sparse_models_give_the_same_fit(where):
         config = IRLConfig(beta=1.0, gamma=0.9, max_outer=60)
     else:
         demos = merge_demos(2)
-        t_sparse = merge_mdp.estimated_transitions(demos, dm.MergeBins.assumed_authors(), 0.3)
-        t_dense = dense_estimate(demos, merge_mdp.kinematic_model(dm.MergeBins.assumed_authors(), 0.3).to_dense())
+        t_sparse = merge_mdp.estimated_transitions(demos, MergeBins.assumed_authors(), 0.3)
+        t_dense = dense_estimate(demos, merge_mdp.kinematic_model(MergeBins.assumed_authors(), 0.3).to_dense())
         config = IRLConfig(beta=1.0, gamma=0.99, max_outer=60)
     a = fit("mlirl", demos, config, np.random.default_rng(5), transitions=t_dense)
     b = fit("mlirl", demos, config, np.random.default_rng(5), transitions=t_sparse)
@@ -133,7 +135,7 @@ def test_reirl_dense_and_sparse_models_give_the_same_fit(where):
         t_sparse = model_successors(t_dense)
     else:
         demos = merge_demos(3)
-        bins = dm.MergeBins.assumed_authors()
+        bins = MergeBins.assumed_authors()
         t_sparse = merge_mdp.estimated_transitions(demos, bins, 0.3)
         t_dense = t_sparse.to_dense()
     config = IRLConfig(beta=1.0, gamma=0.9)
@@ -157,7 +159,7 @@ def test_uniform_baseline_samples_as_the_dense_sampler():
 
 def test_mlirl_fits_on_the_driver_encoding():
     demos = merge_demos(4, "driver", n_traj=6, length=25)
-    bins = dm.MergeBins.assumed_authors()
+    bins = MergeBins.assumed_authors()
     model = merge_mdp.estimated_transitions(demos, bins, 0.3)
     res = fit("mlirl", demos, IRLConfig(beta=1.0, gamma=0.9, max_outer=40, l2=0.1), np.random.default_rng(0),
               transitions=model)

@@ -5,18 +5,20 @@ import json
 import numpy as np
 import pytest
 
-from irl.domains import merge as m
+from irl.domains.merge_actions import ZERO_ACTION
+from irl.domains.merge_bins import MergeBins
+from irl.domains.merge_states import n_states, previous_action, split_driver_state
 from irl.errors import ConfigError, EncodingError
 from irl.result import SavedModel
 
-BINS = m.MergeBins.assumed_authors()
+BINS = MergeBins.assumed_authors()
 
 
 def test_n_states():
-    assert m.n_states("paper") == 1250
-    assert m.n_states("driver") == 6250
+    assert n_states("paper") == 1250
+    assert n_states("driver") == 6250
     with pytest.raises(ConfigError, match="encoding"):
-        m.n_states("both")
+        n_states("both")
 
 
 @pytest.mark.parametrize("prev", [0, 2, 4])
@@ -27,7 +29,7 @@ def test_driver_state_is_paper_times_actions_plus_prev(prev):
     assert s_d == s_p * 5 + prev
     v = BINS.states(*([a] for a in args), prev_action=[prev], encoding="driver")
     assert v.tolist() == [s_d]
-    assert m.split_driver_state(s_d) == (s_p, prev)
+    assert split_driver_state(s_d) == (s_p, prev)
 
 
 def test_driver_state_edges_cover_0_to_6249():
@@ -59,11 +61,11 @@ def test_paper_encoding_ignores_prev_action():
 
 
 def test_previous_action_from_speed_history():
-    assert m.previous_action(None, 50.0, 0.3) == m.ZERO_ACTION
-    assert m.previous_action(float("nan"), 50.0, 0.3) == m.ZERO_ACTION
-    assert m.previous_action(50.0, 48.5, 0.3) == 0  # -5.0 ft/s^2: High Brake
-    assert m.previous_action(50.0, 50.0, 0.3) == m.ZERO_ACTION
-    assert m.previous_action(50.0, 50.0 + 0.3 * 5.0, 0.3) == 4
+    assert previous_action(None, 50.0, 0.3) == ZERO_ACTION
+    assert previous_action(float("nan"), 50.0, 0.3) == ZERO_ACTION
+    assert previous_action(50.0, 48.5, 0.3) == 0  # -5.0 ft/s^2: High Brake
+    assert previous_action(50.0, 50.0, 0.3) == ZERO_ACTION
+    assert previous_action(50.0, 50.0 + 0.3 * 5.0, 0.3) == 4
 
 
 def test_model_file_new_fields_round_trip_and_old_files_default(tmp_path):

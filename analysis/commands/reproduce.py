@@ -46,7 +46,8 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from analysis.reproduce import format_report, reproduce_tables, save_reports_json
+    from analysis.reproduce import reproduce_tables
+    from analysis.reproduce_report import format_report, save_reports_json
     from irl.errors import ConfigError
     from irl.reirl import DEFAULT_EPSILON
 

@@ -45,7 +45,7 @@ def score(model, demos_path: str, domain: str | None = None) -> dict:
             from the model's Q table.
     """
     from irl.baselines import TabularPolicy
-    from irl.domains.merge import MergeBins
+    from irl.domains.merge_bins import MergeBins
     from irl.errors import DemonstrationError
     from irl.problems import load_problem
 

@@ -5,7 +5,7 @@ the whole table: :func:`feature_array` returns ``[S, A, K]`` for a tuple of name
 states of the encoding (1250 ``"paper"``, 6250 ``"driver"``). Two named sets:
 
 * ``"paper"`` (:data:`PAPER_FEATURES`): the paper's three binary features (section 4.2), exactly
-  :func:`irl.domains.merge.features` on the paper encoding.
+  :func:`features` on the paper encoding.
 * ``"driver"`` (:data:`DRIVER_FEATURES`): the paper's three plus
 
   - ``bias_<action>``: one-hot action (4 of them, Zero is the reference), the action's bias;
@@ -19,13 +19,18 @@ states of the encoding (1250 ``"paper"``, 6250 ``"driver"``). Two named sets:
     action (persistence, cause 5), and ``keep_action``: 1 when the action repeats the previous
     one. Both need the ``"driver"`` encoding.
 
-Representatives: :meth:`MergeBins.representatives` for the state variables (no car C: the
+Representatives: :meth:`~irl.domains.merge_bins.MergeBins.representatives` for the state variables (no car C: the
 farthest ``d_AC`` bin and the zero ``v_AC`` bin stand for it), and an acceleration per action
-(``action_acc``, ft/s^2, default the bin midpoints :data:`ACTION_ACC_FT_S2`).
+(``action_acc``, ft/s^2, default the bin midpoints :data:`~irl.domains.merge_actions.ACTION_ACC_FT_S2`).
 
 Users pass their own features from Python: a :class:`FeatureSet` of names and an ``[S, A, K]``
 array (any function of the state index and action), e.g. ``FeatureSet.custom(names, array)``,
 to :func:`irl.problems.load_problem` (``features=``) or :func:`analysis.learn.learn`.
+
+**The paper's features** (section 4.2, binary; :func:`features`, :func:`paper_features`): f0
+Safe = 0 when ``d_AC < 35 ft`` and ``acc >= 0.6`` (``x1 == 4`` and ``a >= 3``), else 1; f1
+Time-to-travel = 1 when ``acc > -0.6`` (``a >= 2``); f2 Ahead-of-truck = 1 when B is a truck and
+``acc >= 0.6`` (``a >= 3``).
 """
 
 from __future__ import annotations
@@ -34,14 +39,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from irl.domains.merge import (
-    ACTION_ACC_FT_S2,
-    ACTION_NAMES,
-    N_ACTIONS,
+from irl.domains.merge_actions import ACTION_ACC_FT_S2, ACTION_NAMES, N_ACTIONS, ZERO_ACTION
+from irl.domains.merge_bins import MergeBins
+from irl.domains.merge_states import (
+    N_STATES,
+    SAFE_DISTANCE_FT,
     VARIABLES,
-    ZERO_ACTION,
-    MergeBins,
-    features,
     n_states,
     split_driver_state,
     state_parts,
@@ -56,6 +59,34 @@ DRIVER_FEATURES = PAPER_FEATURES + BIAS_FEATURES + (
 FEATURE_SETS: dict[str, tuple[str, ...]] = {"paper": PAPER_FEATURES, "driver": DRIVER_FEATURES}
 #: Features that need A's previous action (the ``"driver"`` state encoding).
 NEEDS_PREVIOUS_ACTION = frozenset({"jerk", "keep_action"})
+
+FEATURE_NAMES = ("safe", "time_to_travel", "ahead_of_truck")
+
+
+def paper_features(d_AC: float, b_is_truck: bool, action: int) -> tuple[float, float, float]:
+    """The paper's three features of taking ``action`` with gap ``d_AC`` (ft), continuous form.
+
+    Safe = 0 only when ``d_AC < SAFE_DISTANCE_FT`` and the action accelerates (actions 3-4);
+    Time-to-travel = 1 for actions 2-4; Ahead-of-truck = 1 when B is a truck and A accelerates.
+    Without car C (``d_AC`` NaN) Safe is 1, as in the farthest bin. Equals :func:`features`
+    when the smallest ``d_AC`` edge is ``SAFE_DISTANCE_FT`` (the quantile bins' default).
+    """
+    accel = action >= 3
+    return (0.0 if (d_AC < SAFE_DISTANCE_FT and accel) else 1.0, 1.0 if action >= 2 else 0.0,
+            1.0 if (b_is_truck and accel) else 0.0)
+
+
+def features() -> np.ndarray:
+    """``[1250, 5, 3]`` the paper's binary features f0 Safe, f1 Time-to-travel, f2 Ahead-of-truck
+    (module docstring; paper section 4.2)."""
+    parts = state_parts(np.arange(N_STATES))  # [S, 5]
+    truck, x1 = parts[:, 0][:, None], parts[:, 1][:, None]
+    a = np.arange(N_ACTIONS)[None, :]
+    phi = np.zeros((N_STATES, N_ACTIONS, 3))
+    phi[..., 0] = np.where((x1 == 4) & (a >= 3), 0.0, 1.0)
+    phi[..., 1] = np.where(a >= 2, 1.0, 0.0)
+    phi[..., 2] = np.where((truck == 1) & (a >= 3), 1.0, 0.0)
+    return phi
 
 
 @dataclass(frozen=True)

@@ -1,59 +1,19 @@
-"""The freeway-merge domain of the paper's section 4.2: the one home of its definitions.
+"""The state bins of the freeway-merge domain (paper section 4.2): :class:`MergeBins`, the
+encoder of continuous merge variables into the state index of :mod:`irl.domains.merge_states`,
+and :func:`fit_quantile_bins`, its edges fitted on training encounters.
 
-Everything that says what a merge state, action or encounter row *is* lives here, and
-nowhere else: the simulator (``sim``: encounter extraction, closed-loop controller) and the
-learner (``irl.merge_mdp``: transitions, tabular demonstrations) both import it, so the
-closed loop encodes states exactly as learning does. Pure definitions: numpy, pandas, no
-SUMO, nothing of ours outside ``irl``.
-
-Roles: car B merges from the ramp (lane 7) into the rightmost main lane (lane 6); A is the
-lag car behind B in lane 6 (the driver modelled), C the lead car ahead of B in lane 6. Units
-are NGSIM's: feet, ft/s, ft/s^2, frames of 0.1 s (:mod:`irl.units`).
-
-**State variables** (per frame): ``d_AC = Local_Y(C) - Local_Y(A)`` and
-``d_AB = Local_Y(B) - Local_Y(A)`` (ft, front bumper to front bumper, positive when the other
-car is ahead of A), ``v_AC = v(A) - v(C)`` and ``v_AB = v(A) - v(B)`` (ft/s, positive when A
-is faster), ``B_is_truck`` (B's NGSIM class is 3).
-
-**State index** (the authors' layout, 1250 states)::
-
-    s = 625 * truck + 125 * x1 + 25 * x2 + 5 * x3 + x4
-
-with ``x1..x4`` the 5-bin indices of ``d_AC, d_AB, v_AC, v_AB`` under :class:`MergeBins`.
-A value equal to an inner edge falls in the bin above the edge. ``d_AC`` bins count from
-the far end (bin 0 = farthest, bin 4 = closest: ``d_AC < 35 ft`` with the smallest edge at
-35, which the Safe feature tests); the other three count up (bin 0 = smallest value).
-``+inf`` and ``-inf`` fall in the outer bins. NaN is an :class:`~irl.errors.EncodingError`,
-except for the no-lead-car rule.
+**Bins**: ``x1..x4`` are the 5-bin indices of ``d_AC, d_AB, v_AC, v_AB`` under
+:class:`MergeBins`. A value equal to an inner edge falls in the bin above the edge. ``d_AC``
+bins count from the far end (bin 0 = farthest, bin 4 = closest: ``d_AC < 35 ft`` with the
+smallest edge at 35, which the Safe feature tests); the other three count up (bin 0 = smallest
+value). ``+inf`` and ``-inf`` fall in the outer bins. NaN is an
+:class:`~irl.errors.EncodingError`, except for the no-lead-car rule.
 
 **No-lead-car rule** (the one rule, in tables, encoders and the closed loop alike): when A has
 no lead car C, ``d_AC`` and ``v_AC`` are both NaN. Such a frame encodes to the farthest
 ``d_AC`` bin (``x1 = 0``) and the ``v_AC`` bin that holds zero relative speed
 (:meth:`MergeBins.no_lead_v_AC_bin`): an open road ahead. Exactly one of the two NaN is an
 error.
-
-**Actions**: A's acceleration (ft/s^2) in 5 bins, 0 High Brake ``a <= -4.8``, 1 Low Brake
-``-4.8 < a <= -0.6``, 2 Zero ``-0.6 < a < 0.6``, 3 Low Accel ``0.6 <= a < 4.8``, 4 High Accel
-``a >= 4.8``. The paper's outer limits are [-11.2, 11.2] (:data:`ACC_LIMITS`); values beyond
-them, ``+-inf`` included, fall in the end bins. NaN raises :class:`~irl.errors.EncodingError`.
-The closed loop applies :data:`ACTION_ACC_FT_S2` for each action.
-
-**The action at frame t** is the acceleration from t to t + 0.1 s,
-``acc_A(t) = (v_A(t+1) - v_A(t)) / 0.1 s`` (:func:`forward_acceleration`): what A does in
-state t, as the controller applies it; not SUMO's or NGSIM's ``v_Acc``, the backward
-difference that produced state t. A frame whose next speed of A is unknown has no action and
-no row (see :data:`ENCOUNTER_SCHEMA`).
-
-**Features** (the paper's three, binary): f0 Safe = 0 when ``d_AC < 35 ft`` and ``acc >= 0.6``
-(``x1 == 4`` and ``a >= 3``), else 1; f1 Time-to-travel = 1 when ``acc > -0.6`` (``a >= 2``);
-f2 Ahead-of-truck = 1 when B is a truck and ``acc >= 0.6`` (``a >= 3``).
-
-**State encodings** (:data:`STATE_ENCODINGS`): ``"paper"`` is the index above (1250 states);
-``"driver"`` adds A's previous action (issue 11, cause 5: human acceleration persists),
-``s_driver = s_paper * N_ACTIONS + prev_action`` (6250 states, :func:`n_states`). The previous
-action at an encounter's first decision is the bin of A's acceleration over the decision step
-before it, from A's speed history (:func:`previous_action`); :data:`ZERO_ACTION` when that
-history is unknown.
 """
 
 from __future__ import annotations
@@ -70,141 +30,18 @@ import numpy as np
 import pandas as pd
 
 from irl.atomic import write_json_atomic
+from irl.domains.merge_actions import N_ACTIONS
+from irl.domains.merge_encounters import validate_encounters
+from irl.domains.merge_states import (
+    DESCENDING,
+    N_BINS,
+    SAFE_DISTANCE_FT,
+    STATE_ENCODINGS,
+    VARIABLES,
+    driver_state,
+    state_index,
+)
 from irl.errors import ConfigError, DemonstrationError, EncodingError
-from irl.units import FRAME_S
-
-# --------------------------------------------------------------------------------------
-# actions
-
-N_ACTIONS = 5
-#: Action names, in action-index order.
-ACTION_NAMES = ("High Brake", "Low Brake", "Zero", "Low Accel", "High Accel")
-#: Inner edges of the acceleration bins (ft/s^2).
-ACC_EDGES = (-4.8, -0.6, 0.6, 4.8)
-#: The paper's outer limits of the acceleration bins (ft/s^2); values beyond go to the end bins.
-ACC_LIMITS = (-11.2, 11.2)
-#: The acceleration (ft/s^2) the closed loop applies for each action: the midpoint of its bin
-#: within ``ACC_LIMITS``.
-ACTION_ACC_FT_S2 = (-8.0, -2.7, 0.0, 2.7, 8.0)
-#: Index of the Zero action (constant velocity).
-ZERO_ACTION = 2
-
-
-def action_of(acc: float) -> int:
-    """Action index (0..4) of one acceleration; the scalar twin of :func:`actions_of`.
-
-    Args:
-        acc: ft/s^2; ``+-inf`` go to the end bins.
-
-    Returns:
-        the action index.
-
-    Raises:
-        EncodingError: ``acc`` is NaN.
-    """
-    if acc <= -0.6:
-        return 0 if acc <= -4.8 else 1
-    if acc < 0.6:
-        return 2
-    if acc >= 0.6:
-        return 4 if acc >= 4.8 else 3
-    raise EncodingError(f"acceleration is NaN: an action needs a number (ft/s^2), got {acc!r}")
-
-
-def actions_of(acc) -> np.ndarray:
-    """Action indices of accelerations (bins in the module docstring).
-
-    Args:
-        acc: ft/s^2, any shape; ``+-inf`` go to the end bins.
-
-    Returns:
-        int64 array of the same shape, values 0..4.
-
-    Raises:
-        EncodingError: an element is NaN (the message gives the first flat index).
-    """
-    a = np.asarray(acc, dtype=np.float64)
-    nan = np.isnan(a)
-    if nan.any():
-        raise EncodingError(f"acceleration at flat index {int(np.flatnonzero(nan)[0])} is NaN: "
-                            "an action needs a number (ft/s^2)")
-    out = np.full(a.shape, ZERO_ACTION, dtype=np.int64)
-    out[a <= -0.6] = 1
-    out[a <= -4.8] = 0
-    out[a >= 0.6] = 3
-    out[a >= 4.8] = 4
-    return out
-
-
-def forward_acceleration(speed, next_speed, dt: float = FRAME_S):
-    """The action's acceleration at frame t: ``(v(t+dt) - v(t)) / dt`` (ft/s^2).
-
-    Args:
-        speed, next_speed: A's speed at t and at t + dt (ft/s), scalars or arrays that
-            broadcast.
-        dt: seconds between the two speeds (one NGSIM frame by default).
-
-    Returns:
-        the forward difference, the broadcast shape.
-    """
-    return (np.asarray(next_speed, dtype=np.float64) - np.asarray(speed, dtype=np.float64)) / dt
-
-
-# --------------------------------------------------------------------------------------
-# states
-
-N_BINS = 5
-N_STATES = 2 * N_BINS**4  # 1250
-#: The four continuous state variables, in state-index order (x1..x4).
-VARIABLES = ("d_AC", "d_AB", "v_AC", "v_AB")
-#: Variables whose bin index runs in decreasing order of the value.
-DESCENDING = frozenset({"d_AC"})
-#: d_AC below this (ft) is the closest bin and makes accelerating unsafe (the Safe feature).
-SAFE_DISTANCE_FT = 35.0
-
-
-#: The state encodings: the paper's 1250 states, or those times A's previous action.
-STATE_ENCODINGS = ("paper", "driver")
-
-
-def n_states(encoding: str = "paper") -> int:
-    """Number of states of ``encoding``: 1250 (``"paper"``) or 6250 (``"driver"``).
-
-    Raises:
-        ConfigError: an unknown encoding.
-    """
-    if encoding == "paper":
-        return N_STATES
-    if encoding == "driver":
-        return N_STATES * N_ACTIONS
-    raise ConfigError(f"state encoding must be one of {STATE_ENCODINGS}, got {encoding!r}")
-
-
-def driver_state(s_paper, prev_action):
-    """``s_paper * N_ACTIONS + prev_action`` (integer arrays broadcast)."""
-    return np.asarray(s_paper, dtype=np.int64) * N_ACTIONS + np.asarray(prev_action, dtype=np.int64)
-
-
-def split_driver_state(s):
-    """Inverse of :func:`driver_state`: ``(s_paper, prev_action)`` arrays of ``s``'s shape."""
-    s = np.asarray(s, dtype=np.int64)
-    return s // N_ACTIONS, s % N_ACTIONS
-
-
-def previous_action(speed_before, speed_now, dt: float) -> int:
-    """A's previous action at a decision: the bin of ``(speed_now - speed_before) / dt``.
-
-    Args:
-        speed_before: A's speed (ft/s) one decision step ``dt`` (s) before, or None/NaN when
-            unknown (A's history starts at this frame).
-        speed_now: A's speed (ft/s) now.
-
-    Returns:
-        the action index; :data:`ZERO_ACTION` when either speed is unknown.
-    """
-    if speed_before is None or speed_now is None or speed_before != speed_before or speed_now != speed_now:
-        return ZERO_ACTION
-    return action_of((speed_now - speed_before) / dt)
 
 
 def _check_prev_action(prev_action, encoding: str):
@@ -218,17 +55,6 @@ def _check_prev_action(prev_action, encoding: str):
     if p.dtype.kind not in "iub" or np.any((p < 0) | (p >= N_ACTIONS)):
         raise EncodingError(f"prev_action must be action indices 0..{N_ACTIONS - 1}, got {prev_action!r}")
     return p.astype(np.int64)
-
-
-def state_index(truck, x1, x2, x3, x4):
-    """``625 truck + 125 x1 + 25 x2 + 5 x3 + x4`` (integer arrays broadcast)."""
-    return 625 * np.asarray(truck) + 125 * np.asarray(x1) + 25 * np.asarray(x2) + 5 * np.asarray(x3) + np.asarray(x4)
-
-
-def state_parts(s) -> np.ndarray:
-    """Inverse of :func:`state_index`: ``s [...]`` -> ``[..., 5]`` of ``(truck, x1, x2, x3, x4)``."""
-    s = np.asarray(s, dtype=np.int64)
-    return np.stack([s // 625, (s // 125) % 5, (s // 25) % 5, (s // 5) % 5, s % 5], axis=-1)
 
 
 @dataclass(frozen=True)
@@ -344,7 +170,7 @@ class MergeBins:
                 both NaN where there is no car C.
             prev_action: A's previous action (0..4), broadcast with the others; required by
                 the ``"driver"`` encoding, ignored by ``"paper"``.
-            encoding: one of :data:`STATE_ENCODINGS`.
+            encoding: one of :data:`~irl.domains.merge_states.STATE_ENCODINGS`.
 
         Returns:
             int64 ``[...]`` in ``[0, n_states(encoding))``.
@@ -443,7 +269,7 @@ def fit_quantile_bins(table: pd.DataFrame, *, safe_distance: float = SAFE_DISTAN
     amount to stay strictly increasing, with a :class:`DegenerateBinsWarning`.
 
     Raises:
-        DemonstrationError: ``table`` breaks :func:`validate_encounters`, or a variable is
+        DemonstrationError: ``table`` breaks :func:`~irl.domains.merge_encounters.validate_encounters`, or a variable is
             constant over the table (no bins can be fitted).
     """
     validate_encounters(table, where)
@@ -486,112 +312,3 @@ def _strictly_increasing(e: np.ndarray) -> np.ndarray:
         if e[i] <= e[i - 1]:
             e[i] = e[i - 1] + max(1e-6, 1e-9 * abs(e[i - 1]))
     return e
-
-
-# --------------------------------------------------------------------------------------
-# the encounter table
-
-
-@dataclass(frozen=True)
-class EncounterColumn:
-    """One column of the encounter table: ``name``, pandas ``dtype``, ``unit`` and meaning."""
-
-    name: str
-    dtype: str
-    unit: str
-    doc: str
-
-
-#: The per-frame encounter table (DESIGN.md section 2), one row per frame t of an encounter
-#: in which A, B and A's speed at t + 0.1 s are known. ``sim.encounters`` writes it from any
-#: NGSIM-schema trajectory table (simulated or real); ``irl.merge_mdp`` learns from it.
-ENCOUNTER_SCHEMA: tuple[EncounterColumn, ...] = (
-    EncounterColumn("encounter_id", "int64", "", "one id per merge (per car B), from 1"),
-    EncounterColumn("B_id", "int64", "", "Vehicle_ID of the merging car B"),
-    EncounterColumn("A_id", "int64", "", "Vehicle_ID of the lag car A (lane 6, behind B at the merge frame)"),
-    EncounterColumn("C_id", "int64", "", "Vehicle_ID of the lead car C (lane 6, ahead of B at the merge frame); 0: none"),
-    EncounterColumn("Frame_ID", "int64", "0.1 s frame", "the frame t of this row"),
-    EncounterColumn("Global_Time", "int64", "ms", "time of frame t"),
-    EncounterColumn("merge_frame", "int64", "0.1 s frame", "B's first frame in lane 6"),
-    EncounterColumn("d_AC", "float64", "ft", "Local_Y(C) - Local_Y(A); NaN when C is not there (no-lead-car rule)"),
-    EncounterColumn("d_AB", "float64", "ft", "Local_Y(B) - Local_Y(A); negative while B is behind A"),
-    EncounterColumn("v_AC", "float64", "ft/s", "v(A) - v(C); NaN exactly when d_AC is"),
-    EncounterColumn("v_AB", "float64", "ft/s", "v(A) - v(B)"),
-    EncounterColumn("B_is_truck", "bool", "", "B's v_Class is 3 (truck)"),
-    EncounterColumn("acc_A", "float64", "ft/s^2",
-                    "the action: (v_A(t+1) - v_A(t)) / 0.1 s, forward difference of A's speed "
-                    "(not v_Acc, the backward difference)"),
-)
-#: Column name -> pandas dtype, in table order.
-ENCOUNTER_COLUMNS: dict[str, str] = {c.name: c.dtype for c in ENCOUNTER_SCHEMA}
-#: Column name -> unit ("" for ids and flags).
-ENCOUNTER_UNITS: dict[str, str] = {c.name: c.unit for c in ENCOUNTER_SCHEMA}
-#: The columns a table must have to be learned from (others are ignored).
-REQUIRED_COLUMNS = ("encounter_id", "d_AC", "d_AB", "v_AC", "v_AB", "B_is_truck", "acc_A")
-
-
-def validate_encounters(table, where: str = "encounters") -> None:
-    """Check an encounter table before it is binned or learned from.
-
-    ``d_AB``, ``v_AB``, ``B_is_truck`` and ``acc_A`` must be finite numbers; ``d_AC`` and
-    ``v_AC`` finite numbers or both NaN (no car C). A table never holds ``+-inf``.
-
-    Raises:
-        DemonstrationError: not a DataFrame, a column of :data:`REQUIRED_COLUMNS` missing, no
-            rows, or a bad value (the message names ``where``, the row and the column).
-    """
-    if not isinstance(table, pd.DataFrame):
-        raise DemonstrationError(f"{where}: expected a pandas DataFrame of encounters, got {type(table).__name__}")
-    missing = [c for c in REQUIRED_COLUMNS if c not in table.columns]
-    if missing:
-        raise DemonstrationError(
-            f"{where}: encounter table lacks column(s) {missing}; expected {list(REQUIRED_COLUMNS)}"
-        )
-    if len(table) == 0:
-        raise DemonstrationError(f"{where}: encounter table has no rows")
-    cols = {c: pd.to_numeric(table[c], errors="coerce").to_numpy(dtype=np.float64) for c in REQUIRED_COLUMNS[1:]}
-    no_c = np.isnan(cols["d_AC"]) & np.isnan(cols["v_AC"])
-    for c, col in cols.items():
-        bad = ~np.isfinite(col)
-        if c in ("d_AC", "v_AC"):
-            bad &= ~no_c
-        if bad.any():
-            i = int(np.flatnonzero(bad)[0])
-            got = table[c].iloc[i]
-            got = got.item() if isinstance(got, np.generic) else got
-            hint = " (d_AC and v_AC are NaN together when there is no car C)" if c in ("d_AC", "v_AC") else ""
-            raise DemonstrationError(
-                f"{where}: row {i}, column {c!r}: expected a finite number, got {got!r}{hint}"
-            )
-
-
-# --------------------------------------------------------------------------------------
-# features
-
-FEATURE_NAMES = ("safe", "time_to_travel", "ahead_of_truck")
-
-
-def paper_features(d_AC: float, b_is_truck: bool, action: int) -> tuple[float, float, float]:
-    """The paper's three features of taking ``action`` with gap ``d_AC`` (ft), continuous form.
-
-    Safe = 0 only when ``d_AC < SAFE_DISTANCE_FT`` and the action accelerates (actions 3-4);
-    Time-to-travel = 1 for actions 2-4; Ahead-of-truck = 1 when B is a truck and A accelerates.
-    Without car C (``d_AC`` NaN) Safe is 1, as in the farthest bin. Equals :func:`features`
-    when the smallest ``d_AC`` edge is ``SAFE_DISTANCE_FT`` (the quantile bins' default).
-    """
-    accel = action >= 3
-    return (0.0 if (d_AC < SAFE_DISTANCE_FT and accel) else 1.0, 1.0 if action >= 2 else 0.0,
-            1.0 if (b_is_truck and accel) else 0.0)
-
-
-def features() -> np.ndarray:
-    """``[1250, 5, 3]`` the paper's binary features f0 Safe, f1 Time-to-travel, f2 Ahead-of-truck
-    (module docstring; paper section 4.2)."""
-    parts = state_parts(np.arange(N_STATES))  # [S, 5]
-    truck, x1 = parts[:, 0][:, None], parts[:, 1][:, None]
-    a = np.arange(N_ACTIONS)[None, :]
-    phi = np.zeros((N_STATES, N_ACTIONS, 3))
-    phi[..., 0] = np.where((x1 == 4) & (a >= 3), 0.0, 1.0)
-    phi[..., 1] = np.where(a >= 2, 1.0, 0.0)
-    phi[..., 2] = np.where((truck == 1) & (a >= 3), 1.0, 0.0)
-    return phi

@@ -12,6 +12,7 @@ source; the ``i80`` preset's ``[[drivers.car]]`` tables were written this way::
 from __future__ import annotations
 
 import os
+from dataclasses import replace
 from pathlib import Path
 
 from analysis.calibration_check import N_MEMBERS, calibrated_spec
@@ -21,11 +22,15 @@ from scenarios.loader import load_scenario
 
 
 def preset_with_drivers(scenario: str | os.PathLike, params_path: str | os.PathLike, *, n: int = N_MEMBERS,
-                        seed: int | None = None, header: str = "") -> str:
+                        seed: int | None = None, header: str = "", car_follow_model: str | None = None) -> str:
     """TOML text of ``scenario`` with its car drivers resampled from ``params_path``.
 
     ``seed`` None = the scenario's own seed. ``header`` (several lines allowed) goes first as
-    ``#`` comments.
+    ``#`` comments. ``car_follow_model`` None = the params file's model; otherwise the SUMO
+    ``carFollowModel`` the written car types use with the fitted parameters as they are (the
+    ``i80`` preset: ``"EIDM"`` over per-pair IDM fits; EIDM extends the IIDM with the same
+    accel, decel, tau, minGap, maxSpeed and delta, and its driver noise, ``sigmaleader``,
+    ``sigmagap``, ``sigmaerror``, stays at SUMO's defaults since no noise key is written).
 
     Raises:
         FileNotFoundError: ``params_path`` does not exist.
@@ -37,6 +42,9 @@ def preset_with_drivers(scenario: str | os.PathLike, params_path: str | os.PathL
     if not result.per_pair:
         raise ValueError(f"{params_path}: no per-pair fits to resample drivers from (fit without --no-per-pair)")
     out = calibrated_spec(spec, result, n_members=n, seed=spec.simulation.seed if seed is None else seed)
+    if car_follow_model is not None:
+        cars = tuple(replace(c, car_follow_model=car_follow_model) for c in out.drivers.car)
+        out = replace(out, drivers=replace(out.drivers, car=cars))
     lines = [f"# {x}".rstrip() for x in header.splitlines()] if header else []
     return "\n".join(lines + [out.to_toml()]) + ("\n" if not out.to_toml().endswith("\n") else "")
 

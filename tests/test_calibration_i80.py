@@ -198,6 +198,9 @@ def test_i80_preset_has_the_bottleneck_and_a_resampled_population() -> None:
     assert spec.road.bottleneck_length_m > 0 and spec.road.bottleneck_lanes < spec.road.main_lanes
     cars = spec.drivers.car
     assert len(cars) >= 16 and len({(c.tau, c.accel, c.min_gap_m) for c in cars}) > len(cars) // 2
+    # EIDM with its driver noise at SUMO's defaults: IDM made no stop-and-go (docs/calibration.md)
+    assert {c.car_follow_model for c in cars} == {"EIDM"}
+    assert not any(k.startswith("sigma") for c in cars for k, _ in c.cf_params)
 
 
 def test_preset_writer_round_trips(tmp_path) -> None:
@@ -209,6 +212,25 @@ def test_preset_writer_round_trips(tmp_path) -> None:
     assert text.startswith("# written by a test\n# line two\n")
     spec = spec_from_toml(text, source="written.toml")
     assert [c.tau for c in spec.drivers.car] == [m.params.tau for m in resample_members(load_result(p), 6, seed=2)]
+
+
+def test_preset_writer_switches_the_car_following_model(tmp_path) -> None:
+    """car_follow_model="EIDM" keeps the resampled IDM vectors (delta included) and writes no
+    noise key, so SUMO's EIDM driver noise stays on at its defaults."""
+    from scenarios.calibration import save_result
+
+    p = save_result(_result(), tmp_path / "params.toml")
+    spec = spec_from_toml(preset_with_drivers("synthetic", p, n=6, seed=2, car_follow_model="EIDM"),
+                          source="written.toml")
+    members = resample_members(load_result(p), 6, seed=2)
+    assert [c.car_follow_model for c in spec.drivers.car] == ["EIDM"] * 6
+    assert [(c.tau, c.accel, c.min_gap_m) for c in spec.drivers.car] == [
+        (m.params.tau, m.params.accel, m.params.minGap) for m in members]
+    assert all(dict(c.cf_params) == {"delta": m.params.delta} for c, m in zip(spec.drivers.car, members))
+    xml = routes_xml(spec)
+    assert xml.count('carFollowModel="EIDM"') == 6 and "sigmaleader" not in xml
+    same = spec_from_toml(preset_with_drivers("synthetic", p, n=6, seed=2), source="written.toml")
+    assert {c.car_follow_model for c in same.drivers.car} == {"IDM"}
 
 
 def test_accepted_gaps_of_a_hand_made_merge() -> None:

@@ -128,11 +128,12 @@ class SumoRmse:
         self._chunks = [order[c::w] for c in range(w)]  # round robin: similar total lengths
         # The pairs go to the workers through a file: a large initializer argument is written to
         # each new worker's pipe, and a worker that dies before reading it blocks that write forever.
-        fd, self._pairs_file = tempfile.mkstemp(prefix="merge-irl-pairs-", suffix=".pickle")
-        with os.fdopen(fd, "wb") as f:
+        self._scratch = tempfile.TemporaryDirectory(prefix="merge-irl-pairs-")
+        pairs_file = os.path.join(self._scratch.name, "pairs.pickle")
+        with open(pairs_file, "wb") as f:
             pickle.dump(list(pairs), f, protocol=pickle.HIGHEST_PROTOCOL)
         self._pool = ProcessPoolExecutor(w, mp_context=multiprocessing.get_context("spawn"),
-                                         initializer=_init_worker, initargs=(self._pairs_file,))
+                                         initializer=_init_worker, initargs=(pairs_file,))
         self.runs = 0
 
     def __call__(self, params: Sequence[CFParams]) -> np.ndarray:
@@ -156,8 +157,7 @@ class SumoRmse:
 
     def close(self) -> None:
         self._pool.shutdown(cancel_futures=True)
-        if os.path.exists(self._pairs_file):
-            os.remove(self._pairs_file)
+        self._scratch.cleanup()
 
     def __enter__(self) -> SumoRmse:
         return self

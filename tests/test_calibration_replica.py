@@ -36,7 +36,7 @@ def _leader_profile() -> np.ndarray:
     return np.where(t > 40, np.clip(v + np.cumsum(noise) * 0.5, 0, 30), v)
 
 
-def _run_sumo(model: str) -> dict:
+def _run_sumo(model: str, action_step_s: float = 0.1) -> dict:
     v = _leader_profile().tolist()
     code = textwrap.dedent(f"""
         import json, numpy as np
@@ -46,7 +46,7 @@ def _run_sumo(model: str) -> dict:
         v = np.array({json.dumps(v)})
         cases = [ReplayCase(v_leader=v, x_leader0=100.0, x_follower0=100.0 - 4.5 - g, v_follower0=vf)
                  for g, vf in {STARTS!r}]
-        r = run_sumo_pairs(cases, params, model={model!r})
+        r = run_sumo_pairs(cases, params, model={model!r}, action_step_s={action_step_s!r})
         print(json.dumps({{k: getattr(r, k).tolist() for k in ("x_leader", "v_leader", "x_follower", "v_follower")}}))
     """)
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=120)
@@ -66,6 +66,29 @@ def test_replica_matches_sumo(model: str) -> None:
     gaps = r["x_leader"] - 4.5 - r["x_follower"]
     assert (r["v_follower"].min(axis=1) < 0.05).any()  # the check covers stops ...
     assert gaps.min() < 3.0  # ... and close following
+
+
+@pytest.mark.sumo
+@pytest.mark.parametrize("model", ["idm", "krauss"])
+@pytest.mark.parametrize("action_steps", [2, 5, 10, 15])
+def test_replica_matches_sumo_with_action_step(model: str, action_steps: int) -> None:
+    """vType ``actionStepLength`` = action_steps x 0.1 s (decisions only every that long, the
+    acceleration held in between) in SUMO equals ``simulate_follower(..., action_steps=)``."""
+    r = _run_sumo(model, round(action_steps * 0.1, 1))
+    for i, p in enumerate(PARAMS):
+        x, v = simulate_follower(model, r["x_leader"][i], r["v_leader"][i], 4.5,
+                                 r["x_follower"][i][0], r["v_follower"][i][0], p.as_dict(), action_steps=action_steps)
+        np.testing.assert_allclose(v, r["v_follower"][i], atol=1e-9, rtol=0)
+        np.testing.assert_allclose(x, r["x_follower"][i], atol=1e-8, rtol=0)
+        x1, _ = simulate_follower(model, r["x_leader"][i], r["v_leader"][i], 4.5,
+                                  r["x_follower"][i][0], r["v_follower"][i][0], p.as_dict())
+        assert np.abs(x1 - x).max() > 0.05  # the action step changes the trajectory: the check has teeth
+
+
+def test_action_steps_must_be_positive_whole() -> None:
+    for bad in (0, -1, 1.5, True):
+        with pytest.raises(ValueError, match="action_steps"):
+            simulate_follower("idm", np.zeros(3), np.zeros(3), 4.5, -10.0, 0.0, CFParams().as_dict(), action_steps=bad)
 
 
 def test_replica_broadcasts_candidates() -> None:

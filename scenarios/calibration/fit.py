@@ -160,7 +160,7 @@ def _fd_candidates(xs: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.n
 def fit_population(
     pairs: Sequence[CarFollowingPair], *, model: str = "idm", fitted: Sequence[str] = FITTED,
     base: CFParams = SUMO_DEFAULTS, starts: Sequence[CFParams] | None = None, max_nfev: int = 40,
-    objective: str = DEFAULT_OBJECTIVE, tick: Callable[[], None] | None = None,
+    objective: str = DEFAULT_OBJECTIVE, tick: Callable[[], None] | None = None, action_steps: int = 1,
 ) -> tuple[CFParams, float]:
     """Population parameters and the median per-pair spacing RMSE (m) under them.
 
@@ -176,6 +176,9 @@ def fit_population(
         max_nfev: evaluations per start (``least_squares``' ``max_nfev``).
         objective: a key of :data:`OBJECTIVES`.
         tick: called once per simulation of the batch (progress reporting).
+        action_steps: the drivers decide every that many 0.1 s steps (SUMO's ``actionStepLength``,
+            :func:`~scenarios.calibration.models.simulate_follower`); 1, SUMO's default, in the
+            product (a longer one did not generalise better, ``benchmarks/reaction_time_bound.py``).
     Returns:
         (population parameters, median over ``pairs`` of their spacing RMSE in m).
 
@@ -207,7 +210,7 @@ def fit_population(
             tick()
             cand, h = _fd_candidates(x[None, :], lo, hi)
             pc = {**fixed, **{f: cand[0, k] for k, f in enumerate(fitted)}}  # each float64[K+1]
-            r = spacing_rmse(model, batch, pc, candidates=True) / np.reshape(norm, (-1, 1))  # [P, K+1]
+            r = spacing_rmse(model, batch, pc, candidates=True, action_steps=action_steps) / np.reshape(norm, (-1, 1))
             cache.clear()
             cache[key] = (r[:, 0], (r[:, 1:] - r[:, :1]) / h[0][None, :])
         return cache[key]
@@ -223,7 +226,7 @@ def fit_population(
             best = sol
     assert best is not None, "starts holds one or two start points"
     pop = CFParams(**params_of(best.x))
-    return pop, float(np.median(spacing_rmse(model, batch, pop.as_dict())))
+    return pop, float(np.median(spacing_rmse(model, batch, pop.as_dict(), action_steps=action_steps)))
 
 
 def fit_per_pair(

@@ -28,6 +28,17 @@ brake like the follower), with headway ``tau``; when that asks for more than ``d
 emergency deceleration (1.2 x the deceleration needed to stop behind the braking leader,
 within [decel, requested]) is used.
 
+**Action step** (SUMO's vType ``actionStepLength``, a driver's reaction time as SUMO models it;
+``simulate_follower(..., action_steps=k)``, k steps of 0.1 s): the vehicle decides only at every
+k-th step from its insertion (the first step is one); there the model's speed is bounded as
+above, except that the desired speed caps the speed reached when the new acceleration is held
+until the next decision (``finalizeSpeed``'s ``aMax = (maxSpeed - v) / actionStepLength``). In
+between it keeps its last acceleration (``v_new = v + a * dt``, no model call, no bounds;
+``a = (max(v_new, 0) - v) / dt`` of the step before). Sample-and-hold, not a perception delay:
+the decision uses the state at the decision step. Verified against libsumo for 0.2-1.5 s.
+A new speed with ``|v_new| < 1e-5`` m/s is zeroed before the position update (SUMO's
+``executeMove``), so only ``v_new <= -1e-5`` counts as a stop within the step.
+
 All functions are vectorised: parameters and states are arrays broadcastable to one shape
 (for example ``(P,)`` pairs, or ``(P, C)`` pairs x candidate parameter sets).
 """
@@ -79,15 +90,18 @@ SUMO_DEFAULTS = CFParams()
 PARAM_NAMES: tuple[str, ...] = tuple(f.name for f in fields(CFParams))
 
 
-def _finalize(v, v_pos, p, min_decel):
+def _finalize(v, v_pos, p, min_decel, action_step_s=DT):
     v_min_emerg = v - p["emergencyDecel"] * DT
     v_min = np.minimum(v - min_decel * DT, np.maximum(v_pos, v_min_emerg))
     v_max = np.minimum(np.minimum(v_pos, v + p["accel"] * DT), p["maxSpeed"])
+    if action_step_s > DT:  # the acceleration is held until the next decision: reach maxSpeed there
+        v_max = np.minimum(v_max, v + (p["maxSpeed"] - v) * (DT / action_step_s))
     return np.maximum(v_min, v_max)
 
 
-def idm_next_speed(v, gap, v_leader, p):
-    """Next speed (m/s) of an IDM follower; ``gap`` is the bumper-to-bumper gap (m)."""
+def idm_next_speed(v, gap, v_leader, p, action_step_s=DT):
+    """Next speed (m/s) of an IDM follower at a decision step; ``gap`` is the bumper-to-bumper
+    gap (m), ``action_step_s`` the time (s) until the next decision."""
     accel, decel, tau, min_gap, v0, delta = (
         p["accel"], p["decel"], p["tau"], p["minGap"], p["maxSpeed"], p["delta"])
     two_sqrt_ab = 2.0 * np.sqrt(accel * decel)
@@ -98,7 +112,7 @@ def idm_next_speed(v, gap, v_leader, p):
     s_free = np.maximum(0.0, v * tau + v * (v - v0) / two_sqrt_ab)
     v_free = np.maximum(0.0, v + accel * (free_term - (s_free * s_free) / 1e12) * DT)
     v_pos = np.minimum(v_follow, v_free)
-    return _finalize(v, v_pos, p, np.maximum(decel, np.minimum(p["emergencyDecel"], 1.5)))
+    return _finalize(v, v_pos, p, np.maximum(decel, np.minimum(p["emergencyDecel"], 1.5)), action_step_s)
 
 
 def _max_safe_stop_speed_ballistic(g, v, decel, tau):
@@ -122,8 +136,9 @@ def _emergency_decel(gap2pred, v, v_leader, pred_decel, emergency):
     return np.where(gap2pred <= 0, emergency, np.where(b1 <= pred_decel, b1, b2))
 
 
-def krauss_next_speed(v, gap, v_leader, p):
-    """Next speed (m/s) of a Krauss follower with sigma = 0; ``gap`` is the bumper gap (m).
+def krauss_next_speed(v, gap, v_leader, p, action_step_s=DT):
+    """Next speed (m/s) of a Krauss follower with sigma = 0 at a decision step; ``gap`` is the
+    bumper gap (m), ``action_step_s`` the time (s) until the next decision.
 
     May be negative: SUMO's signal for "stops within this step" (see :func:`simulate_follower`).
     """
@@ -139,7 +154,7 @@ def krauss_next_speed(v, gap, v_leader, p):
     v_follow = np.maximum(np.minimum(x, v + p["accel"] * DT), v - emerg * DT)
     v_free = np.minimum(v + p["accel"] * DT, p["maxSpeed"])
     v_pos = np.minimum(v_follow, v_free)
-    return _finalize(v, v_pos, p, decel)
+    return _finalize(v, v_pos, p, decel, action_step_s)
 
 
 MODELS = {"idm": idm_next_speed, "krauss": krauss_next_speed}
@@ -158,7 +173,7 @@ EIDM_NOISE_OFF: dict[str, float] = {"sigmaleader": 0.0, "sigmagap": 0.0, "sigmae
 
 
 def simulate_follower(
-    model: str, x_leader, v_leader, leader_length, x0, v0, params, *, lengths=None
+    model: str, x_leader, v_leader, leader_length, x0, v0, params, *, lengths=None, action_steps: int = 1,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Replay leaders, simulate followers.
 
@@ -172,13 +187,20 @@ def simulate_follower(
         lengths: optional int[S[0]] number of valid steps per row of the first axis, sorted in
             decreasing order; rows stop being simulated after their length (values there are
             then copies of the last valid step).
+        action_steps: decisions every ``action_steps`` steps of :data:`DT` (SUMO's vType
+            ``actionStepLength = action_steps * DT``), the acceleration held in between; 1 (the
+            default) decides every step.
     Returns:
         (x, v): float64[S..., T] follower position and speed; step 0 is the initial state.
 
     Raises:
-        ValueError: ``lengths`` is not sorted in decreasing order.
+        ValueError: ``lengths`` is not sorted in decreasing order, or ``action_steps`` is not a
+            positive whole number.
     """
+    if isinstance(action_steps, bool) or not isinstance(action_steps, (int, np.integer)) or action_steps < 1:
+        raise ValueError(f"action_steps must be a positive whole number of {DT} s steps, got {action_steps!r}")
     step = MODELS[model]
+    action_s = action_steps * DT
     p = {k: np.asarray(params[k], dtype=np.float64) for k in PARAM_NAMES}
     T = np.shape(x_leader)[-1]
     shape = np.broadcast_shapes(np.shape(x0), np.shape(leader_length), *(np.shape(a) for a in p.values()),
@@ -203,6 +225,7 @@ def simulate_follower(
         active = (lengths[None, :] > np.arange(T)[:, None]).sum(axis=1)
     m_prev: int | None = -1
     pm, llm = p, ll
+    held = np.zeros(shape) if action_steps > 1 else None  # acceleration kept between decisions
     for t in range(1, T):
         m = int(active[t]) if shape else None
         if shape and m < shape[0]:
@@ -216,8 +239,13 @@ def simulate_follower(
         v_old = v[t - 1, sl]
         x_old = x[t - 1, sl]
         gap = xl[t - 1, lsl] - llm - x_old
-        v_raw = step(v_old, gap, vl[t - 1, lsl], pm)
-        stop = v_raw < 0  # stops within the step at constant deceleration
+        if held is None:
+            v_raw = step(v_old, gap, vl[t - 1, lsl], pm)
+        elif (t - 1) % action_steps == 0:
+            v_raw = step(v_old, gap, vl[t - 1, lsl], pm, action_s)
+        else:
+            v_raw = v_old + held[sl] * DT
+        stop = v_raw <= -EPS_SPEED  # stops within the step at constant deceleration
         v_new = np.where(v_raw < EPS_SPEED, 0.0, v_raw)
         if stop.any():
             acc = np.where(stop, (v_raw - v_old) / DT, -1.0)
@@ -226,4 +254,6 @@ def simulate_follower(
             dx = 0.5 * (v_old + v_new) * DT
         v[t, sl] = v_new
         x[t, sl] = x_old + dx
+        if held is not None:
+            held[sl] = (v_new - v_old) / DT
     return np.moveaxis(x, 0, -1), np.moveaxis(v, 0, -1)

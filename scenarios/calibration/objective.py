@@ -17,39 +17,44 @@ from scenarios.calibration.pairs import PairBatch
 
 
 def simulated_spacing(
-    model: str, batch: PairBatch, params: Mapping[str, np.ndarray | float], *, candidates: bool = False
+    model: str, batch: PairBatch, params: Mapping[str, np.ndarray | float], *, candidates: bool = False,
+    action_steps: int = 1,
 ) -> np.ndarray:
     """Simulated bumper gap (m): float64[P, T], or float64[P, C, T] with ``candidates=True``
-    (then every parameter is a float, a float64[C] or a float64[P, C] array)."""
+    (then every parameter is a float, a float64[C] or a float64[P, C] array). ``action_steps``:
+    decisions every that many 0.1 s steps (SUMO's ``actionStepLength``, see
+    :func:`~scenarios.calibration.models.simulate_follower`)."""
     if candidates:
         x, _ = simulate_follower(
             model, batch.x_leader[:, None, :], batch.v_leader[:, None, :],
             batch.leader_length[:, None], batch.x0[:, None], batch.v0[:, None], params,
-            lengths=batch.lengths,
+            lengths=batch.lengths, action_steps=action_steps,
         )
         return batch.x_leader[:, None, :] - batch.leader_length[:, None, None] - x
     x, _ = simulate_follower(
         model, batch.x_leader, batch.v_leader, batch.leader_length, batch.x0, batch.v0, params,
-        lengths=batch.lengths,
+        lengths=batch.lengths, action_steps=action_steps,
     )
     return batch.x_leader - batch.leader_length[:, None] - x
 
 
 def spacing_errors(
-    model: str, batch: PairBatch, params: Mapping[str, np.ndarray | float], *, candidates: bool = False
+    model: str, batch: PairBatch, params: Mapping[str, np.ndarray | float], *, candidates: bool = False,
+    action_steps: int = 1,
 ) -> np.ndarray:
     """Simulated minus observed gap (m), 0 outside the scored steps; shape as :func:`simulated_spacing`."""
-    s = simulated_spacing(model, batch, params, candidates=candidates)
+    s = simulated_spacing(model, batch, params, candidates=candidates, action_steps=action_steps)
     obs = batch.spacing_obs[:, None, :] if candidates else batch.spacing_obs
     mask = batch.mask[:, None, :] if candidates else batch.mask
     return np.where(mask, s - obs, 0.0)
 
 
 def spacing_rmse(
-    model: str, batch: PairBatch, params: Mapping[str, np.ndarray | float], *, candidates: bool = False
+    model: str, batch: PairBatch, params: Mapping[str, np.ndarray | float], *, candidates: bool = False,
+    action_steps: int = 1,
 ) -> np.ndarray:
     """Per-pair root-mean-square spacing error (m): float64[P] (or float64[P, C]), batch order."""
-    err = spacing_errors(model, batch, params, candidates=candidates)
+    err = spacing_errors(model, batch, params, candidates=candidates, action_steps=action_steps)
     n = batch.mask.sum(axis=1)
     n = n[:, None] if candidates else n
     return np.sqrt((err * err).sum(axis=-1) / n)

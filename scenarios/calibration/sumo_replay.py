@@ -76,13 +76,15 @@ def _build_net(workdir: Path, n: int, length: float) -> Path:
 
 
 def run_sumo_pairs(
-    cases: Sequence[ReplayCase], params: Sequence[CFParams] | CFParams, *, model: str = "idm"
+    cases: Sequence[ReplayCase], params: Sequence[CFParams] | CFParams, *, model: str = "idm",
+    action_step_s: float = DT,
 ) -> ReplayResult:
     """Simulate every case in one libsumo run; ``params`` per case or one for all.
 
     ``model`` is a key of :data:`~scenarios.calibration.models.CALIBRATION_MODELS` (Krauss with
     sigma 0, EIDM with its noise off). libsumo runs one simulation at a time per process; runs
-    may follow each other in the same process.
+    may follow each other in the same process. ``action_step_s``: the followers' vType
+    ``actionStepLength`` (s, a multiple of the 0.1 s step; decisions every that long).
 
     Raises:
         ScenarioError: ``model`` has no SUMO car-following model, or SUMO did not insert a pair's follower.
@@ -101,6 +103,7 @@ def run_sumo_pairs(
         rou = ["<routes>"]
         for i, (c, p) in enumerate(zip(cases, plist)):
             extra = ' sigma="0"' if model == "krauss" else f' delta="{float(p.delta)!r}"'
+            extra += f' actionStepLength="{float(action_step_s)!r}"' if action_step_s != DT else ""
             if model == "eidm":  # deterministic: noise off (models.EIDM_NOISE_OFF)
                 extra += "".join(f' {k}="{v!r}"' for k, v in EIDM_NOISE_OFF.items())
             rou.append(

@@ -1,6 +1,6 @@
 """``merge-irl calibrate``: fit SUMO car-following parameters to real leader-follower pairs.
 
-* ``calibrate fit --pairs DIR --out params.toml [--model idm|krauss|eidm]``
+* ``calibrate fit --pairs DIR --out params.toml [--model idm|krauss|eidm] [--classes C]``
 * ``calibrate evaluate --params FILE --pairs DIR [--json]``
 * ``calibrate check --params FILE --pairs DIR [--out report.md] [--json]``
 
@@ -17,6 +17,8 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import time
+from dataclasses import replace
 
 from analysis.commands._arg_types import positive_int
 
@@ -44,6 +46,10 @@ def register(subparsers) -> None:
                    help="population objective over the per-pair spacing RMSEs: log (geometric mean, "
                         "the default), rmse (Cauchy loss, 1 m), ratio (each pair's RMSE over its RMSE under "
                         "SUMO's defaults); see docs/calibration.md")
+    f.add_argument("--classes", type=positive_int, default=1, metavar="C",
+                   help="idm / krauss: also fit one population vector per class of the initial time headway "
+                        "(C equally filled classes of the training pairs; default 1: one vector for all); "
+                        "'evaluate' then simulates each pair with its class's vector")
     f.add_argument("--holdout", type=float, default=0.0, metavar="FRACTION",
                    help="leave this share of followers out of the fit (split by follower; see --seed)")
     f.add_argument("--seed", type=int, default=0, help="seed of the held-out split (default 0)")
@@ -97,6 +103,7 @@ def run_fit(args: argparse.Namespace) -> int:
     from analysis.calibration_sweep import calibrate_parallel
     from irl.run_folder import check_writable
     from scenarios.calibration import save_result
+    from scenarios.calibration.classes import fit_classes
     from scenarios.calibration.fit import DEFAULT_OBJECTIVE
     from scenarios.calibration.models import CALIBRATION_MODELS, MODELS
     from scenarios.calibration.pairs import pair_files
@@ -107,6 +114,9 @@ def run_fit(args: argparse.Namespace) -> int:
         raise SpecError(f"--max-evals: caps the SUMO runs of a model fitted through SUMO "
                         f"({', '.join(m for m in CALIBRATION_MODELS if m not in MODELS)}); "
                         f"{args.model} is fitted by its numpy replica")
+    if args.classes > 1 and args.model not in MODELS:
+        raise SpecError(f"--classes: driver classes need a model with a numpy replica ({', '.join(MODELS)}); "
+                        f"{args.model} is fitted through SUMO")
     if args.max_evals is not None and args.max_evals < MIN_MAX_EVALS:
         raise SpecError(f"--max-evals: expected at least {MIN_MAX_EVALS} SUMO runs, got {args.max_evals}")
     try:
@@ -132,6 +142,16 @@ def run_fit(args: argparse.Namespace) -> int:
     finally:
         if bar is not None:
             bar.close()
+    if args.classes > 1:
+        t0 = time.perf_counter()
+        classes = fit_classes(pairs, args.classes, model=args.model, objective=result.objective)
+        result = replace(result, classes=classes)
+        print(f"{classes.n_classes} driver classes of the initial time headway, edges "
+              f"{', '.join(f'{e:.2f}' for e in classes.edges_s)} s ({time.perf_counter() - t0:.1f} s):",
+              file=sys.stderr)
+        for c, q in enumerate(classes.params):
+            print(f"  class {c}: accel={q.accel:.3f} decel={q.decel:.3f} tau={q.tau:.3f} minGap={q.minGap:.3f} "
+                  f"maxSpeed={q.maxSpeed:.2f}", file=sys.stderr)
     save_result(result, args.out)
     p = result.population
     print(f"population: accel={p.accel:.3f} decel={p.decel:.3f} tau={p.tau:.3f} minGap={p.minGap:.3f} "
@@ -149,11 +169,13 @@ def run_evaluate(args: argparse.Namespace) -> int:
     from scenarios.calibration import evaluate, load_result
 
     result = load_result(args.params)
-    ev = evaluate(result.population, _pairs(args, held_out=True), model=result.model, workers=args.workers)
+    ev = evaluate(result.population, _pairs(args, held_out=True), model=result.model, workers=args.workers,
+                  classes=result.classes)
     if args.json:
         print(json.dumps(ev.to_json_dict()))
         return 0
-    print(f"{result.model} parameters of {args.params} beside SUMO's {result.model} defaults, "
+    drivers = f" ({ev.n_classes} driver classes of the initial time headway)" if ev.n_classes > 1 else ""
+    print(f"{result.model} parameters of {args.params}{drivers} beside SUMO's {result.model} defaults, "
           f"{len(ev.pairs)} pairs (spacing RMSE, m)")
     width = max(len(s.name) for s in ev.pairs)
     print(f"{'pair':<{width}}  {'rmse_m':>8}  {'default_rmse_m':>14}")

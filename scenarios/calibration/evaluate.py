@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import bootstrap
 
+from scenarios.calibration.classes import DriverClasses
 from scenarios.calibration.models import CALIBRATION_MODELS, MODELS, SUMO_DEFAULTS, CFParams
 from scenarios.calibration.objective import spacing_rmse
 from scenarios.calibration.pairs import CarFollowingPair, PairBatch
@@ -61,6 +62,7 @@ class Evaluation:
     ``default_median_rmse_m``, ``mean_rmse_m``, ``default_mean_rmse_m``, ``win_fraction`` and
     the ratios ``median_ratio`` / ``mean_ratio`` (calibrated over default), pairs resampled
     together (95 % percentile bootstrap, ``N_RESAMPLES`` resamples, seeded).
+    ``n_classes``: driver classes the pairs were simulated with (1: ``params`` for every pair).
     """
 
     model: str
@@ -73,6 +75,7 @@ class Evaluation:
     default_mean_rmse_m: float
     win_fraction: float
     intervals: tuple[tuple[str, Interval], ...] = ()
+    n_classes: int = 1
 
     def interval(self, name: str) -> Interval:
         return dict(self.intervals)[name]
@@ -81,6 +84,7 @@ class Evaluation:
         return {
             "model": self.model,
             "n_pairs": len(self.pairs),
+            "n_classes": self.n_classes,
             "median_rmse_m": self.median_rmse_m,
             "default_median_rmse_m": self.default_median_rmse_m,
             "mean_rmse_m": self.mean_rmse_m,
@@ -97,24 +101,37 @@ class Evaluation:
 def evaluate(
     params: CFParams, pairs: Sequence[CarFollowingPair], *, model: str = "idm",
     defaults: CFParams = SUMO_DEFAULTS, seed: int = 0, workers: int | None = None,
+    classes: DriverClasses | None = None,
 ) -> Evaluation:
     """Replay every pair's leader and score the follower simulated with ``params`` and ``defaults``.
 
     Every pair weighs the same in every statistic. ``seed`` seeds the bootstrap. ``model`` is a
     key of :data:`~scenarios.calibration.models.CALIBRATION_MODELS`; a model without a replica
     (EIDM) is simulated by SUMO in ``workers`` processes (default one per core), both parameter
-    sets in one run.
+    sets in one run. With ``classes`` (replica models only), each pair is simulated with its
+    class's parameters instead of ``params`` (one batch per class).
 
     Raises:
-        SpecError: ``pairs`` is empty, or an unknown ``model``.
+        SpecError: ``pairs`` is empty, an unknown ``model``, or ``classes`` for a model without a replica.
         ScenarioError: SUMO failed (EIDM).
     """
     if model not in CALIBRATION_MODELS:
         raise SpecError(f"model: expected one of {sorted(CALIBRATION_MODELS)}, got {model!r}")
+    if classes is not None and model not in MODELS:
+        raise SpecError(f"classes: driver classes need a model with a numpy replica ({', '.join(sorted(MODELS))}), "
+                        f"got {model!r}")
     if model in MODELS:
         batch = PairBatch.from_pairs(pairs)
-        r = batch.unsort(spacing_rmse(model, batch, params.as_dict()))
         d = batch.unsort(spacing_rmse(model, batch, defaults.as_dict()))
+        if classes is None:
+            r = batch.unsort(spacing_rmse(model, batch, params.as_dict()))
+        else:
+            of = np.array([classes.class_of(p) for p in pairs])
+            r = np.empty(len(pairs))
+            for c in np.unique(of):
+                idx = np.flatnonzero(of == c)
+                sub = PairBatch.from_pairs([pairs[i] for i in idx])
+                r[idx] = sub.unsort(spacing_rmse(model, sub, classes.params[c].as_dict()))
     else:
         with SumoRmse(pairs, model, workers) as sim:
             r, d = sim([params, defaults]).T
@@ -132,4 +149,5 @@ def evaluate(
         median_rmse_m=float(np.median(r)), default_median_rmse_m=float(np.median(d)),
         mean_rmse_m=float(np.mean(r)), default_mean_rmse_m=float(np.mean(d)),
         win_fraction=float(np.mean(r < d)), intervals=intervals,
+        n_classes=1 if classes is None else classes.n_classes,
     )

@@ -22,6 +22,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -30,6 +31,9 @@ from scenarios.calibration.models import CALIBRATION_MODELS, MODELS, SUMO_DEFAUL
 from scenarios.calibration.objective import spacing_errors, spacing_rmse
 from scenarios.calibration.pairs import CarFollowingPair, PairBatch
 from scenarios.errors import SpecError
+
+if TYPE_CHECKING:  # classes.py fits through this module
+    from scenarios.calibration.classes import DriverClasses
 
 #: Parameters fitted by default, and their bounds (SI units). The bounds keep the values
 #: physical for passenger cars in freeway traffic (ranges reported for IDM calibrations on
@@ -100,6 +104,8 @@ class CalibrationResult:
         n_pairs: training pairs used.
         seconds_population, seconds_per_pair: wall time of the two fits.
         objective: the population fit's objective (a key of :data:`OBJECTIVES`).
+        classes: one population vector per class of the initial time headway
+            (:class:`~scenarios.calibration.classes.DriverClasses`), or None (one vector for all).
     """
 
     model: str
@@ -112,6 +118,7 @@ class CalibrationResult:
     seconds_population: float
     seconds_per_pair: float
     objective: str = DEFAULT_OBJECTIVE
+    classes: DriverClasses | None = None
 
     def spread_of(self, name: str) -> ParamSpread:
         return dict(self.spread)[name]

@@ -25,6 +25,12 @@ Layout::
     group = "..."
     rmse_m = 1.2
     params = { accel = 1.1, ... }
+
+    [classes]               # optional (calibrate fit --classes C, C > 1): driver classes
+    edges_s = [1.2, 2.0]    # C-1 edges of the initial time headway (s), classes.DriverClasses
+    [[classes.member]]      # C tables, class order; SUMO vType attributes, SI units
+    accel = 0.9
+    ...
 """
 
 from __future__ import annotations
@@ -35,6 +41,7 @@ from dataclasses import asdict, fields
 from pathlib import Path
 
 from irl.atomic import write_text_atomic
+from scenarios.calibration.classes import DriverClasses
 from scenarios.calibration.fit import DEFAULT_OBJECTIVE, OBJECTIVES, CalibrationResult, PairFit, ParamSpread
 from scenarios.calibration.models import CALIBRATION_MODELS, PARAM_NAMES, CFParams
 from scenarios.errors import SpecError
@@ -56,6 +63,8 @@ def result_to_dict(r: CalibrationResult) -> dict:
             {"name": f.name, "group": f.group, "rmse_m": f.rmse_m, "params": f.params.as_dict()}
             for f in r.per_pair
         ],
+        **({"classes": {"edges_s": list(r.classes.edges_s), "member": [p.as_dict() for p in r.classes.params]}}
+           if r.classes is not None else {}),
     }
 
 
@@ -85,6 +94,22 @@ def _params(src: str, where: str, d: object) -> CFParams:
     return CFParams(**vals)
 
 
+def _classes(src: str, d: object) -> DriverClasses:
+    if not isinstance(d, dict) or "edges_s" not in d or "member" not in d:
+        raise SpecError(f"{src}: [classes] needs edges_s = [...] (s) and [[classes.member]] parameter tables")
+    edges, members = d["edges_s"], d["member"]
+    if not isinstance(edges, list) or any(isinstance(e, bool) or not isinstance(e, (int, float)) for e in edges):
+        raise SpecError(f"{src}: [classes] edges_s = {edges!r}; expected a list of numbers (s)")
+    if not isinstance(members, list) or len(members) != len(edges) + 1:
+        raise SpecError(f"{src}: [classes] {len(edges)} edges_s need {len(edges) + 1} [[classes.member]] tables, "
+                        f"got {len(members) if isinstance(members, list) else members!r}")
+    params = tuple(_params(src, f"classes.member {i + 1}", m) for i, m in enumerate(members))
+    try:
+        return DriverClasses(edges_s=tuple(float(e) for e in edges), params=params)
+    except SpecError as e:
+        raise SpecError(f"{src}: [classes] {e}") from None
+
+
 def load_result(path: str | os.PathLike) -> CalibrationResult:
     """Read a params TOML written by :func:`save_result` (or hand-written with at least
     ``model`` and ``[population]``; ``objective`` defaults to :data:`~.fit.DEFAULT_OBJECTIVE`).
@@ -92,7 +117,7 @@ def load_result(path: str | os.PathLike) -> CalibrationResult:
     Raises:
         FileNotFoundError: ``path`` does not exist.
         SpecError: not valid TOML, no or an unknown ``model``, no ``[population]`` table, or a malformed
-            ``[spread.*]`` or ``[[pair]]`` entry.
+            ``[spread.*]``, ``[[pair]]`` or ``[classes]`` entry.
     """
     path = Path(path)
     src = str(path)
@@ -133,4 +158,5 @@ def load_result(path: str | os.PathLike) -> CalibrationResult:
         per_pair=tuple(pairs), spread=tuple(spread), n_pairs=int(data.get("n_pairs", len(pairs))),
         seconds_population=float(data.get("seconds_population", 0.0)),
         seconds_per_pair=float(data.get("seconds_per_pair", 0.0)), objective=objective,
+        classes=_classes(src, data["classes"]) if "classes" in data else None,
     )

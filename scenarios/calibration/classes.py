@@ -1,0 +1,105 @@
+"""Driver classes: one population vector per class of the follower's initial time headway.
+
+This is driver-type segmentation by an observable: the training pairs are cut into C equally
+filled classes by the follower's time headway at the pair's first step, and the population fit
+(:func:`~scenarios.calibration.fit.fit_population`) is run on each class. A pair is then
+simulated with the vector of its class. The class key uses only what the simulation of a pair is
+given anyway (the recorded initial gap and speed), nothing of the driver's later behaviour, so it
+applies to drivers never seen in the fit (``benchmarks/driver_classes_heldout.py``;
+docs/calibration.md, "Driver classes").
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from scenarios.calibration.fit import DEFAULT_OBJECTIVE, fit_population
+from scenarios.calibration.models import MODELS, CFParams
+from scenarios.calibration.pairs import CarFollowingPair
+from scenarios.errors import SpecError
+
+#: Speed floor (m/s) of the class key, so a pair starting at a standstill has a finite headway.
+MIN_SPEED_MPS = 0.5
+#: A class needs at least this many training pairs for its population fit.
+MIN_CLASS_PAIRS = 5
+
+
+def initial_time_headway(pair: CarFollowingPair) -> float:
+    """The class key (s): the follower's time headway at the pair's first step,
+    bumper gap / max(speed, :data:`MIN_SPEED_MPS`), from the recorded gap and speed."""
+    return float(pair.spacing[0] / max(float(pair.v_follower[0]), MIN_SPEED_MPS))
+
+
+@dataclass(frozen=True)
+class DriverClasses:
+    """C driver classes of the initial time headway and their car-following parameters.
+
+    Attributes:
+        edges_s: float64[C-1], increasing class edges of :func:`initial_time_headway` (s); class
+            c holds the pairs with ``edges_s[c-1] <= key < edges_s[c]`` (open at both ends).
+        params: the C classes' parameters (SUMO vType attributes, SI units), class order.
+    """
+
+    edges_s: tuple[float, ...]
+    params: tuple[CFParams, ...]
+
+    def __post_init__(self) -> None:
+        if len(self.params) < 1 or len(self.edges_s) != len(self.params) - 1:
+            raise SpecError(f"driver classes: {len(self.params)} parameter sets need {len(self.params) - 1} "
+                            f"edges, got {len(self.edges_s)}")
+        if any(not np.isfinite(e) for e in self.edges_s) or any(
+                b <= a for a, b in zip(self.edges_s, self.edges_s[1:])):
+            raise SpecError(f"driver classes: edges_s = {list(self.edges_s)}; expected increasing finite seconds")
+
+    @property
+    def n_classes(self) -> int:
+        return len(self.params)
+
+    def class_of(self, pair: CarFollowingPair) -> int:
+        """The class index (0 .. C-1) of ``pair``."""
+        return int(np.searchsorted(np.asarray(self.edges_s), initial_time_headway(pair), side="right"))
+
+    def params_for(self, pairs: Sequence[CarFollowingPair]) -> list[CFParams]:
+        """The parameters each of ``pairs`` is simulated with (its class's), in the order given."""
+        return [self.params[self.class_of(p)] for p in pairs]
+
+
+def fit_classes(
+    pairs: Sequence[CarFollowingPair], n_classes: int, *, model: str = "idm", objective: str = DEFAULT_OBJECTIVE,
+) -> DriverClasses:
+    """Cut ``pairs`` into ``n_classes`` equally filled classes of :func:`initial_time_headway`
+    (edges: the keys' quantiles) and run :func:`~scenarios.calibration.fit.fit_population` on each.
+
+    Args:
+        pairs: the P training pairs.
+        n_classes: C >= 1; C = 1 is the plain population fit.
+        model: a replica model (``idm`` or ``krauss``, :data:`~scenarios.calibration.models.MODELS`).
+        objective: the population fit's objective (:data:`~scenarios.calibration.fit.OBJECTIVES`).
+
+    Returns:
+        The classes: float64[C-1] edges (s) and C parameter sets.
+
+    Raises:
+        SpecError: ``n_classes`` < 1, a model without a replica, equal quantiles (edges not
+            increasing) or a class with fewer than :data:`MIN_CLASS_PAIRS` pairs.
+    """
+    if isinstance(n_classes, bool) or not isinstance(n_classes, int) or n_classes < 1:
+        raise SpecError(f"classes: expected a whole number >= 1, got {n_classes!r}")
+    if model not in MODELS:
+        raise SpecError(f"classes: need a model with a numpy replica ({', '.join(sorted(MODELS))}), got {model!r}")
+    keys = np.array([initial_time_headway(p) for p in pairs], dtype=np.float64)
+    if len(keys) < n_classes * MIN_CLASS_PAIRS:
+        raise SpecError(f"classes: {n_classes} classes need at least {n_classes * MIN_CLASS_PAIRS} training pairs "
+                        f"({MIN_CLASS_PAIRS} per class), got {len(keys)}")
+    edges = tuple(float(e) for e in np.quantile(keys, np.linspace(0.0, 1.0, n_classes + 1)[1:-1]))
+    of = np.searchsorted(np.asarray(edges), keys, side="right")
+    counts = np.bincount(of, minlength=n_classes)
+    if len(set(edges)) < len(edges) or counts.min() < MIN_CLASS_PAIRS:
+        raise SpecError(f"classes: {n_classes} classes of the initial time headway hold {counts.tolist()} pairs; "
+                        f"each needs at least {MIN_CLASS_PAIRS} (use fewer classes)")
+    params = tuple(fit_population([p for p, k in zip(pairs, of) if k == c], model=model, objective=objective)[0]
+                   for c in range(n_classes))
+    return DriverClasses(edges_s=edges, params=params)

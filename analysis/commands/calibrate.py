@@ -103,7 +103,7 @@ def run_fit(args: argparse.Namespace) -> int:
     from analysis.calibration_sweep import calibrate_parallel
     from irl.run_folder import check_writable
     from scenarios.calibration import save_result
-    from scenarios.calibration.classes import fit_classes
+    from scenarios.calibration.classes import MIN_CLASS_PAIRS, fit_classes
     from scenarios.calibration.fit import DEFAULT_OBJECTIVE
     from scenarios.calibration.models import CALIBRATION_MODELS, MODELS
     from scenarios.calibration.pairs import pair_files
@@ -124,6 +124,9 @@ def run_fit(args: argparse.Namespace) -> int:
     except OSError as e:
         raise SpecError(f"--out {args.out}: cannot write a file there ({e.strerror or e})") from None
     pairs = _pairs(args, held_out=False)
+    if args.classes > 1 and len(pairs) < args.classes * MIN_CLASS_PAIRS:  # fail before minutes of fitting
+        raise SpecError(f"--classes: {args.classes} classes need at least {args.classes * MIN_CLASS_PAIRS} training "
+                        f"pairs ({MIN_CLASS_PAIRS} per class), got {len(pairs)}")
     file_of = {f.stem: f for f in pair_files(args.pairs, limit=args.limit)}
     print(f"fitting {args.model} on {len(pairs)} pairs ...", file=sys.stderr)
     bar = None

@@ -130,7 +130,7 @@ def evaluate(
             r = np.empty(len(pairs))
             for c in np.unique(of):
                 idx = np.flatnonzero(of == c)
-                sub = PairBatch.from_pairs([pairs[i] for i in idx])
+                sub = PairBatch.from_pairs([pairs[int(i)] for i in idx])
                 r[idx] = sub.unsort(spacing_rmse(model, sub, classes.params[c].as_dict()))
     else:
         with SumoRmse(pairs, model, workers) as sim:

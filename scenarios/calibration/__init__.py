@@ -11,9 +11,11 @@ Modules: :mod:`.pairs` (loading, batches, split by follower), :mod:`.models` (th
 replica), :mod:`.objective` (spacing error), :mod:`.fit` (fits),
 :mod:`~scenarios.calibration.evaluate` (calibrated vs default RMSE), :mod:`.params_file` (TOML),
 :mod:`.vtypes` (driver distribution), :mod:`.sumo_replay` (the same pairs in real SUMO, for checks),
-:mod:`.sumo_fit` (fits and scores through SUMO: EIDM).
+:mod:`.sumo_fit` (fits and scores through SUMO: EIDM), :mod:`.classes` (one population vector
+per class of the initial time headway).
 """
 
+from scenarios.calibration.classes import DriverClasses, fit_classes
 from scenarios.calibration.evaluate import Evaluation, PairScore, evaluate
 from scenarios.calibration.fit import (
     BOUNDS, FITTED, CalibrationResult, PairFit, ParamSpread, calibrate, fit_per_pair, fit_population,
@@ -26,8 +28,8 @@ from scenarios.calibration.vtypes import DriverMember, driver_members
 
 __all__ = [
     "BOUNDS", "FITTED", "PARAM_NAMES", "SUMO_DEFAULTS", "CFParams", "CalibrationResult",
-    "CarFollowingPair", "DriverMember", "Evaluation", "PairBatch", "PairFit", "PairScore",
-    "ParamSpread", "SumoRmse", "calibrate", "calibrate_sumo", "driver_members", "evaluate", "fit_per_pair",
+    "CarFollowingPair", "DriverClasses", "DriverMember", "Evaluation", "PairBatch", "PairFit", "PairScore",
+    "ParamSpread", "SumoRmse", "calibrate", "calibrate_sumo", "driver_members", "evaluate", "fit_classes", "fit_per_pair",
     "fit_population", "fit_population_sumo",
     "load_pairs", "load_result", "read_pair", "save_result", "simulate_follower", "split_by_follower",
 ]

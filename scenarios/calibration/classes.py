@@ -38,9 +38,13 @@ class DriverClasses:
     """C driver classes of the initial time headway and their car-following parameters.
 
     Attributes:
-        edges_s: float64[C-1], increasing class edges of :func:`initial_time_headway` (s); class
-            c holds the pairs with ``edges_s[c-1] <= key < edges_s[c]`` (open at both ends).
+        edges_s: C-1 increasing class edges of :func:`initial_time_headway` (s, a tuple so the
+            dataclass stays hashable; ``np.asarray`` gives float64[C-1]); class c holds the pairs
+            with ``edges_s[c-1] <= key < edges_s[c]`` (the first and last classes open-ended).
         params: the C classes' parameters (SUMO vType attributes, SI units), class order.
+
+    Raises:
+        SpecError: not C-1 edges for C parameter sets, or edges not finite and increasing.
     """
 
     edges_s: tuple[float, ...]

@@ -80,6 +80,17 @@ def test_user_errors_are_one_line_exit_2(tmp_path: Path) -> None:
     (tmp_path / "file").write_text("")
     r = _cli("calibrate", "fit", "--pairs", str(tmp_path / "nowhere"), "--out", str(tmp_path / "file" / "x.toml"))
     assert r.returncode == 2 and f"--out {tmp_path / 'file' / 'x.toml'}: cannot write" in r.stderr, r.stderr
+    for n in ("0", "-3"):  # --limit -3 used to fit on all but the last 3 pairs
+        r = _cli("calibrate", "fit", "--pairs", str(PAIRS_DIR), "--out", str(tmp_path / "x.toml"), "--limit", n)
+        assert r.returncode == 2 and "--limit: expected a positive whole number" in r.stderr, r.stderr
+    good = tmp_path / "good.toml"
+    good.write_text("model = 'idm'\n[population]\naccel = 1.0\n")
+    for cmd in (("fit", "--out", str(tmp_path / "x.toml")), ("evaluate", "--params", str(good))):
+        r = _cli("calibrate", *cmd, "--pairs", str(PAIRS_DIR), "--holdout", "-0.3")  # was silently no split
+        assert r.returncode == 2 and "--holdout: expected a fraction in (0, 1), got -0.3" in r.stderr, r.stderr
+    # check: an unwritable --out is refused before the SUMO run (the report was lost after it)
+    r = _cli("calibrate", "check", "--params", str(bad), "--pairs", str(PAIRS_DIR), "--out", str(tmp_path / "file" / "r.md"))
+    assert r.returncode == 2 and f"--out {tmp_path / 'file' / 'r.md'}: cannot write" in r.stderr, r.stderr
     assert not (tmp_path / "x.toml").exists()  # nothing written by the refused runs
 
 

@@ -397,6 +397,11 @@ def with_overrides(
     if seed is not None:
         data["simulation"]["seed"] = seed
     if duration_s is not None:
+        warmup = spec.simulation.warmup_s
+        if isinstance(duration_s, (int, float)) and not isinstance(duration_s, bool) and 0 < duration_s <= warmup:
+            # name the override, not the scenario file's warmup_s, which is fine as it is
+            raise SpecError(f"{source}: simulation.duration_s: overridden (e.g. --duration) with {duration_s:g} s; "
+                            f"must be longer than the scenario's simulation.warmup_s = {warmup:g} s")
         data["simulation"]["duration_s"] = duration_s
     if demand_scale is not None:
         k = _positive(_Ctx(source), "demand_scale", demand_scale)

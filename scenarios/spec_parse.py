@@ -154,6 +154,10 @@ def _road(ctx: _Ctx, data: Any) -> RoadSpec:
             f"merge_position_m + aux_length_m = {r.merge_position_m + r.aux_length_m:g} m must be "
             f"shorter than main_length_m = {r.main_length_m:g} m (the auxiliary lane ends on the road)",
         )
+    if r.bottleneck_length_m > 0 and "bottleneck_speed_mps" not in d:  # its default 0 means "no bottleneck"
+        raise ctx.fail("road.bottleneck_speed_mps",
+                       f"missing: a bottleneck of {r.bottleneck_length_m:g} m needs its speed limit (for a lane "
+                       f"drop alone, the road's speed_limit_mps = {r.speed_limit_mps:g})")
     if r.bottleneck_length_m > 0 and not r.bottleneck_speed_mps >= 1.0:
         raise ctx.fail("road.bottleneck_speed_mps",
                        f"a bottleneck of {r.bottleneck_length_m:g} m needs a speed limit of at least 1 m/s, "

@@ -129,3 +129,21 @@ def test_check_runs_i80_with_calibrated_drivers(params: Path, tmp_path: Path) ->
     for v in d["variables"].values():
         assert v["n_sim"] > 100 and 0 <= v["ks"] <= 1 and 0 <= v["js"] <= 1
     assert "Jensen-Shannon" in out.read_text()
+    assert d["keep_drivers"] is False and "Simulated car drivers: resampled from the params file (idm)." in out.read_text()
+
+
+def test_check_report_says_which_drivers_were_simulated() -> None:
+    """--keep-drivers simulates the scenario's own drivers (the i80 preset's are EIDM): the report says so
+    instead of naming only the params file's model."""
+    from analysis.calibration_check import CalibrationCheck
+
+    def report(keep: bool) -> CalibrationCheck:
+        return CalibrationCheck(scenario="i80", seed=0, duration_s=600.0, model="idm", variables=(),
+                                median_rmse_m=3.5, default_median_rmse_m=3.6, mean_rmse_m=4.4,
+                                default_mean_rmse_m=5.2, n_pairs=302, keep_drivers=keep)
+
+    own, params = report(True), report(False)
+    assert "Simulated car drivers: the scenario's own (--keep-drivers)." in own.to_markdown()
+    assert "Simulated car drivers: resampled from the params file (idm)." in params.to_markdown()
+    assert own.to_json_dict()["keep_drivers"] is True and params.to_json_dict()["keep_drivers"] is False
+    assert "302 real pairs of the params file's population (idm)" in own.to_markdown()

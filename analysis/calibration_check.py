@@ -139,6 +139,8 @@ class CalibrationCheck:
     #: name ("lag_ft", "lead_ft", "total_ft") -> :data:`GAP_QUANTILES` of the simulated accepted gaps.
     accepted_gap_quantiles: dict | None = None
     n_merges: int = 0
+    #: True: the scenario's own car drivers were simulated (``--keep-drivers``), not the params file's.
+    keep_drivers: bool = False
 
     def to_json_dict(self) -> dict:
         d = asdict(self)
@@ -149,6 +151,9 @@ class CalibrationCheck:
     def to_markdown(self) -> str:
         lines = [
             f"# Calibration check: scenario `{self.scenario}` (seed {self.seed}, {self.duration_s:g} s) vs real NGSIM I-80 pairs",
+            "",
+            "Simulated car drivers: " + ("the scenario's own (--keep-drivers)." if self.keep_drivers else
+                                         f"resampled from the params file ({self.model})."),
             "",
             "Congested car following (I-80 lanes 2-6 of the study area, leader within 300 ft, 1-45 ft/s); "
             "spacing bumper to bumper, time headway front to front / speed.",
@@ -167,7 +172,7 @@ class CalibrationCheck:
                 lines.append(f"- {name}: " + " / ".join(f"{x:.1f}" for x in vals))
         lines += [
             "",
-            f"Spacing RMSE on {self.n_pairs} real pairs ({self.model}): calibrated median "
+            f"Spacing RMSE on {self.n_pairs} real pairs of the params file's population ({self.model}): calibrated median "
             f"{self.median_rmse_m:.2f} m (mean {self.mean_rmse_m:.2f}) vs SUMO defaults median "
             f"{self.default_median_rmse_m:.2f} m (mean {self.default_mean_rmse_m:.2f}).",
             "",
@@ -277,5 +282,5 @@ def run_calibration_check(
                                         pair_states(pairs)),
         median_rmse_m=ev.median_rmse_m, default_median_rmse_m=ev.default_median_rmse_m,
         mean_rmse_m=ev.mean_rmse_m, default_mean_rmse_m=ev.default_mean_rmse_m, n_pairs=len(pairs),
-        accepted_gap_quantiles=gaps.quantiles(), n_merges=gaps.n,
+        accepted_gap_quantiles=gaps.quantiles(), n_merges=gaps.n, keep_drivers=keep_drivers,
     )

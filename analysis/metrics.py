@@ -1,4 +1,4 @@
-"""Closed-loop metrics of one episode (one simulation run): :func:`episode_metrics`.
+"""Closed-loop metrics of one episode (one simulation run): :func:`~analysis.metrics.episode_metrics`.
 
 Aggregated over seeds they are :mod:`analysis.metrics_aggregate`'s; the distances to the
 demonstrations (Jensen-Shannon divergence, held-out log-likelihood, Wasserstein-1) are

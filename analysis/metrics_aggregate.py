@@ -1,4 +1,4 @@
-"""Closed-loop metrics of one policy aggregated over its episodes (seeds): :func:`aggregate`
+"""Closed-loop metrics of one policy aggregated over its episodes (seeds): :func:`~analysis.metrics_aggregate.aggregate`
 of the :class:`~analysis.metrics.EpisodeMetrics` of :func:`analysis.metrics.episode_metrics`.
 
 Definitions beyond the per-episode ones (:mod:`analysis.metrics`):

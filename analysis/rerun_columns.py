@@ -1,5 +1,5 @@
 """rerun component columns built in bulk from arrow arrays, where rerun's Python API would
-build them one row at a time (:func:`bar_chart_column`)."""
+build them one row at a time (:func:`~analysis.rerun_columns.bar_chart_column`)."""
 
 from __future__ import annotations
 

@@ -58,6 +58,7 @@ from sim.hooks import FrameState, RunContext
 from sim.observe import lead_of
 from sim.schema import RAMP_LANE
 
+#: ``class_ids`` of the vehicle boxes, by role.
 ROLE_IDS = {"other": 0, "A": 1, "B": 2, "C": 3, "A observed": 4}
 #: Short label drawn on a box, by role id ("" = no label).
 ROLE_LABELS = ("", "A", "B", "C", "A")

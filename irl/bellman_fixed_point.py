@@ -56,7 +56,7 @@ def fixed_point_tolerance(r: np.ndarray, gamma: float) -> float:
 
     This is the target. With large features or theta, round-off alone can leave residuals of
     ~1e-12 of the scale, so a solve that stalls within ``ROUNDOFF_SLACK`` times this target is
-    accepted as converged (see :func:`_at_roundoff_floor`).
+    accepted as converged (see ``_at_roundoff_floor``).
     """
     scale = max(1.0, float(np.max(np.abs(r))) / (1.0 - gamma))
     return 1e-13 * scale

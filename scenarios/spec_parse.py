@@ -154,6 +154,10 @@ def _road(ctx: _Ctx, data: Any) -> RoadSpec:
             f"merge_position_m + aux_length_m = {r.merge_position_m + r.aux_length_m:g} m must be "
             f"shorter than main_length_m = {r.main_length_m:g} m (the auxiliary lane ends on the road)",
         )
+    if r.bottleneck_length_m > 0 and "bottleneck_speed_mps" not in d:  # its default 0 means "no bottleneck"
+        raise ctx.fail("road.bottleneck_speed_mps",
+                       f"missing: a bottleneck of {r.bottleneck_length_m:g} m needs its speed limit (for a lane "
+                       f"drop alone, the road's speed_limit_mps = {r.speed_limit_mps:g})")
     if r.bottleneck_length_m > 0 and not r.bottleneck_speed_mps >= 1.0:
         raise ctx.fail("road.bottleneck_speed_mps",
                        f"a bottleneck of {r.bottleneck_length_m:g} m needs a speed limit of at least 1 m/s, "
@@ -397,6 +401,11 @@ def with_overrides(
     if seed is not None:
         data["simulation"]["seed"] = seed
     if duration_s is not None:
+        warmup = spec.simulation.warmup_s
+        if isinstance(duration_s, (int, float)) and not isinstance(duration_s, bool) and 0 < duration_s <= warmup:
+            # name the override, not the scenario file's warmup_s, which is fine as it is
+            raise SpecError(f"{source}: simulation.duration_s: overridden (e.g. --duration) with {duration_s:g} s; "
+                            f"must be longer than the scenario's simulation.warmup_s = {warmup:g} s")
         data["simulation"]["duration_s"] = duration_s
     if demand_scale is not None:
         k = _positive(_Ctx(source), "demand_scale", demand_scale)

@@ -1,10 +1,10 @@
 """NGSIM file input/output: the public entry points.
 
-* :func:`read_ngsim` -- stream an NGSIM ``trajectories-*.csv`` / ``.txt`` file into the
+* :func:`~sim.ngsim_read.read_ngsim` -- stream an NGSIM ``trajectories-*.csv`` / ``.txt`` file into the
   trajectory table, validated, with a report of the defects found (:mod:`sim.ngsim_read`).
-* :func:`write_ngsim_csv` -- write a trajectory table in NGSIM's exact CSV format
+* :func:`~sim.ngsim_write.write_ngsim_csv` -- write a trajectory table in NGSIM's exact CSV format
   (:mod:`sim.ngsim_write`).
-* :func:`read_trajectories` -- a trajectory table from Parquet or an NGSIM file, by suffix
+* :func:`~sim.ngsim_read.read_trajectories` -- a trajectory table from Parquet or an NGSIM file, by suffix
   (what commands taking "a trajectory file" call).
 """
 

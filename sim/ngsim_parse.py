@@ -80,6 +80,12 @@ def _bounded_lines(fh, path: Path) -> Iterator[tuple[int, str]]:
 
 
 def sniff(path: Path) -> Layout:
+    """The :class:`Layout` of ``path`` (CSV or whitespace text, columns, header lines, encoding),
+    from its first 50 non-empty lines.
+
+    Raises:
+        TrajectoryFormatError: the file is empty, or its first lines are no NGSIM layout (naming the line).
+    """
     encoding = _encoding(path)
     with open(path, encoding=encoding, errors="replace", newline="") as fh:
         head = [line for _, (_, line) in zip(range(50), _bounded_lines(fh, path))]

@@ -134,7 +134,7 @@ def read_ngsim(
         frames: keep only ``first <= Frame_ID <= last``; None keeps all.
         vehicles: keep only these ``Vehicle_ID``; None keeps all.
         chunksize: rows parsed per chunk (memory bound; validation is streaming).
-        smooth: True (default filter) or a :class:`SmoothingConfig`: recompute ``Local_Y``,
+        smooth: True (default filter) or a :class:`~sim.ngsim_smooth.SmoothingConfig`: recompute ``Local_Y``,
             ``v_Vel`` and ``v_Acc`` from smoothed positions (see :mod:`sim.ngsim_smooth`).
         progress: show a tqdm bar on stderr.
 

@@ -85,7 +85,7 @@ class RunEvents:
 
 @dataclass(frozen=True)
 class SimulationResult:
-    """Outcome of :func:`run_scenario`.
+    """Outcome of :func:`~sim.run.run_scenario`.
 
     Attributes:
         table: trajectory table (NGSIM schema, sorted by Vehicle_ID, Frame_ID).

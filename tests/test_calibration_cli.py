@@ -80,6 +80,17 @@ def test_user_errors_are_one_line_exit_2(tmp_path: Path) -> None:
     (tmp_path / "file").write_text("")
     r = _cli("calibrate", "fit", "--pairs", str(tmp_path / "nowhere"), "--out", str(tmp_path / "file" / "x.toml"))
     assert r.returncode == 2 and f"--out {tmp_path / 'file' / 'x.toml'}: cannot write" in r.stderr, r.stderr
+    for n in ("0", "-3"):  # --limit -3 used to fit on all but the last 3 pairs
+        r = _cli("calibrate", "fit", "--pairs", str(PAIRS_DIR), "--out", str(tmp_path / "x.toml"), "--limit", n)
+        assert r.returncode == 2 and "--limit: expected a positive whole number" in r.stderr, r.stderr
+    good = tmp_path / "good.toml"
+    good.write_text("model = 'idm'\n[population]\naccel = 1.0\n")
+    for cmd in (("fit", "--out", str(tmp_path / "x.toml")), ("evaluate", "--params", str(good))):
+        r = _cli("calibrate", *cmd, "--pairs", str(PAIRS_DIR), "--holdout", "-0.3")  # was silently no split
+        assert r.returncode == 2 and "--holdout: expected a fraction in (0, 1), got -0.3" in r.stderr, r.stderr
+    # check: an unwritable --out is refused before the SUMO run (the report was lost after it)
+    r = _cli("calibrate", "check", "--params", str(bad), "--pairs", str(PAIRS_DIR), "--out", str(tmp_path / "file" / "r.md"))
+    assert r.returncode == 2 and f"--out {tmp_path / 'file' / 'r.md'}: cannot write" in r.stderr, r.stderr
     assert not (tmp_path / "x.toml").exists()  # nothing written by the refused runs
 
 
@@ -118,3 +129,21 @@ def test_check_runs_i80_with_calibrated_drivers(params: Path, tmp_path: Path) ->
     for v in d["variables"].values():
         assert v["n_sim"] > 100 and 0 <= v["ks"] <= 1 and 0 <= v["js"] <= 1
     assert "Jensen-Shannon" in out.read_text()
+    assert d["keep_drivers"] is False and "Simulated car drivers: resampled from the params file (idm)." in out.read_text()
+
+
+def test_check_report_says_which_drivers_were_simulated() -> None:
+    """--keep-drivers simulates the scenario's own drivers (the i80 preset's are EIDM): the report says so
+    instead of naming only the params file's model."""
+    from analysis.calibration_check import CalibrationCheck
+
+    def report(keep: bool) -> CalibrationCheck:
+        return CalibrationCheck(scenario="i80", seed=0, duration_s=600.0, model="idm", variables=(),
+                                median_rmse_m=3.5, default_median_rmse_m=3.6, mean_rmse_m=4.4,
+                                default_mean_rmse_m=5.2, n_pairs=302, keep_drivers=keep)
+
+    own, params = report(True), report(False)
+    assert "Simulated car drivers: the scenario's own (--keep-drivers)." in own.to_markdown()
+    assert "Simulated car drivers: resampled from the params file (idm)." in params.to_markdown()
+    assert own.to_json_dict()["keep_drivers"] is True and params.to_json_dict()["keep_drivers"] is False
+    assert "302 real pairs of the params file's population (idm)" in own.to_markdown()

@@ -131,6 +131,23 @@ def test_params_file_errors_name_the_field(tmp_path: Path) -> None:
     p.write_text('model = "idm"\nobjective = "median"\n[population]\naccel = 1.0\n')
     with pytest.raises(SpecError, match=r"bad\.toml: objective = 'median'; expected one of"):
         load_result(p)
+    # malformed optional fields are SpecErrors naming the field, not a traceback from float()/int()
+    for body, msg in [
+        ('fitted = 3', r"fitted = 3; expected a list of names"),
+        ('fitted = ["accel", "x"]', r"fitted = \['accel', 'x'\]; expected a list"),
+        ('n_pairs = "x"', r"n_pairs = 'x'; expected a number"),
+        ('n_pairs = 2.5', r"n_pairs = 2.5; expected a whole number"),
+        ('seconds_population = "fast"', r"seconds_population = 'fast'; expected a number"),
+        ('spread = 3', r"spread must be tables"),
+        ('pair = 3', r"pair must be an array of tables"),
+        ('pair = [1]', r"\[\[pair\]\] number 1 must be a table"),
+        ('[[pair]]\nname = "a"\ngroup = "g"\nrmse_m = "x"\nparams = { accel = 1.0 }',
+         r"\[\[pair\]\] number 1: rmse_m = 'x'; expected a number"),
+    ]:
+        head, _, table = body.partition("[[pair]]")
+        p.write_text(f'model = "idm"\n{head}\n[population]\naccel = 1.0\n' + (f"[[pair]]{table}\n" if table else ""))
+        with pytest.raises(SpecError, match=r"bad\.toml: " + msg):
+            load_result(p)
 
 
 def test_population_jacobian_matches_central_differences(real_pairs) -> None:

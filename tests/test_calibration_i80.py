@@ -183,6 +183,9 @@ def test_bottleneck_left_drop_ends_the_leftmost_lane(tmp_path) -> None:
     ('bottleneck_drop = "left"', "road.bottleneck_length_m: bottleneck_drop given but no bottleneck"),
     ("bottleneck_length_m = 100.0\nbottleneck_speed_mps = 29.0\nbottleneck_lanes = 3",
      "road.bottleneck_speed_mps: the bottleneck changes nothing"),
+    # a lane drop without a speed limit: the missing field is named (was "at least 1 m/s, got 0", a 0 never written)
+    ("bottleneck_length_m = 100.0\nbottleneck_lanes = 2",
+     "road.bottleneck_speed_mps: missing: a bottleneck of 100 m needs its speed limit"),
 ])
 def test_bottleneck_fields_checked(road: str, field: str) -> None:
     with pytest.raises(SpecError, match=field.replace(".", r"\.")):

@@ -40,6 +40,16 @@ def test_load_from_file_and_overrides(tmp_path):
     assert load_scenario(str(p)) == spec
 
 
+def test_duration_override_within_the_warmup_names_the_override():
+    """``generate --scenario i80 --duration 60``: the error is the override's, not the preset's warmup_s."""
+    spec = load_scenario("i80")
+    w = spec.simulation.warmup_s
+    with pytest.raises(SpecError, match=rf"simulation\.duration_s: overridden \(e\.g\. --duration\) with 60 s; "
+                                        rf"must be longer than the scenario's simulation\.warmup_s = {w:g} s"):
+        with_overrides(spec, duration_s=60.0)
+    assert with_overrides(spec, duration_s=w + 1).simulation.duration_s == w + 1
+
+
 def _base() -> dict:
     return tomllib.loads(load_scenario("synthetic").to_toml())
 

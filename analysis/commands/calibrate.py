@@ -53,7 +53,7 @@ def register(subparsers) -> None:
     f.add_argument("--holdout", type=float, default=0.0, metavar="FRACTION",
                    help="leave this share of followers out of the fit (split by follower; see --seed)")
     f.add_argument("--seed", type=int, default=0, help="seed of the held-out split (default 0)")
-    f.add_argument("--limit", type=int, default=None, metavar="N", help="use only the first N pair files")
+    f.add_argument("--limit", type=positive_int, default=None, metavar="N", help="use only the first N pair files")
     f.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     f.add_argument("--workers", type=positive_int, default=None, metavar="N",
                    help="processes for the per-pair fits (default: one per core)")
@@ -88,7 +88,7 @@ def _pairs(args: argparse.Namespace, *, held_out: bool):
     from scenarios.calibration import load_pairs, split_by_follower
 
     pairs = load_pairs(args.pairs, limit=getattr(args, "limit", None))
-    if args.holdout and args.holdout > 0:
+    if args.holdout:  # 0 = no held-out split; a negative or NaN fraction is refused, not ignored
         if not 0 < args.holdout < 1:
             from scenarios.errors import SpecError
             raise SpecError(f"--holdout: expected a fraction in (0, 1), got {args.holdout}")
@@ -196,7 +196,14 @@ def run_evaluate(args: argparse.Namespace) -> int:
 
 def run_check(args: argparse.Namespace) -> int:
     from analysis.calibration_check import run_calibration_check
+    from irl.run_folder import check_writable
+    from scenarios.errors import SpecError
 
+    if args.out:
+        try:
+            check_writable(args.out)  # an unwritable --out fails now, not after the SUMO run
+        except OSError as e:
+            raise SpecError(f"--out {args.out}: cannot write a file there ({e.strerror or e})") from None
     report = run_calibration_check(
         params_path=args.params, pairs_dir=args.pairs, scenario=args.scenario,
         duration_s=args.duration, seed=args.seed, keep_drivers=args.keep_drivers,

@@ -1,6 +1,6 @@
 """The state bins of the freeway-merge domain (paper section 4.2): :class:`MergeBins`, the
 encoder of continuous merge variables into the state index of :mod:`irl.domains.merge_states`,
-and :func:`fit_quantile_bins`, its edges fitted on training encounters.
+and :func:`~irl.domains.merge_bins.fit_quantile_bins`, its edges fitted on training encounters.
 
 **Bins**: ``x1..x4`` are the 5-bin indices of ``d_AC, d_AB, v_AC, v_AB`` under
 :class:`MergeBins`. A value equal to an inner edge falls in the bin above the edge. ``d_AC``

@@ -1,6 +1,6 @@
 """The encounter table of the freeway-merge domain (DESIGN.md section 2): its columns, dtypes
-and units (:data:`ENCOUNTER_SCHEMA`), and the check a table passes before it is binned or
-learned from (:func:`validate_encounters`).
+and units (:data:`~irl.domains.merge_encounters.ENCOUNTER_SCHEMA`), and the check a table passes before it is binned or
+learned from (:func:`~irl.domains.merge_encounters.validate_encounters`).
 """
 
 from __future__ import annotations

@@ -51,8 +51,10 @@ from irl.domains.merge_states import (
 )
 from irl.errors import ConfigError
 
+#: The paper's three binary features (section 4.2), the ``"paper"`` feature set.
 PAPER_FEATURES = ("safe", "time_to_travel", "ahead_of_truck")
 BIAS_FEATURES = tuple(f"bias_{ACTION_NAMES[a].lower().replace(' ', '_')}" for a in range(N_ACTIONS) if a != ZERO_ACTION)
+#: The ``"driver"`` feature set: the paper's three, action biases, and the driver terms.
 DRIVER_FEATURES = PAPER_FEATURES + BIAS_FEATURES + (
     "ittc_C", "ittc_B", "rel_speed_C", "rel_speed_B", "abs_acc", "jerk", "keep_action")
 #: Named feature sets: ``--features paper|driver``.

@@ -110,14 +110,22 @@ def _classes(src: str, d: object) -> DriverClasses:
         raise SpecError(f"{src}: [classes] {e}") from None
 
 
+def _number(v: object) -> float:
+    """``v`` as a float; TOML strings and booleans are not numbers (TypeError)."""
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise TypeError(f"{v!r} is not a number")
+    return float(v)
+
+
 def load_result(path: str | os.PathLike) -> CalibrationResult:
     """Read a params TOML written by :func:`save_result` (or hand-written with at least
     ``model`` and ``[population]``; ``objective`` defaults to :data:`~.fit.DEFAULT_OBJECTIVE`).
 
     Raises:
         FileNotFoundError: ``path`` does not exist.
-        SpecError: not valid TOML, no or an unknown ``model``, no ``[population]`` table, or a malformed
-            ``[spread.*]``, ``[[pair]]`` or ``[classes]`` entry.
+        SpecError: not valid TOML, no or an unknown ``model``, no ``[population]`` table, a malformed
+            ``[spread.*]``, ``[[pair]]`` or ``[classes]`` entry, ``fitted`` not a list of parameter
+            names, or a non-numeric ``n_pairs``, ``population_median_rmse_m`` or ``seconds_*``.
     """
     path = Path(path)
     src = str(path)
@@ -139,24 +147,45 @@ def load_result(path: str | os.PathLike) -> CalibrationResult:
     if "population" not in data:
         raise SpecError(f"{src}: missing [population] table")
     pop = _params(src, "population", data["population"])
+    spread_tables = data.get("spread", {})
+    if not isinstance(spread_tables, dict):
+        raise SpecError(f"{src}: spread must be tables [spread.<parameter>]")
     spread = []
-    for n, s in data.get("spread", {}).items():
+    for n, s in spread_tables.items():
         try:
-            spread.append((n, ParamSpread(**{f.name: float(s[f.name]) for f in fields(ParamSpread)})))
+            spread.append((n, ParamSpread(**{f.name: _number(s[f.name]) for f in fields(ParamSpread)})))
         except (KeyError, TypeError, ValueError) as e:
             raise SpecError(f"{src}: [spread.{n}] needs numbers mean, std, median, q10, q90") from e
+    pair_tables = data.get("pair", [])
+    if not isinstance(pair_tables, list):
+        raise SpecError(f"{src}: pair must be an array of tables [[pair]]")
     pairs = []
-    for i, p in enumerate(data.get("pair", [])):
+    for i, p in enumerate(pair_tables):
         try:
-            pairs.append(PairFit(name=str(p["name"]), group=str(p["group"]), rmse_m=float(p["rmse_m"]),
+            pairs.append(PairFit(name=str(p["name"]), group=str(p["group"]), rmse_m=_number(p["rmse_m"]),
                                  params=_params(src, f"pair {i} params", p["params"])))
         except KeyError as e:
             raise SpecError(f"{src}: [[pair]] number {i + 1} misses {e}") from e
+        except (TypeError, ValueError) as e:
+            raise SpecError(f"{src}: [[pair]] number {i + 1}: rmse_m = {p.get('rmse_m')!r}; expected a number"
+                            if isinstance(p, dict) else f"{src}: [[pair]] number {i + 1} must be a table") from e
+    fitted = data.get("fitted", [])
+    if not isinstance(fitted, list) or not all(isinstance(f, str) and f in PARAM_NAMES for f in fitted):
+        raise SpecError(f"{src}: fitted = {fitted!r}; expected a list of names from {list(PARAM_NAMES)}")
+    numbers = {}
+    for key, default in (("population_median_rmse_m", float("nan")), ("seconds_population", 0.0),
+                         ("seconds_per_pair", 0.0), ("n_pairs", len(pairs))):
+        try:
+            numbers[key] = _number(data.get(key, default))
+        except (TypeError, ValueError) as e:
+            raise SpecError(f"{src}: {key} = {data[key]!r}; expected a number") from e
+    if numbers["n_pairs"] != int(numbers["n_pairs"]) or numbers["n_pairs"] < 0:
+        raise SpecError(f"{src}: n_pairs = {data['n_pairs']!r}; expected a whole number >= 0")
     return CalibrationResult(
-        model=model, fitted=tuple(data.get("fitted", ())), population=pop,
-        population_median_rmse_m=float(data.get("population_median_rmse_m", float("nan"))),
-        per_pair=tuple(pairs), spread=tuple(spread), n_pairs=int(data.get("n_pairs", len(pairs))),
-        seconds_population=float(data.get("seconds_population", 0.0)),
-        seconds_per_pair=float(data.get("seconds_per_pair", 0.0)), objective=objective,
+        model=model, fitted=tuple(fitted), population=pop,
+        population_median_rmse_m=numbers["population_median_rmse_m"],
+        per_pair=tuple(pairs), spread=tuple(spread), n_pairs=int(numbers["n_pairs"]),
+        seconds_population=numbers["seconds_population"],
+        seconds_per_pair=numbers["seconds_per_pair"], objective=objective,
         classes=_classes(src, data["classes"]) if "classes" in data else None,
     )

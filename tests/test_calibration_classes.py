@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from scenarios.calibration import CFParams, evaluate, fit_population, load_pairs, load_result, save_result
-from scenarios.calibration.classes import DriverClasses, fit_classes, initial_time_headway
+from scenarios.calibration.class_fit import fit_classes
+from scenarios.calibration.classes import DriverClasses, initial_time_headway
 from scenarios.calibration.fit import CalibrationResult
 from scenarios.calibration.models import simulate_follower
 from scenarios.calibration.pairs import CarFollowingPair

@@ -10,7 +10,7 @@ ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("sim", "irl", "scenarios", "analysis")
 SUMO = ("libsumo", "traci", "sumolib")
 #: the bottom-layer modules of irl that scenarios may use (they import nothing of ours)
-IRL_LEAVES = ("irl.units", "irl.atomic")
+IRL_LEAVES = ("irl.units", "irl.atomic", "irl.spawn_guard")
 
 
 def _module_name(path: Path) -> str:

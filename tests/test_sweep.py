@@ -85,6 +85,29 @@ def test_errors_and_crashes_are_retried_and_reported(tmp_path):
     assert all(f"draw-{i}" in report.results for i in range(3))
 
 
+def test_unguarded_script_reports_the_main_guard(tmp_path):
+    """A script that runs a process sweep at module level: each worker re-imports it and stops at
+    run_sweep (instead of starting a sweep of its own); the failures name the missing guard."""
+    imports = tmp_path / "imports"
+    script = tmp_path / "unguarded.py"
+    script.write_text(textwrap.dedent(f"""
+        import sys
+        sys.path.insert(0, {str(TESTS_DIR)!r})
+        with open({str(imports)!r}, "a") as f:
+            f.write("x")
+        from analysis.sweep import Task, run_sweep
+        from sweep_tasks import DrawConfig, draw
+        report = run_sweep([Task("a", draw, DrawConfig(n=3))], seed=0, executor="process:1", progress=False)
+        print(report.failures[0].error)
+    """))
+    out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=240, cwd=tmp_path)
+    assert out.returncode == 0, out.stderr
+    assert 'if __name__ == "__main__":' in out.stdout  # the failure says what to change
+    assert "a sweep was started while a worker process imported the main script" in out.stderr  # the workers'
+    # the script, the pool's worker (a pool-wide crash is not counted), then the task alone and its retry
+    assert len(imports.read_text()) == 4
+
+
 def test_killed_sweep_resumes_to_the_same_results(tmp_path):
     store_dir = tmp_path / "store"
     marker = tmp_path / "markers"

@@ -103,7 +103,7 @@ def run_fit(args: argparse.Namespace) -> int:
     from analysis.calibration_sweep import calibrate_parallel
     from irl.run_folder import check_writable
     from scenarios.calibration import save_result
-    from scenarios.calibration.classes import MIN_CLASS_PAIRS, fit_classes
+    from scenarios.calibration.class_fit import MIN_CLASS_PAIRS, fit_classes
     from scenarios.calibration.fit import DEFAULT_OBJECTIVE
     from scenarios.calibration.models import CALIBRATION_MODELS, MODELS
     from scenarios.calibration.pairs import pair_files

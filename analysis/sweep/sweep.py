@@ -19,6 +19,7 @@ from analysis.sweep.executors import ExecutorSpec, parse_executor
 from analysis.sweep.seeds import derive_seed
 from analysis.sweep.store import ResultStore, task_digest
 from analysis.sweep.worker import call_task, die_with_parent
+from irl.spawn_guard import GUARD_HINT, importing_main_in_worker
 
 
 @dataclass(frozen=True)
@@ -116,7 +117,11 @@ def run_sweep(
 
     Raises:
         ValueError: two tasks share a key.
+        RuntimeError: called while a worker process imports the main script (no ``__main__``
+            guard); the worker stops there instead of starting a sweep of its own.
     """
+    if importing_main_in_worker():
+        raise RuntimeError(f"a sweep was started while a worker process imported the main script: {GUARD_HINT}")
     spec = parse_executor(executor) if isinstance(executor, str) else executor
     if store is not None and not isinstance(store, ResultStore):
         store = ResultStore(store)
@@ -192,7 +197,8 @@ def _run_serial(todo: Sequence[_Pending], finish) -> None:
 
 
 def _crash_record(e: BaseException) -> dict:
-    return {"ok": False, "error": f"worker process died ({type(e).__name__}: {e})", "wall_time_s": 0.0}
+    return {"ok": False, "error": f"worker process died ({type(e).__name__}: {e}; if it ran from a script: "
+                                  f"{GUARD_HINT})", "wall_time_s": 0.0}
 
 
 #: Thread-pool sizes of the numerical libraries, fixed to 1 in process-pool workers (as Dask's

@@ -15,7 +15,8 @@ replica), :mod:`.objective` (spacing error), :mod:`.fit` (fits),
 per class of the initial time headway).
 """
 
-from scenarios.calibration.classes import DriverClasses, fit_classes
+from scenarios.calibration.class_fit import fit_classes
+from scenarios.calibration.classes import DriverClasses
 from scenarios.calibration.evaluate import Evaluation, PairScore, evaluate
 from scenarios.calibration.fit import (
     BOUNDS, FITTED, CalibrationResult, PairFit, ParamSpread, calibrate, fit_per_pair, fit_population,

@@ -22,18 +22,15 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.optimize import least_squares
 
+from scenarios.calibration.classes import DriverClasses
 from scenarios.calibration.models import CALIBRATION_MODELS, MODELS, SUMO_DEFAULTS, CFParams
 from scenarios.calibration.objective import spacing_errors, spacing_rmse
 from scenarios.calibration.pairs import CarFollowingPair, PairBatch
 from scenarios.errors import SpecError
-
-if TYPE_CHECKING:  # classes.py fits through this module
-    from scenarios.calibration.classes import DriverClasses
 
 #: Parameters fitted by default, and their bounds (SI units). The bounds keep the values
 #: physical for passenger cars in freeway traffic (ranges reported for IDM calibrations on

@@ -36,6 +36,7 @@ from dataclasses import replace
 import numpy as np
 from scipy.optimize import minimize
 
+from irl.spawn_guard import GUARD_HINT, importing_main_in_worker
 from scenarios.calibration.fit import (
     CONGESTED_GUESS, DEFAULT_OBJECTIVE, FITTED, OBJECTIVES, CalibrationResult, bounds_of, check_fitted,
 )
@@ -110,13 +111,11 @@ class SumoRmse:
     """
 
     def __init__(self, pairs: Sequence[CarFollowingPair], model: str, workers: int | None = None) -> None:
-        # multiprocessing marks a spawned process as "inheriting" while it re-imports __main__
-        # (the same flag behind its own "bootstrapping phase" error, which here leaves the
-        # child waiting on its pool's threads and the parent waiting on the child).
-        if getattr(multiprocessing.current_process(), "_inheriting", False):
+        # otherwise the worker would start workers of its own (multiprocessing's bootstrapping
+        # error then leaves it waiting on its pool's threads, and the parent waiting on it)
+        if importing_main_in_worker():
             raise ScenarioError(
-                "the SUMO calibration was started while a worker process imported the main script: "
-                "put the script's calls under `if __name__ == \"__main__\":` (the workers re-import it)")
+                f"the SUMO calibration was started while a worker process imported the main script: {GUARD_HINT}")
         if model not in CALIBRATION_MODELS:
             raise SpecError(f"model: expected one of {sorted(CALIBRATION_MODELS)}, got {model!r}")
         if not pairs:
@@ -150,8 +149,8 @@ class SumoRmse:
                 out[idx] = f.result()
         except BrokenProcessPool:
             raise ScenarioError(
-                "a SUMO worker process died before returning (see its traceback above; a script "
-                "that runs the fit must guard its calls with `if __name__ == \"__main__\":`)") from None
+                f"a SUMO worker process died before returning (see its traceback above; from a script: {GUARD_HINT})"
+            ) from None
         self.runs += len(dicts)
         return out
 

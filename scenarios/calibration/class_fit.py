@@ -1,0 +1,55 @@
+"""Fitting driver classes (:class:`~scenarios.calibration.classes.DriverClasses`): the training
+pairs cut into equally filled classes of the initial time headway, one population fit each."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from scenarios.calibration.classes import DriverClasses, initial_time_headway
+from scenarios.calibration.fit import DEFAULT_OBJECTIVE, fit_population
+from scenarios.calibration.models import MODELS
+from scenarios.calibration.pairs import CarFollowingPair
+from scenarios.errors import SpecError
+
+#: A class needs at least this many training pairs for its population fit.
+MIN_CLASS_PAIRS = 5
+
+
+def fit_classes(
+    pairs: Sequence[CarFollowingPair], n_classes: int, *, model: str = "idm", objective: str = DEFAULT_OBJECTIVE,
+) -> DriverClasses:
+    """Cut ``pairs`` into ``n_classes`` equally filled classes of :func:`initial_time_headway`
+    (edges: the keys' quantiles) and run :func:`~scenarios.calibration.fit.fit_population` on each.
+
+    Args:
+        pairs: the P training pairs.
+        n_classes: C >= 1; C = 1 is the plain population fit.
+        model: a replica model (``idm`` or ``krauss``, :data:`~scenarios.calibration.models.MODELS`).
+        objective: the population fit's objective (:data:`~scenarios.calibration.fit.OBJECTIVES`).
+
+    Returns:
+        The classes: float64[C-1] edges (s) and C parameter sets.
+
+    Raises:
+        SpecError: ``n_classes`` < 1, a model without a replica, equal quantiles (edges not
+            increasing) or a class with fewer than :data:`MIN_CLASS_PAIRS` pairs.
+    """
+    if isinstance(n_classes, bool) or not isinstance(n_classes, int) or n_classes < 1:
+        raise SpecError(f"classes: expected a whole number >= 1, got {n_classes!r}")
+    if model not in MODELS:
+        raise SpecError(f"classes: need a model with a numpy replica ({', '.join(sorted(MODELS))}), got {model!r}")
+    keys = np.array([initial_time_headway(p) for p in pairs], dtype=np.float64)
+    if len(keys) < n_classes * MIN_CLASS_PAIRS:
+        raise SpecError(f"classes: {n_classes} classes need at least {n_classes * MIN_CLASS_PAIRS} training pairs "
+                        f"({MIN_CLASS_PAIRS} per class), got {len(keys)}")
+    edges = tuple(float(e) for e in np.quantile(keys, np.linspace(0.0, 1.0, n_classes + 1)[1:-1]))
+    of = np.searchsorted(np.asarray(edges), keys, side="right")
+    counts = np.bincount(of, minlength=n_classes)
+    if len(set(edges)) < len(edges) or counts.min() < MIN_CLASS_PAIRS:
+        raise SpecError(f"classes: {n_classes} classes of the initial time headway hold {counts.tolist()} pairs; "
+                        f"each needs at least {MIN_CLASS_PAIRS} (use fewer classes)")
+    params = tuple(fit_population([p for p, k in zip(pairs, of) if k == c], model=model, objective=objective)[0]
+                   for c in range(n_classes))
+    return DriverClasses(edges_s=edges, params=params)

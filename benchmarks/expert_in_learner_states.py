@@ -1,0 +1,187 @@
+"""Diagnostic for issue 11: do the learned driver's collisions come from states the demonstrators
+never visit? DAgger with SUMO's car-following model as the expert (printed, not timed).
+
+The default learned driver (Q-Avg at gamma 0 on the driver features: a conditional logit over
+the driver-encoded states) crashes into its lead car C in states no demonstration covers (a
+closing speed of 30-50 ft/s on a nearly stopped C; docs/closed-loop.md). This script asks the
+expert in exactly those states (DAgger, Ross, Gordon & Bagnell 2011, AISTATS): the learned
+driver drives A in SUMO on training seeds; at each of its decisions SUMO's own car-following
+model of A's vehicle type is asked which speed it would drive next
+(``libsumo.vehicle.getFollowSpeed`` behind C, or on a free road without C), and that
+acceleration's action bin labels the learner's state. The logit is refitted on the
+demonstrations plus every label so far, ``--rounds`` times, and every round's driver is
+evaluated on the same episodes as the model it started from.
+
+The expert is car following only (it does not yield to the merging car B as SUMO's
+lane-change model makes the demonstrators do), so its labels also pull the held-out
+log-likelihood down; the point is the collision count. Run after
+``python -m benchmarks.closed_loop_target --episodes 2 --out runs/clt`` (which writes the
+model and the encounters)::
+
+    python -m benchmarks.expert_in_learner_states --from runs/clt
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from scipy.optimize import minimize
+
+from analysis.evaluate import evaluate
+from irl.domains.merge_actions import action_of
+from irl.domains.merge_features import feature_array
+from irl.merge_mdp import resample_encounters
+from irl.result import SavedModel
+from scenarios.loader import load_scenario
+from sim.controller import Controller
+from sim.controller_config import ControllerConfig
+from sim.hooks import FrameState, RunContext
+from sim.policy import LearnedPolicy
+from sim.run import run_scenario
+from irl.units import M_PER_FT
+
+FREE_GAP_M = 1e4  # the gap given to the expert when A has no lead car C
+
+
+class ExpertLabels:
+    """Step hook, after a :class:`sim.controller.Controller`: at each decision of a controlled
+    A, the action bin of the acceleration SUMO's car-following model of A's type would take
+    behind C, over one 0.1 s step (capped at the type's emergency deceleration).
+
+    Attributes:
+        labels: ``(driver state, expert action)`` per decision.
+    """
+
+    def __init__(self, controller: Controller):
+        self.ctl = controller
+        self.labels: list[tuple[int, int]] = []
+
+    def on_start(self, ctx: RunContext) -> None:
+        import libsumo
+
+        self._sumo = libsumo
+        self._ctx = ctx
+
+    def on_step(self, ctx: RunContext, frame: FrameState) -> None:
+        if not self.ctl.decided:
+            return
+        veh = self._sumo.vehicle
+        latest = {c.a_id: c for c in self.ctl.controls if c.a_id in self.ctl.decided}
+        for a_id, c in latest.items():
+            obs = self.ctl.last[a_id][0]
+            a_sumo = ctx.sumo_id_of(a_id)
+            if a_sumo is None or obs.state < 0:
+                continue
+            v = obs.speed_A * M_PER_FT
+            ic = self.ctl.rows.get(c.c_id) if c.c_id else None
+            if ic is None or not math.isfinite(obs.d_AC):
+                v_next = veh.getFollowSpeed(a_sumo, v, FREE_GAP_M, v, 4.5)
+            else:
+                min_gap = veh.getMinGap(a_sumo)
+                gap = max((obs.d_AC - float(frame.length[ic])) * M_PER_FT - min_gap, 0.0)
+                v_c = float(frame.speed[ic]) * M_PER_FT
+                v_next = veh.getFollowSpeed(a_sumo, v, gap, v_c, veh.getDecel(a_sumo))
+            acc = max((v_next - v) / ctx.step_length_s, -veh.getEmergencyDecel(a_sumo))
+            acc = min(acc, veh.getAccel(a_sumo))
+            self.labels.append((int(obs.state), action_of(acc / M_PER_FT)))
+
+    def on_end(self, ctx: RunContext) -> None:
+        pass
+
+
+def logit_nll(theta: np.ndarray, Fs: np.ndarray, a: np.ndarray, l2: float) -> tuple[float, np.ndarray]:
+    """Penalised negative log-likelihood of the conditional logit and its ``[K]`` gradient.
+
+    ``-sum_i log pi(a_i|s_i) + l2/2 |theta|^2`` with ``pi(a|s) ~ exp(Fs[i, a] . theta)``;
+    ``Fs [N, A, K]`` the features of each decision's state, ``a [N]`` the actions taken."""
+    n = np.arange(len(a))
+    u = Fs @ theta
+    m = u.max(1, keepdims=True)
+    lse = m[:, 0] + np.log(np.exp(u - m).sum(1))
+    p = np.exp(u - lse[:, None])
+    grad = Fs[n, a] - np.einsum("na,nak->nk", p, Fs)
+    return float(-(u[n, a] - lse).sum() + 0.5 * l2 * theta @ theta), -grad.sum(0) + l2 * theta
+
+
+def fit_logit(F: np.ndarray, s: np.ndarray, a: np.ndarray, l2: float, x0: np.ndarray | None = None) -> np.ndarray:
+    """``[K]`` weights minimising :func:`logit_nll` (L-BFGS): Q-Avg at gamma 0, whose own L2
+    convention may differ. ``F [S, A, K]`` features, ``s, a [N]`` state and action indices."""
+    x = np.zeros(F.shape[2]) if x0 is None else x0
+    return minimize(logit_nll, x, args=(F[s], a, l2), jac=True, method="L-BFGS-B").x
+
+
+def policy_of(F: np.ndarray, theta: np.ndarray, base: LearnedPolicy, name: str) -> LearnedPolicy:
+    u = F @ theta
+    u = u - u.max(1, keepdims=True)
+    return dataclasses.replace(base, log_pi=u - np.log(np.exp(u).sum(1, keepdims=True)), name=name)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--from", dest="src", required=True,
+                    help="output folder of closed_loop_target / merge-irl demo (models/qavg.json, data/)")
+    ap.add_argument("--scenario", default="synthetic", help="the scenario the model was trained on")
+    ap.add_argument("--rounds", type=int, default=2)
+    ap.add_argument("--episodes-per-round", type=int, default=15)
+    ap.add_argument("--label-seed", type=int, default=500, help="first SUMO seed of the labelling runs")
+    ap.add_argument("--eval-seeds", default="1,2000", help="first seeds of the evaluation sets (30 episodes each)")
+    ap.add_argument("--episodes", type=int, default=30)
+    ap.add_argument("--duration", type=float, default=240.0)
+    ap.add_argument("--l2", type=float, default=1.0)
+    ap.add_argument("--out", default="runs/expert-in-learner-states")
+    args = ap.parse_args(argv)
+    src = Path(args.src)
+    model = SavedModel.load(src / "models" / "qavg.json")
+    base = LearnedPolicy.from_model(model, name="qavg")
+    dt = base.decision_step_s
+    F = feature_array(tuple(model.feature_names), base.encoder, base.state_encoding, dt=dt,
+                      action_acc=base.action_acc_ft_s2)
+    train = resample_encounters(pd.read_parquet(src / "data" / "train_encounters.parquet"), base.encoder,
+                                encoding=base.state_encoding, decision_step_s=dt).demos
+    held = resample_encounters(pd.read_parquet(src / "data" / "heldout_encounters.parquet"), base.encoder,
+                               encoding=base.state_encoding, decision_step_s=dt).demos
+    s_held, a_held = np.concatenate(held.states), np.concatenate(held.actions)
+    S, A = [np.concatenate(train.states)], [np.concatenate(train.actions)]
+    theta = fit_logit(F, S[0], A[0], args.l2)
+    policies = [policy_of(F, theta, base, "logit-round0")]
+    spec = load_scenario(args.scenario)
+    for r in range(args.rounds):
+        t0 = time.perf_counter()
+        labels: list[tuple[int, int]] = []
+        for e in range(args.episodes_per_round):
+            ctl = Controller(policies[-1], ControllerConfig(decision_s=dt))
+            hook = ExpertLabels(ctl)
+            run_scenario(spec, seed=args.label_seed + 100 * r + e, duration_s=args.duration, hooks=[ctl, hook])
+            labels += hook.labels
+        lab = np.array(labels, dtype=np.int64).reshape(-1, 2)
+        S.append(lab[:, 0])
+        A.append(lab[:, 1])
+        theta = fit_logit(F, np.concatenate(S), np.concatenate(A), args.l2, theta)
+        policies.append(policy_of(F, theta, base, f"logit-round{r + 1}"))
+        print(f"round {r + 1}: {len(lab)} expert labels in the learner's states (actions "
+              f"{np.bincount(lab[:, 1], minlength=5).tolist()}), {time.perf_counter() - t0:.0f} s", flush=True)
+    print("\n| driver | " + " | ".join(f"A collisions seeds {s}+" for s in args.eval_seeds.split(","))
+          + " | pooled | held-out LL/step |")
+    print("|---|" + "---|" * (len(args.eval_seeds.split(",")) + 2))
+    for pol in policies:
+        cells, hit, n = [], 0, 0
+        for seed in (int(s) for s in args.eval_seeds.split(",")):
+            rep = evaluate([], args.scenario, args.episodes, seed, Path(args.out) / f"{pol.name}-{seed}",
+                           duration_s=args.duration, baselines=(), policies=[pol], workers=2, rrd=False,
+                           progress=False)
+            agg = rep.aggregates[pol.name]
+            cells.append(f"{agg.a_collisions}/{agg.n_controls}")
+            hit, n = hit + agg.a_collisions, n + agg.n_controls
+        ll = float(pol.log_pi[s_held, a_held].mean())
+        print(f"| {pol.name} | " + " | ".join(cells) + f" | {hit}/{n} | {ll:.3f} |", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -11,7 +11,9 @@ Pairs are converted to SI (m, m/s) on load, the units of SUMO's car-following pa
 
 from __future__ import annotations
 
+import hashlib
 import re
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -95,13 +97,44 @@ def read_pair(path: str | Path) -> CarFollowingPair:
 def load_pairs(directory: str | Path, *, limit: int | None = None) -> tuple[CarFollowingPair, ...]:
     """All pairs under ``directory`` (``*.csv`` there, or in its ``train/`` subfolder), sorted by name.
 
-    ``manifest.csv`` is skipped. ``limit`` keeps the first ``limit`` files (name order).
+    ``manifest.csv`` is skipped. ``limit`` keeps the first ``limit`` files (name order). Files that
+    are byte-identical copies of another are kept (the result does not depend on it) but named in a
+    :class:`DuplicatePairWarning`: the shared I-80 folder has 17 such copies of 302 files.
 
     Raises:
         FileNotFoundError: ``directory`` does not exist.
         SpecError: it holds no pair CSV files, or a file is not a valid pair (see :func:`read_pair`).
     """
-    return tuple(read_pair(f) for f in pair_files(directory, limit=limit))
+    files = pair_files(directory, limit=limit)
+    copies = duplicate_files(files)
+    if copies:
+        shown = "; ".join(f"{c.name} = {o.name}" for c, o in copies[:3]) + ("; ..." if len(copies) > 3 else "")
+        warnings.warn(
+            f"{directory}: {len(copies)} of {len(files)} pair files are byte-identical copies of another "
+            f"({shown}): each copy counts once more in the fits and held-out statistics; remove the copies "
+            "to count every pair once", DuplicatePairWarning, stacklevel=2)
+    return tuple(read_pair(f) for f in files)
+
+
+class DuplicatePairWarning(UserWarning):
+    """A pairs folder holds byte-identical files: the same pair would count more than once."""
+
+
+def duplicate_files(files: Sequence[Path]) -> list[tuple[Path, Path]]:
+    """``(copy, original)`` for every file whose bytes equal an earlier file's (in the order given).
+
+    Raises:
+        OSError: a file cannot be read.
+    """
+    seen: dict[bytes, Path] = {}
+    out = []
+    for f in files:
+        digest = hashlib.blake2b(Path(f).read_bytes(), digest_size=16).digest()
+        if digest in seen:
+            out.append((Path(f), seen[digest]))
+        else:
+            seen[digest] = Path(f)
+    return out
 
 
 def pair_files(directory: str | Path, *, limit: int | None = None) -> list[Path]:

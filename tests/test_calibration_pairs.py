@@ -1,0 +1,65 @@
+"""Pair files: reading, the errors a bad file gives, and byte-identical copies named in a warning."""
+
+from __future__ import annotations
+
+import shutil
+import warnings
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from scenarios.calibration import load_pairs, read_pair
+from scenarios.calibration.pairs import DuplicatePairWarning, duplicate_files, pair_files
+from scenarios.errors import SpecError
+
+
+def write_pair(path, n=50, v=30.0, gap=60.0, seed=0):
+    """A leader at constant speed ``v`` (ft/s), the follower ``gap`` ft behind with a little noise."""
+    rng = np.random.default_rng(seed)
+    t = np.round(np.arange(n) * 0.1, 1)
+    x_l = 500.0 + v * t
+    x_f = x_l - 15.0 - gap + rng.normal(0, 0.5, n)
+    pd.DataFrame({"t": t, "x_follower": x_f, "v_follower": np.full(n, v), "a_follower": 0.0, "x_leader": x_l,
+                  "v_leader": np.full(n, v), "a_leader": 0.0, "leader_length": 15.0,
+                  "spacing": x_l - x_f - 15.0, "dv": 0.0}).to_csv(path, index=False)
+    return path
+
+
+def test_pair_is_read_in_metres(tmp_path):
+    p = read_pair(write_pair(tmp_path / "ngsim_p1_runp1_f10_l9_00001.csv"))
+    assert p.group == "p1/10"
+    np.testing.assert_allclose(p.v_leader, 30.0 * 0.3048)
+    assert p.leader_length == pytest.approx(15.0 * 0.3048)
+
+
+def test_bad_pair_files_name_file_and_line(tmp_path):
+    f = write_pair(tmp_path / "a.csv")
+    df = pd.read_csv(f)
+    df.loc[7, "t"] = 0.75
+    df.to_csv(f, index=False)
+    with pytest.raises(SpecError, match=r"a\.csv: column t line 9"):
+        read_pair(f)
+    g = write_pair(tmp_path / "b.csv")
+    pd.read_csv(g).drop(columns="v_leader").to_csv(g, index=False)
+    with pytest.raises(SpecError, match=r"b\.csv: missing column\(s\) \['v_leader'\]"):
+        read_pair(g)
+
+
+def test_byte_identical_copies_are_named_and_still_loaded(tmp_path):
+    a = write_pair(tmp_path / "ngsim_p1_runp1_f10_l9_00001.csv", seed=1)
+    write_pair(tmp_path / "ngsim_p1_runp1_f11_l10_00002.csv", seed=2)
+    shutil.copy(a, tmp_path / "ngsim_p1_runp1_f10_l9_00007.csv")
+    assert [(c.name, o.name) for c, o in duplicate_files(pair_files(tmp_path))] == [
+        ("ngsim_p1_runp1_f10_l9_00007.csv", "ngsim_p1_runp1_f10_l9_00001.csv")]
+    with pytest.warns(DuplicatePairWarning, match=r"1 of 3 pair files .*f10_l9_00007\.csv = .*f10_l9_00001\.csv"):
+        pairs = load_pairs(tmp_path)
+    assert len(pairs) == 3  # the result does not change: the warning says what to do
+
+
+def test_distinct_files_give_no_warning(tmp_path):
+    write_pair(tmp_path / "x1.csv", seed=1)
+    write_pair(tmp_path / "x2.csv", seed=2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DuplicatePairWarning)
+        assert len(load_pairs(tmp_path)) == 2

@@ -76,7 +76,6 @@ class ExpertLabels:
         import libsumo
 
         self._sumo = libsumo
-        self._ctx = ctx
 
     def on_step(self, ctx: RunContext, frame: FrameState) -> None:
         if not self.ctl.decided:
@@ -90,8 +89,8 @@ class ExpertLabels:
                 continue
             v = obs.speed_A * M_PER_FT
             ic = self.ctl.rows.get(c.c_id) if c.c_id else None
-            if ic is None or not math.isfinite(obs.d_AC):
-                v_next = veh.getFollowSpeed(a_sumo, v, FREE_GAP_M, v, 4.5)
+            if ic is None or not math.isfinite(obs.d_AC):  # free road: a far leader at A's own speed
+                v_next = veh.getFollowSpeed(a_sumo, v, FREE_GAP_M, v, veh.getDecel(a_sumo))
             else:
                 min_gap = veh.getMinGap(a_sumo)
                 gap = max((obs.d_AC - float(frame.length[ic])) * M_PER_FT - min_gap, 0.0)
@@ -129,6 +128,8 @@ def fit_logit(F: np.ndarray, s: np.ndarray, a: np.ndarray, l2: float, x0: np.nda
 
 
 def policy_of(F: np.ndarray, theta: np.ndarray, base: LearnedPolicy, name: str) -> LearnedPolicy:
+    """``base`` (its bins, encoding, actions' accelerations) driving with the logit ``theta [K]``
+    on the features ``F [S, A, K]``: ``log_pi [S, A] = log softmax(F theta)``."""
     u = F @ theta
     u = u - u.max(1, keepdims=True)
     return dataclasses.replace(base, log_pi=u - np.log(np.exp(u).sum(1, keepdims=True)), name=name)

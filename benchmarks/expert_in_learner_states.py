@@ -40,7 +40,8 @@ import pandas as pd
 from scipy.optimize import minimize
 
 from analysis.evaluate import evaluate
-from analysis.commands._arg_types import positive_int
+from analysis.commands._arg_types import non_negative_int, positive_int
+from irl.boltzmann import log_policy, loglik_grad_from_counts, step_counts
 from irl.domains.merge_actions import action_of
 from irl.errors import IRLError
 from irl.domains.merge_features import feature_array
@@ -106,33 +107,28 @@ class ExpertLabels:
         pass
 
 
-def logit_nll(theta: np.ndarray, Fs: np.ndarray, a: np.ndarray, l2: float) -> tuple[float, np.ndarray]:
+def logit_nll(theta: np.ndarray, F: np.ndarray, counts: np.ndarray, l2: float) -> tuple[float, np.ndarray]:
     """Penalised negative log-likelihood of the conditional logit and its ``[K]`` gradient.
 
-    ``-sum_i log pi(a_i|s_i) + l2/2 |theta|^2`` with ``pi(a|s) ~ exp(Fs[i, a] . theta)``;
-    ``Fs [N, A, K]`` the features of each decision's state, ``a [N]`` the actions taken."""
-    n = np.arange(len(a))
-    u = Fs @ theta
-    m = u.max(1, keepdims=True)
-    lse = m[:, 0] + np.log(np.exp(u - m).sum(1))
-    p = np.exp(u - lse[:, None])
-    grad = Fs[n, a] - np.einsum("na,nak->nk", p, Fs)
-    return float(-(u[n, a] - lse).sum() + 0.5 * l2 * theta @ theta), -grad.sum(0) + l2 * theta
+    ``-sum_{s,a} counts[s, a] log pi(a|s) + l2/2 |theta|^2`` with ``pi = softmax(F theta)``, i.e.
+    the Boltzmann likelihood of :mod:`irl.boltzmann` with ``Q = F theta`` (gamma 0, beta 1);
+    ``F [S, A, K]`` features, ``counts [S, A]`` how often each (state, action) was labelled."""
+    ll, grad = loglik_grad_from_counts(F @ theta, F, 1.0, counts)
+    return -ll + 0.5 * l2 * float(theta @ theta), -grad + l2 * theta
 
 
 def fit_logit(F: np.ndarray, s: np.ndarray, a: np.ndarray, l2: float, x0: np.ndarray | None = None) -> np.ndarray:
     """``[K]`` weights minimising :func:`logit_nll` (L-BFGS): Q-Avg at gamma 0, whose own L2
     convention may differ. ``F [S, A, K]`` features, ``s, a [N]`` state and action indices."""
+    counts = step_counts(np.asarray(s), np.asarray(a), F.shape[0], F.shape[1])
     x = np.zeros(F.shape[2]) if x0 is None else x0
-    return minimize(logit_nll, x, args=(F[s], a, l2), jac=True, method="L-BFGS-B").x
+    return minimize(logit_nll, x, args=(F, counts, l2), jac=True, method="L-BFGS-B").x
 
 
 def policy_of(F: np.ndarray, theta: np.ndarray, base: LearnedPolicy, name: str) -> LearnedPolicy:
     """``base`` (its bins, encoding, actions' accelerations) driving with the logit ``theta [K]``
     on the features ``F [S, A, K]``: ``log_pi [S, A] = log softmax(F theta)``."""
-    u = F @ theta
-    u = u - u.max(1, keepdims=True)
-    return dataclasses.replace(base, log_pi=u - np.log(np.exp(u).sum(1, keepdims=True)), name=name)
+    return dataclasses.replace(base, log_pi=log_policy(F @ theta, 1.0), name=name)
 
 
 def _seeds(text: str) -> list[int]:
@@ -143,20 +139,13 @@ def _seeds(text: str) -> list[int]:
     return seeds
 
 
-def _rounds(text: str) -> int:
-    n = int(text) if text.lstrip("-").isdigit() else -1
-    if n < 0:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}")
-    return n
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--from", dest="src", required=True,
                     help="output folder of closed_loop_target / merge-irl demo (models/qavg.json, data/)")
     ap.add_argument("--scenario", default="synthetic",
                     help="the scenario the model's demonstrations came from (default synthetic)")
-    ap.add_argument("--rounds", type=_rounds, default=2, help="DAgger rounds (0: only the refitted logit)")
+    ap.add_argument("--rounds", type=non_negative_int, default=2, help="DAgger rounds (0: only the refitted logit)")
     ap.add_argument("--episodes-per-round", type=positive_int, default=15)
     ap.add_argument("--label-seed", type=int, default=500,
                     help="first SUMO seed of the labelling runs (round r, episode e: seed + r x episodes + e)")

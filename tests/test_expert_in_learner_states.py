@@ -9,6 +9,7 @@ from benchmarks.expert_in_learner_states import ExpertLabels, fit_logit, logit_n
 from irl.domains.merge_actions import N_ACTIONS, action_of
 from irl.domains.merge_bins import MergeBins
 from irl.domains.merge_states import n_states
+from irl.units import M_PER_FT
 from scenarios.loader import load_scenario
 from sim.controller import Controller
 from sim.controller_config import ControllerConfig
@@ -18,11 +19,11 @@ from sim.run import run_scenario
 
 def test_logit_gradient_matches_finite_differences():
     rng = np.random.default_rng(0)
-    Fs, a = rng.normal(size=(40, N_ACTIONS, 3)), rng.integers(0, N_ACTIONS, 40)
+    F, counts = rng.normal(size=(40, N_ACTIONS, 3)), rng.integers(0, 4, (40, N_ACTIONS)).astype(float)
     theta = rng.normal(size=3)
-    _, g = logit_nll(theta, Fs, a, 0.7)
+    _, g = logit_nll(theta, F, counts, 0.7)
     h = 1e-6
-    fd = [(logit_nll(theta + h * e, Fs, a, 0.7)[0] - logit_nll(theta - h * e, Fs, a, 0.7)[0]) / (2 * h)
+    fd = [(logit_nll(theta + h * e, F, counts, 0.7)[0] - logit_nll(theta - h * e, F, counts, 0.7)[0]) / (2 * h)
           for e in np.eye(3)]
     np.testing.assert_allclose(g, fd, rtol=1e-6, atol=1e-6)
 
@@ -70,7 +71,7 @@ def test_expert_labels_every_decision_and_brakes_for_a_driver_that_only_accelera
                 else:
                     v_next = veh.getFollowSpeed(sid, v, 1e4, v, 4.5)
                 acc = min(max((v_next - v) / ctx.step_length_s, -veh.getEmergencyDecel(sid)), veh.getAccel(sid))
-                sumo_view.append((action_of(acc / 0.3048), leader))
+                sumo_view.append((action_of(acc / M_PER_FT), leader))
 
         def on_end(self, ctx):
             pass

@@ -23,6 +23,15 @@ from scenarios.spec import (
     SimulationSpec,
     VTypeSpec,
 )
+from scenarios.spec_fields import (
+    FieldContext,
+    check_keys,
+    is_float,
+    non_negative,
+    number,
+    positive,
+    string,
+)
 
 CAR_FOLLOW_MODELS = (
     "Krauss", "KraussOrig1", "KraussPS", "KraussX", "EIDM", "IDM", "IDMM", "BKerner",
@@ -30,75 +39,6 @@ CAR_FOLLOW_MODELS = (
 )
 LANE_CHANGE_MODELS = ("LC2013", "SL2015", "DK2008")
 _PARAM_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
-_MAX_MAGNITUDE = 1e15  #: no field of a scenario is meaningful beyond this (seconds, metres, veh/h)
-
-
-class _Ctx:
-    """Builds error messages of the form ``file: field.path: problem``."""
-
-    def __init__(self, source: str):
-        self.source = source
-
-    def fail(self, path: str, msg: str) -> SpecError:
-        return SpecError(f"{self.source}: {path}: {msg}")
-
-
-def _check_keys(ctx: _Ctx, path: str, data: Any, allowed: list[str]) -> dict[str, Any]:
-    if not isinstance(data, dict):
-        raise ctx.fail(path or "<top>", f"must be a table, got {type(data).__name__}")
-    unknown = sorted(set(data) - set(allowed))
-    if unknown:
-        where = f"{path}.{unknown[0]}" if path else unknown[0]
-        raise ctx.fail(where, f"unknown key (expected one of: {', '.join(allowed)})")
-    return data
-
-
-def _num(ctx: _Ctx, path: str, v: Any, *, integer: bool = False) -> float | int:
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or (integer and not isinstance(v, int)):
-        kind = "an integer" if integer else "a number"
-        raise ctx.fail(path, f"must be {kind}, got {v!r} ({type(v).__name__})")
-    if abs(v) > _MAX_MAGNITUDE:  # also keeps huge TOML integers from overflowing float()
-        raise ctx.fail(path, f"must be at most {_MAX_MAGNITUDE:g} in magnitude, got {_short(v)}")
-    if not integer and not math.isfinite(v):
-        raise ctx.fail(path, f"must be finite, got {v!r}")
-    return int(v) if integer else float(v)
-
-
-def _is_float(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
-
-
-def _short(v: Any) -> str:
-    text = repr(v)
-    return text if len(text) <= 40 else text[:20] + "..." + text[-8:]
-
-
-def _positive(ctx: _Ctx, path: str, v: Any, *, integer: bool = False) -> float | int:
-    x = _num(ctx, path, v, integer=integer)
-    if x <= 0:
-        raise ctx.fail(path, f"must be positive, got {v!r}")
-    return x
-
-
-def _nonneg(ctx: _Ctx, path: str, v: Any) -> float:
-    x = _num(ctx, path, v)
-    if x < 0:
-        raise ctx.fail(path, f"must be >= 0, got {v!r}")
-    return x
-
-
-def _str(ctx: _Ctx, path: str, v: Any, choices: tuple[str, ...] | None = None) -> str:
-    if not isinstance(v, str):
-        raise ctx.fail(path, f"must be a string, got {v!r} ({type(v).__name__})")
-    if choices is not None and v not in choices:
-        raise ctx.fail(path, f"must be one of {', '.join(choices)}, got {v!r}")
-    return v
-
-
 #: Plausible ranges of the road's sizes and speeds (inclusive): outside them a value is a typo
 #: or a unit mix-up (a 0.1 m lane, a 1 m road), not a road SUMO should build. Lengths hold a
 #: few cars (5 m each); lanes are 2.5-5 m wide in practice; speeds up to 250 km/h.
@@ -115,35 +55,35 @@ ROAD_RANGES: dict[str, tuple[float, float, str]] = {
 }
 
 
-def _road(ctx: _Ctx, data: Any) -> RoadSpec:
+def _road(ctx: FieldContext, data: Any) -> RoadSpec:
     names = [f.name for f in fields(RoadSpec)]
-    d = _check_keys(ctx, "road", data, names)
+    d = check_keys(ctx, "road", data, names)
     kw: dict[str, Any] = {}
     for n in names:
         if n not in d:
             continue
         p = f"road.{n}"
         if n == "main_lanes":
-            kw[n] = _positive(ctx, p, d[n], integer=True)
+            kw[n] = positive(ctx, p, d[n], integer=True)
             if kw[n] > 6:
                 raise ctx.fail(p, f"must be at most 6 (I-80 numbering 1..6), got {d[n]}")
         elif n == "ramp_angle_deg":
-            kw[n] = _num(ctx, p, d[n])
+            kw[n] = number(ctx, p, d[n])
             if not 0 < kw[n] < 45:
                 raise ctx.fail(p, f"must be in (0, 45) degrees, got {d[n]!r}")
         elif n == "bottleneck_drop":
-            kw[n] = _str(ctx, p, d[n], ("right", "left"))
+            kw[n] = string(ctx, p, d[n], ("right", "left"))
         elif n == "bottleneck_lanes":  # 0 = as many as the main road
-            kw[n] = _num(ctx, p, d[n], integer=True)
+            kw[n] = number(ctx, p, d[n], integer=True)
             if not 0 <= kw[n] <= 6:
                 raise ctx.fail(p, f"must be 0 (as the main road) to 6, got {d[n]}")
         elif n.startswith("bottleneck_"):  # 0 = no bottleneck
-            kw[n] = _num(ctx, p, d[n])
+            kw[n] = number(ctx, p, d[n])
             lo, hi, unit = ROAD_RANGES[n]
             if not lo <= kw[n] <= hi:
                 raise ctx.fail(p, f"{kw[n]:g} {unit} is implausible; expected {lo:g} to {hi:g} {unit}")
         else:
-            kw[n] = _positive(ctx, p, d[n])
+            kw[n] = positive(ctx, p, d[n])
             lo, hi, unit = ROAD_RANGES.get(n, (0.0, math.inf, ""))
             if not lo <= kw[n] <= hi:
                 raise ctx.fail(p, f"{kw[n]:g} {unit} is implausible; expected {lo:g} to {hi:g} {unit}")
@@ -189,44 +129,44 @@ def _road(ctx: _Ctx, data: Any) -> RoadSpec:
     return r
 
 
-def _demand(ctx: _Ctx, data: Any, main_lanes: int) -> DemandSpec:
+def _demand(ctx: FieldContext, data: Any, main_lanes: int) -> DemandSpec:
     names = [f.name for f in fields(DemandSpec)]
-    d = _check_keys(ctx, "demand", data, names)
+    d = check_keys(ctx, "demand", data, names)
     kw: dict[str, Any] = {}
     if "main_veh_h" in d:
         v = d["main_veh_h"]
         if isinstance(v, list):
             if len(v) != main_lanes:
                 raise ctx.fail("demand.main_veh_h", f"must have one value per main lane ({main_lanes}), got {len(v)}")
-            kw["main_veh_h"] = tuple(_nonneg(ctx, f"demand.main_veh_h[{i}]", x) for i, x in enumerate(v))
+            kw["main_veh_h"] = tuple(non_negative(ctx, f"demand.main_veh_h[{i}]", x) for i, x in enumerate(v))
         else:
-            kw["main_veh_h"] = (_nonneg(ctx, "demand.main_veh_h", v),) * main_lanes
+            kw["main_veh_h"] = (non_negative(ctx, "demand.main_veh_h", v),) * main_lanes
     else:
         base = DemandSpec().main_veh_h
         kw["main_veh_h"] = tuple(base[min(i, len(base) - 1)] for i in range(main_lanes))
     if "ramp_veh_h" in d:
-        kw["ramp_veh_h"] = _nonneg(ctx, "demand.ramp_veh_h", d["ramp_veh_h"])
+        kw["ramp_veh_h"] = non_negative(ctx, "demand.ramp_veh_h", d["ramp_veh_h"])
     if "truck_share" in d:
-        kw["truck_share"] = _nonneg(ctx, "demand.truck_share", d["truck_share"])
+        kw["truck_share"] = non_negative(ctx, "demand.truck_share", d["truck_share"])
         if kw["truck_share"] > 1:
             raise ctx.fail("demand.truck_share", f"must be in [0, 1], got {d['truck_share']!r}")
     if "arrivals" in d:
-        kw["arrivals"] = _str(ctx, "demand.arrivals", d["arrivals"], ("poisson", "uniform"))
+        kw["arrivals"] = string(ctx, "demand.arrivals", d["arrivals"], ("poisson", "uniform"))
     if "depart_speed" in d:
         v = d["depart_speed"]
-        if isinstance(v, str) and _is_float(v):  # a speed written back as text by to_toml
+        if isinstance(v, str) and is_float(v):  # a speed written back as text by to_toml
             v = float(v)
         if isinstance(v, (int, float)) and not isinstance(v, bool):
-            kw["depart_speed"] = str(_nonneg(ctx, "demand.depart_speed", v))
+            kw["depart_speed"] = str(non_negative(ctx, "demand.depart_speed", v))
         else:
-            kw["depart_speed"] = _str(ctx, "demand.depart_speed", v, ("desired", "max", "avg", "speedLimit", "random", "last"))
+            kw["depart_speed"] = string(ctx, "demand.depart_speed", v, ("desired", "max", "avg", "speedLimit", "random", "last"))
     dem = DemandSpec(**kw)
     if sum(dem.main_veh_h) + dem.ramp_veh_h <= 0:
         raise ctx.fail("demand", "zero demand everywhere: main_veh_h and ramp_veh_h are all 0")
     return dem
 
 
-def _params(ctx: _Ctx, path: str, v: Any, prefix: str = "") -> tuple[tuple[str, Any], ...]:
+def _params(ctx: FieldContext, path: str, v: Any, prefix: str = "") -> tuple[tuple[str, Any], ...]:
     if not isinstance(v, dict):
         raise ctx.fail(path, f"must be a table of SUMO attributes, got {type(v).__name__}")
     out = []
@@ -241,17 +181,17 @@ def _params(ctx: _Ctx, path: str, v: Any, prefix: str = "") -> tuple[tuple[str, 
         if not isinstance(val, (int, float, str, bool)):
             raise ctx.fail(f"{path}.{k}", f"must be a number, string or boolean, got {type(val).__name__}")
         if isinstance(val, (int, float)) and not isinstance(val, bool):
-            _num(ctx, f"{path}.{k}", val)  # finite, of sane magnitude
+            number(ctx, f"{path}.{k}", val)  # finite, of sane magnitude
         out.append((k, val))
     return tuple(out)
 
 
-def _vtype(ctx: _Ctx, path: str, data: Any, cls: str) -> VTypeSpec:
+def _vtype(ctx: FieldContext, path: str, data: Any, cls: str) -> VTypeSpec:
     names = [f.name for f in fields(VTypeSpec)]
-    d = _check_keys(ctx, path, data, names)
+    d = check_keys(ctx, path, data, names)
     if "id" not in d:
         raise ctx.fail(f"{path}.id", "missing (every vType needs an id)")
-    kw: dict[str, Any] = {"id": _str(ctx, f"{path}.id", d["id"])}
+    kw: dict[str, Any] = {"id": string(ctx, f"{path}.id", d["id"])}
     if not _PARAM_NAME.match(kw["id"]):
         raise ctx.fail(f"{path}.id", f"must be letters, digits and _, got {kw['id']!r}")
     defaults = DriversSpec().truck[0] if cls == "truck" else VTypeSpec(id="car")
@@ -264,24 +204,24 @@ def _vtype(ctx: _Ctx, path: str, data: Any, cls: str) -> VTypeSpec:
             continue
         v = d[n]
         if n == "car_follow_model":
-            kw[n] = _str(ctx, p, v, CAR_FOLLOW_MODELS)
+            kw[n] = string(ctx, p, v, CAR_FOLLOW_MODELS)
         elif n == "lane_change_model":
-            kw[n] = _str(ctx, p, v, LANE_CHANGE_MODELS)
+            kw[n] = string(ctx, p, v, LANE_CHANGE_MODELS)
         elif n == "cf_params":
             kw[n] = _params(ctx, p, v)
         elif n == "lc_params":
             kw[n] = _params(ctx, p, v, prefix="lc")
         elif n in ("sigma", "speed_dev"):
-            kw[n] = _nonneg(ctx, p, v)
+            kw[n] = non_negative(ctx, p, v)
             if n == "sigma" and kw[n] > 1:
                 raise ctx.fail(p, f"must be in [0, 1], got {v!r}")
         else:
-            kw[n] = _positive(ctx, p, v)
+            kw[n] = positive(ctx, p, v)
     return VTypeSpec(**kw)
 
 
-def _drivers(ctx: _Ctx, data: Any) -> DriversSpec:
-    d = _check_keys(ctx, "drivers", data, list(VEHICLE_CLASSES))
+def _drivers(ctx: FieldContext, data: Any) -> DriversSpec:
+    d = check_keys(ctx, "drivers", data, list(VEHICLE_CLASSES))
     kw: dict[str, Any] = {}
     seen: set[str] = set()
     for cls in VEHICLE_CLASSES:
@@ -301,25 +241,25 @@ def _drivers(ctx: _Ctx, data: Any) -> DriversSpec:
     return DriversSpec(**kw)
 
 
-def _simulation(ctx: _Ctx, data: Any) -> SimulationSpec:
+def _simulation(ctx: FieldContext, data: Any) -> SimulationSpec:
     names = [f.name for f in fields(SimulationSpec)]
-    d = _check_keys(ctx, "simulation", data, names)
+    d = check_keys(ctx, "simulation", data, names)
     kw: dict[str, Any] = {}
     if "step_s" in d:
-        kw["step_s"] = _positive(ctx, "simulation.step_s", d["step_s"])
+        kw["step_s"] = positive(ctx, "simulation.step_s", d["step_s"])
         ratio = 0.1 / kw["step_s"]
         if not ratio <= 1000 or abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
             raise ctx.fail("simulation.step_s", f"must divide the 0.1 s NGSIM frame (0.1, 0.05, 0.02, ...), got {d['step_s']!r}")
     if "duration_s" in d:
-        kw["duration_s"] = _positive(ctx, "simulation.duration_s", d["duration_s"])
+        kw["duration_s"] = positive(ctx, "simulation.duration_s", d["duration_s"])
     if "warmup_s" in d:
-        kw["warmup_s"] = _nonneg(ctx, "simulation.warmup_s", d["warmup_s"])
+        kw["warmup_s"] = non_negative(ctx, "simulation.warmup_s", d["warmup_s"])
     if "seed" in d:
-        kw["seed"] = _num(ctx, "simulation.seed", d["seed"], integer=True)
+        kw["seed"] = number(ctx, "simulation.seed", d["seed"], integer=True)
         if not 0 <= kw["seed"] < 2**31:
             raise ctx.fail("simulation.seed", f"must be in [0, 2**31), got {d['seed']!r}")
     if "time_to_teleport_s" in d:
-        kw["time_to_teleport_s"] = _nonneg(ctx, "simulation.time_to_teleport_s", d["time_to_teleport_s"])
+        kw["time_to_teleport_s"] = non_negative(ctx, "simulation.time_to_teleport_s", d["time_to_teleport_s"])
     sim = SimulationSpec(**kw)
     if sim.warmup_s >= sim.duration_s:
         raise ctx.fail("simulation.warmup_s", f"must be shorter than duration_s = {sim.duration_s:g} s, got {sim.warmup_s:g}")
@@ -332,11 +272,11 @@ def spec_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> ScenarioS
     Raises:
         SpecError: a missing or invalid field (the message names it and what was expected).
     """
-    ctx = _Ctx(source)
-    d = _check_keys(ctx, "", data, ["name", "road", "demand", "drivers", "simulation"])
+    ctx = FieldContext(source)
+    d = check_keys(ctx, "", data, ["name", "road", "demand", "drivers", "simulation"])
     if "name" not in d:
         raise ctx.fail("name", "missing (the scenario needs a name)")
-    name = _str(ctx, "name", d["name"])
+    name = string(ctx, "name", d["name"])
     if not _PARAM_NAME.match(name.replace("-", "_")):
         raise ctx.fail("name", f"must be letters, digits, - and _, got {name!r}")
     road = _road(ctx, d.get("road", {}))
@@ -408,7 +348,7 @@ def with_overrides(
                             f"must be longer than the scenario's simulation.warmup_s = {warmup:g} s")
         data["simulation"]["duration_s"] = duration_s
     if demand_scale is not None:
-        k = _positive(_Ctx(source), "demand_scale", demand_scale)
+        k = positive(FieldContext(source), "demand_scale", demand_scale)
         data["demand"]["main_veh_h"] = [x * k for x in data["demand"]["main_veh_h"]]
         data["demand"]["ramp_veh_h"] = data["demand"]["ramp_veh_h"] * k
     return spec_from_dict(data, source=source)

@@ -5,19 +5,23 @@ from __future__ import annotations
 import argparse
 
 
+def _whole_number_at_least(text: str, lowest: int, wanted: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected {wanted}, got {text!r}") from None
+    if n < lowest:
+        raise argparse.ArgumentTypeError(f"expected {wanted}, got {n}")
+    return n
+
+
 def positive_int(text: str) -> int:
     """A whole number >= 1, e.g. ``--workers``.
 
     Raises:
         argparse.ArgumentTypeError: not a whole number, or below 1.
     """
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive whole number, got {text!r}") from None
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive whole number, got {n}")
-    return n
+    return _whole_number_at_least(text, 1, "a positive whole number")
 
 
 def non_negative_int(text: str) -> int:
@@ -26,10 +30,4 @@ def non_negative_int(text: str) -> int:
     Raises:
         argparse.ArgumentTypeError: not a whole number, or below 0.
     """
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}") from None
-    if n < 0:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}")
-    return n
+    return _whole_number_at_least(text, 0, "a whole number >= 0")

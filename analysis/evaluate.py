@@ -39,6 +39,7 @@ from analysis.sweep import Task, parse_executor, run_sweep
 from irl.baselines import fit_baseline
 from irl.domains.merge_actions import ACTION_ACC_FT_S2, N_ACTIONS, actions_of
 from irl.domains.merge_bins import MergeBins, fit_quantile_bins
+from irl.domains.merge_car_following import car_following_decisions
 from irl.merge_mdp import discretize, read_encounters
 from irl.result import SavedModel
 from irl.run_folder import check_writable
@@ -47,7 +48,8 @@ from scenarios.loader import load_scenario
 from sim.controller_config import ControllerConfig
 from sim.errors import SimError
 from sim.observe import MergeObservation
-from sim.policy import BaselineTabularPolicy, LearnedPolicy, Policy, PolicyError, SumoPolicy, UniformPolicy
+from sim.policy import (BaselineTabularPolicy, CarFollowingLogitPolicy, LearnedPolicy, Policy, PolicyError,
+                        SumoPolicy, UniformPolicy)
 
 #: Baselines of every evaluation (issue 11): SUMO's own driver, uniform random, and the
 #: tabular baselines fitted on the training demonstrations (:mod:`irl.baselines`).
@@ -101,6 +103,10 @@ def policy_heldout_loglik(policy: Policy, heldout: HeldOut, decision_step_s: flo
     if not policy.controls:
         return float("nan"), float("nan")
     df = heldout.encounters
+    if isinstance(policy, CarFollowingLogitPolicy):
+        dec = car_following_decisions(df, decision_step_s=policy.decision_step_s, where=heldout.source)
+        total = policy.model.loglik_of(dec)
+        return total, total / dec.n
     if isinstance(policy, LearnedPolicy):
         d = discretize(df, policy.encoder, where=heldout.source, encoding=policy.state_encoding,
                        decision_step_s=policy.decision_step_s)

@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import math
 import time
 from pathlib import Path
 
@@ -41,8 +40,8 @@ from scipy.optimize import minimize
 
 from analysis.evaluate import evaluate
 from analysis.commands._arg_types import non_negative_int, positive_int
-from irl.boltzmann import log_policy, loglik_grad_from_counts, step_counts
-from irl.domains.merge_actions import action_of
+from irl.boltzmann import log_policy, step_counts
+from irl.conditional_logit import penalised_nll
 from irl.errors import IRLError
 from irl.domains.merge_features import feature_array
 from irl.merge_mdp import resample_encounters
@@ -51,78 +50,19 @@ from scenarios.errors import ScenarioError
 from scenarios.loader import load_scenario
 from sim.controller import Controller
 from sim.controller_config import ControllerConfig
+from sim.expert_labels import ExpertLabels
 from sim.errors import SimError
-from sim.hooks import FrameState, RunContext
 from sim.policy import LearnedPolicy
 from sim.run import run_scenario
-from irl.units import M_PER_FT
-
-FREE_GAP_M = 1e4  # the gap given to the expert when A has no lead car C
-
-
-class ExpertLabels:
-    """Step hook, after a :class:`sim.controller.Controller`: at each decision of a controlled
-    A, the action bin of the acceleration SUMO's car-following model of A's type would take
-    behind C, over one 0.1 s step (capped at the type's emergency deceleration).
-
-    Attributes:
-        labels: ``(driver state, expert action)`` per decision.
-    """
-
-    def __init__(self, controller: Controller):
-        self.ctl = controller
-        self.labels: list[tuple[int, int]] = []
-
-    def on_start(self, ctx: RunContext) -> None:
-        import libsumo
-
-        self._sumo = libsumo
-
-    def on_step(self, ctx: RunContext, frame: FrameState) -> None:
-        if not self.ctl.decided:
-            return
-        veh = self._sumo.vehicle
-        latest = {c.a_id: c for c in self.ctl.controls if c.a_id in self.ctl.decided}
-        for a_id, c in latest.items():
-            obs = self.ctl.last[a_id][0]
-            a_sumo = ctx.sumo_id_of(a_id)
-            if a_sumo is None or obs.state < 0:
-                continue
-            v = obs.speed_A * M_PER_FT
-            ic = self.ctl.rows.get(c.c_id) if c.c_id else None
-            if ic is None or not math.isfinite(obs.d_AC):  # free road: a far leader at A's own speed
-                v_next = veh.getFollowSpeed(a_sumo, v, FREE_GAP_M, v, veh.getDecel(a_sumo))
-            else:
-                min_gap = veh.getMinGap(a_sumo)
-                gap = max((obs.d_AC - float(frame.length[ic])) * M_PER_FT - min_gap, 0.0)
-                v_c = float(frame.speed[ic]) * M_PER_FT
-                c_sumo = ctx.sumo_id_of(c.c_id)
-                c_decel = veh.getDecel(c_sumo) if c_sumo is not None else veh.getDecel(a_sumo)
-                v_next = veh.getFollowSpeed(a_sumo, v, gap, v_c, c_decel)
-            acc = max((v_next - v) / ctx.step_length_s, -veh.getEmergencyDecel(a_sumo))
-            acc = min(acc, veh.getAccel(a_sumo))
-            self.labels.append((int(obs.state), action_of(acc / M_PER_FT)))
-
-    def on_end(self, ctx: RunContext) -> None:
-        pass
-
-
-def logit_nll(theta: np.ndarray, F: np.ndarray, counts: np.ndarray, l2: float) -> tuple[float, np.ndarray]:
-    """Penalised negative log-likelihood of the conditional logit and its ``[K]`` gradient.
-
-    ``-sum_{s,a} counts[s, a] log pi(a|s) + l2/2 |theta|^2`` with ``pi = softmax(F theta)``, i.e.
-    the Boltzmann likelihood of :mod:`irl.boltzmann` with ``Q = F theta`` (gamma 0, beta 1);
-    ``F [S, A, K]`` features, ``counts [S, A]`` how often each (state, action) was labelled."""
-    ll, grad = loglik_grad_from_counts(F @ theta, F, 1.0, counts)
-    return -ll + 0.5 * l2 * float(theta @ theta), -grad + l2 * theta
 
 
 def fit_logit(F: np.ndarray, s: np.ndarray, a: np.ndarray, l2: float, x0: np.ndarray | None = None) -> np.ndarray:
-    """``[K]`` weights minimising :func:`logit_nll` (L-BFGS): Q-Avg at gamma 0, whose own L2
-    convention may differ. ``F [S, A, K]`` features, ``s, a [N]`` state and action indices."""
+    """``[K]`` weights minimising :func:`irl.conditional_logit.penalised_nll` over the state
+    table (L-BFGS): Q-Avg at gamma 0, whose own L2 convention may differ. ``F [S, A, K]``
+    features, ``s, a [N]`` state and action indices."""
     counts = step_counts(np.asarray(s), np.asarray(a), F.shape[0], F.shape[1])
     x = np.zeros(F.shape[2]) if x0 is None else x0
-    return minimize(logit_nll, x, args=(F, counts, l2), jac=True, method="L-BFGS-B").x
+    return minimize(penalised_nll, x, args=(F, counts, l2), jac=True, method="L-BFGS-B").x
 
 
 def policy_of(F: np.ndarray, theta: np.ndarray, base: LearnedPolicy, name: str) -> LearnedPolicy:

@@ -10,6 +10,7 @@ readers of the authors' files and of encounter tables.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import warnings
 from dataclasses import dataclass
@@ -42,10 +43,14 @@ class Discretized:
         demos: the tabular demonstrations.
         action_acc_ft_s2: ``[5]`` mean acceleration (ft/s^2) of the decisions of each action;
             the bin midpoint (``ACTION_ACC_FT_S2``) for an action that never occurs.
+        rows: ``[N]`` int64, the row position (``iloc``) in the encounter table of each
+            decision, in the order of ``demos.flat()``: the frame whose continuous variables
+            the decision's state encodes (e.g. for :mod:`irl.domains.merge_car_following`).
     """
 
     demos: Demonstrations
     action_acc_ft_s2: tuple[float, ...]
+    rows: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
 
 def action_mean_acc(acc, actions) -> tuple[float, ...]:
@@ -125,7 +130,7 @@ def resample_encounters(encounters_df, bins: MergeBins, *, where: str = "encount
     order: dict = {}
     for i, (key, r) in enumerate(zip(ids, run)):
         order.setdefault((key, r), []).append(i)
-    states, actions, all_acc, all_act, names = [], [], [], [], []
+    states, actions, all_acc, all_act, names, used = [], [], [], [], [], []
     short = []  # encounters shorter than one decision step: no decision to learn from
     for (key, _), rows in order.items():
         rows = np.asarray(rows)
@@ -136,14 +141,16 @@ def resample_encounters(encounters_df, bins: MergeBins, *, where: str = "encount
         names.append(f"encounter {key}")
         step_acc = acc[rows[: n * k]].reshape(n, k).mean(axis=1)  # [n]
         step_act = actions_of(step_acc)
-        s = paper_states[rows[: n * k: k]]
+        at = rows[: n * k: k]
+        s = paper_states[at]
         if encoding == "driver":
             if n >= 2:
-                s, prev, step_acc, step_act = s[1:], step_act[:-1], step_acc[1:], step_act[1:]
+                s, prev, step_acc, step_act, at = s[1:], step_act[:-1], step_acc[1:], step_act[1:], at[1:]
             else:
                 prev = np.array([ZERO_ACTION])
             s = s * N_ACTIONS + prev
         states.append(s.astype(np.int64))
+        used.append(at)
         actions.append(step_act)
         all_acc.append(step_acc)
         all_act.append(step_act)
@@ -155,7 +162,8 @@ def resample_encounters(encounters_df, bins: MergeBins, *, where: str = "encount
                       f"({decision_step_s} s) left out: {', '.join(short[:5])}", ShortEncounterWarning, stacklevel=2)
     demos = Demonstrations(states=tuple(states), actions=tuple(actions), features=fs.array, n_states=S,
                            n_actions=N_ACTIONS, source=where, names=tuple(names))
-    return Discretized(demos, action_mean_acc(np.concatenate(all_acc), np.concatenate(all_act)))
+    return Discretized(demos, action_mean_acc(np.concatenate(all_acc), np.concatenate(all_act)),
+                       np.concatenate(used).astype(np.int64))
 
 
 class ShortEncounterWarning(UserWarning):

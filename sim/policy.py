@@ -17,6 +17,8 @@ Policies in the same harness:
 * :class:`UniformPolicy`: uniform random over the 5 actions.
 * :class:`BaselineTabularPolicy`: ``marginal``, ``markov`` or ``bc`` fitted on the training
   demonstrations (:mod:`irl.baselines`); ``markov`` conditions on A's previous action.
+* :class:`CarFollowingLogitPolicy`: a :class:`irl.domains.merge_cf_logit.CarFollowingLogit`
+  driver on the continuous observation (A's speed, gaps, closing speeds, previous action).
 * :class:`ConstantPolicy`: always the same action (e.g. always brake hard, for tests).
 """
 
@@ -36,6 +38,7 @@ from sim.errors import SimError
 
 if TYPE_CHECKING:  # pragma: no cover
     from irl.baselines import BaselinePolicy
+    from irl.domains.merge_cf_logit import CarFollowingLogit
     from irl.result import SavedModel
     from sim.observe import MergeObservation
 
@@ -248,3 +251,30 @@ class BaselineTabularPolicy:
             return np.exp(b.log_next[obs.prev_action])
         s = obs.state if 0 <= obs.state < b.log_first.shape[0] else 0
         return np.exp(b.log_first[s])
+
+
+@dataclass(frozen=True)
+class CarFollowingLogitPolicy:
+    """A car-following logit driver (:class:`irl.domains.merge_cf_logit.CarFollowingLogit`).
+
+    ``probs`` evaluates the model's features on the observation itself (``d_AC, v_AC, d_AB,
+    v_AB`` and ``speed_A``, ft and ft/s; no bins) and A's previous action in this control
+    episode (Zero before the first decision). Actions are applied at the model's
+    ``action_acc_ft_s2``; the controller decides every ``decision_step_s``.
+    """
+
+    model: CarFollowingLogit
+    name: str = "cf-logit"
+    controls: bool = True
+
+    @property
+    def action_acc_ft_s2(self) -> tuple[float, ...]:
+        return self.model.action_acc_ft_s2
+
+    @property
+    def decision_step_s(self) -> float:
+        return self.model.decision_step_s
+
+    def probs(self, obs: MergeObservation) -> np.ndarray:
+        x = np.array([[obs.d_AC, obs.v_AC, obs.d_AB, obs.v_AB, obs.speed_A]], dtype=np.float64)
+        return np.exp(self.model.log_policy(x, np.array([obs.prev_action]))[0])

@@ -1,11 +1,11 @@
-"""benchmarks/expert_in_learner_states.py: the logit's gradient, its fit, and the SUMO expert's labels."""
+"""benchmarks/expert_in_learner_states.py's fit, and the SUMO expert's labels (sim/expert_labels.py)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from benchmarks.expert_in_learner_states import ExpertLabels, fit_logit, logit_nll
+from benchmarks.expert_in_learner_states import fit_logit
 from irl.domains.merge_actions import N_ACTIONS, action_of
 from irl.domains.merge_bins import MergeBins
 from irl.domains.merge_states import n_states
@@ -13,19 +13,9 @@ from irl.units import M_PER_FT
 from scenarios.loader import load_scenario
 from sim.controller import Controller
 from sim.controller_config import ControllerConfig
+from sim.expert_labels import ExpertLabels
 from sim.policy import LearnedPolicy
 from sim.run import run_scenario
-
-
-def test_logit_gradient_matches_finite_differences():
-    rng = np.random.default_rng(0)
-    F, counts = rng.normal(size=(40, N_ACTIONS, 3)), rng.integers(0, 4, (40, N_ACTIONS)).astype(float)
-    theta = rng.normal(size=3)
-    _, g = logit_nll(theta, F, counts, 0.7)
-    h = 1e-6
-    fd = [(logit_nll(theta + h * e, F, counts, 0.7)[0] - logit_nll(theta - h * e, F, counts, 0.7)[0]) / (2 * h)
-          for e in np.eye(3)]
-    np.testing.assert_allclose(g, fd, rtol=1e-6, atol=1e-6)
 
 
 def test_fit_logit_recovers_the_weights_of_its_own_samples():

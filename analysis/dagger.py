@@ -1,0 +1,132 @@
+"""Train a car-following logit driver on demonstrations plus SUMO-expert labels in the
+safety-critical states the learned driver reaches (DAgger restricted to critical labels).
+
+Round 0 fits :class:`irl.domains.merge_cf_logit.CarFollowingLogit` on the training
+encounters. Each round then lets the latest driver drive the lag cars A of
+``episodes_per_round`` SUMO runs of the scenario (seeds disjoint from any evaluation), asks
+SUMO's car-following model of A's type for its action at every decision
+(:class:`sim.expert_labels.ExpertLabels`) and keeps the labels whose expert action is in
+``critical_actions`` (default High Brake only): the states the demonstrations never cover,
+where the driver closes in on a stopping lead car. The logit is refitted on the
+demonstrations plus every kept label so far. Keeping only critical labels leaves the
+demonstrations in charge elsewhere, so the held-out likelihood stays near round 0's; keeping
+every label (``critical_actions`` all five) swamps them with the expert's car following, which
+does not yield to the merging car as the demonstrators do (docs/closed-loop.md).
+
+DAgger: Ross, Gordon & Bagnell (2011), AISTATS. The expert must be queryable in the learner's
+states: here SUMO's own driver model, the model the synthetic demonstrators drive with; real
+(NGSIM) demonstrations have no such expert.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from irl.domains.merge_actions import N_ACTIONS
+from irl.domains.merge_car_following import CFDecisions, car_following_decisions
+from irl.domains.merge_cf_logit import CarFollowingLogit
+from irl.errors import ConfigError
+from scenarios.loader import load_scenario
+from sim.controller import Controller
+from sim.controller_config import ControllerConfig
+from sim.expert_labels import ExpertLabels
+from sim.policy import CarFollowingLogitPolicy
+from sim.run import run_scenario
+
+
+@dataclass(frozen=True)
+class DaggerConfig:
+    """Settings of :func:`train_cf_driver`.
+
+    Attributes:
+        rounds: DAgger rounds (0: the logit on the demonstrations alone).
+        episodes_per_round: SUMO runs the driver drives per round.
+        label_seed: SUMO seed of round ``r``'s episode ``e``: ``label_seed + r x episodes_per_round + e``.
+        duration_s: seconds per labelling run.
+        l2: L2 penalty of every fit.
+        critical_actions: expert actions whose labels are kept (0 = High Brake ... 4 = High Accel).
+        decision_step_s: seconds per decision (demonstrations resampled so; the controller decides so).
+    """
+
+    rounds: int = 4
+    episodes_per_round: int = 15
+    label_seed: int = 500
+    duration_s: float = 240.0
+    l2: float = 0.1
+    critical_actions: tuple[int, ...] = (0,)
+    decision_step_s: float = 0.3
+
+    def __post_init__(self) -> None:
+        if self.rounds < 0 or self.episodes_per_round < 1:
+            raise ConfigError(f"DaggerConfig: rounds >= 0 and episodes_per_round >= 1, got {self.rounds}, "
+                              f"{self.episodes_per_round}")
+        if not self.duration_s > 0 or not self.l2 >= 0:
+            raise ConfigError(f"DaggerConfig: duration_s > 0 and l2 >= 0, got {self.duration_s}, {self.l2}")
+        if not self.critical_actions or any(not 0 <= a < N_ACTIONS for a in self.critical_actions):
+            raise ConfigError(f"DaggerConfig: critical_actions must be actions 0..{N_ACTIONS - 1}, "
+                              f"got {self.critical_actions}")
+
+    def label_seeds(self) -> range:
+        """Every labelling run's seed (to keep them apart from evaluation seeds)."""
+        return range(self.label_seed, self.label_seed + self.rounds * self.episodes_per_round)
+
+
+def labels_as_decisions(table: pd.DataFrame, demos: CFDecisions) -> CFDecisions:
+    """Expert label records (:meth:`sim.expert_labels.ExpertLabels.table`) as decisions with
+    the demonstrations' action accelerations and step."""
+    obs = table[["d_AC", "v_AC", "d_AB", "v_AB", "v_A"]].to_numpy(dtype=np.float64).reshape(-1, 5)
+    return CFDecisions(obs, table["prev"].to_numpy(dtype=np.int64), table["action"].to_numpy(dtype=np.int64),
+                       demos.action_acc_ft_s2, demos.decision_step_s)
+
+
+def train_cf_driver(train_encounters: pd.DataFrame, scenario, config: DaggerConfig = DaggerConfig(), *,
+                    progress: bool = True) -> list[CarFollowingLogit]:
+    """The driver of every round, round 0 first (module docstring); the last is the result.
+
+    Args:
+        train_encounters: encounter table with a ``v_A`` column (the demonstrations).
+        scenario: preset name, TOML path or ScenarioSpec of the labelling runs (the one the
+            demonstrations came from).
+        config: :class:`DaggerConfig`.
+        progress: print one line per round to stderr.
+
+    Raises:
+        DemonstrationError: the encounters cannot be resampled or lack ``v_A``.
+        ScenarioError / SimError: the scenario cannot be loaded or run.
+    """
+    spec = load_scenario(scenario) if not hasattr(scenario, "simulation") else scenario
+    demos = car_following_decisions(train_encounters, decision_step_s=config.decision_step_s,
+                                    where="training encounters")
+    models = [CarFollowingLogit.fit(demos, l2=config.l2, info={"dagger_round": 0, "labels_per_round": []})]
+    kept: list[pd.DataFrame] = []
+    per_round: list[int] = []
+    seeds = iter(config.label_seeds())
+    for r in range(config.rounds):
+        t0 = time.perf_counter()
+        policy = CarFollowingLogitPolicy(models[-1], name=f"cf-logit-round{r}")
+        tables = []
+        for _ in range(config.episodes_per_round):
+            ctl = Controller(policy, ControllerConfig(decision_s=config.decision_step_s))
+            hook = ExpertLabels(ctl)
+            run_scenario(spec, seed=next(seeds), duration_s=config.duration_s, hooks=[ctl, hook])
+            tables.append(hook.table())
+        table = pd.concat(tables, ignore_index=True)
+        critical = table[table["action"].isin(config.critical_actions)]
+        kept.append(critical)
+        per_round.append(len(critical))
+        labels = labels_as_decisions(pd.concat(kept, ignore_index=True), demos)
+        models.append(CarFollowingLogit.fit(
+            demos, l2=config.l2, labels=labels,
+            info={"dagger_round": r + 1, "labels_per_round": list(per_round),
+                  "critical_actions": list(config.critical_actions), "label_seed": config.label_seed,
+                  "episodes_per_round": config.episodes_per_round}))
+        if progress:
+            print(f"DAgger round {r + 1}/{config.rounds}: {len(table)} decisions, {len(critical)} critical labels "
+                  f"kept, training LL/step {models[-1].loglik / demos.n:.3f}, {time.perf_counter() - t0:.0f} s",
+                  file=sys.stderr, flush=True)
+    return models

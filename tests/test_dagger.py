@@ -1,0 +1,86 @@
+"""DAgger for the car-following logit (analysis/dagger.py) and the SUMO expert's records
+(sim/expert_labels.py), with SUMO run for real."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from analysis.dagger import DaggerConfig, labels_as_decisions, train_cf_driver
+from irl.domains.merge_car_following import CF_FEATURES, car_following_decisions
+from irl.domains.merge_cf_logit import CarFollowingLogit
+from irl.errors import ConfigError
+from scenarios.loader import load_scenario
+from sim.controller import Controller
+from sim.controller_config import ControllerConfig
+from sim.expert_labels import ExpertLabels
+from sim.policy import CarFollowingLogitPolicy
+from sim.run import run_scenario
+
+ACC = (-12.3, -4.0, 0.0, 3.0, 8.0)
+
+
+def _gas_driver() -> CarFollowingLogit:
+    """Takes High Accel (almost) always."""
+    theta = np.zeros(len(CF_FEATURES))
+    theta[CF_FEATURES.index("bias_high_accel")] = 20.0
+    return CarFollowingLogit(theta, ACC, 0.3)
+
+
+def _accelerating_demos(n=6, rows=60, seed=0) -> pd.DataFrame:
+    """Demonstrators who always take High Accel: their driver never learns to brake by itself."""
+    rng = np.random.default_rng(seed)
+    return pd.DataFrame({
+        "encounter_id": np.repeat(np.arange(n) + 1, rows), "d_AC": rng.uniform(40, 300, n * rows),
+        "v_AC": rng.normal(0, 5, n * rows), "d_AB": rng.uniform(-50, 100, n * rows),
+        "v_AB": rng.normal(0, 5, n * rows), "B_is_truck": False, "acc_A": 9.0, "v_A": rng.uniform(20, 80, n * rows),
+    })
+
+
+@pytest.mark.sumo
+def test_expert_records_are_the_decisions_observations():
+    ctl = Controller(CarFollowingLogitPolicy(_gas_driver()), ControllerConfig(decision_s=0.3))
+    hook = ExpertLabels(ctl)
+    run_scenario(load_scenario("synthetic"), seed=3, duration_s=120, hooks=[ctl, hook])
+    dec, rec = ctl.decision_table(), hook.table()
+    assert len(dec) > 50 and len(rec) == len(dec)
+    for col, other in (("d_AC", "d_AC"), ("v_AC", "v_AC"), ("d_AB", "d_AB"), ("v_AB", "v_AB"), ("v_A", "speed_A")):
+        np.testing.assert_array_equal(rec[col].to_numpy(), dec[other].to_numpy())
+    # prev: A's action at its previous decision in the same control episode (A, B), -1 at its first
+    expected = dec.groupby(["a_id", "b_id"], sort=False)["action"].shift(1).fillna(-1).astype(int).to_numpy()
+    np.testing.assert_array_equal(rec["prev"].to_numpy(), expected)
+    assert (rec["action"] == 0).any(), "the expert never brakes hard behind a car A runs into"
+    assert (rec["state"] == -1).all()  # the car-following policy has no state encoder
+
+
+@pytest.mark.sumo
+def test_one_round_adds_only_critical_labels_and_teaches_braking():
+    demos = _accelerating_demos()
+    cfg = DaggerConfig(rounds=1, episodes_per_round=1, duration_s=150.0, label_seed=11)
+    r0, r1 = train_cf_driver(demos, "synthetic", cfg, progress=False)
+    assert r0.info["dagger_round"] == 0 and r0.info["n_label_steps"] == 0
+    kept = r1.info["labels_per_round"]
+    assert r1.info["dagger_round"] == 1 and len(kept) == 1 and kept[0] > 0
+    assert r1.info["n_label_steps"] == kept[0] and r1.info["critical_actions"] == [0]
+    # the same labelling run by hand: the kept labels are exactly its High Brake records
+    ctl = Controller(CarFollowingLogitPolicy(r0), ControllerConfig(decision_s=0.3))
+    hook = ExpertLabels(ctl)
+    run_scenario(load_scenario("synthetic"), seed=11, duration_s=150.0, hooks=[ctl, hook])
+    table = hook.table()
+    assert int((table["action"] == 0).sum()) == kept[0] < len(table)
+    dec = car_following_decisions(demos)
+    by_hand = CarFollowingLogit.fit(dec, l2=cfg.l2, labels=labels_as_decisions(table[table["action"] == 0], dec))
+    np.testing.assert_allclose(by_hand.theta, r1.theta)
+    # where the demonstrators never braked, the round-1 driver brakes hard on a close, closing C
+    close = np.array([[30.0, 25.0, -40.0, 0.0, 60.0]])
+    p0, p1 = (np.exp(m.log_policy(close, np.array([4])))[0, 0] for m in (r0, r1))
+    assert p1 > p0 + 0.2
+
+
+def test_config_is_checked():
+    for kw in ({"rounds": -1}, {"episodes_per_round": 0}, {"duration_s": 0.0}, {"l2": -1.0},
+               {"critical_actions": ()}, {"critical_actions": (5,)}):
+        with pytest.raises(ConfigError):
+            DaggerConfig(**kw)
+    assert list(DaggerConfig(rounds=2, episodes_per_round=3, label_seed=10).label_seeds()) == list(range(10, 16))

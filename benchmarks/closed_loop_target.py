@@ -14,9 +14,14 @@ evaluation episodes. Printed:
 * per policy: the A collisions by kind (who hit whom, ``sim.control_records.COLLISION_KINDS``);
 * the safety-filter variant of the default learned driver (``--safety-ttc``, same episodes):
   its collisions and how often the filter replaced the driver's action;
+* the car-following logit driver trained with DAgger on critical labels
+  (:mod:`analysis.dagger`, ``--cf-rounds``, default 4; 0: not run) as the row ``cf-dagger``
+  (and its round-0 fit on the demonstrations alone as ``cf-logit``), evaluated on the same
+  episodes with the same held-out demonstrations;
 * the target checks for the default learned driver (``--driver``, default the first
-  method): 0 collisions by controlled cars with the 95 % upper bound, held-out LL per step
-  above ``marginal`` and ``bc``, W1 of speed and of d_AC within 1.5x the SUMO floor.
+  method) and for ``cf-dagger``: 0 collisions by controlled cars with the 95 % upper bound,
+  held-out LL per step above ``marginal`` and ``bc``, W1 of speed and of d_AC within 1.5x the
+  SUMO floor.
 
 Run: ``python -m benchmarks.closed_loop_target [--episodes 30] [--methods qavg]`` (MLIRL took over 5 min
 at the driver encoding's 6250 states with the dense transition model: add it once it is sparse).
@@ -31,15 +36,34 @@ from pathlib import Path
 
 import pandas as pd
 
+from analysis.commands._arg_types import non_negative_int, positive_int
+from analysis.dagger import DaggerConfig, train_cf_driver
 from analysis.demo_signal import bin_change_rate, braking_cap_share
 from analysis.evaluate import evaluate
 from analysis.pipeline import DemoConfig, run_demo
 from sim.control_records import COLLISION_KINDS
 from sim.controller_config import ControllerConfig
+from sim.policy import CarFollowingLogitPolicy
 
 
 def _f(x: float, nd: int = 3) -> str:
     return "-" if x is None or not math.isfinite(x) else f"{x:.{nd}f}"
+
+
+def target_checks(name: str, aggs: dict) -> list[tuple[str, bool]]:
+    """Issue 11's closed-loop targets for the driver ``name``: ``(text, met)`` pairs."""
+    d, sumo = aggs[name], aggs["sumo"]
+    marginal, bc = aggs["marginal"].heldout_loglik_per_step, aggs["bc"].heldout_loglik_per_step
+    return [
+        (f"{name}: 0 collisions by controlled cars ({d.a_collisions}/{d.n_controls}, 95 % upper bound "
+         f"{_f(d.a_collision_ci95[1])})", d.a_collisions == 0),
+        (f"{name}: held-out LL/step {_f(d.heldout_loglik_per_step)} > marginal {_f(marginal)} and bc {_f(bc)}",
+         d.heldout_loglik_per_step > max(marginal, bc)),
+        (f"{name}: W1 speed {_f(d.w1_speed_A_ft_s, 2)} <= 1.5 x SUMO {_f(sumo.w1_speed_A_ft_s, 2)}",
+         d.w1_speed_A_ft_s <= 1.5 * sumo.w1_speed_A_ft_s),
+        (f"{name}: W1 d_AC {_f(d.w1_d_AC_ft, 1)} <= 1.5 x SUMO {_f(sumo.w1_d_AC_ft, 1)}",
+         d.w1_d_AC_ft <= 1.5 * sumo.w1_d_AC_ft),
+    ]
 
 
 def main(argv=None) -> int:
@@ -47,6 +71,8 @@ def main(argv=None) -> int:
     ap.add_argument("--scenario", default="synthetic")
     ap.add_argument("--episodes", type=int, default=30)
     ap.add_argument("--train-seeds", default="101,102,103")
+    ap.add_argument("--eval-seed", type=int, default=DemoConfig.eval_seed,
+                    help="first SUMO seed of the evaluation episodes (seeds eval-seed .. eval-seed + episodes - 1)")
     ap.add_argument("--methods", default="qavg")
     ap.add_argument("--driver", default=None, help="the learned driver the targets are checked on (default: first method)")
     ap.add_argument("--eval-duration", type=float, default=240.0)
@@ -54,12 +80,21 @@ def main(argv=None) -> int:
     ap.add_argument("--gamma", type=float, default=DemoConfig.gamma, help="discount of the IRL fits")
     ap.add_argument("--safety-ttc", type=float, default=2.0,
                     help="TTC (s) of the safety-filter variant of the default driver (0: not run)")
+    ap.add_argument("--cf-rounds", type=non_negative_int, default=DaggerConfig.rounds,
+                    help="DAgger rounds of the car-following logit driver (0: neither cf row is run)")
+    ap.add_argument("--cf-episodes-per-round", type=positive_int, default=DaggerConfig.episodes_per_round)
+    ap.add_argument("--cf-label-seed", type=int, default=DaggerConfig.label_seed,
+                    help="first SUMO seed of the DAgger labelling runs (must not overlap the evaluation seeds)")
     ap.add_argument("--out", default="runs/closed-loop-target")
     args = ap.parse_args(argv)
+    dagger = DaggerConfig(rounds=args.cf_rounds, episodes_per_round=args.cf_episodes_per_round,
+                          label_seed=args.cf_label_seed, duration_s=args.eval_duration)
+    if set(dagger.label_seeds()) & set(range(args.eval_seed, args.eval_seed + args.episodes)):
+        ap.error(f"--cf-label-seed: the labelling seeds {dagger.label_seeds()} overlap the evaluation seeds")
     methods = tuple(m for m in args.methods.split(",") if m)
     cfg = DemoConfig(scenario=args.scenario, train_seeds=tuple(int(s) for s in args.train_seeds.split(",")),
                      eval_episodes=args.episodes, eval_duration_s=args.eval_duration, methods=methods,
-                     workers=args.workers, gamma=args.gamma)
+                     workers=args.workers, gamma=args.gamma, eval_seed=args.eval_seed)
     t0 = time.perf_counter()
     res = run_demo(args.out, cfg, quiet=True, progress=False)
     wall = time.perf_counter() - t0
@@ -70,7 +105,24 @@ def main(argv=None) -> int:
     print(f"demonstrators: action bin changes in {100 * bin_change_rate(train, 1):.1f} % of successive 0.1 s frames, "
           f"{100 * bin_change_rate(train, 3):.1f} % at 0.3 s (NGSIM humans: 26 % of frames); "
           f"{100 * braking_cap_share(train):.1f} % of frames at or below -12 ft/s^2")
-    aggs = res.evaluation.aggregates
+    aggs = dict(res.evaluation.aggregates)
+    episodes = dict(res.evaluation.episodes)
+    if args.cf_rounds > 0:
+        t1 = time.perf_counter()
+        cf = train_cf_driver(train, args.scenario, dagger, progress=True)
+        cf[0].save(Path(args.out) / "models" / "cf_logit.json")
+        cf[-1].save(Path(args.out) / "models" / "cf_dagger.json")
+        held = Path(args.out) / "data" / "heldout_encounters.parquet"
+        rep = evaluate([], args.scenario, args.episodes, cfg.eval_seed, Path(args.out) / "evaluation-cf",
+                       duration_s=args.eval_duration, demos=held, baselines=(),
+                       policies=[CarFollowingLogitPolicy(cf[0], name="cf-logit"),
+                                 CarFollowingLogitPolicy(cf[-1], name="cf-dagger")],
+                       workers=args.workers, rrd=False, progress=False)
+        aggs.update(rep.aggregates)
+        episodes.update(rep.episodes)
+        print(f"car-following logit: {args.cf_rounds} DAgger rounds of {args.cf_episodes_per_round} runs, "
+              f"critical labels kept per round {cf[-1].info['labels_per_round']}; training and evaluation "
+              f"{time.perf_counter() - t1:.0f} s")
     sumo = aggs["sumo"]
     print()
     print("| policy | A collisions / As | 95 % CI | W1 speed (ft/s) | x SUMO | W1 d_AC (ft) | x SUMO | W1 acc | W1 TTC "
@@ -84,12 +136,11 @@ def main(argv=None) -> int:
               f"| {_f(a.heldout_loglik_per_step)} | {_f(a.travel_time_s[0], 1)} | {', '.join(a.flags)} |")
     print()
     print("A collisions by kind: | policy | " + " | ".join(COLLISION_KINDS) + " |")
-    for name, eps in res.evaluation.episodes.items():
+    for name, eps in episodes.items():
         ctl = pd.concat([e.controls for e in eps], ignore_index=True)
         kinds = ctl.loc[ctl["reason"] == "collision", "collision_kind"].value_counts()
         print(f"| {name} | " + " | ".join(str(int(kinds.get(k, 0))) for k in COLLISION_KINDS) + " |")
     driver = args.driver or next(iter(res.models))
-    d = aggs[driver]
     if args.safety_ttc > 0:
         safe = evaluate([res.models[driver]], args.scenario, args.episodes, cfg.eval_seed,
                         Path(args.out) / f"evaluation-safety-{args.safety_ttc:g}s", duration_s=args.eval_duration,
@@ -101,20 +152,10 @@ def main(argv=None) -> int:
               f"A collisions {s.a_collisions}/{s.n_controls} [{_f(lo)}, {_f(hi)}], filter replaced "
               f"{s.safety_interventions} of {s.n_decisions} actions "
               f"({_f(100 * s.safety_interventions / max(s.n_decisions, 1), 2)} %)")
-    checks = [
-        (f"{driver}: 0 collisions by controlled cars (95 % upper bound {_f(d.a_collision_ci95[1])})",
-         d.a_collisions == 0),
-        (f"{driver}: held-out LL/step {_f(d.heldout_loglik_per_step)} > marginal {_f(aggs['marginal'].heldout_loglik_per_step)}"
-         f" and bc {_f(aggs['bc'].heldout_loglik_per_step)}",
-         d.heldout_loglik_per_step > max(aggs["marginal"].heldout_loglik_per_step, aggs["bc"].heldout_loglik_per_step)),
-        (f"{driver}: W1 speed {_f(d.w1_speed_A_ft_s, 2)} <= 1.5 x SUMO {_f(sumo.w1_speed_A_ft_s, 2)}",
-         d.w1_speed_A_ft_s <= 1.5 * sumo.w1_speed_A_ft_s),
-        (f"{driver}: W1 d_AC {_f(d.w1_d_AC_ft, 1)} <= 1.5 x SUMO {_f(sumo.w1_d_AC_ft, 1)}",
-         d.w1_d_AC_ft <= 1.5 * sumo.w1_d_AC_ft),
-    ]
     print()
-    for text, ok in checks:
-        print(f"  {'met    ' if ok else 'NOT MET'}  {text}")
+    for name in [driver] + (["cf-dagger"] if args.cf_rounds > 0 else []):
+        for text, ok in target_checks(name, aggs):
+            print(f"  {'met    ' if ok else 'NOT MET'}  {text}")
     print(f"\nreport: {res.evaluation.report_md}")
     return 0
 

@@ -40,6 +40,7 @@ from irl.baselines import fit_baseline
 from irl.domains.merge_actions import ACTION_ACC_FT_S2, N_ACTIONS, actions_of
 from irl.domains.merge_bins import MergeBins, fit_quantile_bins
 from irl.domains.merge_car_following import car_following_decisions
+from irl.domains.merge_cf_logit import CarFollowingLogit
 from irl.merge_mdp import discretize, read_encounters
 from irl.result import SavedModel
 from irl.run_folder import check_writable
@@ -165,6 +166,16 @@ def learned_policy(model: SavedModel | str | os.PathLike, name: str = "") -> Lea
         raise type(e)(f"{where}: {e}") from None
 
 
+def cf_policy(path: str | os.PathLike, name: str = "") -> CarFollowingLogitPolicy:
+    """A :class:`~sim.policy.CarFollowingLogitPolicy` from a ``cf_model.json`` (``merge-irl
+    dagger``), named ``name`` or the file's stem.
+
+    Raises:
+        ModelFileError: a missing, unreadable or malformed file.
+    """
+    return CarFollowingLogitPolicy(CarFollowingLogit.load(path), name=name or Path(path).stem)
+
+
 @dataclass(frozen=True)
 class EvaluationReport:
     """Result of :func:`evaluate`.
@@ -266,12 +277,13 @@ def evaluate(
             actions), ``"marginal"``, ``"markov"``, ``"bc"`` (fitted on ``train_demos`` in the
             first model's state bins; left out, and said so in report.md, without them).
         train_demos: training encounters (Parquet/CSV/DataFrame) of the fitted baselines.
-        policies: further policies to evaluate (e.g. ``ConstantPolicy(0)``).
+        policies: further policies to evaluate (e.g. ``ConstantPolicy(0)``, or a car-following
+            logit driver of :func:`cf_policy`).
         workers: processes (shorthand for ``executor="process:<workers>"``).
         executor: where episodes run (see :func:`run_episodes`); overrides ``workers``.
         rrd: write a rerun recording of each policy's first episode.
-        controller: ``decision_s`` None: the first model's ``decision_step_s`` (0.3 s without
-            models) for every policy, so all decide on the same step.
+        controller: ``decision_s`` None: the first model's ``decision_step_s`` (else the first
+            of ``policies`` that has one, else 0.3 s) for every policy, so all decide on the same step.
 
     Raises:
         SimError: ``episodes`` < 1 or an unknown baseline name.
@@ -291,7 +303,8 @@ def evaluate(
     pols: list[Policy] = list(learned)
     step = controller.decision_s
     if step is None:
-        step = learned[0].decision_step_s if learned else 0.3
+        steps = [p.decision_step_s for p in (*learned, *policies) if hasattr(p, "decision_step_s")]
+        step = steps[0] if steps else 0.3
         controller = replace(controller, decision_s=step)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

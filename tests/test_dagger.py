@@ -3,10 +3,13 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pandas as pd
 import pytest
 
+from analysis.cli import main
 from analysis.dagger import DaggerConfig, labels_as_decisions, train_cf_driver
 from irl.domains.merge_car_following import CF_FEATURES, car_following_decisions
 from irl.domains.merge_cf_logit import CarFollowingLogit
@@ -84,3 +87,40 @@ def test_config_is_checked():
         with pytest.raises(ConfigError):
             DaggerConfig(**kw)
     assert list(DaggerConfig(rounds=2, episodes_per_round=3, label_seed=10).label_seeds()) == list(range(10, 16))
+
+
+def test_cli_rejects_bad_input_in_one_line_before_sumo(tmp_path, capsys):
+    table = tmp_path / "train.parquet"
+    _accelerating_demos().drop(columns=["v_A"]).to_parquet(table)
+    assert main(["dagger", "--train", str(table), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "v_A" in err[0]
+    assert not (tmp_path / "o" / "cf_dagger.json").exists()
+    with pytest.raises(SystemExit) as e:
+        main(["dagger", "--train", str(table), "--critical", "hard_brake"])
+    assert e.value.code == 2
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"format": "merge-irl-model/1"}')
+    assert main(["evaluate", "--cf-model", str(bad), "--baselines", "", "--out", str(tmp_path / "e")]) == 2
+    assert "expected format" in capsys.readouterr().err
+
+
+@pytest.mark.sumo
+def test_cli_trains_and_evaluate_drives_the_result(tmp_path, capsys):
+    table = tmp_path / "train.parquet"
+    _accelerating_demos().to_parquet(table)
+    out = tmp_path / "dg"
+    assert main(["dagger", "--train", str(table), "--rounds", "1", "--episodes-per-round", "1", "--duration", "150",
+                 "--label-seed", "11", "--critical", "high_brake,low_brake", "--out", str(out), "--no-progress"]) == 0
+    m = CarFollowingLogit.load(out / "cf_dagger.json")
+    assert m.info["dagger_round"] == 1 and m.info["critical_actions"] == [0, 1] and m.info["labels_per_round"][0] > 0
+    assert CarFollowingLogit.load(out / "cf_logit.json").info["dagger_round"] == 0
+    assert "cf_dagger.json" in capsys.readouterr().out
+    ev = tmp_path / "ev"
+    assert main(["evaluate", "--cf-model", str(out / "cf_dagger.json"), "--baselines", "", "--episodes", "1",
+                 "--seed", "3", "--duration", "150", "--demos", str(table), "--no-rrd", "--no-progress",
+                 "--out", str(ev)]) == 0
+    agg = json.loads((ev / "metrics.json").read_text())["policies"]["cf_dagger"]["aggregate"]
+    assert agg["n_controls"] > 0 and agg["n_decisions"] > 0
+    dec = car_following_decisions(_accelerating_demos())
+    assert agg["heldout_loglik"] == pytest.approx(m.loglik_of(dec))

@@ -18,6 +18,8 @@ def register(subparsers) -> None:
                     "metrics.json, PNG plots and rerun recordings.")
     p.add_argument("--model", action="append", default=[], metavar="MODEL.json",
                    help="a saved merge model (repeat for several); none: only the baselines")
+    p.add_argument("--cf-model", action="append", default=[], metavar="CF_MODEL.json",
+                   help="a car-following logit driver written by 'merge-irl dagger' (repeatable)")
     p.add_argument("--scenario", default="synthetic", help="preset name or scenario TOML (default synthetic)")
     p.add_argument("--episodes", type=int, default=3, help="episodes (seeds) per policy")
     p.add_argument("--seed", type=int, default=0, help="first seed; episode i uses seed + i")
@@ -66,8 +68,11 @@ def run(args: argparse.Namespace) -> int:
     bad = [b for b in baselines if b not in known]
     if bad:
         raise SimError(f"--baselines: unknown baseline(s) {bad}; expected {', '.join(known)}")
-    if not args.model and not baselines:
-        raise SimError("nothing to evaluate: give --model and/or --baselines")
+    if not args.model and not args.cf_model and not baselines:
+        raise SimError("nothing to evaluate: give --model, --cf-model and/or --baselines")
+    from analysis.evaluate import cf_policy
+
+    cf = [cf_policy(path) for path in args.cf_model]  # malformed files before any work
     scen = Path(args.scenario).stem if args.scenario.endswith(".toml") else args.scenario
     out = Path(args.out) if args.out else Path("runs") / f"evaluate-{scen}-{args.seed}"
     from irl.run_folder import locked
@@ -75,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
     with locked(out):  # a second evaluate into the same folder fails at once (one line)
         report = evaluate(
             args.model, args.scenario, args.episodes, args.seed, out, duration_s=args.duration, demos=args.demos,
-            baselines=baselines, train_demos=args.train_demos,
+            baselines=baselines, train_demos=args.train_demos, policies=cf,
             controller=ControllerConfig(decision_s=args.decision_step, mode=args.mode, safety_ttc_s=args.safety_ttc),
             executor=executor, rrd=not args.no_rrd, progress=not args.no_progress,
         )

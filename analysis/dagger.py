@@ -27,6 +27,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from analysis.evaluate import resolve_executor
+from analysis.sweep import Task, run_sweep
 from irl.domains.merge_actions import N_ACTIONS
 from irl.domains.merge_car_following import CFDecisions, car_following_decisions
 from irl.domains.merge_cf_logit import CarFollowingLogit
@@ -34,7 +36,8 @@ from irl.errors import ConfigError
 from scenarios.loader import load_scenario
 from sim.controller import Controller
 from sim.controller_config import ControllerConfig
-from sim.expert_labels import ExpertLabels
+from sim.errors import SimError
+from sim.expert_labels import ExpertLabel, ExpertLabels
 from sim.policy import CarFollowingLogitPolicy
 from sim.run import run_scenario
 
@@ -76,6 +79,44 @@ class DaggerConfig:
         return range(self.label_seed, self.label_seed + self.rounds * self.episodes_per_round)
 
 
+@dataclass(frozen=True)
+class LabelRun:
+    """One labelling run as a sweep task config (:func:`label_run_task`): the driver ``model``
+    drives the As of ``scenario`` (a ScenarioSpec) with SUMO seed ``seed``."""
+
+    scenario: object
+    model: CarFollowingLogit
+    seed: int
+    duration_s: float
+    decision_step_s: float
+
+
+def label_run_task(run: LabelRun, seed: int) -> dict:
+    """Sweep task: one SUMO run of :class:`LabelRun` with :class:`~sim.expert_labels.ExpertLabels`;
+    returns ``{"records": [[state, d_AC, v_AC, d_AB, v_AB, v_A, prev, action], ...]}``."""
+    del seed  # the run's own SUMO seed, as every evaluation episode
+    ctl = Controller(CarFollowingLogitPolicy(run.model), ControllerConfig(decision_s=run.decision_step_s))
+    hook = ExpertLabels(ctl)
+    run_scenario(run.scenario, seed=run.seed, duration_s=run.duration_s, hooks=[ctl, hook])
+    return {"records": [list(r) for r in hook.records]}
+
+
+def label_runs(model: CarFollowingLogit, spec, seeds, config: DaggerConfig, executor: str) -> pd.DataFrame:
+    """The expert records (columns of :class:`~sim.expert_labels.ExpertLabel`) of one labelling
+    run per seed, in seed order, run by ``executor`` (``analysis.sweep``).
+
+    Raises:
+        SimError: a run failed twice.
+    """
+    tasks = [Task(f"label/seed{s}", label_run_task, LabelRun(spec, model, int(s), config.duration_s,
+                                                              config.decision_step_s)) for s in seeds]
+    report = run_sweep(tasks, seed=0, executor=executor, progress=False, desc="labelling runs")
+    if not report.ok:
+        raise SimError("labelling runs failed: " + "; ".join(f"{f.key}: {f.error}" for f in report.failures))
+    rows = [r for t in tasks for r in report.results[t.key]["records"]]
+    return pd.DataFrame(rows, columns=list(ExpertLabel._fields))
+
+
 def labels_as_decisions(table: pd.DataFrame, demos: CFDecisions) -> CFDecisions:
     """Expert label records (:meth:`sim.expert_labels.ExpertLabels.table`) as decisions with
     the demonstrations' action accelerations and step."""
@@ -85,6 +126,7 @@ def labels_as_decisions(table: pd.DataFrame, demos: CFDecisions) -> CFDecisions:
 
 
 def train_cf_driver(train_encounters: pd.DataFrame, scenario, config: DaggerConfig = DaggerConfig(), *,
+                    workers: int | None = None, executor: str | None = None,
                     progress: bool = True) -> list[CarFollowingLogit]:
     """The driver of every round, round 0 first (module docstring); the last is the result.
 
@@ -93,6 +135,9 @@ def train_cf_driver(train_encounters: pd.DataFrame, scenario, config: DaggerConf
         scenario: preset name, TOML path or ScenarioSpec of the labelling runs (the one the
             demonstrations came from).
         config: :class:`DaggerConfig`.
+        workers, executor: where the labelling runs run (:func:`analysis.evaluate.run_episodes`'
+            meaning: default every core, one SUMO per worker process); the results do not
+            depend on it (each run has its own seed).
         progress: print one line per round to stderr.
 
     Raises:
@@ -100,22 +145,17 @@ def train_cf_driver(train_encounters: pd.DataFrame, scenario, config: DaggerConf
         ScenarioError / SimError: the scenario cannot be loaded or run.
     """
     spec = load_scenario(scenario) if not hasattr(scenario, "simulation") else scenario
+    executor = resolve_executor(executor, workers)
     demos = car_following_decisions(train_encounters, decision_step_s=config.decision_step_s,
                                     where="training encounters")
     models = [CarFollowingLogit.fit(demos, l2=config.l2, info={"dagger_round": 0, "labels_per_round": []})]
     kept: list[pd.DataFrame] = []
     per_round: list[int] = []
-    seeds = iter(config.label_seeds())
+    seeds = list(config.label_seeds())
+    k = config.episodes_per_round
     for r in range(config.rounds):
         t0 = time.perf_counter()
-        policy = CarFollowingLogitPolicy(models[-1], name=f"cf-logit-round{r}")
-        tables = []
-        for _ in range(config.episodes_per_round):
-            ctl = Controller(policy, ControllerConfig(decision_s=config.decision_step_s))
-            hook = ExpertLabels(ctl)
-            run_scenario(spec, seed=next(seeds), duration_s=config.duration_s, hooks=[ctl, hook])
-            tables.append(hook.table())
-        table = pd.concat(tables, ignore_index=True)
+        table = label_runs(models[-1], spec, seeds[r * k:(r + 1) * k], config, executor)
         critical = table[table["action"].isin(config.critical_actions)]
         kept.append(critical)
         per_round.append(len(critical))

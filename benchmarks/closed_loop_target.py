@@ -109,7 +109,7 @@ def main(argv=None) -> int:
     episodes = dict(res.evaluation.episodes)
     if args.cf_rounds > 0:
         t1 = time.perf_counter()
-        cf = train_cf_driver(train, args.scenario, dagger, progress=True)
+        cf = train_cf_driver(train, args.scenario, dagger, workers=args.workers, progress=True)
         cf[0].save(Path(args.out) / "models" / "cf_logit.json")
         cf[-1].save(Path(args.out) / "models" / "cf_dagger.json")
         held = Path(args.out) / "data" / "heldout_encounters.parquet"

@@ -43,6 +43,8 @@ def register(subparsers) -> None:
                    help=f"expert actions whose labels are kept, comma-separated among {', '.join(ACTION_KEYS)} "
                         "(default high_brake; all five: plain DAgger)")
     p.add_argument("--decision-step", type=float, default=0.3, help="seconds per decision (default 0.3)")
+    p.add_argument("--workers", type=positive_int, default=None,
+                   help="processes for the labelling runs (one SUMO each; default every core)")
     p.add_argument("--no-progress", action="store_true", help="no line per round")
     p.add_argument("--out", default="runs/dagger", help="output folder (default runs/dagger)")
     p.set_defaults(func=run)
@@ -62,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     check_writable(out / "cf_dagger.json")
     with locked(out):  # a second run into the same folder fails at once
-        models = train_cf_driver(train, spec, config, progress=not args.no_progress)
+        models = train_cf_driver(train, spec, config, workers=args.workers, progress=not args.no_progress)
         first, last = models[0].save(out / "cf_logit.json"), models[-1].save(out / "cf_dagger.json")
     n = models[-1].info["n_demo_steps"]
     print(f"round 0 (demonstrations alone): training LL/step {models[0].loglik / n:.3f} -> {first}")

@@ -34,6 +34,7 @@ from irl.domains.merge_car_following import CFDecisions, car_following_decisions
 from irl.domains.merge_cf_logit import CarFollowingLogit
 from irl.errors import ConfigError
 from scenarios.loader import load_scenario
+from scenarios.spec import ScenarioSpec
 from sim.controller import Controller
 from sim.controller_config import ControllerConfig
 from sim.errors import SimError
@@ -84,7 +85,7 @@ class LabelRun:
     """One labelling run as a sweep task config (:func:`label_run_task`): the driver ``model``
     drives the As of ``scenario`` (a ScenarioSpec) with SUMO seed ``seed``."""
 
-    scenario: object
+    scenario: ScenarioSpec
     model: CarFollowingLogit
     seed: int
     duration_s: float
@@ -144,7 +145,7 @@ def train_cf_driver(train_encounters: pd.DataFrame, scenario, config: DaggerConf
         DemonstrationError: the encounters cannot be resampled or lack ``v_A``.
         ScenarioError / SimError: the scenario cannot be loaded or run.
     """
-    spec = load_scenario(scenario) if not hasattr(scenario, "simulation") else scenario
+    spec = scenario if isinstance(scenario, ScenarioSpec) else load_scenario(scenario)
     executor = resolve_executor(executor, workers)
     demos = car_following_decisions(train_encounters, decision_step_s=config.decision_step_s,
                                     where="training encounters")

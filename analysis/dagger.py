@@ -20,8 +20,10 @@ states: here SUMO's own driver model, the model the synthetic demonstrators driv
 
 from __future__ import annotations
 
+import math
 import sys
 import time
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -34,6 +36,7 @@ from irl.domains.merge_car_following import CFDecisions, car_following_decisions
 from irl.domains.merge_cf_logit import CarFollowingLogit
 from irl.errors import ConfigError
 from scenarios.loader import load_scenario
+from scenarios.spec_parse import with_overrides
 from scenarios.spec import ScenarioSpec
 from sim.controller import Controller
 from sim.controller_config import ControllerConfig
@@ -66,14 +69,25 @@ class DaggerConfig:
     decision_step_s: float = 0.3
 
     def __post_init__(self) -> None:
-        if self.rounds < 0 or self.episodes_per_round < 1:
-            raise ConfigError(f"DaggerConfig: rounds >= 0 and episodes_per_round >= 1, got {self.rounds}, "
-                              f"{self.episodes_per_round}")
-        if not self.duration_s > 0 or not self.l2 >= 0:
-            raise ConfigError(f"DaggerConfig: duration_s > 0 and l2 >= 0, got {self.duration_s}, {self.l2}")
-        if not self.critical_actions or any(not 0 <= a < N_ACTIONS for a in self.critical_actions):
-            raise ConfigError(f"DaggerConfig: critical_actions must be actions 0..{N_ACTIONS - 1}, "
-                              f"got {self.critical_actions}")
+        def whole(name: str, lowest: int) -> None:
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < lowest:
+                raise ConfigError(f"DaggerConfig.{name} must be a whole number >= {lowest}, got {v!r}")
+
+        whole("rounds", 0)
+        whole("episodes_per_round", 1)
+        whole("label_seed", 0)
+        for name in ("duration_s", "decision_step_s"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+                raise ConfigError(f"DaggerConfig.{name} must be a positive finite number of seconds, got {v!r}")
+        if isinstance(self.l2, bool) or not isinstance(self.l2, (int, float)) or not (math.isfinite(self.l2) and self.l2 >= 0):
+            raise ConfigError(f"DaggerConfig.l2 must be a finite number >= 0, got {self.l2!r}")
+        acts = self.critical_actions
+        if not isinstance(acts, tuple) or not acts or any(
+                isinstance(a, bool) or not isinstance(a, int) or not 0 <= a < N_ACTIONS for a in acts):
+            raise ConfigError(f"DaggerConfig.critical_actions must be a non-empty tuple of actions 0..{N_ACTIONS - 1}, "
+                              f"got {acts!r}")
 
     def label_seeds(self) -> range:
         """Every labelling run's seed (to keep them apart from evaluation seeds)."""
@@ -126,8 +140,12 @@ def labels_as_decisions(table: pd.DataFrame, demos: CFDecisions) -> CFDecisions:
                        demos.action_acc_ft_s2, demos.decision_step_s)
 
 
+class NotConvergedWarning(UserWarning):
+    """A car-following logit fit did not converge (its ``converged`` is False)."""
+
+
 def train_cf_driver(train_encounters: pd.DataFrame, scenario, config: DaggerConfig = DaggerConfig(), *,
-                    workers: int | None = None, executor: str | None = None,
+                    workers: int | None = None, executor: str | None = None, where: str = "training encounters",
                     progress: bool = True) -> list[CarFollowingLogit]:
     """The driver of every round, round 0 first (module docstring); the last is the result.
 
@@ -139,24 +157,33 @@ def train_cf_driver(train_encounters: pd.DataFrame, scenario, config: DaggerConf
         workers, executor: where the labelling runs run (:func:`analysis.evaluate.run_episodes`'
             meaning: default every core, one SUMO per worker process); the results do not
             depend on it (each run has its own seed).
+        where: how errors name the encounters (e.g. their file).
         progress: print one line per round to stderr.
+
+    A fit that does not converge is kept (``converged`` False in its file) and warned about
+    with a :class:`NotConvergedWarning`.
 
     Raises:
         DemonstrationError: the encounters cannot be resampled or lack ``v_A``.
-        ScenarioError / SimError: the scenario cannot be loaded or run.
+        ScenarioError / SimError: the scenario cannot be loaded, a labelling run's seed or
+            duration is invalid for it (checked before any work), or a run fails.
     """
     spec = scenario if isinstance(scenario, ScenarioSpec) else load_scenario(scenario)
     executor = resolve_executor(executor, workers)
-    demos = car_following_decisions(train_encounters, decision_step_s=config.decision_step_s,
-                                    where="training encounters")
+    seeds = config.label_seeds()
+    for seed in {seeds[0], seeds[-1]} if len(seeds) else ():  # the labelling runs' overrides, before any work
+        with_overrides(spec, seed=seed, duration_s=config.duration_s)
+    demos = car_following_decisions(train_encounters, decision_step_s=config.decision_step_s, where=where)
     models = [CarFollowingLogit.fit(demos, l2=config.l2, info={"dagger_round": 0, "labels_per_round": []})]
+    if not models[0].converged:
+        warnings.warn("DAgger round 0: the logit fit on the demonstrations did not converge", NotConvergedWarning,
+                      stacklevel=2)
     kept: list[pd.DataFrame] = []
     per_round: list[int] = []
-    seeds = list(config.label_seeds())
     k = config.episodes_per_round
     for r in range(config.rounds):
         t0 = time.perf_counter()
-        table = label_runs(models[-1], spec, seeds[r * k:(r + 1) * k], config, executor)
+        table = label_runs(models[-1], spec, list(seeds[r * k:(r + 1) * k]), config, executor)
         critical = table[table["action"].isin(config.critical_actions)]
         kept.append(critical)
         per_round.append(len(critical))
@@ -166,6 +193,8 @@ def train_cf_driver(train_encounters: pd.DataFrame, scenario, config: DaggerConf
             info={"dagger_round": r + 1, "labels_per_round": list(per_round),
                   "critical_actions": list(config.critical_actions), "label_seed": config.label_seed,
                   "episodes_per_round": config.episodes_per_round}))
+        if not models[-1].converged:
+            warnings.warn(f"DAgger round {r + 1}: the logit fit did not converge", NotConvergedWarning, stacklevel=2)
         if progress:
             print(f"DAgger round {r + 1}/{config.rounds}: {len(table)} decisions, {len(critical)} critical labels "
                   f"kept, training LL/step {models[-1].loglik / demos.n:.3f}, {time.perf_counter() - t0:.0f} s",

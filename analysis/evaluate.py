@@ -167,8 +167,9 @@ def learned_policy(model: SavedModel | str | os.PathLike, name: str = "") -> Lea
 
 
 def cf_policy(path: str | os.PathLike, name: str = "") -> CarFollowingLogitPolicy:
-    """A :class:`~sim.policy.CarFollowingLogitPolicy` from a ``cf_model.json`` (``merge-irl
-    dagger``), named ``name`` or the file's stem.
+    """A :class:`~sim.policy.CarFollowingLogitPolicy` from a car-following logit file
+    (``cf_dagger.json`` or ``cf_logit.json`` of ``merge-irl dagger``), named ``name`` or the
+    file's stem.
 
     Raises:
         ModelFileError: a missing, unreadable or malformed file.
@@ -332,6 +333,9 @@ def evaluate(
             renamed.append(_renamed(p, f"{p.name}-{k + 1}") if p.name in dup else p)
         pols = renamed
     held = load_heldout(demos) if demos is not None else None
+    for p in pols:  # a car-following driver's held-out decisions need v_A: fail before the episodes
+        if held is not None and isinstance(p, CarFollowingLogitPolicy):
+            car_following_decisions(held.encounters, decision_step_s=p.decision_step_s, where=held.source)
     prov = evaluation_provenance(models, pols, scenario, spec, demos)  # the files as read, before the work
     counts = held.action_counts if held is not None else None
     tasks = []

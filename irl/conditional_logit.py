@@ -10,6 +10,7 @@ is its own state, instead of a state table ``[S, A, K]``. Beta is not separate f
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -87,11 +88,11 @@ def fit_conditional_logit(F: np.ndarray, actions: np.ndarray, *, l2: float = 0.1
         :class:`LogitFit`; deterministic (no randomness).
 
     Raises:
-        ConfigError: malformed ``F``, weights or a negative ``l2``.
+        ConfigError: malformed ``F``, weights, or an ``l2`` that is negative or not finite.
         DemonstrationError: actions of the wrong shape or out of range.
     """
-    if not l2 >= 0:
-        raise ConfigError(f"l2 must be >= 0, got {l2}")
+    if isinstance(l2, bool) or not isinstance(l2, (int, float)) or not (math.isfinite(l2) and l2 >= 0):
+        raise ConfigError(f"l2 must be a finite number >= 0, got {l2!r}")
     F, actions, w = _check(F, actions, weights)
     counts = _counts(actions, F.shape[1], w)
     res = minimize(penalised_nll, np.zeros(F.shape[2]), args=(F, counts, float(l2)), jac=True,

@@ -34,7 +34,7 @@ class MergeObservation:
             (d_AC and v_AC NaN without car C).
         b_is_truck: whether B is a truck.
         state: discrete state index in ``[0, 1250)`` (-1 when no encoder was given).
-        speed_A: A's speed (ft/s), for logging.
+        speed_A: A's speed (ft/s): logged, and the car-following logit driver's input.
         prev_action: A's action at the previous decision of this control episode (-1: none).
     """
 

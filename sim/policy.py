@@ -276,5 +276,13 @@ class CarFollowingLogitPolicy:
         return self.model.decision_step_s
 
     def probs(self, obs: MergeObservation) -> np.ndarray:
+        """``[5]`` action probabilities at ``obs``.
+
+        Raises:
+            PolicyError: A's speed or ``d_AB``/``v_AB`` is not finite.
+        """
+        if not all(np.isfinite([obs.speed_A, obs.d_AB, obs.v_AB])):
+            raise PolicyError(f"policy {self.name!r}: A's speed, d_AB and v_AB must be finite, got "
+                              f"{obs.speed_A}, {obs.d_AB}, {obs.v_AB}")
         x = np.array([[obs.d_AC, obs.v_AC, obs.d_AB, obs.v_AB, obs.speed_A]], dtype=np.float64)
         return np.exp(self.model.log_policy(x, np.array([obs.prev_action]))[0])

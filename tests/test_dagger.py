@@ -13,7 +13,7 @@ from analysis.cli import main
 from analysis.dagger import DaggerConfig, labels_as_decisions, train_cf_driver
 from irl.domains.merge_car_following import CF_FEATURES, car_following_decisions
 from irl.domains.merge_cf_logit import CarFollowingLogit
-from irl.errors import ConfigError
+from irl.errors import ConfigError, DemonstrationError
 from scenarios.loader import load_scenario
 from sim.controller import Controller
 from sim.controller_config import ControllerConfig
@@ -82,8 +82,9 @@ def test_one_round_adds_only_critical_labels_and_teaches_braking():
 
 
 def test_config_is_checked():
-    for kw in ({"rounds": -1}, {"episodes_per_round": 0}, {"duration_s": 0.0}, {"l2": -1.0},
-               {"critical_actions": ()}, {"critical_actions": (5,)}):
+    for kw in ({"rounds": -1}, {"rounds": 1.5}, {"episodes_per_round": 0}, {"label_seed": -1}, {"duration_s": 0.0},
+               {"duration_s": float("inf")}, {"decision_step_s": float("nan")}, {"l2": -1.0}, {"l2": float("inf")},
+               {"critical_actions": ()}, {"critical_actions": (5,)}, {"critical_actions": "0"}):
         with pytest.raises(ConfigError):
             DaggerConfig(**kw)
     assert list(DaggerConfig(rounds=2, episodes_per_round=3, label_seed=10).label_seeds()) == list(range(10, 16))
@@ -103,6 +104,27 @@ def test_cli_rejects_bad_input_in_one_line_before_sumo(tmp_path, capsys):
     bad.write_text('{"format": "merge-irl-model/1"}')
     assert main(["evaluate", "--cf-model", str(bad), "--baselines", "", "--out", str(tmp_path / "e")]) == 2
     assert "expected format" in capsys.readouterr().err
+    # a driver file where an IRL model.json is expected says which command takes it
+    good = CarFollowingLogit.fit(car_following_decisions(_accelerating_demos())).save(tmp_path / "cf.json")
+    assert main(["score", "--model", str(good), "--demos", str(table)]) == 2
+    assert "evaluate --cf-model" in capsys.readouterr().err
+    # held-out demonstrations without v_A fail before any episode runs
+    assert main(["evaluate", "--cf-model", str(good), "--baselines", "", "--demos", str(table), "--episodes", "1",
+                 "--no-progress", "--out", str(tmp_path / "e2")]) == 2
+    assert "v_A" in capsys.readouterr().err and not (tmp_path / "e2" / "metrics.json").exists()
+    # a label seed or duration the scenario rejects: before the round-0 fit and any SUMO run
+    fine = tmp_path / "fine.parquet"
+    _accelerating_demos().to_parquet(fine)
+    assert main(["dagger", "--train", str(fine), "--duration", "30", "--out", str(tmp_path / "o2")]) == 2
+    assert "duration" in capsys.readouterr().err
+    assert not (tmp_path / "o2" / "cf_logit.json").exists()
+
+
+def test_negative_or_missing_speeds_name_the_row():
+    df = _accelerating_demos()
+    df.loc[3, "v_A"] = -1.0
+    with pytest.raises(DemonstrationError, match=r"t.parquet: row 3, column 'v_A'"):
+        train_cf_driver(df, "synthetic", DaggerConfig(rounds=0), where="t.parquet", progress=False)
 
 
 @pytest.mark.sumo

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 # API imports sit inside the functions: `merge-irl --help` imports every command module (analysis/commands/__init__.py).
 import argparse
+import sys
 from pathlib import Path
 
 from analysis.commands._arg_types import non_negative_int, positive_int
@@ -64,11 +65,15 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     check_writable(out / "cf_dagger.json")
     with locked(out):  # a second run into the same folder fails at once
-        models = train_cf_driver(train, spec, config, workers=args.workers, progress=not args.no_progress)
+        models = train_cf_driver(train, spec, config, workers=args.workers, where=str(args.train),
+                                 progress=not args.no_progress)
         first, last = models[0].save(out / "cf_logit.json"), models[-1].save(out / "cf_dagger.json")
     n = models[-1].info["n_demo_steps"]
     print(f"round 0 (demonstrations alone): training LL/step {models[0].loglik / n:.3f} -> {first}")
     print(f"round {args.rounds}: critical labels per round {models[-1].info.get('labels_per_round', [])}, "
           f"training LL/step {models[-1].loglik / n:.3f} -> {last}")
+    if not all(m.converged for m in models):
+        print("warning: a fit did not converge (see 'converged' in the files); check the encounters' v_A and --l2",
+              file=sys.stderr)
     print(f"evaluate: merge-irl evaluate --cf-model {last} --scenario {args.scenario} --demos HELDOUT_ENCOUNTERS")
     return 0

@@ -110,7 +110,8 @@ def car_following_decisions(encounters_df: pd.DataFrame, *, decision_step_s: flo
 
     Raises:
         DemonstrationError: the table has no ``v_A`` column (A's speed, ft/s; the pipeline
-            writes it) or NaN speeds, or breaks the encounter table's checks.
+            writes it), a speed at a decision that is NaN, infinite or negative (naming the
+            row), or breaks the encounter table's checks.
         ConfigError: a bad decision step.
     """
     if "v_A" not in encounters_df.columns:
@@ -121,8 +122,11 @@ def car_following_decisions(encounters_df: pd.DataFrame, *, decision_step_s: flo
     states, actions, _ = d.demos.flat()
     _, prev = split_driver_state(states)
     obs = encounters_df.iloc[d.rows][list(OBS_COLUMNS)].to_numpy(dtype=np.float64)
-    if not np.all(np.isfinite(obs[:, 4])):
-        raise DemonstrationError(f"{where}: 'v_A' must be finite at every decision")
+    bad = ~np.isfinite(obs[:, 4]) | (obs[:, 4] < 0)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise DemonstrationError(f"{where}: row {int(d.rows[i])}, column 'v_A': A's speed must be a finite number "
+                                 f">= 0 ft/s at every decision, got {obs[i, 4]}")
     return CFDecisions(obs, prev.astype(np.int64), np.asarray(actions, dtype=np.int64),
                        tuple(float(x) for x in d.action_acc_ft_s2), float(decision_step_s))
 

@@ -1,5 +1,6 @@
 """The car-following logit driver: a conditional logit on :mod:`irl.domains.merge_car_following`'s
-features, and its file (``cf_model.json``, format ``merge-irl-cf-logit/1``).
+features, and its JSON file (format ``merge-irl-cf-logit/1``; ``merge-irl dagger`` writes
+``cf_logit.json`` and ``cf_dagger.json``).
 
 ``pi(a | x) = softmax_a(theta . phi(x, a))`` over the five merge actions, ``phi`` the
 car-following features of the continuous observation ``x`` (A's speed, gaps and closing
@@ -26,6 +27,7 @@ from irl.conditional_logit import conditional_log_policy, conditional_loglik, fi
 from irl.domains.merge_actions import N_ACTIONS
 from irl.domains.merge_car_following import CF_FEATURES, CFDecisions, GapNeed, car_following_features
 from irl.errors import ConfigError, ModelFileError
+from irl.units import FRAME_S
 
 #: The ``format`` field of a car-following logit file.
 CF_FORMAT = "merge-irl-cf-logit/1"
@@ -43,8 +45,10 @@ class CarFollowingLogit:
         gap_need: the nominal IDM parameters of the features.
         l2: the L2 penalty of the fit.
         loglik: training log-likelihood of the demonstrations (nats; expert labels excluded).
-        converged: the optimiser's last fit reported success.
-        info: provenance, e.g. ``n_demo_steps``, ``dagger_rounds``, ``labels_per_round``.
+        converged: the fit's optimiser reported success (saved as ``converged``).
+        info: provenance: ``n_demo_steps``, ``n_label_steps``, ``dagger_round`` (0: the
+            demonstrations alone), ``labels_per_round``, ``critical_actions``, ``label_seed``,
+            ``episodes_per_round``.
     """
 
     theta: np.ndarray
@@ -59,14 +63,18 @@ class CarFollowingLogit:
     def __post_init__(self) -> None:
         theta = np.asarray(self.theta, dtype=np.float64)
         if theta.shape != (len(CF_FEATURES),) or not np.all(np.isfinite(theta)):
-            raise ConfigError(f"theta must be {len(CF_FEATURES)} finite numbers ({CF_FEATURES}), got {theta}")
+            raise ConfigError(f"theta must be {len(CF_FEATURES)} finite numbers (one per feature), got shape "
+                              f"{theta.shape}{'' if theta.shape != (len(CF_FEATURES),) else ' with NaN or infinite values'}")
         object.__setattr__(self, "theta", theta)
         acc = tuple(float(x) for x in self.action_acc_ft_s2)
         if len(acc) != N_ACTIONS or not all(math.isfinite(x) for x in acc):
             raise ConfigError(f"action_acc_ft_s2 must be {N_ACTIONS} finite numbers, got {acc}")
         object.__setattr__(self, "action_acc_ft_s2", acc)
-        if not (math.isfinite(self.decision_step_s) and self.decision_step_s > 0):
-            raise ConfigError(f"decision_step_s must be positive, got {self.decision_step_s}")
+        if any(b <= a for a, b in zip(acc, acc[1:])):
+            raise ConfigError(f"action_acc_ft_s2 must increase from High Brake to High Accel, got {acc}")
+        k = round(self.decision_step_s / FRAME_S) if math.isfinite(self.decision_step_s) else 0
+        if k < 1 or abs(k * FRAME_S - self.decision_step_s) > 1e-9:
+            raise ConfigError(f"decision_step_s must be a positive multiple of {FRAME_S} s, got {self.decision_step_s}")
 
     @property
     def feature_names(self) -> tuple[str, ...]:
@@ -115,7 +123,7 @@ class CarFollowingLogit:
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> CarFollowingLogit:
-        """Read a ``cf_model.json``.
+        """Read a car-following logit file (``cf_logit.json`` / ``cf_dagger.json`` of ``merge-irl dagger``).
 
         Raises:
             ModelFileError: missing, unreadable, another format, or a malformed field (named).
@@ -125,21 +133,48 @@ class CarFollowingLogit:
             data = json.loads(path.read_text(encoding="utf-8"))
         except FileNotFoundError:
             raise ModelFileError(f"{path}: no such model file") from None
-        except (OSError, ValueError, UnicodeDecodeError) as e:
+        except (OSError, ValueError, UnicodeDecodeError, RecursionError) as e:
             raise ModelFileError(f"{path}: not a readable JSON model file ({type(e).__name__}: {str(e)[:200]})") from None
         if not isinstance(data, dict) or data.get("format") != CF_FORMAT:
             got = data.get("format") if isinstance(data, dict) else type(data).__name__
-            raise ModelFileError(f"{path}: expected format {CF_FORMAT!r}, got {got!r}")
-        if data.get("feature_names") != list(CF_FEATURES):
+            raise ModelFileError(f"{path}: expected format {CF_FORMAT!r} (a file of 'merge-irl dagger'), got {got!r}")
+        for key in ("feature_names", "theta", "action_acc_ft_s2", "decision_step_s", "gap_need"):
+            if key not in data:
+                raise ModelFileError(f"{path}: missing field {key!r}")
+        if data["feature_names"] != list(CF_FEATURES):
             raise ModelFileError(f"{path}: field 'feature_names' must be {list(CF_FEATURES)}")
+        theta = _numbers(path, "theta", data["theta"], len(CF_FEATURES))
+        acc = _numbers(path, "action_acc_ft_s2", data["action_acc_ft_s2"], N_ACTIONS)
+        step = _number(path, "decision_step_s", data["decision_step_s"])
+        raw_gap = data["gap_need"]
+        names = {f.name for f in dataclasses.fields(GapNeed)}
+        if not isinstance(raw_gap, dict) or set(raw_gap) != names:
+            raise ModelFileError(f"{path}: field 'gap_need' must be an object with the keys {sorted(names)}")
+        gap_values = {k: _number(path, f"gap_need.{k}", v) for k, v in raw_gap.items()}
+        l2 = _number(path, "l2", data.get("l2", 0.1))
+        loglik = data.get("loglik")
+        loglik = float("nan") if loglik is None else _number(path, "loglik", loglik)
+        converged = data.get("converged", True)
+        if not isinstance(converged, bool):
+            raise ModelFileError(f"{path}: field 'converged' must be true or false, got {converged!r}")
+        info = data.get("info") or {}
+        if not isinstance(info, dict):
+            raise ModelFileError(f"{path}: field 'info' must be an object")
+        if l2 < 0 or loglik > 0:
+            raise ModelFileError(f"{path}: field 'l2' must be >= 0 and 'loglik' <= 0, got {l2}, {loglik}")
         try:
-            gap = GapNeed(**data["gap_need"])
-            loglik = data.get("loglik")
-            return cls(np.asarray(data["theta"], dtype=np.float64), tuple(data["action_acc_ft_s2"]),
-                       float(data["decision_step_s"]), gap, float(data.get("l2", 0.1)),
-                       float("nan") if loglik is None else float(loglik), bool(data.get("converged", True)),
-                       dict(data.get("info") or {}))
-        except KeyError as e:
-            raise ModelFileError(f"{path}: missing field {e.args[0]!r}") from None
-        except (TypeError, ValueError, ConfigError) as e:
+            return cls(theta, tuple(acc), step, GapNeed(**gap_values), l2, loglik, converged, dict(info))
+        except ConfigError as e:
             raise ModelFileError(f"{path}: {e}") from None
+
+
+def _number(path: Path, name: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ModelFileError(f"{path}: field {name!r} must be a finite number, got {str(value)[:40]!r}")
+    return float(value)
+
+
+def _numbers(path: Path, name: str, value: Any, n: int) -> np.ndarray:
+    if not isinstance(value, list) or len(value) != n:
+        raise ModelFileError(f"{path}: field {name!r} must be a list of {n} finite numbers")
+    return np.array([_number(path, f"{name}[{i}]", v) for i, v in enumerate(value)], dtype=np.float64)

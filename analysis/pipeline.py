@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from analysis.dagger import DaggerConfig, train_cf_driver
 from analysis.episode import frame_from_dict, frame_to_dict
 from analysis.evaluate import EvaluationReport, evaluate, learned_policy, prepare_encounters, resolve_executor
 from analysis.evaluate_report import flag_lines, report_table
@@ -55,7 +56,11 @@ from sim.controller import Controller
 from sim.encounters import extract_encounters
 from sim.errors import SimError
 from sim.outputs import write_parquet
+from sim.policy import CarFollowingLogitPolicy
 from sim.run import run_scenario
+
+#: The demo's name (and policy name) of the car-following logit driver trained with DAgger.
+CF_DRIVER = "cf-dagger"
 
 
 @dataclass(frozen=True)
@@ -91,6 +96,11 @@ class DemoConfig:
             in) against a negative one on the relative speed to C; l2 1 keeps the held-out
             log-likelihood (-0.678 vs -0.680 per step) and removes that trade.
         fit_seed: seed of the IRL fits.
+        dagger_rounds: DAgger rounds of the car-following logit driver ``cf-dagger``
+            (:mod:`analysis.dagger`, its other settings the defaults of
+            :class:`~analysis.dagger.DaggerConfig`, so the driver equals ``merge-irl dagger``'s
+            on the same encounters), trained after the IRL methods and evaluated beside them;
+            0 (the default): not trained. 4 rounds add about 45 s on 2 cores.
         workers: processes (``process:<workers>``).
         executor: where the data runs and evaluation episodes run (``analysis.sweep``
             executors); None: ``process:<workers>``.
@@ -109,6 +119,7 @@ class DemoConfig:
     gamma: float = 0.0
     l2: float = 1.0
     fit_seed: int = 0
+    dagger_rounds: int = 0
     workers: int = 2
     executor: str | None = None
 
@@ -252,6 +263,16 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
             models[method] = model.save(out / "models" / f"{method}.json")
     if not models:
         raise IRLError("demo: no IRL method produced a usable model: " + "; ".join(f"{k}: {v}" for k, v in messages.items()))
+    drivers = []
+    if config.dagger_rounds > 0:
+        t_cf = time.perf_counter()
+        cf = train_cf_driver(train, config.scenario, DaggerConfig(rounds=config.dagger_rounds), workers=config.workers,
+                             executor=config.executor, where=str(train_path), progress=not quiet)
+        models[CF_DRIVER] = cf[-1].save(out / "models" / "cf_dagger.json")
+        drivers.append(CarFollowingLogitPolicy(cf[-1], name=CF_DRIVER))
+        fit_times[CF_DRIVER] = time.perf_counter() - t_cf
+        _say(f"      {CF_DRIVER}: {config.dagger_rounds} DAgger rounds, High Brake labels per round "
+             f"{cf[-1].info['labels_per_round']} ({fit_times[CF_DRIVER]:.0f} s)", quiet)
 
     _say("[4/5] one closed-loop episode with Q-Avg, logged to demo.rrd", quiet)
     first = "qavg" if "qavg" in models else next(iter(models))
@@ -263,9 +284,10 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
 
     _say(f"[5/5] evaluating {len(models)} models + sumo, uniform, marginal, markov, bc, "
          f"{config.eval_episodes} episodes each", quiet)
-    report = evaluate(list(models.values()), config.scenario, config.eval_episodes, config.eval_seed,
+    irl_models = [path for name, path in models.items() if name != CF_DRIVER]
+    report = evaluate(irl_models, config.scenario, config.eval_episodes, config.eval_seed,
                       out / "evaluation", duration_s=config.eval_duration_s, demos=held_path, train_demos=train_path,
-                      workers=config.workers, executor=config.executor, progress=progress)
+                      policies=drivers, workers=config.workers, executor=config.executor, progress=progress)
     wall = time.perf_counter() - t0
     result = DemoResult(out, models, report, out / "demo.rrd", out / "summary.md", int(train["encounter_id"].nunique()),
                         problem.demos.n_steps, wall, messages)

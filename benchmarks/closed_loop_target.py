@@ -15,9 +15,9 @@ evaluation episodes. Printed:
 * the safety-filter variant of the default learned driver (``--safety-ttc``, same episodes):
   its collisions and how often the filter replaced the driver's action;
 * the car-following logit driver trained with DAgger on critical labels
-  (:mod:`analysis.dagger`, ``--cf-rounds``, default 4; 0: not run) as the row ``cf-dagger``
-  (and its round-0 fit on the demonstrations alone as ``cf-logit``), evaluated on the same
-  episodes with the same held-out demonstrations;
+  (:mod:`analysis.dagger` through the demo's ``dagger_rounds``, ``--cf-rounds``, default 4;
+  0: not run) as the row ``cf-dagger``, and its round 0 (the demonstrations alone) as
+  ``cf-logit``, evaluated on the same episodes with the same held-out demonstrations;
 * the target checks for the default learned driver (``--driver``, default the first
   method) and for ``cf-dagger``: 0 collisions by controlled cars with the 95 % upper bound,
   held-out LL per step above ``marginal`` and ``bc``, W1 of speed and of d_AC within 1.5x the
@@ -36,11 +36,13 @@ from pathlib import Path
 
 import pandas as pd
 
-from analysis.commands._arg_types import non_negative_int, positive_int
-from analysis.dagger import DaggerConfig, train_cf_driver
+from analysis.commands._arg_types import non_negative_int
+from analysis.dagger import DaggerConfig
 from analysis.demo_signal import bin_change_rate, braking_cap_share
-from analysis.evaluate import evaluate
-from analysis.pipeline import DemoConfig, run_demo
+from analysis.evaluate import cf_policy, evaluate
+from analysis.pipeline import CF_DRIVER, DemoConfig, run_demo
+from irl.domains.merge_car_following import car_following_decisions
+from irl.domains.merge_cf_logit import CarFollowingLogit
 from sim.control_records import COLLISION_KINDS
 from sim.controller_config import ControllerConfig
 from sim.policy import CarFollowingLogitPolicy
@@ -74,27 +76,30 @@ def main(argv=None) -> int:
     ap.add_argument("--eval-seed", type=int, default=DemoConfig.eval_seed,
                     help="first SUMO seed of the evaluation episodes (seeds eval-seed .. eval-seed + episodes - 1)")
     ap.add_argument("--methods", default="qavg")
-    ap.add_argument("--driver", default=None, help="the learned driver the targets are checked on (default: first method)")
+    ap.add_argument("--driver", default=None,
+                    help="the learned driver of the safety-filter variant and of the first target checks (default: the "
+                         "first method; cf-dagger also possible)")
     ap.add_argument("--eval-duration", type=float, default=240.0)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--gamma", type=float, default=DemoConfig.gamma, help="discount of the IRL fits")
     ap.add_argument("--safety-ttc", type=float, default=2.0,
                     help="TTC (s) of the safety-filter variant of the default driver (0: not run)")
     ap.add_argument("--cf-rounds", type=non_negative_int, default=DaggerConfig.rounds,
-                    help="DAgger rounds of the car-following logit driver (0: neither cf row is run)")
-    ap.add_argument("--cf-episodes-per-round", type=positive_int, default=DaggerConfig.episodes_per_round)
-    ap.add_argument("--cf-label-seed", type=int, default=DaggerConfig.label_seed,
-                    help="first SUMO seed of the DAgger labelling runs (must not overlap the evaluation seeds)")
+                    help="DAgger rounds of the car-following logit driver cf-dagger, trained by the demo "
+                         "pipeline (0: neither cf row is run)")
     ap.add_argument("--out", default="runs/closed-loop-target")
     args = ap.parse_args(argv)
-    dagger = DaggerConfig(rounds=args.cf_rounds, episodes_per_round=args.cf_episodes_per_round,
-                          label_seed=args.cf_label_seed, duration_s=args.eval_duration)
-    if set(dagger.label_seeds()) & set(range(args.eval_seed, args.eval_seed + args.episodes)):
-        ap.error(f"--cf-label-seed: the labelling seeds {dagger.label_seeds()} overlap the evaluation seeds")
+    label_seeds = DaggerConfig(rounds=args.cf_rounds).label_seeds()
+    if set(label_seeds) & set(range(args.eval_seed, args.eval_seed + args.episodes)):
+        ap.error(f"--eval-seed: the evaluation seeds overlap the DAgger labelling seeds {label_seeds}")
     methods = tuple(m for m in args.methods.split(",") if m)
+    driver = args.driver or methods[0]
+    drivers = (*methods, CF_DRIVER) if args.cf_rounds > 0 else methods
+    if driver not in drivers:
+        ap.error(f"--driver {driver}: not among the learned drivers {', '.join(drivers)}")
     cfg = DemoConfig(scenario=args.scenario, train_seeds=tuple(int(s) for s in args.train_seeds.split(",")),
                      eval_episodes=args.episodes, eval_duration_s=args.eval_duration, methods=methods,
-                     workers=args.workers, gamma=args.gamma, eval_seed=args.eval_seed)
+                     workers=args.workers, gamma=args.gamma, eval_seed=args.eval_seed, dagger_rounds=args.cf_rounds)
     t0 = time.perf_counter()
     res = run_demo(args.out, cfg, quiet=True, progress=False)
     wall = time.perf_counter() - t0
@@ -107,22 +112,19 @@ def main(argv=None) -> int:
           f"{100 * braking_cap_share(train):.1f} % of frames at or below -12 ft/s^2")
     aggs = dict(res.evaluation.aggregates)
     episodes = dict(res.evaluation.episodes)
-    if args.cf_rounds > 0:
-        t1 = time.perf_counter()
-        cf = train_cf_driver(train, args.scenario, dagger, workers=args.workers, progress=True)
-        cf[0].save(Path(args.out) / "models" / "cf_logit.json")
-        cf[-1].save(Path(args.out) / "models" / "cf_dagger.json")
+    if args.cf_rounds > 0:  # cf-dagger is in the demo's evaluation; its round 0 (no labels) beside it
+        round0 = CarFollowingLogit.fit(car_following_decisions(train), l2=DaggerConfig.l2)
+        round0.save(Path(args.out) / "models" / "cf_logit.json")
         held = Path(args.out) / "data" / "heldout_encounters.parquet"
-        rep = evaluate([], args.scenario, args.episodes, cfg.eval_seed, Path(args.out) / "evaluation-cf",
+        rep = evaluate([], args.scenario, args.episodes, cfg.eval_seed, Path(args.out) / "evaluation-cf-logit",
                        duration_s=args.eval_duration, demos=held, baselines=(),
-                       policies=[CarFollowingLogitPolicy(cf[0], name="cf-logit"),
-                                 CarFollowingLogitPolicy(cf[-1], name="cf-dagger")],
+                       policies=[CarFollowingLogitPolicy(round0, name="cf-logit")],
                        workers=args.workers, rrd=False, progress=False)
         aggs.update(rep.aggregates)
         episodes.update(rep.episodes)
-        print(f"car-following logit: {args.cf_rounds} DAgger rounds of {args.cf_episodes_per_round} runs, "
-              f"critical labels kept per round {cf[-1].info['labels_per_round']}; training and evaluation "
-              f"{time.perf_counter() - t1:.0f} s")
+        info = CarFollowingLogit.load(res.models[CF_DRIVER]).info
+        print(f"car-following logit: {args.cf_rounds} DAgger rounds of {info['episodes_per_round']} runs, "
+              f"High Brake labels kept per round {info['labels_per_round']}")
     sumo = aggs["sumo"]
     print()
     print("| policy | A collisions / As | 95 % CI | W1 speed (ft/s) | x SUMO | W1 d_AC (ft) | x SUMO | W1 acc | W1 TTC "
@@ -140,12 +142,13 @@ def main(argv=None) -> int:
         ctl = pd.concat([e.controls for e in eps], ignore_index=True)
         kinds = ctl.loc[ctl["reason"] == "collision", "collision_kind"].value_counts()
         print(f"| {name} | " + " | ".join(str(int(kinds.get(k, 0))) for k in COLLISION_KINDS) + " |")
-    driver = args.driver or next(iter(res.models))
     if args.safety_ttc > 0:
-        safe = evaluate([res.models[driver]], args.scenario, args.episodes, cfg.eval_seed,
+        irl = [] if driver == CF_DRIVER else [res.models[driver]]
+        cf = [cf_policy(res.models[driver], name=driver)] if driver == CF_DRIVER else []
+        safe = evaluate(irl, args.scenario, args.episodes, cfg.eval_seed,
                         Path(args.out) / f"evaluation-safety-{args.safety_ttc:g}s", duration_s=args.eval_duration,
-                        baselines=(), controller=ControllerConfig(safety_ttc_s=args.safety_ttc), workers=args.workers,
-                        rrd=False, progress=False)
+                        baselines=(), policies=cf, controller=ControllerConfig(safety_ttc_s=args.safety_ttc),
+                        workers=args.workers, rrd=False, progress=False)
         s = safe.aggregates[driver]
         lo, hi = s.a_collision_ci95
         print(f"\nsafety-filter variant of {driver} (TTC {args.safety_ttc:g} s, a variant, not the default): "
@@ -153,7 +156,7 @@ def main(argv=None) -> int:
               f"{s.safety_interventions} of {s.n_decisions} actions "
               f"({_f(100 * s.safety_interventions / max(s.n_decisions, 1), 2)} %)")
     print()
-    for name in [driver] + (["cf-dagger"] if args.cf_rounds > 0 else []):
+    for name in [driver] + ([CF_DRIVER] if args.cf_rounds > 0 else []):
         for text, ok in target_checks(name, aggs):
             print(f"  {'met    ' if ok else 'NOT MET'}  {text}")
     print(f"\nreport: {res.evaluation.report_md}")

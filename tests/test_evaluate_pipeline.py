@@ -54,3 +54,25 @@ def test_run_demo_small(tmp_path):
     assert "wall_time" not in res.models["qavg"].read_text()
     assert f"({res.wall_time_s:.0f} s)" not in summary
     assert set(json.loads((out / "timings.json").read_text())["fit_wall_time_s"]) == {"qavg"}
+
+
+def test_run_demo_with_the_dagger_driver(tmp_path):
+    """``dagger_rounds``: the car-following logit driver is trained after the IRL methods, saved
+    beside them, evaluated on the same episodes and scored on the held-out demonstrations."""
+    from analysis.pipeline import CF_DRIVER
+    from irl.domains.merge_car_following import car_following_decisions
+    from irl.domains.merge_cf_logit import CarFollowingLogit
+    from irl.merge_mdp import read_encounters
+
+    cfg = DemoConfig(train_seeds=(11,), heldout_seed=12, data_duration_s=240.0, eval_episodes=1,
+                     eval_duration_s=110.0, methods=("qavg",), dagger_rounds=1)
+    res = run_demo(tmp_path / "demo", cfg, quiet=True, progress=False)
+    cf = CarFollowingLogit.load(res.models[CF_DRIVER])
+    assert res.models[CF_DRIVER].name == "cf_dagger.json" and cf.info["dagger_round"] == 1
+    data = json.loads(res.evaluation.metrics_json.read_text())
+    assert set(data["policies"]) == {"qavg", CF_DRIVER, "sumo", "uniform", "marginal", "markov", "bc"}
+    agg = data["policies"][CF_DRIVER]["aggregate"]
+    assert agg["n_controls"] > 0
+    held = car_following_decisions(read_encounters(tmp_path / "demo" / "data" / "heldout_encounters.parquet"))
+    assert agg["heldout_loglik"] == pytest.approx(cf.loglik_of(held))
+    assert CF_DRIVER in json.loads((tmp_path / "demo" / "timings.json").read_text())["fit_wall_time_s"]

@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 from dataclasses import replace
 
-from analysis.commands._arg_types import positive_int
+from analysis.commands._arg_types import non_negative_int, positive_int
 
 
 def register(subparsers) -> None:
@@ -30,6 +30,10 @@ def register(subparsers) -> None:
     p.add_argument("--methods", default=None, metavar="LIST",
                    help="comma-separated IRL methods (default: qavg; mlirl, qsm and reirl are slower at the driver "
                         "encoding's 6250 states, add them here)")
+    p.add_argument("--dagger-rounds", type=non_negative_int, default=0, metavar="N",
+                   help="also train the car-following logit driver cf-dagger with N DAgger rounds (SUMO's High "
+                        "Brake labels in the states it reaches; about 11 s per round on 2 cores) and evaluate it "
+                        "beside the others (default 0: not trained)")
     p.add_argument("--workers", type=positive_int, default=None, metavar="N", help="processes (default 2)")
     p.add_argument("--executor", default=None,
                    help="where data runs and episodes run: serial, process[:N], dask-local[:N], dask://HOST:PORT "
@@ -50,6 +54,8 @@ def run(args: argparse.Namespace) -> int:
         config = replace(config, eval_episodes=args.episodes)
     if args.methods:
         config = replace(config, methods=tuple(m.strip() for m in args.methods.split(",") if m.strip()))
+    if args.dagger_rounds:
+        config = replace(config, dagger_rounds=args.dagger_rounds)
     if args.workers is not None:
         config = replace(config, workers=args.workers)
     if args.executor is not None:

@@ -100,7 +100,7 @@ class DemoConfig:
             (:mod:`analysis.dagger`, its other settings the defaults of
             :class:`~analysis.dagger.DaggerConfig`, so the driver equals ``merge-irl dagger``'s
             on the same encounters), trained after the IRL methods and evaluated beside them;
-            0 (the default): not trained. 4 rounds add about 45 s on 2 cores.
+            0 (the default): not trained. 4 rounds added 54 s on 2 cores (2026-12-01).
         workers: processes (``process:<workers>``).
         executor: where the data runs and evaluation episodes run (``analysis.sweep``
             executors); None: ``process:<workers>``.

@@ -32,7 +32,7 @@ def register(subparsers) -> None:
                         "encoding's 6250 states, add them here)")
     p.add_argument("--dagger-rounds", type=non_negative_int, default=0, metavar="N",
                    help="also train the car-following logit driver cf-dagger with N DAgger rounds (SUMO's High "
-                        "Brake labels in the states it reaches; about 11 s per round on 2 cores) and evaluate it "
+                        "Brake labels in the states it reaches; about 14 s per round on 2 cores) and evaluate it "
                         "beside the others (default 0: not trained)")
     p.add_argument("--workers", type=positive_int, default=None, metavar="N", help="processes (default 2)")
     p.add_argument("--executor", default=None,

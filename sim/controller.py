@@ -258,16 +258,17 @@ class Controller:
         d_ac, d_ab, v_ac, v_ab, truck = observe(frame, ia, ib, ic)
         encoder = getattr(self.policy, "encoder", None)
         encoding = getattr(self.policy, "state_encoding", "paper")
+        # before the first decision: the bin of A's acceleration in the last frame (SUMO's, over 0.1 s)
+        acc_now = float(frame.acc[ia])
+        initial = action_of(acc_now) if c.prev_action < 0 and math.isfinite(acc_now) else -1
         if encoder is None:
             state = -1
         elif encoding == "paper":
             state = encoder.state(d_ac, d_ab, v_ac, v_ab, truck)
-        else:  # paper state x A's previous action; before the first decision, the bin of A's
-            # acceleration in the last frame (SUMO's, over 0.1 s), Zero if it is not finite
-            acc_now = float(frame.acc[ia])
-            prev = c.prev_action if c.prev_action >= 0 else (action_of(acc_now) if math.isfinite(acc_now) else ZERO_ACTION)
+        else:  # paper state x A's previous action (the initial one before the first decision, else Zero)
+            prev = c.prev_action if c.prev_action >= 0 else (initial if initial >= 0 else ZERO_ACTION)
             state = encoder.state(d_ac, d_ab, v_ac, v_ab, truck, prev_action=prev, encoding=encoding)
-        obs = MergeObservation(d_ac, d_ab, v_ac, v_ab, truck, state, float(frame.speed[ia]), c.prev_action)
+        obs = MergeObservation(d_ac, d_ab, v_ac, v_ab, truck, state, float(frame.speed[ia]), c.prev_action, initial)
         probs = np.asarray(self.policy.probs(obs), dtype=np.float64)
         filtered = False
         if c.commanded:

@@ -44,7 +44,8 @@ class ExpertLabels:
 
     Attributes:
         records: one :class:`ExpertLabel` per decision of a controlled A, in decision order;
-            ``prev`` is A's previous action in its control episode (-1 before the first).
+            ``prev`` is A's previous action in its control episode (before the first: the
+            observation's ``initial_action``, -1 if unknown).
     """
 
     def __init__(self, controller: Controller):
@@ -88,8 +89,9 @@ class ExpertLabels:
                 v_next = veh.getFollowSpeed(a_sumo, v, gap, v_c, c_decel)
             acc = max((v_next - v) / ctx.step_length_s, -veh.getEmergencyDecel(a_sumo))
             acc = min(acc, veh.getAccel(a_sumo))
+            prev = obs.prev_action if obs.prev_action >= 0 else obs.initial_action  # as the policy saw it
             self.records.append(ExpertLabel(int(obs.state), obs.d_AC, obs.v_AC, obs.d_AB, obs.v_AB, obs.speed_A,
-                                            int(obs.prev_action), action_of(acc / M_PER_FT)))
+                                            int(prev), action_of(acc / M_PER_FT)))
 
     def on_end(self, ctx: RunContext) -> None:
         pass

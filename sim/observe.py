@@ -36,6 +36,10 @@ class MergeObservation:
         state: discrete state index in ``[0, 1250)`` (-1 when no encoder was given).
         speed_A: A's speed (ft/s): logged, and the car-following logit driver's input.
         prev_action: A's action at the previous decision of this control episode (-1: none).
+        initial_action: before the first decision, the bin of A's acceleration over the last
+            simulation step (how the driver encoding and the car-following driver take A's
+            previous action there, as training takes it from A's speed history); -1 afterwards
+            or when not finite.
     """
 
     d_AC: float
@@ -46,6 +50,7 @@ class MergeObservation:
     state: int = -1
     speed_A: float = 0.0
     prev_action: int = -1
+    initial_action: int = -1
 
     def as_array(self) -> np.ndarray:
         """``[5]``: d_AC, d_AB, v_AC, v_AB, B_is_truck."""

@@ -259,7 +259,8 @@ class CarFollowingLogitPolicy:
 
     ``probs`` evaluates the model's features on the observation itself (``d_AC, v_AC, d_AB,
     v_AB`` and ``speed_A``, ft and ft/s; no bins) and A's previous action in this control
-    episode (Zero before the first decision). Actions are applied at the model's
+    episode (before the first decision ``initial_action``, the bin of A's last acceleration, as
+    the driver encoding takes it; Zero if unknown). Actions are applied at the model's
     ``action_acc_ft_s2``; the controller decides every ``decision_step_s``.
     """
 
@@ -285,4 +286,5 @@ class CarFollowingLogitPolicy:
             raise PolicyError(f"policy {self.name!r}: A's speed, d_AB and v_AB must be finite, got "
                               f"{obs.speed_A}, {obs.d_AB}, {obs.v_AB}")
         x = np.array([[obs.d_AC, obs.v_AC, obs.d_AB, obs.v_AB, obs.speed_A]], dtype=np.float64)
-        return np.exp(self.model.log_policy(x, np.array([obs.prev_action]))[0])
+        prev = obs.prev_action if obs.prev_action >= 0 else obs.initial_action
+        return np.exp(self.model.log_policy(x, np.array([prev]))[0])

@@ -164,5 +164,10 @@ def test_policy_and_heldout_score_use_the_model():
     p = pol.probs(MergeObservation(d_AC=o[0], d_AB=o[2], v_AC=o[1], v_AB=o[3], b_is_truck=False, speed_A=o[4],
                                    prev_action=int(dec.prev[5])))
     np.testing.assert_allclose(p, np.exp(model.log_policy(dec.obs[5:6], dec.prev[5:6]))[0])
+    # before the first decision the initial action stands for the previous one
+    first = MergeObservation(d_AC=o[0], d_AB=o[2], v_AC=o[1], v_AB=o[3], b_is_truck=False, speed_A=o[4],
+                             prev_action=-1, initial_action=0)
+    np.testing.assert_allclose(pol.probs(first), np.exp(model.log_policy(dec.obs[5:6], np.array([0])))[0])
+    assert not np.allclose(pol.probs(first), np.exp(model.log_policy(dec.obs[5:6], np.array([4])))[0])
     total, per_step = policy_heldout_loglik(pol, HeldOut(df, np.zeros(5, dtype=np.int64), "test"))
     assert total == pytest.approx(model.loglik_of(dec)) and per_step == pytest.approx(total / dec.n)

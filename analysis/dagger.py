@@ -32,7 +32,7 @@ import pandas as pd
 from analysis.evaluate import resolve_executor
 from analysis.sweep import Task, run_sweep
 from irl.domains.merge_actions import N_ACTIONS
-from irl.domains.merge_car_following import CFDecisions, car_following_decisions
+from irl.domains.merge_car_following import OBS_COLUMNS, CFDecisions, car_following_decisions
 from irl.domains.merge_cf_logit import CarFollowingLogit
 from irl.errors import ConfigError
 from scenarios.loader import load_scenario
@@ -135,7 +135,7 @@ def label_runs(model: CarFollowingLogit, spec, seeds, config: DaggerConfig, exec
 def labels_as_decisions(table: pd.DataFrame, demos: CFDecisions) -> CFDecisions:
     """Expert label records (:meth:`sim.expert_labels.ExpertLabels.table`) as decisions with
     the demonstrations' action accelerations and step."""
-    obs = table[["d_AC", "v_AC", "d_AB", "v_AB", "v_A"]].to_numpy(dtype=np.float64).reshape(-1, 5)
+    obs = table[list(OBS_COLUMNS)].to_numpy(dtype=np.float64).reshape(-1, len(OBS_COLUMNS))
     return CFDecisions(obs, table["prev"].to_numpy(dtype=np.int64), table["action"].to_numpy(dtype=np.int64),
                        demos.action_acc_ft_s2, demos.decision_step_s)
 

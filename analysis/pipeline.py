@@ -174,10 +174,7 @@ def encounters_task(run: EncounterRun, seed: int) -> dict:
     del seed
     spec = load_scenario(run.scenario) if isinstance(run.scenario, (str, Path)) else run.scenario
     res = run_scenario(spec, seed=run.seed, duration_s=run.duration_s)
-    frames = extract_encounters(res.table)
-    # A's speed at each encounter frame, for the closed loop's Wasserstein distance of speed
-    speed = res.table.set_index(["Vehicle_ID", "Frame_ID"])["v_Vel"]
-    frames["v_A"] = speed.reindex(pd.MultiIndex.from_arrays([frames["A_id"], frames["Frame_ID"]])).to_numpy(float)
+    frames = extract_encounters(res.table)  # with A's speed v_A
     frames["encounter_id"] = frames["encounter_id"].astype("int64") + 1_000_000 * int(run.seed)
     return frame_to_dict(frames)
 
@@ -219,6 +216,12 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     from analysis.rerun_recording import close_recording, open_recording, recording_identity
 
     t0 = time.perf_counter()
+    if config.dagger_rounds:  # before any work: a negative count, or labelling seeds that are data or evaluation seeds
+        labelling = set(DaggerConfig(rounds=config.dagger_rounds).label_seeds())
+        if labelling & {*range(config.eval_seed, config.eval_seed + config.eval_episodes), *config.train_seeds,
+                        config.heldout_seed}:
+            raise SimError(f"demo: the DAgger labelling seeds {min(labelling)}..{max(labelling)} overlap the data "
+                           "or evaluation seeds")
     out = Path(out_dir) if out_dir is not None else Path("runs") / "demo"
     (out / "data").mkdir(parents=True, exist_ok=True)
 
@@ -269,6 +272,7 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
         cf = train_cf_driver(train, config.scenario, DaggerConfig(rounds=config.dagger_rounds), workers=config.workers,
                              executor=config.executor, where=str(train_path), progress=not quiet)
         models[CF_DRIVER] = cf[-1].save(out / "models" / "cf_dagger.json")
+        cf[0].save(out / "models" / "cf_logit.json")  # round 0, the demonstrations alone (not evaluated here)
         drivers.append(CarFollowingLogitPolicy(cf[-1], name=CF_DRIVER))
         fit_times[CF_DRIVER] = time.perf_counter() - t_cf
         _say(f"      {CF_DRIVER}: {config.dagger_rounds} DAgger rounds, High Brake labels per round "

@@ -41,7 +41,6 @@ from analysis.dagger import DaggerConfig
 from analysis.demo_signal import bin_change_rate, braking_cap_share
 from analysis.evaluate import cf_policy, evaluate
 from analysis.pipeline import CF_DRIVER, DemoConfig, run_demo
-from irl.domains.merge_car_following import car_following_decisions
 from irl.domains.merge_cf_logit import CarFollowingLogit
 from sim.control_records import COLLISION_KINDS
 from sim.controller_config import ControllerConfig
@@ -113,8 +112,7 @@ def main(argv=None) -> int:
     aggs = dict(res.evaluation.aggregates)
     episodes = dict(res.evaluation.episodes)
     if args.cf_rounds > 0:  # cf-dagger is in the demo's evaluation; its round 0 (no labels) beside it
-        round0 = CarFollowingLogit.fit(car_following_decisions(train), l2=DaggerConfig.l2)
-        round0.save(Path(args.out) / "models" / "cf_logit.json")
+        round0 = CarFollowingLogit.load(Path(args.out) / "models" / "cf_logit.json")  # written by the demo pipeline
         held = Path(args.out) / "data" / "heldout_encounters.parquet"
         rep = evaluate([], args.scenario, args.episodes, cfg.eval_seed, Path(args.out) / "evaluation-cf-logit",
                        duration_s=args.eval_duration, demos=held, baselines=(),

@@ -10,7 +10,6 @@ readers of the authors' files and of encounter tables.
 
 from __future__ import annotations
 
-import dataclasses
 import os
 import warnings
 from dataclasses import dataclass
@@ -50,7 +49,7 @@ class Discretized:
 
     demos: Demonstrations
     action_acc_ft_s2: tuple[float, ...]
-    rows: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    rows: np.ndarray
 
 
 def action_mean_acc(acc, actions) -> tuple[float, ...]:

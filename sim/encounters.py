@@ -241,6 +241,7 @@ def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),
                 "d_AC": yc - y[ra], "d_AB": y[rbb] - y[ra],
                 "v_AC": vel[ra] - vc, "v_AB": vel[ra] - vel[rbb],
                 "B_is_truck": truck, "acc_A": forward_acceleration(vel[ra], vel[ra_next], FRAME_S),
+                "v_A": vel[ra],
             }))
             n = len(frames)
         else:

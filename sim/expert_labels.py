@@ -54,8 +54,9 @@ class ExpertLabels:
 
     @property
     def labels(self) -> list[tuple[int, int]]:
-        """``(state, expert action)`` per decision (the learner's encoded state)."""
-        return [(r.state, r.action) for r in self.records]
+        """``(state, expert action)`` per decision of a learner with a state encoder (decisions
+        without an encoded state, ``state`` -1, are left out)."""
+        return [(r.state, r.action) for r in self.records if r.state >= 0]
 
     def table(self) -> pd.DataFrame:
         """The records as a DataFrame with the columns of :class:`ExpertLabel`."""

@@ -270,10 +270,12 @@ class CarFollowingLogitPolicy:
 
     @property
     def action_acc_ft_s2(self) -> tuple[float, ...]:
+        """``[5]`` acceleration applied per action (ft/s^2), the model's."""
         return self.model.action_acc_ft_s2
 
     @property
     def decision_step_s(self) -> float:
+        """Seconds per decision the model was trained at."""
         return self.model.decision_step_s
 
     def probs(self, obs: MergeObservation) -> np.ndarray:

@@ -85,8 +85,13 @@ def test_decisions_follow_resample_encounters_with_the_driver_encoding():
     np.testing.assert_array_equal(dec.actions, actions)
     np.testing.assert_array_equal(dec.prev, states % 5)
     assert dec.n == 4 * 9  # 31 rows: 10 whole steps, the first is the previous action only
-    # decision j of an encounter observes row 3 j (j >= 1); its action is the mean acc of rows 3j..3j+2
-    np.testing.assert_allclose(dec.obs[0], df.loc[3, ["d_AC", "v_AC", "d_AB", "v_AB", "v_A"]].to_numpy(float))
+    # decision j of encounter e observes row 31 e + 3 j (j = 1..9); its action is the mean acc of
+    # rows 3j..3j+2 of the encounter, its previous action that of rows 3(j-1)..3j-1
+    expected_rows = [31 * e + 3 * j for e in range(4) for j in range(1, 10)]
+    np.testing.assert_array_equal(dec.obs, df.iloc[expected_rows][["d_AC", "v_AC", "d_AB", "v_AB", "v_A"]].to_numpy(float))
+    step = actions_of(df["acc_A"].to_numpy().reshape(4, 10 * 3 + 1)[:, :30].reshape(4, 10, 3).mean(axis=2))  # [4, 10]
+    np.testing.assert_array_equal(dec.actions, step[:, 1:].ravel())
+    np.testing.assert_array_equal(dec.prev, step[:, :-1].ravel())
     assert dec.actions[0] == actions_of(np.array([df["acc_A"][3:6].mean()]))[0]
     assert dec.prev[0] == actions_of(np.array([df["acc_A"][0:3].mean()]))[0]
     assert dec.action_acc_ft_s2 == ref.action_acc_ft_s2

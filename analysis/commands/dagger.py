@@ -9,7 +9,10 @@ from pathlib import Path
 
 from analysis.commands._arg_types import non_negative_int, positive_int
 
-ACTION_KEYS = ("high_brake", "low_brake", "zero", "low_accel", "high_accel")
+from irl.domains.merge_actions import ACTION_NAMES
+
+#: Action names as ``--critical`` takes them (``high_brake`` ... ``high_accel``).
+ACTION_KEYS = tuple(n.lower().replace(" ", "_") for n in ACTION_NAMES)
 
 
 def _actions(text: str) -> tuple[int, ...]:

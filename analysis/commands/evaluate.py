@@ -32,7 +32,8 @@ def register(subparsers) -> None:
                    help="comma-separated baselines among sumo, uniform, marginal, markov, bc ('' for none; "
                         "marginal, markov and bc need --train-demos)")
     p.add_argument("--decision-step", type=float, default=None,
-                   help="seconds between two decisions of A (default: the first model's decision step, else 0.3)")
+                   help="seconds between two decisions of A (default: the first model's decision step, else the first "
+                        "--cf-model's, else 0.3)")
     p.add_argument("--safety-ttc", type=float, default=None, metavar="S",
                    help="safety-filter variant: replace an action that would bring A's TTC to its leader "
                         "below S seconds (default: raw, no filter); interventions are reported")

@@ -49,9 +49,11 @@ ACC_SCALE_FT_S2 = 8.0  # the High Accel midpoint: features stay of order 1
 class GapNeed:
     """Nominal IDM parameters that shape the gap-need features (ft, s, ft/s^2, ft/s).
 
-    Defaults: SUMO's IDM for a passenger car as the synthetic demonstrators drive it (minGap
-    2.5 m, tau 1 s, accel 2.6 m/s^2, decel 4.5 m/s^2, desired speed 29 m/s, length 4.5 m).
-    ``clip`` bounds ``(s*/s)^2`` (a gap near zero would otherwise dominate every weight).
+    Defaults: SUMO's passenger-car defaults (minGap 2.5 m, tau 1 s, accel 2.6 m/s^2, decel
+    4.5 m/s^2, desired speed 29 m/s, length 4.5 m), close to the synthetic preset's IDM cars
+    (whose minGap is 2.0 m). ``clip`` bounds ``(s*/s)^2`` (a gap near zero would otherwise
+    dominate every weight). Every vehicle is taken to be a car of ``length_ft``: a truck C's
+    gap is overestimated by the length difference (the encounter table has no C length).
     """
 
     min_gap_ft: float = 2.5 * FT_PER_M
@@ -64,7 +66,8 @@ class GapNeed:
 
     def __post_init__(self) -> None:
         bad = {k: v for k, v in asdict(self).items()
-               if not (isinstance(v, (int, float)) and np.isfinite(v) and (v > 0 or (k == "min_gap_ft" and v == 0)))}
+               if isinstance(v, bool) or not (isinstance(v, (int, float)) and np.isfinite(v)
+                                              and (v > 0 or (k == "min_gap_ft" and v == 0)))}
         if bad:
             raise ConfigError(f"GapNeed: parameters must be finite and positive, got {bad}")
 
@@ -86,7 +89,7 @@ class CFDecisions:
 
     Attributes:
         obs: ``[N, 5]`` float64, columns :data:`OBS_COLUMNS` (``d_AC``/``v_AC`` NaN without C).
-        prev: ``[N]`` int64, A's previous action (Zero when unknown).
+        prev: ``[N]`` int64, A's previous action (-1: unknown, featured as Zero).
         actions: ``[N]`` int64, the action taken (forward difference of A's speed over the step).
         action_acc_ft_s2: ``[5]`` mean acceleration of each action's decisions (ft/s^2).
         decision_step_s: seconds per decision.
@@ -100,6 +103,7 @@ class CFDecisions:
 
     @property
     def n(self) -> int:
+        """The number of decisions ``N``."""
         return int(self.actions.size)
 
 
@@ -138,7 +142,8 @@ def car_following_features(obs: np.ndarray, prev: np.ndarray, action_acc_ft_s2,
     ``action_acc_ft_s2 [5]`` the acceleration of each action (ft/s^2).
 
     Raises:
-        ConfigError: ``obs`` is not ``[N, 5]``, ``prev`` not ``[N]`` or ``action_acc`` not 5 finite numbers.
+        ConfigError: ``obs`` is not ``[N, 5]``, ``prev`` not ``[N]`` actions or -1, or ``action_acc``
+            not 5 finite numbers.
     """
     obs = np.asarray(obs, dtype=np.float64)
     prev = np.asarray(prev, dtype=np.int64)
@@ -147,7 +152,9 @@ def car_following_features(obs: np.ndarray, prev: np.ndarray, action_acc_ft_s2,
         raise ConfigError(f"obs must be [N, {len(OBS_COLUMNS)}] and prev [N]; got {obs.shape} and {prev.shape}")
     if acc.shape != (N_ACTIONS,) or not np.all(np.isfinite(acc)):
         raise ConfigError(f"action_acc_ft_s2 must be {N_ACTIONS} finite numbers, got {acc}")
-    prev = np.where((prev >= 0) & (prev < N_ACTIONS), prev, ZERO_ACTION)
+    if prev.size and (prev.min() < -1 or prev.max() >= N_ACTIONS):
+        raise ConfigError(f"prev must hold actions 0..{N_ACTIONS - 1} or -1 (unknown), got {prev.min()}..{prev.max()}")
+    prev = np.where(prev >= 0, prev, ZERO_ACTION)
     d_ac, v_ac, d_ab, v_ab, v_a = (obs[:, j] for j in range(5))
     has_c = np.isfinite(d_ac) & np.isfinite(v_ac)
     need_c = np.where(has_c, gap_need.need(np.where(has_c, d_ac, 1e6), v_a, np.where(has_c, v_ac, 0.0)), 0.0)

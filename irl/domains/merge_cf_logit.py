@@ -78,17 +78,27 @@ class CarFollowingLogit:
 
     @property
     def feature_names(self) -> tuple[str, ...]:
+        """The ``K`` feature names of ``theta`` (:data:`~irl.domains.merge_car_following.CF_FEATURES`)."""
         return CF_FEATURES
 
     @classmethod
     def fit(cls, demos: CFDecisions, *, l2: float = 0.1, labels: CFDecisions | None = None,
-            info: dict[str, Any] | None = None) -> CarFollowingLogit:
-        """Fit on the demonstrations' decisions (plus expert ``labels``, weighted as demonstrations).
+            gap_need: GapNeed | None = None, info: dict[str, Any] | None = None) -> CarFollowingLogit:
+        """Fit on the demonstrations' ``N`` decisions (plus the ``M`` expert ``labels``, each
+        weighted as one demonstrated decision): features ``[N + M, 5, K]``, L-BFGS from 0.
+
+        Args:
+            demos: the demonstrations (their action accelerations and step are the model's).
+            l2: L2 penalty; labels: expert decisions or None; gap_need: the features' IDM
+                parameters (None: :class:`GapNeed`'s defaults); info: provenance merged into ``info``.
+
+        Returns:
+            the model, ``loglik`` on the demonstrations alone.
 
         Raises:
             ConfigError: a bad ``l2``; DemonstrationError: malformed decisions.
         """
-        gap_need = GapNeed()
+        gap_need = gap_need or GapNeed()
         F = car_following_features(demos.obs, demos.prev, demos.action_acc_ft_s2, gap_need)
         actions = demos.actions
         if labels is not None and labels.n:
@@ -111,6 +121,7 @@ class CarFollowingLogit:
         return conditional_loglik(F, self.theta, decisions.actions)
 
     def to_json_dict(self) -> dict[str, Any]:
+        """The file's JSON object (format :data:`CF_FORMAT`; a non-finite ``loglik`` as null)."""
         return {"format": CF_FORMAT, "feature_names": list(CF_FEATURES), "theta": self.theta.tolist(),
                 "action_acc_ft_s2": list(self.action_acc_ft_s2), "decision_step_s": self.decision_step_s,
                 "gap_need": dataclasses.asdict(self.gap_need), "l2": self.l2,

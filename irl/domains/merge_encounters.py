@@ -42,6 +42,9 @@ ENCOUNTER_SCHEMA: tuple[EncounterColumn, ...] = (
     EncounterColumn("acc_A", "float64", "ft/s^2",
                     "the action: (v_A(t+1) - v_A(t)) / 0.1 s, forward difference of A's speed "
                     "(not v_Acc, the backward difference)"),
+    EncounterColumn("v_A", "float64", "ft/s",
+                    "A's speed v_Vel(A) at frame t (the car-following features and the closed loop's W1 of "
+                    "speed use it; not required for the tabular methods)"),
 )
 #: Column name -> pandas dtype, in table order.
 ENCOUNTER_COLUMNS: dict[str, str] = {c.name: c.dtype for c in ENCOUNTER_SCHEMA}

@@ -116,7 +116,8 @@ def label_run_task(run: LabelRun, seed: int) -> dict:
     return {"records": [list(r) for r in hook.records]}
 
 
-def label_runs(model: CarFollowingLogit, spec, seeds, config: DaggerConfig, executor: str) -> pd.DataFrame:
+def label_runs(model: CarFollowingLogit, spec: ScenarioSpec, seeds: list[int], config: DaggerConfig,
+               executor: str) -> pd.DataFrame:
     """The expert records (columns of :class:`~sim.expert_labels.ExpertLabel`) of one labelling
     run per seed, in seed order, run by ``executor`` (``analysis.sweep``).
 

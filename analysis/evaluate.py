@@ -174,7 +174,7 @@ def cf_policy(path: str | os.PathLike, name: str = "") -> CarFollowingLogitPolic
     Raises:
         ModelFileError: a missing, unreadable or malformed file.
     """
-    return CarFollowingLogitPolicy(CarFollowingLogit.load(path), name=name or Path(path).stem)
+    return CarFollowingLogitPolicy(CarFollowingLogit.load(path), name=name or Path(path).stem, source=str(path))
 
 
 @dataclass(frozen=True)
@@ -371,11 +371,12 @@ def evaluate(
 
 def evaluation_provenance(models: Sequence, pols: Sequence[Policy], scenario, spec, demos) -> dict:
     """:func:`analysis.provenance.provenance` of an evaluation: the model file of each policy
-    (``pols`` starts with one policy per entry of ``models``; None for baselines and models
-    given as objects), the held-out demonstrations and scenario files read, and the SHA-256
-    of the scenario actually simulated (its TOML)."""
+    (``pols`` starts with one policy per entry of ``models``; a further policy's ``source``
+    file when it has one, as :func:`cf_policy`'s; None for baselines and models given as
+    objects), the held-out demonstrations and scenario files read, and the SHA-256 of the
+    scenario actually simulated (its TOML)."""
     files = {p.name: None if isinstance(m, SavedModel) else m for p, m in zip(pols, models)}
-    files.update({p.name: None for p in pols[len(models):]})
+    files.update({p.name: getattr(p, "source", "") or None for p in pols[len(models):]})
     scenario_file = scenario if isinstance(scenario, (str, Path)) and Path(scenario).is_file() else None
     demos_file = None if isinstance(demos, pd.DataFrame) else demos
     return provenance({"demos": demos_file, "scenario": scenario_file}, files,

@@ -267,6 +267,7 @@ class CarFollowingLogitPolicy:
     model: CarFollowingLogit
     name: str = "cf-logit"
     controls: bool = True
+    source: str = ""  # the model's file, when read from one (recorded in evaluations' provenance)
 
     @property
     def action_acc_ft_s2(self) -> tuple[float, ...]:

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 
 import numpy as np
@@ -145,7 +146,10 @@ def test_cli_trains_and_evaluate_drives_the_result(tmp_path, capsys):
     assert main(["evaluate", "--cf-model", str(out / "cf_dagger.json"), "--baselines", "", "--episodes", "1",
                  "--seed", "3", "--duration", "150", "--demos", str(table), "--no-rrd", "--no-progress",
                  "--out", str(ev)]) == 0
-    agg = json.loads((ev / "metrics.json").read_text())["policies"]["cf_dagger"]["aggregate"]
+    metrics = json.loads((ev / "metrics.json").read_text())
+    digest = metrics["provenance"]["models"]["cf_dagger"]  # the driver file is in the provenance
+    assert digest["sha256"] == hashlib.sha256((out / "cf_dagger.json").read_bytes()).hexdigest()
+    agg = metrics["policies"]["cf_dagger"]["aggregate"]
     assert agg["n_controls"] > 0 and agg["n_decisions"] > 0
     dec = car_following_decisions(_accelerating_demos())
     assert agg["heldout_loglik"] == pytest.approx(m.loglik_of(dec))

@@ -20,8 +20,10 @@ recording of the first episode of each policy under ``rerun/``. ``metrics.json``
 
 from __future__ import annotations
 
+import math
 import os
 import sys
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, is_dataclass, replace
 from pathlib import Path
@@ -39,7 +41,7 @@ from analysis.sweep import Task, parse_executor, run_sweep
 from irl.baselines import fit_baseline
 from irl.domains.merge_actions import ACTION_ACC_FT_S2, N_ACTIONS, actions_of
 from irl.domains.merge_bins import MergeBins, fit_quantile_bins
-from irl.domains.merge_car_following import car_following_decisions
+from irl.domains.merge_car_following import CFDecisions, car_following_decisions
 from irl.domains.merge_cf_logit import CarFollowingLogit
 from irl.merge_mdp import discretize, read_encounters
 from irl.result import SavedModel
@@ -94,18 +96,21 @@ def load_heldout(demos: str | os.PathLike | pd.DataFrame) -> HeldOut:
     return HeldOut(df, counts.astype(np.int64), src)
 
 
-def policy_heldout_loglik(policy: Policy, heldout: HeldOut, decision_step_s: float = 0.1) -> tuple[float, float]:
+def policy_heldout_loglik(policy: Policy, heldout: HeldOut, decision_step_s: float = 0.1, *,
+                          cf_decisions: CFDecisions | None = None) -> tuple[float, float]:
     """``(sum, per step)`` state-conditional log-likelihood of the held-out demonstrations under
     ``policy`` (NaN for SUMO), scored as learning sees them: resampled at the decision step
     (:func:`irl.merge_mdp.discretize`; a learned policy at its model's ``decision_step_s`` and
     state encoding, every other policy at ``decision_step_s``), so an action is the forward
     difference of A's speed over one decision. ``markov`` scores a trajectory's first step by
-    its marginal."""
+    its marginal. ``cf_decisions``: the held-out decisions of a car-following driver when
+    already taken (:func:`~irl.domains.merge_car_following.car_following_decisions` at its step)."""
     if not policy.controls:
         return float("nan"), float("nan")
     df = heldout.encounters
     if isinstance(policy, CarFollowingLogitPolicy):
-        dec = car_following_decisions(df, decision_step_s=policy.decision_step_s, where=heldout.source)
+        dec = cf_decisions if cf_decisions is not None else car_following_decisions(
+            df, decision_step_s=policy.decision_step_s, where=heldout.source)
         total = policy.model.loglik_of(dec)
         return total, total / dec.n
     if isinstance(policy, LearnedPolicy):
@@ -168,13 +173,18 @@ def learned_policy(model: SavedModel | str | os.PathLike, name: str = "") -> Lea
 
 def cf_policy(path: str | os.PathLike, name: str = "") -> CarFollowingLogitPolicy:
     """A :class:`~sim.policy.CarFollowingLogitPolicy` from a car-following logit file
-    (``cf_dagger.json`` or ``cf_logit.json`` of ``merge-irl dagger``), named ``name`` or the
-    file's stem.
+    (``cf-dagger.json`` or ``cf-logit.json`` of ``merge-irl dagger``), named ``name`` or the
+    file's stem (as :func:`learned_policy` names a model file; the demo's ``cf-dagger`` is
+    ``models/cf-dagger.json``). A fit that did not converge is flagged (``not_converged``).
 
     Raises:
         ModelFileError: a missing, unreadable or malformed file.
     """
     return CarFollowingLogitPolicy(CarFollowingLogit.load(path), name=name or Path(path).stem, source=str(path))
+
+
+class DecisionStepWarning(UserWarning):
+    """A policy is driven at another decision step than the one it was trained at."""
 
 
 @dataclass(frozen=True)
@@ -303,10 +313,14 @@ def evaluate(
     learned: list[LearnedPolicy] = [learned_policy(m) for m in models]
     pols: list[Policy] = list(learned)
     step = controller.decision_s
+    steps = {p.name: p.decision_step_s for p in (*learned, *policies) if hasattr(p, "decision_step_s")}
     if step is None:
-        steps = [p.decision_step_s for p in (*learned, *policies) if hasattr(p, "decision_step_s")]
-        step = steps[0] if steps else 0.3
+        step = next(iter(steps.values()), 0.3)
         controller = replace(controller, decision_s=step)
+    other = {name: s for name, s in steps.items() if not math.isclose(s, step)}
+    if other:
+        warnings.warn(f"evaluate: every policy decides every {step} s, but " + ", ".join(
+            f"{name} was trained at {s} s" for name, s in other.items()), DecisionStepWarning, stacklevel=2)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     check_writable(out / "report.md")  # before the episodes, not after
@@ -333,9 +347,11 @@ def evaluate(
             renamed.append(_renamed(p, f"{p.name}-{k + 1}") if p.name in dup else p)
         pols = renamed
     held = load_heldout(demos) if demos is not None else None
+    cf_decisions: dict[float, CFDecisions] = {}  # by decision step
     for p in pols:  # a car-following driver's held-out decisions need v_A: fail before the episodes
-        if held is not None and isinstance(p, CarFollowingLogitPolicy):
-            car_following_decisions(held.encounters, decision_step_s=p.decision_step_s, where=held.source)
+        if held is not None and isinstance(p, CarFollowingLogitPolicy) and p.decision_step_s not in cf_decisions:
+            cf_decisions[p.decision_step_s] = car_following_decisions(held.encounters, decision_step_s=p.decision_step_s,
+                                                                      where=held.source)
     prov = evaluation_provenance(models, pols, scenario, spec, demos)  # the files as read, before the work
     counts = held.action_counts if held is not None else None
     tasks = []
@@ -350,7 +366,8 @@ def evaluate(
         by_policy[p.name].append(r)
     aggs = {}
     for p in pols:
-        ho = policy_heldout_loglik(p, held, step) if held is not None else None
+        cf_dec = cf_decisions.get(p.decision_step_s) if isinstance(p, CarFollowingLogitPolicy) else None
+        ho = policy_heldout_loglik(p, held, step, cf_decisions=cf_dec) if held is not None else None
         rs = by_policy[p.name]
         w1 = w1_to_demos(pd.concat([r.decisions for r in rs], ignore_index=True), held.encounters) \
             if held is not None and rs else None

@@ -203,6 +203,23 @@ def _say(msg: str, quiet: bool) -> None:
         print(msg, file=sys.stderr, flush=True)
 
 
+def check_dagger_seeds(config: DemoConfig) -> None:
+    """Check that the DAgger labelling runs of ``config`` (when ``dagger_rounds`` > 0) use none of
+    its data or evaluation seeds.
+
+    Raises:
+        ConfigError: a negative ``dagger_rounds`` (:class:`~analysis.dagger.DaggerConfig`).
+        SimError: a labelling seed is a training, held-out or evaluation seed.
+    """
+    if not config.dagger_rounds:
+        return
+    labelling = set(DaggerConfig(rounds=config.dagger_rounds).label_seeds())
+    if labelling & {*range(config.eval_seed, config.eval_seed + config.eval_episodes), *config.train_seeds,
+                    config.heldout_seed}:
+        raise SimError(f"demo: the DAgger labelling seeds {min(labelling)}..{max(labelling)} overlap the data "
+                       "or evaluation seeds")
+
+
 def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(), *, quiet: bool = False,
              progress: bool = True) -> DemoResult:
     """Run the whole pipeline (see the module docstring) and return where the outputs are.
@@ -216,12 +233,7 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     from analysis.rerun_recording import close_recording, open_recording, recording_identity
 
     t0 = time.perf_counter()
-    if config.dagger_rounds:  # before any work: a negative count, or labelling seeds that are data or evaluation seeds
-        labelling = set(DaggerConfig(rounds=config.dagger_rounds).label_seeds())
-        if labelling & {*range(config.eval_seed, config.eval_seed + config.eval_episodes), *config.train_seeds,
-                        config.heldout_seed}:
-            raise SimError(f"demo: the DAgger labelling seeds {min(labelling)}..{max(labelling)} overlap the data "
-                           "or evaluation seeds")
+    check_dagger_seeds(config)  # before any work
     out = Path(out_dir) if out_dir is not None else Path("runs") / "demo"
     (out / "data").mkdir(parents=True, exist_ok=True)
 
@@ -271,8 +283,8 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
         t_cf = time.perf_counter()
         cf = train_cf_driver(train, config.scenario, DaggerConfig(rounds=config.dagger_rounds), workers=config.workers,
                              executor=config.executor, where=str(train_path), progress=not quiet)
-        models[CF_DRIVER] = cf[-1].save(out / "models" / "cf_dagger.json")
-        cf[0].save(out / "models" / "cf_logit.json")  # round 0, the demonstrations alone (not evaluated here)
+        models[CF_DRIVER] = cf[-1].save(out / "models" / "cf-dagger.json")
+        cf[0].save(out / "models" / "cf-logit.json")  # round 0, the demonstrations alone (not evaluated here)
         drivers.append(CarFollowingLogitPolicy(cf[-1], name=CF_DRIVER))
         fit_times[CF_DRIVER] = time.perf_counter() - t_cf
         _say(f"      {CF_DRIVER}: {config.dagger_rounds} DAgger rounds, High Brake labels per round "

@@ -40,10 +40,11 @@ from analysis.commands._arg_types import non_negative_int
 from analysis.dagger import DaggerConfig
 from analysis.demo_signal import bin_change_rate, braking_cap_share
 from analysis.evaluate import cf_policy, evaluate
-from analysis.pipeline import CF_DRIVER, DemoConfig, run_demo
+from analysis.pipeline import CF_DRIVER, DemoConfig, check_dagger_seeds, run_demo
 from irl.domains.merge_cf_logit import CarFollowingLogit
 from sim.control_records import COLLISION_KINDS
 from sim.controller_config import ControllerConfig
+from sim.errors import SimError
 from sim.policy import CarFollowingLogitPolicy
 
 
@@ -88,9 +89,6 @@ def main(argv=None) -> int:
                          "pipeline (0: neither cf row is run)")
     ap.add_argument("--out", default="runs/closed-loop-target")
     args = ap.parse_args(argv)
-    label_seeds = DaggerConfig(rounds=args.cf_rounds).label_seeds()
-    if set(label_seeds) & set(range(args.eval_seed, args.eval_seed + args.episodes)):
-        ap.error(f"--eval-seed: the evaluation seeds overlap the DAgger labelling seeds {label_seeds}")
     methods = tuple(m for m in args.methods.split(",") if m)
     driver = args.driver or methods[0]
     drivers = (*methods, CF_DRIVER) if args.cf_rounds > 0 else methods
@@ -99,6 +97,10 @@ def main(argv=None) -> int:
     cfg = DemoConfig(scenario=args.scenario, train_seeds=tuple(int(s) for s in args.train_seeds.split(",")),
                      eval_episodes=args.episodes, eval_duration_s=args.eval_duration, methods=methods,
                      workers=args.workers, gamma=args.gamma, eval_seed=args.eval_seed, dagger_rounds=args.cf_rounds)
+    try:
+        check_dagger_seeds(cfg)
+    except SimError as e:
+        ap.error(f"--eval-seed/--train-seeds: {e}")
     t0 = time.perf_counter()
     res = run_demo(args.out, cfg, quiet=True, progress=False)
     wall = time.perf_counter() - t0
@@ -112,7 +114,7 @@ def main(argv=None) -> int:
     aggs = dict(res.evaluation.aggregates)
     episodes = dict(res.evaluation.episodes)
     if args.cf_rounds > 0:  # cf-dagger is in the demo's evaluation; its round 0 (no labels) beside it
-        round0 = CarFollowingLogit.load(Path(args.out) / "models" / "cf_logit.json")  # written by the demo pipeline
+        round0 = CarFollowingLogit.load(Path(args.out) / "models" / "cf-logit.json")  # written by the demo pipeline
         held = Path(args.out) / "data" / "heldout_encounters.parquet"
         rep = evaluate([], args.scenario, args.episodes, cfg.eval_seed, Path(args.out) / "evaluation-cf-logit",
                        duration_s=args.eval_duration, demos=held, baselines=(),

@@ -279,6 +279,12 @@ class CarFollowingLogitPolicy:
         """Seconds per decision the model was trained at."""
         return self.model.decision_step_s
 
+    @property
+    def flags(self) -> tuple[str, ...]:
+        """What the model's fit reported, named as :func:`model_flags` names it:
+        ``("not_converged",)`` when its optimiser did not converge, else empty."""
+        return () if self.model.converged else ("not_converged",)
+
     def probs(self, obs: MergeObservation) -> np.ndarray:
         """``[5]`` action probabilities at ``obs``.
 

@@ -100,7 +100,7 @@ def test_cli_rejects_bad_input_in_one_line_before_sumo(tmp_path, capsys):
     assert main(["dagger", "--train", str(table), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "v_A" in err[0]
-    assert not (tmp_path / "o" / "cf_dagger.json").exists()
+    assert not (tmp_path / "o" / "cf-dagger.json").exists()
     with pytest.raises(SystemExit) as e:
         main(["dagger", "--train", str(table), "--critical", "hard_brake"])
     assert e.value.code == 2
@@ -121,7 +121,7 @@ def test_cli_rejects_bad_input_in_one_line_before_sumo(tmp_path, capsys):
     _accelerating_demos().to_parquet(fine)
     assert main(["dagger", "--train", str(fine), "--duration", "30", "--out", str(tmp_path / "o2")]) == 2
     assert "duration" in capsys.readouterr().err
-    assert not (tmp_path / "o2" / "cf_logit.json").exists()
+    assert not (tmp_path / "o2" / "cf-logit.json").exists()
 
 
 def test_negative_or_missing_speeds_name_the_row():
@@ -138,18 +138,18 @@ def test_cli_trains_and_evaluate_drives_the_result(tmp_path, capsys):
     out = tmp_path / "dg"
     assert main(["dagger", "--train", str(table), "--rounds", "1", "--episodes-per-round", "1", "--duration", "150",
                  "--label-seed", "11", "--critical", "high_brake,low_brake", "--out", str(out), "--no-progress"]) == 0
-    m = CarFollowingLogit.load(out / "cf_dagger.json")
+    m = CarFollowingLogit.load(out / "cf-dagger.json")
     assert m.info["dagger_round"] == 1 and m.info["critical_actions"] == [0, 1] and m.info["labels_per_round"][0] > 0
-    assert CarFollowingLogit.load(out / "cf_logit.json").info["dagger_round"] == 0
-    assert "cf_dagger.json" in capsys.readouterr().out
+    assert CarFollowingLogit.load(out / "cf-logit.json").info["dagger_round"] == 0
+    assert "cf-dagger.json" in capsys.readouterr().out
     ev = tmp_path / "ev"
-    assert main(["evaluate", "--cf-model", str(out / "cf_dagger.json"), "--baselines", "", "--episodes", "1",
+    assert main(["evaluate", "--cf-model", str(out / "cf-dagger.json"), "--baselines", "", "--episodes", "1",
                  "--seed", "3", "--duration", "150", "--demos", str(table), "--no-rrd", "--no-progress",
                  "--out", str(ev)]) == 0
     metrics = json.loads((ev / "metrics.json").read_text())
-    digest = metrics["provenance"]["models"]["cf_dagger"]  # the driver file is in the provenance
-    assert digest["sha256"] == hashlib.sha256((out / "cf_dagger.json").read_bytes()).hexdigest()
-    agg = metrics["policies"]["cf_dagger"]["aggregate"]
+    digest = metrics["provenance"]["models"]["cf-dagger"]  # the driver file is in the provenance
+    assert digest["sha256"] == hashlib.sha256((out / "cf-dagger.json").read_bytes()).hexdigest()
+    agg = metrics["policies"]["cf-dagger"]["aggregate"]
     assert agg["n_controls"] > 0 and agg["n_decisions"] > 0
     dec = car_following_decisions(_accelerating_demos())
     assert agg["heldout_loglik"] == pytest.approx(m.loglik_of(dec))

@@ -68,7 +68,7 @@ def test_run_demo_with_the_dagger_driver(tmp_path):
                      eval_duration_s=110.0, methods=("qavg",), dagger_rounds=1)
     res = run_demo(tmp_path / "demo", cfg, quiet=True, progress=False)
     cf = CarFollowingLogit.load(res.models[CF_DRIVER])
-    assert res.models[CF_DRIVER].name == "cf_dagger.json" and cf.info["dagger_round"] == 1
+    assert res.models[CF_DRIVER].name == "cf-dagger.json" and cf.info["dagger_round"] == 1
     data = json.loads(res.evaluation.metrics_json.read_text())
     assert set(data["policies"]) == {"qavg", CF_DRIVER, "sumo", "uniform", "marginal", "markov", "bc"}
     agg = data["policies"][CF_DRIVER]["aggregate"]

@@ -114,6 +114,12 @@ def test_fit_learns_to_brake_on_a_short_gap_and_round_trips_through_its_file(tmp
     assert back.loglik == pytest.approx(model.loglik) and back.info == model.info
     lp = back.log_policy(dec.obs, dec.prev)
     np.testing.assert_allclose(np.exp(lp).sum(1), 1.0)
+    # the driver is named by its file, as a model file is, and flagged when its fit did not converge
+    from analysis.evaluate import cf_policy
+
+    assert cf_policy(path).name == "cf_model" and cf_policy(path).flags == ()
+    stuck = dataclasses.replace(model, converged=False).save(tmp_path / "cf-dagger.json")
+    assert cf_policy(stuck).name == "cf-dagger" and cf_policy(stuck).flags == ("not_converged",)
 
 
 def test_labels_enter_the_fit():

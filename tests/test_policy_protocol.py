@@ -32,3 +32,21 @@ def test_duplicate_names_of_a_non_dataclass_policy_is_a_policy_error(tmp_path):
     with pytest.raises(PolicyError, match="'plain'.*PlainPolicy is not a dataclass"):
         evaluate([], "synthetic", 1, 0, tmp_path, baselines=(), policies=[PlainPolicy(), PlainPolicy()],
                  rrd=False, progress=False)
+
+
+class SteppedPolicy(PlainPolicy):
+    """A user policy trained at 0.3 s decisions."""
+
+    name = "stepped"
+    decision_step_s = 0.3
+
+
+def test_a_decision_step_other_than_a_policys_own_is_said_before_any_episode(tmp_path):
+    from analysis.evaluate import DecisionStepWarning
+    from sim.controller_config import ControllerConfig
+
+    # the duplicate names stop the evaluation before SUMO starts; the warning comes first
+    with pytest.warns(DecisionStepWarning, match=r"every 0.1 s, but stepped was trained at 0.3 s"), \
+            pytest.raises(PolicyError):
+        evaluate([], "synthetic", 1, 0, tmp_path, baselines=(), policies=[SteppedPolicy(), PlainPolicy(), PlainPolicy()],
+                 controller=ControllerConfig(decision_s=0.1), rrd=False, progress=False)

@@ -29,8 +29,8 @@ def register(subparsers) -> None:
         description="Fit the car-following logit (features of A's speed, gaps and closing speeds) on "
                     "training encounters, then for --rounds rounds let it drive in SUMO, ask SUMO's "
                     "car-following model for its action at every decision, keep the labels whose action "
-                    "is critical (default High Brake) and refit (DAgger). Writes cf_logit.json (round 0) "
-                    "and cf_dagger.json (the last round); evaluate them with 'merge-irl evaluate --cf-model'.")
+                    "is critical (default High Brake) and refit (DAgger). Writes cf-logit.json (round 0) "
+                    "and cf-dagger.json (the last round); evaluate them with 'merge-irl evaluate --cf-model'.")
     p.add_argument("--train", required=True, metavar="ENCOUNTERS",
                    help="training encounter table (.parquet/.csv) with A's speed v_A, e.g. "
                         "runs/demo/data/train_encounters.parquet")
@@ -66,11 +66,11 @@ def run(args: argparse.Namespace) -> int:
     spec = load_scenario(args.scenario)  # errors before any work
     train = read_encounters(args.train)
     out = Path(args.out)
-    check_writable(out / "cf_dagger.json")
+    check_writable(out / "cf-dagger.json")
     with locked(out):  # a second run into the same folder fails at once
         models = train_cf_driver(train, spec, config, workers=args.workers, where=str(args.train),
                                  progress=not args.no_progress)
-        first, last = models[0].save(out / "cf_logit.json"), models[-1].save(out / "cf_dagger.json")
+        first, last = models[0].save(out / "cf-logit.json"), models[-1].save(out / "cf-dagger.json")
     n = models[-1].info["n_demo_steps"]
     print(f"round 0 (demonstrations alone): training LL/step {models[0].loglik / n:.3f} -> {first}")
     print(f"round {args.rounds}: critical labels per round {models[-1].info.get('labels_per_round', [])}, "

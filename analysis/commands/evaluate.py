@@ -33,7 +33,7 @@ def register(subparsers) -> None:
                         "marginal, markov and bc need --train-demos)")
     p.add_argument("--decision-step", type=float, default=None,
                    help="seconds between two decisions of A (default: the first model's decision step, else the first "
-                        "--cf-model's, else 0.3)")
+                        "--cf-model's, else 0.3; a model driven at another step than its own is warned about)")
     p.add_argument("--safety-ttc", type=float, default=None, metavar="S",
                    help="safety-filter variant: replace an action that would bring A's TTC to its leader "
                         "below S seconds (default: raw, no filter); interventions are reported")

@@ -1,6 +1,6 @@
 """The car-following logit driver: a conditional logit on :mod:`irl.domains.merge_car_following`'s
 features, and its JSON file (format ``merge-irl-cf-logit/1``; ``merge-irl dagger`` writes
-``cf_logit.json`` and ``cf_dagger.json``).
+``cf-logit.json`` and ``cf-dagger.json``).
 
 ``pi(a | x) = softmax_a(theta . phi(x, a))`` over the five merge actions, ``phi`` the
 car-following features of the continuous observation ``x`` (A's speed, gaps and closing
@@ -134,7 +134,7 @@ class CarFollowingLogit:
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> CarFollowingLogit:
-        """Read a car-following logit file (``cf_logit.json`` / ``cf_dagger.json`` of ``merge-irl dagger``).
+        """Read a car-following logit file (``cf-logit.json`` / ``cf-dagger.json`` of ``merge-irl dagger``).
 
         Raises:
             ModelFileError: missing, unreadable, another format, or a malformed field (named).

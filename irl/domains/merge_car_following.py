@@ -32,7 +32,7 @@ import pandas as pd
 
 from irl.domains.merge_actions import N_ACTIONS, ZERO_ACTION
 from irl.domains.merge_bins import MergeBins
-from irl.domains.merge_features import BIAS_FEATURES
+from irl.domains.merge_features import ACC_SCALE_FT_S2, BIAS_FEATURES, bias_columns, persistence_columns
 from irl.domains.merge_states import split_driver_state
 from irl.errors import ConfigError, DemonstrationError
 from irl.merge_mdp import resample_encounters
@@ -42,7 +42,6 @@ from irl.units import FT_PER_M
 CF_FEATURES = BIAS_FEATURES + ("acc_x_gap_need_C", "acc_x_gap_need_B", "acc_x_free_road", "keep_action", "jerk")
 #: Observation columns, in the order of :attr:`CFDecisions.obs`.
 OBS_COLUMNS = ("d_AC", "v_AC", "d_AB", "v_AB", "v_A")
-ACC_SCALE_FT_S2 = 8.0  # the High Accel midpoint: features stay of order 1
 
 
 @dataclass(frozen=True)
@@ -162,10 +161,7 @@ def car_following_features(obs: np.ndarray, prev: np.ndarray, action_acc_ft_s2,
     need_b = np.where(b_ahead, gap_need.need(np.where(b_ahead, d_ab, 1e6), v_a, v_ab), 0.0)
     free = (v_a / gap_need.desired_speed_ft_s) ** 4
     n = obs.shape[0]
-    a = np.arange(N_ACTIONS)[None, :]
     accn = acc[None, :] / ACC_SCALE_FT_S2  # [1, A]
-    cols = [np.broadcast_to((a == k).astype(np.float64), (n, N_ACTIONS))
-            for k in range(N_ACTIONS) if k != ZERO_ACTION]
-    cols += [accn * need_c[:, None], accn * need_b[:, None], accn * free[:, None],
-             (a == prev[:, None]).astype(np.float64), np.abs(accn - acc[prev][:, None] / ACC_SCALE_FT_S2)]
+    cols = [*bias_columns(n), accn * need_c[:, None], accn * need_b[:, None], accn * free[:, None],
+            *persistence_columns(prev, acc)]
     return np.stack([np.broadcast_to(c, (n, N_ACTIONS)) for c in cols], axis=-1)

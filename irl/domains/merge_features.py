@@ -63,6 +63,26 @@ FEATURE_SETS: dict[str, tuple[str, ...]] = {"paper": PAPER_FEATURES, "driver": D
 NEEDS_PREVIOUS_ACTION = frozenset({"jerk", "keep_action"})
 
 FEATURE_NAMES = ("safe", "time_to_travel", "ahead_of_truck")
+#: Accelerations are featured per 8 ft/s^2 (the High Accel midpoint), so features stay of order 1.
+ACC_SCALE_FT_S2 = 8.0
+
+
+def bias_columns(n: int) -> list[np.ndarray]:
+    """The action-bias features :data:`BIAS_FEATURES`, each ``[n, 5]`` (one-hot action, Zero the
+    reference), for ``n`` states or decisions."""
+    a = np.arange(N_ACTIONS)[None, :]
+    return [np.broadcast_to((a == k).astype(np.float64), (n, N_ACTIONS)) for k in range(N_ACTIONS) if k != ZERO_ACTION]
+
+
+def persistence_columns(prev: np.ndarray, action_acc) -> tuple[np.ndarray, np.ndarray]:
+    """``(keep_action, jerk)``, each ``[N, 5]``, for previous actions ``prev [N]`` (0..4) and the
+    actions' accelerations ``action_acc [5]`` (ft/s^2): ``keep_action`` is 1 when the action
+    repeats the previous one, ``jerk`` is ``|acc_a - acc_prev|`` per :data:`ACC_SCALE_FT_S2`
+    (persistence, issue 11 cause 5)."""
+    prev = np.asarray(prev, dtype=np.int64)
+    acc = np.asarray(action_acc, dtype=np.float64)
+    keep = (np.arange(N_ACTIONS)[None, :] == prev[:, None]).astype(np.float64)
+    return keep, np.abs(acc[None, :] - acc[prev][:, None]) / ACC_SCALE_FT_S2
 
 
 def paper_features(d_AC: float, b_is_truck: bool, action: int) -> tuple[float, float, float]:
@@ -160,7 +180,6 @@ def feature_array(names, bins: MergeBins, encoding: str = "paper", *, dt: float 
     parts = state_parts(s_paper)  # [S, 5]
     rep = {v: bins.representatives(v)[parts[:, i + 1]][:, None] for i, v in enumerate(VARIABLES)}  # [S, 1]
     acc = np.asarray(action_acc, dtype=np.float64)[None, :]  # [1, A]
-    a = np.arange(N_ACTIONS)[None, :]
     paper = features()[s_paper]  # [S, A, 3]
 
     def after(d, v):
@@ -175,8 +194,7 @@ def feature_array(names, bins: MergeBins, encoding: str = "paper", *, dt: float 
         if n in PAPER_FEATURES:
             col = paper[..., PAPER_FEATURES.index(n)]
         elif n in BIAS_FEATURES:
-            k = [b for b in range(N_ACTIONS) if b != ZERO_ACTION][BIAS_FEATURES.index(n)]
-            col = np.broadcast_to((a == k).astype(np.float64), (S, N_ACTIONS))
+            col = bias_columns(S)[BIAS_FEATURES.index(n)]
         elif n == "ittc_C":
             col = np.maximum(v_ac, 0.0) / np.maximum(d_ac, 1.0)
         elif n == "ittc_B":
@@ -186,11 +204,9 @@ def feature_array(names, bins: MergeBins, encoding: str = "paper", *, dt: float 
         elif n == "rel_speed_B":
             col = np.abs(v_ab) / 10.0
         elif n == "abs_acc":
-            col = np.broadcast_to(np.abs(acc) / 8.0, (S, N_ACTIONS))
-        elif n == "jerk":
-            col = np.abs(acc - np.asarray(action_acc, dtype=np.float64)[prev][:, None]) / 8.0
-        elif n == "keep_action":
-            col = (a == prev[:, None]).astype(np.float64)
+            col = np.broadcast_to(np.abs(acc) / ACC_SCALE_FT_S2, (S, N_ACTIONS))
+        elif n in NEEDS_PREVIOUS_ACTION:
+            col = persistence_columns(prev, action_acc)[0 if n == "keep_action" else 1]
         else:
             raise ConfigError(f"unknown merge feature {n!r}; known: {DRIVER_FEATURES}")
         out.append(np.broadcast_to(col, (S, N_ACTIONS)))

@@ -50,6 +50,7 @@ from irl.units import FT_PER_M
 from scenarios.loader import load_scenario
 from sim.controller_config import ControllerConfig
 from sim.errors import SimError
+from sim.idm_policy import IdmPolicy
 from sim.observe import MergeObservation
 from sim.policy import (BaselineTabularPolicy, CarFollowingLogitPolicy, LearnedPolicy, Policy, PolicyError,
                         SumoPolicy, UniformPolicy)
@@ -57,6 +58,10 @@ from sim.policy import (BaselineTabularPolicy, CarFollowingLogitPolicy, LearnedP
 #: Baselines of every evaluation (issue 11): SUMO's own driver, uniform random, and the
 #: tabular baselines fitted on the training demonstrations (:mod:`irl.baselines`).
 BASELINES = ("sumo", "uniform", "marginal", "markov", "bc")
+#: Every baseline an evaluation can run: :data:`BASELINES` and, on request, ``idm``, the
+#: Intelligent Driver Model with the scenario's car parameters through the controller
+#: (:class:`sim.idm_policy.IdmPolicy`).
+KNOWN_BASELINES = (*BASELINES, "idm")
 #: The baselines that need training demonstrations.
 FITTED_BASELINES = ("marginal", "markov", "bc")
 
@@ -284,9 +289,10 @@ def evaluate(
         duration_s: override the scenario's duration.
         demos: held-out encounters (Parquet/CSV/DataFrame) for the action divergence and the
             held-out log-likelihood; None: both are NaN.
-        baselines: any of ``BASELINES``: ``"sumo"`` (not taken over), ``"uniform"`` (random
-            actions), ``"marginal"``, ``"markov"``, ``"bc"`` (fitted on ``train_demos`` in the
-            first model's state bins; left out, and said so in report.md, without them).
+        baselines: any of ``KNOWN_BASELINES`` (default ``BASELINES``): ``"sumo"`` (not taken over),
+            ``"uniform"`` (random actions), ``"marginal"``, ``"markov"``, ``"bc"`` (fitted on
+            ``train_demos`` in the first model's state bins; left out, and said so in report.md,
+            without them), ``"idm"`` (:class:`sim.idm_policy.IdmPolicy` of the scenario's car type).
         train_demos: training encounters (Parquet/CSV/DataFrame) of the fitted baselines.
         policies: further policies to evaluate (e.g. ``ConstantPolicy(0)``, or a car-following
             logit driver of :func:`cf_policy`).
@@ -307,9 +313,9 @@ def evaluate(
     if episodes < 1:
         raise SimError(f"evaluate: episodes must be >= 1, got {episodes}")
     spec = load_scenario(scenario) if isinstance(scenario, (str, Path)) else scenario  # validate before SUMO
-    bad = [b for b in baselines if b not in BASELINES]
+    bad = [b for b in baselines if b not in KNOWN_BASELINES]
     if bad:
-        raise SimError(f"evaluate: unknown baseline(s) {bad}; expected some of {', '.join(BASELINES)}")
+        raise SimError(f"evaluate: unknown baseline(s) {bad}; expected some of {', '.join(KNOWN_BASELINES)}")
     learned: list[LearnedPolicy] = [learned_policy(m) for m in models]
     pols: list[Policy] = list(learned)
     step = controller.decision_s
@@ -334,7 +340,7 @@ def evaluate(
             if b in by_name:
                 pols.append(by_name[b])
         else:
-            pols.append(_BASELINES[b]())
+            pols.append(IdmPolicy.from_scenario(spec) if b == "idm" else _BASELINES[b]())
     pols.extend(policies)
     names = [p.name for p in pols]
     dup = {n for n in names if names.count(n) > 1}

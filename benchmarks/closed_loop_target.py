@@ -18,6 +18,9 @@ evaluation episodes. Printed:
   (:mod:`analysis.dagger` through the demo's ``dagger_rounds``, ``--cf-rounds``, default 4;
   0: not run) as the row ``cf-dagger``, and its round 0 (the demonstrations alone) as
   ``cf-logit``, evaluated on the same episodes with the same held-out demonstrations;
+* the reference driver ``idm`` (:class:`sim.idm_policy.IdmPolicy`: the Intelligent Driver Model
+  with the scenario's car parameters, the demonstrators' car-following model, acting through the
+  controller; it does not yield to B), on the same episodes;
 * the target checks for the default learned driver (``--driver``, default the first
   method) and for ``cf-dagger``: 0 collisions by controlled cars with the 95 % upper bound,
   held-out LL per step above ``marginal`` and ``bc``, W1 of speed and of d_AC within 1.5x the
@@ -113,15 +116,16 @@ def main(argv=None) -> int:
           f"{100 * braking_cap_share(train):.1f} % of frames at or below -12 ft/s^2")
     aggs = dict(res.evaluation.aggregates)
     episodes = dict(res.evaluation.episodes)
-    if args.cf_rounds > 0:  # cf-dagger is in the demo's evaluation; its round 0 (no labels) beside it
-        round0 = CarFollowingLogit.load(Path(args.out) / "models" / "cf-logit.json")  # written by the demo pipeline
-        held = Path(args.out) / "data" / "heldout_encounters.parquet"
-        rep = evaluate([], args.scenario, args.episodes, cfg.eval_seed, Path(args.out) / "evaluation-cf-logit",
-                       duration_s=args.eval_duration, demos=held, baselines=(),
-                       policies=[CarFollowingLogitPolicy(round0, name="cf-logit")],
-                       workers=args.workers, rrd=False, progress=False)
-        aggs.update(rep.aggregates)
-        episodes.update(rep.episodes)
+    # beside the demo's evaluation: the IDM reference driver and, when cf-dagger is in the demo's
+    # evaluation, its round 0 (the logit without labels)
+    round0 = [CarFollowingLogitPolicy(CarFollowingLogit.load(Path(args.out) / "models" / "cf-logit.json"),
+                                      name="cf-logit")] if args.cf_rounds > 0 else []
+    rep = evaluate([], args.scenario, args.episodes, cfg.eval_seed, Path(args.out) / "evaluation-references",
+                   duration_s=args.eval_duration, demos=Path(args.out) / "data" / "heldout_encounters.parquet",
+                   baselines=("idm",), policies=round0, workers=args.workers, rrd=False, progress=False)
+    aggs.update(rep.aggregates)
+    episodes.update(rep.episodes)
+    if args.cf_rounds > 0:
         info = CarFollowingLogit.load(res.models[CF_DRIVER]).info
         print(f"car-following logit: {args.cf_rounds} DAgger rounds of {info['episodes_per_round']} runs, "
               f"High Brake labels kept per round {info['labels_per_round']}")

@@ -173,14 +173,15 @@ def test_evaluate_cli_baselines_safety_filter_and_flag_gate(tmp_path):
     _encounters(120, seed=4).to_parquet(demos)
     out = tmp_path / "ev"
     r = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--model", str(model_path), "--episodes", "1",
-                        "--duration", "100", "--baselines", "markov,bc", "--train-demos", str(demos),
+                        "--duration", "100", "--baselines", "markov,bc,idm", "--train-demos", str(demos),
                         "--demos", str(demos), "--safety-ttc", "2.5", "--no-rrd", "--no-progress", "--seed", "5",
                         "--executor", "process:2", "--out", str(out), "--fail-if", "flagged>0"],
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 1, r.stderr  # the not-converged model trips the gate
     assert "qavg: flagged = 1" in r.stderr and "WARNING: model qavg is flagged (not_converged)" in r.stderr
     data = json.loads((out / "metrics.json").read_text())
-    assert list(data["policies"]) == ["qavg", "markov", "bc"]
+    assert list(data["policies"]) == ["qavg", "markov", "bc", "idm"]
+    assert data["policies"]["idm"]["aggregate"]["n_decisions"] > 0  # the IDM reference drove A
     assert data["policies"]["qavg"]["aggregate"]["flags"] == ["not_converged"]
     assert data["controller"]["safety_ttc_s"] == 2.5
     md = (out / "report.md").read_text()

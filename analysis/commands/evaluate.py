@@ -29,8 +29,9 @@ def register(subparsers) -> None:
     p.add_argument("--train-demos", default=None,
                    help="training encounter table (.parquet/.csv) of the marginal, markov and bc baselines")
     p.add_argument("--baselines", default="sumo,uniform,marginal,markov,bc",
-                   help="comma-separated baselines among sumo, uniform, marginal, markov, bc ('' for none; "
-                        "marginal, markov and bc need --train-demos)")
+                   help="comma-separated baselines among sumo, uniform, marginal, markov, bc, idm ('' for none; "
+                        "marginal, markov and bc need --train-demos; idm: the Intelligent Driver Model with the "
+                        "scenario's car parameters, driven through the controller)")
     p.add_argument("--decision-step", type=float, default=None,
                    help="seconds between two decisions of A (default: the first model's decision step, else the first "
                         "--cf-model's, else 0.3; a model driven at another step than its own is warned about)")
@@ -52,7 +53,7 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from analysis.evaluate import evaluate
+    from analysis.evaluate import KNOWN_BASELINES, evaluate
     from analysis.thresholds import check_file, parse_thresholds
     from sim.controller_config import ControllerConfig
     from sim.errors import SimError
@@ -65,10 +66,9 @@ def run(args: argparse.Namespace) -> int:
     executor = resolve_executor(args.executor, args.workers)
 
     baselines = tuple(b.strip() for b in args.baselines.split(",") if b.strip())
-    known = ("sumo", "uniform", "marginal", "markov", "bc")
-    bad = [b for b in baselines if b not in known]
+    bad = [b for b in baselines if b not in KNOWN_BASELINES]
     if bad:
-        raise SimError(f"--baselines: unknown baseline(s) {bad}; expected {', '.join(known)}")
+        raise SimError(f"--baselines: unknown baseline(s) {bad}; expected {', '.join(KNOWN_BASELINES)}")
     if not args.model and not args.cf_model and not baselines:
         raise SimError("nothing to evaluate: give --model, --cf-model and/or --baselines")
     from analysis.evaluate import cf_policy

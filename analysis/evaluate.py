@@ -109,8 +109,9 @@ def policy_heldout_loglik(policy: Policy, heldout: HeldOut, decision_step_s: flo
     state encoding, every other policy at ``decision_step_s``), so an action is the forward
     difference of A's speed over one decision. ``markov`` scores a trajectory's first step by
     its marginal. ``cf_decisions``: the held-out decisions of a car-following driver when
-    already taken (:func:`~irl.domains.merge_car_following.car_following_decisions` at its step)."""
-    if not policy.controls:
+    already taken (:func:`~irl.domains.merge_car_following.car_following_decisions` at its step).
+    NaN for the deterministic IDM reference driver as well (no likelihood to speak of)."""
+    if not policy.controls or isinstance(policy, IdmPolicy):
         return float("nan"), float("nan")
     df = heldout.encounters
     if isinstance(policy, CarFollowingLogitPolicy):
@@ -145,16 +146,29 @@ def baseline_policies(names: Sequence[str], train_demos: str | os.PathLike | pd.
     Raises:
         DemonstrationError: the training encounters cannot be read or discretized.
     """
-    df = train_demos if isinstance(train_demos, pd.DataFrame) else read_encounters(train_demos)
-    df = prepare_encounters(df)
+    df = _training_table(train_demos)
     where = "training encounters" if isinstance(train_demos, pd.DataFrame) else str(train_demos)
     bins = bins if bins is not None else fit_quantile_bins(df, where=where)
     demos = discretize(df, bins, where=where, decision_step_s=decision_step_s)
-    acc = df["acc_A"].to_numpy(float)
-    a = actions_of(acc)
-    means = tuple(float(acc[a == k].mean()) if np.any(a == k) else float(m)
-                  for k, m in enumerate(ACTION_ACC_FT_S2))
+    means = training_action_acc(df)
     return [BaselineTabularPolicy(fit_baseline(n, demos), bins, n, action_acc_ft_s2=means) for n in names]
+
+
+def _training_table(train_demos: str | os.PathLike | pd.DataFrame) -> pd.DataFrame:
+    df = train_demos if isinstance(train_demos, pd.DataFrame) else read_encounters(train_demos)
+    return prepare_encounters(df)
+
+
+def training_action_acc(train_demos: str | os.PathLike | pd.DataFrame) -> tuple[float, ...]:
+    """``[5]`` the mean acceleration (ft/s^2) of each action bin over the frames of the training
+    encounters (a bin without frames: its midpoint), as the baselines apply their actions.
+
+    Raises:
+        DemonstrationError: the training encounters cannot be read.
+    """
+    acc = _training_table(train_demos)["acc_A"].to_numpy(float)
+    a = actions_of(acc)
+    return tuple(float(acc[a == k].mean()) if np.any(a == k) else float(m) for k, m in enumerate(ACTION_ACC_FT_S2))
 
 
 def learned_policy(model: SavedModel | str | os.PathLike, name: str = "") -> LearnedPolicy:
@@ -292,7 +306,9 @@ def evaluate(
         baselines: any of ``KNOWN_BASELINES`` (default ``BASELINES``): ``"sumo"`` (not taken over),
             ``"uniform"`` (random actions), ``"marginal"``, ``"markov"``, ``"bc"`` (fitted on
             ``train_demos`` in the first model's state bins; left out, and said so in report.md,
-            without them), ``"idm"`` (:class:`sim.idm_policy.IdmPolicy` of the scenario's car type).
+            without them), ``"idm"`` (:class:`sim.idm_policy.IdmPolicy` of the scenario's car type;
+            its actions applied at ``train_demos``' mean acceleration per action bin, as the fitted
+            baselines', else at the bin midpoints).
         train_demos: training encounters (Parquet/CSV/DataFrame) of the fitted baselines.
         policies: further policies to evaluate (e.g. ``ConstantPolicy(0)``, or a car-following
             logit driver of :func:`cf_policy`).
@@ -339,8 +355,12 @@ def evaluate(
         if b in FITTED_BASELINES:
             if b in by_name:
                 pols.append(by_name[b])
+        elif b == "idm":  # applies its actions as the fitted baselines do, when there are training encounters
+            acc = fitted_pols[0].action_acc_ft_s2 if fitted_pols else training_action_acc(train_demos) \
+                if train_demos is not None else tuple(float(x) for x in ACTION_ACC_FT_S2)
+            pols.append(IdmPolicy.from_scenario(spec, action_acc_ft_s2=acc))
         else:
-            pols.append(IdmPolicy.from_scenario(spec) if b == "idm" else _BASELINES[b]())
+            pols.append(_BASELINES[b]())
     pols.extend(policies)
     names = [p.name for p in pols]
     dup = {n for n in names if names.count(n) > 1}

@@ -41,16 +41,21 @@ def _encounters(n=60, seed=1) -> pd.DataFrame:
 
 @pytest.mark.sumo
 def test_evaluate_writes_report_metrics_plots(tmp_path):
-    from analysis.evaluate import evaluate
+    from analysis.evaluate import BASELINES, evaluate, training_action_acc
     from sim.policy import ConstantPolicy
 
     model_path = _model().save(tmp_path / "m" / "qavg.json")
     demos = _encounters()
     train = _encounters(120, seed=2)
     rep = evaluate([model_path], "synthetic", 2, 3, tmp_path / "out", duration_s=110.0, demos=demos,
-                   train_demos=train, policies=[ConstantPolicy(0)], workers=2, progress=False)
-    names = ["qavg", "sumo", "uniform", "marginal", "markov", "bc", "constant-high-brake"]
+                   train_demos=train, baselines=(*BASELINES, "idm"), policies=[ConstantPolicy(0)], workers=2,
+                   progress=False)
+    names = ["qavg", "sumo", "uniform", "marginal", "markov", "bc", "idm", "constant-high-brake"]
     assert list(rep.aggregates) == names
+    # the IDM reference applies its actions at the training frames' mean per action bin, as the fitted baselines
+    applied = pd.concat([e.decisions for e in rep.episodes["idm"]])["acc_cmd"].unique()
+    assert len(applied) > 1 and set(applied) <= set(training_action_acc(train))
+    assert np.isnan(rep.aggregates["idm"].heldout_loglik_per_step)  # deterministic: no likelihood
     md = rep.report_md.read_text()
     for n in names:
         assert f"| {n} | 2 |" in md

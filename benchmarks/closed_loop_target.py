@@ -122,6 +122,7 @@ def main(argv=None) -> int:
                                       name="cf-logit")] if args.cf_rounds > 0 else []
     rep = evaluate([], args.scenario, args.episodes, cfg.eval_seed, Path(args.out) / "evaluation-references",
                    duration_s=args.eval_duration, demos=Path(args.out) / "data" / "heldout_encounters.parquet",
+                   train_demos=Path(args.out) / "data" / "train_encounters.parquet",  # idm's action accelerations
                    baselines=("idm",), policies=round0, workers=args.workers, rrd=False, progress=False)
     aggs.update(rep.aggregates)
     episodes.update(rep.episodes)

@@ -356,6 +356,10 @@ def evaluate(
             if b in by_name:
                 pols.append(by_name[b])
         elif b == "idm":  # applies its actions as the fitted baselines do, when there are training encounters
+            if train_demos is None:
+                warnings.warn("evaluate: idm without training encounters applies the action bins' midpoints "
+                              f"{tuple(ACTION_ACC_FT_S2)} ft/s^2 (High Brake too weak to stop behind a braking car; "
+                              "give train_demos / --train-demos)", UserWarning, stacklevel=2)
             acc = fitted_pols[0].action_acc_ft_s2 if fitted_pols else training_action_acc(train_demos) \
                 if train_demos is not None else tuple(float(x) for x in ACTION_ACC_FT_S2)
             pols.append(IdmPolicy.from_scenario(spec, action_acc_ft_s2=acc))

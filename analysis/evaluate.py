@@ -60,8 +60,9 @@ from sim.policy import (BaselineTabularPolicy, CarFollowingLogitPolicy, LearnedP
 BASELINES = ("sumo", "uniform", "marginal", "markov", "bc")
 #: Every baseline an evaluation can run: :data:`BASELINES` and, on request, ``idm``, the
 #: Intelligent Driver Model with the scenario's car parameters through the controller
-#: (:class:`sim.idm_policy.IdmPolicy`).
-KNOWN_BASELINES = (*BASELINES, "idm")
+#: (:class:`sim.idm_policy.IdmPolicy`), and ``sumo-in-lane``, SUMO's driver with A's lane
+#: changes switched off while observed (:class:`sim.policy.SumoPolicy` ``keep_lane``).
+KNOWN_BASELINES = (*BASELINES, "idm", "sumo-in-lane")
 #: The baselines that need training demonstrations.
 FITTED_BASELINES = ("marginal", "markov", "bc")
 
@@ -308,7 +309,8 @@ def evaluate(
             ``train_demos`` in the first model's state bins; left out, and said so in report.md,
             without them), ``"idm"`` (:class:`sim.idm_policy.IdmPolicy` of the scenario's car type;
             its actions applied at ``train_demos``' mean acceleration per action bin, as the fitted
-            baselines', else at the bin midpoints).
+            baselines', else at the bin midpoints), ``"sumo-in-lane"`` (SUMO's driver, A's lane
+            changes off while observed).
         train_demos: training encounters (Parquet/CSV/DataFrame) of the fitted baselines.
         policies: further policies to evaluate (e.g. ``ConstantPolicy(0)``, or a car-following
             logit driver of :func:`cf_policy`).
@@ -430,7 +432,8 @@ def evaluation_provenance(models: Sequence, pols: Sequence[Policy], scenario, sp
                       extra={"scenario_sha256": text_digest(spec.to_toml())})
 
 
-_BASELINES: dict[str, Callable[[], Policy]] = {"sumo": SumoPolicy, "uniform": UniformPolicy}
+_BASELINES: dict[str, Callable[[], Policy]] = {"sumo": SumoPolicy, "uniform": UniformPolicy,
+                                               "sumo-in-lane": lambda: SumoPolicy("sumo-in-lane", keep_lane=True)}
 
 
 def _renamed(p: Policy, name: str) -> Policy:

@@ -20,7 +20,9 @@ evaluation episodes. Printed:
   ``cf-logit``, evaluated on the same episodes with the same held-out demonstrations;
 * the reference driver ``idm`` (:class:`sim.idm_policy.IdmPolicy`: the Intelligent Driver Model
   with the scenario's car parameters, the demonstrators' car-following model, acting through the
-  controller; it does not yield to B), on the same episodes;
+  controller; it does not yield to B) and ``sumo-in-lane`` (SUMO's driver with A's lane changes
+  off while observed, as for every commanded driver), on the same episodes, and every row's W1
+  of d_AC against ``sumo-in-lane``'s;
 * the target checks for the default learned driver (``--driver``, default the first
   method) and for ``cf-dagger``: 0 collisions by controlled cars with the 95 % upper bound,
   held-out LL per step above ``marginal`` and ``bc``, W1 of speed and of d_AC within 1.5x the
@@ -123,7 +125,8 @@ def main(argv=None) -> int:
     rep = evaluate([], args.scenario, args.episodes, cfg.eval_seed, Path(args.out) / "evaluation-references",
                    duration_s=args.eval_duration, demos=Path(args.out) / "data" / "heldout_encounters.parquet",
                    train_demos=Path(args.out) / "data" / "train_encounters.parquet",  # idm's action accelerations
-                   baselines=("idm",), policies=round0, workers=args.workers, rrd=False, progress=False)
+                   baselines=("idm", "sumo-in-lane"), policies=round0, workers=args.workers, rrd=False,
+                   progress=False)
     aggs.update(rep.aggregates)
     episodes.update(rep.episodes)
     if args.cf_rounds > 0:
@@ -141,6 +144,10 @@ def main(argv=None) -> int:
               f"| {_f(a.w1_speed_A_ft_s / sumo.w1_speed_A_ft_s, 2)} | {_f(a.w1_d_AC_ft, 1)} "
               f"| {_f(a.w1_d_AC_ft / sumo.w1_d_AC_ft, 2)} | {_f(a.w1_acc_A_ft_s2, 2)} | {_f(a.w1_ttc_s, 2)} "
               f"| {_f(a.heldout_loglik_per_step)} | {_f(a.travel_time_s[0], 1)} | {', '.join(a.flags)} |")
+    lane = aggs["sumo-in-lane"]
+    print(f"\nW1 d_AC against SUMO's driver kept in lane 6 ({_f(lane.w1_d_AC_ft, 1)} ft, the floor of drivers that act on "
+          "acceleration alone, as the controller's): " + ", ".join(
+              f"{name} {_f(a.w1_d_AC_ft / lane.w1_d_AC_ft, 2)}x" for name, a in aggs.items() if a.n_controls))
     print()
     print("A collisions by kind: | policy | " + " | ".join(COLLISION_KINDS) + " |")
     for name, eps in episodes.items():

@@ -205,12 +205,13 @@ class Controller:
             c.collision_kind = self._collision_kind(c)
         self._active.pop(c.a_id, None)
         self.last.pop(c.a_id, None)
-        if not (c.commanded and present):
+        if not present or c.lane_change_mode < 0:  # gone, or never taken over (SUMO's driver, lane free)
             return
         v = self._traci.vehicle
         try:
-            v.setSpeed(c.a_sumo, -1.0)
-            v.setSpeedMode(c.a_sumo, c.speed_mode)
+            if c.commanded:
+                v.setSpeed(c.a_sumo, -1.0)
+                v.setSpeedMode(c.a_sumo, c.speed_mode)
             v.setLaneChangeMode(c.a_sumo, c.lane_change_mode)
         except self._traci.TraCIException:  # the vehicle is gone after all
             pass
@@ -245,12 +246,13 @@ class Controller:
                 a_id=a_id, b_id=b_id, a_sumo=frame.sumo_ids[ia], start_frame=frame.frame,
                 commanded=bool(self.policy.controls), gap_AB_start_ft=yb - float(frame.local_y[ia]),
             )
-            if c.commanded:
+            if c.commanded or getattr(self.policy, "keep_lane", False):
                 v = self._traci.vehicle
-                c.speed_mode = v.getSpeedMode(c.a_sumo)
                 c.lane_change_mode = v.getLaneChangeMode(c.a_sumo)
-                v.setSpeedMode(c.a_sumo, 0)
                 v.setLaneChangeMode(c.a_sumo, 0)
+                if c.commanded:
+                    c.speed_mode = v.getSpeedMode(c.a_sumo)
+                    v.setSpeedMode(c.a_sumo, 0)
             self.controls.append(c)
             self._active[a_id] = c
 

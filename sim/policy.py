@@ -114,11 +114,16 @@ class ConstantPolicy:
 class SumoPolicy:
     """The baseline: SUMO's own car-following model drives A (the controller only observes).
 
-    ``probs`` returns the distribution implied by nothing (uniform) and is never used to act.
+    ``keep_lane``: A's lane changes are switched off while it is observed (lane-change mode 0,
+    restored at release), as for every driver the controller commands, whose actions are
+    accelerations alone: SUMO's driver kept in its lane (``sumo-in-lane``) is the like-for-like
+    floor of those drivers' distances to the demonstrations. ``probs`` returns the distribution
+    implied by nothing (uniform) and is never used to act.
     """
 
     name: str = "sumo"
     controls: bool = False
+    keep_lane: bool = False
 
     def probs(self, obs: MergeObservation) -> np.ndarray:
         return np.full(N_ACTIONS, 1.0 / N_ACTIONS)

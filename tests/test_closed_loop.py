@@ -114,6 +114,28 @@ def test_sumo_baseline_is_observed_not_commanded(sumo_run):
     assert sum(1 for x in sumo_run.metrics.action_counts if x > 0) >= 2
 
 
+def test_sumo_in_lane_keeps_a_in_lane_6_and_restores_its_lane_changes(spec, sumo_run):
+    """SUMO's driver with keep_lane: never out of lane 6 at a decision (the free SUMO driver is,
+    on the same traffic), not commanded, its lane-change mode restored at release."""
+    from sim.run import run_scenario
+
+    def out_of_lane(run_table, dec):
+        lane = run_table.set_index(["Vehicle_ID", "Frame_ID"])["Lane_ID"]
+        return int((lane.reindex(list(zip(dec.a_id, dec.frame))).to_numpy() != 6).sum())
+
+    assert out_of_lane(sumo_run.table, sumo_run.decisions) > 0  # so the check below can fail
+    kept = run_episode(spec, SumoPolicy("sumo-in-lane", keep_lane=True), SEED, duration_s=DURATION, keep_table=True)
+    assert len(kept.decisions) > 20 and out_of_lane(kept.table, kept.decisions) == 0
+    assert not kept.controls.commanded.any()
+    ctl = Controller(SumoPolicy("sumo-in-lane", keep_lane=True), ControllerConfig())
+    probe = _Probe(ctl, remove_after=10**9)
+    run_scenario(spec, seed=SEED, duration_s=DURATION, hooks=[ctl, probe])
+    assert probe.modes, "no A was released while still in the simulation"
+    for _reason, speed_now, lc_now, speed_saved, lc_before in probe.modes.values():
+        assert lc_before >= 0 and lc_now == lc_before  # lane changes were off, and are back
+        assert speed_saved == -1 and speed_now == 31  # the speed mode was never touched (SUMO's default)
+
+
 class _Probe:
     """Runs after the controller: removes one controlled car, records the released cars' modes."""
 

@@ -29,9 +29,10 @@ def register(subparsers) -> None:
     p.add_argument("--train-demos", default=None,
                    help="training encounter table (.parquet/.csv) of the marginal, markov and bc baselines")
     p.add_argument("--baselines", default="sumo,uniform,marginal,markov,bc",
-                   help="comma-separated baselines among sumo, uniform, marginal, markov, bc, idm ('' for none; "
-                        "marginal, markov and bc need --train-demos; idm: the Intelligent Driver Model with the "
-                        "scenario's car parameters, driven through the controller)")
+                   help="comma-separated baselines among sumo, uniform, marginal, markov, bc, idm, sumo-in-lane "
+                        "('' for none; marginal, markov and bc need --train-demos; idm: the Intelligent Driver Model "
+                        "with the scenario's car parameters, driven through the controller; sumo-in-lane: SUMO's "
+                        "driver with A's lane changes off, as for every commanded driver)")
     p.add_argument("--decision-step", type=float, default=None,
                    help="seconds between two decisions of A (default: the first model's decision step, else the first "
                         "--cf-model's, else 0.3; a model driven at another step than its own is warned about)")

@@ -345,9 +345,6 @@ def evaluate(
     if other:
         warnings.warn(f"evaluate: every policy decides every {step} s, but " + ", ".join(
             f"{name} was trained at {s} s" for name, s in other.items()), DecisionStepWarning, stacklevel=2)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    check_writable(out / "report.md")  # before the episodes, not after
     fitted = [b for b in baselines if b in FITTED_BASELINES]
     fitted_pols = baseline_policies(fitted, train_demos, learned[0].encoder if learned else None,
                                     step) \
@@ -384,6 +381,9 @@ def evaluate(
         if held is not None and isinstance(p, CarFollowingLogitPolicy) and p.decision_step_s not in cf_decisions:
             cf_decisions[p.decision_step_s] = car_following_decisions(held.encounters, decision_step_s=p.decision_step_s,
                                                                       where=held.source)
+    out = Path(out_dir)  # made once every input has been read and checked, so a bad input leaves no folder
+    out.mkdir(parents=True, exist_ok=True)
+    check_writable(out / "report.md")  # before the episodes, not after
     prov = evaluation_provenance(models, pols, scenario, spec, demos)  # the files as read, before the work
     counts = held.action_counts if held is not None else None
     tasks = []

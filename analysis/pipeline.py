@@ -288,7 +288,8 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
         drivers.append(CarFollowingLogitPolicy(cf[-1], name=CF_DRIVER))
         fit_times[CF_DRIVER] = time.perf_counter() - t_cf
         _say(f"      {CF_DRIVER}: {config.dagger_rounds} DAgger rounds, High Brake labels per round "
-             f"{cf[-1].info['labels_per_round']} ({fit_times[CF_DRIVER]:.0f} s)", quiet)
+             f"{cf[-1].info['labels_per_round']} ({fit_times[CF_DRIVER]:.0f} s)"
+             f"{'' if cf[-1].converged else ' FLAGGED not_converged'}", quiet)
 
     _say("[4/5] one closed-loop episode with Q-Avg, logged to demo.rrd", quiet)
     first = "qavg" if "qavg" in models else next(iter(models))

@@ -43,10 +43,12 @@ from irl.domains.merge_actions import ACTION_ACC_FT_S2, N_ACTIONS, actions_of
 from irl.domains.merge_bins import MergeBins, fit_quantile_bins
 from irl.domains.merge_car_following import CFDecisions, car_following_decisions
 from irl.domains.merge_cf_logit import CarFollowingLogit
+from irl.domains.merge_encounters import REQUIRED_COLUMNS
+from irl.errors import DemonstrationError
 from irl.merge_mdp import discretize, read_encounters
 from irl.result import SavedModel
 from irl.run_folder import check_writable
-from irl.units import FT_PER_M
+from irl.units import FRAME_S, FT_PER_M
 from scenarios.loader import load_scenario
 from sim.controller_config import ControllerConfig
 from sim.errors import SimError
@@ -83,9 +85,18 @@ class HeldOut:
     source: str = ""
 
 
-def prepare_encounters(frames: pd.DataFrame) -> pd.DataFrame:
+def prepare_encounters(frames: pd.DataFrame, where: str = "encounters") -> pd.DataFrame:
     """Encounter frames ready to discretize: rows with A, B and an action only (frames without
-    car C stay, with d_AC and v_AC NaN: the domain's no-lead-car rule encodes them)."""
+    car C stay, with d_AC and v_AC NaN: the domain's no-lead-car rule encodes them).
+
+    Raises:
+        DemonstrationError: a column of :data:`irl.domains.merge_encounters.REQUIRED_COLUMNS` is
+            missing (``where`` names the table).
+    """
+    missing = [c for c in REQUIRED_COLUMNS if c not in frames.columns]
+    if missing:
+        raise DemonstrationError(f"{where}: encounter table lacks column(s) {missing}; expected {list(REQUIRED_COLUMNS)} "
+                                 "(an encounters.parquet of 'merge-irl generate' or 'merge-irl encounters')")
     df = frames.copy()
     df = df[np.isfinite(df["d_AB"]) & np.isfinite(df["v_AB"]) & np.isfinite(df["acc_A"])]
     return df.reset_index(drop=True)
@@ -97,7 +108,7 @@ def load_heldout(demos: str | os.PathLike | pd.DataFrame) -> HeldOut:
         df, src = demos, "encounters"
     else:
         df, src = read_encounters(demos), str(demos)
-    df = prepare_encounters(df)
+    df = prepare_encounters(df, src)
     counts = np.bincount(actions_of(df["acc_A"].to_numpy(float)), minlength=N_ACTIONS)
     return HeldOut(df, counts.astype(np.int64), src)
 
@@ -157,7 +168,7 @@ def baseline_policies(names: Sequence[str], train_demos: str | os.PathLike | pd.
 
 def _training_table(train_demos: str | os.PathLike | pd.DataFrame) -> pd.DataFrame:
     df = train_demos if isinstance(train_demos, pd.DataFrame) else read_encounters(train_demos)
-    return prepare_encounters(df)
+    return prepare_encounters(df, "training encounters" if isinstance(train_demos, pd.DataFrame) else str(train_demos))
 
 
 def training_action_acc(train_demos: str | os.PathLike | pd.DataFrame) -> tuple[float, ...]:
@@ -320,12 +331,17 @@ def evaluate(
         controller: ``decision_s`` None: the first model's ``decision_step_s`` (else the first
             of ``policies`` that has one, else 0.3 s) for every policy, so all decide on the same step.
 
+    Every input is read and checked, and the held-out scores taken, before the output folder is
+    made and any episode runs.
+
     Raises:
-        SimError: ``episodes`` < 1 or an unknown baseline name.
+        SimError: ``episodes`` < 1, an unknown baseline name, or a decision step that is not a
+            positive multiple of the 0.1 s simulation step.
         PolicyError: a model is not a merge model, or two policies share a name and one of them is not a
             dataclass that can be renamed.
         ModelFileError: a model file is missing or malformed.
-        DemonstrationError: the training encounters of the fitted baselines cannot be read.
+        DemonstrationError: the held-out or training encounters cannot be read, lack columns, or
+            cannot be scored.
         SimulationError: SUMO fails to start or to step.
     """
     if episodes < 1:
@@ -337,14 +353,18 @@ def evaluate(
     learned: list[LearnedPolicy] = [learned_policy(m) for m in models]
     pols: list[Policy] = list(learned)
     step = controller.decision_s
-    steps = {p.name: p.decision_step_s for p in (*learned, *policies) if hasattr(p, "decision_step_s")}
+    steps = [(p.name, p.decision_step_s) for p in (*learned, *policies) if hasattr(p, "decision_step_s")]
     if step is None:
-        step = next(iter(steps.values()), 0.3)
+        step = steps[0][1] if steps else 0.3
         controller = replace(controller, decision_s=step)
-    other = {name: s for name, s in steps.items() if not math.isclose(s, step)}
+    k = round(step / FRAME_S) if isinstance(step, (int, float)) and math.isfinite(step) else 0
+    if k < 1 or abs(k * FRAME_S - step) > 1e-9:
+        raise SimError(f"evaluate: the decision step must be a positive multiple of the {FRAME_S} s simulation "
+                       f"step, got {step}")
+    other = [(name, s) for name, s in steps if not math.isclose(s, step)]
     if other:
         warnings.warn(f"evaluate: every policy decides every {step} s, but " + ", ".join(
-            f"{name} was trained at {s} s" for name, s in other.items()), DecisionStepWarning, stacklevel=2)
+            f"{name} was trained at {s} s" for name, s in other), DecisionStepWarning, stacklevel=2)
     fitted = [b for b in baselines if b in FITTED_BASELINES]
     fitted_pols = baseline_policies(fitted, train_demos, learned[0].encoder if learned else None,
                                     step) \
@@ -376,15 +396,22 @@ def evaluate(
             renamed.append(_renamed(p, f"{p.name}-{k + 1}") if p.name in dup else p)
         pols = renamed
     held = load_heldout(demos) if demos is not None else None
+    # the held-out scores do not depend on the episodes: taken first, so a held-out table that a
+    # policy's scoring rejects fails before any SUMO run
+    scores: dict[str, tuple[float, float] | None] = {}
     cf_decisions: dict[float, CFDecisions] = {}  # by decision step
-    for p in pols:  # a car-following driver's held-out decisions need v_A: fail before the episodes
-        if held is not None and isinstance(p, CarFollowingLogitPolicy) and p.decision_step_s not in cf_decisions:
-            cf_decisions[p.decision_step_s] = car_following_decisions(held.encounters, decision_step_s=p.decision_step_s,
-                                                                      where=held.source)
+    for p in pols:
+        cf_dec = None
+        if held is not None and isinstance(p, CarFollowingLogitPolicy):
+            if p.decision_step_s not in cf_decisions:
+                cf_decisions[p.decision_step_s] = car_following_decisions(
+                    held.encounters, decision_step_s=p.decision_step_s, where=held.source)
+            cf_dec = cf_decisions[p.decision_step_s]
+        scores[p.name] = policy_heldout_loglik(p, held, step, cf_decisions=cf_dec) if held is not None else None
     out = Path(out_dir)  # made once every input has been read and checked, so a bad input leaves no folder
     out.mkdir(parents=True, exist_ok=True)
     check_writable(out / "report.md")  # before the episodes, not after
-    prov = evaluation_provenance(models, pols, scenario, spec, demos)  # the files as read, before the work
+    prov = evaluation_provenance(models, pols, scenario, spec, demos, train_demos)  # the files as read, before the work
     counts = held.action_counts if held is not None else None
     tasks = []
     for p in pols:
@@ -398,8 +425,7 @@ def evaluate(
         by_policy[p.name].append(r)
     aggs = {}
     for p in pols:
-        cf_dec = cf_decisions.get(p.decision_step_s) if isinstance(p, CarFollowingLogitPolicy) else None
-        ho = policy_heldout_loglik(p, held, step, cf_decisions=cf_dec) if held is not None else None
+        ho = scores[p.name]
         rs = by_policy[p.name]
         w1 = w1_to_demos(pd.concat([r.decisions for r in rs], ignore_index=True), held.encounters) \
             if held is not None and rs else None
@@ -418,17 +444,18 @@ def evaluate(
     return EvaluationReport(out, aggs, by_policy, report_md, metrics_json, plots, rrds)
 
 
-def evaluation_provenance(models: Sequence, pols: Sequence[Policy], scenario, spec, demos) -> dict:
+def evaluation_provenance(models: Sequence, pols: Sequence[Policy], scenario, spec, demos, train_demos=None) -> dict:
     """:func:`analysis.provenance.provenance` of an evaluation: the model file of each policy
     (``pols`` starts with one policy per entry of ``models``; a further policy's ``source``
     file when it has one, as :func:`cf_policy`'s; None for baselines and models given as
-    objects), the held-out demonstrations and scenario files read, and the SHA-256 of the
-    scenario actually simulated (its TOML)."""
+    objects), the held-out and training demonstrations and scenario files read, and the SHA-256
+    of the scenario actually simulated (its TOML)."""
     files = {p.name: None if isinstance(m, SavedModel) else m for p, m in zip(pols, models)}
     files.update({p.name: getattr(p, "source", "") or None for p in pols[len(models):]})
     scenario_file = scenario if isinstance(scenario, (str, Path)) and Path(scenario).is_file() else None
     demos_file = None if isinstance(demos, pd.DataFrame) else demos
-    return provenance({"demos": demos_file, "scenario": scenario_file}, files,
+    train_file = None if isinstance(train_demos, pd.DataFrame) else train_demos
+    return provenance({"demos": demos_file, "train_demos": train_file, "scenario": scenario_file}, files,
                       extra={"scenario_sha256": text_digest(spec.to_toml())})
 
 

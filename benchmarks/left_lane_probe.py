@@ -13,7 +13,8 @@ its nearest left leader L (``getLeftLeaders``). Printed: among the frames where 
 speeds against the allowed speed, and the mean acceleration; beside them the frames without
 such an L.
 
-Run: ``python -m benchmarks.left_lane_probe [--scenario synthetic] [--seed 101]``; the same
+Run: ``python -m benchmarks.left_lane_probe [--scenario synthetic] [--seed 101] [--duration S]``
+(default the scenario's duration; the figures in the docs: 240 s); the same
 scenario with ``lc_params = { lcOvertakeRight = 1.0 }`` in its car types is the control.
 docs/closed-loop.md has the figures.
 """
@@ -27,7 +28,9 @@ import numpy as np
 import pandas as pd
 
 from analysis.commands._arg_types import positive_int
+from scenarios.errors import ScenarioError
 from scenarios.loader import load_scenario
+from scenarios.spec_parse import with_overrides
 from sim.run import run_scenario
 
 #: The rightmost main lane before the merge and along the auxiliary lane (scenarios.network).
@@ -89,16 +92,21 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--scenario", default="synthetic", help="preset name or TOML path")
     ap.add_argument("--seed", type=int, default=101)
-    ap.add_argument("--duration", type=positive_int, default=240, help="simulated seconds")
+    ap.add_argument("--duration", type=positive_int, default=None, help="simulated seconds (default: the scenario's)")
     ap.add_argument("--far", type=float, default=60.0, help="C counts as far beyond this gap (m)")
     ap.add_argument("--left", type=float, default=100.0, help="a left leader within this distance (m) counts")
     args = ap.parse_args(argv)
     if not (np.isfinite(args.far) and args.far > 0 and np.isfinite(args.left) and args.left > 0):
         ap.error("--far and --left must be positive distances in metres")
-    spec = load_scenario(args.scenario)
+    try:  # a bad scenario name, file or duration: one line before any simulation
+        spec = load_scenario(args.scenario)
+        if args.duration is not None:
+            spec = with_overrides(spec, duration_s=float(args.duration))
+    except ScenarioError as e:
+        ap.error(f"--scenario/--duration: {e}")
     probe = LeftLaneProbe()
-    run_scenario(spec, seed=args.seed, duration_s=float(args.duration), hooks=[probe])
-    print(f"left-lane probe: {args.scenario}, seed {args.seed}, {args.duration} s")
+    run_scenario(spec, seed=args.seed, hooks=[probe])
+    print(f"left-lane probe: {args.scenario}, seed {args.seed}, {spec.simulation.duration_s:g} s")
     for line in summary(probe.table(), args.far, args.left):
         print(line)
     return 0

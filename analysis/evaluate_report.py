@@ -114,7 +114,9 @@ def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes,
         f"policy); decision step {controller.decision_s} s, actions {'mode' if controller.mode else 'sampled'}, "
         f"safety filter {'off (raw)' if controller.safety_ttc_s is None else f'on (TTC >= {controller.safety_ttc_s} s)'}.",
         "Policy `sumo` is SUMO's own car-following model in role A (not taken over); `uniform` picks actions "
-        "uniformly at random.",
+        "uniformly at random; `sumo-in-lane` (if run) is `sumo` with A's lane changes off while observed, as "
+        "for every commanded driver; `idm` (if run) is the Intelligent Driver Model with the scenario's car "
+        "parameters driving A through the controller (deterministic: no held-out LL).",
         "",
         report_table(aggs),
         "",
@@ -125,8 +127,10 @@ def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes,
         "demonstrations'; held-out LL = mean log pi(a|s) per held-out demonstration step (state-conditional; "
         "markov given the previous action). A collisions / As: control episodes ended by A colliding, with the "
         "Wilson 95 % interval. W1: Wasserstein-1 distances of A's speed (ft/s), acceleration (ft/s^2), d_AC "
-        "(ft) and TTC to C (s) at the decisions to the held-out demonstrations; `sumo`'s row is the floor. "
-        "Baselines `marginal`, `markov`, `bc` are fitted on the training demonstrations (add-one smoothed). "
+        "(ft) and TTC to C (s) at the decisions to the held-out demonstrations; `sumo`'s row is the floor "
+        "(`sumo-in-lane`'s the floor of drivers that act on acceleration alone). "
+        "Baselines `marginal`, `markov`, `bc` (when run) are fitted on the training demonstrations (add-one "
+        "smoothed). "
         "Safety interventions: actions replaced by the safety filter (0 unless it is on).",
         "",
         *flag_lines(aggs),

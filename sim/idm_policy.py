@@ -12,6 +12,10 @@ that follows its lead car exactly as the synthetic demonstrators' car-following 
 (:meth:`IdmPolicy.from_scenario` takes the scenario's car type) but acts only through the five
 actions at the decision step and does not yield to the merging car B (which SUMO's lane-change
 model makes the demonstrators do)? docs/closed-loop.md has the measurement.
+
+Limits: it follows C alone, also after B has merged ahead of A during the controller's hold (the
+observation does not say whether B is in lane 6), and :meth:`IdmPolicy.from_scenario` takes the
+first car type's parameters as IDM's whatever that type's car-following model.
 """
 
 from __future__ import annotations

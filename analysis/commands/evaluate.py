@@ -14,7 +14,8 @@ def register(subparsers) -> None:
     p = subparsers.add_parser(
         "evaluate", help="drive merge lag cars with learned models in SUMO and compare with baselines",
         description="Re-inject learned IRL models as the lag car A of every merge, run N episodes per "
-                    "policy (plus SUMO's own driver and uniform random), and write report.md, "
+                    "policy beside the baselines (SUMO's own driver, uniform, marginal, markov, bc; on request "
+                    "idm and sumo-in-lane), and write report.md, "
                     "metrics.json, PNG plots and rerun recordings.")
     p.add_argument("--model", action="append", default=[], metavar="MODEL.json",
                    help="a saved merge model (repeat for several); none: only the baselines")

@@ -285,7 +285,7 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
                              executor=config.executor, where=str(train_path), progress=not quiet)
         models[CF_DRIVER] = cf[-1].save(out / "models" / "cf-dagger.json")
         cf[0].save(out / "models" / "cf-logit.json")  # round 0, the demonstrations alone (not evaluated here)
-        drivers.append(CarFollowingLogitPolicy(cf[-1], name=CF_DRIVER))
+        drivers.append(CarFollowingLogitPolicy(cf[-1], name=CF_DRIVER, source=str(models[CF_DRIVER])))
         fit_times[CF_DRIVER] = time.perf_counter() - t_cf
         _say(f"      {CF_DRIVER}: {config.dagger_rounds} DAgger rounds, High Brake labels per round "
              f"{cf[-1].info['labels_per_round']} ({fit_times[CF_DRIVER]:.0f} s)"

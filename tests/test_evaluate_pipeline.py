@@ -59,6 +59,8 @@ def test_run_demo_small(tmp_path):
 def test_run_demo_with_the_dagger_driver(tmp_path):
     """``dagger_rounds``: the car-following logit driver is trained after the IRL methods, saved
     beside them, evaluated on the same episodes and scored on the held-out demonstrations."""
+    import hashlib
+
     from analysis.pipeline import CF_DRIVER
     from irl.domains.merge_car_following import car_following_decisions
     from irl.domains.merge_cf_logit import CarFollowingLogit
@@ -71,6 +73,9 @@ def test_run_demo_with_the_dagger_driver(tmp_path):
     assert res.models[CF_DRIVER].name == "cf-dagger.json" and cf.info["dagger_round"] == 1
     data = json.loads(res.evaluation.metrics_json.read_text())
     assert set(data["policies"]) == {"qavg", CF_DRIVER, "sumo", "uniform", "marginal", "markov", "bc"}
+    # the driver file is in the evaluation's provenance, as for evaluate --cf-model
+    assert data["provenance"]["models"][CF_DRIVER]["sha256"] == hashlib.sha256(
+        res.models[CF_DRIVER].read_bytes()).hexdigest()
     agg = data["policies"][CF_DRIVER]["aggregate"]
     assert agg["n_controls"] > 0
     held = car_following_decisions(read_encounters(tmp_path / "demo" / "data" / "heldout_encounters.parquet"))

@@ -8,8 +8,9 @@ demonstrations), deterministically. The controller applies it as every policy's 
 ``action_acc_ft_s2``, once per decision step, with SUMO's own safety checks off.
 
 It answers a question the other rows cannot: how far from the demonstrations does a driver get
-that follows its lead car exactly as the synthetic demonstrators' car-following model does
-(:meth:`IdmPolicy.from_scenario` takes the scenario's car type) but acts only through the five
+that follows its lead car by the formula and parameters of the synthetic demonstrators'
+car-following model (:meth:`IdmPolicy.from_scenario` takes the scenario's car type; SUMO
+integrates the same formula in sub-steps) but acts only through the five
 actions at the decision step and does not yield to the merging car B (which SUMO's lane-change
 model makes the demonstrators do)? docs/closed-loop.md has the measurement.
 

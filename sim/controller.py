@@ -270,7 +270,8 @@ class Controller:
         else:  # paper state x A's previous action (the initial one before the first decision, else Zero)
             prev = c.prev_action if c.prev_action >= 0 else (initial if initial >= 0 else ZERO_ACTION)
             state = encoder.state(d_ac, d_ab, v_ac, v_ab, truck, prev_action=prev, encoding=encoding)
-        obs = MergeObservation(d_ac, d_ab, v_ac, v_ab, truck, state, float(frame.speed[ia]), c.prev_action, initial)
+        obs = MergeObservation(d_ac, d_ab, v_ac, v_ab, truck, state, float(frame.speed[ia]), c.prev_action, initial,
+                               c.merge_frame >= 0)
         probs = np.asarray(self.policy.probs(obs), dtype=np.float64)
         filtered = False
         if c.commanded:

@@ -1,8 +1,8 @@
 """The Intelligent Driver Model as a reference driver through the controller (``idm``).
 
 :class:`IdmPolicy` drives car A by the IDM acceleration (Treiber, Hennecke & Helbing 2000,
-Phys. Rev. E 62, 1805) ``a_max (1 - (v/v0)^4 - (s*/s)^2)`` towards the lead car C (free road
-without C), with ``s* = s0 + v T + v dv / (2 sqrt(a_max b))``, and takes the action whose bin
+Phys. Rev. E 62, 1805) ``a_max (1 - (v/v0)^4 - (s*/s)^2)`` towards A's leader (the lead car C;
+once B has merged into lane 6 ahead of A and nearer than C, B; free road without either), with ``s* = s0 + v T + v dv / (2 sqrt(a_max b))``, and takes the action whose bin
 holds that acceleration (:func:`irl.domains.merge_actions.action_of`, the rule that labels the
 demonstrations), deterministically. The controller applies it as every policy's action: at
 ``action_acc_ft_s2``, once per decision step, with SUMO's own safety checks off.
@@ -14,8 +14,7 @@ integrates the same formula in sub-steps) but acts only through the five
 actions at the decision step and does not yield to the merging car B (which SUMO's lane-change
 model makes the demonstrators do)? docs/closed-loop.md has the measurement.
 
-Limits: it follows C alone, also after B has merged ahead of A during the controller's hold (the
-observation does not say whether B is in lane 6), and :meth:`IdmPolicy.from_scenario` takes the
+Limits: it does not yield to B before B merges, and :meth:`IdmPolicy.from_scenario` takes the
 first car type's parameters as IDM's whatever that type's car-following model.
 """
 
@@ -36,7 +35,7 @@ IDM_NEED_CLIP = 1000.0
 
 @dataclass(frozen=True)
 class IdmPolicy:
-    """IDM towards C as a driver (module docstring).
+    """IDM towards A's leader as a driver (module docstring).
 
     Attributes:
         gap_need: the IDM parameters (ft, s, ft/s^2, ft/s): ``min_gap_ft`` (s0),
@@ -67,14 +66,18 @@ class IdmPolicy:
         return cls(gap_need=need, **kw)
 
     def acceleration(self, obs: MergeObservation) -> float:
-        """The IDM acceleration (ft/s^2) at ``obs`` (``speed_A``, ``d_AC``, ``v_AC``; free road
-        when ``d_AC`` is NaN)."""
+        """The IDM acceleration (ft/s^2) at ``obs``: towards B (``d_AB``, ``v_AB``) when
+        ``b_merged`` and B is ahead of A and nearer than C, else towards C (``d_AC``, ``v_AC``);
+        free road when neither applies (``d_AC`` NaN)."""
         g = self.gap_need
-        free = 1.0 - (max(obs.speed_A, 0.0) / g.desired_speed_ft_s) ** self.delta
-        if not np.isfinite(obs.d_AC):
+        v = max(obs.speed_A, 0.0)
+        free = 1.0 - (v / g.desired_speed_ft_s) ** self.delta
+        gap, dv = obs.d_AC, obs.v_AC
+        if obs.b_merged and obs.d_AB > 0 and not (np.isfinite(gap) and gap <= obs.d_AB):
+            gap, dv = obs.d_AB, obs.v_AB
+        if not np.isfinite(gap):
             return g.accel_ft_s2 * free
-        need = float(g.need(obs.d_AC, max(obs.speed_A, 0.0), obs.v_AC))
-        return g.accel_ft_s2 * (free - need)
+        return g.accel_ft_s2 * (free - float(g.need(gap, v, dv)))
 
     def probs(self, obs: MergeObservation) -> np.ndarray:
         """``[5]``: probability 1 on the action whose bin holds :meth:`acceleration`."""

@@ -40,6 +40,7 @@ class MergeObservation:
             simulation step (how the driver encoding and the car-following driver take A's
             previous action there, as training takes it from A's speed history); -1 afterwards
             or when not finite.
+        b_merged: B has entered lane 6 (the controller's merge frame is behind this decision).
     """
 
     d_AC: float
@@ -51,6 +52,7 @@ class MergeObservation:
     speed_A: float = 0.0
     prev_action: int = -1
     initial_action: int = -1
+    b_merged: bool = False
 
     def as_array(self) -> np.ndarray:
         """``[5]``: d_AC, d_AB, v_AC, v_AB, B_is_truck."""

@@ -114,6 +114,29 @@ def test_sumo_baseline_is_observed_not_commanded(sumo_run):
     assert sum(1 for x in sumo_run.metrics.action_counts if x > 0) >= 2
 
 
+def test_observations_say_when_b_has_merged(spec):
+    """b_merged is False before the controller's merge frame of that A's B and True from it on."""
+    from sim.run import run_scenario
+
+    class Recorder:
+        name, controls = "recorder", True
+
+        def __init__(self):
+            self.seen = []
+
+        def probs(self, obs):
+            self.seen.append(obs)
+            return np.full(5, 0.2)
+
+    pol = Recorder()
+    ctl = Controller(pol, ControllerConfig())
+    run_scenario(spec, seed=SEED, duration_s=DURATION, hooks=[ctl])
+    dec = ctl.decision_table()
+    merge = ctl.control_table().set_index(["a_id", "b_id"])["merge_frame"]
+    expected = [0 <= merge[(a, b)] <= f for a, b, f in zip(dec.a_id, dec.b_id, dec.frame)]
+    assert [o.b_merged for o in pol.seen] == expected and any(expected) and not all(expected)
+
+
 def test_sumo_in_lane_keeps_a_in_lane_6_and_restores_its_lane_changes(spec, sumo_run):
     """SUMO's driver with keep_lane: never out of lane 6 at a decision (the free SUMO driver is,
     on the same traffic), not commanded, its lane-change mode restored at release."""

@@ -44,3 +44,24 @@ def test_from_scenario_takes_the_car_type():
     assert g.desired_speed_ft_s == pytest.approx(min(car.max_speed_mps, spec.road.speed_limit_mps * car.speed_factor)
                                                  * FT_PER_M)
     assert IdmPolicy.from_scenario(spec, name="idm-syn").name == "idm-syn"
+
+
+def test_b_is_the_leader_once_it_has_merged_ahead_and_nearer_than_c():
+    idm = IdmPolicy.from_scenario(load_scenario("synthetic"))
+    g = idm.gap_need
+
+    def obs(d_ab, merged, d_ac=300.0):
+        return MergeObservation(d_AC=d_ac, d_AB=d_ab, v_AC=0.0, v_AB=8.0, b_is_truck=False, speed_A=60.0,
+                                b_merged=merged)
+
+    free = 1 - (60.0 / g.desired_speed_ft_s) ** 4
+    towards_c = g.accel_ft_s2 * (free - float(g.need(300.0, 60.0, 0.0)))
+    towards_b = g.accel_ft_s2 * (free - float(g.need(60.0, 60.0, 8.0)))
+    assert idm.acceleration(obs(60.0, True)) == pytest.approx(towards_b) and towards_b < towards_c - 5
+    assert idm.acceleration(obs(60.0, False)) == pytest.approx(towards_c)  # B still on the ramp: not followed
+    assert idm.acceleration(obs(-20.0, True)) == pytest.approx(towards_c)  # merged behind A
+    assert idm.acceleration(obs(60.0, True, d_ac=40.0)) == pytest.approx(
+        g.accel_ft_s2 * (free - float(g.need(40.0, 60.0, 0.0))))  # C nearer than B
+    no_c = MergeObservation(d_AC=float("nan"), d_AB=60.0, v_AC=float("nan"), v_AB=8.0, b_is_truck=False,
+                            speed_A=60.0, b_merged=True)
+    assert idm.acceleration(no_c) == pytest.approx(towards_b)

@@ -44,8 +44,8 @@ from irl.domains.merge_bins import MergeBins, fit_quantile_bins
 from irl.domains.merge_car_following import CFDecisions, car_following_decisions
 from irl.domains.merge_cf_logit import CarFollowingLogit
 from irl.domains.merge_encounters import REQUIRED_COLUMNS
-from irl.errors import DemonstrationError
-from irl.merge_mdp import discretize, read_encounters
+from irl.errors import ConfigError, DemonstrationError
+from irl.merge_mdp import action_mean_acc, discretize, frames_per_step, read_encounters
 from irl.result import SavedModel
 from irl.run_folder import check_writable
 from irl.units import FRAME_S, FT_PER_M
@@ -179,8 +179,7 @@ def training_action_acc(train_demos: str | os.PathLike | pd.DataFrame) -> tuple[
         DemonstrationError: the training encounters cannot be read.
     """
     acc = _training_table(train_demos)["acc_A"].to_numpy(float)
-    a = actions_of(acc)
-    return tuple(float(acc[a == k].mean()) if np.any(a == k) else float(m) for k, m in enumerate(ACTION_ACC_FT_S2))
+    return action_mean_acc(acc, actions_of(acc))
 
 
 def learned_policy(model: SavedModel | str | os.PathLike, name: str = "") -> LearnedPolicy:
@@ -357,10 +356,11 @@ def evaluate(
     if step is None:
         step = steps[0][1] if steps else 0.3
         controller = replace(controller, decision_s=step)
-    k = round(step / FRAME_S) if isinstance(step, (int, float)) and math.isfinite(step) else 0
-    if k < 1 or abs(k * FRAME_S - step) > 1e-9:
+    try:
+        frames_per_step(step)
+    except ConfigError:
         raise SimError(f"evaluate: the decision step must be a positive multiple of the {FRAME_S} s simulation "
-                       f"step, got {step}")
+                       f"step, got {step}") from None
     other = [(name, s) for name, s in steps if not math.isclose(s, step)]
     if other:
         warnings.warn(f"evaluate: every policy decides every {step} s, but " + ", ".join(

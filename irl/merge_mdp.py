@@ -10,6 +10,7 @@ readers of the authors' files and of encounter tables.
 
 from __future__ import annotations
 
+import math
 import os
 import warnings
 from dataclasses import dataclass
@@ -63,9 +64,16 @@ def action_mean_acc(acc, actions) -> tuple[float, ...]:
     return tuple(out)
 
 
-def _frames_per_step(decision_step_s: float) -> int:
-    k = int(round(decision_step_s / FRAME_S))
-    if not decision_step_s > 0 or abs(k * FRAME_S - decision_step_s) > 1e-9:
+def frames_per_step(decision_step_s: float) -> int:
+    """The number of 0.1 s frames in one decision step.
+
+    Raises:
+        ConfigError: ``decision_step_s`` is not a positive finite multiple of the frame (0.1 s).
+    """
+    ok = isinstance(decision_step_s, (int, float)) and not isinstance(decision_step_s, bool) \
+        and math.isfinite(decision_step_s) and decision_step_s > 0
+    k = int(round(decision_step_s / FRAME_S)) if ok else 0
+    if k < 1 or abs(k * FRAME_S - decision_step_s) > 1e-9:
         raise ConfigError(f"decision_step_s must be a positive multiple of {FRAME_S} s, got {decision_step_s}")
     return k
 
@@ -110,7 +118,7 @@ def resample_encounters(encounters_df, bins: MergeBins, *, where: str = "encount
         ConfigError: a bad encoding or decision step.
     """
     validate_encounters(encounters_df, where)
-    k = _frames_per_step(decision_step_s)
+    k = frames_per_step(decision_step_s)
     S = n_states(encoding)
     fs = feature_set(features or "paper", bins, encoding, dt=decision_step_s)
     if fs.array.shape[0] != S:

@@ -27,7 +27,7 @@ from irl.conditional_logit import conditional_log_policy, conditional_loglik, fi
 from irl.domains.merge_actions import N_ACTIONS
 from irl.domains.merge_car_following import CF_FEATURES, CFDecisions, GapNeed, car_following_features
 from irl.errors import ConfigError, ModelFileError
-from irl.units import FRAME_S
+from irl.merge_mdp import frames_per_step
 
 #: The ``format`` field of a car-following logit file.
 CF_FORMAT = "merge-irl-cf-logit/1"
@@ -72,9 +72,7 @@ class CarFollowingLogit:
         object.__setattr__(self, "action_acc_ft_s2", acc)
         if any(b <= a for a, b in zip(acc, acc[1:])):
             raise ConfigError(f"action_acc_ft_s2 must increase from High Brake to High Accel, got {acc}")
-        k = round(self.decision_step_s / FRAME_S) if math.isfinite(self.decision_step_s) else 0
-        if k < 1 or abs(k * FRAME_S - self.decision_step_s) > 1e-9:
-            raise ConfigError(f"decision_step_s must be a positive multiple of {FRAME_S} s, got {self.decision_step_s}")
+        frames_per_step(self.decision_step_s)
 
     @property
     def feature_names(self) -> tuple[str, ...]:

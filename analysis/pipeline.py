@@ -41,7 +41,9 @@ import pandas as pd
 
 from analysis.dagger import DaggerConfig, train_cf_driver
 from analysis.episode import frame_from_dict, frame_to_dict
-from analysis.evaluate import EvaluationReport, evaluate, learned_policy, prepare_encounters, resolve_executor
+from analysis.evaluate import EvaluationReport, evaluate, resolve_executor
+from analysis.evaluate_heldout import prepare_encounters
+from analysis.evaluate_policies import learned_policy
 from analysis.evaluate_report import flag_lines, report_table
 from analysis.learn import fit_problem, merge_config, merge_encoding, merge_features, saved_model
 from analysis.provenance import provenance, provenance_markdown, text_digest, write_timings

@@ -7,7 +7,7 @@ quantiles, the sample count of each series in the legend, one colour per policy
 :data:`PHYSICAL_BRAKING_FT_S2` (1 g).
 
 Inputs: ``by_policy`` maps a policy name to its :class:`analysis.episode.EpisodeResult` list;
-``held`` is an :class:`analysis.evaluate.HeldOut` or None. Units ft, ft/s, ft/s^2, s.
+``held`` is an :class:`analysis.evaluate_heldout.HeldOut` or None. Units ft, ft/s, ft/s^2, s.
 """
 
 from __future__ import annotations

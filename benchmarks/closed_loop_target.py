@@ -44,7 +44,8 @@ import pandas as pd
 from analysis.commands._arg_types import non_negative_int
 from analysis.dagger import DaggerConfig
 from analysis.demo_signal import bin_change_rate, braking_cap_share
-from analysis.evaluate import cf_policy, evaluate
+from analysis.evaluate import evaluate
+from analysis.evaluate_policies import cf_policy
 from analysis.pipeline import CF_DRIVER, DemoConfig, check_dagger_seeds, run_demo
 from irl.domains.merge_cf_logit import CarFollowingLogit
 from sim.control_records import COLLISION_KINDS

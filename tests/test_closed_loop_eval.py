@@ -134,7 +134,7 @@ def test_safety_filter_intervenes_and_prevents_rear_end_collisions():
 
 
 def test_driver_encoded_model_reaches_the_policy_and_the_heldout_loglik():
-    from analysis.evaluate import HeldOut, policy_heldout_loglik
+    from analysis.evaluate_heldout import HeldOut, policy_heldout_loglik
     from irl.domains.merge_actions import actions_of
 
     rng = np.random.default_rng(3)

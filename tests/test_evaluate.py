@@ -41,7 +41,8 @@ def _encounters(n=60, seed=1) -> pd.DataFrame:
 
 @pytest.mark.sumo
 def test_evaluate_writes_report_metrics_plots(tmp_path):
-    from analysis.evaluate import BASELINES, evaluate, training_action_acc
+    from analysis.evaluate import evaluate
+    from analysis.evaluate_policies import BASELINES, training_action_acc
     from sim.policy import ConstantPolicy
 
     model_path = _model().save(tmp_path / "m" / "qavg.json")

@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.evaluate import HeldOut, policy_heldout_loglik
+from analysis.evaluate_heldout import HeldOut, policy_heldout_loglik
 from irl.domains.merge_actions import ZERO_ACTION, actions_of
 from irl.domains.merge_bins import MergeBins
 from irl.domains.merge_car_following import (
@@ -115,7 +115,7 @@ def test_fit_learns_to_brake_on_a_short_gap_and_round_trips_through_its_file(tmp
     lp = back.log_policy(dec.obs, dec.prev)
     np.testing.assert_allclose(np.exp(lp).sum(1), 1.0)
     # the driver is named by its file, as a model file is, and flagged when its fit did not converge
-    from analysis.evaluate import cf_policy
+    from analysis.evaluate_policies import cf_policy
 
     assert cf_policy(path).name == "cf_model" and cf_policy(path).flags == ()
     stuck = dataclasses.replace(model, converged=False).save(tmp_path / "cf-dagger.json")

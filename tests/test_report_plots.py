@@ -10,7 +10,7 @@ import pytest
 from matplotlib.colors import to_rgba
 
 import analysis.report_plots as rp
-from analysis.evaluate import HeldOut
+from analysis.evaluate_heldout import HeldOut
 from analysis.palette import POLICY_COLORS, policy_color
 
 

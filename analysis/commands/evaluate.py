@@ -55,7 +55,8 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from analysis.evaluate import KNOWN_BASELINES, evaluate
+    from analysis.evaluate import evaluate
+    from analysis.evaluate_policies import KNOWN_BASELINES
     from analysis.thresholds import check_file, parse_thresholds
     from sim.controller_config import ControllerConfig
     from sim.errors import SimError
@@ -73,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
         raise SimError(f"--baselines: unknown baseline(s) {bad}; expected {', '.join(KNOWN_BASELINES)}")
     if not args.model and not args.cf_model and not baselines:
         raise SimError("nothing to evaluate: give --model, --cf-model and/or --baselines")
-    from analysis.evaluate import cf_policy
+    from analysis.evaluate_policies import cf_policy
 
     cf = [cf_policy(path) for path in args.cf_model]  # malformed files before any work
     scen = Path(args.scenario).stem if args.scenario.endswith(".toml") else args.scenario

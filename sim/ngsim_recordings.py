@@ -39,8 +39,12 @@ class Recording:
     rows: int
 
     def describe(self) -> str:
-        start = (_dt.datetime.fromtimestamp(self.first_time_ms / 1000.0, _dt.UTC).strftime("%Y-%m-%d %H:%M:%S UTC")
-                 if self.first_time_ms >= _EPOCH_MS else f"Global_Time {self.first_time_ms:.0f} ms")
+        start = f"Global_Time {self.first_time_ms:.0f} ms"  # not a date: before 2001 (1e12 ms), or past year 9999
+        if self.first_time_ms >= _EPOCH_MS:
+            try:
+                start = _dt.datetime.fromtimestamp(self.first_time_ms / 1000.0, _dt.UTC).strftime("%Y-%m-%d %H:%M:%S UTC")
+            except (ValueError, OverflowError, OSError):
+                pass
         return (f"#{self.number}: frames {self.first_frame}-{self.last_frame} from {start}, "
                 f"{self.rows} rows")
 

@@ -171,3 +171,13 @@ def test_integers_beyond_int64_are_rejected(tmp_path, col, token):
     p.write_text(NGSIM_HEADER + "\n" + "\n".join(",".join(r) for r in rows) + "\n")
     with pytest.raises(SimError, match="big.csv"):
         read_ngsim(p)
+
+
+def test_a_recording_past_year_9999_is_described_by_its_global_time():
+    """Found by test_damaged_cells: a Global_Time of 253402300800000 ms (year 10000) broke the
+    message naming the recordings of a file."""
+    from sim.ngsim_recordings import Recording
+
+    far = Recording(2, 0.0, 0.0, 100, 100, 253402300800000.0, 1)
+    assert far.describe() == "#2: frames 100-100 from Global_Time 253402300800000 ms, 1 rows"
+    assert "2005-04-13" in Recording(1, 0.0, 0.0, 1, 2, 1113433135300.0, 3).describe()

@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 RELEASE_REASONS = (
-    "merge_done", "left_section", "collision", "teleported", "arrived", "removed", "b_lost",
+    "merge_done", "left_section", "left_lane", "collision", "teleported", "arrived", "removed", "b_lost",
     "timeout", "end_of_run",
 )
 

@@ -16,6 +16,9 @@ back to SUMO) and records why, in :attr:`Control.reason <sim.control_records.Con
 
 ``merge_done``  B merged (first lane-6 frame) and ``hold_after_merge_s`` has passed;
 ``left_section`` A's ``Local_Y`` passed the end of the section (or A's route ended there);
+``left_lane``   A is no longer in lane 6 (only SUMO's own driver with its lane changes on
+                can leave it: the encounter ends there, as in the demonstrations of
+                :mod:`sim.take_over`);
 ``collision``   A was in a collision (``simulation.getCollidingVehiclesIDList``);
 ``teleported``  SUMO teleported A;
 ``arrived``     A reached the end of its route elsewhere;
@@ -102,7 +105,7 @@ class Controller:
         self._max_frames = int(round(cfg.max_control_s / ctx.frame_s))
         self._frame_s = ctx.frame_s
         self._section_end = float(ctx.section_length_ft)
-        self._zone_start = cfg.zone_start_ft if cfg.zone_start_ft is not None else aux_lane_start_ft(ctx) - cfg.zone_margin_ft
+        self._zone_start = cfg.zone_start(aux_lane_start_ft(ctx))
         seed = cfg.seed if cfg.seed is not None else int(ctx.seed)
         self._rng = np.random.default_rng(seed)
         self._vehicle_id_of = ctx.vehicle_id_of
@@ -188,6 +191,8 @@ class Controller:
             return "removed"
         if frame.local_y[ia] > self._section_end:
             return "left_section"
+        if frame.lane_id[ia] != RIGHTMOST_MAIN_LANE:
+            return "left_lane"
         if c.merge_frame < 0 and ib is None:
             return "b_lost"
         if c.merge_frame >= 0 and frame.frame - c.merge_frame >= self._hold_frames:

@@ -58,3 +58,8 @@ class ControllerConfig:
                 raise ControllerError(f"controller.{name}: must be a positive number, got {v}")
         if not self.hold_after_merge_s >= 0:
             raise ControllerError(f"controller.hold_after_merge_s: must be >= 0, got {self.hold_after_merge_s}")
+
+    def zone_start(self, aux_lane_start_ft: float) -> float:
+        """``Local_Y`` (ft) from which a B on the ramp is handed a lag car A: ``zone_start_ft``, or
+        ``zone_margin_ft`` before ``aux_lane_start_ft`` (:func:`sim.lanes.aux_lane_start_ft`)."""
+        return float(self.zone_start_ft) if self.zone_start_ft is not None else aux_lane_start_ft - self.zone_margin_ft

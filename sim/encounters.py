@@ -44,6 +44,7 @@ from sim.errors import TrajectoryFormatError
 from sim.observe import lag_lead_positions
 from sim.schema import FRAME_S, V_CLASS_TRUCK
 from sim.sites import I80, SiteProfile, check_lanes
+from sim.take_over import LaneSixIndex, TakeOverRule, take_overs
 
 #: Columns of the per-merge summary table, in order.
 MERGE_COLUMNS: dict[str, str] = {
@@ -175,17 +176,26 @@ def find_merges(table: pd.DataFrame, *, site: SiteProfile = I80) -> pd.DataFrame
 
 
 def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),
-            site: SiteProfile = I80, teleported: Collection[int] = ()) -> Encounters:
+            site: SiteProfile = I80, teleported: Collection[int] = (),
+            take_over: TakeOverRule | None = None) -> Encounters:
     """Every merge of ``table`` with its A and C, and the per-frame encounter variables.
 
     ``site``: the lane coding (:mod:`sim.sites`; I-80's by default, as in simulated runs).
     ``teleported``: Vehicle_IDs SUMO teleported; their merges, and merges with a position jump,
     are left out (listed in ``excluded``, see :func:`screen_merges`).
+    ``take_over``: A, C and the window by the closed-loop controller's rule instead of the
+    merge frame's (:mod:`sim.take_over`: A is handed to B in the take-over zone, C is A's lead
+    car other than B in every frame, the window runs from the take-over until the controller
+    would release A); ``window`` must then be left at its default. Simulated demonstrations use
+    it (:func:`sim.generate.generate`), so that they are what the controller observes.
 
     Raises:
         TrajectoryFormatError: see :func:`find_merges`; duplicate (Vehicle_ID, Frame_ID) rows.
+        ValueError: ``take_over`` given with a window other than the default.
     """
     _check(table)
+    if take_over is not None and window != EncounterWindow():
+        raise ValueError("extract: the take-over rule sets the window itself; leave `window` at its default")
     merges, excluded = screen_merges(table, find_merges(table, site=site), teleported)
     if merges.empty:
         return Encounters(_empty(ENCOUNTER_COLUMNS), _empty(MERGE_COLUMNS), excluded)
@@ -209,34 +219,48 @@ def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),
     def rows(v: int, frames: np.ndarray) -> np.ndarray:
         return row_of.get_indexer(pd.MultiIndex.from_arrays([np.full(frames.shape, v, np.int64), frames]))
 
+    controlled = (take_overs(table, merges, take_over, ramp_lanes=tuple(site.ramp_lanes), merge_lane=site.merge_lane)
+                  if take_over is not None else None)
+    six = LaneSixIndex(frame, y, vid, lane == site.merge_lane) if take_over is not None else None
     summary, chunks = [], []
     for eid, (b, mf) in enumerate(zip(merges["B_id"].to_numpy(), merges["merge_frame"].to_numpy()), start=1):
         rb = rows(b, np.array([mf]))[0]
-        lo, hi = np.searchsorted(f6, mf, "left"), np.searchsorted(f6, mf, "right")
-        cand = r6[lo:hi]
-        cand = cand[vid[cand] != b]
-        ia, ic = lag_lead_positions(y[cand].tolist(), float(y[rb]))  # the controller's rule too
-        a = int(vid[cand[ia]]) if ia >= 0 else 0
-        c = int(vid[cand[ic]]) if ic >= 0 else 0
         truck = bool(vclass[rb] == V_CLASS_TRUCK)
-        start = mf
-        if a:
-            start = int(max(first_frame[a], first_frame[b]))
-            if window.max_frames_before is not None:
-                start = max(start, int(mf) - window.max_frames_before)
+        if controlled is not None:
+            to = controlled[eid - 1]
+            a, start = to.a_id, to.start
+            frames = np.arange(to.start, to.end, dtype=np.int64)
+        else:
+            lo, hi = np.searchsorted(f6, mf, "left"), np.searchsorted(f6, mf, "right")
+            cand = r6[lo:hi]
+            cand = cand[vid[cand] != b]
+            ia, ic = lag_lead_positions(y[cand].tolist(), float(y[rb]))  # the controller's rule too
+            a = int(vid[cand[ia]]) if ia >= 0 else 0
+            c = int(vid[cand[ic]]) if ic >= 0 else 0
+            start = mf
+            if a:
+                start = int(max(first_frame[a], first_frame[b]))
+                if window.max_frames_before is not None:
+                    start = max(start, int(mf) - window.max_frames_before)
             frames = np.arange(start, mf + window.frames_after + 1, dtype=np.int64)
+        if a:
             ra, rbb, ra_next = rows(a, frames), rows(b, frames), rows(a, frames + 1)
             keep = (ra >= 0) & (rbb >= 0) & (ra_next >= 0)
             frames, ra, rbb, ra_next = frames[keep], ra[keep], rbb[keep], ra_next[keep]
-            if c:
-                rc = rows(c, frames)
-                hc = rc >= 0
-                yc = np.where(hc, y[np.where(hc, rc, 0)], np.nan)
-                vc = np.where(hc, vel[np.where(hc, rc, 0)], np.nan)
+            if six is not None:  # C: A's lead car other than B, frame by frame
+                c_ids = np.array([six.lead(int(f), float(ya), (a, int(b))) for f, ya in zip(frames, y[ra])],
+                                 dtype=np.int64)
+                rc = np.where(c_ids > 0, row_of.get_indexer(pd.MultiIndex.from_arrays([c_ids, frames])), -1)
+                at_merge = np.flatnonzero(frames == mf)
+                c = int(c_ids[at_merge[0]]) if len(at_merge) else int(c_ids[-1]) if len(c_ids) else 0
             else:
-                yc = vc = np.full(frames.shape, np.nan)
+                c_ids = np.full(frames.shape, c, np.int64)
+                rc = rows(c, frames) if c else np.full(frames.shape, -1)
+            hc = rc >= 0
+            yc = np.where(hc, y[np.where(hc, rc, 0)], np.nan)
+            vc = np.where(hc, vel[np.where(hc, rc, 0)], np.nan)
             chunks.append(pd.DataFrame({
-                "encounter_id": eid, "B_id": b, "A_id": a, "C_id": c,
+                "encounter_id": eid, "B_id": b, "A_id": a, "C_id": c_ids,
                 "Frame_ID": frames, "Global_Time": gtime[ra], "merge_frame": mf,
                 "d_AC": yc - y[ra], "d_AB": y[rbb] - y[ra],
                 "v_AC": vel[ra] - vc, "v_AB": vel[ra] - vel[rbb],
@@ -246,6 +270,8 @@ def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),
             n = len(frames)
         else:
             n = 0
+            if controlled is not None:
+                c = 0
         summary.append((eid, b, a, c, mf, gtime[rb], truck, start, n))
     frames_df = pd.concat(chunks, ignore_index=True) if chunks else _empty(ENCOUNTER_COLUMNS)
     frames_df = frames_df.astype(ENCOUNTER_COLUMNS).loc[:, list(ENCOUNTER_COLUMNS)]

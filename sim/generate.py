@@ -37,10 +37,12 @@ from scenarios.spec import ScenarioSpec
 from scenarios.spec_parse import with_overrides
 from scenarios.toml_write import dumps
 from sim.encounters import Encounters, EncounterWindow, extract
+from sim.controller_config import ControllerConfig
 from sim.hooks import StepHook
 from sim.outputs import write_parquet
 from sim.run import run_scenario
 from sim.run_result import SimulationResult
+from sim.take_over import TakeOverRule
 
 TRAJECTORIES = "trajectories.parquet"
 ENCOUNTERS = "encounters.parquet"
@@ -49,6 +51,8 @@ SCENARIO = "scenario.toml"
 RUN_REPORT = "run.toml"
 CSV = "trajectories.csv"
 OUTPUT_FILES = (TRAJECTORIES, ENCOUNTERS, MERGES, SCENARIO, RUN_REPORT, CSV)
+#: How :func:`generate` cuts encounters: as the closed-loop controller observes them, or at B's merge frame.
+ENCOUNTER_RULES = ("take-over", "merge-frame")
 
 
 @dataclass(frozen=True)
@@ -76,15 +80,27 @@ def generate(
     progress: bool = False,
     window: EncounterWindow = EncounterWindow(),
     hooks: Sequence[StepHook] = (),
+    encounter_rule: str = "take-over",
 ) -> GenerateResult:
     """Simulate ``spec`` (optionally with another seed / duration) and write the output files.
 
+    ``encounter_rule``: how the encounters pick A, C and their window (:data:`ENCOUNTER_RULES`):
+    ``"take-over"`` (default) as the closed-loop controller with the default
+    :class:`~sim.controller_config.ControllerConfig` observes SUMO's driver (:mod:`sim.take_over`),
+    so that demonstrations and closed-loop control see the same encounters; ``"merge-frame"``
+    the lag car at B's merge frame over ``window`` (:func:`sim.encounters.extract`).
+
     Raises:
+        ValueError: an unknown ``encounter_rule``, or ``window`` given with ``"take-over"``.
         SimulationError: SUMO fails to start or to step.
         OutputLockedError: another run is writing into the output folder.
         FileExistsError: the output folder holds files that are not a previous run's outputs.
         OSError: the output folder cannot be written (checked before simulating).
     """
+    if encounter_rule not in ENCOUNTER_RULES:
+        raise ValueError(f"generate: encounter_rule must be one of {ENCOUNTER_RULES}, got {encounter_rule!r}")
+    if encounter_rule == "take-over" and window != EncounterWindow():
+        raise ValueError("generate: a window is for encounter_rule='merge-frame'; the take-over rule sets its own")
     if seed is not None or duration_s is not None:
         spec = with_overrides(spec, seed=seed, duration_s=duration_s)
     final = Path(out_dir) if out_dir is not None else default_out_dir(spec)
@@ -96,7 +112,8 @@ def generate(
             (final / name).unlink(missing_ok=True)
         stage = staging_folder(final)
         try:
-            res = _generate_into(stage, spec, csv=csv, progress=progress, window=window, hooks=hooks)
+            res = _generate_into(stage, spec, csv=csv, progress=progress, window=window, hooks=hooks,
+                                 encounter_rule=encounter_rule)
             publish(stage, final)
         finally:
             if stage.exists():
@@ -106,10 +123,12 @@ def generate(
 
 
 def _generate_into(out: Path, spec: ScenarioSpec, *, csv: bool, progress: bool, window: EncounterWindow,
-                   hooks: Sequence[StepHook]) -> GenerateResult:
+                   hooks: Sequence[StepHook], encounter_rule: str) -> GenerateResult:
     """Simulate and write every output file into the (staging) folder ``out``."""
     result = run_scenario(spec, hooks=hooks, progress=progress)
-    enc = extract(result.table, window=window, teleported=result.teleported_vehicle_ids)
+    rule = (TakeOverRule.of_controller(ControllerConfig(), result.aux_lane_start_ft)
+            if encounter_rule == "take-over" else None)
+    enc = extract(result.table, window=window, teleported=result.teleported_vehicle_ids, take_over=rule)
     files = [
         write_parquet(result.table, out / TRAJECTORIES),
         write_parquet(enc.frames, out / ENCOUNTERS),

@@ -38,7 +38,7 @@ from scenarios.spec import ScenarioSpec
 from scenarios.spec_parse import with_overrides
 from sim.errors import SimulationError
 from sim.hooks import FrameState, RunContext, StepHook
-from sim.lanes import LaneNumbering, lane_tables
+from sim.lanes import LaneNumbering, aux_lane_start_ft, lane_tables
 from sim.recorder import TrajectoryRecorder
 from sim.run_result import RunEvents, SimulationResult
 from sim.schema import FRAME_S, FT_PER_M, RIGHTMOST_MAIN_LANE, V_CLASS_AUTO, V_CLASS_TRUCK
@@ -70,10 +70,11 @@ def run_scenario(
         wd = Path(work_dir) if work_dir is not None else Path(tmp)
         wd.mkdir(parents=True, exist_ok=True)
         net, routes = prepare_inputs(spec, wd)
-        table, sumo_time, sumo_ids, events = _simulate(spec, net, routes, hooks, progress, str(wd))
+        table, sumo_time, sumo_ids, events, aux_start = _simulate(spec, net, routes, hooks, progress, str(wd))
     return SimulationResult(
         table=table, spec=spec, seed=sim.seed, wall_time_s=time.perf_counter() - t0,
         sumo_time_s=sumo_time, n_vehicle_steps=len(table), sumo_ids=sumo_ids, events=events,
+        aux_lane_start_ft=aux_start,
     )
 
 
@@ -209,7 +210,8 @@ def _simulate(spec, net, routes, hooks, progress, work_dir):
             _safe_close(ls)
     events = RunEvents(tuple(teleports), tuple(collisions), tuple(emergency), departed, backlog, sim.duration_s,
                        float(sum(spec.demand.main_veh_h) + spec.demand.ramp_veh_h))
-    return recorder.table(), sumo_time, tuple(sumo_ids), events
+    aux_start = aux_lane_start_ft(ctx) if ctx is not None else math.nan
+    return recorder.table(), sumo_time, tuple(sumo_ids), events, aux_start
 
 
 def _frozen(a: np.ndarray) -> np.ndarray:

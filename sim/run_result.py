@@ -4,6 +4,8 @@ served demand)."""
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass
 
 import pandas as pd
@@ -96,6 +98,9 @@ class SimulationResult:
         n_vehicle_steps: number of rows of the table (vehicle x recorded frame).
         sumo_ids: SUMO id of Vehicle_ID k at index k - 1.
         events: teleports, collisions, emergency stops and served demand, from SUMO's lists.
+        aux_lane_start_ft: ``Local_Y`` (ft) where the auxiliary lane starts beside lane 6
+            (:func:`sim.lanes.aux_lane_start_ft`; NaN if unknown): where the controller's
+            take-over zone is measured from, in the run and in its encounters.
     """
 
     table: pd.DataFrame
@@ -106,6 +111,7 @@ class SimulationResult:
     n_vehicle_steps: int
     sumo_ids: tuple[str, ...]
     events: RunEvents = RunEvents()
+    aux_lane_start_ft: float = math.nan
 
     @property
     def n_vehicles(self) -> int:

@@ -1,0 +1,195 @@
+"""The closed-loop controller's choice of the lag car A, applied to a recorded trajectory table.
+
+Demonstrations and closed-loop control must see the same encounters (issue 11, cause 2: learn
+and act on the same terms). The controller (:mod:`sim.controller`) cannot know which car will
+end up behind B when B merges; it hands B a lag car A when B reaches the take-over zone and
+keeps it. :class:`TakeOverRule` states that rule and :func:`take_overs` applies it to a whole
+table, so that :func:`sim.encounters.extract` can cut the demonstrations exactly where the
+controller would have observed SUMO's driver:
+
+* **Take-over** (the controller's ``_take_over_new``): at the first frame in which B is on a
+  ramp lane with ``Local_Y >= zone_start_ft``, before its merge frame, and a lane-6 vehicle is
+  strictly behind B within ``max_lag_ft`` that is not already A (or B) of another encounter
+  being observed then, that vehicle is A. Otherwise the next frame is tried.
+* **End**: the last frame before ``hold_frames`` frames after B's merge frame, before
+  ``max_frames`` frames after the take-over, and before the first frame in which A is not in
+  lane 6, A or B has no row, or A has no row at t+1 (no action). The controller releases A in the
+  same frames (``merge_done``, ``timeout``, ``left_lane``, ``b_lost``, ``removed``).
+* **C** in every frame (the controller's ``lead_of(..., exclude=(A, B))``): the nearest lane-6
+  vehicle strictly ahead of A other than B.
+
+Two controller events cannot be seen in a table and are not reproduced: a B that never merges
+(it holds its A in the controller; here it has no encounter) and collisions.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+from bisect import bisect_left, bisect_right
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from sim.controller_config import ControllerConfig
+from sim.schema import FRAME_S
+
+
+@dataclass(frozen=True)
+class TakeOverRule:
+    """Where and for how long the controller observes an encounter (see the module docstring).
+
+    Attributes:
+        zone_start_ft: B is handed an A once its ``Local_Y`` is at least this (ft).
+        max_lag_ft: A is at most this far behind B (ft).
+        hold_frames: frames A stays observed after B's merge frame (0.1 s frames).
+        max_frames: frames after the take-over at which A is released in any case.
+    """
+
+    zone_start_ft: float
+    max_lag_ft: float = 250.0
+    hold_frames: int = 30
+    max_frames: int = 600
+
+    def __post_init__(self) -> None:
+        if not math.isfinite(self.zone_start_ft):
+            raise ValueError(f"TakeOverRule.zone_start_ft must be finite, got {self.zone_start_ft}")
+        if not (self.max_lag_ft > 0 and math.isfinite(self.max_lag_ft)):
+            raise ValueError(f"TakeOverRule.max_lag_ft must be a positive number, got {self.max_lag_ft}")
+        if self.hold_frames < 0 or self.max_frames < 1:
+            raise ValueError(f"TakeOverRule: hold_frames >= 0 and max_frames >= 1, got {self.hold_frames}, "
+                             f"{self.max_frames}")
+
+    @classmethod
+    def of_controller(cls, config: ControllerConfig, aux_lane_start_ft: float) -> TakeOverRule:
+        """The rule of a controller with ``config`` on a road whose auxiliary lane starts at
+        ``aux_lane_start_ft`` (:attr:`sim.run_result.SimulationResult.aux_lane_start_ft`).
+
+        Raises:
+            ValueError: the zone start is not finite (no auxiliary lane known and no
+                ``zone_start_ft`` in ``config``).
+        """
+        return cls(config.zone_start(aux_lane_start_ft), float(config.max_lag_ft),
+                   int(round(config.hold_after_merge_s / FRAME_S)), int(round(config.max_control_s / FRAME_S)))
+
+
+@dataclass(frozen=True)
+class TakeOver:
+    """One encounter as the controller would observe it: B, its merge frame, A (0: none) and the
+    frames ``[start, end)`` (0.1 s frame numbers) in which A is observed."""
+
+    b_id: int
+    merge_frame: int
+    a_id: int
+    start: int
+    end: int
+
+
+class LaneSixIndex:
+    """Lane-6 rows of a table sorted by (frame, ``Local_Y``), for lag and lead look-ups per frame.
+
+    Args:
+        frame, y, vid: ``[N]`` columns of the table (0.1 s frame, ft, Vehicle_ID).
+        in_lane6: ``[N]`` bool, the rows in the merge lane.
+    """
+
+    def __init__(self, frame: np.ndarray, y: np.ndarray, vid: np.ndarray, in_lane6: np.ndarray):
+        rows = np.flatnonzero(in_lane6)
+        self.rows = rows[np.lexsort((y[rows], frame[rows]))]
+        self.frames = frame[self.rows]
+        self.ys = y[self.rows]
+        self.vids = vid[self.rows]
+
+    def at(self, f: int) -> tuple[list[float], np.ndarray]:
+        """``(Local_Y ascending, Vehicle_IDs)`` of the lane-6 vehicles at frame ``f``."""
+        lo, hi = np.searchsorted(self.frames, f, "left"), np.searchsorted(self.frames, f, "right")
+        return self.ys[lo:hi].tolist(), self.vids[lo:hi]
+
+    def lag(self, f: int, y_ref: float, max_gap_ft: float) -> int:
+        """Vehicle_ID of the nearest lane-6 vehicle strictly behind ``y_ref`` within
+        ``max_gap_ft`` at frame ``f``; 0 if none."""
+        ys, vids = self.at(f)
+        k = bisect_left(ys, y_ref) - 1
+        if k < 0 or ys[k] < y_ref - max_gap_ft:
+            return 0
+        return int(vids[k])
+
+    def lead(self, f: int, y_ref: float, exclude: tuple[int, ...]) -> int:
+        """Vehicle_ID of the nearest lane-6 vehicle strictly ahead of ``y_ref`` at frame ``f``
+        that is not in ``exclude``; 0 if none."""
+        ys, vids = self.at(f)
+        for k in range(bisect_right(ys, y_ref), len(ys)):
+            if int(vids[k]) not in exclude:
+                return int(vids[k])
+        return 0
+
+
+def take_overs(table: pd.DataFrame, merges: pd.DataFrame, rule: TakeOverRule, *, ramp_lanes: tuple[int, ...],
+               merge_lane: int) -> list[TakeOver]:
+    """The controller's encounter of every merge in ``merges`` (``B_id, merge_frame``), in the
+    order of ``merges``.
+
+    The controller is replayed frame by frame: a B without A asks for its lag car in every frame
+    it spends in the zone; a car that is A or B of an encounter being observed cannot be A of
+    another (the controller's ``_active`` check), and within a frame Bs ask in Vehicle_ID order.
+
+    Args:
+        table: trajectory table with ``Vehicle_ID, Frame_ID, Local_Y, Lane_ID`` (unique
+            (Vehicle_ID, Frame_ID)).
+        merges: one row per B (:func:`sim.encounters.find_merges`).
+        rule: :class:`TakeOverRule`.
+        ramp_lanes, merge_lane: the site's lane codes (:mod:`sim.sites`).
+    """
+    vid = table["Vehicle_ID"].to_numpy(np.int64)
+    frame = table["Frame_ID"].to_numpy(np.int64)
+    lane = table["Lane_ID"].to_numpy(np.int64)
+    y = table["Local_Y"].to_numpy(np.float64)
+    six = LaneSixIndex(frame, y, vid, lane == merge_lane)
+    row_of = pd.MultiIndex.from_arrays([vid, frame])
+    on_ramp = np.isin(lane, np.asarray(ramp_lanes, dtype=np.int64)) & (y >= rule.zone_start_ft)
+    ramp_rows = np.flatnonzero(on_ramp)
+    ramp_rows = ramp_rows[np.lexsort((frame[ramp_rows], vid[ramp_rows]))]
+
+    def rows(v: int, frames: np.ndarray) -> np.ndarray:
+        return row_of.get_indexer(pd.MultiIndex.from_arrays([np.full(frames.shape, v, np.int64), frames]))
+
+    # each B's rows in the zone before its merge, in frame order
+    zone: dict[tuple[int, int], np.ndarray] = {}
+    for b, mf in zip(merges["B_id"].to_numpy(np.int64).tolist(), merges["merge_frame"].to_numpy(np.int64).tolist()):
+        lo, hi = np.searchsorted(vid[ramp_rows], b, "left"), np.searchsorted(vid[ramp_rows], b, "right")
+        r = ramp_rows[lo:hi]
+        zone[(b, mf)] = r[frame[r] < mf]
+    busy: dict[int, list[tuple[int, int]]] = {}  # Vehicle_ID -> observed [start, end) as A or B
+
+    def free(v: int, f: int) -> bool:
+        return not any(s <= f < e for s, e in busy.get(v, ()))
+
+    # replay the controller in time order: every frame, each waiting B (by Vehicle_ID) asks for
+    # its lag car; the take-overs of earlier frames decide who is busy
+    found = {key: TakeOver(key[0], key[1], 0, key[1], key[1]) for key in zone}
+    waiting = [(int(frame[r[0]]), key[0], key[1], 0) for key, r in zone.items() if len(r)]
+    heapq.heapify(waiting)
+    while waiting:
+        f, b, mf, k = heapq.heappop(waiting)
+        i = zone[(b, mf)][k]
+        a = six.lag(f, float(y[i]), rule.max_lag_ft)
+        if a and free(a, f):
+            end = _end(a, b, f, mf, rule, rows, lane, merge_lane)
+            found[(b, mf)] = TakeOver(b, mf, a, f, end)
+            busy.setdefault(a, []).append((f, end))
+            busy.setdefault(b, []).append((f, end))
+        elif k + 1 < len(zone[(b, mf)]):
+            heapq.heappush(waiting, (int(frame[zone[(b, mf)][k + 1]]), b, mf, k + 1))
+    return [found[(int(b), int(mf))] for b, mf in zip(merges["B_id"], merges["merge_frame"])]
+
+
+def _end(a: int, b: int, start: int, mf: int, rule: TakeOverRule, rows, lane: np.ndarray, merge_lane: int) -> int:
+    """First frame after the take-over at ``start`` in which A is no longer observed."""
+    stop = min(mf + rule.hold_frames, start + rule.max_frames)
+    frames = np.arange(start, max(stop, start + 1), dtype=np.int64)
+    ra, rb, ra_next = rows(a, frames), rows(b, frames), rows(a, frames + 1)
+    ok = (ra >= 0) & (rb >= 0) & (ra_next >= 0)
+    ok[ok] &= lane[ra[ok]] == merge_lane
+    bad = np.flatnonzero(~ok)
+    return int(frames[bad[0]]) if len(bad) else int(stop)

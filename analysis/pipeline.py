@@ -55,7 +55,7 @@ from irl.problems import load_problem
 from scenarios.loader import load_scenario
 from scenarios.spec import ScenarioSpec
 from sim.controller import Controller
-from sim.encounters import extract_encounters
+from sim.generate import encounters_of_run
 from sim.errors import SimError
 from sim.outputs import write_parquet
 from sim.policy import CarFollowingLogitPolicy
@@ -176,7 +176,7 @@ def encounters_task(run: EncounterRun, seed: int) -> dict:
     del seed
     spec = load_scenario(run.scenario) if isinstance(run.scenario, (str, Path)) else run.scenario
     res = run_scenario(spec, seed=run.seed, duration_s=run.duration_s)
-    frames = extract_encounters(res.table)  # with A's speed v_A
+    frames = encounters_of_run(res).frames  # the controller's take-over rule; with A's speed v_A
     frames["encounter_id"] = frames["encounter_id"].astype("int64") + 1_000_000 * int(run.seed)
     return frame_to_dict(frames)
 

@@ -1,9 +1,10 @@
 """SUMO runs through libsumo, the NGSIM-schema trajectory table, and merge encounters.
 
     from scenarios import load_scenario
-    from sim import run_scenario, extract_encounters
+    from sim import run_scenario, encounters_of_run, extract_encounters
     result = run_scenario(load_scenario("synthetic"), seed=1, duration_s=120)
-    encounters = extract_encounters(result.table)
+    encounters = encounters_of_run(result)  # as the closed-loop controller observes them
+    ngsim = extract_encounters(table)  # any NGSIM-schema table: A is B's lag car at its merge
 
 Names are imported lazily, so ``import sim`` (e.g. for ``extract_encounters`` on real NGSIM
 data) does not start or even load SUMO.
@@ -19,6 +20,8 @@ _EXPORTS = {
     "SimulationResult": "sim.run_result",
     "generate": "sim.generate",
     "GenerateResult": "sim.generate",
+    "encounters_of_run": "sim.generate",
+    "TakeOverRule": "sim.take_over",
     "extract": "sim.encounters",
     "extract_encounters": "sim.encounters",
     "find_merges": "sim.encounters",

@@ -97,10 +97,7 @@ def generate(
         FileExistsError: the output folder holds files that are not a previous run's outputs.
         OSError: the output folder cannot be written (checked before simulating).
     """
-    if encounter_rule not in ENCOUNTER_RULES:
-        raise ValueError(f"generate: encounter_rule must be one of {ENCOUNTER_RULES}, got {encounter_rule!r}")
-    if encounter_rule == "take-over" and window != EncounterWindow():
-        raise ValueError("generate: a window is for encounter_rule='merge-frame'; the take-over rule sets its own")
+    _check_rule(encounter_rule, window)
     if seed is not None or duration_s is not None:
         spec = with_overrides(spec, seed=seed, duration_s=duration_s)
     final = Path(out_dir) if out_dir is not None else default_out_dir(spec)
@@ -126,9 +123,7 @@ def _generate_into(out: Path, spec: ScenarioSpec, *, csv: bool, progress: bool, 
                    hooks: Sequence[StepHook], encounter_rule: str) -> GenerateResult:
     """Simulate and write every output file into the (staging) folder ``out``."""
     result = run_scenario(spec, hooks=hooks, progress=progress)
-    rule = (TakeOverRule.of_controller(ControllerConfig(), result.aux_lane_start_ft)
-            if encounter_rule == "take-over" else None)
-    enc = extract(result.table, window=window, teleported=result.teleported_vehicle_ids, take_over=rule)
+    enc = encounters_of_run(result, encounter_rule=encounter_rule, window=window)
     files = [
         write_parquet(result.table, out / TRAJECTORIES),
         write_parquet(enc.frames, out / ENCOUNTERS),
@@ -141,6 +136,27 @@ def _generate_into(out: Path, spec: ScenarioSpec, *, csv: bool, progress: bool, 
 
         files.append(Path(write_ngsim_csv(result.table, out / CSV)))
     return GenerateResult(out_dir=out, files=tuple(files), simulation=result, encounters=enc)
+
+
+def _check_rule(encounter_rule: str, window: EncounterWindow) -> None:
+    if encounter_rule not in ENCOUNTER_RULES:
+        raise ValueError(f"encounter_rule must be one of {ENCOUNTER_RULES}, got {encounter_rule!r}")
+    if encounter_rule == "take-over" and window != EncounterWindow():
+        raise ValueError("a window is for encounter_rule='merge-frame'; the take-over rule sets its own")
+
+
+def encounters_of_run(result: SimulationResult, *, encounter_rule: str = "take-over",
+                      window: EncounterWindow = EncounterWindow()) -> Encounters:
+    """The merge encounters of a simulated run (every path that turns runs into demonstrations
+    calls this): by ``encounter_rule`` (:func:`generate`), merges of teleported Bs left out.
+
+    Raises:
+        ValueError: an unknown ``encounter_rule``, or ``window`` given with ``"take-over"``.
+    """
+    _check_rule(encounter_rule, window)
+    rule = (TakeOverRule.of_controller(ControllerConfig(), result.aux_lane_start_ft)
+            if encounter_rule == "take-over" else None)
+    return extract(result.table, window=window, teleported=result.teleported_vehicle_ids, take_over=rule)
 
 
 def run_report_toml(result: SimulationResult, enc: Encounters) -> str:

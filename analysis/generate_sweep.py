@@ -33,6 +33,7 @@ from irl.atomic import write_atomic
 from irl.run_folder import locked, remove_temporaries
 from scenarios.spec import ScenarioSpec
 from scenarios.spec_parse import spec_from_toml, with_overrides
+from sim.encounter_rules import ENCOUNTER_RULES, check_rule
 from sim.generate import generate
 
 STORE_DIR = ".sweep-store"
@@ -51,6 +52,7 @@ class GenerateRun:
         duration_s: simulated seconds, or None for the spec's.
         csv: also write ``trajectories.csv``.
         run: the run's folder name inside the sweep folder.
+        encounter_rule: how the run becomes demonstrations (:mod:`sim.demonstrations`).
         run_dir: absolute output folder of this run (not part of the digest: a sweep folder
             moved elsewhere still finds its finished runs).
     """
@@ -61,6 +63,7 @@ class GenerateRun:
     duration_s: float | None
     csv: bool
     run: str
+    encounter_rule: str = ENCOUNTER_RULES[0]
     run_dir: str = field(default="", metadata=NOT_IN_DIGEST)
 
 
@@ -86,7 +89,7 @@ def generate_one(config: GenerateRun, seed: int) -> dict:
     """
     spec = with_overrides(
         spec_from_toml(config.spec_toml, source="<sweep spec>"), seed=config.seed, duration_s=config.duration_s, demand_scale=config.demand_scale)
-    res = generate(spec, config.run_dir, csv=config.csv, progress=False)
+    res = generate(spec, config.run_dir, csv=config.csv, progress=False, encounter_rule=config.encounter_rule)
     sim = res.simulation
     return {
         "run": Path(config.run_dir).name,
@@ -115,6 +118,7 @@ def generate_tasks(
     *,
     duration_s: float | None = None,
     csv: bool = False,
+    encounter_rule: str = ENCOUNTER_RULES[0],
 ) -> list[Task]:
     """The sweep's tasks, seeds outermost. Validates every override before anything runs.
 
@@ -135,7 +139,7 @@ def generate_tasks(
             name = run_name(spec.name, s, k)
             cfg = GenerateRun(spec_toml=text, seed=int(s), demand_scale=None if k is None else float(k),
                               duration_s=None if duration_s is None else float(duration_s), csv=bool(csv),
-                              run=name, run_dir=str(out / name))
+                              run=name, encounter_rule=encounter_rule, run_dir=str(out / name))
             tasks.append(Task(key=name, func=generate_one, config=cfg))
     return tasks
 
@@ -185,6 +189,7 @@ def generate_many(
     executor: str = "process",
     retries: int = 1,
     progress: bool = True,
+    encounter_rule: str = ENCOUNTER_RULES[0],
 ) -> SweepReport:
     """Generate ``spec`` for every seed x demand scale under ``out_dir``; resumable.
 
@@ -200,6 +205,7 @@ def generate_many(
             or ``"dask://HOST:PORT"`` (see :mod:`analysis.sweep.executors`).
         retries: extra attempts of a failed run.
         progress: one progress bar (runs done / total) on stderr.
+        encounter_rule: how each run becomes demonstrations (:mod:`sim.demonstrations`).
 
     Returns:
         The :class:`SweepReport`: ``results[run_name]`` is :func:`generate_one`'s summary;
@@ -209,7 +215,9 @@ def generate_many(
         SpecError: an override (seed, duration, demand scale) is invalid; nothing is run.
     """
     out = Path(out_dir)
-    tasks = generate_tasks(spec, seeds, demand_scales, out, duration_s=duration_s, csv=csv)
+    check_rule(encounter_rule)
+    tasks = generate_tasks(spec, seeds, demand_scales, out, duration_s=duration_s, csv=csv,
+                           encounter_rule=encounter_rule)
     with locked(out):
         out.mkdir(parents=True, exist_ok=True)
         remove_temporaries(out)

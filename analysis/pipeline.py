@@ -55,7 +55,8 @@ from irl.problems import load_problem
 from scenarios.loader import load_scenario
 from scenarios.spec import ScenarioSpec
 from sim.controller import Controller
-from sim.generate import encounters_of_run
+from sim.demonstrations import demonstrator_hooks, encounters_of_run
+from sim.encounter_rules import ENCOUNTER_RULES, check_rule
 from sim.errors import SimError
 from sim.outputs import write_parquet
 from sim.policy import CarFollowingLogitPolicy
@@ -103,6 +104,9 @@ class DemoConfig:
             :class:`~analysis.dagger.DaggerConfig`, so the driver equals ``merge-irl dagger``'s
             on the same encounters), trained after the IRL methods and evaluated beside them;
             0 (the default): not trained. 4 rounds added 54 s on 2 cores (2026-12-01).
+        encounter_rule: how the data runs become demonstrations (:mod:`sim.demonstrations`;
+            default ``in-lane``: SUMO's drivers observed as the controller observes them, A's lane
+            held while observed, so that they are what the commanded drivers can do).
         workers: processes (``process:<workers>``).
         executor: where the data runs and evaluation episodes run (``analysis.sweep``
             executors); None: ``process:<workers>``.
@@ -122,8 +126,12 @@ class DemoConfig:
     l2: float = 1.0
     fit_seed: int = 0
     dagger_rounds: int = 0
+    encounter_rule: str = ENCOUNTER_RULES[0]
     workers: int = 2
     executor: str | None = None
+
+    def __post_init__(self) -> None:
+        check_rule(self.encounter_rule)
 
 
 @dataclass(frozen=True)
@@ -163,11 +171,13 @@ class DemoResult:
 @dataclass(frozen=True)
 class EncounterRun:
     """One data run as a sweep task config: ``scenario`` (name, TOML path or ScenarioSpec)
-    simulated with SUMO ``seed`` for ``duration_s`` (None: the scenario's)."""
+    simulated with SUMO ``seed`` for ``duration_s`` (None: the scenario's), its encounters cut by
+    ``encounter_rule`` (:mod:`sim.demonstrations`)."""
 
     scenario: str | Path | ScenarioSpec
     seed: int
     duration_s: float | None = None
+    encounter_rule: str = ENCOUNTER_RULES[0]
 
 
 def encounters_task(run: EncounterRun, seed: int) -> dict:
@@ -175,15 +185,17 @@ def encounters_task(run: EncounterRun, seed: int) -> dict:
     ``analysis.episode.frame_to_dict``. The sweep's derived ``seed`` is not used."""
     del seed
     spec = load_scenario(run.scenario) if isinstance(run.scenario, (str, Path)) else run.scenario
-    res = run_scenario(spec, seed=run.seed, duration_s=run.duration_s)
-    frames = encounters_of_run(res).frames  # the controller's take-over rule; with A's speed v_A
+    res = run_scenario(spec, seed=run.seed, duration_s=run.duration_s, hooks=demonstrator_hooks(run.encounter_rule))
+    frames = encounters_of_run(res, encounter_rule=run.encounter_rule).frames  # with A's speed v_A
     frames["encounter_id"] = frames["encounter_id"].astype("int64") + 1_000_000 * int(run.seed)
     return frame_to_dict(frames)
 
 
 def generate_encounters(scenario, seeds: Sequence[int], duration_s: float | None, *, workers: int | None = 2,
-                        executor: str | None = None, progress: bool = False) -> list[pd.DataFrame]:
-    """Encounter frames of one SUMO run per seed, ids made unique per seed, in seed order.
+                        executor: str | None = None, progress: bool = False,
+                        encounter_rule: str = ENCOUNTER_RULES[0]) -> list[pd.DataFrame]:
+    """Encounter frames of one SUMO run per seed, ids made unique per seed, in seed order,
+    cut by ``encounter_rule`` (:mod:`sim.demonstrations`).
 
     Runs through :func:`analysis.sweep.run_sweep` (``executor``, default ``process:<workers>``;
     one simulation per worker process at a time). Raises SimError if a run failed twice.
@@ -191,7 +203,7 @@ def generate_encounters(scenario, seeds: Sequence[int], duration_s: float | None
     Raises:
         SimError: a data run failed (the message lists each failed run and its error).
     """
-    tasks = [Task(f"{i:03d}/seed{int(s)}", encounters_task, EncounterRun(scenario, int(s), duration_s))
+    tasks = [Task(f"{i:03d}/seed{int(s)}", encounters_task, EncounterRun(scenario, int(s), duration_s, encounter_rule))
              for i, s in enumerate(seeds)]
     report = run_sweep(tasks, seed=0, executor=resolve_executor(executor, workers),
                        progress=progress and sys.stderr.isatty(), desc="data runs")
@@ -242,7 +254,7 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     _say(f"[1/5] simulating {len(config.train_seeds)} training runs + 1 held-out run of {config.scenario}", quiet)
     frames = generate_encounters(config.scenario, (*config.train_seeds, config.heldout_seed),
                                  config.data_duration_s, workers=config.workers,
-                                 executor=config.executor)
+                                 executor=config.executor, encounter_rule=config.encounter_rule)
     train = prepare_encounters(pd.concat(frames[:-1], ignore_index=True))
     heldout = prepare_encounters(frames[-1])
     train_path = out / "data" / "train_encounters.parquet"

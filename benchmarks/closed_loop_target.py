@@ -50,6 +50,7 @@ from analysis.pipeline import CF_DRIVER, DemoConfig, check_dagger_seeds, run_dem
 from irl.domains.merge_cf_logit import CarFollowingLogit
 from sim.control_records import COLLISION_KINDS
 from sim.controller_config import ControllerConfig
+from sim.encounter_rules import ENCOUNTER_RULES
 from sim.errors import SimError
 from sim.policy import CarFollowingLogitPolicy
 
@@ -93,6 +94,8 @@ def main(argv=None) -> int:
     ap.add_argument("--cf-rounds", type=non_negative_int, default=DaggerConfig.rounds,
                     help="DAgger rounds of the car-following logit driver cf-dagger, trained by the demo "
                          "pipeline (0: neither cf row is run)")
+    ap.add_argument("--encounter-rule", choices=ENCOUNTER_RULES, default=ENCOUNTER_RULES[0],
+                    help="how the data runs become demonstrations (sim.demonstrations)")
     ap.add_argument("--out", default="runs/closed-loop-target")
     args = ap.parse_args(argv)
     methods = tuple(m for m in args.methods.split(",") if m)
@@ -102,7 +105,8 @@ def main(argv=None) -> int:
         ap.error(f"--driver {driver}: not among the learned drivers {', '.join(drivers)}")
     cfg = DemoConfig(scenario=args.scenario, train_seeds=tuple(int(s) for s in args.train_seeds.split(",")),
                      eval_episodes=args.episodes, eval_duration_s=args.eval_duration, methods=methods,
-                     workers=args.workers, gamma=args.gamma, eval_seed=args.eval_seed, dagger_rounds=args.cf_rounds)
+                     workers=args.workers, gamma=args.gamma, eval_seed=args.eval_seed, dagger_rounds=args.cf_rounds,
+                     encounter_rule=args.encounter_rule)
     try:
         check_dagger_seeds(cfg)
     except SimError as e:

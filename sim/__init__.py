@@ -1,8 +1,8 @@
 """SUMO runs through libsumo, the NGSIM-schema trajectory table, and merge encounters.
 
     from scenarios import load_scenario
-    from sim import run_scenario, encounters_of_run, extract_encounters
-    result = run_scenario(load_scenario("synthetic"), seed=1, duration_s=120)
+    from sim import demonstrator_hooks, encounters_of_run, extract_encounters, run_scenario
+    result = run_scenario(load_scenario("synthetic"), seed=1, duration_s=120, hooks=demonstrator_hooks("in-lane"))
     encounters = encounters_of_run(result)  # as the closed-loop controller observes them
     ngsim = extract_encounters(table)  # any NGSIM-schema table: A is B's lag car at its merge
 
@@ -20,7 +20,8 @@ _EXPORTS = {
     "SimulationResult": "sim.run_result",
     "generate": "sim.generate",
     "GenerateResult": "sim.generate",
-    "encounters_of_run": "sim.generate",
+    "encounters_of_run": "sim.demonstrations",
+    "demonstrator_hooks": "sim.demonstrations",
     "TakeOverRule": "sim.take_over",
     "extract": "sim.encounters",
     "extract_encounters": "sim.encounters",

@@ -36,13 +36,13 @@ from irl.run_folder import (
 from scenarios.spec import ScenarioSpec
 from scenarios.spec_parse import with_overrides
 from scenarios.toml_write import dumps
-from sim.encounters import Encounters, EncounterWindow, extract
-from sim.controller_config import ControllerConfig
+from sim.demonstrations import demonstrator_hooks, encounters_of_run
+from sim.encounter_rules import ENCOUNTER_RULES, check_rule
+from sim.encounters import Encounters, EncounterWindow
 from sim.hooks import StepHook
 from sim.outputs import write_parquet
 from sim.run import run_scenario
 from sim.run_result import SimulationResult
-from sim.take_over import TakeOverRule
 
 TRAJECTORIES = "trajectories.parquet"
 ENCOUNTERS = "encounters.parquet"
@@ -51,8 +51,6 @@ SCENARIO = "scenario.toml"
 RUN_REPORT = "run.toml"
 CSV = "trajectories.csv"
 OUTPUT_FILES = (TRAJECTORIES, ENCOUNTERS, MERGES, SCENARIO, RUN_REPORT, CSV)
-#: How :func:`generate` cuts encounters: as the closed-loop controller observes them, or at B's merge frame.
-ENCOUNTER_RULES = ("take-over", "merge-frame")
 
 
 @dataclass(frozen=True)
@@ -80,15 +78,14 @@ def generate(
     progress: bool = False,
     window: EncounterWindow = EncounterWindow(),
     hooks: Sequence[StepHook] = (),
-    encounter_rule: str = "take-over",
+    encounter_rule: str = ENCOUNTER_RULES[0],
 ) -> GenerateResult:
     """Simulate ``spec`` (optionally with another seed / duration) and write the output files.
 
-    ``encounter_rule``: how the encounters pick A, C and their window (:data:`ENCOUNTER_RULES`):
-    ``"take-over"`` (default) as the closed-loop controller with the default
-    :class:`~sim.controller_config.ControllerConfig` observes SUMO's driver (:mod:`sim.take_over`),
-    so that demonstrations and closed-loop control see the same encounters; ``"merge-frame"``
-    the lag car at B's merge frame over ``window`` (:func:`sim.encounters.extract`).
+    ``encounter_rule``: how the run becomes demonstrations (:mod:`sim.demonstrations`):
+    ``"in-lane"`` (default) SUMO's drivers observed by the closed-loop controller with A's lane
+    changes off, encounters cut by the controller's rule; ``"take-over"`` the same cut without
+    holding A's lane; ``"merge-frame"`` the lag car at B's merge frame over ``window``.
 
     Raises:
         ValueError: an unknown ``encounter_rule``, or ``window`` given with ``"take-over"``.
@@ -97,7 +94,7 @@ def generate(
         FileExistsError: the output folder holds files that are not a previous run's outputs.
         OSError: the output folder cannot be written (checked before simulating).
     """
-    _check_rule(encounter_rule, window)
+    check_rule(encounter_rule, custom_window=window != EncounterWindow())
     if seed is not None or duration_s is not None:
         spec = with_overrides(spec, seed=seed, duration_s=duration_s)
     final = Path(out_dir) if out_dir is not None else default_out_dir(spec)
@@ -122,7 +119,7 @@ def generate(
 def _generate_into(out: Path, spec: ScenarioSpec, *, csv: bool, progress: bool, window: EncounterWindow,
                    hooks: Sequence[StepHook], encounter_rule: str) -> GenerateResult:
     """Simulate and write every output file into the (staging) folder ``out``."""
-    result = run_scenario(spec, hooks=hooks, progress=progress)
+    result = run_scenario(spec, hooks=[*demonstrator_hooks(encounter_rule), *hooks], progress=progress)
     enc = encounters_of_run(result, encounter_rule=encounter_rule, window=window)
     files = [
         write_parquet(result.table, out / TRAJECTORIES),
@@ -136,27 +133,6 @@ def _generate_into(out: Path, spec: ScenarioSpec, *, csv: bool, progress: bool, 
 
         files.append(Path(write_ngsim_csv(result.table, out / CSV)))
     return GenerateResult(out_dir=out, files=tuple(files), simulation=result, encounters=enc)
-
-
-def _check_rule(encounter_rule: str, window: EncounterWindow) -> None:
-    if encounter_rule not in ENCOUNTER_RULES:
-        raise ValueError(f"encounter_rule must be one of {ENCOUNTER_RULES}, got {encounter_rule!r}")
-    if encounter_rule == "take-over" and window != EncounterWindow():
-        raise ValueError("a window is for encounter_rule='merge-frame'; the take-over rule sets its own")
-
-
-def encounters_of_run(result: SimulationResult, *, encounter_rule: str = "take-over",
-                      window: EncounterWindow = EncounterWindow()) -> Encounters:
-    """The merge encounters of a simulated run (every path that turns runs into demonstrations
-    calls this): by ``encounter_rule`` (:func:`generate`), merges of teleported Bs left out.
-
-    Raises:
-        ValueError: an unknown ``encounter_rule``, or ``window`` given with ``"take-over"``.
-    """
-    _check_rule(encounter_rule, window)
-    rule = (TakeOverRule.of_controller(ControllerConfig(), result.aux_lane_start_ft)
-            if encounter_rule == "take-over" else None)
-    return extract(result.table, window=window, teleported=result.teleported_vehicle_ids, take_over=rule)
 
 
 def run_report_toml(result: SimulationResult, enc: Encounters) -> str:

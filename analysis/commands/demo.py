@@ -12,6 +12,7 @@ import argparse
 from dataclasses import replace
 
 from analysis.commands._arg_types import non_negative_int, positive_int
+from sim.encounter_rules import ENCOUNTER_RULES
 
 
 def register(subparsers) -> None:
@@ -34,6 +35,9 @@ def register(subparsers) -> None:
                    help="also train the car-following logit driver cf-dagger with N DAgger rounds (SUMO's High "
                         "Brake labels in the states it reaches; about 14 s per round on 2 cores) and evaluate it "
                         "beside the others (default 0: not trained)")
+    p.add_argument("--encounter-rule", choices=ENCOUNTER_RULES, default=ENCOUNTER_RULES[0],
+                   help="how the data runs become demonstrations (default in-lane: as the closed-loop controller "
+                        "observes SUMO's drivers, A's lane held; see merge-irl generate --help)")
     p.add_argument("--workers", type=positive_int, default=None, metavar="N", help="processes (default 2)")
     p.add_argument("--executor", default=None,
                    help="where data runs and episodes run: serial, process[:N], dask-local[:N], dask://HOST:PORT "
@@ -45,7 +49,7 @@ def register(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from analysis.pipeline import DemoConfig, run_demo
 
-    config = DemoConfig(scenario=args.scenario)
+    config = DemoConfig(scenario=args.scenario, encounter_rule=args.encounter_rule)
     if args.duration is not None:
         config = replace(config, data_duration_s=args.duration)
     if args.episodes is not None:

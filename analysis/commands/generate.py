@@ -9,6 +9,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from sim.encounter_rules import ENCOUNTER_RULES
+
 
 def _seeds(text: str):
     from analysis.generate_sweep import parse_seeds
@@ -47,6 +49,11 @@ def register(subparsers) -> None:
     p.add_argument("--executor", default="process", metavar="EXEC",
                    help="sweep executor: process[:N] (default, every core), serial, dask-local[:N], "
                         "dask://HOST:PORT")
+    p.add_argument("--encounter-rule", choices=ENCOUNTER_RULES, default=ENCOUNTER_RULES[0],
+                   help="how the run becomes demonstrations: in-lane (default; SUMO's drivers observed as the "
+                        "closed-loop controller observes them, A's lane held while observed), take-over (the same "
+                        "encounters, lanes free: each ends where A leaves lane 6), merge-frame (A = B's lag car at "
+                        "B's merge frame); docs/encounters.md")
     p.add_argument("--csv", action="store_true", help="also write trajectories.csv in NGSIM's text format")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--out", default=None, metavar="DIR",
@@ -63,7 +70,7 @@ def run(args: argparse.Namespace) -> int:
     from sim.generate import generate
 
     res = generate(spec, args.out, seed=args.seed, duration_s=args.duration, csv=args.csv,
-                   progress=not args.no_progress)
+                   progress=not args.no_progress, encounter_rule=args.encounter_rule)
     sim = res.simulation
     print(f"{sim.spec.name} seed {sim.seed}: {sim.n_vehicles} vehicles, {sim.n_vehicle_steps} rows, "
           f"{len(res.encounters.merges)} merges, {len(res.encounters.frames)} encounter frames "
@@ -93,7 +100,8 @@ def _run_sweep(args: argparse.Namespace, spec) -> int:
         (args.seed,) if args.seed is not None else (spec.simulation.seed,))
     out = Path(args.out) if args.out else Path("runs") / f"{spec.name}-sweep"
     report = generate_many(spec, seeds, args.demand_scale, out, duration_s=args.duration, csv=args.csv,
-                           executor=args.executor, progress=not args.no_progress)
+                           executor=args.executor, progress=not args.no_progress,
+                           encounter_rule=args.encounter_rule)
     for r in report.results.values():
         print(f"{r['out_dir']}\t{r['n_vehicles']} vehicles\t{r['n_merges']} merges")
         for w in r.get("warnings", ()):

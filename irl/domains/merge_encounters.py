@@ -29,8 +29,8 @@ class EncounterColumn:
 ENCOUNTER_SCHEMA: tuple[EncounterColumn, ...] = (
     EncounterColumn("encounter_id", "int64", "", "one id per merge (per car B), from 1"),
     EncounterColumn("B_id", "int64", "", "Vehicle_ID of the merging car B"),
-    EncounterColumn("A_id", "int64", "", "Vehicle_ID of the lag car A (lane 6, behind B at the merge frame)"),
-    EncounterColumn("C_id", "int64", "", "Vehicle_ID of the lead car C (lane 6, ahead of B at the merge frame); 0: none"),
+    EncounterColumn("A_id", "int64", "", "Vehicle_ID of the lag car A (lane 6, behind B at the merge frame; simulated runs: at the take-over)"),
+    EncounterColumn("C_id", "int64", "", "Vehicle_ID of the lead car C (lane 6, ahead of B at the merge frame; simulated runs: A's lead other than B in this frame); 0: none"),
     EncounterColumn("Frame_ID", "int64", "0.1 s frame", "the frame t of this row"),
     EncounterColumn("Global_Time", "int64", "ms", "time of frame t"),
     EncounterColumn("merge_frame", "int64", "0.1 s frame", "B's first frame in lane 6"),

@@ -1,0 +1,59 @@
+"""How a simulated run becomes demonstrations: who drives A while it is observed, and which
+encounters are cut from the run (every path that turns SUMO runs into demonstrations goes
+through here: ``merge-irl generate``, the demo's and the benchmarks' data runs).
+
+:data:`sim.encounter_rules.ENCOUNTER_RULES` (docs/encounters.md):
+
+``in-lane`` (default)
+    The closed-loop controller observes SUMO's drivers as it observes the ``sumo-in-lane``
+    baseline: from the take-over until the release, A's lane changes are off (lane-change mode 0,
+    restored at release), the constraint of every driver the controller commands, whose actions
+    are accelerations alone. The encounters are cut by the controller's own rule
+    (:mod:`sim.take_over`). The demonstrators are SUMO's drivers; only A's lane is held while it
+    is observed.
+``take-over``
+    The traffic as the scenario makes it; encounters cut by the controller's rule, so each ends
+    where A leaves lane 6 (SUMO's drivers often make room for B by changing lanes: the
+    demonstrations then hold few of the states in which a driver that cannot change lanes
+    must brake).
+``merge-frame``
+    The paper's definition on any table (:func:`sim.encounters.extract`): A is B's lag car at
+    B's merge frame, over ``window``. The closed loop cannot choose A so (it cannot know the
+    future): on four held-out runs 37 of 94 of these As were not the controller's.
+"""
+
+from __future__ import annotations
+
+from sim.controller import Controller
+from sim.controller_config import ControllerConfig
+from sim.encounter_rules import ENCOUNTER_RULES, check_rule
+from sim.encounters import Encounters, EncounterWindow, extract
+from sim.hooks import StepHook
+from sim.policy import SumoPolicy
+from sim.run_result import SimulationResult
+from sim.take_over import TakeOverRule
+
+def demonstrator_hooks(encounter_rule: str) -> list[StepHook]:
+    """The step hooks a data run needs for ``encounter_rule`` (the observing controller for
+    ``in-lane``; none otherwise). Fresh hooks per run.
+
+    Raises:
+        ValueError: an unknown rule.
+    """
+    check_rule(encounter_rule)
+    return [Controller(SumoPolicy(keep_lane=True), ControllerConfig())] if encounter_rule == "in-lane" else []
+
+
+def encounters_of_run(result: SimulationResult, *, encounter_rule: str = ENCOUNTER_RULES[0],
+                      window: EncounterWindow = EncounterWindow()) -> Encounters:
+    """The merge encounters of a simulated run by ``encounter_rule`` (merges of teleported Bs
+    left out). A run made for ``in-lane`` must have run with :func:`demonstrator_hooks`.
+
+    Raises:
+        ValueError: see :func:`sim.encounter_rules.check_rule`; the run's auxiliary lane is unknown (NaN) for a
+            take-over rule.
+    """
+    check_rule(encounter_rule, custom_window=window != EncounterWindow())
+    rule = (None if encounter_rule == "merge-frame"
+            else TakeOverRule.of_controller(ControllerConfig(), result.aux_lane_start_ft))
+    return extract(result.table, window=window, teleported=result.teleported_vehicle_ids, take_over=rule)

@@ -23,6 +23,9 @@ evaluation episodes. Printed:
   controller; it does not yield to B) and ``sumo-in-lane`` (SUMO's driver with A's lane changes
   off while observed, as for every commanded driver), on the same episodes, and every row's W1
   of d_AC against ``sumo-in-lane``'s;
+* the demonstrators against themselves: W1 of speed and d_AC between the training runs' and
+  the held-out run's demonstrations (the same drivers on other seeds: how far one held-out run
+  lies from its own drivers);
 * the target checks for the default learned driver (``--driver``, default the first
   method) and for ``cf-dagger``: 0 collisions by controlled cars with the 95 % upper bound,
   held-out LL per step above ``marginal`` and ``bc``, W1 of speed and of d_AC within 1.5x the
@@ -46,6 +49,7 @@ from analysis.dagger import DaggerConfig
 from analysis.demo_signal import bin_change_rate, braking_cap_share
 from analysis.evaluate import evaluate
 from analysis.evaluate_policies import cf_policy
+from analysis.metrics_demos import wasserstein
 from analysis.pipeline import CF_DRIVER, DemoConfig, check_dagger_seeds, run_demo
 from irl.domains.merge_cf_logit import CarFollowingLogit
 from sim.control_records import COLLISION_KINDS
@@ -153,6 +157,12 @@ def main(argv=None) -> int:
     print(f"\nW1 d_AC against SUMO's driver kept in lane 6 ({_f(lane.w1_d_AC_ft, 1)} ft, the floor of drivers that act on "
           "acceleration alone, as the controller's): " + ", ".join(
               f"{name} {_f(a.w1_d_AC_ft / lane.w1_d_AC_ft, 2)}x" for name, a in aggs.items() if a.n_controls))
+    held = pd.read_parquet(Path(args.out) / "data" / "heldout_encounters.parquet")
+    per_run = [wasserstein(t["d_AC"], held["d_AC"]) for _, t in train.groupby(train["encounter_id"] // 1_000_000)]
+    print(f"the demonstrators against themselves (training runs vs the held-out run, same drivers, other seeds): "
+          f"W1 speed {_f(wasserstein(train['v_A'], held['v_A']), 2)} ft/s, W1 d_AC "
+          f"{_f(wasserstein(train['d_AC'], held['d_AC']), 1)} ft (each training run alone: "
+          + ", ".join(_f(w, 1) for w in per_run) + " ft)")
     print()
     print("A collisions by kind: | policy | " + " | ".join(COLLISION_KINDS) + " |")
     for name, eps in episodes.items():

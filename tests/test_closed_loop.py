@@ -138,17 +138,21 @@ def test_observations_say_when_b_has_merged(spec):
 
 
 def test_sumo_in_lane_keeps_a_in_lane_6_and_restores_its_lane_changes(spec, sumo_run):
-    """SUMO's driver with keep_lane: never out of lane 6 at a decision (the free SUMO driver is,
-    on the same traffic), not commanded, its lane-change mode restored at release."""
+    """SUMO's driver with keep_lane: never leaves lane 6 while observed (the free SUMO driver
+    does, on the same traffic, and is released there: ``left_lane``), not commanded, its
+    lane-change mode restored at release."""
     from sim.run import run_scenario
 
     def out_of_lane(run_table, dec):
         lane = run_table.set_index(["Vehicle_ID", "Frame_ID"])["Lane_ID"]
         return int((lane.reindex(list(zip(dec.a_id, dec.frame))).to_numpy() != 6).sum())
 
-    assert out_of_lane(sumo_run.table, sumo_run.decisions) > 0  # so the check below can fail
+    # the free driver leaves lane 6 (so the check below can fail); it is released there
+    assert (sumo_run.controls.reason == "left_lane").any()
+    assert out_of_lane(sumo_run.table, sumo_run.decisions) == 0
     kept = run_episode(spec, SumoPolicy("sumo-in-lane", keep_lane=True), SEED, duration_s=DURATION, keep_table=True)
     assert len(kept.decisions) > 20 and out_of_lane(kept.table, kept.decisions) == 0
+    assert not (kept.controls.reason == "left_lane").any()
     assert not kept.controls.commanded.any()
     ctl = Controller(SumoPolicy("sumo-in-lane", keep_lane=True), ControllerConfig())
     probe = _Probe(ctl, remove_after=10**9)

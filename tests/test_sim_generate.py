@@ -35,8 +35,10 @@ def cli(args, cache, **kw):
 
 def test_generate_writes_outputs_and_spec(tmp_path):
     out = tmp_path / "run"
+    # merge-frame: the one rule `merge-irl encounters` can apply to a saved table (the default
+    # in-lane rule needs the observing controller during the run: tests/test_take_over.py)
     r = cli(["generate", "--scenario", "synthetic", "--duration", "100", "--seed", "3", "--no-progress",
-             "--out", str(out)], tmp_path / "cache")
+             "--encounter-rule", "merge-frame", "--out", str(out)], tmp_path / "cache")
     assert r.returncode == 0, r.stderr
     t = pd.read_parquet(out / "trajectories.parquet")
     assert list(t.columns) == list(COLUMNS) and len(t) > 0

@@ -12,6 +12,7 @@ from test_encounters import make_table, straight
 
 from sim.controller import Controller
 from sim.controller_config import ControllerConfig
+from sim.demonstrations import demonstrator_hooks, encounters_of_run
 from sim.encounters import EncounterWindow, extract
 from sim.generate import generate
 from sim.policy import SumoPolicy
@@ -102,3 +103,27 @@ def test_encounters_are_what_the_controller_observes_of_sumos_driver(tmp_path):
     assert (reasons == "left_lane").any()
     lane = res.table.set_index(["Vehicle_ID", "Frame_ID"]).Lane_ID
     assert (lane.loc[list(zip(f.A_id, f.Frame_ID))].to_numpy() == 6).all()
+
+
+@pytest.mark.sumo
+def test_in_lane_demonstrations_are_the_observing_controllers_encounters(tmp_path):
+    hooks = demonstrator_hooks("in-lane")
+    res = short_run(tmp_path, seed=2001, duration_s=200.0, hooks=hooks)
+    enc = encounters_of_run(res)  # in-lane is the default
+    ctl = hooks[0]
+    assert isinstance(ctl, Controller) and not ctl.policy.controls and ctl.policy.keep_lane
+    ct = ctl.control_table()
+    assert len(ct) >= 5 and not (ct.reason == "left_lane").any()  # A's lane is held while observed
+    m = enc.merges[enc.merges.A_id != 0].sort_values("B_id").reset_index(drop=True)
+    # a B that never merges in the run holds its A in the controller and is no encounter
+    assert (ct[~ct.b_id.isin(m.B_id)].merge_frame < 0).all()
+    ct = ct[ct.b_id.isin(m.B_id)].sort_values("b_id").reset_index(drop=True)
+    assert m.B_id.tolist() == ct.b_id.tolist() and m.A_id.tolist() == ct.a_id.tolist()
+    assert m.first_frame.tolist() == ct.start_frame.tolist()
+    lane = res.table.set_index(["Vehicle_ID", "Frame_ID"]).Lane_ID
+    f = enc.frames
+    assert (lane.loc[list(zip(f.A_id, f.Frame_ID))].to_numpy() == 6).all()
+    with pytest.raises(ValueError, match="merge-frame"):
+        encounters_of_run(res, window=EncounterWindow(frames_after=5))
+    with pytest.raises(ValueError, match="encounter rule"):
+        demonstrator_hooks("lag")

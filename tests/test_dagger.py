@@ -100,6 +100,7 @@ def test_cli_rejects_bad_input_in_one_line_before_sumo(tmp_path, capsys):
     assert main(["dagger", "--train", str(table), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "v_A" in err[0]
+    assert not (tmp_path / "o").exists()  # refused before the output folder is made
     assert not (tmp_path / "o" / "cf-dagger.json").exists()
     with pytest.raises(SystemExit) as e:
         main(["dagger", "--train", str(table), "--critical", "hard_brake"])

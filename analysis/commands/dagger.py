@@ -56,6 +56,7 @@ def register(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from analysis.dagger import DaggerConfig, train_cf_driver
+    from irl.domains.merge_car_following import car_following_decisions
     from irl.merge_mdp import read_encounters
     from irl.run_folder import check_writable, locked
     from scenarios.loader import load_scenario
@@ -65,6 +66,7 @@ def run(args: argparse.Namespace) -> int:
                           critical_actions=args.critical, decision_step_s=args.decision_step)
     spec = load_scenario(args.scenario)  # errors before any work
     train = read_encounters(args.train)
+    car_following_decisions(train, decision_step_s=config.decision_step_s, where=str(args.train))  # before --out is made
     out = Path(args.out)
     check_writable(out / "cf-dagger.json")
     with locked(out):  # a second run into the same folder fails at once

@@ -94,6 +94,15 @@ def test_config_is_checked():
     assert list(DaggerConfig(rounds=2, episodes_per_round=3, label_seed=10).label_seeds()) == list(range(10, 16))
 
 
+def test_rounds_0_writes_the_logit_alone(tmp_path, capsys):
+    table = tmp_path / "train.parquet"
+    _accelerating_demos().to_parquet(table)
+    assert main(["dagger", "--train", str(table), "--rounds", "0", "--no-progress", "--out", str(tmp_path / "o")]) == 0
+    assert sorted(p.name for p in (tmp_path / "o").glob("*.json")) == ["cf-logit.json"]
+    out = capsys.readouterr().out
+    assert "round 0" in out and "--cf-model " + str(tmp_path / "o" / "cf-logit.json") in out
+
+
 def test_cli_rejects_bad_input_in_one_line_before_sumo(tmp_path, capsys):
     table = tmp_path / "train.parquet"
     _accelerating_demos().drop(columns=["v_A"]).to_parquet(table)

@@ -30,7 +30,8 @@ def register(subparsers) -> None:
                     "training encounters, then for --rounds rounds let it drive in SUMO, ask SUMO's "
                     "car-following model for its action at every decision, keep the labels whose action "
                     "is critical (default High Brake) and refit (DAgger). Writes cf-logit.json (round 0) "
-                    "and cf-dagger.json (the last round); evaluate them with 'merge-irl evaluate --cf-model'.")
+                    "and cf-dagger.json (the last round; not with --rounds 0); evaluate them with 'merge-irl evaluate "
+                    "--cf-model'.")
     p.add_argument("--train", required=True, metavar="ENCOUNTERS",
                    help="training encounter table (.parquet/.csv) with A's speed v_A, e.g. "
                         "runs/demo/data/train_encounters.parquet")
@@ -68,15 +69,18 @@ def run(args: argparse.Namespace) -> int:
     train = read_encounters(args.train)
     car_following_decisions(train, decision_step_s=config.decision_step_s, where=str(args.train))  # before --out is made
     out = Path(args.out)
-    check_writable(out / "cf-dagger.json")
+    check_writable(out / "cf-logit.json")
     with locked(out):  # a second run into the same folder fails at once
         models = train_cf_driver(train, spec, config, workers=args.workers, where=str(args.train),
                                  progress=not args.no_progress)
-        first, last = models[0].save(out / "cf-logit.json"), models[-1].save(out / "cf-dagger.json")
+        first = last = models[0].save(out / "cf-logit.json")
+        if args.rounds > 0:  # --rounds 0: the logit alone, no DAgger driver to write
+            last = models[-1].save(out / "cf-dagger.json")
     n = models[-1].info["n_demo_steps"]
     print(f"round 0 (demonstrations alone): training LL/step {models[0].loglik / n:.3f} -> {first}")
-    print(f"round {args.rounds}: critical labels per round {models[-1].info.get('labels_per_round', [])}, "
-          f"training LL/step {models[-1].loglik / n:.3f} -> {last}")
+    if args.rounds > 0:
+        print(f"round {args.rounds}: critical labels per round {models[-1].info.get('labels_per_round', [])}, "
+              f"training LL/step {models[-1].loglik / n:.3f} -> {last}")
     if not all(m.converged for m in models):
         print("warning: a fit did not converge (see 'converged' in the files); check the encounters' v_A and --l2",
               file=sys.stderr)

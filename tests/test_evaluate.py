@@ -137,7 +137,10 @@ def test_evaluate_cli(tmp_path):
     assert "| model | 1 |" in r.stdout and "| sumo | 1 |" in r.stdout
     assert (out / "report.md").exists() and (out / "metrics.json").exists()
     assert not (out / "rerun").exists()
-    # a rerun (another executor, another folder) writes byte-identical results: no times in them
+    # a rerun (another executor, another folder) writes byte-identical results: no times in them;
+    # a recording an earlier evaluation left in that folder is removed (it is not this one's)
+    (tmp_path / "ev2" / "rerun").mkdir(parents=True)
+    (tmp_path / "ev2" / "rerun" / "old-policy.rrd").write_bytes(b"earlier")
     again = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--model", str(model_path), "--episodes", "1",
                             "--duration", "100", "--baselines", "sumo", "--no-rrd", "--no-progress", "--seed", "5",
                             "--executor", "serial", "--out", str(tmp_path / "ev2")],
@@ -145,6 +148,7 @@ def test_evaluate_cli(tmp_path):
     assert again.returncode == 0, again.stderr
     for name in ("metrics.json", "report.md"):
         assert (out / name).read_bytes() == (tmp_path / "ev2" / name).read_bytes(), name
+    assert not list((tmp_path / "ev2" / "rerun").glob("*.rrd"))
     bad = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--model", str(tmp_path / "nope.json"),
                           "--out", str(tmp_path / "x")], capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and "nope.json" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1

@@ -23,6 +23,9 @@ evaluation episodes. Printed:
   controller; it does not yield to B) and ``sumo-in-lane`` (SUMO's driver with A's lane changes
   off while observed, as for every commanded driver), on the same episodes, and every row's W1
   of d_AC against ``sumo-in-lane``'s;
+* every policy's W1 of speed and d_AC to ``sumo-in-lane`` on the same episodes (with in-lane
+  demonstrations the demonstrators' own driver in the same traffic), beside the floor of
+  ``sumo-in-lane``'s odd-seed against its even-seed episodes;
 * the demonstrators against themselves: W1 of speed and d_AC between the training runs' and
   the held-out run's demonstrations (the same drivers on other seeds: how far one held-out run
   lies from its own drivers);
@@ -163,6 +166,20 @@ def main(argv=None) -> int:
           f"W1 speed {_f(wasserstein(train['v_A'], held['v_A']), 2)} ft/s, W1 d_AC "
           f"{_f(wasserstein(train['d_AC'], held['d_AC']), 1)} ft (each training run alone: "
           + ", ".join(_f(w, 1) for w in per_run) + " ft)")
+    # the demonstrators on the same episodes: with in-lane demonstrations `sumo-in-lane` is the
+    # demonstrators' own driver, so this compares gap and speed distributions in the same traffic,
+    # free of the one held-out run's sampling; the floor: its odd-seed vs even-seed episodes
+    if "sumo-in-lane" in episodes:
+        ref_eps = episodes["sumo-in-lane"]
+        ref = pd.concat([e.decisions for e in ref_eps], ignore_index=True)
+        odd = pd.concat([e.decisions for e in ref_eps[0::2]], ignore_index=True)
+        even = pd.concat([e.decisions for e in ref_eps[1::2]], ignore_index=True)
+        print(f"\nW1 to sumo-in-lane on the same {args.episodes} episodes (speed ft/s, d_AC ft; floor = sumo-in-lane's "
+              f"odd vs even episodes: {_f(wasserstein(odd['speed_A'], even['speed_A']), 2)}, "
+              f"{_f(wasserstein(odd['d_AC'], even['d_AC']), 1)}): " + ", ".join(
+                  f"{name} {_f(wasserstein(d['speed_A'], ref['speed_A']), 2)} / {_f(wasserstein(d['d_AC'], ref['d_AC']), 1)}"
+                  for name, eps in episodes.items() if name != "sumo-in-lane"
+                  for d in [pd.concat([e.decisions for e in eps], ignore_index=True)]))
     print()
     print("A collisions by kind: | policy | " + " | ".join(COLLISION_KINDS) + " |")
     for name, eps in episodes.items():

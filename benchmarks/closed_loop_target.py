@@ -23,9 +23,10 @@ evaluation episodes. Printed:
   controller; it does not yield to B) and ``sumo-in-lane`` (SUMO's driver with A's lane changes
   off while observed, as for every commanded driver), on the same episodes, and every row's W1
   of d_AC against ``sumo-in-lane``'s;
-* every policy's W1 of speed and d_AC to ``sumo-in-lane`` on the same episodes (with in-lane
-  demonstrations the demonstrators' own driver in the same traffic), beside the floor of
-  ``sumo-in-lane``'s odd-seed against its even-seed episodes;
+* every policy's W1 of speed and d_AC to ``sumo-in-lane``'s closed loop (with in-lane
+  demonstrations the demonstrators' own driver under the controller): its odd-seed episodes
+  against ``sumo-in-lane``'s even-seed ones and the reverse, beside the floor of
+  ``sumo-in-lane``'s odd-seed against its even-seed episodes (equal sample sizes);
 * the demonstrators against themselves: W1 of speed and d_AC between the training runs' and
   the held-out run's demonstrations (the same drivers on other seeds: how far one held-out run
   lies from its own drivers);
@@ -166,20 +167,25 @@ def main(argv=None) -> int:
           f"W1 speed {_f(wasserstein(train['v_A'], held['v_A']), 2)} ft/s, W1 d_AC "
           f"{_f(wasserstein(train['d_AC'], held['d_AC']), 1)} ft (each training run alone: "
           + ", ".join(_f(w, 1) for w in per_run) + " ft)")
-    # the demonstrators on the same episodes: with in-lane demonstrations `sumo-in-lane` is the
-    # demonstrators' own driver, so this compares gap and speed distributions in the same traffic,
-    # free of the one held-out run's sampling; the floor: its odd-seed vs even-seed episodes
+    # the demonstrators' own driver in the closed loop: with in-lane demonstrations `sumo-in-lane`
+    # is the demonstrators' driver under the controller, so this compares gap and speed
+    # distributions over many runs, free of the one held-out run's sampling. Each policy's
+    # odd-seed episodes against sumo-in-lane's even-seed ones and its even against the odd (mean
+    # of the two); the floor: sumo-in-lane's odd against its even (the same sample sizes)
     if "sumo-in-lane" in episodes:
-        ref_eps = episodes["sumo-in-lane"]
-        ref = pd.concat([e.decisions for e in ref_eps], ignore_index=True)
-        odd = pd.concat([e.decisions for e in ref_eps[0::2]], ignore_index=True)
-        even = pd.concat([e.decisions for e in ref_eps[1::2]], ignore_index=True)
-        print(f"\nW1 to sumo-in-lane on the same {args.episodes} episodes (speed ft/s, d_AC ft; floor = sumo-in-lane's "
-              f"odd vs even episodes: {_f(wasserstein(odd['speed_A'], even['speed_A']), 2)}, "
-              f"{_f(wasserstein(odd['d_AC'], even['d_AC']), 1)}): " + ", ".join(
-                  f"{name} {_f(wasserstein(d['speed_A'], ref['speed_A']), 2)} / {_f(wasserstein(d['d_AC'], ref['d_AC']), 1)}"
-                  for name, eps in episodes.items() if name != "sumo-in-lane"
-                  for d in [pd.concat([e.decisions for e in eps], ignore_index=True)]))
+        def half(name: str, parity: int) -> pd.DataFrame:
+            return pd.concat([e.decisions for e in episodes[name][parity::2]], ignore_index=True)
+
+        def cross(name: str, col: str) -> float:
+            return 0.5 * (wasserstein(half(name, 0)[col], half("sumo-in-lane", 1)[col])
+                          + wasserstein(half(name, 1)[col], half("sumo-in-lane", 0)[col]))
+
+        floor = {c: wasserstein(half("sumo-in-lane", 0)[c], half("sumo-in-lane", 1)[c]) for c in ("speed_A", "d_AC")}
+        print(f"\nW1 to sumo-in-lane's episodes of the other seed parity (speed ft/s, d_AC ft, and x its own odd-vs-even "
+              f"floor {_f(floor['speed_A'], 2)} ft/s, {_f(floor['d_AC'], 1)} ft): " + ", ".join(
+                  f"{name} {_f(cross(name, 'speed_A'), 2)} ({_f(cross(name, 'speed_A') / floor['speed_A'], 2)}x) / "
+                  f"{_f(cross(name, 'd_AC'), 1)} ({_f(cross(name, 'd_AC') / floor['d_AC'], 2)}x)"
+                  for name in episodes if name != "sumo-in-lane" and len(episodes[name]) >= 2))
     print()
     print("A collisions by kind: | policy | " + " | ".join(COLLISION_KINDS) + " |")
     for name, eps in episodes.items():

@@ -16,9 +16,7 @@ back to SUMO) and records why, in :attr:`Control.reason <sim.control_records.Con
 
 ``merge_done``  B merged (first lane-6 frame) and ``hold_after_merge_s`` has passed;
 ``left_section`` A's ``Local_Y`` passed the end of the section (or A's route ended there);
-``left_lane``   A is no longer in lane 6 (only SUMO's own driver with its lane changes on
-                can leave it: the encounter ends there, as in the demonstrations of
-                :mod:`sim.take_over`);
+``left_lane``   A left lane 6 (only SUMO's driver with lane changes on can; demonstrations end there too);
 ``collision``   A was in a collision (``simulation.getCollidingVehiclesIDList``);
 ``teleported``  SUMO teleported A;
 ``arrived``     A reached the end of its route elsewhere;

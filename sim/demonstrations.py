@@ -33,6 +33,7 @@ from sim.policy import SumoPolicy
 from sim.run_result import SimulationResult
 from sim.take_over import TakeOverRule
 
+
 def demonstrator_hooks(encounter_rule: str) -> list[StepHook]:
     """The step hooks a data run needs for ``encounter_rule`` (the observing controller for
     ``in-lane``; none otherwise). Fresh hooks per run.
@@ -50,8 +51,8 @@ def encounters_of_run(result: SimulationResult, *, encounter_rule: str = ENCOUNT
     left out). A run made for ``in-lane`` must have run with :func:`demonstrator_hooks`.
 
     Raises:
-        ValueError: see :func:`sim.encounter_rules.check_rule`; the run's auxiliary lane is unknown (NaN) for a
-            take-over rule.
+        ValueError: see :func:`sim.encounter_rules.check_rule`; the run's auxiliary lane is
+            unknown (NaN) for a rule other than ``merge-frame``.
     """
     check_rule(encounter_rule, custom_window=window != EncounterWindow())
     rule = (None if encounter_rule == "merge-frame"

@@ -187,7 +187,7 @@ def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),
     merge frame's (:mod:`sim.take_over`: A is handed to B in the take-over zone, C is A's lead
     car other than B in every frame, the window runs from the take-over until the controller
     would release A); ``window`` must then be left at its default. Simulated demonstrations use
-    it (:func:`sim.generate.generate`), so that they are what the controller observes.
+    it (:func:`sim.demonstrations.encounters_of_run`), so that they are what the controller observes.
 
     Raises:
         TrajectoryFormatError: see :func:`find_merges`; duplicate (Vehicle_ID, Frame_ID) rows.

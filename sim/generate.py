@@ -88,7 +88,8 @@ def generate(
     holding A's lane; ``"merge-frame"`` the lag car at B's merge frame over ``window``.
 
     Raises:
-        ValueError: an unknown ``encounter_rule``, or ``window`` given with ``"take-over"``.
+        ValueError: an unknown ``encounter_rule``, or ``window`` given with a rule other than
+            ``"merge-frame"``.
         SimulationError: SUMO fails to start or to step.
         OutputLockedError: another run is writing into the output folder.
         FileExistsError: the output folder holds files that are not a previous run's outputs.

@@ -10,6 +10,7 @@ import pytest
 from sim_testutil import short_run
 from test_encounters import make_table, straight
 
+from analysis.pipeline import DemoConfig
 from sim.controller import Controller
 from sim.controller_config import ControllerConfig
 from sim.demonstrations import demonstrator_hooks, encounters_of_run
@@ -79,8 +80,12 @@ def test_rule_and_window_checks():
                 {"zone_start_ft": 0.0, "hold_frames": -1}, {"zone_start_ft": 0.0, "max_frames": 0}):
         with pytest.raises(ValueError):
             TakeOverRule(**bad)
-    with pytest.raises(ValueError, match="encounter_rule"):
+    with pytest.raises(ValueError, match="encounter rule"):
         generate(None, encounter_rule="lag-at-merge")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="merge-frame"):  # before any simulation
+        generate(None, window=EncounterWindow(frames_after=2))  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="encounter rule"):
+        DemoConfig(encounter_rule="merge")
     rule = TakeOverRule.of_controller(ControllerConfig(zone_margin_ft=50.0, hold_after_merge_s=2.0), 500.0)
     assert (rule.zone_start_ft, rule.hold_frames, rule.max_frames) == (450.0, 20, 600)
 

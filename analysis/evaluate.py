@@ -14,8 +14,8 @@ for every policy). Episodes run through :func:`analysis.sweep.run_sweep` (``exec
 process pool by default, one libsumo simulation per process at a time; or Dask). Outputs in ``out_dir``: ``report.md``, ``metrics.json``, ``action_histograms.png``,
 ``gap_acceptance.png``, ``speed_profiles.png``, ``timings.json`` (wall time of each episode,
 kept out of the results so reruns can be compared by hash) and, with ``rrd=True``, one rerun
-recording of the first episode of each policy under ``rerun/`` (recordings an earlier evaluation
-left there are removed once this one has finished). ``metrics.json`` and
+recording of the first episode of each policy under ``rerun/`` (any other ``.rrd`` there, an
+earlier evaluation's, is removed once this one has finished). ``metrics.json`` and
 ``report.md`` record their provenance (:mod:`analysis.provenance`).
 """
 
@@ -256,7 +256,7 @@ def evaluate(
     write_timings(out, {"episode_wall_time_s": {name: [float(r.wall_time_s) for r in rs]
                                                 for name, rs in by_policy.items()}})
     rrds = {name: Path(rs[0].rrd) for name, rs in by_policy.items() if rs and rs[0].rrd}
-    for old in (out / "rerun").glob("*.rrd"):  # an earlier evaluation's recordings into this folder
+    for old in (out / "rerun").glob("*.rrd"):  # every other recording there: an earlier evaluation's
         if old not in rrds.values():
             old.unlink(missing_ok=True)
     return EvaluationReport(out, aggs, by_policy, report_md, metrics_json, plots, rrds)

@@ -20,6 +20,7 @@ a file is run again.
 from __future__ import annotations
 
 import hashlib
+import tomllib
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -34,7 +35,7 @@ from irl.run_folder import locked, remove_temporaries
 from scenarios.spec import ScenarioSpec
 from scenarios.spec_parse import spec_from_toml, with_overrides
 from sim.encounter_rules import ENCOUNTER_RULES, check_rule
-from sim.generate import generate
+from sim.generate import RUN_REPORT, SCENARIO, generate
 
 STORE_DIR = ".sweep-store"
 SUMMARY = "sweep.csv"
@@ -145,18 +146,34 @@ def generate_tasks(
 
 
 def _forget_missing_outputs(tasks: Sequence[Task], store: ResultStore) -> int:
-    """Drop store records whose run folder lost a file, so those runs are done again."""
+    """Drop store records whose run folder lost a file or holds another run's files (a sweep
+    with another duration or encounter rule wrote into the same folder since), so those runs
+    are done again."""
     dropped = 0
     for t in tasks:
         digest = task_digest(t.func_name, t.config, derive_seed(SWEEP_SEED, t.key))
         record = store.get(digest)
         if record is None:
             continue
-        files = record["result"].get("files", [])
-        if not files or not all((Path(t.config.run_dir) / f).is_file() for f in files):
+        if not _outputs_are_the_records(Path(t.config.run_dir), record["result"], t.config):
             store.path(digest).unlink(missing_ok=True)
             dropped += 1
     return dropped
+
+
+def _outputs_are_the_records(run_dir: Path, result: dict, config: GenerateRun) -> bool:
+    """Every file of the record is in ``run_dir``, its ``scenario.toml`` is the one the record
+    simulated and its ``run.toml`` names the record's encounter rule."""
+    files = result.get("files", [])
+    if not files or not all((run_dir / f).is_file() for f in files):
+        return False
+    try:
+        if text_digest((run_dir / SCENARIO).read_text(encoding="utf-8")) != result.get("scenario_sha256"):
+            return False
+        run = tomllib.loads((run_dir / RUN_REPORT).read_text(encoding="utf-8")).get("run", {})
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        return False
+    return run.get("encounter_rule") == config.encounter_rule
 
 
 def write_summary(report: SweepReport, path: str | Path) -> Path:

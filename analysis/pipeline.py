@@ -147,13 +147,15 @@ class DemoResult:
     n_train_steps: int
     wall_time_s: float
     fit_messages: dict[str, str] = field(default_factory=dict)
+    encounter_rule: str = ENCOUNTER_RULES[0]
 
     def format(self, *, timings: bool = True) -> str:
         """The summary printed by ``merge-irl demo``; ``timings=False``: without the wall time
         (as in ``summary.md``, so reruns can be compared by hash)."""
         lines = [
             f"merge-irl demo -> {self.out_dir}" + (f"  ({self.wall_time_s:.0f} s)" if timings else ""),
-            f"  training data: {self.n_train_encounters} encounters, {self.n_train_steps} steps",
+            f"  training data: {self.n_train_encounters} encounters, {self.n_train_steps} steps "
+            f"({self.encounter_rule} demonstrations)",
             "  models: " + ", ".join(f"{k} {v}" for k, v in self.models.items()),
             *[f"  left out: {k} ({v})" for k, v in self.fit_messages.items() if k not in self.models],
             "",
@@ -321,7 +323,7 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
                       policies=drivers, workers=config.workers, executor=config.executor, progress=progress)
     wall = time.perf_counter() - t0
     result = DemoResult(out, models, report, out / "demo.rrd", out / "summary.md", int(train["encounter_id"].nunique()),
-                        problem.demos.n_steps, wall, messages)
+                        problem.demos.n_steps, wall, messages, config.encounter_rule)
     scenario_file = config.scenario if Path(config.scenario).is_file() else None
     summary_prov = provenance({"scenario": scenario_file}, models,
                               extra={"scenario_sha256": text_digest(load_scenario(config.scenario).to_toml())})

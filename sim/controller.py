@@ -2,7 +2,8 @@
 
 Selection (default): every vehicle B on the ramp / auxiliary lane (lane 7) that reaches the
 take-over zone (``Local_Y >= zone_start_ft``) gets, once, a lag car A: the nearest lane-6
-vehicle at or behind B's ``Local_Y`` within ``max_lag_ft`` that is not already controlled.
+vehicle strictly behind B's ``Local_Y`` within ``max_lag_ft`` that is not already controlled
+(the rule :mod:`sim.take_over` applies to recorded tables).
 From then on, every ``decision_s`` seconds the controller observes A, B and C (C = A's lead
 car: the nearest lane-6 vehicle ahead of A, other than B), encodes the state, asks the policy for its action
 distribution, samples an action (or takes its mode, ``mode=True``) and applies the action's

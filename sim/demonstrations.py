@@ -24,6 +24,10 @@ through here: ``merge-irl generate``, the demo's and the benchmarks' data runs).
 
 from __future__ import annotations
 
+import warnings
+
+import pandas as pd
+
 from sim.controller import Controller
 from sim.controller_config import ControllerConfig
 from sim.encounter_rules import ENCOUNTER_RULES, check_rule
@@ -31,6 +35,7 @@ from sim.encounters import Encounters, EncounterWindow, extract
 from sim.hooks import StepHook
 from sim.policy import SumoPolicy
 from sim.run_result import SimulationResult
+from sim.schema import RIGHTMOST_MAIN_LANE
 from sim.take_over import TakeOverRule
 
 
@@ -48,7 +53,8 @@ def demonstrator_hooks(encounter_rule: str) -> list[StepHook]:
 def encounters_of_run(result: SimulationResult, *, encounter_rule: str = ENCOUNTER_RULES[0],
                       window: EncounterWindow = EncounterWindow()) -> Encounters:
     """The merge encounters of a simulated run by ``encounter_rule`` (merges of teleported Bs
-    left out). A run made for ``in-lane`` must have run with :func:`demonstrator_hooks`.
+    left out). A run made for ``in-lane`` must have run with fresh :func:`demonstrator_hooks`;
+    a UserWarning says so when an encounter ends where A left lane 6 (an observed A cannot).
 
     Raises:
         ValueError: see :func:`sim.encounter_rules.check_rule`; the run's auxiliary lane is
@@ -57,4 +63,20 @@ def encounters_of_run(result: SimulationResult, *, encounter_rule: str = ENCOUNT
     check_rule(encounter_rule, custom_window=window != EncounterWindow())
     rule = (None if encounter_rule == "merge-frame"
             else TakeOverRule.of_controller(ControllerConfig(), result.aux_lane_start_ft))
-    return extract(result.table, window=window, teleported=result.teleported_vehicle_ids, take_over=rule)
+    enc = extract(result.table, window=window, teleported=result.teleported_vehicle_ids, take_over=rule)
+    if encounter_rule == "in-lane":
+        left = _left_lane_6(result.table, enc.frames)
+        if left:
+            warnings.warn(f"encounter rule in-lane: {left} encounter(s) end where A left lane 6, which an observed A "
+                          "cannot do: was the run made with fresh demonstrator_hooks('in-lane')?", stacklevel=2)
+    return enc
+
+
+def _left_lane_6(table: pd.DataFrame, frames: pd.DataFrame) -> int:
+    """How many encounters of ``frames`` end with A in another lane than 6 in the next frame."""
+    if frames.empty:
+        return 0
+    last = frames.groupby("encounter_id")[["A_id", "Frame_ID"]].max()
+    lane = table.set_index(["Vehicle_ID", "Frame_ID"])["Lane_ID"]
+    nxt = lane.reindex(list(zip(last["A_id"], last["Frame_ID"] + 1)))
+    return int((nxt.notna() & (nxt != RIGHTMOST_MAIN_LANE)).sum())

@@ -6,8 +6,9 @@ Files written into the output folder (each atomically; see ``sim.outputs``):
 * ``encounters.parquet``    per-frame merge encounters (``irl.domains.merge_encounters.ENCOUNTER_SCHEMA``);
 * ``merges.parquet``        one row per merging vehicle (``sim.encounters.MERGE_COLUMNS``);
 * ``scenario.toml``         the spec simulated, with the seed and duration actually used;
-* ``run.toml``              what SUMO reported (:class:`sim.run_result.RunEvents`): requested and served
-  flow, insertion backlog, teleports, collisions, emergency stops, and the merges left out;
+* ``run.toml``              how the encounters were cut (``encounter_rule``) and what SUMO reported
+  (:class:`sim.run_result.RunEvents`): requested and served flow, insertion backlog, teleports,
+  collisions, emergency stops, and the merges left out;
 * ``trajectories.csv``      on request, in NGSIM's text format (``sim.ngsim_io``).
 
 The files are published as a set (:mod:`irl.run_folder`): written into a hidden staging folder
@@ -20,6 +21,7 @@ the simulation starts. Leftovers of killed runs (staging folders, temporary file
 
 from __future__ import annotations
 
+import math
 import shutil
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -127,7 +129,7 @@ def _generate_into(out: Path, spec: ScenarioSpec, *, csv: bool, progress: bool, 
         write_parquet(enc.frames, out / ENCOUNTERS),
         write_parquet(enc.merges, out / MERGES),
         write_text_atomic(out / SCENARIO, spec.to_toml()),
-        write_text_atomic(out / RUN_REPORT, run_report_toml(result, enc)),
+        write_text_atomic(out / RUN_REPORT, run_report_toml(result, enc, encounter_rule)),
     ]
     if csv:
         from sim.ngsim_io import write_ngsim_csv
@@ -136,9 +138,16 @@ def _generate_into(out: Path, spec: ScenarioSpec, *, csv: bool, progress: bool, 
     return GenerateResult(out_dir=out, files=tuple(files), simulation=result, encounters=enc)
 
 
-def run_report_toml(result: SimulationResult, enc: Encounters) -> str:
-    """``run.toml``: SUMO's events and the served demand of ``result``, and the merges left out."""
-    ev = result.events.as_dict()
+def run_report_toml(result: SimulationResult, enc: Encounters, encounter_rule: str | None = None) -> str:
+    """``run.toml``: SUMO's events and the served demand of ``result``, the merges left out, and
+    how the encounters were cut (``encounter_rule``, :mod:`sim.demonstrations`; the auxiliary
+    lane's start ``aux_lane_start_ft`` the take-over zone is measured from)."""
+    ev: dict = {}
+    if encounter_rule is not None:
+        ev["encounter_rule"] = encounter_rule
+    if math.isfinite(result.aux_lane_start_ft):
+        ev["aux_lane_start_ft"] = float(result.aux_lane_start_ft)
+    ev.update(result.events.as_dict())
     ev["merges_left_out"] = [{"B_id": int(b), "merge_frame": int(f), "reason": str(r)}
                              for b, f, r in enc.excluded.itertuples(index=False)]
     ev["warnings"] = result.events.warnings()

@@ -70,7 +70,11 @@ class TakeOverRule:
             ValueError: the zone start is not finite (no auxiliary lane known and no
                 ``zone_start_ft`` in ``config``).
         """
-        return cls(config.zone_start(aux_lane_start_ft), float(config.max_lag_ft),
+        zone = config.zone_start(aux_lane_start_ft)
+        if not math.isfinite(zone):
+            raise ValueError(f"the take-over zone needs where the auxiliary lane starts (got {aux_lane_start_ft}) "
+                             "or ControllerConfig.zone_start_ft; the merge-frame rule needs neither")
+        return cls(zone, float(config.max_lag_ft),
                    int(round(config.hold_after_merge_s / FRAME_S)), int(round(config.max_control_s / FRAME_S)))
 
 

@@ -97,6 +97,8 @@ def test_config_is_checked():
 def test_rounds_0_writes_the_logit_alone(tmp_path, capsys):
     table = tmp_path / "train.parquet"
     _accelerating_demos().to_parquet(table)
+    (tmp_path / "o").mkdir()
+    (tmp_path / "o" / "cf-dagger.json").write_text("{}")  # an earlier run's driver: it would not match
     assert main(["dagger", "--train", str(table), "--rounds", "0", "--no-progress", "--out", str(tmp_path / "o")]) == 0
     assert sorted(p.name for p in (tmp_path / "o").glob("*.json")) == ["cf-logit.json"]
     out = capsys.readouterr().out

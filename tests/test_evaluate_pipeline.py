@@ -49,6 +49,7 @@ def test_run_demo_small(tmp_path):
     assert model.info["provenance"]["inputs"]["demos"]["sha256"] == hashlib.sha256(train.read_bytes()).hexdigest()
     summary = (out / "summary.md").read_text()
     assert "## Provenance" in summary
+    assert "(in-lane demonstrations)" in summary  # the rule the data runs were cut by
     assert hashlib.sha256(res.models["qavg"].read_bytes()).hexdigest() in summary
     # no wall time in the results: it is in timings.json
     assert "wall_time" not in res.models["qavg"].read_text()

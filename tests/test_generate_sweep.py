@@ -6,6 +6,7 @@ import json
 import os
 import subprocess
 import sys
+import tomllib
 
 import pandas as pd
 import pytest
@@ -108,6 +109,29 @@ def test_sweep_process_pool_equals_serial_and_rerun_skips(tmp_path):
     assert "3 from the store, 1 run" in third.stderr
     pd.testing.assert_frame_equal(pd.read_parquet(tmp_path / "a" / names[2] / "trajectories.parquet"),
                                   pd.read_parquet(tmp_path / "b" / names[2] / "trajectories.parquet"))
+
+
+@pytest.mark.sumo
+def test_a_folder_rewritten_by_another_setting_is_run_again(tmp_path):
+    cache, out = tmp_path / "cache", tmp_path / "sw"
+    run = out / "synthetic-seed1"
+
+    def sweep(rule, duration="75"):
+        r = cli(["--seeds", "1", "--duration", duration, "--encounter-rule", rule, "--executor", "serial",
+                 "--out", str(out)], cache)
+        assert r.returncode == 0, r.stderr
+        return r.stderr
+
+    sweep("take-over")
+    first = pd.read_parquet(run / "encounters.parquet")
+    assert tomllib.loads((run / "run.toml").read_text())["run"]["encounter_rule"] == "take-over"
+    assert "1 from the store, 0 run" in sweep("take-over")
+    sweep("merge-frame")  # writes the same folder
+    assert tomllib.loads((run / "run.toml").read_text())["run"]["encounter_rule"] == "merge-frame"
+    assert "0 from the store, 1 run" in sweep("take-over")  # not the merge-frame files any more
+    pd.testing.assert_frame_equal(pd.read_parquet(run / "encounters.parquet"), first)
+    sweep("take-over", duration="80")
+    assert "0 from the store, 1 run" in sweep("take-over")  # the 80 s files are not the 75 s run's
 
 
 @pytest.mark.sumo

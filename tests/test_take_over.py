@@ -88,6 +88,9 @@ def test_rule_and_window_checks():
         DemoConfig(encounter_rule="merge")
     rule = TakeOverRule.of_controller(ControllerConfig(zone_margin_ft=50.0, hold_after_merge_s=2.0), 500.0)
     assert (rule.zone_start_ft, rule.hold_frames, rule.max_frames) == (450.0, 20, 600)
+    with pytest.raises(ValueError, match="auxiliary lane starts.*merge-frame"):
+        TakeOverRule.of_controller(ControllerConfig(), float("nan"))
+    assert TakeOverRule.of_controller(ControllerConfig(zone_start_ft=300.0), float("nan")).zone_start_ft == 300.0
 
 
 @pytest.mark.sumo
@@ -130,5 +133,9 @@ def test_in_lane_demonstrations_are_the_observing_controllers_encounters(tmp_pat
     assert (lane.loc[list(zip(f.A_id, f.Frame_ID))].to_numpy() == 6).all()
     with pytest.raises(ValueError, match="merge-frame"):
         encounters_of_run(res, window=EncounterWindow(frames_after=5))
+    # a run made without the hooks: its As leave lane 6 while observed, and in-lane says so
+    free = short_run(tmp_path, seed=2001, duration_s=200.0)
+    with pytest.warns(UserWarning, match="demonstrator_hooks"):
+        encounters_of_run(free)
     with pytest.raises(ValueError, match="encounter rule"):
         demonstrator_hooks("lag")

@@ -74,8 +74,10 @@ def run(args: argparse.Namespace) -> int:
         models = train_cf_driver(train, spec, config, workers=args.workers, where=str(args.train),
                                  progress=not args.no_progress)
         first = last = models[0].save(out / "cf-logit.json")
-        if args.rounds > 0:  # --rounds 0: the logit alone, no DAgger driver to write
+        if args.rounds > 0:
             last = models[-1].save(out / "cf-dagger.json")
+        else:  # the logit alone: no DAgger driver, and an earlier one in the folder would not match it
+            (out / "cf-dagger.json").unlink(missing_ok=True)
     n = models[-1].info["n_demo_steps"]
     print(f"round 0 (demonstrations alone): training LL/step {models[0].loglik / n:.3f} -> {first}")
     if args.rounds > 0:

@@ -16,8 +16,10 @@ def register(subparsers) -> None:
     p = subparsers.add_parser(
         "encounters", help="extract merge encounters (B merging, lag A, lead C) from a trajectory file",
         description="Find every ramp -> merge-lane merge in TRAJECTORIES and write the per-frame encounter "
-                    "table to --out; the per-merge summary goes beside it as <stem>.merges.parquet and, for "
-                    "NGSIM files, the loader's report as <stem>.load-report.txt.",
+                    "table to --out, by the merge-frame rule (A = B's lag car at B's merge frame; a simulated "
+                    "run's own encounters.parquet is cut by generate's --encounter-rule); the per-merge summary "
+                    "goes beside it as <stem>.merges.parquet and, for NGSIM files, the loader's report as "
+                    "<stem>.load-report.txt.",
     )
     p.add_argument("trajectories", metavar="TRAJECTORIES", help="trajectories .parquet or NGSIM .csv/.txt")
     p.add_argument("--out", required=True, metavar="FILE", help="output Parquet file")

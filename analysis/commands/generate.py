@@ -51,9 +51,9 @@ def register(subparsers) -> None:
                         "dask://HOST:PORT")
     p.add_argument("--encounter-rule", choices=ENCOUNTER_RULES, default=ENCOUNTER_RULES[0],
                    help="how the run becomes demonstrations: in-lane (default; SUMO's drivers observed as the "
-                        "closed-loop controller observes them, A's lane held while observed), take-over (the same "
-                        "encounters, lanes free: each ends where A leaves lane 6), merge-frame (A = B's lag car at "
-                        "B's merge frame); docs/encounters.md")
+                        "closed-loop controller observes them, A's lane held while observed), take-over (the "
+                        "controller's cut, lanes free: other traffic, and each encounter ends where A leaves lane 6), "
+                        "merge-frame (A = B's lag car at B's merge frame); run.toml records it; docs/encounters.md")
     p.add_argument("--csv", action="store_true", help="also write trajectories.csv in NGSIM's text format")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--out", default=None, metavar="DIR",

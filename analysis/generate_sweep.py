@@ -14,7 +14,8 @@ pool on every core, one libsumo simulation per worker process at a time) and wri
 The ``-demand<X>`` suffix is present when demand scales were given. Each run's SUMO seed is the
 one asked for (``seeds``), not the sweep-derived seed, so ``OUT/<scenario>-seed7`` is the same
 simulation as ``merge-irl generate --seed 7``. A finished run whose output folder has since lost
-a file is run again.
+a file, or holds another run's files (another duration or encounter rule written into it), is
+run again.
 """
 
 from __future__ import annotations

@@ -44,7 +44,7 @@ from sim.errors import TrajectoryFormatError
 from sim.observe import lag_lead_positions
 from sim.schema import FRAME_S, V_CLASS_TRUCK
 from sim.sites import I80, SiteProfile, check_lanes
-from sim.take_over import LaneSixIndex, TakeOverRule, take_overs
+from sim.take_over import TableIndex, TakeOverRule, take_overs
 
 #: Columns of the per-merge summary table, in order.
 MERGE_COLUMNS: dict[str, str] = {
@@ -199,29 +199,17 @@ def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),
     merges, excluded = screen_merges(table, find_merges(table, site=site), teleported)
     if merges.empty:
         return Encounters(_empty(ENCOUNTER_COLUMNS), _empty(MERGE_COLUMNS), excluded)
-    vid = table["Vehicle_ID"].to_numpy(np.int64)
-    frame = table["Frame_ID"].to_numpy(np.int64)
-    lane = table["Lane_ID"].to_numpy(np.int64)
-    y = table["Local_Y"].to_numpy(np.float64)
+    index = TableIndex(table, site.merge_lane)  # lane-6 vehicles per frame by Local_Y: A/C look-ups
+    if not index.unique:
+        raise TrajectoryFormatError("trajectory table: duplicate (Vehicle_ID, Frame_ID) rows")
+    vid, frame, y, rows = index.vid, index.frame, index.y, index.rows
     vel = table["v_Vel"].to_numpy(np.float64)
     vclass = table["v_Class"].to_numpy(np.int64)
     gtime = table["Global_Time"].to_numpy(np.int64)
-    row_of = pd.MultiIndex.from_arrays([vid, frame])
-    if not row_of.is_unique:
-        raise TrajectoryFormatError("trajectory table: duplicate (Vehicle_ID, Frame_ID) rows")
     first_frame = pd.Series(frame).groupby(vid).min()
 
-    # lane-6 rows sorted by (frame, Local_Y): A/C lookups with searchsorted
-    r6 = np.flatnonzero(lane == site.merge_lane)
-    r6 = r6[np.lexsort((y[r6], frame[r6]))]
-    f6 = frame[r6]
-
-    def rows(v: int, frames: np.ndarray) -> np.ndarray:
-        return row_of.get_indexer(pd.MultiIndex.from_arrays([np.full(frames.shape, v, np.int64), frames]))
-
-    controlled = (take_overs(table, merges, take_over, ramp_lanes=tuple(site.ramp_lanes), merge_lane=site.merge_lane)
+    controlled = (take_overs(index, merges, take_over, ramp_lanes=tuple(site.ramp_lanes))
                   if take_over is not None else None)
-    six = LaneSixIndex(frame, y, vid, lane == site.merge_lane) if take_over is not None else None
     summary, chunks = [], []
     for eid, (b, mf) in enumerate(zip(merges["B_id"].to_numpy(), merges["merge_frame"].to_numpy()), start=1):
         rb = rows(b, np.array([mf]))[0]
@@ -231,12 +219,11 @@ def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),
             a, start = to.a_id, to.start
             frames = np.arange(to.start, to.end, dtype=np.int64)
         else:
-            lo, hi = np.searchsorted(f6, mf, "left"), np.searchsorted(f6, mf, "right")
-            cand = r6[lo:hi]
-            cand = cand[vid[cand] != b]
-            ia, ic = lag_lead_positions(y[cand].tolist(), float(y[rb]))  # the controller's rule too
-            a = int(vid[cand[ia]]) if ia >= 0 else 0
-            c = int(vid[cand[ic]]) if ic >= 0 else 0
+            ys6, vids6 = index.lane_six(int(mf))
+            ys6, vids6 = [yy for yy, v in zip(ys6, vids6) if v != b], vids6[vids6 != b]
+            ia, ic = lag_lead_positions(ys6, float(y[rb]))  # the controller's rule too
+            a = int(vids6[ia]) if ia >= 0 else 0
+            c = int(vids6[ic]) if ic >= 0 else 0
             start = mf
             if a:
                 start = int(max(first_frame[a], first_frame[b]))
@@ -247,10 +234,10 @@ def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),
             ra, rbb, ra_next = rows(a, frames), rows(b, frames), rows(a, frames + 1)
             keep = (ra >= 0) & (rbb >= 0) & (ra_next >= 0)
             frames, ra, rbb, ra_next = frames[keep], ra[keep], rbb[keep], ra_next[keep]
-            if six is not None:  # C: A's lead car other than B, frame by frame
-                c_ids = np.array([six.lead(int(f), float(ya), (a, int(b))) for f, ya in zip(frames, y[ra])],
+            if controlled is not None:  # C: A's lead car other than B, frame by frame
+                c_ids = np.array([index.lead(int(f), float(ya), (a, int(b))) for f, ya in zip(frames, y[ra])],
                                  dtype=np.int64)
-                rc = np.where(c_ids > 0, row_of.get_indexer(pd.MultiIndex.from_arrays([c_ids, frames])), -1)
+                rc = np.where(c_ids > 0, index.row_of.get_indexer(pd.MultiIndex.from_arrays([c_ids, frames])), -1)
                 at_merge = np.flatnonzero(frames == mf)
                 c = int(c_ids[at_merge[0]]) if len(at_merge) else int(c_ids[-1]) if len(c_ids) else 0
             else:

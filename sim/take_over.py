@@ -4,7 +4,7 @@ Demonstrations and closed-loop control must see the same encounters (issue 11, c
 and act on the same terms). The controller (:mod:`sim.controller`) cannot know which car will
 end up behind B when B merges; it hands B a lag car A when B reaches the take-over zone and
 keeps it. :class:`TakeOverRule` states that rule and :func:`take_overs` applies it to a whole
-table, so that :func:`sim.encounters.extract` can cut the demonstrations exactly where the
+table (through its :class:`TableIndex`), so that :func:`sim.encounters.extract` can cut the demonstrations exactly where the
 controller would have observed SUMO's driver:
 
 * **Take-over** (the controller's ``_take_over_new``): at the first frame in which B is on a
@@ -26,13 +26,13 @@ from __future__ import annotations
 
 import heapq
 import math
-from bisect import bisect_left, bisect_right
 from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
 from sim.controller_config import ControllerConfig
+from sim.observe import lag_lead_positions
 from sim.schema import FRAME_S
 
 
@@ -90,47 +90,67 @@ class TakeOver:
     end: int
 
 
-class LaneSixIndex:
-    """Lane-6 rows of a table sorted by (frame, ``Local_Y``), for lag and lead look-ups per frame.
+class TableIndex:
+    """Look-ups into a trajectory table for cutting encounters (built once per table): its
+    columns, the row of each (Vehicle_ID, Frame_ID), and the merge-lane vehicles of each frame
+    sorted by ``Local_Y`` for lag and lead look-ups.
 
     Args:
-        frame, y, vid: ``[N]`` columns of the table (0.1 s frame, ft, Vehicle_ID).
-        in_lane6: ``[N]`` bool, the rows in the merge lane.
+        table: trajectory table with ``Vehicle_ID, Frame_ID, Local_Y, Lane_ID``.
+        merge_lane: the site's merge lane code (lane 6 on I-80).
+
+    Attributes:
+        vid, frame, lane: ``[N]`` int64 columns; y: ``[N]`` float64 ``Local_Y`` (ft).
+        row_of: MultiIndex (Vehicle_ID, Frame_ID) -> row (:attr:`unique` False: duplicate rows).
     """
 
-    def __init__(self, frame: np.ndarray, y: np.ndarray, vid: np.ndarray, in_lane6: np.ndarray):
-        rows = np.flatnonzero(in_lane6)
-        self.rows = rows[np.lexsort((y[rows], frame[rows]))]
-        self.frames = frame[self.rows]
-        self.ys = y[self.rows]
-        self.vids = vid[self.rows]
+    def __init__(self, table: pd.DataFrame, merge_lane: int):
+        self.vid = table["Vehicle_ID"].to_numpy(np.int64)
+        self.frame = table["Frame_ID"].to_numpy(np.int64)
+        self.lane = table["Lane_ID"].to_numpy(np.int64)
+        self.y = table["Local_Y"].to_numpy(np.float64)
+        self.merge_lane = int(merge_lane)
+        self.row_of = pd.MultiIndex.from_arrays([self.vid, self.frame])
+        six = np.flatnonzero(self.lane == merge_lane)
+        six = six[np.lexsort((self.y[six], self.frame[six]))]
+        self._six_frames, self._six_ys, self._six_vids = self.frame[six], self.y[six], self.vid[six]
 
-    def at(self, f: int) -> tuple[list[float], np.ndarray]:
-        """``(Local_Y ascending, Vehicle_IDs)`` of the lane-6 vehicles at frame ``f``."""
-        lo, hi = np.searchsorted(self.frames, f, "left"), np.searchsorted(self.frames, f, "right")
-        return self.ys[lo:hi].tolist(), self.vids[lo:hi]
+    @property
+    def unique(self) -> bool:
+        """No (Vehicle_ID, Frame_ID) pair has two rows."""
+        return bool(self.row_of.is_unique)
+
+    def rows(self, v: int, frames: np.ndarray) -> np.ndarray:
+        """``[len(frames)]`` rows of vehicle ``v`` at ``frames`` (-1 where it has none)."""
+        return self.row_of.get_indexer(pd.MultiIndex.from_arrays([np.full(frames.shape, v, np.int64), frames]))
+
+    def lane_six(self, f: int) -> tuple[list[float], np.ndarray]:
+        """``(Local_Y ascending, Vehicle_IDs)`` of the merge-lane vehicles at frame ``f``."""
+        lo, hi = np.searchsorted(self._six_frames, f, "left"), np.searchsorted(self._six_frames, f, "right")
+        return self._six_ys[lo:hi].tolist(), self._six_vids[lo:hi]
 
     def lag(self, f: int, y_ref: float, max_gap_ft: float) -> int:
-        """Vehicle_ID of the nearest lane-6 vehicle strictly behind ``y_ref`` within
-        ``max_gap_ft`` at frame ``f``; 0 if none."""
-        ys, vids = self.at(f)
-        k = bisect_left(ys, y_ref) - 1
+        """Vehicle_ID of the nearest merge-lane vehicle strictly behind ``y_ref`` within
+        ``max_gap_ft`` at frame ``f`` (:func:`sim.observe.lag_lead_positions`); 0 if none."""
+        ys, vids = self.lane_six(f)
+        k, _ = lag_lead_positions(ys, y_ref)
         if k < 0 or ys[k] < y_ref - max_gap_ft:
             return 0
         return int(vids[k])
 
     def lead(self, f: int, y_ref: float, exclude: tuple[int, ...]) -> int:
-        """Vehicle_ID of the nearest lane-6 vehicle strictly ahead of ``y_ref`` at frame ``f``
-        that is not in ``exclude``; 0 if none."""
-        ys, vids = self.at(f)
-        for k in range(bisect_right(ys, y_ref), len(ys)):
-            if int(vids[k]) not in exclude:
-                return int(vids[k])
+        """Vehicle_ID of the nearest merge-lane vehicle strictly ahead of ``y_ref`` at frame
+        ``f`` that is not in ``exclude`` (:func:`sim.observe.lag_lead_positions`); 0 if none."""
+        ys, vids = self.lane_six(f)
+        _, k = lag_lead_positions(ys, y_ref)
+        for j in range(k, len(ys)) if k >= 0 else ():
+            if int(vids[j]) not in exclude:
+                return int(vids[j])
         return 0
 
 
-def take_overs(table: pd.DataFrame, merges: pd.DataFrame, rule: TakeOverRule, *, ramp_lanes: tuple[int, ...],
-               merge_lane: int) -> list[TakeOver]:
+def take_overs(index: TableIndex, merges: pd.DataFrame, rule: TakeOverRule, *,
+               ramp_lanes: tuple[int, ...]) -> list[TakeOver]:
     """The controller's encounter of every merge in ``merges`` (``B_id, merge_frame``), in the
     order of ``merges``.
 
@@ -139,24 +159,15 @@ def take_overs(table: pd.DataFrame, merges: pd.DataFrame, rule: TakeOverRule, *,
     another (the controller's ``_active`` check), and within a frame Bs ask in Vehicle_ID order.
 
     Args:
-        table: trajectory table with ``Vehicle_ID, Frame_ID, Local_Y, Lane_ID`` (unique
-            (Vehicle_ID, Frame_ID)).
+        index: :class:`TableIndex` of the trajectory table (unique (Vehicle_ID, Frame_ID)).
         merges: one row per B (:func:`sim.encounters.find_merges`).
         rule: :class:`TakeOverRule`.
-        ramp_lanes, merge_lane: the site's lane codes (:mod:`sim.sites`).
+        ramp_lanes: the site's ramp lane codes (:mod:`sim.sites`).
     """
-    vid = table["Vehicle_ID"].to_numpy(np.int64)
-    frame = table["Frame_ID"].to_numpy(np.int64)
-    lane = table["Lane_ID"].to_numpy(np.int64)
-    y = table["Local_Y"].to_numpy(np.float64)
-    six = LaneSixIndex(frame, y, vid, lane == merge_lane)
-    row_of = pd.MultiIndex.from_arrays([vid, frame])
-    on_ramp = np.isin(lane, np.asarray(ramp_lanes, dtype=np.int64)) & (y >= rule.zone_start_ft)
+    vid, frame, y = index.vid, index.frame, index.y
+    on_ramp = np.isin(index.lane, np.asarray(ramp_lanes, dtype=np.int64)) & (y >= rule.zone_start_ft)
     ramp_rows = np.flatnonzero(on_ramp)
     ramp_rows = ramp_rows[np.lexsort((frame[ramp_rows], vid[ramp_rows]))]
-
-    def rows(v: int, frames: np.ndarray) -> np.ndarray:
-        return row_of.get_indexer(pd.MultiIndex.from_arrays([np.full(frames.shape, v, np.int64), frames]))
 
     # each B's rows in the zone before its merge, in frame order
     zone: dict[tuple[int, int], np.ndarray] = {}
@@ -177,9 +188,9 @@ def take_overs(table: pd.DataFrame, merges: pd.DataFrame, rule: TakeOverRule, *,
     while waiting:
         f, b, mf, k = heapq.heappop(waiting)
         i = zone[(b, mf)][k]
-        a = six.lag(f, float(y[i]), rule.max_lag_ft)
+        a = index.lag(f, float(y[i]), rule.max_lag_ft)
         if a and free(a, f):
-            end = _end(a, b, f, mf, rule, rows, lane, merge_lane)
+            end = _end(index, a, b, f, mf, rule)
             found[(b, mf)] = TakeOver(b, mf, a, f, end)
             busy.setdefault(a, []).append((f, end))
             busy.setdefault(b, []).append((f, end))
@@ -188,12 +199,12 @@ def take_overs(table: pd.DataFrame, merges: pd.DataFrame, rule: TakeOverRule, *,
     return [found[(int(b), int(mf))] for b, mf in zip(merges["B_id"], merges["merge_frame"])]
 
 
-def _end(a: int, b: int, start: int, mf: int, rule: TakeOverRule, rows, lane: np.ndarray, merge_lane: int) -> int:
+def _end(index: TableIndex, a: int, b: int, start: int, mf: int, rule: TakeOverRule) -> int:
     """First frame after the take-over at ``start`` in which A is no longer observed."""
     stop = min(mf + rule.hold_frames, start + rule.max_frames)
     frames = np.arange(start, max(stop, start + 1), dtype=np.int64)
-    ra, rb, ra_next = rows(a, frames), rows(b, frames), rows(a, frames + 1)
+    ra, rb, ra_next = index.rows(a, frames), index.rows(b, frames), index.rows(a, frames + 1)
     ok = (ra >= 0) & (rb >= 0) & (ra_next >= 0)
-    ok[ok] &= lane[ra[ok]] == merge_lane
+    ok[ok] &= index.lane[ra[ok]] == index.merge_lane
     bad = np.flatnonzero(~ok)
     return int(frames[bad[0]]) if len(bad) else int(stop)

@@ -172,20 +172,18 @@ def main(argv=None) -> int:
     # distributions over many runs, free of the one held-out run's sampling. Each policy's
     # odd-seed episodes against sumo-in-lane's even-seed ones and its even against the odd (mean
     # of the two); the floor: sumo-in-lane's odd against its even (the same sample sizes)
-    if "sumo-in-lane" in episodes:
-        def half(name: str, parity: int) -> pd.DataFrame:
-            return pd.concat([e.decisions for e in episodes[name][parity::2]], ignore_index=True)
-
-        def cross(name: str, col: str) -> float:
-            return 0.5 * (wasserstein(half(name, 0)[col], half("sumo-in-lane", 1)[col])
-                          + wasserstein(half(name, 1)[col], half("sumo-in-lane", 0)[col]))
-
-        floor = {c: wasserstein(half("sumo-in-lane", 0)[c], half("sumo-in-lane", 1)[c]) for c in ("speed_A", "d_AC")}
+    if len(episodes.get("sumo-in-lane", ())) >= 2:
+        halves = {name: [pd.concat([e.decisions for e in eps[p::2]], ignore_index=True) for p in (0, 1)]
+                  for name, eps in episodes.items() if len(eps) >= 2}
+        ref = halves.pop("sumo-in-lane")
+        floor = {c: wasserstein(ref[0][c], ref[1][c]) for c in ("speed_A", "d_AC")}
+        parts = []
+        for name, (odd, even) in halves.items():
+            w = {c: 0.5 * (wasserstein(odd[c], ref[1][c]) + wasserstein(even[c], ref[0][c])) for c in floor}
+            parts.append(f"{name} {_f(w['speed_A'], 2)} ({_f(w['speed_A'] / floor['speed_A'], 2)}x) / "
+                         f"{_f(w['d_AC'], 1)} ({_f(w['d_AC'] / floor['d_AC'], 2)}x)")
         print(f"\nW1 to sumo-in-lane's episodes of the other seed parity (speed ft/s, d_AC ft, and x its own odd-vs-even "
-              f"floor {_f(floor['speed_A'], 2)} ft/s, {_f(floor['d_AC'], 1)} ft): " + ", ".join(
-                  f"{name} {_f(cross(name, 'speed_A'), 2)} ({_f(cross(name, 'speed_A') / floor['speed_A'], 2)}x) / "
-                  f"{_f(cross(name, 'd_AC'), 1)} ({_f(cross(name, 'd_AC') / floor['d_AC'], 2)}x)"
-                  for name in episodes if name != "sumo-in-lane" and len(episodes[name]) >= 2))
+              f"floor {_f(floor['speed_A'], 2)} ft/s, {_f(floor['d_AC'], 1)} ft): " + ", ".join(parts))
     print()
     print("A collisions by kind: | policy | " + " | ".join(COLLISION_KINDS) + " |")
     for name, eps in episodes.items():

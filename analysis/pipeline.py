@@ -55,7 +55,7 @@ from irl.problems import load_problem
 from scenarios.loader import load_scenario
 from scenarios.spec import ScenarioSpec
 from sim.controller import Controller
-from sim.demonstrations import demonstrator_hooks, encounters_of_run
+from sim.demonstrations import simulate_demonstrations
 from sim.encounter_rules import ENCOUNTER_RULES, check_rule
 from sim.errors import SimError
 from sim.outputs import write_parquet
@@ -187,8 +187,8 @@ def encounters_task(run: EncounterRun, seed: int) -> dict:
     ``analysis.episode.frame_to_dict``. The sweep's derived ``seed`` is not used."""
     del seed
     spec = load_scenario(run.scenario) if isinstance(run.scenario, (str, Path)) else run.scenario
-    res = run_scenario(spec, seed=run.seed, duration_s=run.duration_s, hooks=demonstrator_hooks(run.encounter_rule))
-    frames = encounters_of_run(res, encounter_rule=run.encounter_rule).frames  # with A's speed v_A
+    _, enc = simulate_demonstrations(spec, run.encounter_rule, seed=run.seed, duration_s=run.duration_s)
+    frames = enc.frames  # with A's speed v_A
     frames["encounter_id"] = frames["encounter_id"].astype("int64") + 1_000_000 * int(run.seed)
     return frame_to_dict(frames)
 

@@ -21,6 +21,7 @@ _EXPORTS = {
     "generate": "sim.generate",
     "GenerateResult": "sim.generate",
     "encounters_of_run": "sim.demonstrations",
+    "simulate_demonstrations": "sim.demonstrations",
     "demonstrator_hooks": "sim.demonstrations",
     "TakeOverRule": "sim.take_over",
     "extract": "sim.encounters",

@@ -100,8 +100,8 @@ class Controller:
         self._traci = libsumo
         cfg = self.config
         self._every = max(1, int(round(self.decision_s / ctx.frame_s)))
-        self._hold_frames = int(round(cfg.hold_after_merge_s / ctx.frame_s))
-        self._max_frames = int(round(cfg.max_control_s / ctx.frame_s))
+        self._hold_frames = cfg.hold_frames(ctx.frame_s)
+        self._max_frames = cfg.max_frames(ctx.frame_s)
         self._frame_s = ctx.frame_s
         self._section_end = float(ctx.section_length_ft)
         self._zone_start = cfg.zone_start(aux_lane_start_ft(ctx))

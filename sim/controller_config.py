@@ -59,6 +59,14 @@ class ControllerConfig:
         if not self.hold_after_merge_s >= 0:
             raise ControllerError(f"controller.hold_after_merge_s: must be >= 0, got {self.hold_after_merge_s}")
 
+    def hold_frames(self, frame_s: float) -> int:
+        """``hold_after_merge_s`` in whole frames of ``frame_s`` seconds."""
+        return int(round(self.hold_after_merge_s / frame_s))
+
+    def max_frames(self, frame_s: float) -> int:
+        """``max_control_s`` in whole frames of ``frame_s`` seconds."""
+        return int(round(self.max_control_s / frame_s))
+
     def zone_start(self, aux_lane_start_ft: float) -> float:
         """``Local_Y`` (ft) from which a B on the ramp is handed a lag car A: ``zone_start_ft``, or
         ``zone_margin_ft`` before ``aux_lane_start_ft`` (:func:`sim.lanes.aux_lane_start_ft`)."""

@@ -1,6 +1,7 @@
 """How a simulated run becomes demonstrations: who drives A while it is observed, and which
 encounters are cut from the run (every path that turns SUMO runs into demonstrations goes
-through here: ``merge-irl generate``, the demo's and the benchmarks' data runs).
+through :func:`simulate_demonstrations`: ``merge-irl generate``, the demo's and the benchmarks'
+data runs).
 
 :data:`sim.encounter_rules.ENCOUNTER_RULES` (docs/encounters.md):
 
@@ -25,15 +26,18 @@ through here: ``merge-irl generate``, the demo's and the benchmarks' data runs).
 from __future__ import annotations
 
 import warnings
+from collections.abc import Sequence
 
 import pandas as pd
 
+from scenarios.spec import ScenarioSpec
 from sim.controller import Controller
 from sim.controller_config import ControllerConfig
 from sim.encounter_rules import ENCOUNTER_RULES, check_rule
 from sim.encounters import Encounters, EncounterWindow, extract
 from sim.hooks import StepHook
 from sim.policy import SumoPolicy
+from sim.run import run_scenario
 from sim.run_result import SimulationResult
 from sim.schema import RIGHTMOST_MAIN_LANE
 from sim.take_over import TakeOverRule
@@ -48,6 +52,24 @@ def demonstrator_hooks(encounter_rule: str) -> list[StepHook]:
     """
     check_rule(encounter_rule)
     return [Controller(SumoPolicy(keep_lane=True), ControllerConfig())] if encounter_rule == "in-lane" else []
+
+
+def simulate_demonstrations(spec: ScenarioSpec, encounter_rule: str = ENCOUNTER_RULES[0], *,
+                            seed: int | None = None, duration_s: float | None = None,
+                            hooks: Sequence[StepHook] = (), progress: bool = False,
+                            window: EncounterWindow = EncounterWindow()) -> tuple[SimulationResult, Encounters]:
+    """Simulate ``spec`` (:func:`sim.run.run_scenario`, with ``seed`` / ``duration_s``
+    overrides and the caller's ``hooks``) with the hooks ``encounter_rule`` needs, and cut its
+    encounters by that rule: the one way a data run becomes demonstrations.
+
+    Raises:
+        ValueError: see :func:`encounters_of_run` (checked before simulating).
+        SimulationError: SUMO fails to start or to step.
+    """
+    check_rule(encounter_rule, custom_window=window != EncounterWindow())
+    result = run_scenario(spec, seed=seed, duration_s=duration_s,
+                          hooks=[*demonstrator_hooks(encounter_rule), *hooks], progress=progress)
+    return result, encounters_of_run(result, encounter_rule=encounter_rule, window=window)
 
 
 def encounters_of_run(result: SimulationResult, *, encounter_rule: str = ENCOUNTER_RULES[0],

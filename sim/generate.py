@@ -38,12 +38,11 @@ from irl.run_folder import (
 from scenarios.spec import ScenarioSpec
 from scenarios.spec_parse import with_overrides
 from scenarios.toml_write import dumps
-from sim.demonstrations import demonstrator_hooks, encounters_of_run
+from sim.demonstrations import simulate_demonstrations
 from sim.encounter_rules import ENCOUNTER_RULES, check_rule
 from sim.encounters import Encounters, EncounterWindow
 from sim.hooks import StepHook
 from sim.outputs import write_parquet
-from sim.run import run_scenario
 from sim.run_result import SimulationResult
 
 TRAJECTORIES = "trajectories.parquet"
@@ -122,8 +121,7 @@ def generate(
 def _generate_into(out: Path, spec: ScenarioSpec, *, csv: bool, progress: bool, window: EncounterWindow,
                    hooks: Sequence[StepHook], encounter_rule: str) -> GenerateResult:
     """Simulate and write every output file into the (staging) folder ``out``."""
-    result = run_scenario(spec, hooks=[*demonstrator_hooks(encounter_rule), *hooks], progress=progress)
-    enc = encounters_of_run(result, encounter_rule=encounter_rule, window=window)
+    result, enc = simulate_demonstrations(spec, encounter_rule, hooks=hooks, progress=progress, window=window)
     files = [
         write_parquet(result.table, out / TRAJECTORIES),
         write_parquet(enc.frames, out / ENCOUNTERS),

@@ -74,8 +74,7 @@ class TakeOverRule:
         if not math.isfinite(zone):
             raise ValueError(f"the take-over zone needs where the auxiliary lane starts (got {aux_lane_start_ft}) "
                              "or ControllerConfig.zone_start_ft; the merge-frame rule needs neither")
-        return cls(zone, float(config.max_lag_ft),
-                   int(round(config.hold_after_merge_s / FRAME_S)), int(round(config.max_control_s / FRAME_S)))
+        return cls(zone, float(config.max_lag_ft), config.hold_frames(FRAME_S), config.max_frames(FRAME_S))
 
 
 @dataclass(frozen=True)

@@ -307,4 +307,5 @@ def read_encounters(path: str | os.PathLike):
             return pd.read_parquet(path)
         return pd.read_csv(path)
     except Exception as e:  # pandas/pyarrow raise many types for unreadable files
-        raise DemonstrationError(f"{path}: cannot read encounter table ({type(e).__name__}: {e})") from None
+        reason = " ".join(str(e).split())  # pandas' messages may end in a newline: one line
+        raise DemonstrationError(f"{path}: cannot read encounter table ({type(e).__name__}: {reason})") from None

@@ -113,6 +113,12 @@ def test_cli_rejects_bad_input_in_one_line_before_sumo(tmp_path, capsys):
     assert len(err) == 1 and "v_A" in err[0]
     assert not (tmp_path / "o").exists()  # refused before the output folder is made
     assert not (tmp_path / "o" / "cf-dagger.json").exists()
+    # a CSV pandas cannot parse: its error (which ends in a newline) on the same one line
+    ragged = tmp_path / "ragged.csv"
+    ragged.write_text("a,b\n1,2\n1,2,3,4\n")
+    assert main(["dagger", "--train", str(ragged), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "ragged.csv" in err[0] and "Expected 2 fields" in err[0]
     with pytest.raises(SystemExit) as e:
         main(["dagger", "--train", str(table), "--critical", "hard_brake"])
     assert e.value.code == 2

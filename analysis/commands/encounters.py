@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 # API imports sit inside the functions: `merge-irl --help` imports every command module (analysis/commands/__init__.py).
-# API imports sit inside the functions: `merge-irl --help` imports every command module (analysis/commands/__init__.py).
 import argparse
 import sys
 from pathlib import Path

@@ -3,7 +3,8 @@
 :func:`run_demo`:
 
 1. **generate** merges: simulate the scenario with SUMO's own drivers for the training seeds and
-   one held-out seed (in worker processes), extract the merge encounters (``sim.encounters``);
+   the held-out seeds (one run by default; in worker processes), extract the merge encounters
+   (``sim.demonstrations``);
 2. **discretize**: quantile bin edges fitted on the training encounters (``irl.domains.merge_bins``);
    encounter frames without a lead car C get the closed loop's open-road values;
 3. **learn** Q-Avg by default (MLIRL, Q-SM and REIRL on request; ``analysis.learn``) with the
@@ -49,7 +50,7 @@ from analysis.learn import fit_problem, merge_config, merge_encoding, merge_feat
 from analysis.provenance import provenance, provenance_markdown, text_digest, write_timings
 from analysis.sweep import Task, run_sweep
 from irl.atomic import write_text_atomic
-from irl.errors import IRLError
+from irl.errors import ConfigError, IRLError
 from irl.domains.merge_bins import fit_quantile_bins
 from irl.problems import load_problem
 from scenarios.loader import load_scenario
@@ -72,7 +73,12 @@ class DemoConfig:
 
     Attributes:
         scenario: preset name or TOML path.
-        train_seeds: SUMO seeds of the training runs; heldout_seed: of the held-out run.
+        train_seeds: SUMO seeds of the training runs.
+        heldout_seed, heldout_runs: the held-out runs have seeds ``heldout_seed`` ..
+            ``heldout_seed + heldout_runs - 1`` (:attr:`heldout_seeds`). One run (the default)
+            keeps the demo short; the held-out demonstrations of one run are a noisy reference for
+            the Wasserstein distances, since gaps vary more between runs than within one (10 runs:
+            docs/closed-loop.md, "How many held-out runs").
         data_duration_s: simulated seconds of each data run (None: the scenario's).
         eval_seed: first seed of the evaluation episodes; eval_episodes: episodes per policy.
         eval_duration_s: simulated seconds per evaluation episode.
@@ -115,6 +121,7 @@ class DemoConfig:
     scenario: str = "synthetic"
     train_seeds: tuple[int, ...] = (101, 102, 103)
     heldout_seed: int = 201
+    heldout_runs: int = 1
     data_duration_s: float | None = None
     eval_seed: int = 1
     eval_episodes: int = 3
@@ -132,6 +139,17 @@ class DemoConfig:
 
     def __post_init__(self) -> None:
         check_rule(self.encounter_rule)
+        if isinstance(self.heldout_runs, bool) or not isinstance(self.heldout_runs, int) or self.heldout_runs < 1:
+            raise ConfigError(f"DemoConfig.heldout_runs must be a whole number >= 1, got {self.heldout_runs!r}")
+        shared = sorted(set(self.train_seeds) & set(self.heldout_seeds))
+        if shared:
+            raise ConfigError(f"DemoConfig: seed(s) {shared} are both training and held-out seeds "
+                              f"(held-out: {self.heldout_seed}..{self.heldout_seeds[-1]})")
+
+    @property
+    def heldout_seeds(self) -> tuple[int, ...]:
+        """The SUMO seeds of the held-out runs."""
+        return tuple(range(self.heldout_seed, self.heldout_seed + self.heldout_runs))
 
 
 @dataclass(frozen=True)
@@ -148,6 +166,8 @@ class DemoResult:
     wall_time_s: float
     fit_messages: dict[str, str] = field(default_factory=dict)
     encounter_rule: str = ENCOUNTER_RULES[0]
+    n_heldout_encounters: int = 0
+    heldout_runs: int = 1
 
     def format(self, *, timings: bool = True) -> str:
         """The summary printed by ``merge-irl demo``; ``timings=False``: without the wall time
@@ -156,6 +176,8 @@ class DemoResult:
             f"merge-irl demo -> {self.out_dir}" + (f"  ({self.wall_time_s:.0f} s)" if timings else ""),
             f"  training data: {self.n_train_encounters} encounters, {self.n_train_steps} steps "
             f"({self.encounter_rule} demonstrations)",
+            f"  held-out data: {self.n_heldout_encounters} encounters from {self.heldout_runs} "
+            f"run{'s' * (self.heldout_runs > 1)}",
             "  models: " + ", ".join(f"{k} {v}" for k, v in self.models.items()),
             *[f"  left out: {k} ({v})" for k, v in self.fit_messages.items() if k not in self.models],
             "",
@@ -231,7 +253,7 @@ def check_dagger_seeds(config: DemoConfig) -> None:
         return
     labelling = set(DaggerConfig(rounds=config.dagger_rounds).label_seeds())
     if labelling & {*range(config.eval_seed, config.eval_seed + config.eval_episodes), *config.train_seeds,
-                    config.heldout_seed}:
+                    *config.heldout_seeds}:
         raise SimError(f"demo: the DAgger labelling seeds {min(labelling)}..{max(labelling)} overlap the data "
                        "or evaluation seeds")
 
@@ -253,12 +275,15 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     out = Path(out_dir) if out_dir is not None else Path("runs") / "demo"
     (out / "data").mkdir(parents=True, exist_ok=True)
 
-    _say(f"[1/5] simulating {len(config.train_seeds)} training runs + 1 held-out run of {config.scenario}", quiet)
-    frames = generate_encounters(config.scenario, (*config.train_seeds, config.heldout_seed),
+    n_held = config.heldout_runs
+    _say(f"[1/5] simulating {len(config.train_seeds)} training runs + {n_held} held-out run{'s' * (n_held > 1)} "
+         f"of {config.scenario}", quiet)
+    frames = generate_encounters(config.scenario, (*config.train_seeds, *config.heldout_seeds),
                                  config.data_duration_s, workers=config.workers,
                                  executor=config.executor, encounter_rule=config.encounter_rule)
-    train = prepare_encounters(pd.concat(frames[:-1], ignore_index=True))
-    heldout = prepare_encounters(frames[-1])
+    n_train = len(config.train_seeds)
+    train = prepare_encounters(pd.concat(frames[:n_train], ignore_index=True))
+    heldout = prepare_encounters(pd.concat(frames[n_train:], ignore_index=True))
     train_path = out / "data" / "train_encounters.parquet"
     held_path = out / "data" / "heldout_encounters.parquet"
     for df, path in ((train, train_path), (heldout, held_path)):
@@ -323,7 +348,8 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
                       policies=drivers, workers=config.workers, executor=config.executor, progress=progress)
     wall = time.perf_counter() - t0
     result = DemoResult(out, models, report, out / "demo.rrd", out / "summary.md", int(train["encounter_id"].nunique()),
-                        problem.demos.n_steps, wall, messages, config.encounter_rule)
+                        problem.demos.n_steps, wall, messages, config.encounter_rule,
+                        int(heldout["encounter_id"].nunique()), config.heldout_runs)
     scenario_file = config.scenario if Path(config.scenario).is_file() else None
     summary_prov = provenance({"scenario": scenario_file}, models,
                               extra={"scenario_sha256": text_digest(load_scenario(config.scenario).to_toml())})

@@ -1,8 +1,9 @@
 """Benchmark: the synthetic closed-loop target of issue 11, printed side by side (not timed).
 
 One run of the whole pipeline (:func:`analysis.pipeline.run_demo`): SUMO's drivers of the
-scenario generate the training encounters (``--train-seeds``, at least 3 runs) and one held-out
-run; the IRL methods learn; every learned driver and every baseline (``sumo``, ``uniform``,
+scenario generate the training encounters (``--train-seeds``, at least 3 runs) and
+``--heldout-runs`` held-out runs (default 10: the reference demonstrations of every
+Wasserstein distance and of the held-out log-likelihood; the demo uses one); the IRL methods learn; every learned driver and every baseline (``sumo``, ``uniform``,
 ``marginal``, ``markov``, ``bc``) drives the lag cars A of ``--episodes`` (default 30)
 evaluation episodes. Printed:
 
@@ -28,8 +29,9 @@ evaluation episodes. Printed:
   against ``sumo-in-lane``'s even-seed ones and the reverse, beside the floor of
   ``sumo-in-lane``'s odd-seed against its even-seed episodes (equal sample sizes);
 * the demonstrators against themselves: W1 of speed and d_AC between the training runs' and
-  the held-out run's demonstrations (the same drivers on other seeds: how far one held-out run
-  lies from its own drivers);
+  the held-out runs' demonstrations (the same drivers on other seeds), and the W1 of d_AC of
+  ``sumo``, ``sumo-in-lane``, the default driver and ``uniform`` to each held-out run alone (how
+  much one held-out run, the demo's reference, moves the figure);
 * the target checks for the default learned driver (``--driver``, default the first
   method) and for ``cf-dagger``: 0 collisions by controlled cars with the 95 % upper bound,
   held-out LL per step above ``marginal`` and ``bc``, W1 of speed and of d_AC within 1.5x the
@@ -56,6 +58,7 @@ from analysis.evaluate_policies import cf_policy
 from analysis.metrics_demos import wasserstein
 from analysis.pipeline import CF_DRIVER, DemoConfig, check_dagger_seeds, run_demo
 from irl.domains.merge_cf_logit import CarFollowingLogit
+from irl.errors import ConfigError
 from sim.control_records import COLLISION_KINDS
 from sim.controller_config import ControllerConfig
 from sim.encounter_rules import ENCOUNTER_RULES
@@ -90,6 +93,9 @@ def main(argv=None) -> int:
     ap.add_argument("--train-seeds", default="101,102,103")
     ap.add_argument("--eval-seed", type=int, default=DemoConfig.eval_seed,
                     help="first SUMO seed of the evaluation episodes (seeds eval-seed .. eval-seed + episodes - 1)")
+    ap.add_argument("--heldout-runs", type=int, default=10,
+                    help="held-out data runs of the reference demonstrations (default 10; the demo uses 1: the "
+                         "distances to one run vary more with the run than with the driver)")
     ap.add_argument("--methods", default="qavg")
     ap.add_argument("--driver", default=None,
                     help="the learned driver of the safety-filter variant and of the first target checks (default: the "
@@ -111,21 +117,22 @@ def main(argv=None) -> int:
     drivers = (*methods, CF_DRIVER) if args.cf_rounds > 0 else methods
     if driver not in drivers:
         ap.error(f"--driver {driver}: not among the learned drivers {', '.join(drivers)}")
-    cfg = DemoConfig(scenario=args.scenario, train_seeds=tuple(int(s) for s in args.train_seeds.split(",")),
-                     eval_episodes=args.episodes, eval_duration_s=args.eval_duration, methods=methods,
-                     workers=args.workers, gamma=args.gamma, eval_seed=args.eval_seed, dagger_rounds=args.cf_rounds,
-                     encounter_rule=args.encounter_rule)
     try:
+        cfg = DemoConfig(scenario=args.scenario, train_seeds=tuple(int(s) for s in args.train_seeds.split(",")),
+                         eval_episodes=args.episodes, eval_duration_s=args.eval_duration, methods=methods,
+                         workers=args.workers, gamma=args.gamma, eval_seed=args.eval_seed,
+                         dagger_rounds=args.cf_rounds, encounter_rule=args.encounter_rule,
+                         heldout_runs=args.heldout_runs)
         check_dagger_seeds(cfg)
-    except SimError as e:
-        ap.error(f"--eval-seed/--train-seeds: {e}")
+    except (ConfigError, SimError) as e:
+        ap.error(f"--eval-seed/--train-seeds/--heldout-runs: {e}")
     t0 = time.perf_counter()
     res = run_demo(args.out, cfg, quiet=True, progress=False)
     wall = time.perf_counter() - t0
     train = pd.read_parquet(Path(args.out) / "data" / "train_encounters.parquet")
     print(f"closed-loop target: {args.scenario}, {len(cfg.train_seeds)} training runs "
-          f"({res.n_train_encounters} encounters, {res.n_train_steps} steps), {args.episodes} episodes per policy, "
-          f"{wall:.0f} s wall")
+          f"({res.n_train_encounters} encounters, {res.n_train_steps} steps), {args.heldout_runs} held-out runs "
+          f"({res.n_heldout_encounters} encounters), {args.episodes} episodes per policy, {wall:.0f} s wall")
     print(f"demonstrators: action bin changes in {100 * bin_change_rate(train, 1):.1f} % of successive 0.1 s frames, "
           f"{100 * bin_change_rate(train, 3):.1f} % at 0.3 s (NGSIM humans: 26 % of frames); "
           f"{100 * braking_cap_share(train):.1f} % of frames at or below -12 ft/s^2")
@@ -167,6 +174,17 @@ def main(argv=None) -> int:
           f"W1 speed {_f(wasserstein(train['v_A'], held['v_A']), 2)} ft/s, W1 d_AC "
           f"{_f(wasserstein(train['d_AC'], held['d_AC']), 1)} ft (each training run alone: "
           + ", ".join(_f(w, 1) for w in per_run) + " ft)")
+    # how much the reference itself moves the distance: each driver's W1 of d_AC to every held-out
+    # run alone (the demo scores against one such run)
+    runs = [t for _, t in held.groupby(held["encounter_id"] // 1_000_000)]
+    if len(runs) > 1:
+        spread = []
+        for name in ("sumo", "sumo-in-lane", driver, "uniform"):
+            if name in episodes and episodes[name]:
+                d = pd.concat([e.decisions for e in episodes[name]], ignore_index=True)["d_AC"]
+                w = [wasserstein(d, t["d_AC"]) for t in runs]
+                spread.append(f"{name} {_f(min(w), 1)}-{_f(max(w), 1)}")
+        print(f"W1 d_AC (ft) to each of the {len(runs)} held-out runs alone, lowest-highest: " + ", ".join(spread))
     # the demonstrators' own driver in the closed loop: with in-lane demonstrations `sumo-in-lane`
     # is the demonstrators' driver under the controller, so this compares gap and speed
     # distributions over many runs, free of the one held-out run's sampling. Each policy's

@@ -67,9 +67,14 @@ def test_run_demo_with_the_dagger_driver(tmp_path):
     from irl.domains.merge_cf_logit import CarFollowingLogit
     from irl.merge_mdp import read_encounters
 
-    cfg = DemoConfig(train_seeds=(11,), heldout_seed=12, data_duration_s=240.0, eval_episodes=1,
+    cfg = DemoConfig(train_seeds=(11,), heldout_seed=12, heldout_runs=2, data_duration_s=240.0, eval_episodes=1,
                      eval_duration_s=110.0, methods=("qavg",), dagger_rounds=1)
     res = run_demo(tmp_path / "demo", cfg, quiet=True, progress=False)
+    # two held-out runs (seeds 12 and 13) in one held-out table, named in the summary
+    heldout = read_encounters(tmp_path / "demo" / "data" / "heldout_encounters.parquet")
+    assert set(heldout["encounter_id"] // 1_000_000) == {12, 13}
+    assert res.n_heldout_encounters == heldout["encounter_id"].nunique()
+    assert f"held-out data: {res.n_heldout_encounters} encounters from 2 runs" in res.format()
     cf = CarFollowingLogit.load(res.models[CF_DRIVER])
     assert res.models[CF_DRIVER].name == "cf-dagger.json" and cf.info["dagger_round"] == 1
     data = json.loads(res.evaluation.metrics_json.read_text())

@@ -31,6 +31,10 @@ def register(subparsers) -> None:
     p.add_argument("--methods", default=None, metavar="LIST",
                    help="comma-separated IRL methods (default: qavg; mlirl, qsm and reirl are slower at the driver "
                         "encoding's 6250 states, add them here)")
+    p.add_argument("--heldout-runs", type=positive_int, default=1, metavar="N",
+                   help="held-out data runs (consecutive seeds) whose demonstrations score the drivers (held-out "
+                        "log-likelihood, Wasserstein distances; default 1: one run is a noisy reference for the "
+                        "distances, 10 rank the drivers, see docs/closed-loop.md)")
     p.add_argument("--dagger-rounds", type=non_negative_int, default=0, metavar="N",
                    help="also train the car-following logit driver cf-dagger with N DAgger rounds (SUMO's High "
                         "Brake labels in the states it reaches; about 14 s per round on 2 cores) and evaluate it "
@@ -49,7 +53,7 @@ def register(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from analysis.pipeline import DemoConfig, run_demo
 
-    config = DemoConfig(scenario=args.scenario, encounter_rule=args.encounter_rule)
+    config = DemoConfig(scenario=args.scenario, encounter_rule=args.encounter_rule, heldout_runs=args.heldout_runs)
     if args.duration is not None:
         config = replace(config, data_duration_s=args.duration)
     if args.episodes is not None:

@@ -1,0 +1,35 @@
+"""The demo's configuration: held-out runs and seed overlaps, checked before any work."""
+
+from __future__ import annotations
+
+import pytest
+
+from analysis.cli import main
+from analysis.pipeline import DemoConfig, check_dagger_seeds
+from irl.errors import ConfigError
+from sim.errors import SimError
+
+
+def test_heldout_runs_are_consecutive_seeds_apart_from_the_training_seeds():
+    assert DemoConfig().heldout_seeds == (201,)
+    assert DemoConfig(heldout_seed=5, heldout_runs=3).heldout_seeds == (5, 6, 7)
+    for bad in (0, -1, 1.5, True):
+        with pytest.raises(ConfigError, match="heldout_runs"):
+            DemoConfig(heldout_runs=bad)
+    with pytest.raises(ConfigError, match=r"\[103\].*training and held-out"):
+        DemoConfig(train_seeds=(101, 102, 103), heldout_seed=103)
+    with pytest.raises(ConfigError, match=r"\[101, 102\].*held-out: 97\.\.102"):
+        DemoConfig(train_seeds=(101, 102, 103), heldout_seed=97, heldout_runs=6)
+
+
+def test_dagger_labelling_seeds_may_not_be_held_out_seeds():
+    check_dagger_seeds(DemoConfig(dagger_rounds=1, heldout_seed=201, heldout_runs=10))  # 500.. is free
+    with pytest.raises(SimError, match="overlap"):
+        check_dagger_seeds(DemoConfig(dagger_rounds=1, heldout_seed=495, heldout_runs=10))  # 495..504 vs 500..514
+
+
+def test_cli_rejects_a_bad_heldout_count_before_any_run(tmp_path, capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["demo", "--heldout-runs", "0", "--out", str(tmp_path / "d")])
+    assert e.value.code == 2 and "--heldout-runs" in capsys.readouterr().err
+    assert not (tmp_path / "d").exists()

@@ -12,7 +12,9 @@ evaluation episodes. Printed:
 * per policy: A collisions / controlled As with the Wilson 95 % interval, W1 distances of A's
   speed and d_AC to the held-out demonstrations and their ratio to the SUMO-driver floor,
   W1 of acceleration and TTC, held-out log-likelihood per step, travel time, flags;
-* per policy: the A collisions by kind (who hit whom, ``sim.control_records.COLLISION_KINDS``);
+* per policy: the A collisions by kind (who hit whom, ``sim.control_records.COLLISION_KINDS``),
+  and how many of its High Brake decisions the controller applied harder than the action's
+  mean (``ControllerConfig.high_brake``, default ``"need"``);
 * the safety-filter variant of the default learned driver (``--safety-ttc``, same episodes):
   its collisions and how often the filter replaced the driver's action;
 * the car-following logit driver trained with DAgger on critical labels
@@ -100,7 +102,9 @@ def main(argv=None) -> int:
     ap.add_argument("--driver", default=None,
                     help="the learned driver of the safety-filter variant and of the first target checks (default: the "
                          "first method; cf-dagger also possible)")
-    ap.add_argument("--eval-duration", type=float, default=240.0)
+    ap.add_argument("--eval-duration", type=float, default=None,
+                    help="simulated seconds per evaluation episode (default: the scenario's, as long as the data "
+                         "runs: shorter episodes sample fewer gaps per run than the demonstrations hold)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--gamma", type=float, default=DemoConfig.gamma, help="discount of the IRL fits")
     ap.add_argument("--safety-ttc", type=float, default=2.0,
@@ -170,7 +174,7 @@ def main(argv=None) -> int:
               f"{name} {_f(a.w1_d_AC_ft / lane.w1_d_AC_ft, 2)}x" for name, a in aggs.items() if a.n_controls))
     held = pd.read_parquet(Path(args.out) / "data" / "heldout_encounters.parquet")
     per_run = [wasserstein(t["d_AC"], held["d_AC"]) for _, t in train.groupby(train["encounter_id"] // 1_000_000)]
-    print(f"the demonstrators against themselves (training runs vs the held-out run, same drivers, other seeds): "
+    print(f"the demonstrators against themselves (training runs vs the held-out runs, same drivers, other seeds): "
           f"W1 speed {_f(wasserstein(train['v_A'], held['v_A']), 2)} ft/s, W1 d_AC "
           f"{_f(wasserstein(train['d_AC'], held['d_AC']), 1)} ft (each training run alone: "
           + ", ".join(_f(w, 1) for w in per_run) + " ft)")
@@ -208,6 +212,16 @@ def main(argv=None) -> int:
         ctl = pd.concat([e.controls for e in eps], ignore_index=True)
         kinds = ctl.loc[ctl["reason"] == "collision", "collision_kind"].value_counts()
         print(f"| {name} | " + " | ".join(str(int(kinds.get(k, 0))) for k in COLLISION_KINDS) + " |")
+    # High Brake applied harder than the action's mean by ControllerConfig.high_brake "need"
+    # (every High Brake decision of a commanded driver is at the mean or harder)
+    harder = []
+    for name, eps in episodes.items():
+        d = pd.concat([e.decisions for e in eps], ignore_index=True)
+        hb = d.loc[d["action"] == 0, "acc_cmd"]
+        if len(hb) and hb.nunique() > 1:
+            harder.append(f"{name} {int((hb < hb.max() - 1e-9).sum())}/{len(hb)}")
+    print("High Brake decisions braked harder than the action's mean (A closing in on its leader): "
+          + (", ".join(harder) or "none"))
     if args.safety_ttc > 0:
         irl = [] if driver == CF_DRIVER else [res.models[driver]]
         cf = [cf_policy(res.models[driver], name=driver)] if driver == CF_DRIVER else []

@@ -7,7 +7,8 @@ vehicle strictly behind B's ``Local_Y`` within ``max_lag_ft`` that is not alread
 From then on, every ``decision_s`` seconds the controller observes A, B and C (C = A's lead
 car: the nearest lane-6 vehicle ahead of A, other than B), encodes the state, asks the policy for its action
 distribution, samples an action (or takes its mode, ``mode=True``) and applies the action's
-acceleration with ``vehicle.setSpeedMode(A, 0)`` + ``setLaneChangeMode(A, 0)`` +
+acceleration (High Brake harder when A needs it to stop behind its leader, up to A's ``decel``:
+``ControllerConfig.high_brake``) with ``vehicle.setSpeedMode(A, 0)`` + ``setLaneChangeMode(A, 0)`` +
 ``setAcceleration``: SUMO neither changes A's lane nor its speed on its own. A policy with
 ``controls = False`` (the SUMO baseline) is observed and logged the same way but never
 commanded.
@@ -39,8 +40,8 @@ from typing import Any
 
 import numpy as np
 
-from irl.domains.merge_actions import ACTION_ACC_FT_S2, ZERO_ACTION, action_of
-from irl.units import M_PER_FT
+from irl.domains.merge_actions import ACTION_ACC_FT_S2, HIGH_BRAKE, ZERO_ACTION, action_of
+from irl.units import FT_PER_M, M_PER_FT
 from sim.control_records import Control, DecisionLog
 from sim.controller_config import ControllerConfig
 from sim.hooks import FrameState, RunContext
@@ -51,6 +52,21 @@ from sim.schema import RAMP_LANE, RIGHTMOST_MAIN_LANE
 
 #: A that reaches the end of its route within this of the section end has left the section (ft).
 EXIT_MARGIN_FT = 150.0
+
+
+def high_brake_need(v_a: float, v_lead: float, acc_lead: float, gap: float) -> float:
+    """Deceleration (ft/s^2, >= 0) A needs behind its leader, at constant decelerations: the
+    larger of matching the leader's speed within ``gap`` (``(v_a - v_lead)^2 / (2 gap)`` when
+    closing) and, when the leader brakes (``acc_lead < 0``), stopping within ``gap`` plus the
+    leader's own stopping distance (``v_a^2 / (2 (gap + v_lead^2 / (2 |acc_lead|)))``).
+
+    Args: speeds in ft/s, ``acc_lead`` in ft/s^2, ``gap`` in ft (bumper gap minus A's minimum
+    gap, > 0). Used by :attr:`ControllerConfig.high_brake <sim.controller_config.ControllerConfig>` ``"need"``.
+    """
+    closing = v_a - v_lead
+    match = closing * closing / (2.0 * gap) if closing > 0.0 else 0.0
+    stop = v_a * v_a / (2.0 * (gap + v_lead * v_lead / (-2.0 * acc_lead))) if acc_lead < 0.0 else 0.0
+    return max(match, stop)
 
 
 class Controller:
@@ -288,6 +304,8 @@ class Controller:
                 action = safe
                 c.n_interventions += int(filtered)
             acc = float(acc_table[action])
+            if action == HIGH_BRAKE and self.config.high_brake == "need":
+                acc = self._brake_to_need(frame, ia, acc, c.a_sumo)
             self._traci.vehicle.setAcceleration(c.a_sumo, acc * M_PER_FT, self._every * self._frame_s)
         else:
             acc = float(frame.acc[ia])
@@ -322,6 +340,19 @@ class Controller:
             if g1 > 0 and (closing <= 1e-9 or g1 / closing >= ttc_min):
                 return a
         return 0
+
+    def _brake_to_need(self, frame: FrameState, ia: int, acc: float, a_sumo: str) -> float:
+        """The High Brake acceleration (ft/s^2) of ``ControllerConfig.high_brake == "need"``:
+        ``acc`` (the action's), or harder when A closes in on its leader in lane 6 faster than
+        ``acc`` stops it, at most A's ``decel`` (see :class:`~sim.controller_config.ControllerConfig`)."""
+        ya = float(frame.local_y[ia])
+        il = lead_of(frame, ya, exclude=(ia,))
+        if il is None:
+            return acc
+        veh = self._traci.vehicle
+        gap = max(float(frame.local_y[il]) - ya - float(frame.length[il]) - veh.getMinGap(a_sumo) * FT_PER_M, 1.0)
+        need = high_brake_need(float(frame.speed[ia]), float(frame.speed[il]), float(frame.acc[il]), gap)
+        return max(min(acc, -need), -veh.getDecel(a_sumo) * FT_PER_M)
 
     # -- results ------------------------------------------------------------------------
     def decision_table(self):

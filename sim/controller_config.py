@@ -13,6 +13,10 @@ class ControllerError(SimError, ValueError):
     """Bad controller settings."""
 
 
+#: How the High Brake action is applied (:attr:`ControllerConfig.high_brake`).
+HIGH_BRAKE_RULES = ("need", "mean")
+
+
 @dataclass(frozen=True)
 class ControllerConfig:
     """Settings of :class:`~sim.controller.Controller`.
@@ -37,6 +41,15 @@ class ControllerConfig:
             that would end with the bumper gap below 0 or a closing TTC below this (s) is
             replaced by the nearest harder-braking action that does not (High Brake if none
             does). Interventions are counted per control episode and logged per decision.
+        high_brake: how the High Brake action is applied (issue 11, cause 8). ``"need"``
+            (default): at the action's acceleration (the mean of the training data's High Brake
+            bin), or harder when that does not keep A behind its leader in lane 6: the constant
+            deceleration that matches the leader's speed, or (leader braking) stops A behind the
+            leader's stopping point, at A's minimum gap (:func:`sim.controller.high_brake_need`),
+            at most A's ``decel`` (SUMO's hardest non-emergency braking of A's type, 4.5 m/s^2 =
+            14.8 ft/s^2 for the synthetic cars, where over half of the demonstrators' High Brake
+            frames sit). ``"mean"``: always at the action's acceleration (before 2026-12-01).
+            Every commanded driver is actuated alike; which action to take stays the driver's.
     """
 
     decision_s: float | None = None
@@ -48,8 +61,11 @@ class ControllerConfig:
     max_control_s: float = 60.0
     seed: int | None = None
     safety_ttc_s: float | None = None
+    high_brake: str = "need"
 
     def __post_init__(self) -> None:
+        if self.high_brake not in HIGH_BRAKE_RULES:
+            raise ControllerError(f"controller.high_brake: must be one of {HIGH_BRAKE_RULES}, got {self.high_brake!r}")
         for name in ("decision_s", "max_lag_ft", "max_control_s", "safety_ttc_s"):
             v = getattr(self, name)
             if v is None and name in ("decision_s", "safety_ttc_s"):

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import libsumo
 import numpy as np
 import pytest
@@ -39,7 +41,20 @@ def sumo_run(spec):
 @pytest.fixture(scope="module")
 def brake_run(spec):
     return run_episode(spec, ConstantPolicy(0), SEED, duration_s=DURATION, keep_table=True,
-                       demo_action_counts=np.ones(5))
+                       demo_action_counts=np.ones(5), controller=ControllerConfig(high_brake="mean"))
+
+
+@dataclass(frozen=True)
+class Tailgater:
+    """High Accel until A's TTC to C falls below 2 s (or C is within 40 ft), then High Brake: a
+    driver that brakes late and needs to brake hard."""
+
+    name: str = "tailgater"
+    controls: bool = True
+
+    def probs(self, obs):
+        late = obs.v_AC > 0 and obs.d_AC / obs.v_AC < 2.0
+        return np.eye(5)[0 if late or obs.d_AC < 40.0 else 4]
 
 
 def test_measured_acceleration_equals_commanded(uniform_run):
@@ -105,6 +120,50 @@ def test_hard_brake_policy_metrics(brake_run, sumo_run):
     assert m.js_divergence == pytest.approx(expected, abs=1e-12)
     assert js_divergence(p, np.ones(5)) == pytest.approx(expected)
     assert set(m.release_reasons) <= set(RELEASE_REASONS)
+
+
+def test_high_brake_by_need_brakes_harder_only_where_the_leader_requires_it(spec):
+    """``high_brake="need"``: a High Brake decision is applied at the action's acceleration or
+    harder, by the kinematic need recomputed here from the table (lane-6 leader, its speed and
+    SUMO's backward-difference acceleration, A's minGap of 2.0 m), never beyond A's decel."""
+    from irl.units import FT_PER_M
+    from sim.controller import high_brake_need
+
+    ep = run_episode(spec, Tailgater(), SEED, duration_s=DURATION, keep_table=True)
+    mean = ep.decisions[ep.decisions.action == 0]
+    assert len(mean) >= 5
+    t = ep.table
+    decel = 4.5 * FT_PER_M
+    harder = 0
+    for r in mean.itertuples():
+        assert -decel - 1e-9 <= r.acc_cmd <= ACTION_ACC_FT_S2[0] + 1e-12
+        now = t[t.Frame_ID == r.frame]
+        a = now[now.Vehicle_ID == r.a_id].iloc[0]
+        ahead = now[(now.Lane_ID == 6) & (now.Local_Y > a.Local_Y)].sort_values(["Local_Y", "Vehicle_ID"])
+        if ahead.empty:
+            assert r.acc_cmd == ACTION_ACC_FT_S2[0]
+            continue
+        lead = ahead.iloc[0]
+        gap = max(lead.Local_Y - a.Local_Y - lead.v_Length - 2.0 * FT_PER_M, 1.0)
+        need = high_brake_need(a.v_Vel, lead.v_Vel, lead.v_Acc, gap)
+        assert r.acc_cmd == pytest.approx(max(min(ACTION_ACC_FT_S2[0], -need), -decel), abs=1e-6)
+        harder += r.acc_cmd < ACTION_ACC_FT_S2[0] - 1e-9
+    assert harder >= 3  # the tailgater needs it
+    # the same driver with the mean rule: every High Brake at the action's acceleration
+    ep_mean = run_episode(spec, Tailgater(), SEED, duration_s=DURATION, controller=ControllerConfig(high_brake="mean"))
+    assert (ep_mean.decisions.loc[ep_mean.decisions.action == 0, "acc_cmd"] == ACTION_ACC_FT_S2[0]).all()
+    with pytest.raises(ValueError, match="high_brake"):
+        ControllerConfig(high_brake="max")
+
+
+def test_high_brake_need_by_hand():
+    from sim.controller import high_brake_need
+
+    assert high_brake_need(30.0, 20.0, 0.0, 50.0) == pytest.approx(1.0)  # 10^2 / 100: match the speed
+    assert high_brake_need(20.0, 30.0, 0.0, 50.0) == 0.0  # opening, leader not braking
+    # leader braking at 10 ft/s^2 from 20 ft/s stops in 20 ft: A at 30 ft/s stops within 50 + 20
+    assert high_brake_need(30.0, 20.0, -10.0, 50.0) == pytest.approx(900.0 / 140.0)
+    assert high_brake_need(35.0, 13.8, -6.8, 39.0) > 8.97  # the stop of a cf-dagger collision (docs)
 
 
 def test_sumo_baseline_is_observed_not_commanded(sumo_run):

@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 from analysis.commands._arg_types import positive_int
+from sim.controller_config import HIGH_BRAKE_RULES
 
 
 def register(subparsers) -> None:
@@ -37,6 +38,10 @@ def register(subparsers) -> None:
     p.add_argument("--decision-step", type=float, default=None,
                    help="seconds between two decisions of A (default: the first model's decision step, else the first "
                         "--cf-model's, else 0.3; a model driven at another step than its own is warned about)")
+    p.add_argument("--high-brake", choices=HIGH_BRAKE_RULES, default=HIGH_BRAKE_RULES[0],
+                   help="how High Brake is applied: need (default) = at the action's mean acceleration or harder "
+                        "when A closes in on its leader faster than that stops it, up to A's decel; mean = always "
+                        "at the mean")
     p.add_argument("--safety-ttc", type=float, default=None, metavar="S",
                    help="safety-filter variant: replace an action that would bring A's TTC to its leader "
                         "below S seconds (default: raw, no filter); interventions are reported")
@@ -85,7 +90,8 @@ def run(args: argparse.Namespace) -> int:
         report = evaluate(
             args.model, args.scenario, args.episodes, args.seed, out, duration_s=args.duration, demos=args.demos,
             baselines=baselines, train_demos=args.train_demos, policies=cf,
-            controller=ControllerConfig(decision_s=args.decision_step, mode=args.mode, safety_ttc_s=args.safety_ttc),
+            controller=ControllerConfig(decision_s=args.decision_step, mode=args.mode, safety_ttc_s=args.safety_ttc,
+                                        high_brake=args.high_brake),
             executor=executor, rrd=not args.no_rrd, progress=not args.no_progress,
         )
     from analysis.evaluate_report import flag_lines, report_table

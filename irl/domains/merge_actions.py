@@ -32,6 +32,8 @@ ACC_LIMITS = (-11.2, 11.2)
 ACTION_ACC_FT_S2 = (-8.0, -2.7, 0.0, 2.7, 8.0)
 #: Index of the Zero action (constant velocity).
 ZERO_ACTION = 2
+#: Index of the High Brake action (the hardest braking bin).
+HIGH_BRAKE = 0
 
 
 def action_of(acc: float) -> int:

@@ -216,6 +216,8 @@ def main(argv=None) -> int:
     # (every High Brake decision of a commanded driver is at the mean or harder)
     harder = []
     for name, eps in episodes.items():
+        if not any(e.controls["commanded"].any() for e in eps):
+            continue  # sumo, sumo-in-lane: observed, their acc_cmd is SUMO's own acceleration
         d = pd.concat([e.decisions for e in eps], ignore_index=True)
         hb = d.loc[d["action"] == 0, "acc_cmd"]
         if len(hb) and hb.nunique() > 1:

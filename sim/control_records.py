@@ -69,7 +69,8 @@ _DECISION_FIELDS = (
 @dataclass
 class DecisionLog:
     """Column buffers, one row per decision (units ft, ft/s, ft/s^2; ``acc_cmd`` is the
-    commanded acceleration, or for the SUMO baseline A's measured one; ``action`` likewise;
+    commanded acceleration (High Brake's can be harder than the action's mean:
+    ``ControllerConfig.high_brake``), or for the SUMO baseline A's measured one; ``action`` likewise;
     ``filtered``: the safety filter replaced the policy's action).
     """
 

@@ -3,9 +3,10 @@
 One run of the whole pipeline (:func:`analysis.pipeline.run_demo`): SUMO's drivers of the
 scenario generate the training encounters (``--train-seeds``, at least 3 runs) and
 ``--heldout-runs`` held-out runs (default 10: the reference demonstrations of every
-Wasserstein distance and of the held-out log-likelihood; the demo uses one); the IRL methods learn; every learned driver and every baseline (``sumo``, ``uniform``,
-``marginal``, ``markov``, ``bc``) drives the lag cars A of ``--episodes`` (default 30)
-evaluation episodes. Printed:
+Wasserstein distance and of the held-out log-likelihood; the demo uses one); the IRL methods
+learn; every learned driver and every baseline (``sumo``, ``uniform``, ``marginal``, ``markov``,
+``bc``) drives the lag cars A of ``--episodes`` (default 30) evaluation episodes of
+``--eval-duration`` (default the scenario's, as long as the data runs). Printed:
 
 * the demonstrators' signal: how often A's action bin changes between successive decisions
   (NGSIM humans: 26 % of 0.1 s frames), and the share of frames at the braking cap;

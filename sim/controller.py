@@ -344,7 +344,7 @@ class Controller:
     def _brake_to_need(self, frame: FrameState, ia: int, acc: float, a_sumo: str) -> float:
         """The High Brake acceleration (ft/s^2) of ``ControllerConfig.high_brake == "need"``:
         ``acc`` (the action's), or harder when A closes in on its leader in lane 6 faster than
-        ``acc`` stops it, at most A's ``decel`` (see :class:`~sim.controller_config.ControllerConfig`)."""
+        ``acc`` stops it, by need at most A's ``decel`` (see :class:`~sim.controller_config.ControllerConfig`)."""
         ya = float(frame.local_y[ia])
         il = lead_of(frame, ya, exclude=(ia,))
         if il is None:
@@ -352,7 +352,7 @@ class Controller:
         veh = self._traci.vehicle
         gap = max(float(frame.local_y[il]) - ya - float(frame.length[il]) - veh.getMinGap(a_sumo) * FT_PER_M, 1.0)
         need = high_brake_need(float(frame.speed[ia]), float(frame.speed[il]), float(frame.acc[il]), gap)
-        return max(min(acc, -need), -veh.getDecel(a_sumo) * FT_PER_M)
+        return min(acc, max(-need, -veh.getDecel(a_sumo) * FT_PER_M))  # never softer than the action's own
 
     # -- results ------------------------------------------------------------------------
     def decision_table(self):

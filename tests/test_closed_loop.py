@@ -146,7 +146,7 @@ def test_high_brake_by_need_brakes_harder_only_where_the_leader_requires_it(spec
         lead = ahead.iloc[0]
         gap = max(lead.Local_Y - a.Local_Y - lead.v_Length - 2.0 * FT_PER_M, 1.0)
         need = high_brake_need(a.v_Vel, lead.v_Vel, lead.v_Acc, gap)
-        assert r.acc_cmd == pytest.approx(max(min(ACTION_ACC_FT_S2[0], -need), -decel), abs=1e-6)
+        assert r.acc_cmd == pytest.approx(min(ACTION_ACC_FT_S2[0], max(-need, -decel)), abs=1e-6)
         harder += r.acc_cmd < ACTION_ACC_FT_S2[0] - 1e-9
     assert harder >= 3  # the tailgater needs it
     # the same driver with the mean rule: every High Brake at the action's acceleration

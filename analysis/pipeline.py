@@ -31,6 +31,7 @@ Everything goes under ``out_dir`` (default ``./runs/demo``)::
 from __future__ import annotations
 
 import math
+import numbers
 import sys
 import time
 from collections.abc import Sequence
@@ -139,17 +140,28 @@ class DemoConfig:
 
     def __post_init__(self) -> None:
         check_rule(self.encounter_rule)
-        if isinstance(self.heldout_runs, bool) or not isinstance(self.heldout_runs, int) or self.heldout_runs < 1:
-            raise ConfigError(f"DemoConfig.heldout_runs must be a whole number >= 1, got {self.heldout_runs!r}")
+        for name, lowest in (("heldout_runs", 1), ("heldout_seed", 0)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < lowest:
+                raise ConfigError(f"DemoConfig.{name} must be a whole number >= {lowest}, got {v!r}")
+        d = self.eval_duration_s
+        if d is not None and not (isinstance(d, numbers.Real) and math.isfinite(d) and d > 0):
+            raise ConfigError(f"DemoConfig.eval_duration_s must be a positive number of seconds or None, got {d!r}")
         shared = sorted(set(self.train_seeds) & set(self.heldout_seeds))
         if shared:
             raise ConfigError(f"DemoConfig: seed(s) {shared} are both training and held-out seeds "
                               f"(held-out: {self.heldout_seed}..{self.heldout_seeds[-1]})")
+        scored = sorted({*self.train_seeds, *self.heldout_seeds}
+                        & set(range(self.eval_seed, self.eval_seed + self.eval_episodes)))
+        if scored:
+            raise ConfigError(f"DemoConfig: seed(s) {scored} are data seeds and evaluation seeds (evaluation: "
+                              f"{self.eval_seed}..{self.eval_seed + self.eval_episodes - 1}): the drivers would be "
+                              "scored on the traffic of their own demonstrations")
 
     @property
     def heldout_seeds(self) -> tuple[int, ...]:
         """The SUMO seeds of the held-out runs."""
-        return tuple(range(self.heldout_seed, self.heldout_seed + self.heldout_runs))
+        return tuple(range(int(self.heldout_seed), int(self.heldout_seed) + int(self.heldout_runs)))
 
 
 @dataclass(frozen=True)

@@ -130,7 +130,7 @@ def main(argv=None) -> int:
                          heldout_runs=args.heldout_runs)
         check_dagger_seeds(cfg)
     except (ConfigError, SimError) as e:
-        ap.error(f"--eval-seed/--train-seeds/--heldout-runs: {e}")
+        ap.error(str(e))
     t0 = time.perf_counter()
     res = run_demo(args.out, cfg, quiet=True, progress=False)
     wall = time.perf_counter() - t0

@@ -55,18 +55,27 @@ EXIT_MARGIN_FT = 150.0
 
 
 def high_brake_need(v_a: float, v_lead: float, acc_lead: float, gap: float) -> float:
-    """Deceleration (ft/s^2, >= 0) A needs behind its leader, at constant decelerations: the
-    larger of matching the leader's speed within ``gap`` (``(v_a - v_lead)^2 / (2 gap)`` when
-    closing) and, when the leader brakes (``acc_lead < 0``), stopping within ``gap`` plus the
-    leader's own stopping distance (``v_a^2 / (2 (gap + v_lead^2 / (2 |acc_lead|)))``).
+    """Constant deceleration (ft/s^2, >= 0) that keeps A behind its leader, the leader holding
+    its own deceleration ``-acc_lead`` until it stops (A's speed ``v_a``, the leader's ``v_lead``,
+    ft/s; ``gap`` ft, the bumper gap less A's minimum gap, > 0; the controller passes at least
+    1 ft). With ``closing = v_a - v_lead``:
 
-    Args: speeds in ft/s, ``acc_lead`` in ft/s^2, ``gap`` in ft (bumper gap minus A's minimum
-    gap, > 0). Used by :attr:`ControllerConfig.high_brake <sim.controller_config.ControllerConfig>` ``"need"``.
+    * leader not braking (``acc_lead >= 0``): ``closing^2 / (2 gap)`` when closing (A reaches the
+      leader's speed at the gap), else 0;
+    * leader braking at ``d = -acc_lead``, A reaching its speed before it stops
+      (``2 gap / closing <= v_lead / d``): ``d + closing^2 / (2 gap)``;
+    * leader braking and stopping first: ``v_a^2 / (2 (gap + v_lead^2 / (2 d)))`` (A stops
+      behind the leader's stopping point).
+
+    Used by :attr:`ControllerConfig.high_brake <sim.controller_config.ControllerConfig>` ``"need"``.
     """
     closing = v_a - v_lead
-    match = closing * closing / (2.0 * gap) if closing > 0.0 else 0.0
-    stop = v_a * v_a / (2.0 * (gap + v_lead * v_lead / (-2.0 * acc_lead))) if acc_lead < 0.0 else 0.0
-    return max(match, stop)
+    if not acc_lead < 0.0:
+        return closing * closing / (2.0 * gap) if closing > 0.0 else 0.0
+    d = -acc_lead
+    if closing > 0.0 and 2.0 * gap / closing <= v_lead / d:
+        return d + closing * closing / (2.0 * gap)
+    return max(v_a, 0.0) ** 2 / (2.0 * (gap + v_lead * v_lead / (2.0 * d)))
 
 
 class Controller:

@@ -44,8 +44,9 @@ class ControllerConfig:
         high_brake: how the High Brake action is applied (issue 11, cause 8). ``"need"``
             (default): at the action's acceleration (the mean of the training data's High Brake
             bin), or harder when that does not keep A behind its leader in lane 6: the constant
-            deceleration that matches the leader's speed, or (leader braking) stops A behind the
-            leader's stopping point, at A's minimum gap (:func:`sim.controller.high_brake_need`),
+            deceleration that brings A to the leader's speed at A's minimum gap (the leader
+            holding its own deceleration), or stops A behind the point where a braking leader
+            stops, whichever comes first (:func:`sim.controller.high_brake_need`),
             at most A's ``decel`` (SUMO's hardest non-emergency braking of A's type, 4.5 m/s^2 =
             14.8 ft/s^2 for the synthetic cars, where over half of the demonstrators' High Brake
             frames sit). ``"mean"``: always at the action's acceleration (before 2026-12-01).

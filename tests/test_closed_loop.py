@@ -156,14 +156,43 @@ def test_high_brake_by_need_brakes_harder_only_where_the_leader_requires_it(spec
         ControllerConfig(high_brake="max")
 
 
-def test_high_brake_need_by_hand():
+def _min_gap(v_a, v_l, acc_l, gap, b):
+    """Smallest gap (ft) over time when A brakes at ``b`` and the leader at ``-acc_l`` (both
+    until they stop), on a fine time grid."""
+    t_end = max(v_a / b if b > 0 else 60.0, v_l / -acc_l if acc_l < 0 else 0.0) + 1.0
+    t = np.linspace(0.0, t_end, 200_001)
+
+    def pos(v, dec):
+        if dec <= 0:
+            return v * t
+        ts = np.minimum(t, v / dec)
+        return v * ts - 0.5 * dec * ts * ts
+
+    return float(np.min(gap + pos(v_l, -acc_l) - pos(v_a, b)))
+
+
+def test_high_brake_need_by_hand_and_by_simulation():
     from sim.controller import high_brake_need
 
     assert high_brake_need(30.0, 20.0, 0.0, 50.0) == pytest.approx(1.0)  # 10^2 / 100: match the speed
     assert high_brake_need(20.0, 30.0, 0.0, 50.0) == 0.0  # opening, leader not braking
     # leader braking at 10 ft/s^2 from 20 ft/s stops in 20 ft: A at 30 ft/s stops within 50 + 20
     assert high_brake_need(30.0, 20.0, -10.0, 50.0) == pytest.approx(900.0 / 140.0)
+    # A reaches the braking leader's speed before it stops: the leader's deceleration + matching
+    assert high_brake_need(50.0, 30.0, -5.0, 20.0) == pytest.approx(5.0 + 400.0 / 40.0)
     assert high_brake_need(35.0, 13.8, -6.8, 39.0) > 8.97  # the stop of a cf-dagger collision (docs)
+    # the need is the smallest constant deceleration that keeps the gap >= 0: at it the gap stays
+    # (numerically) non-negative, 0.3 ft/s^2 less and A hits the leader
+    rng = np.random.default_rng(7)
+    for _ in range(60):
+        v_a, v_l = rng.uniform(5.0, 70.0), rng.uniform(0.0, 60.0)
+        acc_l = rng.choice([0.0, -rng.uniform(0.5, 15.0)])
+        gap = rng.uniform(2.0, 150.0)
+        need = high_brake_need(v_a, v_l, acc_l, gap)
+        assert need >= 0.0
+        assert _min_gap(v_a, v_l, acc_l, gap, need) >= -1e-3 * max(gap, 1.0)
+        if need > 0.5:
+            assert _min_gap(v_a, v_l, acc_l, gap, need - 0.3) < 0.0
 
 
 def test_sumo_baseline_is_observed_not_commanded(sumo_run):

@@ -20,6 +20,18 @@ def test_heldout_runs_are_consecutive_seeds_apart_from_the_training_seeds():
         DemoConfig(train_seeds=(101, 102, 103), heldout_seed=103)
     with pytest.raises(ConfigError, match=r"\[101, 102\].*held-out: 97\.\.102"):
         DemoConfig(train_seeds=(101, 102, 103), heldout_seed=97, heldout_runs=6)
+    import numpy as np
+
+    assert DemoConfig(heldout_runs=np.int64(2)).heldout_seeds == (201, 202)
+    for kw in ({"heldout_seed": -1}, {"heldout_seed": 201.5}, {"heldout_seed": "201"}, {"eval_duration_s": 0.0},
+               {"eval_duration_s": float("nan")}, {"eval_duration_s": float("inf")}, {"eval_duration_s": "60"}):
+        with pytest.raises(ConfigError):
+            DemoConfig(**kw)
+    # data seeds may not be evaluation seeds: the drivers would be scored on their demonstrations' traffic
+    with pytest.raises(ConfigError, match=r"\[2, 3\].*evaluation: 1\.\.3"):
+        DemoConfig(heldout_seed=2, heldout_runs=5, eval_episodes=3)
+    with pytest.raises(ConfigError, match=r"\[101\]"):
+        DemoConfig(eval_seed=95, eval_episodes=7)
 
 
 def test_dagger_labelling_seeds_may_not_be_held_out_seeds():

@@ -39,9 +39,9 @@ def register(subparsers) -> None:
                    help="seconds between two decisions of A (default: the first model's decision step, else the first "
                         "--cf-model's, else 0.3; a model driven at another step than its own is warned about)")
     p.add_argument("--high-brake", choices=HIGH_BRAKE_RULES, default=HIGH_BRAKE_RULES[0],
-                   help="how High Brake is applied: need (default) = at the action's mean acceleration or harder "
-                        "when A closes in on its leader faster than that stops it, up to A's decel; mean = always "
-                        "at the mean")
+                   help="how High Brake is applied: need (default) = at the action's mean acceleration, or harder "
+                        "when that would not keep A behind its lane-6 leader (the extra at most A's decel); mean = "
+                        "always at the mean")
     p.add_argument("--safety-ttc", type=float, default=None, metavar="S",
                    help="safety-filter variant: replace an action that would bring A's TTC to its leader "
                         "below S seconds (default: raw, no filter); interventions are reported")

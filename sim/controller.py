@@ -78,6 +78,16 @@ def high_brake_need(v_a: float, v_lead: float, acc_lead: float, gap: float) -> f
     return max(v_a, 0.0) ** 2 / (2.0 * (gap + v_lead * v_lead / (2.0 * d)))
 
 
+def _leader_gap(frame: FrameState, ia: int) -> tuple[int, float] | None:
+    """A's leader in lane 6 (row) and the bumper gap to it (ft), or None without a leader: what
+    the safety filter and High Brake by need act on."""
+    ya = float(frame.local_y[ia])
+    il = lead_of(frame, ya, exclude=(ia,))
+    if il is None:
+        return None
+    return il, float(frame.local_y[il]) - ya - float(frame.length[il])
+
+
 class Controller:
     """A :class:`sim.hooks.StepHook` that drives merge lag cars with ``policy``.
 
@@ -334,14 +344,13 @@ class Controller:
         """``action``, or the nearest harder-braking one whose predicted gap to A's leader in
         lane 6 stays positive with a closing TTC of at least ``safety_ttc_s`` after one decision
         step (see :class:`~sim.controller_config.ControllerConfig`); High Brake (0) if none does."""
-        ya = float(frame.local_y[ia])
-        il = lead_of(frame, ya, exclude=(ia,))
-        if il is None:
+        leader = _leader_gap(frame, ia)
+        if leader is None:
             return action
+        il, gap = leader
         h = self._every * self._frame_s
         ttc_min = float(self.config.safety_ttc_s or 0.0)
         va, vl = float(frame.speed[ia]), float(frame.speed[il])
-        gap = float(frame.local_y[il]) - ya - float(frame.length[il])
         for a in range(action, -1, -1):
             v1 = max(0.0, va + float(acc_table[a]) * h)
             g1 = gap - 0.5 * (va + v1) * h + vl * h
@@ -354,12 +363,12 @@ class Controller:
         """The High Brake acceleration (ft/s^2) of ``ControllerConfig.high_brake == "need"``:
         ``acc`` (the action's), or harder when A closes in on its leader in lane 6 faster than
         ``acc`` stops it, by need at most A's ``decel`` (see :class:`~sim.controller_config.ControllerConfig`)."""
-        ya = float(frame.local_y[ia])
-        il = lead_of(frame, ya, exclude=(ia,))
-        if il is None:
+        leader = _leader_gap(frame, ia)
+        if leader is None:
             return acc
+        il, bumper_gap = leader
         veh = self._traci.vehicle
-        gap = max(float(frame.local_y[il]) - ya - float(frame.length[il]) - veh.getMinGap(a_sumo) * FT_PER_M, 1.0)
+        gap = max(bumper_gap - veh.getMinGap(a_sumo) * FT_PER_M, 1.0)
         need = high_brake_need(float(frame.speed[ia]), float(frame.speed[il]), float(frame.acc[il]), gap)
         return min(acc, max(-need, -veh.getDecel(a_sumo) * FT_PER_M))  # never softer than the action's own
 

@@ -151,12 +151,16 @@ class DemoConfig:
         if shared:
             raise ConfigError(f"DemoConfig: seed(s) {shared} are both training and held-out seeds "
                               f"(held-out: {self.heldout_seed}..{self.heldout_seeds[-1]})")
-        scored = sorted({*self.train_seeds, *self.heldout_seeds}
-                        & set(range(self.eval_seed, self.eval_seed + self.eval_episodes)))
+        scored = sorted({*self.train_seeds, *self.heldout_seeds} & set(self.eval_seeds))
         if scored:
             raise ConfigError(f"DemoConfig: seed(s) {scored} are data seeds and evaluation seeds (evaluation: "
-                              f"{self.eval_seed}..{self.eval_seed + self.eval_episodes - 1}): the drivers would be "
+                              f"{self.eval_seed}..{self.eval_seeds[-1]}): the drivers would be "
                               "scored on the traffic of their own demonstrations")
+
+    @property
+    def eval_seeds(self) -> range:
+        """The SUMO seeds of the evaluation episodes."""
+        return range(self.eval_seed, self.eval_seed + self.eval_episodes)
 
     @property
     def heldout_seeds(self) -> tuple[int, ...]:
@@ -264,8 +268,7 @@ def check_dagger_seeds(config: DemoConfig) -> None:
     if not config.dagger_rounds:
         return
     labelling = set(DaggerConfig(rounds=config.dagger_rounds).label_seeds())
-    if labelling & {*range(config.eval_seed, config.eval_seed + config.eval_episodes), *config.train_seeds,
-                    *config.heldout_seeds}:
+    if labelling & {*config.eval_seeds, *config.train_seeds, *config.heldout_seeds}:
         raise SimError(f"demo: the DAgger labelling seeds {min(labelling)}..{max(labelling)} overlap the data "
                        "or evaluation seeds")
 

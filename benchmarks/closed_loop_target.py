@@ -181,13 +181,15 @@ def main(argv=None) -> int:
           + ", ".join(_f(w, 1) for w in per_run) + " ft)")
     # how much the reference itself moves the distance: each driver's W1 of d_AC to every held-out
     # run alone (the demo scores against one such run)
+    # every policy's episodes concatenated once: decisions and control episodes
+    decisions = {name: pd.concat([e.decisions for e in eps], ignore_index=True) for name, eps in episodes.items() if eps}
+    controls = {name: pd.concat([e.controls for e in eps], ignore_index=True) for name, eps in episodes.items() if eps}
     runs = [t for _, t in held.groupby(held["encounter_id"] // 1_000_000)]
     if len(runs) > 1:
         spread = []
         for name in ("sumo", "sumo-in-lane", driver, "uniform"):
-            if name in episodes and episodes[name]:
-                d = pd.concat([e.decisions for e in episodes[name]], ignore_index=True)["d_AC"]
-                w = [wasserstein(d, t["d_AC"]) for t in runs]
+            if name in decisions:
+                w = [wasserstein(decisions[name]["d_AC"], t["d_AC"]) for t in runs]
                 spread.append(f"{name} {_f(min(w), 1)}-{_f(max(w), 1)}")
         print(f"W1 d_AC (ft) to each of the {len(runs)} held-out runs alone, lowest-highest: " + ", ".join(spread))
     # the demonstrators' own driver in the closed loop: with in-lane demonstrations `sumo-in-lane`
@@ -209,17 +211,15 @@ def main(argv=None) -> int:
               f"floor {_f(floor['speed_A'], 2)} ft/s, {_f(floor['d_AC'], 1)} ft): " + ", ".join(parts))
     print()
     print("A collisions by kind: | policy | " + " | ".join(COLLISION_KINDS) + " |")
-    for name, eps in episodes.items():
-        ctl = pd.concat([e.controls for e in eps], ignore_index=True)
+    for name, ctl in controls.items():
         kinds = ctl.loc[ctl["reason"] == "collision", "collision_kind"].value_counts()
         print(f"| {name} | " + " | ".join(str(int(kinds.get(k, 0))) for k in COLLISION_KINDS) + " |")
     # High Brake applied harder than the action's mean by ControllerConfig.high_brake "need"
     # (every High Brake decision of a commanded driver is at the mean or harder)
     harder = []
-    for name, eps in episodes.items():
-        if not any(e.controls["commanded"].any() for e in eps):
+    for name, d in decisions.items():
+        if not controls[name]["commanded"].any():
             continue  # sumo, sumo-in-lane: observed, their acc_cmd is SUMO's own acceleration
-        d = pd.concat([e.decisions for e in eps], ignore_index=True)
         hb = d.loc[d["action"] == 0, "acc_cmd"]
         if len(hb) and hb.nunique() > 1:
             harder.append(f"{name} {int((hb < hb.max() - 1e-9).sum())}/{len(hb)}")

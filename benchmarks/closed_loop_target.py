@@ -11,8 +11,12 @@ learn; every learned driver and every baseline (``sumo``, ``uniform``, ``margina
 * the demonstrators' signal: how often A's action bin changes between successive decisions
   (NGSIM humans: 26 % of 0.1 s frames), and the share of frames at the braking cap;
 * per policy: A collisions / controlled As with the Wilson 95 % interval, W1 distances of A's
-  speed and d_AC to the held-out demonstrations and their ratio to the SUMO-driver floor,
+  speed and d_AC to the held-out demonstrations and their ratio to the SUMO-driver floor
+  (:func:`floor_driver`: the demonstrators' own driver in the closed loop, ``sumo-in-lane``
+  with the default in-lane demonstrations) and, for d_AC, to SUMO's free driver ``sumo``,
   W1 of acceleration and TTC, held-out log-likelihood per step, travel time, flags;
+* the floor checked: the floor driver and ``sumo`` on the held-out runs' own seeds, W1 to
+  those runs' demonstrations (the floor driver near 0: it drove them);
 * per policy: the A collisions by kind (who hit whom, ``sim.control_records.COLLISION_KINDS``),
   and how many of its High Brake decisions the controller applied harder than the action's
   mean (``ControllerConfig.high_brake``, default ``"need"``);
@@ -22,11 +26,11 @@ learn; every learned driver and every baseline (``sumo``, ``uniform``, ``margina
   (:mod:`analysis.dagger` through the demo's ``dagger_rounds``, ``--cf-rounds``, default 4;
   0: not run) as the row ``cf-dagger``, and its round 0 (the demonstrations alone) as
   ``cf-logit``, evaluated on the same episodes with the same held-out demonstrations;
+  ``cf-dagger`` is the demo's default learned driver;
 * the reference driver ``idm`` (:class:`sim.idm_policy.IdmPolicy`: the Intelligent Driver Model
   with the scenario's car parameters, the demonstrators' car-following model, acting through the
   controller; it does not yield to B) and ``sumo-in-lane`` (SUMO's driver with A's lane changes
-  off while observed, as for every commanded driver), on the same episodes, and every row's W1
-  of d_AC against ``sumo-in-lane``'s;
+  off while observed, as for every commanded driver), on the same episodes;
 * every policy's W1 of speed and d_AC to ``sumo-in-lane``'s closed loop (with in-lane
   demonstrations the demonstrators' own driver under the controller): its odd-seed episodes
   against ``sumo-in-lane``'s even-seed ones and the reverse, beside the floor of
@@ -35,10 +39,10 @@ learn; every learned driver and every baseline (``sumo``, ``uniform``, ``margina
   the held-out runs' demonstrations (the same drivers on other seeds), and the W1 of d_AC of
   ``sumo``, ``sumo-in-lane``, the default driver and ``uniform`` to each held-out run alone (how
   much one held-out run, the demo's reference, moves the figure);
-* the target checks for the default learned driver (``--driver``, default the first
-  method) and for ``cf-dagger``: 0 collisions by controlled cars with the 95 % upper bound,
-  held-out LL per step above ``marginal`` and ``bc``, W1 of speed and of d_AC within 1.5x the
-  SUMO floor.
+* the target checks for every learned driver, the default one (``--driver``, default
+  ``cf-dagger``) first: 0 collisions by controlled cars with the 95 % upper bound, held-out LL
+  per step above ``marginal`` and ``bc``, W1 of speed and of d_AC within 1.5x the SUMO-driver
+  floor.
 
 Run: ``python -m benchmarks.closed_loop_target [--episodes 30] [--methods qavg]`` (MLIRL took over 5 min
 at the driver encoding's 6250 states with the dense transition model: add it once it is sparse).
@@ -73,19 +77,28 @@ def _f(x: float, nd: int = 3) -> str:
     return "-" if x is None or not math.isfinite(x) else f"{x:.{nd}f}"
 
 
-def target_checks(name: str, aggs: dict) -> list[tuple[str, bool]]:
-    """Issue 11's closed-loop targets for the driver ``name``: ``(text, met)`` pairs."""
-    d, sumo = aggs[name], aggs["sumo"]
+def floor_driver(encounter_rule: str) -> str:
+    """The SUMO-driver floor of the Wasserstein targets: the demonstrators' own driver in the
+    closed loop, whose distance to the held-out demonstrations on other seeds is sampling noise
+    alone. With ``in-lane`` demonstrations (A's lane held while observed) that is
+    ``sumo-in-lane``; with the ``take-over`` and ``merge-frame`` rules (lanes free) ``sumo``."""
+    return "sumo-in-lane" if encounter_rule == "in-lane" else "sumo"
+
+
+def target_checks(name: str, aggs: dict, floor: str = "sumo") -> list[tuple[str, bool]]:
+    """Issue 11's closed-loop targets for the driver ``name``, the Wasserstein ones against the
+    driver ``floor`` (:func:`floor_driver`): ``(text, met)`` pairs."""
+    d, ref = aggs[name], aggs[floor]
     marginal, bc = aggs["marginal"].heldout_loglik_per_step, aggs["bc"].heldout_loglik_per_step
     return [
         (f"{name}: 0 collisions by controlled cars ({d.a_collisions}/{d.n_controls}, 95 % upper bound "
          f"{_f(d.a_collision_ci95[1])})", d.a_collisions == 0),
         (f"{name}: held-out LL/step {_f(d.heldout_loglik_per_step)} > marginal {_f(marginal)} and bc {_f(bc)}",
          d.heldout_loglik_per_step > max(marginal, bc)),
-        (f"{name}: W1 speed {_f(d.w1_speed_A_ft_s, 2)} <= 1.5 x SUMO {_f(sumo.w1_speed_A_ft_s, 2)}",
-         d.w1_speed_A_ft_s <= 1.5 * sumo.w1_speed_A_ft_s),
-        (f"{name}: W1 d_AC {_f(d.w1_d_AC_ft, 1)} <= 1.5 x SUMO {_f(sumo.w1_d_AC_ft, 1)}",
-         d.w1_d_AC_ft <= 1.5 * sumo.w1_d_AC_ft),
+        (f"{name}: W1 speed {_f(d.w1_speed_A_ft_s, 2)} <= 1.5 x {floor} {_f(ref.w1_speed_A_ft_s, 2)}",
+         d.w1_speed_A_ft_s <= 1.5 * ref.w1_speed_A_ft_s),
+        (f"{name}: W1 d_AC {_f(d.w1_d_AC_ft, 1)} <= 1.5 x {floor} {_f(ref.w1_d_AC_ft, 1)}",
+         d.w1_d_AC_ft <= 1.5 * ref.w1_d_AC_ft),
     ]
 
 
@@ -101,8 +114,8 @@ def main(argv=None) -> int:
                          "distances to one run vary more with the run than with the driver)")
     ap.add_argument("--methods", default="qavg")
     ap.add_argument("--driver", default=None,
-                    help="the learned driver of the safety-filter variant and of the first target checks (default: the "
-                         "first method; cf-dagger also possible)")
+                    help="the learned driver of the safety-filter variant and of the target checks (default: cf-dagger, "
+                         "the demo's default learned driver; the first method with --cf-rounds 0)")
     ap.add_argument("--eval-duration", type=float, default=None,
                     help="simulated seconds per evaluation episode (default: the scenario's, as long as the data "
                          "runs: shorter episodes sample fewer gaps per run than the demonstrations hold)")
@@ -118,8 +131,8 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default="runs/closed-loop-target")
     args = ap.parse_args(argv)
     methods = tuple(m for m in args.methods.split(",") if m)
-    driver = args.driver or methods[0]
     drivers = (*methods, CF_DRIVER) if args.cf_rounds > 0 else methods
+    driver = args.driver or drivers[-1]
     if driver not in drivers:
         ap.error(f"--driver {driver}: not among the learned drivers {', '.join(drivers)}")
     try:
@@ -158,22 +171,31 @@ def main(argv=None) -> int:
         info = CarFollowingLogit.load(res.models[CF_DRIVER]).info
         print(f"car-following logit: {args.cf_rounds} DAgger rounds of {info['episodes_per_round']} runs, "
               f"High Brake labels kept per round {info['labels_per_round']}")
-    sumo = aggs["sumo"]
+    floor = floor_driver(args.encounter_rule)
+    ref, sumo = aggs[floor], aggs["sumo"]
+    print(f"\nSUMO-driver floor of the W1 ratios: {floor}, the demonstrators' own driver in the closed loop "
+          f"({args.encounter_rule} demonstrations)")
     print()
-    print("| policy | A collisions / As | 95 % CI | W1 speed (ft/s) | x SUMO | W1 d_AC (ft) | x SUMO | W1 acc | W1 TTC "
-          "| held-out LL/step | travel time (s) | flags |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    print("| policy | A collisions / As | 95 % CI | W1 speed (ft/s) | x floor | W1 d_AC (ft) | x floor | x sumo | W1 acc "
+          "| W1 TTC | held-out LL/step | travel time (s) | flags |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for name, a in aggs.items():
         lo, hi = a.a_collision_ci95
         print(f"| {name} | {a.a_collisions}/{a.n_controls} | [{_f(lo)}, {_f(hi)}] | {_f(a.w1_speed_A_ft_s, 2)} "
-              f"| {_f(a.w1_speed_A_ft_s / sumo.w1_speed_A_ft_s, 2)} | {_f(a.w1_d_AC_ft, 1)} "
-              f"| {_f(a.w1_d_AC_ft / sumo.w1_d_AC_ft, 2)} | {_f(a.w1_acc_A_ft_s2, 2)} | {_f(a.w1_ttc_s, 2)} "
+              f"| {_f(a.w1_speed_A_ft_s / ref.w1_speed_A_ft_s, 2)} | {_f(a.w1_d_AC_ft, 1)} "
+              f"| {_f(a.w1_d_AC_ft / ref.w1_d_AC_ft, 2)} | {_f(a.w1_d_AC_ft / sumo.w1_d_AC_ft, 2)} "
+              f"| {_f(a.w1_acc_A_ft_s2, 2)} | {_f(a.w1_ttc_s, 2)} "
               f"| {_f(a.heldout_loglik_per_step)} | {_f(a.travel_time_s[0], 1)} | {', '.join(a.flags)} |")
-    lane = aggs["sumo-in-lane"]
-    print(f"\nW1 d_AC against SUMO's driver kept in lane 6 ({_f(lane.w1_d_AC_ft, 1)} ft, the floor of drivers that act on "
-          "acceleration alone, as the controller's): " + ", ".join(
-              f"{name} {_f(a.w1_d_AC_ft / lane.w1_d_AC_ft, 2)}x" for name, a in aggs.items() if a.n_controls))
     held = pd.read_parquet(Path(args.out) / "data" / "heldout_encounters.parquet")
+    # the floor checked on the held-out runs' own seeds: the demonstrators' driver there drives the
+    # held-out demonstrations themselves (W1 near 0, up to the 0.3 s decision sampling), SUMO's
+    # free driver does not
+    same = evaluate([], args.scenario, len(cfg.heldout_seeds), cfg.heldout_seed,
+                    Path(args.out) / "evaluation-heldout-seeds", duration_s=cfg.data_duration_s, demos=held,
+                    baselines=tuple(dict.fromkeys((floor, "sumo"))), workers=args.workers, rrd=False, progress=False)
+    print(f"on the held-out runs' own seeds ({cfg.heldout_seed}..{cfg.heldout_seeds[-1]}), W1 speed (ft/s) / d_AC (ft) "
+          "to their demonstrations: " + ", ".join(
+              f"{name} {_f(a.w1_speed_A_ft_s, 2)} / {_f(a.w1_d_AC_ft, 1)}" for name, a in same.aggregates.items()))
     per_run = [wasserstein(t["d_AC"], held["d_AC"]) for _, t in train.groupby(train["encounter_id"] // 1_000_000)]
     print(f"the demonstrators against themselves (training runs vs the held-out runs, same drivers, other seeds): "
           f"W1 speed {_f(wasserstein(train['v_A'], held['v_A']), 2)} ft/s, W1 d_AC "
@@ -200,15 +222,15 @@ def main(argv=None) -> int:
     if len(episodes.get("sumo-in-lane", ())) >= 2:
         halves = {name: [pd.concat([e.decisions for e in eps[p::2]], ignore_index=True) for p in (0, 1)]
                   for name, eps in episodes.items() if len(eps) >= 2}
-        ref = halves.pop("sumo-in-lane")
-        floor = {c: wasserstein(ref[0][c], ref[1][c]) for c in ("speed_A", "d_AC")}
+        lane = halves.pop("sumo-in-lane")
+        parity_floor = {c: wasserstein(lane[0][c], lane[1][c]) for c in ("speed_A", "d_AC")}
         parts = []
         for name, (odd, even) in halves.items():
-            w = {c: 0.5 * (wasserstein(odd[c], ref[1][c]) + wasserstein(even[c], ref[0][c])) for c in floor}
-            parts.append(f"{name} {_f(w['speed_A'], 2)} ({_f(w['speed_A'] / floor['speed_A'], 2)}x) / "
-                         f"{_f(w['d_AC'], 1)} ({_f(w['d_AC'] / floor['d_AC'], 2)}x)")
+            wd = {c: 0.5 * (wasserstein(odd[c], lane[1][c]) + wasserstein(even[c], lane[0][c])) for c in parity_floor}
+            parts.append(f"{name} {_f(wd['speed_A'], 2)} ({_f(wd['speed_A'] / parity_floor['speed_A'], 2)}x) / "
+                         f"{_f(wd['d_AC'], 1)} ({_f(wd['d_AC'] / parity_floor['d_AC'], 2)}x)")
         print(f"\nW1 to sumo-in-lane's episodes of the other seed parity (speed ft/s, d_AC ft, and x its own odd-vs-even "
-              f"floor {_f(floor['speed_A'], 2)} ft/s, {_f(floor['d_AC'], 1)} ft): " + ", ".join(parts))
+              f"floor {_f(parity_floor['speed_A'], 2)} ft/s, {_f(parity_floor['d_AC'], 1)} ft): " + ", ".join(parts))
     print()
     print("A collisions by kind: | policy | " + " | ".join(COLLISION_KINDS) + " |")
     for name, ctl in controls.items():
@@ -239,8 +261,8 @@ def main(argv=None) -> int:
               f"{s.safety_interventions} of {s.n_decisions} actions "
               f"({_f(100 * s.safety_interventions / max(s.n_decisions, 1), 2)} %)")
     print()
-    for name in [driver] + ([CF_DRIVER] if args.cf_rounds > 0 else []):
-        for text, ok in target_checks(name, aggs):
+    for name in dict.fromkeys((driver, *drivers)):
+        for text, ok in target_checks(name, aggs, floor):
             print(f"  {'met    ' if ok else 'NOT MET'}  {text}")
     print(f"\nreport: {res.evaluation.report_md}")
     return 0

@@ -156,7 +156,7 @@ def main(argv=None) -> int:
                 if "driver" in r and k[0] not in BASELINES and np.isfinite(r["driver"])
                 and k[2] != "nested" and float(k[2]) >= 0.9}  # a real discount, not the myopic gamma 0
         if real:
-            best = max(real, key=real.get)
+            best = max(real, key=lambda k: real[k])
             gain = real[best] - marginal["driver"]
             print(f"\ntarget (driver features, gamma >= 0.9): best {' '.join(x for x in best if x)} "
                   f"{real[best]:.1f}, {gain:+.1f} nats vs marginal (target >= +{TARGET_NATS:g}: "

@@ -16,6 +16,7 @@ import time
 
 import numpy as np
 
+from analysis.commands._arg_types import positive_int
 from analysis.learn import fit_problem
 from analysis.trials import cached_table_problem
 from irl.config import IRLConfig
@@ -26,7 +27,7 @@ TARGETS_S = {"qavg": (0.05, 0.05, 0.05), "qsm": (1.0, 1.0, 10.0), "mlirl": (1.0,
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--data", default=os.environ.get("MERGE_IRL_RAILUSM", "../shared/data/railusm"))
-    p.add_argument("--trials", type=int, default=3)
+    p.add_argument("--trials", type=positive_int, default=3)
     args = p.parse_args(argv)
     print(f"{'table':>5} {'method':>6} {'median s/trial':>15} {'target s':>9} {'ok':>3} "
           f"{'final LL':>10} converged")
@@ -38,6 +39,7 @@ def main(argv: list[str] | None = None) -> int:
                 t0 = time.perf_counter()
                 res = fit_problem(problem, method, IRLConfig.paper(), seed)
                 times.append(time.perf_counter() - t0)
+            assert res is not None  # --trials is at least 1
             med = float(np.median(times))
             target = targets[t_index]
             print(f"{table:>5} {method:>6} {med:>15.3f} {target:>9.2f} {'yes' if med < target else 'NO':>3} "

@@ -70,7 +70,7 @@ CF_DRIVER = "cf-dagger"
 
 @dataclass(frozen=True)
 class DemoConfig:
-    """Sizes of the demo (defaults: a few minutes on 2 cores).
+    """Sizes of the demo (defaults: about half a minute on 2 idle cores).
 
     Attributes:
         scenario: preset name or TOML path.
@@ -110,7 +110,10 @@ class DemoConfig:
             (:mod:`analysis.dagger`, its other settings the defaults of
             :class:`~analysis.dagger.DaggerConfig`, so the driver equals ``merge-irl dagger``'s
             on the same encounters), trained after the IRL methods and evaluated beside them;
-            0 (the default): not trained. 4 rounds added 54 s on 2 cores (2026-12-01).
+            0: not trained. Default ``DaggerConfig.rounds`` (4): ``cf-dagger`` is the default
+            learned driver, the one that meets the closed-loop targets (no collision by its As in
+            30 episodes on two seed sets; docs/closed-loop.md). The 4 rounds took 21 s of a 31 s
+            demo on 2 idle cores (2026-12-02; 54 s at load average 2).
         encounter_rule: how the data runs become demonstrations (:mod:`sim.demonstrations`;
             default ``in-lane``: SUMO's drivers observed as the controller observes them, A's lane
             held while observed, so that they are what the commanded drivers can do).
@@ -133,7 +136,7 @@ class DemoConfig:
     gamma: float = 0.0
     l2: float = 1.0
     fit_seed: int = 0
-    dagger_rounds: int = 0
+    dagger_rounds: int = DaggerConfig.rounds
     encounter_rule: str = ENCOUNTER_RULES[0]
     workers: int = 2
     executor: str | None = None

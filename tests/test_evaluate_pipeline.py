@@ -15,7 +15,7 @@ pytestmark = pytest.mark.sumo
 
 def test_run_demo_small(tmp_path):
     cfg = DemoConfig(train_seeds=(11,), heldout_seed=12, data_duration_s=240.0, eval_episodes=1,
-                     eval_duration_s=110.0, methods=("qavg",))
+                     eval_duration_s=110.0, methods=("qavg",), dagger_rounds=0)
     res = run_demo(tmp_path / "demo", cfg, quiet=True, progress=False)
     out = tmp_path / "demo"
     model = SavedModel.load(res.models["qavg"])

@@ -108,7 +108,7 @@ class LabelRun:
 
 def label_run_task(run: LabelRun, seed: int) -> dict:
     """Sweep task: one SUMO run of :class:`LabelRun` with :class:`~sim.expert_labels.ExpertLabels`;
-    returns ``{"records": [[state, d_AC, v_AC, d_AB, v_AB, v_A, prev, action], ...]}``."""
+    returns ``{"records": [[state, d_AC, v_AC, d_AB, v_AB, v_A, len_C, len_B, prev, action], ...]}``."""
     del seed  # the run's own SUMO seed, as every evaluation episode
     ctl = Controller(CarFollowingLogitPolicy(run.model), ControllerConfig(decision_s=run.decision_step_s))
     hook = ExpertLabels(ctl)

@@ -62,7 +62,7 @@ class Control:
 
 _DECISION_FIELDS = (
     "frame", "time_s", "a_id", "b_id", "c_id", "state", "action", "acc_cmd", "speed_A",
-    "d_AC", "d_AB", "v_AC", "v_AB", "b_is_truck", "p0", "p1", "p2", "p3", "p4", "filtered",
+    "d_AC", "d_AB", "v_AC", "v_AB", "b_is_truck", "len_C", "len_B", "p0", "p1", "p2", "p3", "p4", "filtered",
 )
 
 

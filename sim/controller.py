@@ -310,7 +310,8 @@ class Controller:
             prev = c.prev_action if c.prev_action >= 0 else (initial if initial >= 0 else ZERO_ACTION)
             state = encoder.state(d_ac, d_ab, v_ac, v_ab, truck, prev_action=prev, encoding=encoding)
         obs = MergeObservation(d_ac, d_ab, v_ac, v_ab, truck, state, float(frame.speed[ia]), c.prev_action, initial,
-                               c.merge_frame >= 0)
+                               c.merge_frame >= 0, float(frame.length[ic]) if ic is not None else math.nan,
+                               float(frame.length[ib]))
         probs = np.asarray(self.policy.probs(obs), dtype=np.float64)
         filtered = False
         if c.commanded:
@@ -337,7 +338,7 @@ class Controller:
         self.last[c.a_id] = (obs, probs, action)
         self.decisions.append((
             frame.frame, frame.time_s, c.a_id, c.b_id, c_id, state, action, acc, obs.speed_A,
-            d_ac, d_ab, v_ac, v_ab, truck, *probs.tolist(), filtered,
+            d_ac, d_ab, v_ac, v_ab, truck, obs.len_C, obs.len_B, *probs.tolist(), filtered,
         ))
 
     def _safe_action(self, frame: FrameState, ia: int, action: int, acc_table) -> int:
@@ -375,7 +376,7 @@ class Controller:
     # -- results ------------------------------------------------------------------------
     def decision_table(self):
         """Decisions as a DataFrame (columns ``frame, time_s, a_id, b_id, c_id, state, action,
-        acc_cmd, speed_A, d_AC, d_AB, v_AC, v_AB, b_is_truck, p0..p4``)."""
+        acc_cmd, speed_A, d_AC, d_AB, v_AC, v_AB, b_is_truck, len_C, len_B, p0..p4``)."""
         return self.decisions.to_frame()
 
     def control_table(self):

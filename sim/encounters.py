@@ -16,7 +16,8 @@ its ramp lanes for 7, its merge lane for 6; unknown lane codes are an error):
   (positive when A is faster, i.e. closing in), ``B_is_truck`` (B's v_Class is 3) and the
   action ``acc_A = (v_Vel(A, t+1) - v_Vel(A, t)) / 0.1 s``: the forward difference, the
   acceleration A applies in frame t (``v_Acc`` is the backward difference that led to frame t
-  and is not used). The next frame may lie beyond the window: A's row at t+1 is taken from the
+  and is not used), A's speed ``v_A``, and the lengths ``len_C`` and ``len_B`` (``v_Length``,
+  NaN when the table has no such column). The next frame may lie beyond the window: A's row at t+1 is taken from the
   table wherever it is. A frame whose t+1 row of A is not in the table has no action and no
   row. The columns, dtypes and units are :data:`irl.domains.merge_encounters.ENCOUNTER_SCHEMA`.
 * **Window** (:class:`EncounterWindow`): from the first frame in which A and B are both in the
@@ -204,6 +205,8 @@ def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),
         raise TrajectoryFormatError("trajectory table: duplicate (Vehicle_ID, Frame_ID) rows")
     vid, frame, y, rows = index.vid, index.frame, index.y, index.rows
     vel = table["v_Vel"].to_numpy(np.float64)
+    length = (table["v_Length"].to_numpy(np.float64) if "v_Length" in table.columns
+              else np.full(len(table), np.nan))
     vclass = table["v_Class"].to_numpy(np.int64)
     gtime = table["Global_Time"].to_numpy(np.int64)
     first_frame = pd.Series(frame).groupby(vid).min()
@@ -246,13 +249,14 @@ def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),
             hc = rc >= 0
             yc = np.where(hc, y[np.where(hc, rc, 0)], np.nan)
             vc = np.where(hc, vel[np.where(hc, rc, 0)], np.nan)
+            lc = np.where(hc, length[np.where(hc, rc, 0)], np.nan)
             chunks.append(pd.DataFrame({
                 "encounter_id": eid, "B_id": b, "A_id": a, "C_id": c_ids,
                 "Frame_ID": frames, "Global_Time": gtime[ra], "merge_frame": mf,
                 "d_AC": yc - y[ra], "d_AB": y[rbb] - y[ra],
                 "v_AC": vel[ra] - vc, "v_AB": vel[ra] - vel[rbb],
                 "B_is_truck": truck, "acc_A": forward_acceleration(vel[ra], vel[ra_next], FRAME_S),
-                "v_A": vel[ra],
+                "v_A": vel[ra], "len_C": lc, "len_B": length[rbb],
             }))
             n = len(frames)
         else:

@@ -35,6 +35,8 @@ class ExpertLabel(NamedTuple):
     d_AB: float
     v_AB: float
     v_A: float
+    len_C: float
+    len_B: float
     prev: int
     action: int
 
@@ -92,7 +94,7 @@ class ExpertLabels:
             acc = min(acc, veh.getAccel(a_sumo))
             prev = obs.prev_action if obs.prev_action >= 0 else obs.initial_action  # as the policy saw it
             self.records.append(ExpertLabel(int(obs.state), obs.d_AC, obs.v_AC, obs.d_AB, obs.v_AB, obs.speed_A,
-                                            int(prev), action_of(acc / M_PER_FT)))
+                                            obs.len_C, obs.len_B, int(prev), action_of(acc / M_PER_FT)))
 
     def on_end(self, ctx: RunContext) -> None:
         pass

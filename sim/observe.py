@@ -41,6 +41,8 @@ class MergeObservation:
             previous action there, as training takes it from A's speed history); -1 afterwards
             or when not finite.
         b_merged: B has entered lane 6 (the controller's merge frame is behind this decision).
+        len_C, len_B: the lengths of C and B (ft; NaN: unknown, or no C). ``d_AC - len_C`` is the
+            bumper gap A follows C at; the car-following logit driver's input.
     """
 
     d_AC: float
@@ -53,6 +55,8 @@ class MergeObservation:
     prev_action: int = -1
     initial_action: int = -1
     b_merged: bool = False
+    len_C: float = math.nan
+    len_B: float = math.nan
 
     def as_array(self) -> np.ndarray:
         """``[5]``: d_AC, d_AB, v_AC, v_AB, B_is_truck."""

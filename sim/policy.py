@@ -263,7 +263,7 @@ class CarFollowingLogitPolicy:
     """A car-following logit driver (:class:`irl.domains.merge_cf_logit.CarFollowingLogit`).
 
     ``probs`` evaluates the model's features on the observation itself (``d_AC, v_AC, d_AB,
-    v_AB`` and ``speed_A``, ft and ft/s; no bins) and A's previous action in this control
+    v_AB``, ``speed_A`` and the lengths ``len_C``, ``len_B``; ft and ft/s; no bins) and A's previous action in this control
     episode (before the first decision ``initial_action``, the bin of A's last acceleration, as
     the driver encoding takes it; Zero if unknown). Actions are applied at the model's
     ``action_acc_ft_s2``; the controller decides every ``decision_step_s``.
@@ -299,6 +299,6 @@ class CarFollowingLogitPolicy:
         if not all(np.isfinite([obs.speed_A, obs.d_AB, obs.v_AB])):
             raise PolicyError(f"policy {self.name!r}: A's speed, d_AB and v_AB must be finite, got "
                               f"{obs.speed_A}, {obs.d_AB}, {obs.v_AB}")
-        x = np.array([[obs.d_AC, obs.v_AC, obs.d_AB, obs.v_AB, obs.speed_A]], dtype=np.float64)
+        x = np.array([[obs.d_AC, obs.v_AC, obs.d_AB, obs.v_AB, obs.speed_A, obs.len_C, obs.len_B]], dtype=np.float64)
         prev = obs.prev_action if obs.prev_action >= 0 else obs.initial_action
         return np.exp(self.model.log_policy(x, np.array([prev]))[0])

@@ -49,8 +49,10 @@ def test_expert_records_are_the_decisions_observations():
     run_scenario(load_scenario("synthetic"), seed=3, duration_s=120, hooks=[ctl, hook])
     dec, rec = ctl.decision_table(), hook.table()
     assert len(dec) > 50 and len(rec) == len(dec)
-    for col, other in (("d_AC", "d_AC"), ("v_AC", "v_AC"), ("d_AB", "d_AB"), ("v_AB", "v_AB"), ("v_A", "speed_A")):
+    for col, other in (("d_AC", "d_AC"), ("v_AC", "v_AC"), ("d_AB", "d_AB"), ("v_AB", "v_AB"), ("v_A", "speed_A"),
+                       ("len_C", "len_C"), ("len_B", "len_B")):
         np.testing.assert_array_equal(rec[col].to_numpy(), dec[other].to_numpy())
+    assert np.isfinite(rec["len_B"]).all() and np.isfinite(rec["len_C"]).any()
     # prev: A's action at its previous decision in the same control episode (A, B); at its first,
     # the bin of A's acceleration before the take-over (SUMO drove it: not always Zero)
     expected = dec.groupby(["a_id", "b_id"], sort=False)["action"].shift(1).fillna(-1).astype(int).to_numpy()
@@ -80,7 +82,7 @@ def test_one_round_adds_only_critical_labels_and_teaches_braking():
     by_hand = CarFollowingLogit.fit(dec, l2=cfg.l2, labels=labels_as_decisions(table[table["action"] == 0], dec))
     np.testing.assert_allclose(by_hand.theta, r1.theta)
     # where the demonstrators never braked, the round-1 driver brakes hard on a close, closing C
-    close = np.array([[30.0, 25.0, -40.0, 0.0, 60.0]])
+    close = np.array([[30.0, 25.0, -40.0, 0.0, 60.0, 14.8, 14.8]])
     p0, p1 = (np.exp(m.log_policy(close, np.array([4])))[0, 0] for m in (r0, r1))
     assert p1 > p0 + 0.2
 

@@ -52,29 +52,38 @@ def test_gap_need_is_the_idm_interaction_term():
     assert g.need(g.length_ft + 0.1, 60.0, 10.0) == g.clip  # s floored at 1 ft, then clipped
     # opening fast: the dynamic part is floored at 0, s* = s0
     assert g.need(100.0, 10.0, -50.0) == pytest.approx((g.min_gap_ft / (100.0 - g.length_ft)) ** 2)
+    # the leader's own length when known (a 45-ft truck: the bumper gap is 55 ft), a car's when NaN
+    assert g.need(100.0, 60.0, 10.0, 45.0) == pytest.approx((s_star / 55.0) ** 2)
+    np.testing.assert_allclose(g.need([100.0, 100.0], 60.0, 10.0, [np.nan, 45.0]),
+                               [g.need(100.0, 60.0, 10.0), (s_star / 55.0) ** 2])
     with pytest.raises(ConfigError):
         GapNeed(time_headway_s=0.0)
 
 
 def test_features_by_hand():
     g = GapNeed()
-    obs = np.array([[100.0, 10.0, -30.0, 5.0, 60.0],   # C ahead, B behind A
-                    [np.nan, np.nan, 40.0, -2.0, 30.0]])  # no C, B ahead
-    F = car_following_features(obs, np.array([4, -1]), ACC, g)
-    assert F.shape == (2, 5, len(CF_FEATURES))
+    obs = np.array([[100.0, 10.0, -30.0, 5.0, 60.0, 45.0, 14.0],   # C (a 45-ft truck) ahead, B behind A
+                    [np.nan, np.nan, 40.0, -2.0, 30.0, np.nan, 45.0],  # no C, B (a truck) ahead
+                    [100.0, 10.0, 40.0, -2.0, 60.0, np.nan, np.nan]])  # lengths unknown: cars
+    F = car_following_features(obs, np.array([4, -1, 2]), ACC, g)
+    assert F.shape == (3, 5, len(CF_FEATURES))
     acc = np.asarray(ACC) / 8.0
-    np.testing.assert_allclose(F[0, :, COL["acc_x_gap_need_C"]], acc * g.need(100.0, 60.0, 10.0))
+    s_star = g.min_gap_ft + 60 * g.time_headway_s + 60 * 10 / (2 * np.sqrt(g.accel_ft_s2 * g.decel_ft_s2))
+    np.testing.assert_allclose(F[0, :, COL["acc_x_gap_need_C"]], acc * (s_star / (100.0 - 45.0)) ** 2)
     np.testing.assert_allclose(F[0, :, COL["acc_x_gap_need_B"]], 0.0)  # B behind A
     np.testing.assert_allclose(F[1, :, COL["acc_x_gap_need_C"]], 0.0)  # no C
-    np.testing.assert_allclose(F[1, :, COL["acc_x_gap_need_B"]], acc * g.need(40.0, 30.0, -2.0))
+    np.testing.assert_allclose(F[1, :, COL["acc_x_gap_need_B"]], acc * g.need(40.0, 30.0, -2.0, 45.0))
+    np.testing.assert_allclose(F[2, :, COL["acc_x_gap_need_C"]], acc * g.need(100.0, 60.0, 10.0, g.length_ft))
+    np.testing.assert_allclose(F[2, :, COL["acc_x_gap_need_B"]], acc * g.need(40.0, 60.0, -2.0, g.length_ft))
+    assert F[1, 0, COL["acc_x_gap_need_B"]] < F[2, 0, COL["acc_x_gap_need_B"]]  # a truck B ahead: more need
     np.testing.assert_allclose(F[0, :, COL["acc_x_free_road"]], acc * (60.0 / g.desired_speed_ft_s) ** 4)
     np.testing.assert_array_equal(F[0, :, COL["keep_action"]], [0, 0, 0, 0, 1])
     np.testing.assert_array_equal(F[1, :, COL["keep_action"]], np.arange(5) == ZERO_ACTION)  # unknown: Zero
     np.testing.assert_allclose(F[0, :, COL["jerk"]], np.abs(acc - acc[4]))
-    np.testing.assert_array_equal(F[:, :, COL["bias_high_brake"]], [[1, 0, 0, 0, 0]] * 2)
+    np.testing.assert_array_equal(F[:, :, COL["bias_high_brake"]], [[1, 0, 0, 0, 0]] * 3)
     assert np.isfinite(F).all()
     with pytest.raises(ConfigError):
-        car_following_features(obs[:, :4], np.array([0, 0]), ACC)
+        car_following_features(obs[:, :5], np.array([0, 0, 0]), ACC)  # no lengths: not an observation
 
 
 def test_decisions_follow_resample_encounters_with_the_driver_encoding():
@@ -88,7 +97,8 @@ def test_decisions_follow_resample_encounters_with_the_driver_encoding():
     # decision j of encounter e observes row 31 e + 3 j (j = 1..9); its action is the mean acc of
     # rows 3j..3j+2 of the encounter, its previous action that of rows 3(j-1)..3j-1
     expected_rows = [31 * e + 3 * j for e in range(4) for j in range(1, 10)]
-    np.testing.assert_array_equal(dec.obs, df.iloc[expected_rows][["d_AC", "v_AC", "d_AB", "v_AB", "v_A"]].to_numpy(float))
+    np.testing.assert_array_equal(dec.obs[:, :5], df.iloc[expected_rows][["d_AC", "v_AC", "d_AB", "v_AB", "v_A"]].to_numpy(float))
+    assert np.isnan(dec.obs[:, 5:]).all()  # a table without lengths: unknown (the features take cars)
     step = actions_of(df["acc_A"].to_numpy().reshape(4, 10 * 3 + 1)[:, :30].reshape(4, 10, 3).mean(axis=2))  # [4, 10]
     np.testing.assert_array_equal(dec.actions, step[:, 1:].ravel())
     np.testing.assert_array_equal(dec.prev, step[:, :-1].ravel())
@@ -97,6 +107,17 @@ def test_decisions_follow_resample_encounters_with_the_driver_encoding():
     assert dec.action_acc_ft_s2 == ref.action_acc_ft_s2
     with pytest.raises(DemonstrationError, match="v_A"):
         car_following_decisions(df.drop(columns=["v_A"]))
+    # lengths, where the table has them, are observed with the row (NaN kept: unknown)
+    rng = np.random.default_rng(1)
+    with_len = df.assign(len_C=rng.uniform(14, 50, len(df)), len_B=np.where(np.arange(len(df)) % 2, 45.0, np.nan))
+    got = car_following_decisions(with_len, decision_step_s=0.3)
+    np.testing.assert_array_equal(got.obs, with_len.iloc[expected_rows][
+        ["d_AC", "v_AC", "d_AB", "v_AB", "v_A", "len_C", "len_B"]].to_numpy(float))
+    for bad in (-3.0, 0.0, np.inf, "long"):
+        broken = with_len.astype({"len_C": object})
+        broken.loc[expected_rows[4], "len_C"] = bad
+        with pytest.raises(DemonstrationError, match=f"row {expected_rows[4]}, column 'len_C'"):
+            car_following_decisions(broken, decision_step_s=0.3)
 
 
 def test_fit_learns_to_brake_on_a_short_gap_and_round_trips_through_its_file(tmp_path):

@@ -104,8 +104,15 @@ def test_encounters_are_what_the_controller_observes_of_sumos_driver(tmp_path):
     assert len(dec) >= 200 and len(f) == len(dec)
     assert (f.A_id.to_numpy() == dec.a_id.to_numpy()).all() and (f.B_id.to_numpy() == dec.b_id.to_numpy()).all()
     assert (f.Frame_ID.to_numpy() == dec.frame.to_numpy()).all() and (f.C_id.to_numpy() == dec.c_id.to_numpy()).all()
-    for col in ("d_AC", "d_AB", "v_AC", "v_AB"):
+    for col in ("d_AC", "d_AB", "v_AC", "v_AB", "len_C", "len_B"):
         np.testing.assert_allclose(f[col].to_numpy(), dec[col].to_numpy(), rtol=0, atol=1e-9)
+    # the lengths are the vehicles' own (trucks among them), NaN exactly without C
+    np.testing.assert_array_equal(np.isnan(f.len_C.to_numpy()), f.C_id.to_numpy() == 0)
+    length = res.table.groupby("Vehicle_ID").v_Length.first()
+    np.testing.assert_array_equal(f.len_B.to_numpy(), length.loc[f.B_id].to_numpy())
+    with_c = f[f.C_id != 0]
+    np.testing.assert_array_equal(with_c.len_C.to_numpy(), length.loc[with_c.C_id].to_numpy())
+    assert with_c.len_C.nunique() > 1  # cars and trucks
     # SUMO's driver leaves lane 6 in some encounters: released there, and no row has A outside lane 6
     reasons = ctl.control_table().reason
     assert (reasons == "left_lane").any()

@@ -3,7 +3,7 @@
 The binned merge state (:mod:`irl.domains.merge_states`) has no speed of A and five bins per
 gap and closing speed; a driver that does not run into a stopping lead car needs both (see
 docs/closed-loop.md). These features are functions of one decision's continuous observation
-``x = (d_AC, v_AC, d_AB, v_AB, v_A)`` (ft, ft/s; the conventions of
+``x = (d_AC, v_AC, d_AB, v_AB, v_A, len_C, len_B)`` (ft, ft/s; the conventions of
 :mod:`irl.domains.merge_encounters`), A's previous action and an action ``a`` with
 acceleration ``acc_a`` (ft/s^2), shaped after the Intelligent Driver Model (IDM; Treiber,
 Hennecke & Helbing 2000, Phys. Rev. E 62, 1805), whose acceleration is
@@ -11,9 +11,9 @@ Hennecke & Helbing 2000, Phys. Rev. E 62, 1805), whose acceleration is
 
 * ``bias_<action>``: one-hot action (4 of them, Zero is the reference), as in the driver set;
 * ``acc_x_gap_need_C``: ``acc_a / 8 x min((s*/s)^2, clip)`` with ``s`` the bumper gap to C
-  (``d_AC`` minus a car length) and ``dv = v_AC``; 0 without C. A negative weight makes
+  (``d_AC - len_C``; a car's length when ``len_C`` is NaN) and ``dv = v_AC``; 0 without C. A negative weight makes
   braking likelier as the gap falls short of the desired one, without bound up to ``clip``;
-* ``acc_x_gap_need_B``: the same towards B while B is ahead of A (``d_AB > 0``), else 0;
+* ``acc_x_gap_need_B``: the same towards B (``d_AB - len_B``) while B is ahead of A (``d_AB > 0``), else 0;
 * ``acc_x_free_road``: ``acc_a / 8 x (v_A / v0)^4`` (the free-road term);
 * ``keep_action``: 1 when ``a`` repeats the previous action; ``jerk``: ``|acc_a - acc_prev| / 8``.
 
@@ -41,7 +41,10 @@ from irl.units import FT_PER_M
 #: The car-following feature names, in the order of the feature axis.
 CF_FEATURES = BIAS_FEATURES + ("acc_x_gap_need_C", "acc_x_gap_need_B", "acc_x_free_road", "keep_action", "jerk")
 #: Observation columns, in the order of :attr:`CFDecisions.obs`.
-OBS_COLUMNS = ("d_AC", "v_AC", "d_AB", "v_AB", "v_A")
+OBS_COLUMNS = ("d_AC", "v_AC", "d_AB", "v_AB", "v_A", "len_C", "len_B")
+#: Observation columns an encounter table may lack: NaN, the vehicle taken as a car of
+#: :attr:`GapNeed.length_ft` (tables written before 2026-12-02, or without ``v_Length``).
+OPTIONAL_OBS_COLUMNS = ("len_C", "len_B")
 
 
 @dataclass(frozen=True)
@@ -51,8 +54,8 @@ class GapNeed:
     Defaults: SUMO's passenger-car defaults (minGap 2.5 m, tau 1 s, accel 2.6 m/s^2, decel
     4.5 m/s^2, desired speed 29 m/s, length 4.5 m), close to the synthetic preset's IDM cars
     (whose minGap is 2.0 m). ``clip`` bounds ``(s*/s)^2`` (a gap near zero would otherwise
-    dominate every weight). Every vehicle is taken to be a car of ``length_ft``: a truck C's
-    gap is overestimated by the length difference (the encounter table has no C length).
+    dominate every weight). ``length_ft`` is the length of a leader whose length is not known
+    (NaN in the observation).
     """
 
     min_gap_ft: float = 2.5 * FT_PER_M
@@ -70,11 +73,14 @@ class GapNeed:
         if bad:
             raise ConfigError(f"GapNeed: parameters must be finite and positive, got {bad}")
 
-    def need(self, gap_ft, v_ft_s, dv_ft_s) -> np.ndarray:
+    def need(self, gap_ft, v_ft_s, dv_ft_s, leader_length_ft=np.nan) -> np.ndarray:
         """``min((s*/s)^2, clip)`` for front-to-front gaps ``gap_ft``, A's speed and closing
-        speed ``dv`` (arrays of one shape; ft, ft/s). ``s`` is the gap minus a car length,
-        at least 1 ft; ``s*`` is at least ``min_gap_ft``."""
-        s = np.maximum(np.asarray(gap_ft, dtype=np.float64) - self.length_ft, 1.0)
+        speed ``dv`` (arrays of one shape, or broadcastable; ft, ft/s). ``s`` is the gap minus
+        the leader's length ``leader_length_ft`` (``length_ft`` where NaN), at least 1 ft;
+        ``s*`` is at least ``min_gap_ft``."""
+        ln = np.asarray(leader_length_ft, dtype=np.float64)
+        ln = np.where(np.isfinite(ln), ln, self.length_ft)
+        s = np.maximum(np.asarray(gap_ft, dtype=np.float64) - ln, 1.0)
         v = np.asarray(v_ft_s, dtype=np.float64)
         dyn = v * self.time_headway_s + v * np.asarray(dv_ft_s, dtype=np.float64) / (
             2.0 * np.sqrt(self.accel_ft_s2 * self.decel_ft_s2))
@@ -87,7 +93,8 @@ class CFDecisions:
     """Decisions of an encounter table with their continuous observations.
 
     Attributes:
-        obs: ``[N, 5]`` float64, columns :data:`OBS_COLUMNS` (``d_AC``/``v_AC`` NaN without C).
+        obs: ``[N, 7]`` float64, columns :data:`OBS_COLUMNS` (``d_AC``/``v_AC``/``len_C`` NaN
+            without C; a length NaN when unknown).
         prev: ``[N]`` int64, A's previous action (-1: unknown, featured as Zero).
         actions: ``[N]`` int64, the action taken (forward difference of A's speed over the step).
         action_acc_ft_s2: ``[5]`` mean acceleration of each action's decisions (ft/s^2).
@@ -109,7 +116,8 @@ class CFDecisions:
 def car_following_decisions(encounters_df: pd.DataFrame, *, decision_step_s: float = 0.3,
                             where: str = "encounters") -> CFDecisions:
     """The decisions of ``encounters_df`` resampled at ``decision_step_s`` (the rule of
-    :func:`irl.merge_mdp.resample_encounters` with the driver encoding) and their observations.
+    :func:`irl.merge_mdp.resample_encounters` with the driver encoding) and their observations
+    (a missing ``len_C`` or ``len_B`` column: NaN, :data:`OPTIONAL_OBS_COLUMNS`).
 
     Raises:
         DemonstrationError: the table has no ``v_A`` column (A's speed, ft/s; the pipeline
@@ -124,24 +132,35 @@ def car_following_decisions(encounters_df: pd.DataFrame, *, decision_step_s: flo
                             decision_step_s=decision_step_s)
     states, actions, _ = d.demos.flat()
     _, prev = split_driver_state(states)
-    obs = encounters_df.iloc[d.rows][list(OBS_COLUMNS)].to_numpy(dtype=np.float64)
+    picked = encounters_df.iloc[d.rows]
+    obs = np.column_stack([pd.to_numeric(picked[c], errors="coerce").to_numpy(dtype=np.float64)
+                           if c in picked.columns else np.full(len(picked), np.nan)
+                           for c in OBS_COLUMNS]).reshape(-1, len(OBS_COLUMNS))
     bad = ~np.isfinite(obs[:, 4]) | (obs[:, 4] < 0)
     if bad.any():
         i = int(np.argmax(bad))
         raise DemonstrationError(f"{where}: row {int(d.rows[i])}, column 'v_A': A's speed must be a finite number "
                                  f">= 0 ft/s at every decision, got {obs[i, 4]}")
+    for j, c in ((5, "len_C"), (6, "len_B")):
+        if c not in picked.columns:
+            continue
+        bad = picked[c].notna().to_numpy() & ~(np.isfinite(obs[:, j]) & (obs[:, j] > 0))
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise DemonstrationError(f"{where}: row {int(d.rows[i])}, column {c!r}: a vehicle length must be a "
+                                     f"finite number > 0 ft, or empty (unknown), got {picked[c].iloc[i]!r}")
     return CFDecisions(obs, prev.astype(np.int64), np.asarray(actions, dtype=np.int64),
                        tuple(float(x) for x in d.action_acc_ft_s2), float(decision_step_s))
 
 
 def car_following_features(obs: np.ndarray, prev: np.ndarray, action_acc_ft_s2,
                            gap_need: GapNeed = GapNeed()) -> np.ndarray:
-    """``[N, 5, len(CF_FEATURES)]`` features (module docstring) of decisions ``obs [N, 5]``
+    """``[N, 5, len(CF_FEATURES)]`` features (module docstring) of decisions ``obs [N, 7]``
     (:data:`OBS_COLUMNS`) with previous actions ``prev [N]`` (-1: unknown, taken as Zero);
     ``action_acc_ft_s2 [5]`` the acceleration of each action (ft/s^2).
 
     Raises:
-        ConfigError: ``obs`` is not ``[N, 5]``, ``prev`` not ``[N]`` actions or -1, or ``action_acc``
+        ConfigError: ``obs`` is not ``[N, 7]``, ``prev`` not ``[N]`` actions or -1, or ``action_acc``
             not 5 finite numbers.
     """
     obs = np.asarray(obs, dtype=np.float64)
@@ -154,11 +173,11 @@ def car_following_features(obs: np.ndarray, prev: np.ndarray, action_acc_ft_s2,
     if prev.size and (prev.min() < -1 or prev.max() >= N_ACTIONS):
         raise ConfigError(f"prev must hold actions 0..{N_ACTIONS - 1} or -1 (unknown), got {prev.min()}..{prev.max()}")
     prev = np.where(prev >= 0, prev, ZERO_ACTION)
-    d_ac, v_ac, d_ab, v_ab, v_a = (obs[:, j] for j in range(5))
+    d_ac, v_ac, d_ab, v_ab, v_a, len_c, len_b = (obs[:, j] for j in range(len(OBS_COLUMNS)))
     has_c = np.isfinite(d_ac) & np.isfinite(v_ac)
-    need_c = np.where(has_c, gap_need.need(np.where(has_c, d_ac, 1e6), v_a, np.where(has_c, v_ac, 0.0)), 0.0)
+    need_c = np.where(has_c, gap_need.need(np.where(has_c, d_ac, 1e6), v_a, np.where(has_c, v_ac, 0.0), len_c), 0.0)
     b_ahead = d_ab > 0
-    need_b = np.where(b_ahead, gap_need.need(np.where(b_ahead, d_ab, 1e6), v_a, v_ab), 0.0)
+    need_b = np.where(b_ahead, gap_need.need(np.where(b_ahead, d_ab, 1e6), v_a, v_ab, len_b), 0.0)
     free = (v_a / gap_need.desired_speed_ft_s) ** 4
     n = obs.shape[0]
     accn = acc[None, :] / ACC_SCALE_FT_S2  # [1, A]

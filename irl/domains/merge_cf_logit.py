@@ -4,7 +4,7 @@ features, and its JSON file (format ``merge-irl-cf-logit/1``; ``merge-irl dagger
 
 ``pi(a | x) = softmax_a(theta . phi(x, a))`` over the five merge actions, ``phi`` the
 car-following features of the continuous observation ``x`` (A's speed, gaps and closing
-speeds to C and B, A's previous action); fitted by maximum likelihood
+speeds to C and B, their lengths, A's previous action); fitted by maximum likelihood
 (:func:`irl.conditional_logit.fit_conditional_logit`, i.e. maximum-likelihood IRL at discount 0).
 Trained on demonstrations alone, or on demonstrations plus expert labels in the states the
 learned driver reaches (DAgger; ``analysis.dagger``), which ``info`` records.
@@ -109,8 +109,9 @@ class CarFollowingLogit:
         return dataclasses.replace(model, loglik=model.loglik_of(demos))
 
     def log_policy(self, obs: np.ndarray, prev: np.ndarray) -> np.ndarray:
-        """``[N, 5]`` ``log pi(a | x)`` for observations ``obs [N, 5]`` (``d_AC, v_AC, d_AB,
-        v_AB, v_A``; ft, ft/s) and previous actions ``prev [N]`` (-1: unknown)."""
+        """``[N, 5]`` ``log pi(a | x)`` for observations ``obs [N, 7]`` (``d_AC, v_AC, d_AB,
+        v_AB, v_A, len_C, len_B``; ft, ft/s; a length NaN: unknown) and previous actions
+        ``prev [N]`` (-1: unknown)."""
         return conditional_log_policy(car_following_features(obs, prev, self.action_acc_ft_s2, self.gap_need), self.theta)
 
     def loglik_of(self, decisions: CFDecisions) -> float:

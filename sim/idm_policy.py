@@ -40,7 +40,8 @@ class IdmPolicy:
     Attributes:
         gap_need: the IDM parameters (ft, s, ft/s^2, ft/s): ``min_gap_ft`` (s0),
             ``time_headway_s`` (T), ``accel_ft_s2`` (a_max), ``decel_ft_s2`` (b),
-            ``desired_speed_ft_s`` (v0), ``length_ft`` (C's length, subtracted from ``d_AC``).
+            ``desired_speed_ft_s`` (v0), ``length_ft`` (the leader's length where the
+            observation has none; otherwise ``len_C`` or ``len_B`` is subtracted from the gap).
         name: label in reports (``idm``).
         action_acc_ft_s2: ``[5]`` acceleration applied per action (ft/s^2).
         delta: the free-road exponent (4, SUMO's and Treiber's default).
@@ -68,16 +69,17 @@ class IdmPolicy:
     def acceleration(self, obs: MergeObservation) -> float:
         """The IDM acceleration (ft/s^2) at ``obs``: towards B (``d_AB``, ``v_AB``) when
         ``b_merged`` and B is ahead of A and nearer than C, else towards C (``d_AC``, ``v_AC``);
-        free road when neither applies (``d_AC`` NaN)."""
+        free road when neither applies (``d_AC`` NaN). The bumper gap is the front-to-front
+        gap minus the leader's length (``len_B`` or ``len_C``; ``length_ft`` if unknown)."""
         g = self.gap_need
         v = max(obs.speed_A, 0.0)
         free = 1.0 - (v / g.desired_speed_ft_s) ** self.delta
-        gap, dv = obs.d_AC, obs.v_AC
+        gap, dv, length = obs.d_AC, obs.v_AC, obs.len_C
         if obs.b_merged and obs.d_AB > 0 and not (np.isfinite(gap) and gap <= obs.d_AB):
-            gap, dv = obs.d_AB, obs.v_AB
+            gap, dv, length = obs.d_AB, obs.v_AB, obs.len_B
         if not np.isfinite(gap):
             return g.accel_ft_s2 * free
-        return g.accel_ft_s2 * (free - float(g.need(gap, v, dv)))
+        return g.accel_ft_s2 * (free - float(g.need(gap, v, dv, length)))
 
     def probs(self, obs: MergeObservation) -> np.ndarray:
         """``[5]``: probability 1 on the action whose bin holds :meth:`acceleration`."""

@@ -33,6 +33,9 @@ def test_acceleration_is_the_idm_formula():
     np.testing.assert_array_equal(p, [1, 0, 0, 0, 0])
     # far lead car, standstill: a_max, 4 ft/s^2, is in the Low Accel bin (0.6 to 4.8)
     np.testing.assert_array_equal(idm.probs(_obs(0.0, 2000.0, 0.0)), [0, 0, 0, 1, 0])
+    # a 40-ft truck C observed with its length: the bumper gap is 35 ft, not 60
+    truck = MergeObservation(d_AC=75.0, d_AB=-50.0, v_AC=10.0, v_AB=0.0, b_is_truck=False, speed_A=50.0, len_C=40.0)
+    assert idm.acceleration(truck) == pytest.approx(4.0 * (1 - 0.5 ** 4 - (s_star / 35.0) ** 2))
 
 
 def test_from_scenario_takes_the_car_type():
@@ -65,3 +68,9 @@ def test_b_is_the_leader_once_it_has_merged_ahead_and_nearer_than_c():
     no_c = MergeObservation(d_AC=float("nan"), d_AB=60.0, v_AC=float("nan"), v_AB=8.0, b_is_truck=False,
                             speed_A=60.0, b_merged=True)
     assert idm.acceleration(no_c) == pytest.approx(towards_b)
+    # the leader's own length: B's once B leads, C's otherwise
+    lengths = dict(d_AC=300.0, d_AB=60.0, v_AC=0.0, v_AB=8.0, b_is_truck=True, speed_A=60.0, len_C=14.0, len_B=39.0)
+    assert idm.acceleration(MergeObservation(**lengths, b_merged=True)) == pytest.approx(
+        g.accel_ft_s2 * (free - float(g.need(60.0, 60.0, 8.0, 39.0))))
+    assert idm.acceleration(MergeObservation(**lengths, b_merged=False)) == pytest.approx(
+        g.accel_ft_s2 * (free - float(g.need(300.0, 60.0, 0.0, 14.0))))

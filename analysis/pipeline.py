@@ -112,8 +112,8 @@ class DemoConfig:
             on the same encounters), trained after the IRL methods and evaluated beside them;
             0: not trained. Default ``DaggerConfig.rounds`` (4): ``cf-dagger`` is the default
             learned driver, the one that meets the closed-loop targets (no collision by its As in
-            30 episodes on two seed sets; docs/closed-loop.md). The 4 rounds took 21 s of a 31 s
-            demo on 2 idle cores (2026-12-02; 54 s at load average 2).
+            30 episodes on two seed sets; docs/closed-loop.md). The 4 rounds took 19-21 s of a
+            29-31 s demo on 2 idle cores (2026-12-02; 54 s at load average 2).
         encounter_rule: how the data runs become demonstrations (:mod:`sim.demonstrations`;
             default ``in-lane``: SUMO's drivers observed as the controller observes them, A's lane
             held while observed, so that they are what the commanded drivers can do).

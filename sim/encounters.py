@@ -17,9 +17,10 @@ its ramp lanes for 7, its merge lane for 6; unknown lane codes are an error):
   action ``acc_A = (v_Vel(A, t+1) - v_Vel(A, t)) / 0.1 s``: the forward difference, the
   acceleration A applies in frame t (``v_Acc`` is the backward difference that led to frame t
   and is not used), A's speed ``v_A``, and the lengths ``len_C`` and ``len_B`` (``v_Length``,
-  NaN when the table has no such column). The next frame may lie beyond the window: A's row at t+1 is taken from the
-  table wherever it is. A frame whose t+1 row of A is not in the table has no action and no
-  row. The columns, dtypes and units are :data:`irl.domains.merge_encounters.ENCOUNTER_SCHEMA`.
+  NaN when the table has no such column). The next frame may lie beyond the window: A's row at
+  t+1 is taken from the table wherever it is. A frame whose t+1 row of A is not in the table
+  has no action and no row. The columns, dtypes and units are
+  :data:`irl.domains.merge_encounters.ENCOUNTER_SCHEMA`.
 * **Window** (:class:`EncounterWindow`): from the first frame in which A and B are both in the
   table (both in the section), or at most ``max_frames_before`` frames before the merge, until
   ``frames_after`` frames after the merge frame (0: the merge frame is the last row). Frames in

@@ -11,9 +11,11 @@ Hennecke & Helbing 2000, Phys. Rev. E 62, 1805), whose acceleration is
 
 * ``bias_<action>``: one-hot action (4 of them, Zero is the reference), as in the driver set;
 * ``acc_x_gap_need_C``: ``acc_a / 8 x min((s*/s)^2, clip)`` with ``s`` the bumper gap to C
-  (``d_AC - len_C``; a car's length when ``len_C`` is NaN) and ``dv = v_AC``; 0 without C. A negative weight makes
-  braking likelier as the gap falls short of the desired one, without bound up to ``clip``;
-* ``acc_x_gap_need_B``: the same towards B (``d_AB - len_B``) while B is ahead of A (``d_AB > 0``), else 0;
+  (``d_AC - len_C``; a car's length when ``len_C`` is NaN) and ``dv = v_AC``; 0 without C. A
+  negative weight makes braking likelier as the gap falls short of the desired one, without
+  bound up to ``clip``;
+* ``acc_x_gap_need_B``: the same towards B (``d_AB - len_B``) while B is ahead of A
+  (``d_AB > 0``), else 0;
 * ``acc_x_free_road``: ``acc_a / 8 x (v_A / v0)^4`` (the free-road term);
 * ``keep_action``: 1 when ``a`` repeats the previous action; ``jerk``: ``|acc_a - acc_prev| / 8``.
 
@@ -133,8 +135,8 @@ def car_following_decisions(encounters_df: pd.DataFrame, *, decision_step_s: flo
     states, actions, _ = d.demos.flat()
     _, prev = split_driver_state(states)
     picked = encounters_df.iloc[d.rows]
-    obs = np.column_stack([pd.to_numeric(picked[c], errors="coerce").to_numpy(dtype=np.float64)
-                           if c in picked.columns else np.full(len(picked), np.nan)
+    obs = np.column_stack([np.full(len(picked), np.nan) if c in OPTIONAL_OBS_COLUMNS and c not in picked.columns
+                           else pd.to_numeric(picked[c], errors="coerce").to_numpy(dtype=np.float64)
                            for c in OBS_COLUMNS]).reshape(-1, len(OBS_COLUMNS))
     bad = ~np.isfinite(obs[:, 4]) | (obs[:, 4] < 0)
     if bad.any():

@@ -75,7 +75,10 @@ def test_features_by_hand():
     np.testing.assert_allclose(F[1, :, COL["acc_x_gap_need_B"]], acc * g.need(40.0, 30.0, -2.0, 45.0))
     np.testing.assert_allclose(F[2, :, COL["acc_x_gap_need_C"]], acc * g.need(100.0, 60.0, 10.0, g.length_ft))
     np.testing.assert_allclose(F[2, :, COL["acc_x_gap_need_B"]], acc * g.need(40.0, 60.0, -2.0, g.length_ft))
-    assert F[1, 0, COL["acc_x_gap_need_B"]] < F[2, 0, COL["acc_x_gap_need_B"]]  # a truck B ahead: more need
+    # the same B taken for a car (length unknown): the bumper gap 25 ft instead of the truck's 1 ft floor
+    as_car = car_following_features(np.where(np.arange(7) == 6, np.nan, obs[1])[None], np.array([-1]), ACC, g)
+    assert F[1, 0, COL["acc_x_gap_need_B"]] == pytest.approx(acc[0] * g.clip)
+    assert as_car[0, 0, COL["acc_x_gap_need_B"]] > 0.5 * acc[0] * g.clip
     np.testing.assert_allclose(F[0, :, COL["acc_x_free_road"]], acc * (60.0 / g.desired_speed_ft_s) ** 4)
     np.testing.assert_array_equal(F[0, :, COL["keep_action"]], [0, 0, 0, 0, 1])
     np.testing.assert_array_equal(F[1, :, COL["keep_action"]], np.arange(5) == ZERO_ACTION)  # unknown: Zero

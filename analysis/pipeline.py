@@ -10,10 +10,13 @@
 3. **learn** Q-Avg by default (MLIRL, Q-SM and REIRL on request; ``analysis.learn``) with the
    settings of ``merge-irl learn`` on encounter tables (driver features and state encoding,
    beta 1: :func:`analysis.learn.merge_config`) and gamma ``DemoConfig.gamma`` (0, chosen by
-   held-out log-likelihood), one ``model.json`` each;
-4. **re-inject and evaluate**: every model drives the lag cars A of new episodes (other seeds),
-   against SUMO's own driver and uniform random (``analysis.evaluate``), with the held-out
-   encounters for the action divergence and the held-out log-likelihood;
+   held-out log-likelihood), one ``model.json`` each; then the car-following logit driver
+   ``cf-dagger``, the default learned driver (``DemoConfig.dagger_rounds`` DAgger rounds,
+   ``analysis.dagger``; 0: left out);
+4. **re-inject and evaluate**: every model and ``cf-dagger`` drive the lag cars A of new
+   episodes (other seeds), beside SUMO's own driver and the baselines uniform, marginal, markov
+   and bc (``analysis.evaluate``), with the held-out encounters for the held-out
+   log-likelihood and the Wasserstein distances;
 5. **log**: ``demo.rrd`` holds the IRL training traces of every method and one closed-loop
    episode driven by Q-Avg (vehicles, policy, metrics); the evaluation adds one ``.rrd`` per
    policy.
@@ -21,7 +24,7 @@
 Everything goes under ``out_dir`` (default ``./runs/demo``)::
 
     data/train_encounters.parquet, data/heldout_encounters.parquet, data/bins.json
-    models/<method>.json
+    models/<method>.json, models/cf-dagger.json, models/cf-logit.json (DAgger's round 0)
     evaluation/report.md, metrics.json, *.png, rerun/<policy>.rrd
     demo.rrd
     summary.md      (with the provenance: versions, git commit, scenario and model hashes)
@@ -52,6 +55,7 @@ from analysis.provenance import provenance, provenance_markdown, text_digest, wr
 from analysis.sweep import Task, run_sweep
 from irl.atomic import write_text_atomic
 from irl.errors import ConfigError, IRLError
+from irl.fit import METHODS
 from irl.domains.merge_bins import fit_quantile_bins
 from irl.problems import load_problem
 from scenarios.loader import load_scenario
@@ -154,7 +158,7 @@ class DemoConfig:
         if shared:
             raise ConfigError(f"DemoConfig: seed(s) {shared} are both training and held-out seeds "
                               f"(held-out: {self.heldout_seed}..{self.heldout_seeds[-1]})")
-        scored = sorted({*self.train_seeds, *self.heldout_seeds} & set(self.eval_seeds))
+        scored = sorted(s for s in {*self.train_seeds, *self.heldout_seeds} if s in self.eval_seeds)
         if scored:
             raise ConfigError(f"DemoConfig: seed(s) {scored} are data seeds and evaluation seeds (evaluation: "
                               f"{self.eval_seed}..{self.eval_seeds[-1]}): the drivers would be "
@@ -270,9 +274,11 @@ def check_dagger_seeds(config: DemoConfig) -> None:
     """
     if not config.dagger_rounds:
         return
-    labelling = set(DaggerConfig(rounds=config.dagger_rounds).label_seeds())
-    if labelling & {*config.eval_seeds, *config.train_seeds, *config.heldout_seeds}:
-        raise SimError(f"demo: the DAgger labelling seeds {min(labelling)}..{max(labelling)} overlap the data "
+    labelling = DaggerConfig(rounds=config.dagger_rounds).label_seeds()  # ranges: no set of every seed
+    ev = config.eval_seeds
+    if (max(labelling.start, ev.start) < min(labelling.stop, ev.stop)
+            or any(s in labelling for s in (*config.train_seeds, *config.heldout_seeds))):
+        raise SimError(f"demo: the DAgger labelling seeds {labelling.start}..{labelling.stop - 1} overlap the data "
                        "or evaluation seeds")
 
 
@@ -358,7 +364,7 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     _run_logged_episode(config, pol, logger)
     close_recording(rec, tmp_rrd, out / "demo.rrd")
 
-    _say(f"[5/5] evaluating {len(models)} models + sumo, uniform, marginal, markov, bc, "
+    _say(f"[5/5] evaluating {len(models)} model{'s' * (len(models) > 1)} + sumo, uniform, marginal, markov, bc, "
          f"{config.eval_episodes} episodes each", quiet)
     irl_models = [path for name, path in models.items() if name != CF_DRIVER]
     report = evaluate(irl_models, config.scenario, config.eval_episodes, config.eval_seed,
@@ -374,7 +380,19 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     write_text_atomic(out / "summary.md", "# merge-irl demo\n\n```\n" + result.format(timings=False) + "\n```\n\n"
                       + provenance_markdown(summary_prov) + "\n")
     write_timings(out, {"wall_time_s": wall, "fit_wall_time_s": fit_times})
+    _remove_stale_models(out / "models", written={*models.values(), out / "models" / "cf-logit.json"}
+                         if config.dagger_rounds > 0 else set(models.values()))
     return result
+
+
+def _remove_stale_models(folder: Path, written: set[Path]) -> None:
+    """Remove the model files an earlier demo left in ``folder`` that this run did not write (a
+    method not learned this time, ``cf-dagger``/``cf-logit`` with ``dagger_rounds`` 0): they would
+    read as this run's. Files of other names are left alone."""
+    for name in (*METHODS, CF_DRIVER, "cf-logit"):
+        path = folder / f"{name}.json"
+        if path not in written and path.is_file():
+            path.unlink()
 
 
 def _run_logged_episode(config: DemoConfig, policy, logger) -> None:

@@ -57,7 +57,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from analysis.commands._arg_types import non_negative_int
+from analysis.commands._arg_types import non_negative_int, positive_int
 from analysis.dagger import DaggerConfig
 from analysis.demo_signal import bin_change_rate, braking_cap_share
 from analysis.evaluate import evaluate
@@ -71,6 +71,17 @@ from sim.controller_config import ControllerConfig
 from sim.encounter_rules import ENCOUNTER_RULES
 from sim.errors import SimError
 from sim.policy import CarFollowingLogitPolicy
+
+
+def _seeds(text: str) -> tuple[int, ...]:
+    """``--train-seeds``: comma-separated whole numbers >= 0."""
+    try:
+        seeds = tuple(int(s) for s in text.split(",") if s.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated whole numbers, got {text!r}") from None
+    if not seeds or min(seeds) < 0:
+        raise argparse.ArgumentTypeError(f"expected comma-separated whole numbers >= 0, got {text!r}")
+    return seeds
 
 
 def _f(x: float, nd: int = 3) -> str:
@@ -104,22 +115,26 @@ def target_checks(name: str, aggs: dict, floor: str = "sumo") -> list[tuple[str,
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--scenario", default="synthetic")
-    ap.add_argument("--episodes", type=int, default=30)
-    ap.add_argument("--train-seeds", default="101,102,103")
+    ap.add_argument("--scenario", default="synthetic", help="scenario preset or TOML file (default: synthetic)")
+    ap.add_argument("--episodes", type=positive_int, default=30,
+                    help="evaluation episodes per policy (default 30, the issue's minimum)")
+    ap.add_argument("--train-seeds", type=_seeds, default=(101, 102, 103),
+                    help="comma-separated SUMO seeds of the training runs (default 101,102,103; the target asks "
+                         "for at least 3)")
     ap.add_argument("--eval-seed", type=int, default=DemoConfig.eval_seed,
                     help="first SUMO seed of the evaluation episodes (seeds eval-seed .. eval-seed + episodes - 1)")
     ap.add_argument("--heldout-runs", type=int, default=10,
                     help="held-out data runs of the reference demonstrations (default 10; the demo uses 1: the "
                          "distances to one run vary more with the run than with the driver)")
-    ap.add_argument("--methods", default="qavg")
+    ap.add_argument("--methods", default="qavg", help="comma-separated IRL methods learned beside cf-dagger "
+                                                         "(default qavg)")
     ap.add_argument("--driver", default=None,
                     help="the learned driver of the safety-filter variant and of the target checks (default: cf-dagger, "
                          "the demo's default learned driver; the first method with --cf-rounds 0)")
     ap.add_argument("--eval-duration", type=float, default=None,
                     help="simulated seconds per evaluation episode (default: the scenario's, as long as the data "
                          "runs: shorter episodes sample fewer gaps per run than the demonstrations hold)")
-    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--workers", type=positive_int, default=2, help="processes (default 2)")
     ap.add_argument("--gamma", type=float, default=DemoConfig.gamma, help="discount of the IRL fits")
     ap.add_argument("--safety-ttc", type=float, default=2.0,
                     help="TTC (s) of the safety-filter variant of the default driver (0: not run)")
@@ -128,15 +143,17 @@ def main(argv=None) -> int:
                          "pipeline (0: neither cf row is run)")
     ap.add_argument("--encounter-rule", choices=ENCOUNTER_RULES, default=ENCOUNTER_RULES[0],
                     help="how the data runs become demonstrations (sim.demonstrations)")
-    ap.add_argument("--out", default="runs/closed-loop-target")
+    ap.add_argument("--out", default="runs/closed-loop-target", help="output folder (default runs/closed-loop-target)")
     args = ap.parse_args(argv)
     methods = tuple(m for m in args.methods.split(",") if m)
     drivers = (*methods, CF_DRIVER) if args.cf_rounds > 0 else methods
-    driver = args.driver or drivers[-1]
+    if not methods:
+        ap.error("--methods: at least one IRL method (the demo pipeline learns them before cf-dagger)")
+    driver = args.driver or (CF_DRIVER if args.cf_rounds > 0 else methods[0])
     if driver not in drivers:
         ap.error(f"--driver {driver}: not among the learned drivers {', '.join(drivers)}")
     try:
-        cfg = DemoConfig(scenario=args.scenario, train_seeds=tuple(int(s) for s in args.train_seeds.split(",")),
+        cfg = DemoConfig(scenario=args.scenario, train_seeds=args.train_seeds,
                          eval_episodes=args.episodes, eval_duration_s=args.eval_duration, methods=methods,
                          workers=args.workers, gamma=args.gamma, eval_seed=args.eval_seed,
                          dagger_rounds=args.cf_rounds, encounter_rule=args.encounter_rule,

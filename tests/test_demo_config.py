@@ -38,6 +38,16 @@ def test_dagger_labelling_seeds_may_not_be_held_out_seeds():
     check_dagger_seeds(DemoConfig(dagger_rounds=1, heldout_seed=201, heldout_runs=10))  # 500.. is free
     with pytest.raises(SimError, match="overlap"):
         check_dagger_seeds(DemoConfig(dagger_rounds=1, heldout_seed=495, heldout_runs=10))  # 495..504 vs 500..514
+    with pytest.raises(SimError, match="500..514"):
+        check_dagger_seeds(DemoConfig(dagger_rounds=1, eval_seed=510, eval_episodes=30))  # evaluation 510..539
+    check_dagger_seeds(DemoConfig(dagger_rounds=1, eval_seed=515, eval_episodes=30))
+    # seed ranges are compared as ranges: a huge count is checked at once (a set of every seed
+    # filled the machine's memory)
+    check_dagger_seeds(DemoConfig(dagger_rounds=10**12))
+    with pytest.raises(SimError, match="overlap"):
+        check_dagger_seeds(DemoConfig(dagger_rounds=10**12, eval_seed=10**9, eval_episodes=10**12))
+    with pytest.raises(ConfigError, match=r"\[101, 102, 103, 201\]"):
+        DemoConfig(eval_episodes=10**12)
 
 
 def test_cli_rejects_a_bad_heldout_count_before_any_run(tmp_path, capsys):

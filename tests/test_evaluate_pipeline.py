@@ -16,8 +16,13 @@ pytestmark = pytest.mark.sumo
 def test_run_demo_small(tmp_path):
     cfg = DemoConfig(train_seeds=(11,), heldout_seed=12, data_duration_s=240.0, eval_episodes=1,
                      eval_duration_s=110.0, methods=("qavg",), dagger_rounds=0)
+    # an earlier demo's models in the folder: those this run does not write are removed, other files kept
+    (tmp_path / "demo" / "models").mkdir(parents=True)
+    for name in ("cf-dagger.json", "cf-logit.json", "qsm.json", "mine.json"):
+        (tmp_path / "demo" / "models" / name).write_text("{}")
     res = run_demo(tmp_path / "demo", cfg, quiet=True, progress=False)
     out = tmp_path / "demo"
+    assert sorted(p.name for p in (out / "models").iterdir()) == ["mine.json", "qavg.json"]
     model = SavedModel.load(res.models["qavg"])
     assert set(model.bin_edges) == {"d_AC", "d_AB", "v_AC", "v_AB"}
     # learned as `merge-irl learn` learns on encounter tables (driver features and encoding, beta 1),

@@ -85,8 +85,16 @@ def test_features_by_hand():
     np.testing.assert_allclose(F[0, :, COL["jerk"]], np.abs(acc - acc[4]))
     np.testing.assert_array_equal(F[:, :, COL["bias_high_brake"]], [[1, 0, 0, 0, 0]] * 3)
     assert np.isfinite(F).all()
-    with pytest.raises(ConfigError):
+    with pytest.raises(ConfigError, match="len_C, len_B"):
         car_following_features(obs[:, :5], np.array([0, 0, 0]), ACC)  # no lengths: not an observation
+    for bad in (-50.0, 0.0, np.inf):
+        wrong = obs.copy()
+        wrong[2, 6] = bad
+        with pytest.raises(ConfigError, match="obs row 2, len_B"):
+            car_following_features(wrong, np.array([0, 0, 0]), ACC)
+    with pytest.raises(ConfigError, match="whole actions"):
+        car_following_features(obs, np.array([0.7, 0, 0]), ACC)
+    np.testing.assert_array_equal(car_following_features(obs, np.array([4.0, -1.0, 2.0]), ACC, g), F)
 
 
 def test_decisions_follow_resample_encounters_with_the_driver_encoding():
@@ -117,10 +125,15 @@ def test_decisions_follow_resample_encounters_with_the_driver_encoding():
     np.testing.assert_array_equal(got.obs, with_len.iloc[expected_rows][
         ["d_AC", "v_AC", "d_AB", "v_AB", "v_A", "len_C", "len_B"]].to_numpy(float))
     for bad in (-3.0, 0.0, np.inf, "long"):
-        broken = with_len.astype({"len_C": object})
-        broken.loc[expected_rows[4], "len_C"] = bad
-        with pytest.raises(DemonstrationError, match=f"row {expected_rows[4]}, column 'len_C'"):
-            car_following_decisions(broken, decision_step_s=0.3)
+        for row in (expected_rows[4], 1):  # a decision's row and a row between decisions: every row is checked
+            broken = with_len.astype({"len_C": object})
+            broken.loc[row, "len_C"] = bad
+            with pytest.raises(DemonstrationError, match=f"row {row}, column 'len_C': .* got {bad!r}$"):
+                car_following_decisions(broken, decision_step_s=0.3)
+    broken = with_len.copy()
+    broken.loc[2, "v_A"] = -3.0
+    with pytest.raises(DemonstrationError, match=r"row 2, column 'v_A': .* got -3\.0$"):
+        car_following_decisions(broken, decision_step_s=0.3)
 
 
 def test_fit_learns_to_brake_on_a_short_gap_and_round_trips_through_its_file(tmp_path):

@@ -33,17 +33,18 @@ def register(subparsers) -> None:
                     "and cf-dagger.json (the last round; not with --rounds 0); evaluate them with 'merge-irl evaluate "
                     "--cf-model'.")
     p.add_argument("--train", required=True, metavar="ENCOUNTERS",
-                   help="training encounter table (.parquet/.csv) with A's speed v_A, e.g. "
+                   help="training encounter table (.parquet/.csv) with A's speed v_A (and, optional, the "
+                        "lengths len_C and len_B: without them every leader is taken for a car), e.g. "
                         "runs/demo/data/train_encounters.parquet")
     p.add_argument("--scenario", default="synthetic",
                    help="preset or scenario TOML of the labelling runs: the one the encounters came from")
-    p.add_argument("--rounds", type=non_negative_int, default=4, help="DAgger rounds (0: the logit alone)")
-    p.add_argument("--episodes-per-round", type=positive_int, default=15, help="SUMO runs per round")
+    p.add_argument("--rounds", type=non_negative_int, default=4, help="DAgger rounds (default 4; 0: the logit alone)")
+    p.add_argument("--episodes-per-round", type=positive_int, default=15, help="SUMO runs per round (default 15)")
     p.add_argument("--label-seed", type=int, default=500,
-                   help="seed of the first labelling run (round r, run e: seed + r x episodes + e); keep the "
-                        "evaluation seeds apart")
-    p.add_argument("--duration", type=float, default=240.0, help="simulated seconds per labelling run")
-    p.add_argument("--l2", type=float, default=0.1, help="L2 penalty of the fits")
+                   help="seed of the first labelling run (default 500; round r, run e: seed + r x episodes + e); "
+                        "keep the evaluation seeds apart")
+    p.add_argument("--duration", type=float, default=240.0, help="simulated seconds per labelling run (default 240)")
+    p.add_argument("--l2", type=float, default=0.1, help="L2 penalty of the fits (default 0.1)")
     p.add_argument("--critical", type=_actions, default=(0,), metavar="ACTIONS",
                    help=f"expert actions whose labels are kept, comma-separated among {', '.join(ACTION_KEYS)} "
                         "(default high_brake; all five: plain DAgger)")

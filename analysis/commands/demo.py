@@ -28,7 +28,7 @@ def register(subparsers) -> None:
                    help="scenario preset or TOML file (default: synthetic)")
     p.add_argument("--duration", type=float, default=None, metavar="S",
                    help="simulated seconds of each data run (default: the scenario's)")
-    p.add_argument("--episodes", type=int, default=None, metavar="N",
+    p.add_argument("--episodes", type=positive_int, default=None, metavar="N",
                    help="evaluation episodes per policy (default 3)")
     p.add_argument("--methods", default=None, metavar="LIST",
                    help="comma-separated IRL methods (default: qavg; mlirl, qsm and reirl are slower at the driver "
@@ -60,8 +60,6 @@ def run(args: argparse.Namespace) -> int:
     if args.duration is not None:
         config = replace(config, data_duration_s=args.duration)
     if args.episodes is not None:
-        if args.episodes < 1:
-            raise SystemExit("merge-irl demo: error: --episodes must be >= 1")
         config = replace(config, eval_episodes=args.episodes)
     if args.methods:
         config = replace(config, methods=tuple(m.strip() for m in args.methods.split(",") if m.strip()))

@@ -78,7 +78,8 @@ class GapNeed:
     def need(self, gap_ft, v_ft_s, dv_ft_s, leader_length_ft=np.nan) -> np.ndarray:
         """``min((s*/s)^2, clip)`` for front-to-front gaps ``gap_ft``, A's speed and closing
         speed ``dv`` (arrays of one shape, or broadcastable; ft, ft/s). ``s`` is the gap minus
-        the leader's length ``leader_length_ft`` (``length_ft`` where NaN), at least 1 ft;
+        the leader's length ``leader_length_ft`` (``length_ft`` where it is not finite: unknown),
+        at least 1 ft;
         ``s*`` is at least ``min_gap_ft``."""
         ln = np.asarray(leader_length_ft, dtype=np.float64)
         ln = np.where(np.isfinite(ln), ln, self.length_ft)
@@ -123,13 +124,30 @@ def car_following_decisions(encounters_df: pd.DataFrame, *, decision_step_s: flo
 
     Raises:
         DemonstrationError: the table has no ``v_A`` column (A's speed, ft/s; the pipeline
-            writes it), a speed at a decision that is NaN, infinite or negative (naming the
-            row), or breaks the encounter table's checks.
+            writes it), a row whose speed is not a finite number >= 0 or whose ``len_C`` /
+            ``len_B`` is neither empty (unknown) nor a finite number > 0 ft (every row is
+            checked, not only the decisions'; the message names the row, counted from 0, and
+            the column), or the table breaks the encounter table's checks.
         ConfigError: a bad decision step.
     """
     if "v_A" not in encounters_df.columns:
         raise DemonstrationError(f"{where}: the car-following features need A's speed, a 'v_A' column (ft/s); "
                                  f"columns are {list(encounters_df.columns)}")
+    for c, lowest, empty_ok in (("v_A", 0.0, False), ("len_C", None, True), ("len_B", None, True)):
+        if c not in encounters_df.columns:
+            continue
+        col = encounters_df[c]
+        x = pd.to_numeric(col, errors="coerce").to_numpy(dtype=np.float64)
+        ok = np.isfinite(x) & ((x >= lowest) if lowest is not None else (x > 0))
+        if empty_ok:
+            ok |= col.isna().to_numpy()
+        if not ok.all():
+            i = int(np.argmax(~ok))
+            got = col.iloc[i]
+            got = got.item() if isinstance(got, np.generic) else got
+            need = ("A's speed must be a finite number >= 0 ft/s" if c == "v_A" else
+                    "a vehicle length must be a finite number > 0 ft, or empty (unknown)")
+            raise DemonstrationError(f"{where}: row {i}, column {c!r}: {need}, got {got!r}")
     d = resample_encounters(encounters_df, MergeBins.assumed_authors(), where=where, encoding="driver",
                             decision_step_s=decision_step_s)
     states, actions, _ = d.demos.flat()
@@ -138,19 +156,6 @@ def car_following_decisions(encounters_df: pd.DataFrame, *, decision_step_s: flo
     obs = np.column_stack([np.full(len(picked), np.nan) if c in OPTIONAL_OBS_COLUMNS and c not in picked.columns
                            else pd.to_numeric(picked[c], errors="coerce").to_numpy(dtype=np.float64)
                            for c in OBS_COLUMNS]).reshape(-1, len(OBS_COLUMNS))
-    bad = ~np.isfinite(obs[:, 4]) | (obs[:, 4] < 0)
-    if bad.any():
-        i = int(np.argmax(bad))
-        raise DemonstrationError(f"{where}: row {int(d.rows[i])}, column 'v_A': A's speed must be a finite number "
-                                 f">= 0 ft/s at every decision, got {obs[i, 4]}")
-    for j, c in ((5, "len_C"), (6, "len_B")):
-        if c not in picked.columns:
-            continue
-        bad = picked[c].notna().to_numpy() & ~(np.isfinite(obs[:, j]) & (obs[:, j] > 0))
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise DemonstrationError(f"{where}: row {int(d.rows[i])}, column {c!r}: a vehicle length must be a "
-                                     f"finite number > 0 ft, or empty (unknown), got {picked[c].iloc[i]!r}")
     return CFDecisions(obs, prev.astype(np.int64), np.asarray(actions, dtype=np.int64),
                        tuple(float(x) for x in d.action_acc_ft_s2), float(decision_step_s))
 
@@ -162,14 +167,26 @@ def car_following_features(obs: np.ndarray, prev: np.ndarray, action_acc_ft_s2,
     ``action_acc_ft_s2 [5]`` the acceleration of each action (ft/s^2).
 
     Raises:
-        ConfigError: ``obs`` is not ``[N, 7]``, ``prev`` not ``[N]`` actions or -1, or ``action_acc``
-            not 5 finite numbers.
+        ConfigError: ``obs`` is not ``[N, 7]``, a length in it neither NaN (unknown) nor a finite
+            number > 0, ``prev`` not ``[N]`` whole actions or -1, or ``action_acc`` not 5 finite
+            numbers.
     """
     obs = np.asarray(obs, dtype=np.float64)
-    prev = np.asarray(prev, dtype=np.int64)
+    prev_in = np.asarray(prev)
     acc = np.asarray(action_acc_ft_s2, dtype=np.float64)
-    if obs.ndim != 2 or obs.shape[1] != len(OBS_COLUMNS) or prev.shape != (obs.shape[0],):
-        raise ConfigError(f"obs must be [N, {len(OBS_COLUMNS)}] and prev [N]; got {obs.shape} and {prev.shape}")
+    if obs.ndim != 2 or obs.shape[1] != len(OBS_COLUMNS) or prev_in.shape != (obs.shape[0],):
+        raise ConfigError(f"obs must be [N, {len(OBS_COLUMNS)}] (columns {', '.join(OBS_COLUMNS)}) and prev [N]; "
+                          f"got {obs.shape} and {prev_in.shape}")
+    if prev_in.size and not (np.issubdtype(prev_in.dtype, np.integer)
+                             or np.all(np.isfinite(prev_in) & (prev_in == np.round(prev_in)))):
+        raise ConfigError(f"prev must hold whole actions (or -1), got {prev_in[:5]}")
+    prev = prev_in.astype(np.int64)
+    lengths = obs[:, 5:7]
+    bad = ~np.isnan(lengths) & ~(np.isfinite(lengths) & (lengths > 0))
+    if bad.any():
+        i, j = (int(k) for k in np.argwhere(bad)[0])
+        raise ConfigError(f"obs row {i}, {OBS_COLUMNS[5 + j]}: a length must be NaN (unknown) or a finite number "
+                          f"> 0 ft, got {lengths[i, j]}")
     if acc.shape != (N_ACTIONS,) or not np.all(np.isfinite(acc)):
         raise ConfigError(f"action_acc_ft_s2 must be {N_ACTIONS} finite numbers, got {acc}")
     if prev.size and (prev.min() < -1 or prev.max() >= N_ACTIONS):

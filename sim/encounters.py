@@ -17,7 +17,7 @@ its ramp lanes for 7, its merge lane for 6; unknown lane codes are an error):
   action ``acc_A = (v_Vel(A, t+1) - v_Vel(A, t)) / 0.1 s``: the forward difference, the
   acceleration A applies in frame t (``v_Acc`` is the backward difference that led to frame t
   and is not used), A's speed ``v_A``, and the lengths ``len_C`` and ``len_B`` (``v_Length``,
-  NaN when the table has no such column). The next frame may lie beyond the window: A's row at
+  NaN when the table has no such column or the length is not > 0). The next frame may lie beyond the window: A's row at
   t+1 is taken from the table wherever it is. A frame whose t+1 row of A is not in the table
   has no action and no row. The columns, dtypes and units are
   :data:`irl.domains.merge_encounters.ENCOUNTER_SCHEMA`.
@@ -208,6 +208,7 @@ def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),
     vel = table["v_Vel"].to_numpy(np.float64)
     length = (table["v_Length"].to_numpy(np.float64) if "v_Length" in table.columns
               else np.full(len(table), np.nan))
+    length = np.where(length > 0, length, np.nan)  # a length of 0 (NGSIM's readers accept it) is unknown
     vclass = table["v_Class"].to_numpy(np.int64)
     gtime = table["Global_Time"].to_numpy(np.int64)
     first_frame = pd.Series(frame).groupby(vid).min()

@@ -54,6 +54,15 @@ def test_definitions_and_signs_on_a_hand_made_merge():
     assert np.allclose(f.v_AC, 50 - 45) and np.allclose(f.v_AB, 50 - 40)
     assert f.B_is_truck.all() and np.allclose(f.acc_A, 0.0)  # A's speed is constant; v_Acc is not used
     assert (f.Global_Time == f.Frame_ID * 100).all() and (f.merge_frame == 18).all()
+    assert (f.len_C == 15.0).all() and (f.len_B == 15.0).all()  # the vehicles' v_Length
+    # lengths are unknown (NaN) without a v_Length column, or where it is not > 0
+    table = make_table(tracks, trucks=(2,))
+    table.loc[table.Vehicle_ID == 3, "v_Length"] = 0.0
+    f0 = extract(table).frames
+    assert f0.len_C.isna().all() and (f0.len_B == 15.0).all()
+    f1 = extract(table.drop(columns=["v_Length"])).frames
+    assert f1.len_C.isna().all() and f1.len_B.isna().all()
+    assert np.allclose(f1.d_AC, f.d_AC)
 
 
 def test_action_is_the_forward_difference_of_A_speed():

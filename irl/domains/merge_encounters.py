@@ -46,11 +46,11 @@ ENCOUNTER_SCHEMA: tuple[EncounterColumn, ...] = (
                     "A's speed v_Vel(A) at frame t (the car-following features and the closed loop's W1 of "
                     "speed use it; not required for the tabular methods)"),
     EncounterColumn("len_C", "float64", "ft",
-                    "C's length v_Length in frame t (d_AC minus it is the bumper gap A follows at); NaN without C or "
-                    "when the trajectory table has no v_Length; used by the car-following features only"),
+                    "C's length v_Length in frame t (d_AC minus it is the bumper gap A follows at); NaN without C, "
+                    "or when unknown (no v_Length column, or not > 0); used by the car-following features only"),
     EncounterColumn("len_B", "float64", "ft",
-                    "B's length v_Length (the bumper gap to B once B is ahead of A); NaN when the trajectory table has "
-                    "no v_Length; used by the car-following features only"),
+                    "B's length v_Length (the bumper gap to B once B is ahead of A); NaN when unknown (no v_Length "
+                    "column, or not > 0); used by the car-following features only"),
 )
 #: Column name -> pandas dtype, in table order.
 ENCOUNTER_COLUMNS: dict[str, str] = {c.name: c.dtype for c in ENCOUNTER_SCHEMA}

@@ -39,10 +39,10 @@ learn; every learned driver and every baseline (``sumo``, ``uniform``, ``margina
   the held-out runs' demonstrations (the same drivers on other seeds), and the W1 of d_AC of
   ``sumo``, ``sumo-in-lane``, the default driver and ``uniform`` to each held-out run alone (how
   much one held-out run, the demo's reference, moves the figure);
-* the target checks for every learned driver, the default one (``--driver``, default
-  ``cf-dagger``) first: 0 collisions by controlled cars with the 95 % upper bound, held-out LL
-  per step above ``marginal`` and ``bc``, W1 of speed and of d_AC within 1.5x the SUMO-driver
-  floor.
+* the target checks: the protocol (at least 3 training runs, at least 30 episodes), then for
+  every learned driver, the default one (``--driver``, default ``cf-dagger``) first: 0
+  collisions by controlled cars with the 95 % upper bound, held-out LL per step above
+  ``marginal`` and ``bc``, W1 of speed and of d_AC within 1.5x the SUMO-driver floor.
 
 Run: ``python -m benchmarks.closed_loop_target [--episodes 30] [--methods qavg]`` (MLIRL took over 5 min
 at the driver encoding's 6250 states with the dense transition model: add it once it is sparse).
@@ -278,8 +278,10 @@ def main(argv=None) -> int:
               f"{s.safety_interventions} of {s.n_decisions} actions "
               f"({_f(100 * s.safety_interventions / max(s.n_decisions, 1), 2)} %)")
     print()
+    protocol = [(f"training on at least 3 runs ({len(cfg.train_seeds)})", len(cfg.train_seeds) >= 3),
+                (f"at least 30 evaluation episodes ({args.episodes})", args.episodes >= 30)]
     for name in dict.fromkeys((driver, *drivers)):
-        for text, ok in target_checks(name, aggs, floor):
+        for text, ok in (protocol if name == driver else []) + target_checks(name, aggs, floor):
             print(f"  {'met    ' if ok else 'NOT MET'}  {text}")
     print(f"\nreport: {res.evaluation.report_md}")
     return 0

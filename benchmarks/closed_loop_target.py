@@ -63,7 +63,8 @@ from analysis.demo_signal import bin_change_rate, braking_cap_share
 from analysis.evaluate import evaluate
 from analysis.evaluate_policies import cf_policy
 from analysis.metrics_demos import wasserstein
-from analysis.pipeline import CF_DRIVER, DemoConfig, check_dagger_seeds, run_demo
+from analysis.demo_config import CF_DRIVER, DemoConfig, check_dagger_seeds
+from analysis.pipeline import run_demo
 from irl.domains.merge_cf_logit import CarFollowingLogit
 from irl.errors import ConfigError
 from sim.control_records import COLLISION_KINDS

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from analysis.cli import main
-from analysis.pipeline import DemoConfig, check_dagger_seeds
+from analysis.demo_config import DemoConfig, check_dagger_seeds
 from irl.errors import ConfigError
 from sim.errors import SimError
 

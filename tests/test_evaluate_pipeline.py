@@ -6,7 +6,8 @@ import json
 
 import pytest
 
-from analysis.pipeline import DemoConfig, run_demo
+from analysis.demo_config import DemoConfig
+from analysis.pipeline import run_demo
 from analysis.rrd_read import read_entities
 from irl.result import SavedModel
 
@@ -67,7 +68,7 @@ def test_run_demo_with_the_dagger_driver(tmp_path):
     beside them, evaluated on the same episodes and scored on the held-out demonstrations."""
     import hashlib
 
-    from analysis.pipeline import CF_DRIVER
+    from analysis.demo_config import CF_DRIVER
     from irl.domains.merge_car_following import car_following_decisions
     from irl.domains.merge_cf_logit import CarFollowingLogit
     from irl.merge_mdp import read_encounters

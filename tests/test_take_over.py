@@ -10,7 +10,7 @@ import pytest
 from sim_testutil import short_run
 from test_encounters import make_table, straight
 
-from analysis.pipeline import DemoConfig
+from analysis.demo_config import DemoConfig
 from sim.controller import Controller
 from sim.controller_config import ControllerConfig
 from sim.demonstrations import demonstrator_hooks, encounters_of_run

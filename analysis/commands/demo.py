@@ -54,7 +54,8 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from analysis.pipeline import DemoConfig, run_demo
+    from analysis.demo_config import DemoConfig
+    from analysis.pipeline import run_demo
 
     config = DemoConfig(scenario=args.scenario, encounter_rule=args.encounter_rule, heldout_runs=args.heldout_runs)
     if args.duration is not None:

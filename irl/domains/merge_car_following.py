@@ -49,6 +49,12 @@ OBS_COLUMNS = ("d_AC", "v_AC", "d_AB", "v_AB", "v_A", "len_C", "len_B")
 OPTIONAL_OBS_COLUMNS = ("len_C", "len_B")
 
 
+def is_vehicle_length(x: np.ndarray) -> np.ndarray:
+    """bool, shape of ``x``: which values are vehicle lengths, finite numbers > 0 (ft). What is
+    not one is refused where a table or an observation gives it, except NaN (unknown)."""
+    return np.isfinite(x) & (x > 0)
+
+
 @dataclass(frozen=True)
 class GapNeed:
     """Nominal IDM parameters that shape the gap-need features (ft, s, ft/s^2, ft/s).
@@ -133,14 +139,12 @@ def car_following_decisions(encounters_df: pd.DataFrame, *, decision_step_s: flo
     if "v_A" not in encounters_df.columns:
         raise DemonstrationError(f"{where}: the car-following features need A's speed, a 'v_A' column (ft/s); "
                                  f"columns are {list(encounters_df.columns)}")
-    for c, lowest, empty_ok in (("v_A", 0.0, False), ("len_C", None, True), ("len_B", None, True)):
+    for c in ("v_A", *OPTIONAL_OBS_COLUMNS):
         if c not in encounters_df.columns:
             continue
         col = encounters_df[c]
         x = pd.to_numeric(col, errors="coerce").to_numpy(dtype=np.float64)
-        ok = np.isfinite(x) & ((x >= lowest) if lowest is not None else (x > 0))
-        if empty_ok:
-            ok |= col.isna().to_numpy()
+        ok = (np.isfinite(x) & (x >= 0)) if c == "v_A" else (is_vehicle_length(x) | col.isna().to_numpy())
         if not ok.all():
             i = int(np.argmax(~ok))
             got = col.iloc[i]
@@ -182,7 +186,7 @@ def car_following_features(obs: np.ndarray, prev: np.ndarray, action_acc_ft_s2,
         raise ConfigError(f"prev must hold whole actions (or -1), got {prev_in[:5]}")
     prev = prev_in.astype(np.int64)
     lengths = obs[:, 5:7]
-    bad = ~np.isnan(lengths) & ~(np.isfinite(lengths) & (lengths > 0))
+    bad = ~np.isnan(lengths) & ~is_vehicle_length(lengths)
     if bad.any():
         i, j = (int(k) for k in np.argwhere(bad)[0])
         raise ConfigError(f"obs row {i}, {OBS_COLUMNS[5 + j]}: a length must be NaN (unknown) or a finite number "

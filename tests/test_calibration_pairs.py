@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from scenarios.calibration import load_pairs, read_pair
+from scenarios.calibration import load_pairs, read_pair, split_in_time
 from scenarios.calibration.pairs import DuplicatePairWarning, duplicate_files, pair_files
 from scenarios.errors import SpecError
 
@@ -63,3 +63,19 @@ def test_distinct_files_give_no_warning(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error", DuplicatePairWarning)
         assert len(load_pairs(tmp_path)) == 2
+
+
+def test_split_in_time_cuts_at_the_fraction_and_the_rest_starts_where_the_first_part_ends(tmp_path):
+    p = read_pair(write_pair(tmp_path / "ngsim_p1_runp1_f10_l9_00001.csv", n=101))
+    first, rest = split_in_time(p, 0.4)
+    assert len(first) == 40 and len(rest) == 62  # 101 steps, one shared
+    assert first.t[-1] == rest.t[0] and rest.t[-1] == p.t[-1]
+    np.testing.assert_array_equal(np.concatenate([first.spacing, rest.spacing[1:]]), p.spacing)
+    assert (first.name, first.group, first.leader_length) == (p.name, p.group, p.leader_length)
+
+
+@pytest.mark.parametrize("fraction", [0.0, 1.0, -0.5, 0.05, 0.95])
+def test_split_in_time_refuses_a_fraction_outside_0_1_or_a_part_too_short(tmp_path, fraction):
+    p = read_pair(write_pair(tmp_path / "ngsim_p1_runp1_f10_l9_00001.csv", n=100))
+    with pytest.raises(SpecError, match="fraction|at least 10"):
+        split_in_time(p, fraction)

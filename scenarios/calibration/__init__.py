@@ -22,7 +22,9 @@ from scenarios.calibration.fit import (
     BOUNDS, FITTED, CalibrationResult, PairFit, ParamSpread, calibrate, fit_per_pair, fit_population,
 )
 from scenarios.calibration.models import PARAM_NAMES, SUMO_DEFAULTS, CFParams, simulate_follower
-from scenarios.calibration.pairs import CarFollowingPair, PairBatch, load_pairs, read_pair, split_by_follower
+from scenarios.calibration.pairs import (
+    CarFollowingPair, PairBatch, load_pairs, read_pair, split_by_follower, split_in_time,
+)
 from scenarios.calibration.params_file import load_result, save_result
 from scenarios.calibration.sumo_fit import SumoRmse, calibrate_sumo, fit_population_sumo
 from scenarios.calibration.vtypes import DriverMember, driver_members
@@ -33,4 +35,5 @@ __all__ = [
     "ParamSpread", "SumoRmse", "calibrate", "calibrate_sumo", "driver_members", "evaluate", "fit_classes", "fit_per_pair",
     "fit_population", "fit_population_sumo",
     "load_pairs", "load_result", "read_pair", "save_result", "simulate_follower", "split_by_follower",
+    "split_in_time",
 ]

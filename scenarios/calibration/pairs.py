@@ -15,7 +15,7 @@ import hashlib
 import re
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +25,8 @@ from irl.units import M_PER_FT
 from scenarios.errors import SpecError
 STEP_S = 0.1
 _NAME = re.compile(r"^(?:ngsim_)?(?P<period>.+?)_run.*_f(?P<f>\d+)_l(?P<l>\d+)_(?P<n>\d+)$")
+#: Fewest steps a pair (or a part of one, :func:`split_in_time`) may have.
+MIN_STEPS = 10
 _REQUIRED = ("t", "x_follower", "v_follower", "x_leader", "v_leader", "leader_length")
 
 
@@ -74,8 +76,8 @@ def read_pair(path: str | Path) -> CarFollowingPair:
     missing = [c for c in _REQUIRED if c not in df.columns]
     if missing:
         raise SpecError(f"{path}: missing column(s) {missing}; expected {list(_REQUIRED)}")
-    if len(df) < 10:
-        raise SpecError(f"{path}: {len(df)} rows; a pair needs at least 10 steps")
+    if len(df) < MIN_STEPS:
+        raise SpecError(f"{path}: {len(df)} rows; a pair needs at least {MIN_STEPS} steps")
     arr = {c: df[c].to_numpy(dtype=np.float64) for c in _REQUIRED}
     for c, v in arr.items():
         if not np.isfinite(v).all():
@@ -168,6 +170,33 @@ def split_by_follower(
     train = tuple(p for p in pairs if p.group not in test_groups)
     test = tuple(p for p in pairs if p.group in test_groups)
     return train, test
+
+
+def split_in_time(pair: CarFollowingPair, fraction: float) -> tuple[CarFollowingPair, CarFollowingPair]:
+    """(first part, rest) of one pair, cut after ``round(fraction * T)`` of its T steps.
+
+    The rest starts at the first part's last step, so a follower simulated over the rest starts
+    from the recorded state where the first part ends (the within-driver validation of
+    calibration practice: fit a driver on the first part of a trajectory, score it on the rest;
+    Punzo, Montanino & Ciuffo, *Transp. Res. Rec.* 2012). Both parts keep the pair's name and
+    group.
+
+    Raises:
+        SpecError: ``fraction`` not in (0, 1), or a part shorter than :data:`MIN_STEPS` steps.
+    """
+    if not 0.0 < fraction < 1.0:
+        raise SpecError(f"fraction: expected a number in (0, 1), got {fraction!r}")
+    n = len(pair)
+    cut = int(round(fraction * n))
+    if cut < MIN_STEPS or n - cut + 1 < MIN_STEPS:
+        raise SpecError(f"{pair.name}: cutting {n} steps at {fraction} leaves {cut} and {n - cut + 1} steps; "
+                        f"each part needs at least {MIN_STEPS}")
+
+    def part(a: int, b: int) -> CarFollowingPair:
+        return replace(pair, t=pair.t[a:b], x_follower=pair.x_follower[a:b], v_follower=pair.v_follower[a:b],
+                       x_leader=pair.x_leader[a:b], v_leader=pair.v_leader[a:b])
+
+    return part(0, cut), part(cut - 1, n)
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ from irl.atomic import write_json_atomic
 from irl.boltzmann import log_policy
 from irl.config import IRLConfig
 from irl.domains.merge_actions import ACTION_ACC_FT_S2
-from irl.domains.merge_cf_logit import CF_FORMAT
+from irl.domains.merge_cf_logit import CF_FORMAT, OLD_CF_FORMATS
 from irl.domains.merge_states import STATE_ENCODINGS
 from irl.errors import ModelFileError
 
@@ -179,8 +179,8 @@ class SavedModel:
             raise ModelFileError(f"{path}: not a JSON model file ({type(e).__name__}: {str(e)[:200]})") from None
         if not isinstance(data, dict):
             raise ModelFileError(f"{path}: expected a JSON object at top level, got {_json_type(data)}")
-        if data.get("format") == CF_FORMAT:
-            raise ModelFileError(f"{path}: a car-following logit driver of 'merge-irl dagger' ({CF_FORMAT}), not an IRL "
+        if data.get("format") == CF_FORMAT or data.get("format") in OLD_CF_FORMATS:
+            raise ModelFileError(f"{path}: a car-following logit driver of 'merge-irl dagger' ({data['format']}), not an IRL "
                                  "model.json: drive it with 'merge-irl evaluate --cf-model'")
         for key in ("method", "theta", "loglik", "settings", "q"):
             if key not in data:

@@ -1,5 +1,5 @@
 """The car-following logit driver: a conditional logit on :mod:`irl.domains.merge_car_following`'s
-features, and its JSON file (format ``merge-irl-cf-logit/1``; ``merge-irl dagger`` writes
+features, and its JSON file (format ``merge-irl-cf-logit/2``; ``merge-irl dagger`` writes
 ``cf-logit.json`` and ``cf-dagger.json``).
 
 ``pi(a | x) = softmax_a(theta . phi(x, a))`` over the five merge actions, ``phi`` the
@@ -30,7 +30,14 @@ from irl.errors import ConfigError, ModelFileError
 from irl.merge_mdp import frames_per_step
 
 #: The ``format`` field of a car-following logit file.
-CF_FORMAT = "merge-irl-cf-logit/1"
+CF_FORMAT = "merge-irl-cf-logit/2"
+#: Earlier formats, refused on load with the reason: their weights belong to other features.
+#: ``/1`` (2026-12-01): the gap features took every leader for a car (no vehicle lengths).
+OLD_CF_FORMATS: dict[str, str] = {
+    "merge-irl-cf-logit/1": "its weights were fitted on features that took every leader for a car; since "
+                            "format /2 the features subtract the leader's own length, so these weights would "
+                            "drive another driver",
+}
 
 
 @dataclass(frozen=True)
@@ -136,7 +143,8 @@ class CarFollowingLogit:
         """Read a car-following logit file (``cf-logit.json`` / ``cf-dagger.json`` of ``merge-irl dagger``).
 
         Raises:
-            ModelFileError: missing, unreadable, another format, or a malformed field (named).
+            ModelFileError: missing, unreadable, another format (an earlier one of
+                :data:`OLD_CF_FORMATS` with its reason), or a malformed field (named).
         """
         path = Path(path)
         try:
@@ -145,6 +153,9 @@ class CarFollowingLogit:
             raise ModelFileError(f"{path}: no such model file") from None
         except (OSError, ValueError, UnicodeDecodeError, RecursionError) as e:
             raise ModelFileError(f"{path}: not a readable JSON model file ({type(e).__name__}: {str(e)[:200]})") from None
+        if isinstance(data, dict) and data.get("format") in OLD_CF_FORMATS:
+            raise ModelFileError(f"{path}: format {data['format']!r}: {OLD_CF_FORMATS[data['format']]}; "
+                                 f"train it again with 'merge-irl dagger' (writes {CF_FORMAT!r})")
         if not isinstance(data, dict) or data.get("format") != CF_FORMAT:
             got = data.get("format") if isinstance(data, dict) else type(data).__name__
             hint = " (an IRL model.json: drive it with 'merge-irl evaluate --model')" \

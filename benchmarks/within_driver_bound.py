@@ -44,6 +44,7 @@ from scenarios.calibration import (
 )
 from scenarios.calibration.objective import spacing_rmse
 from scenarios.calibration.pairs import DuplicatePairWarning
+from scenarios.errors import SpecError
 
 ROWS = ("population", "classes", "own, 5 parameters", "own, tau + minGap", "own fit on the rest")
 
@@ -89,9 +90,14 @@ def main() -> None:
     ap.add_argument("--classes", type=int, default=3)
     ap.add_argument("--model", default="idm", choices=("idm", "krauss"))
     args = ap.parse_args()
+    if not 0.0 < args.fraction < 1.0 or not 0.0 < args.holdout < 1.0:
+        ap.error(f"--fraction and --holdout must be in (0, 1), got {args.fraction} and {args.holdout}")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", DuplicatePairWarning)
-        pairs = load_pairs(args.pairs)
+        try:
+            pairs = load_pairs(args.pairs)
+        except (FileNotFoundError, SpecError) as e:
+            ap.error(str(e))
     if caught:
         print(f"note: {caught[0].message}".split(" (")[0] + " (kept, as in docs/calibration.md)")
     print(f"{args.model}, held-out followers, scored on the last {1 - args.fraction:.0%} of each pair; "
@@ -101,7 +107,10 @@ def main() -> None:
     for seed in args.seeds:
         train, test = split_by_follower(pairs, args.holdout, seed=seed)
         t0 = time.perf_counter()
-        ratios = split_ratios(train, test, args.fraction, args.classes, args.model)
+        try:
+            ratios = split_ratios(train, test, args.fraction, args.classes, args.model)
+        except SpecError as e:  # a pair too short to cut, too few pairs for the classes
+            ap.error(f"split {seed}: {e}")
         cells = " | ".join(f"{ratios[r][0]:.3f} / {ratios[r][1]:.3f}" for r in ROWS)
         print(f"| {seed} | {cells} | {time.perf_counter() - t0:.0f} |", flush=True)
 

@@ -14,6 +14,7 @@ import pkgutil
 import signal
 import sys
 import threading
+import warnings
 
 from irl.errors import IRLError
 from scenarios.errors import ScenarioError
@@ -67,9 +68,18 @@ def os_error_line(e: OSError) -> str:
     return f"{what}: {' -> '.join(paths)}" if paths else str(e) or what
 
 
+def _warning_line(command: str):
+    """A ``warnings.formatwarning`` that writes one line, as the errors are (not the source file
+    and line of the code that warned, which reads like a traceback to a user)."""
+    def fmt(message, category, filename, lineno, line=None) -> str:
+        return f"merge-irl {command}: warning: {message}\n"
+    return fmt
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    warnings.formatwarning = _warning_line(args.command)
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, _terminate_as_interrupt)
     try:

@@ -24,7 +24,7 @@ pairs, as median / mean spacing RMSE over pairs, each a ratio to SUMO's defaults
 
 A calibration from other drivers cannot be expected to beat a driver's own calibration on that
 driver's earlier data; where the own-fit rows sit near 0.8, the target is at the level the
-data and model allow. Figures are printed, not asserted. Cost: about 15-25 s per split on 2 cores.
+data and model allow. Figures are printed, not asserted. Cost: about 40-50 s per split on 2 cores.
 """
 
 from __future__ import annotations

@@ -147,3 +147,35 @@ def test_check_report_says_which_drivers_were_simulated() -> None:
     assert "Simulated car drivers: resampled from the params file (idm)." in params.to_markdown()
     assert own.to_json_dict()["keep_drivers"] is True and params.to_json_dict()["keep_drivers"] is False
     assert "302 real pairs of the params file's population (idm)" in own.to_markdown()
+
+
+def test_evaluate_refuses_a_held_out_split_that_is_not_the_fits(tmp_path: Path) -> None:
+    """The params file records its training followers: an evaluation whose --holdout/--seed/--limit
+    differ from the fit's would score training drivers as held-out (it did, silently)."""
+    out = tmp_path / "p.toml"
+    split = ("--holdout", "0.3", "--limit", "20")
+    r = _cli("calibrate", "fit", "--pairs", str(PAIRS_DIR), "--out", str(out), *split, "--no-per-pair")
+    assert r.returncode == 0, r.stderr
+    fitted_on = load_result(out).train_followers
+    assert len(fitted_on) > 0
+    r = _cli("calibrate", "evaluate", "--params", str(out), "--pairs", str(PAIRS_DIR), *split, "--json")
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout)["n_pairs_in_fit"] == 0 and "note:" not in r.stderr
+    r = _cli("calibrate", "evaluate", "--params", str(out), "--pairs", str(PAIRS_DIR), *split, "--seed", "1")
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert "held-out pairs" in r.stderr and "give 'evaluate' the fit's --holdout, --seed and --limit" in r.stderr
+    r = _cli("calibrate", "evaluate", "--params", str(out), "--pairs", str(PAIRS_DIR), "--limit", "20", "--json")
+    assert r.returncode == 0, r.stderr  # no split asked for: scored, the training followers' pairs counted
+    n_in_fit = json.loads(r.stdout)["n_pairs_in_fit"]
+    assert n_in_fit > 0 and f"note: {n_in_fit} of the 20 pairs have a follower" in r.stderr
+
+
+def test_warnings_are_one_line(tmp_path: Path) -> None:
+    part = tmp_path / "part.toml"
+    part.write_text("model = 'idm'\n[population]\naccel = 1.0\n")
+    r = _cli("calibrate", "evaluate", "--params", str(part), "--pairs", str(PAIRS_DIR), "--limit", "3", "--json")
+    assert r.returncode == 0, r.stderr
+    lines = [ln for ln in r.stderr.splitlines() if "Warning" in ln or ln.startswith("merge-irl calibrate: warning")]
+    assert lines == [f"merge-irl calibrate: warning: {part}: [population] has no decel, tau, minGap, maxSpeed, delta, "
+                     "emergencyDecel: SUMO's defaults are used (decel = 4.5, tau = 1, minGap = 2.5, maxSpeed = 29.06, "
+                     "delta = 4, emergencyDecel = 9)"], r.stderr

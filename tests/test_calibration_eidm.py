@@ -150,11 +150,15 @@ def test_cli_fit_and_evaluate_eidm(tmp_path: Path) -> None:
     res = load_result(out)
     assert res.model == "eidm" and res.n_pairs == 4 and res.per_pair == ()
     assert res.population != CFParams()  # moved away from the start
+    # fitted on the first 4 files without a split: an evaluation that holds followers out must be
+    # the fit's own split, so this one scores every pair and counts the fit's own
     r = _cli("calibrate", "evaluate", "--params", str(out), "--pairs", str(PAIRS_DIR), "--holdout", "0.3",
              "--json", "--workers", "1")
+    assert r.returncode == 2 and "have a follower" in r.stderr, r.stderr
+    r = _cli("calibrate", "evaluate", "--params", str(out), "--pairs", str(PAIRS_DIR), "--json", "--workers", "1")
     assert r.returncode == 0, r.stderr
     d = json.loads(r.stdout)
-    assert d["model"] == "eidm" and d["n_pairs"] > 5
+    assert d["model"] == "eidm" and d["n_pairs"] > 5 and d["n_pairs_in_fit"] >= 4
     assert 0 < d["median_rmse_m"] < 20 and 0 < d["default_median_rmse_m"] < 20
     assert d["median_rmse_m"] != d["default_median_rmse_m"]
     iv = d["intervals"]["median_ratio"]

@@ -18,6 +18,7 @@ from scenarios.calibration import (
     save_result, split_by_follower,
 )
 from scenarios.calibration.fit import FITTED, _fd_candidates, bounds_of
+from scenarios.calibration.params_file import DefaultParamsWarning
 from scenarios.calibration.objective import spacing_rmse
 from scenarios.calibration.pairs import CarFollowingPair, PairBatch
 from scenarios.calibration.vtypes import SIM_RANGE
@@ -122,6 +123,9 @@ def test_params_file_errors_name_the_field(tmp_path: Path) -> None:
     p.write_text('model = "idm"\n[population]\naccel = -1.0\n')
     with pytest.raises(SpecError, match=r"bad\.toml: \[population\] accel = -1.0"):
         load_result(p)
+    p.write_text('model = "idm"\n[population]\ntau = inf\n')  # was accepted, then NaN scores
+    with pytest.raises(SpecError, match=r"\[population\] tau = inf; expected a positive finite number"):
+        load_result(p)
     p.write_text('model = "gipps"\n[population]\naccel = 1.0\n')
     with pytest.raises(SpecError, match="model = 'gipps'"):
         load_result(p)
@@ -166,3 +170,18 @@ def test_population_jacobian_matches_central_differences(real_pairs) -> None:
         up = spacing_rmse("idm", batch, replace(base, **{f: x[k] + eps}).as_dict())
         dn = spacing_rmse("idm", batch, replace(base, **{f: x[k] - eps}).as_dict())
         np.testing.assert_allclose(jac[:, k], (up - dn) / (2 * eps), rtol=0.05, atol=1e-3)
+
+
+def test_a_partial_parameter_table_names_the_defaults_it_takes_and_followers_round_trip(tmp_path: Path) -> None:
+    p = tmp_path / "hand.toml"
+    p.write_text('model = "idm"\npopulation_median_rmse_m = 3.0\ntrain_followers = ["b/2", "a/1"]\n[population]\naccel = 1.0\ndecel = 2.0\n'
+                 'minGap = 2.0\nmaxSpeed = 20.0\ndelta = 4.0\nemergencyDecel = 9.0\n')
+    with pytest.warns(DefaultParamsWarning, match=r"hand\.toml: \[population\] has no tau: SUMO's defaults are used "
+                                                  r"\(tau = 1\)"):
+        res = load_result(p)
+    assert res.population.tau == CFParams().tau and res.train_followers == ("a/1", "b/2")
+    back = load_result(save_result(res, tmp_path / "back.toml"))
+    assert back == res
+    p.write_text('model = "idm"\ntrain_followers = "a/1"\n[population]\naccel = 1.0\n')
+    with pytest.raises(SpecError, match="train_followers must be a list"):
+        load_result(p)

@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from scenarios.calibration import load_pairs, read_pair, split_in_time
+from scenarios.calibration import load_pairs, read_pair, split_by_follower, split_in_time
 from scenarios.calibration.pairs import DuplicatePairWarning, duplicate_files, pair_files
 from scenarios.errors import SpecError
 
@@ -79,3 +79,41 @@ def test_split_in_time_refuses_a_fraction_outside_0_1_or_a_part_too_short(tmp_pa
     p = read_pair(write_pair(tmp_path / "ngsim_p1_runp1_f10_l9_00001.csv", n=100))
     with pytest.raises(SpecError, match="fraction|at least 10"):
         split_in_time(p, fraction)
+
+
+@pytest.mark.parametrize("edit, match", [
+    (lambda df: df.astype({"v_follower": object}).assign(v_follower=lambda d: d.v_follower.where(d.index != 7, "abc")),
+     r"column v_follower line 9: 'abc' is not a finite number"),
+    (lambda df: df.astype({"t": object}).assign(t=lambda d: d.t.where(d.index != 3, "12:00")),
+     r"column t line 5: '12:00' is not a finite number"),
+    (lambda df: df.assign(v_follower=lambda d: d.v_follower.where(d.index != 4, -50.0)),
+     r"column v_follower line 6: speed -50 < 0"),
+    (lambda df: df.rename(columns={"x_leader": "x_follower", "x_follower": "x_leader"}),
+     r"line \d+: bumper gap .* <= 0: the leader is not ahead of the follower"),
+])
+def test_implausible_or_non_numeric_pairs_are_refused_naming_file_and_line(tmp_path, edit, match):
+    path = write_pair(tmp_path / "ngsim_p1_runp1_f10_l9_00001.csv")
+    edit(pd.read_csv(path)).to_csv(path, index=False)
+    with pytest.raises(SpecError, match=match):
+        read_pair(path)
+
+
+def test_an_empty_file_is_refused_and_a_manifest_under_train_is_skipped(tmp_path):
+    (tmp_path / "empty.csv").write_bytes(b"")
+    with pytest.raises(SpecError, match="empty.csv: empty file"):
+        read_pair(tmp_path / "empty.csv")
+    (tmp_path / "d" / "train").mkdir(parents=True)
+    write_pair(tmp_path / "d" / "train" / "ngsim_p1_runp1_f10_l9_00001.csv")
+    (tmp_path / "d" / "train" / "manifest.csv").write_text("name,lane\na,2\n")
+    assert [p.name for p in load_pairs(tmp_path / "d")] == ["ngsim_p1_runp1_f10_l9_00001"]
+
+
+def test_split_by_follower_refuses_bad_fractions_and_keeps_a_follower_on_each_side(tmp_path):
+    pairs = [read_pair(write_pair(tmp_path / f"ngsim_p1_runp1_f{f}_l9_00001.csv", seed=f)) for f in range(10, 14)]
+    for bad in (0, 1, 1.5, -0.3, float("nan"), "0.3", True):
+        with pytest.raises(SpecError, match="held-out fraction: expected a number in \\(0, 1\\)"):
+            split_by_follower(pairs, bad, seed=0)
+    train, test = split_by_follower(pairs, 0.99, seed=0)
+    assert len(train) == 1 and len(test) == 3
+    with pytest.raises(SpecError, match="1 follower\\(s\\) cannot be split"):
+        split_by_follower(pairs[:1], 0.3, seed=0)

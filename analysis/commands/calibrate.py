@@ -61,10 +61,14 @@ def register(subparsers) -> None:
 
     e = sub.add_parser("evaluate", help="per-pair and median spacing RMSE vs SUMO's defaults")
     e.add_argument("--params", required=True, metavar="FILE", help="params TOML from 'calibrate fit'")
-    e.add_argument("--pairs", required=True, metavar="DIR")
+    e.add_argument("--pairs", required=True, metavar="DIR",
+                   help="folder of pair CSVs (or with a train/ subfolder) to score; any folder")
     e.add_argument("--holdout", type=float, default=0.0, metavar="FRACTION",
-                   help="evaluate only the held-out followers of 'fit --holdout FRACTION --seed S'")
-    e.add_argument("--seed", type=int, default=0)
+                   help="evaluate only the held-out followers of 'fit --holdout FRACTION --seed S' (give the "
+                        "fit's --holdout, --seed and --limit; refused if a scored follower was in the fit)")
+    e.add_argument("--seed", type=int, default=0, help="seed of the held-out split, as given to 'fit' (default 0)")
+    e.add_argument("--limit", type=positive_int, default=None, metavar="N",
+                   help="use only the first N pair files, as 'fit --limit N'")
     e.add_argument("--json", action="store_true", help="print one JSON object")
     e.add_argument("--workers", type=positive_int, default=None, metavar="N",
                    help="eidm: processes for the SUMO runs (default: one per core)")
@@ -72,11 +76,12 @@ def register(subparsers) -> None:
 
     c = sub.add_parser("check", help="compare the i80 scenario's simulated traffic with the real pairs")
     c.add_argument("--params", required=True, metavar="FILE", help="params TOML from 'calibrate fit'")
-    c.add_argument("--pairs", required=True, metavar="DIR")
+    c.add_argument("--pairs", required=True, metavar="DIR", help="folder of real pair CSVs to compare with")
     c.add_argument("--scenario", default="i80", metavar="NAME|FILE", help="scenario preset or TOML (default i80)")
     c.add_argument("--duration", type=float, default=None, metavar="S",
-                   help="simulated seconds, warm-up included (default: the scenario's own)")
-    c.add_argument("--seed", type=int, default=0)
+                   help="simulated seconds, warm-up included, longer than the scenario's warm-up "
+                        "(default: the scenario's own; i80: 600 s with 240 s of warm-up)")
+    c.add_argument("--seed", type=int, default=0, help="seed of the SUMO run and the driver sample (default 0)")
     c.add_argument("--keep-drivers", action="store_true",
                    help="simulate the scenario's own drivers (default: the params file's driver distribution)")
     c.add_argument("--out", default=None, metavar="FILE", help="write the markdown report here")
@@ -88,11 +93,15 @@ def _pairs(args: argparse.Namespace, *, held_out: bool):
     from scenarios.calibration import load_pairs, split_by_follower
 
     pairs = load_pairs(args.pairs, limit=getattr(args, "limit", None))
+    from scenarios.errors import SpecError
+
     if args.holdout:  # 0 = no held-out split; a negative or NaN fraction is refused, not ignored
         if not 0 < args.holdout < 1:
-            from scenarios.errors import SpecError
             raise SpecError(f"--holdout: expected a fraction in (0, 1), got {args.holdout}")
-        train, test = split_by_follower(pairs, args.holdout, args.seed)
+        try:
+            train, test = split_by_follower(pairs, args.holdout, args.seed)
+        except SpecError as e:
+            raise SpecError(f"--holdout {args.holdout}: {e}") from None
         return test if held_out else train
     return pairs
 
@@ -103,7 +112,7 @@ def run_fit(args: argparse.Namespace) -> int:
     from analysis.calibration_sweep import calibrate_parallel
     from irl.run_folder import check_writable
     from scenarios.calibration import save_result
-    from scenarios.calibration.class_fit import MIN_CLASS_PAIRS, fit_classes
+    from scenarios.calibration.class_fit import class_edges, fit_classes
     from scenarios.calibration.fit import DEFAULT_OBJECTIVE
     from scenarios.calibration.models import CALIBRATION_MODELS, MODELS
     from scenarios.calibration.pairs import pair_files
@@ -124,9 +133,11 @@ def run_fit(args: argparse.Namespace) -> int:
     except OSError as e:
         raise SpecError(f"--out {args.out}: cannot write a file there ({e.strerror or e})") from None
     pairs = _pairs(args, held_out=False)
-    if args.classes > 1 and len(pairs) < args.classes * MIN_CLASS_PAIRS:  # fail before minutes of fitting
-        raise SpecError(f"--classes: {args.classes} classes need at least {args.classes * MIN_CLASS_PAIRS} training "
-                        f"pairs ({MIN_CLASS_PAIRS} per class), got {len(pairs)}")
+    if args.classes > 1:  # fail before minutes of fitting: too few pairs, or classes the quantiles cannot fill
+        try:
+            class_edges(pairs, args.classes, model=args.model)
+        except SpecError as e:
+            raise SpecError(f"--classes {args.classes}: {e}") from None
     file_of = {f.stem: f for f in pair_files(args.pairs, limit=args.limit)}
     print(f"fitting {args.model} on {len(pairs)} pairs ...", file=sys.stderr)
     bar = None
@@ -171,11 +182,26 @@ def run_fit(args: argparse.Namespace) -> int:
 def run_evaluate(args: argparse.Namespace) -> int:
     from scenarios.calibration import evaluate, load_result
 
+    from scenarios.errors import SpecError
+
     result = load_result(args.params)
-    ev = evaluate(result.population, _pairs(args, held_out=True), model=result.model, workers=args.workers,
-                  classes=result.classes)
+    pairs = _pairs(args, held_out=True)
+    trained = set(result.train_followers) or {f.group for f in result.per_pair}
+    in_fit = [p for p in pairs if p.group in trained]
+    if in_fit and args.holdout:
+        raise SpecError(f"--holdout {args.holdout} --seed {args.seed}: {len(in_fit)} of the {len(pairs)} held-out pairs "
+                        f"(e.g. {in_fit[0].name}) have a follower {args.params} was fitted on: give 'evaluate' the "
+                        "fit's --holdout, --seed and --limit")
+    if not trained:
+        print(f"note: {args.params} does not record its training followers: held-out and in-sample pairs cannot "
+              "be told apart", file=sys.stderr)
+    elif in_fit:
+        print(f"note: {len(in_fit)} of the {len(pairs)} pairs have a follower {args.params} was fitted on: an "
+              "in-sample score for them ('fit --holdout F --seed S', then 'evaluate --holdout F --seed S', scores "
+              "held-out drivers only)", file=sys.stderr)
+    ev = evaluate(result.population, pairs, model=result.model, workers=args.workers, classes=result.classes)
     if args.json:
-        print(json.dumps(ev.to_json_dict()))
+        print(json.dumps({**ev.to_json_dict(), "n_pairs_in_fit": len(in_fit) if trained else None}))
         return 0
     drivers = f" ({ev.n_classes} driver classes of the initial time headway)" if ev.n_classes > 1 else ""
     print(f"{result.model} parameters of {args.params}{drivers} beside SUMO's {result.model} defaults, "

@@ -17,20 +17,9 @@ from scenarios.errors import SpecError
 MIN_CLASS_PAIRS = 5
 
 
-def fit_classes(
-    pairs: Sequence[CarFollowingPair], n_classes: int, *, model: str = "idm", objective: str = DEFAULT_OBJECTIVE,
-) -> DriverClasses:
-    """Cut ``pairs`` into ``n_classes`` equally filled classes of :func:`initial_time_headway`
-    (edges: the keys' quantiles) and run :func:`~scenarios.calibration.fit.fit_population` on each.
-
-    Args:
-        pairs: the P training pairs.
-        n_classes: C >= 1; C = 1 is the plain population fit.
-        model: a replica model (``idm`` or ``krauss``, :data:`~scenarios.calibration.models.MODELS`).
-        objective: the population fit's objective (:data:`~scenarios.calibration.fit.OBJECTIVES`).
-
-    Returns:
-        The classes: float64[C-1] edges (s) and C parameter sets.
+def class_edges(pairs: Sequence[CarFollowingPair], n_classes: int, *, model: str = "idm") -> tuple[float, ...]:
+    """The C-1 class edges (s) :func:`fit_classes` cuts ``pairs`` at: the quantiles of
+    :func:`initial_time_headway`, checked before any fitting.
 
     Raises:
         SpecError: ``n_classes`` < 1, a model without a replica, equal quantiles (edges not
@@ -45,11 +34,34 @@ def fit_classes(
         raise SpecError(f"classes: {n_classes} classes need at least {n_classes * MIN_CLASS_PAIRS} training pairs "
                         f"({MIN_CLASS_PAIRS} per class), got {len(keys)}")
     edges = tuple(float(e) for e in np.quantile(keys, np.linspace(0.0, 1.0, n_classes + 1)[1:-1]))
-    of = np.searchsorted(np.asarray(edges), keys, side="right")
-    counts = np.bincount(of, minlength=n_classes)
+    counts = np.bincount(np.searchsorted(np.asarray(edges), keys, side="right"), minlength=n_classes)
     if len(set(edges)) < len(edges) or counts.min() < MIN_CLASS_PAIRS:
         raise SpecError(f"classes: {n_classes} classes of the initial time headway hold {counts.tolist()} pairs; "
                         f"each needs at least {MIN_CLASS_PAIRS} (use fewer classes)")
+    return edges
+
+
+def fit_classes(
+    pairs: Sequence[CarFollowingPair], n_classes: int, *, model: str = "idm", objective: str = DEFAULT_OBJECTIVE,
+) -> DriverClasses:
+    """Cut ``pairs`` into ``n_classes`` equally filled classes of :func:`initial_time_headway`
+    (edges: the keys' quantiles, :func:`class_edges`) and run
+    :func:`~scenarios.calibration.fit.fit_population` on each.
+
+    Args:
+        pairs: the P training pairs.
+        n_classes: C >= 1; C = 1 is the plain population fit.
+        model: a replica model (``idm`` or ``krauss``, :data:`~scenarios.calibration.models.MODELS`).
+        objective: the population fit's objective (:data:`~scenarios.calibration.fit.OBJECTIVES`).
+
+    Returns:
+        The classes: float64[C-1] edges (s) and C parameter sets.
+
+    Raises:
+        SpecError: as :func:`class_edges`.
+    """
+    edges = class_edges(pairs, n_classes, model=model)
+    of = np.searchsorted(np.asarray(edges), [initial_time_headway(p) for p in pairs], side="right")
     params = tuple(fit_population([p for p, k in zip(pairs, of) if k == c], model=model, objective=objective)[0]
                    for c in range(n_classes))
     return DriverClasses(edges_s=edges, params=params)

@@ -103,6 +103,9 @@ class CalibrationResult:
         objective: the population fit's objective (a key of :data:`OBJECTIVES`).
         classes: one population vector per class of the initial time headway
             (:class:`~scenarios.calibration.classes.DriverClasses`), or None (one vector for all).
+        train_followers: the training pairs' followers (``CarFollowingPair.group``), sorted, so
+            that an evaluation can tell held-out drivers from the fit's own; empty if unknown
+            (a file written before they were recorded, or a hand-written one).
     """
 
     model: str
@@ -116,6 +119,7 @@ class CalibrationResult:
     seconds_per_pair: float
     objective: str = DEFAULT_OBJECTIVE
     classes: DriverClasses | None = None
+    train_followers: tuple[str, ...] = ()
 
     def spread_of(self, name: str) -> ParamSpread:
         return dict(self.spread)[name]
@@ -388,4 +392,10 @@ def assemble_result(
         model=model, fitted=tuple(fitted), population=pop, population_median_rmse_m=med,
         per_pair=fits, spread=spread_of(fits, fitted) if fits else (), n_pairs=len(pairs),
         seconds_population=seconds_population, seconds_per_pair=seconds_per_pair, objective=objective,
+        train_followers=followers_of(pairs),
     )
+
+
+def followers_of(pairs: Sequence[CarFollowingPair]) -> tuple[str, ...]:
+    """The sorted distinct followers (``group``) of ``pairs``."""
+    return tuple(sorted({p.group for p in pairs}))

@@ -65,12 +65,15 @@ def read_pair(path: str | Path) -> CarFollowingPair:
     """Read one pair CSV (feet) into a :class:`CarFollowingPair` (metres).
 
     Raises:
-        SpecError: not a pair CSV, a missing column, fewer than 10 steps, steps that are not uniform 0.1 s, or
-            a value that is not a finite number (file, column and line named).
+        SpecError: not a pair CSV (or empty), a missing column, fewer than :data:`MIN_STEPS` steps, steps
+            that are not uniform 0.1 s, a value that is not a finite number, a negative speed, or a
+            bumper gap <= 0 (the leader not ahead of the follower) (file, column and line named).
     """
     path = Path(path)
     try:
         df = pd.read_csv(path)
+    except pd.errors.EmptyDataError:
+        raise SpecError(f"{path}: empty file; expected a pair CSV with the columns {list(_REQUIRED)}") from None
     except (pd.errors.ParserError, UnicodeDecodeError) as e:
         raise SpecError(f"{path}: not a pair CSV: {e}") from e
     missing = [c for c in _REQUIRED if c not in df.columns]
@@ -78,14 +81,25 @@ def read_pair(path: str | Path) -> CarFollowingPair:
         raise SpecError(f"{path}: missing column(s) {missing}; expected {list(_REQUIRED)}")
     if len(df) < MIN_STEPS:
         raise SpecError(f"{path}: {len(df)} rows; a pair needs at least {MIN_STEPS} steps")
-    arr = {c: df[c].to_numpy(dtype=np.float64) for c in _REQUIRED}
+    # text in a numeric column becomes NaN here and is refused below with its line
+    arr = {c: pd.to_numeric(df[c], errors="coerce").to_numpy(dtype=np.float64) for c in _REQUIRED}
     for c, v in arr.items():
         if not np.isfinite(v).all():
-            raise SpecError(f"{path}: column {c} line {int(np.argmax(~np.isfinite(v))) + 2}: not a finite number")
+            i = int(np.argmax(~np.isfinite(v)))
+            raise SpecError(f"{path}: column {c} line {i + 2}: {str(df[c].iloc[i])[:40]!r} is not a finite number")
     dt = np.diff(arr["t"])
     if np.abs(dt - STEP_S).max() > 1e-6:
         i = int(np.argmax(np.abs(dt - STEP_S)))
         raise SpecError(f"{path}: column t line {i + 3}: step {dt[i]:.4f} s; expected uniform {STEP_S} s steps")
+    for c in ("v_follower", "v_leader"):
+        if arr[c].min() < 0:
+            i = int(np.argmin(arr[c]))
+            raise SpecError(f"{path}: column {c} line {i + 2}: speed {arr[c][i]:g} < 0; speeds are forward, >= 0")
+    gap = arr["x_leader"] - arr["leader_length"] - arr["x_follower"]
+    if gap.min() <= 0:
+        i = int(np.argmin(gap))
+        raise SpecError(f"{path}: line {i + 2}: bumper gap x_leader - leader_length - x_follower = {gap[i]:g} ft <= 0: "
+                        "the leader is not ahead of the follower (columns swapped?)")
     m = _NAME.match(path.stem)
     group = f"{m['period']}/{m['f']}" if m else path.stem
     return CarFollowingPair(
@@ -151,7 +165,7 @@ def pair_files(directory: str | Path, *, limit: int | None = None) -> list[Path]
         raise FileNotFoundError(f"pairs directory not found: {d}")
     files = sorted(p for p in d.glob("*.csv") if p.name != "manifest.csv")
     if not files and (d / "train").is_dir():
-        files = sorted((d / "train").glob("*.csv"))
+        files = sorted(p for p in (d / "train").glob("*.csv") if p.name != "manifest.csv")
     if not files:
         raise SpecError(f"{d}: no pair CSV files found (expected *.csv or train/*.csv)")
     if limit is not None:
@@ -162,10 +176,19 @@ def pair_files(directory: str | Path, *, limit: int | None = None) -> list[Path]
 def split_by_follower(
     pairs: Sequence[CarFollowingPair], test_fraction: float, seed: int
 ) -> tuple[tuple[CarFollowingPair, ...], tuple[CarFollowingPair, ...]]:
-    """(train, test): followers (groups) drawn at random for test, never in both."""
+    """(train, test): followers (groups) drawn at random for test, never in both; at least one
+    follower on each side.
+
+    Raises:
+        SpecError: ``test_fraction`` not in (0, 1), or fewer than 2 followers to split.
+    """
+    if isinstance(test_fraction, bool) or not isinstance(test_fraction, (int, float)) or not 0 < test_fraction < 1:
+        raise SpecError(f"held-out fraction: expected a number in (0, 1), got {test_fraction!r}")
     groups = sorted({p.group for p in pairs})
     rng = np.random.default_rng(seed)
-    n_test = max(1, int(round(test_fraction * len(groups))))
+    if len(groups) < 2:
+        raise SpecError(f"held-out fraction: {len(groups)} follower(s) cannot be split into training and held-out")
+    n_test = min(len(groups) - 1, max(1, int(round(test_fraction * len(groups)))))
     test_groups = set(rng.choice(groups, size=n_test, replace=False).tolist())
     train = tuple(p for p in pairs if p.group not in test_groups)
     test = tuple(p for p in pairs if p.group in test_groups)
@@ -184,7 +207,7 @@ def split_in_time(pair: CarFollowingPair, fraction: float) -> tuple[CarFollowing
     Raises:
         SpecError: ``fraction`` not in (0, 1), or a part shorter than :data:`MIN_STEPS` steps.
     """
-    if not 0.0 < fraction < 1.0:
+    if isinstance(fraction, bool) or not isinstance(fraction, (int, float)) or not 0.0 < fraction < 1.0:
         raise SpecError(f"fraction: expected a number in (0, 1), got {fraction!r}")
     n = len(pair)
     cut = int(round(fraction * n))

@@ -35,15 +35,17 @@ Layout::
 
 from __future__ import annotations
 
+import math
 import os
 import tomllib
+import warnings
 from dataclasses import asdict, fields
 from pathlib import Path
 
 from irl.atomic import write_text_atomic
 from scenarios.calibration.classes import DriverClasses
 from scenarios.calibration.fit import DEFAULT_OBJECTIVE, OBJECTIVES, CalibrationResult, PairFit, ParamSpread
-from scenarios.calibration.models import CALIBRATION_MODELS, PARAM_NAMES, CFParams
+from scenarios.calibration.models import CALIBRATION_MODELS, PARAM_NAMES, SUMO_DEFAULTS, CFParams
 from scenarios.errors import SpecError
 from scenarios.toml_write import dumps
 
@@ -65,6 +67,7 @@ def result_to_dict(r: CalibrationResult) -> dict:
         ],
         **({"classes": {"edges_s": list(r.classes.edges_s), "member": [p.as_dict() for p in r.classes.params]}}
            if r.classes is not None else {}),
+        "train_followers": list(r.train_followers),
     }
 
 
@@ -76,6 +79,8 @@ def save_result(r: CalibrationResult, path: str | os.PathLike) -> Path:
         del data["pair"]
     if not data["spread"]:
         del data["spread"]
+    if not data["train_followers"]:
+        del data["train_followers"]
     text = dumps(data)
     return write_text_atomic(path, text)
 
@@ -88,10 +93,19 @@ def _params(src: str, where: str, d: object) -> CFParams:
         raise SpecError(f"{src}: [{where}] unknown parameter(s) {unknown}; expected {list(PARAM_NAMES)}")
     vals = {}
     for k, v in d.items():
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not v > 0:
-            raise SpecError(f"{src}: [{where}] {k} = {v!r}; expected a positive number")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 < v < math.inf:
+            raise SpecError(f"{src}: [{where}] {k} = {v!r}; expected a positive finite number")
         vals[k] = float(v)
+    missing = [k for k in PARAM_NAMES if k not in vals]
+    if missing:  # a hand-written table may name only some: say which values are SUMO's defaults
+        warnings.warn(f"{src}: [{where}] has no {', '.join(missing)}: SUMO's defaults are used "
+                      f"({', '.join(f'{k} = {getattr(SUMO_DEFAULTS, k):g}' for k in missing)})",
+                      DefaultParamsWarning, stacklevel=3)
     return CFParams(**vals)
+
+
+class DefaultParamsWarning(UserWarning):
+    """A parameter table of a params file leaves parameters out: they take SUMO's defaults."""
 
 
 def _classes(src: str, d: object) -> DriverClasses:
@@ -119,11 +133,13 @@ def _number(v: object) -> float:
 
 def load_result(path: str | os.PathLike) -> CalibrationResult:
     """Read a params TOML written by :func:`save_result` (or hand-written with at least
-    ``model`` and ``[population]``; ``objective`` defaults to :data:`~.fit.DEFAULT_OBJECTIVE`).
+    ``model`` and ``[population]``; ``objective`` defaults to :data:`~.fit.DEFAULT_OBJECTIVE`;
+    parameters a table leaves out take SUMO's defaults, named in a :class:`DefaultParamsWarning`).
 
     Raises:
         FileNotFoundError: ``path`` does not exist.
-        SpecError: not valid TOML, no or an unknown ``model``, no ``[population]`` table, a malformed
+        SpecError: not valid TOML, no or an unknown ``model``, no ``[population]`` table, a parameter
+            that is not a positive finite number, a malformed
             ``[spread.*]``, ``[[pair]]`` or ``[classes]`` entry, ``fitted`` not a list of parameter
             names, or a non-numeric ``n_pairs``, ``population_median_rmse_m`` or ``seconds_*``.
     """
@@ -172,6 +188,9 @@ def load_result(path: str | os.PathLike) -> CalibrationResult:
     fitted = data.get("fitted", [])
     if not isinstance(fitted, list) or not all(isinstance(f, str) and f in PARAM_NAMES for f in fitted):
         raise SpecError(f"{src}: fitted = {fitted!r}; expected a list of names from {list(PARAM_NAMES)}")
+    followers = data.get("train_followers", [])
+    if not isinstance(followers, list) or not all(isinstance(f, str) for f in followers):
+        raise SpecError(f"{src}: train_followers must be a list of follower names (strings)")
     numbers = {}
     for key, default in (("population_median_rmse_m", float("nan")), ("seconds_population", 0.0),
                          ("seconds_per_pair", 0.0), ("n_pairs", len(pairs))):
@@ -188,4 +207,5 @@ def load_result(path: str | os.PathLike) -> CalibrationResult:
         seconds_population=numbers["seconds_population"],
         seconds_per_pair=numbers["seconds_per_pair"], objective=objective,
         classes=_classes(src, data["classes"]) if "classes" in data else None,
+        train_followers=tuple(sorted(set(followers))),
     )

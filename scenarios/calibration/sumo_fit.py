@@ -38,7 +38,7 @@ from scipy.optimize import minimize
 
 from irl.spawn_guard import GUARD_HINT, importing_main_in_worker
 from scenarios.calibration.fit import (
-    CONGESTED_GUESS, DEFAULT_OBJECTIVE, FITTED, OBJECTIVES, CalibrationResult, bounds_of, check_fitted,
+    CONGESTED_GUESS, DEFAULT_OBJECTIVE, FITTED, OBJECTIVES, CalibrationResult, bounds_of, check_fitted, followers_of,
 )
 from scenarios.calibration.models import CALIBRATION_MODELS, SUMO_DEFAULTS, CFParams
 from scenarios.calibration.pairs import CarFollowingPair
@@ -274,5 +274,5 @@ def calibrate_sumo(
     return CalibrationResult(
         model=model, fitted=tuple(fitted), population=pop, population_median_rmse_m=med, per_pair=(),
         spread=(), n_pairs=len(pairs), seconds_population=time.perf_counter() - t0, seconds_per_pair=0.0,
-        objective=objective,
+        objective=objective, train_followers=followers_of(pairs),
     )

@@ -55,7 +55,8 @@ def calibrate_parallel(
     A model without a numpy replica (EIDM) is fitted through SUMO instead
     (:func:`scenarios.calibration.sumo_fit.calibrate_sumo`: population only, ``max_evals_sumo``
     SUMO runs at most, default ``sumo_fit.DEFAULT_MAX_EVALS``, each split over ``workers``
-    processes; ``per_pair`` is ignored, ``tick`` is called once per run).
+    processes; ``per_pair`` is ignored, ``tick`` is called once per run). With a replica, ``tick``
+    is called once per simulation of the population fit.
 
     Args:
         pairs: the training pairs; ``files[i]`` is the CSV ``pairs[i]`` was read from.
@@ -73,7 +74,8 @@ def calibrate_parallel(
                               max_evals=max_evals_sumo if max_evals_sumo is not None else DEFAULT_MAX_EVALS,
                               tick=tick)
     t0 = time.perf_counter()
-    pop, med = fit_population(pairs, model=model, fitted=fitted, max_nfev=max_nfev_population, objective=objective)
+    pop, med = fit_population(pairs, model=model, fitted=fitted, max_nfev=max_nfev_population, objective=objective,
+                              tick=tick)
     t1 = time.perf_counter()
     fits: list[PairFit] = []
     if per_pair:

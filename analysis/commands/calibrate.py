@@ -140,25 +140,29 @@ def run_fit(args: argparse.Namespace) -> int:
             raise SpecError(f"--classes {args.classes}: {e}") from None
     file_of = {f.stem: f for f in pair_files(args.pairs, limit=args.limit)}
     print(f"fitting {args.model} on {len(pairs)} pairs ...", file=sys.stderr)
-    bar = None
     if args.model not in MODELS:
         if not args.no_per_pair:
             print(f"{args.model}: no numpy replica; population fit through SUMO only, no per-pair fits",
                   file=sys.stderr)
         bar = tqdm(total=args.max_evals or DEFAULT_MAX_EVALS, desc=f"calibrate {args.model} (SUMO runs)",
                    unit="run", file=sys.stderr, disable=args.no_progress or not sys.stderr.isatty())
+    else:  # the population fit's simulations (two starts, up to 40 each), then the per-pair fits' own bar
+        bar = tqdm(desc=f"population {args.model}", unit="simulation", file=sys.stderr, leave=False,
+                   disable=args.no_progress or not sys.stderr.isatty())
     try:
         result = calibrate_parallel(pairs, [file_of[p.name] for p in pairs], model=args.model,
                                     per_pair=not args.no_per_pair, workers=args.workers,
                                     objective=args.objective or DEFAULT_OBJECTIVE,
                                     progress=not args.no_progress, max_evals_sumo=args.max_evals,
-                                    tick=(lambda: bar.update(1)) if bar is not None else None)
+                                    tick=lambda: bar.update(1))
     finally:
-        if bar is not None:
-            bar.close()
+        bar.close()
     if args.classes > 1:
         t0 = time.perf_counter()
-        classes = fit_classes(pairs, args.classes, model=args.model, objective=result.objective)
+        with tqdm(desc=f"{args.classes} class fits", unit="simulation", file=sys.stderr, leave=False,
+                  disable=args.no_progress or not sys.stderr.isatty()) as class_bar:
+            classes = fit_classes(pairs, args.classes, model=args.model, objective=result.objective,
+                                  tick=lambda: class_bar.update(1))
         result = replace(result, classes=classes)
         print(f"{classes.n_classes} driver classes of the initial time headway, edges "
               f"{', '.join(f'{e:.2f}' for e in classes.edges_s)} s ({time.perf_counter() - t0:.1f} s):",

@@ -3,7 +3,7 @@ pairs cut into equally filled classes of the initial time headway, one populatio
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -43,6 +43,7 @@ def class_edges(pairs: Sequence[CarFollowingPair], n_classes: int, *, model: str
 
 def fit_classes(
     pairs: Sequence[CarFollowingPair], n_classes: int, *, model: str = "idm", objective: str = DEFAULT_OBJECTIVE,
+    tick: Callable[[], None] | None = None,
 ) -> DriverClasses:
     """Cut ``pairs`` into ``n_classes`` equally filled classes of :func:`initial_time_headway`
     (edges: the keys' quantiles, :func:`class_edges`) and run
@@ -53,6 +54,7 @@ def fit_classes(
         n_classes: C >= 1; C = 1 is the plain population fit.
         model: a replica model (``idm`` or ``krauss``, :data:`~scenarios.calibration.models.MODELS`).
         objective: the population fit's objective (:data:`~scenarios.calibration.fit.OBJECTIVES`).
+        tick: called once per simulation of the class fits (progress reporting).
 
     Returns:
         The classes: float64[C-1] edges (s) and C parameter sets.
@@ -62,6 +64,6 @@ def fit_classes(
     """
     edges = class_edges(pairs, n_classes, model=model)
     of = np.searchsorted(np.asarray(edges), [initial_time_headway(p) for p in pairs], side="right")
-    params = tuple(fit_population([p for p, k in zip(pairs, of) if k == c], model=model, objective=objective)[0]
-                   for c in range(n_classes))
+    params = tuple(fit_population([p for p, k in zip(pairs, of) if k == c], model=model, objective=objective,
+                                  tick=tick)[0] for c in range(n_classes))
     return DriverClasses(edges_s=edges, params=params)

@@ -147,7 +147,7 @@ def run_fit(args: argparse.Namespace) -> int:
         bar = tqdm(total=args.max_evals or DEFAULT_MAX_EVALS, desc=f"calibrate {args.model} (SUMO runs)",
                    unit="run", file=sys.stderr, disable=args.no_progress or not sys.stderr.isatty())
     else:  # the population fit's simulations (two starts, up to 40 each), then the per-pair fits' own bar
-        bar = tqdm(desc=f"population {args.model}", unit="simulation", file=sys.stderr, leave=False,
+        bar = tqdm(desc=f"population {args.model}", unit="sim", file=sys.stderr, leave=False,
                    disable=args.no_progress or not sys.stderr.isatty())
     try:
         result = calibrate_parallel(pairs, [file_of[p.name] for p in pairs], model=args.model,
@@ -159,7 +159,7 @@ def run_fit(args: argparse.Namespace) -> int:
         bar.close()
     if args.classes > 1:
         t0 = time.perf_counter()
-        with tqdm(desc=f"{args.classes} class fits", unit="simulation", file=sys.stderr, leave=False,
+        with tqdm(desc=f"{args.classes} class fits", unit="sim", file=sys.stderr, leave=False,
                   disable=args.no_progress or not sys.stderr.isatty()) as class_bar:
             classes = fit_classes(pairs, args.classes, model=args.model, objective=result.objective,
                                   tick=lambda: class_bar.update(1))

@@ -91,10 +91,9 @@ def register(subparsers) -> None:
 
 def _pairs(args: argparse.Namespace, *, held_out: bool):
     from scenarios.calibration import load_pairs, split_by_follower
-
-    pairs = load_pairs(args.pairs, limit=getattr(args, "limit", None))
     from scenarios.errors import SpecError
 
+    pairs = load_pairs(args.pairs, limit=getattr(args, "limit", None))
     if args.holdout:  # 0 = no held-out split; a negative or NaN fraction is refused, not ignored
         if not 0 < args.holdout < 1:
             raise SpecError(f"--holdout: expected a fraction in (0, 1), got {args.holdout}")
@@ -136,8 +135,8 @@ def run_fit(args: argparse.Namespace) -> int:
     if args.classes > 1:  # fail before minutes of fitting: too few pairs, or classes the quantiles cannot fill
         try:
             class_edges(pairs, args.classes, model=args.model)
-        except SpecError as e:
-            raise SpecError(f"--classes {args.classes}: {e}") from None
+        except SpecError as e:  # "classes: ..." -> "--classes: ...", the option's name
+            raise SpecError(f"--{e}") from None
     file_of = {f.stem: f for f in pair_files(args.pairs, limit=args.limit)}
     print(f"fitting {args.model} on {len(pairs)} pairs ...", file=sys.stderr)
     if args.model not in MODELS:
@@ -185,7 +184,6 @@ def run_fit(args: argparse.Namespace) -> int:
 
 def run_evaluate(args: argparse.Namespace) -> int:
     from scenarios.calibration import evaluate, load_result
-
     from scenarios.errors import SpecError
 
     result = load_result(args.params)

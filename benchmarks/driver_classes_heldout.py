@@ -19,12 +19,11 @@ population fits per row (about 20-40 s each on 2 cores).
 from __future__ import annotations
 
 import argparse
-import os
 import time
-from pathlib import Path
 
 import numpy as np
 
+from benchmarks.heldout_args import add_split_arguments
 from scenarios.calibration import CarFollowingPair, PairBatch, load_pairs, split_by_follower
 from scenarios.calibration.fit import fit_population
 from scenarios.calibration.models import SUMO_DEFAULTS, CFParams
@@ -60,12 +59,9 @@ def class_ratios(train: list[CarFollowingPair], test: list[CarFollowingPair], n_
 
 
 def main() -> None:
-    default_pairs = Path(os.environ.get("MERGE_IRL_SHARED", "../shared")) / "data" / "ngsim_i80_car_following"
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--pairs", type=Path, default=default_pairs)
-    ap.add_argument("--holdout", type=float, default=0.3)
-    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
-    ap.add_argument("--classes", type=int, nargs="+", default=[1, 3, 5])
+    add_split_arguments(ap)
+    ap.add_argument("--classes", type=int, nargs="+", default=[1, 3, 5], help="numbers of classes, one row each")
     ap.add_argument("--model", default="idm", choices=("idm", "krauss"))
     args = ap.parse_args()
     pairs = load_pairs(args.pairs)

@@ -30,14 +30,13 @@ data and model allow. Figures are printed, not asserted. Cost: about 40-50 s per
 from __future__ import annotations
 
 import argparse
-import os
 import time
 import warnings
 from collections.abc import Sequence
-from pathlib import Path
 
 import numpy as np
 
+from benchmarks.heldout_args import add_split_arguments
 from scenarios.calibration import (
     SUMO_DEFAULTS, CarFollowingPair, CFParams, PairBatch, fit_classes, fit_per_pair, fit_population, load_pairs,
     split_by_follower, split_in_time,
@@ -81,13 +80,10 @@ def split_ratios(train: Sequence[CarFollowingPair], test: Sequence[CarFollowingP
 
 
 def main() -> None:
-    default_pairs = Path(os.environ.get("MERGE_IRL_SHARED", "../shared")) / "data" / "ngsim_i80_car_following"
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--pairs", type=Path, default=default_pairs)
-    ap.add_argument("--holdout", type=float, default=0.3)
-    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    add_split_arguments(ap)
     ap.add_argument("--fraction", type=float, default=0.5, help="share of each held-out pair used to fit it")
-    ap.add_argument("--classes", type=int, default=3)
+    ap.add_argument("--classes", type=int, default=3, help="driver classes of the classes row (default 3)")
     ap.add_argument("--model", default="idm", choices=("idm", "krauss"))
     args = ap.parse_args()
     if not 0.0 < args.fraction < 1.0 or not 0.0 < args.holdout < 1.0:

@@ -38,8 +38,14 @@ def test_bad_pair_files_name_file_and_line(tmp_path):
     df = pd.read_csv(f)
     df.loc[7, "t"] = 0.75
     df.to_csv(f, index=False)
-    with pytest.raises(SpecError, match=r"a\.csv: column t line 9"):
+    with pytest.raises(SpecError, match=r"a\.csv: column t lines 8-9: step 0\.15 s"):  # row 7 is line 9
         read_pair(f)
+    df["t"] = np.round(np.arange(len(df)) * 0.01, 2)  # 0.01 s steps throughout: the first step is named
+    df.to_csv(f, index=False)
+    with pytest.raises(SpecError, match=r"a\.csv: column t lines 2-3: step 0\.01 s"):
+        read_pair(f)
+    with pytest.raises(SpecError, match=r"a\.csv: a file; expected a folder of pair CSVs"):
+        load_pairs(f)
     g = write_pair(tmp_path / "b.csv")
     pd.read_csv(g).drop(columns="v_leader").to_csv(g, index=False)
     with pytest.raises(SpecError, match=r"b\.csv: missing column\(s\) \['v_leader'\]"):

@@ -88,9 +88,10 @@ def read_pair(path: str | Path) -> CarFollowingPair:
             i = int(np.argmax(~np.isfinite(v)))
             raise SpecError(f"{path}: column {c} line {i + 2}: {str(df[c].iloc[i])[:40]!r} is not a finite number")
     dt = np.diff(arr["t"])
-    if np.abs(dt - STEP_S).max() > 1e-6:
-        i = int(np.argmax(np.abs(dt - STEP_S)))
-        raise SpecError(f"{path}: column t line {i + 3}: step {dt[i]:.4f} s; expected uniform {STEP_S} s steps")
+    off = np.abs(dt - STEP_S) > 1e-6
+    if off.any():
+        i = int(np.argmax(off))  # the first step off, between lines i + 2 and i + 3
+        raise SpecError(f"{path}: column t lines {i + 2}-{i + 3}: step {dt[i]:.6g} s; expected uniform {STEP_S} s steps")
     for c in ("v_follower", "v_leader"):
         if arr[c].min() < 0:
             i = int(np.argmin(arr[c]))
@@ -158,9 +159,11 @@ def pair_files(directory: str | Path, *, limit: int | None = None) -> list[Path]
 
     Raises:
         FileNotFoundError: ``directory`` does not exist.
-        SpecError: it holds no pair CSV.
+        SpecError: it is a file, or holds no pair CSV.
     """
     d = Path(directory)
+    if d.is_file():
+        raise SpecError(f"{d}: a file; expected a folder of pair CSVs (*.csv, or train/*.csv below it)")
     if not d.is_dir():
         raise FileNotFoundError(f"pairs directory not found: {d}")
     files = sorted(p for p in d.glob("*.csv") if p.name != "manifest.csv")

@@ -179,8 +179,9 @@ class SavedModel:
             raise ModelFileError(f"{path}: not a JSON model file ({type(e).__name__}: {str(e)[:200]})") from None
         if not isinstance(data, dict):
             raise ModelFileError(f"{path}: expected a JSON object at top level, got {_json_type(data)}")
-        if data.get("format") == CF_FORMAT or data.get("format") in OLD_CF_FORMATS:
-            raise ModelFileError(f"{path}: a car-following logit driver of 'merge-irl dagger' ({data['format']}), not an IRL "
+        fmt = data.get("format")
+        if isinstance(fmt, str) and (fmt == CF_FORMAT or fmt in OLD_CF_FORMATS):
+            raise ModelFileError(f"{path}: a car-following logit driver of 'merge-irl dagger' ({fmt}), not an IRL "
                                  "model.json: drive it with 'merge-irl evaluate --cf-model'")
         for key in ("method", "theta", "loglik", "settings", "q"):
             if key not in data:

@@ -153,7 +153,7 @@ class CarFollowingLogit:
             raise ModelFileError(f"{path}: no such model file") from None
         except (OSError, ValueError, UnicodeDecodeError, RecursionError) as e:
             raise ModelFileError(f"{path}: not a readable JSON model file ({type(e).__name__}: {str(e)[:200]})") from None
-        if isinstance(data, dict) and data.get("format") in OLD_CF_FORMATS:
+        if isinstance(data, dict) and isinstance(data.get("format"), str) and data["format"] in OLD_CF_FORMATS:
             raise ModelFileError(f"{path}: format {data['format']!r}: {OLD_CF_FORMATS[data['format']]}; "
                                  f"train it again with 'merge-irl dagger' (writes {CF_FORMAT!r})")
         if not isinstance(data, dict) or data.get("format") != CF_FORMAT:

@@ -9,6 +9,8 @@ Layout::
     population_median_rmse_m = 3.41
     seconds_population = 40.2
     seconds_per_pair = 160.0
+    train_followers = ["period/follower", ...]   # the training pairs' followers (evaluate checks
+                                                 # that its held-out pairs are none of them)
 
     [population]            # SUMO vType attributes, SI units
     accel = 1.15

@@ -20,13 +20,9 @@ from scenarios.calibration import (
     fit_per_pair,
     read_pair,
 )
-from scenarios.calibration.fit import (
-    DEFAULT_OBJECTIVE,
-    FITTED,
-    CalibrationResult,
-    assemble_result,
-    fit_population,
-)
+from scenarios.calibration.fit import FITTED, assemble_result, fit_population
+from scenarios.calibration.objective import DEFAULT_OBJECTIVE
+from scenarios.calibration.result import CalibrationResult
 from scenarios.calibration.models import MODELS
 from scenarios.calibration.sumo_fit import DEFAULT_MAX_EVALS, calibrate_sumo
 
@@ -60,7 +56,7 @@ def calibrate_parallel(
 
     Args:
         pairs: the training pairs; ``files[i]`` is the CSV ``pairs[i]`` was read from.
-        objective: the population fit's objective (:data:`scenarios.calibration.fit.OBJECTIVES`).
+        objective: the population fit's objective (:data:`scenarios.calibration.objective.OBJECTIVES`).
         workers: processes (default: one per core); the pairs are split in ``workers`` chunks
             of similar total length.
 

@@ -11,7 +11,7 @@ import pytest
 
 from analysis.report_plots import _plt, _save
 from irl.atomic import temporary_path, write_atomic, write_json_atomic, write_text_atomic
-from scenarios.calibration.fit import CalibrationResult
+from scenarios.calibration.result import CalibrationResult
 from scenarios.calibration.models import CFParams
 from scenarios.calibration.params_file import load_result, save_result
 from scenarios.loader import load_scenario

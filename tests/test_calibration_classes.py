@@ -16,7 +16,7 @@ import pytest
 from scenarios.calibration import CFParams, evaluate, fit_population, load_pairs, load_result, save_result
 from scenarios.calibration.class_fit import fit_classes
 from scenarios.calibration.classes import DriverClasses, initial_time_headway
-from scenarios.calibration.fit import CalibrationResult
+from scenarios.calibration.result import CalibrationResult
 from scenarios.calibration.models import simulate_follower
 from scenarios.calibration.pairs import CarFollowingPair
 from scenarios.errors import SpecError

@@ -14,7 +14,7 @@ from analysis.calibration_check import accepted_gaps, pair_states, table_states
 from analysis.calibration_preset import preset_with_drivers
 from irl.units import M_PER_FT
 from scenarios.calibration import CFParams, PairFit, load_result
-from scenarios.calibration.fit import CalibrationResult
+from scenarios.calibration.result import CalibrationResult
 from scenarios.calibration.pairs import CarFollowingPair
 from scenarios.calibration.vtypes import SIM_RANGE, member_spread, resample_members, to_vtype_specs
 from scenarios.errors import SpecError

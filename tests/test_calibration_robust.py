@@ -19,7 +19,7 @@ from scenarios.calibration import (
     load_pairs,
     simulate_follower,
 )
-from scenarios.calibration.fit import OBJECTIVES
+from scenarios.calibration.objective import OBJECTIVES
 from scenarios.calibration.objective import spacing_rmse, spacing_rmspe, theil_u
 from scenarios.calibration.pairs import CarFollowingPair, PairBatch
 from scenarios.errors import SpecError

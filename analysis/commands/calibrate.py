@@ -112,7 +112,7 @@ def run_fit(args: argparse.Namespace) -> int:
     from irl.run_folder import check_writable
     from scenarios.calibration import save_result
     from scenarios.calibration.class_fit import class_edges, fit_classes
-    from scenarios.calibration.fit import DEFAULT_OBJECTIVE
+    from scenarios.calibration.objective import DEFAULT_OBJECTIVE
     from scenarios.calibration.models import CALIBRATION_MODELS, MODELS
     from scenarios.calibration.pairs import pair_files
     from scenarios.calibration.sumo_fit import DEFAULT_MAX_EVALS, MIN_MAX_EVALS

@@ -8,7 +8,8 @@ real SUMO runs (:mod:`.sumo_fit`, population fit only). The calibrated populatio
 ``i80`` scenario's vType distribution.
 
 Modules: :mod:`.pairs` (loading, batches, split by follower), :mod:`.models` (the SUMO
-replica), :mod:`.objective` (spacing error), :mod:`.fit` (fits),
+replica), :mod:`.objective` (spacing error and the fits' objectives), :mod:`.fit` (fits),
+:mod:`.result` (the fitted parameters and their spread),
 :mod:`~scenarios.calibration.evaluate` (calibrated vs default RMSE), :mod:`.params_file` (TOML),
 :mod:`.vtypes` (driver distribution), :mod:`.sumo_replay` (the same pairs in real SUMO, for checks),
 :mod:`.sumo_fit` (fits and scores through SUMO: EIDM), :mod:`.classes` (one population vector
@@ -18,14 +19,13 @@ per class of the initial time headway).
 from scenarios.calibration.class_fit import fit_classes
 from scenarios.calibration.classes import DriverClasses
 from scenarios.calibration.evaluate import Evaluation, PairScore, evaluate
-from scenarios.calibration.fit import (
-    BOUNDS, FITTED, CalibrationResult, PairFit, ParamSpread, calibrate, fit_per_pair, fit_population,
-)
+from scenarios.calibration.fit import BOUNDS, FITTED, calibrate, fit_per_pair, fit_population
 from scenarios.calibration.models import PARAM_NAMES, SUMO_DEFAULTS, CFParams, simulate_follower
 from scenarios.calibration.pairs import (
     CarFollowingPair, PairBatch, load_pairs, read_pair, split_by_follower, split_in_time,
 )
 from scenarios.calibration.params_file import load_result, save_result
+from scenarios.calibration.result import CalibrationResult, PairFit, ParamSpread
 from scenarios.calibration.sumo_fit import SumoRmse, calibrate_sumo, fit_population_sumo
 from scenarios.calibration.vtypes import DriverMember, driver_members
 

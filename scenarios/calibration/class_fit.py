@@ -8,8 +8,9 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from scenarios.calibration.classes import DriverClasses, initial_time_headway
-from scenarios.calibration.fit import DEFAULT_OBJECTIVE, fit_population
+from scenarios.calibration.fit import fit_population
 from scenarios.calibration.models import MODELS
+from scenarios.calibration.objective import DEFAULT_OBJECTIVE
 from scenarios.calibration.pairs import CarFollowingPair
 from scenarios.errors import SpecError
 
@@ -53,7 +54,7 @@ def fit_classes(
         pairs: the P training pairs.
         n_classes: C >= 1; C = 1 is the plain population fit.
         model: a replica model (``idm`` or ``krauss``, :data:`~scenarios.calibration.models.MODELS`).
-        objective: the population fit's objective (:data:`~scenarios.calibration.fit.OBJECTIVES`).
+        objective: the population fit's objective (:data:`~scenarios.calibration.objective.OBJECTIVES`).
         tick: called once per simulation of the class fits (progress reporting).
 
     Returns:

@@ -2,7 +2,7 @@
 batched Levenberg-Marquardt).
 
 * **Population fit** (:func:`fit_population`): one parameter set for all pairs. The residuals
-  are the per-pair spacing RMSEs (m) under a robust loss (:data:`OBJECTIVES`; default ``log``,
+  are the per-pair spacing RMSEs (m) under a robust loss (:data:`~scenarios.calibration.objective.OBJECTIVES`; default ``log``,
   the geometric mean of the per-pair RMSEs), so a few pairs the model cannot follow at all do
   not dominate; ``scipy.optimize.least_squares`` (trust-region reflective, bounds), started
   from SUMO's defaults and from a congested-traffic guess, the better end point wins.
@@ -14,22 +14,24 @@ batched Levenberg-Marquardt).
 Jacobians are forward differences computed in one vectorised simulation of the K+1 parameter
 sets (base + one step per parameter) for every pair at once; one simulation gives a point's
 residuals and its Jacobian.
-The spread of the per-pair parameters is the spread of drivers (:class:`ParamSpread`).
+The spread of the per-pair parameters is the spread of drivers
+(:class:`~scenarios.calibration.result.ParamSpread`). The objectives are in
+:mod:`scenarios.calibration.objective`, the result types in :mod:`scenarios.calibration.result`.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 from scipy.optimize import least_squares
 
-from scenarios.calibration.classes import DriverClasses
 from scenarios.calibration.models import CALIBRATION_MODELS, MODELS, SUMO_DEFAULTS, CFParams
-from scenarios.calibration.objective import spacing_errors, spacing_rmse
+from scenarios.calibration.objective import DEFAULT_OBJECTIVE, OBJECTIVES, spacing_errors, spacing_rmse
 from scenarios.calibration.pairs import CarFollowingPair, PairBatch
+from scenarios.calibration.result import CalibrationResult, PairFit, followers_of, spread_of
 from scenarios.errors import SpecError
 
 #: Parameters fitted by default, and their bounds (SI units). The bounds keep the values
@@ -48,81 +50,8 @@ BOUNDS: dict[str, tuple[float, float]] = {
 }
 #: Second start of the population fit: a guess for congested freeway traffic.
 CONGESTED_GUESS = CFParams(accel=1.0, decel=2.0, tau=1.2, minGap=2.0, maxSpeed=20.0)
-#: Population objectives: name -> (``least_squares`` loss, its scale, residual normalised).
-#: The residual of pair i is its spacing RMSE (m), or, normalised, that RMSE divided by the
-#: pair's RMSE under SUMO's defaults (every pair's residual is then 1 at the defaults, so a
-#: pair that no single driver can follow weighs no more than an easy one).
-#: ``log``: Cauchy loss with scale 0.3 m, ``log(1 + (r/0.3)^2)``, which for the RMSEs of real
-#: pairs (1-20 m) is within a few percent of ``2 log(r/0.3)``: the fit minimises the geometric
-#: mean of the per-pair RMSEs, a smooth estimate of their median (per-pair RMSEs are roughly
-#: log-normal), and a pair's weight falls as 1/r.
-OBJECTIVES: dict[str, tuple[str, float, bool]] = {
-    "rmse": ("cauchy", 1.0, False),
-    "log": ("cauchy", 0.3, False),
-    "ratio": ("cauchy", 0.5, True),
-}
-DEFAULT_OBJECTIVE = "log"
 #: Forward-difference step, as a fraction of each parameter's bound range.
 DIFF_STEP = 1e-4
-
-
-@dataclass(frozen=True)
-class ParamSpread:
-    """Distribution of one parameter over the per-pair fits."""
-
-    mean: float
-    std: float
-    median: float
-    q10: float
-    q90: float
-
-
-@dataclass(frozen=True)
-class PairFit:
-    """One pair's own fit: its parameters and spacing RMSE (m) under them."""
-
-    name: str
-    group: str
-    params: CFParams
-    rmse_m: float
-
-
-@dataclass(frozen=True)
-class CalibrationResult:
-    """Population fit + per-pair fits of one model.
-
-    Attributes:
-        model: "idm", "krauss" or "eidm" (a key of ``models.CALIBRATION_MODELS``).
-        fitted: names of the fitted parameters (the others stay at ``population``'s values).
-        population: the population parameters.
-        population_median_rmse_m: median over training pairs of the spacing RMSE (m).
-        per_pair: the per-pair fits (empty if not run).
-        spread: (parameter name, :class:`ParamSpread` over ``per_pair``) pairs.
-        n_pairs: training pairs used.
-        seconds_population, seconds_per_pair: wall time of the two fits.
-        objective: the population fit's objective (a key of :data:`OBJECTIVES`).
-        classes: one population vector per class of the initial time headway
-            (:class:`~scenarios.calibration.classes.DriverClasses`), or None (one vector for all).
-        train_followers: the training pairs' followers (``CarFollowingPair.group``), sorted, so
-            that an evaluation can tell held-out drivers from the fit's own; empty if unknown
-            (a file written before they were recorded, or a hand-written one).
-    """
-
-    model: str
-    fitted: tuple[str, ...]
-    population: CFParams
-    population_median_rmse_m: float
-    per_pair: tuple[PairFit, ...]
-    spread: tuple[tuple[str, ParamSpread], ...]
-    n_pairs: int
-    seconds_population: float
-    seconds_per_pair: float
-    objective: str = DEFAULT_OBJECTIVE
-    classes: DriverClasses | None = None
-    train_followers: tuple[str, ...] = ()
-
-    def spread_of(self, name: str) -> ParamSpread:
-        return dict(self.spread)[name]
 
 
 def _check(model: str, fitted: Sequence[str]) -> None:
@@ -173,7 +102,7 @@ def fit_population(
     """Population parameters and the median per-pair spacing RMSE (m) under them.
 
     ``scipy.optimize.least_squares`` (trust-region reflective, bounds) on the per-pair
-    residuals of ``objective`` (see :data:`OBJECTIVES`) under its robust loss, from each start
+    residuals of ``objective`` (see :data:`~scenarios.calibration.objective.OBJECTIVES`) under its robust loss, from each start
     (default: ``base`` and :data:`CONGESTED_GUESS`); the lowest cost wins. Every evaluation
     simulates the point and its K forward-difference neighbours in one vectorised simulation
     (float64[P, K+1]), so the residuals and the Jacobian of a point cost one simulation.
@@ -182,7 +111,7 @@ def fit_population(
         pairs: the P training pairs.
         base: the values of the parameters not in ``fitted``.
         max_nfev: evaluations per start (``least_squares``' ``max_nfev``).
-        objective: a key of :data:`OBJECTIVES`.
+        objective: a key of :data:`~scenarios.calibration.objective.OBJECTIVES`.
         tick: called once per simulation of the batch (progress reporting).
         action_steps: the drivers decide every that many 0.1 s steps (SUMO's ``actionStepLength``,
             :func:`~scenarios.calibration.models.simulate_follower`); 1, SUMO's default, in the
@@ -322,18 +251,6 @@ def fit_per_pair(
     return tuple(out)
 
 
-def spread_of(fits: Sequence[PairFit], names: Sequence[str]) -> tuple[tuple[str, ParamSpread], ...]:
-    """Per-parameter mean, std, median and 10/90 % quantiles over per-pair fits."""
-    out = []
-    for n in names:
-        v = np.array([getattr(f.params, n) for f in fits])
-        out.append((n, ParamSpread(
-            mean=float(v.mean()), std=float(v.std(ddof=1)) if len(v) > 1 else 0.0,
-            median=float(np.median(v)), q10=float(np.quantile(v, 0.1)), q90=float(np.quantile(v, 0.9)),
-        )))
-    return tuple(out)
-
-
 def calibrate(
     pairs: Sequence[CarFollowingPair], *, model: str = "idm", fitted: Sequence[str] = FITTED,
     per_pair: bool = True, base: CFParams = SUMO_DEFAULTS,
@@ -394,8 +311,3 @@ def assemble_result(
         seconds_population=seconds_population, seconds_per_pair=seconds_per_pair, objective=objective,
         train_followers=followers_of(pairs),
     )
-
-
-def followers_of(pairs: Sequence[CarFollowingPair]) -> tuple[str, ...]:
-    """The sorted distinct followers (``group``) of ``pairs``."""
-    return tuple(sorted({p.group for p in pairs}))

@@ -1,4 +1,5 @@
-"""Spacing error of a car-following model on a batch of replayed pairs.
+"""Spacing error of a car-following model on a batch of replayed pairs, and the population fit's
+objectives over the per-pair errors (:data:`OBJECTIVES`).
 
 All functions work in the batch's row order (pairs sorted by decreasing length, see
 :class:`~scenarios.calibration.pairs.PairBatch`); per-pair parameter arrays must be in that
@@ -14,6 +15,21 @@ import numpy as np
 
 from scenarios.calibration.models import simulate_follower
 from scenarios.calibration.pairs import PairBatch
+
+#: Population objectives: name -> (``least_squares`` loss, its scale, residual normalised).
+#: The residual of pair i is its spacing RMSE (m), or, normalised, that RMSE divided by the
+#: pair's RMSE under SUMO's defaults (every pair's residual is then 1 at the defaults, so a
+#: pair that no single driver can follow weighs no more than an easy one).
+#: ``log``: Cauchy loss with scale 0.3 m, ``log(1 + (r/0.3)^2)``, which for the RMSEs of real
+#: pairs (1-20 m) is within a few percent of ``2 log(r/0.3)``: the fit minimises the geometric
+#: mean of the per-pair RMSEs, a smooth estimate of their median (per-pair RMSEs are roughly
+#: log-normal), and a pair's weight falls as 1/r.
+OBJECTIVES: dict[str, tuple[str, float, bool]] = {
+    "rmse": ("cauchy", 1.0, False),
+    "log": ("cauchy", 0.3, False),
+    "ratio": ("cauchy", 0.5, True),
+}
+DEFAULT_OBJECTIVE = "log"
 
 
 def simulated_spacing(

@@ -3,7 +3,7 @@
 Layout::
 
     model = "idm"
-    objective = "log"         # the population fit's objective (fit.OBJECTIVES)
+    objective = "log"         # the population fit's objective (objective.OBJECTIVES)
     fitted = ["accel", "decel", "tau", "minGap", "maxSpeed"]
     n_pairs = 211
     population_median_rmse_m = 3.41
@@ -46,8 +46,9 @@ from pathlib import Path
 
 from irl.atomic import write_text_atomic
 from scenarios.calibration.classes import DriverClasses
-from scenarios.calibration.fit import DEFAULT_OBJECTIVE, OBJECTIVES, CalibrationResult, PairFit, ParamSpread
 from scenarios.calibration.models import CALIBRATION_MODELS, PARAM_NAMES, SUMO_DEFAULTS, CFParams
+from scenarios.calibration.objective import DEFAULT_OBJECTIVE, OBJECTIVES
+from scenarios.calibration.result import CalibrationResult, PairFit, ParamSpread
 from scenarios.errors import SpecError
 from scenarios.toml_write import dumps
 
@@ -135,7 +136,7 @@ def _number(v: object) -> float:
 
 def load_result(path: str | os.PathLike) -> CalibrationResult:
     """Read a params TOML written by :func:`save_result` (or hand-written with at least
-    ``model`` and ``[population]``; ``objective`` defaults to :data:`~.fit.DEFAULT_OBJECTIVE`;
+    ``model`` and ``[population]``; ``objective`` defaults to :data:`~.objective.DEFAULT_OBJECTIVE`;
     parameters a table leaves out take SUMO's defaults, named in a :class:`DefaultParamsWarning`).
 
     Raises:

@@ -10,10 +10,10 @@ one SUMO run over the pairs, split over worker processes (:class:`SumoRmse`).
 * :class:`SumoRmse`: per-pair spacing RMSE (m) of parameter sets, float64[P, C].
 * :func:`fit_population_sumo`: one parameter set for all pairs, derivative free
   (``scipy.optimize.minimize``, Nelder-Mead within the bounds; Nelder & Mead 1965, *Comput. J.*
-  7(4)), on the same robust objectives as the replica's fit (:data:`~.fit.OBJECTIVES`); each
+  7(4)), on the same robust objectives as the replica's fit (:data:`~.objective.OBJECTIVES`); each
   evaluation is one SUMO run, capped by ``max_evals``. EIDM's response to its parameters is not
   smooth (action points, thresholds), hence no finite-difference Jacobian.
-* :func:`calibrate_sumo`: the population fit as a :class:`~.fit.CalibrationResult` (no per-pair
+* :func:`calibrate_sumo`: the population fit as a :class:`~.result.CalibrationResult` (no per-pair
   fits: at one SUMO run per evaluation they would take hours).
 
 The spacing RMSE is scored as in :mod:`.objective`: bumper gap over the steps ``1 .. len-1`` of
@@ -37,10 +37,10 @@ import numpy as np
 from scipy.optimize import minimize
 
 from irl.spawn_guard import GUARD_HINT, importing_main_in_worker
-from scenarios.calibration.fit import (
-    CONGESTED_GUESS, DEFAULT_OBJECTIVE, FITTED, OBJECTIVES, CalibrationResult, bounds_of, check_fitted, followers_of,
-)
+from scenarios.calibration.fit import CONGESTED_GUESS, FITTED, bounds_of, check_fitted
 from scenarios.calibration.models import CALIBRATION_MODELS, SUMO_DEFAULTS, CFParams
+from scenarios.calibration.objective import DEFAULT_OBJECTIVE, OBJECTIVES
+from scenarios.calibration.result import CalibrationResult, followers_of
 from scenarios.calibration.pairs import CarFollowingPair
 from scenarios.calibration.sumo_replay import ReplayCase, run_sumo_pairs
 from scenarios.errors import ScenarioError, SpecError
@@ -175,7 +175,7 @@ def fit_population_sumo(
     and the number of parameter sets simulated.
 
     The cost is the population objective of :func:`~.fit.fit_population` (``objective``, a key
-    of :data:`~.fit.OBJECTIVES`: ``0.5 * sum_i s^2 log(1 + (r_i / s)^2)`` over the pairs' RMSEs
+    of :data:`~.objective.OBJECTIVES`: ``0.5 * sum_i s^2 log(1 + (r_i / s)^2)`` over the pairs' RMSEs
     ``r_i``, or their ratios to the defaults' RMSE), minimised by Nelder-Mead in the fitted
     parameters scaled to [0, 1] within :data:`~.fit.BOUNDS`. The starts (default: ``base`` and
     :data:`~.fit.CONGESTED_GUESS`) are simulated together; the best one is the first vertex,
@@ -263,7 +263,7 @@ def calibrate_sumo(
     base: CFParams = SUMO_DEFAULTS, max_evals: int = DEFAULT_MAX_EVALS, objective: str = DEFAULT_OBJECTIVE,
     workers: int | None = None, tick: Callable[[], None] | None = None,
 ) -> CalibrationResult:
-    """:func:`fit_population_sumo` as a :class:`~.fit.CalibrationResult` (no per-pair fits).
+    """:func:`fit_population_sumo` as a :class:`~.result.CalibrationResult` (no per-pair fits).
 
     Raises:
         SpecError, ScenarioError: as :func:`fit_population_sumo`.

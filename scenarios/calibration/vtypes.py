@@ -17,7 +17,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from scenarios.calibration.fit import FITTED, CalibrationResult
+from scenarios.calibration.fit import FITTED
+from scenarios.calibration.result import CalibrationResult
 from scenarios.calibration.models import CALIBRATION_MODELS, EIDM_NOISE_OFF, CFParams
 
 #: Range allowed in simulation (SI units).

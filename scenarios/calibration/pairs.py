@@ -96,19 +96,20 @@ def read_pair(path: str | Path) -> CarFollowingPair:
         if arr[c].min() < 0:
             i = int(np.argmin(arr[c]))
             raise SpecError(f"{path}: column {c} line {i + 2}: speed {arr[c][i]:g} < 0; speeds are forward, >= 0")
-    gap = arr["x_leader"] - arr["leader_length"] - arr["x_follower"]
-    if gap.min() <= 0:
-        i = int(np.argmin(gap))
-        raise SpecError(f"{path}: line {i + 2}: bumper gap x_leader - leader_length - x_follower = {gap[i]:g} ft <= 0: "
-                        "the leader is not ahead of the follower (columns swapped?)")
     m = _NAME.match(path.stem)
     group = f"{m['period']}/{m['f']}" if m else path.stem
-    return CarFollowingPair(
+    pair = CarFollowingPair(
         name=path.stem, group=group, t=arr["t"],
         x_follower=arr["x_follower"] * M_PER_FT, v_follower=arr["v_follower"] * M_PER_FT,
         x_leader=arr["x_leader"] * M_PER_FT, v_leader=arr["v_leader"] * M_PER_FT,
         leader_length=float(arr["leader_length"][0]) * M_PER_FT,
     )
+    gap = pair.spacing  # the gap the fits score
+    if gap.min() <= 0:
+        i = int(np.argmin(gap))
+        raise SpecError(f"{path}: line {i + 2}: bumper gap x_leader - leader_length - x_follower = "
+                        f"{gap[i] / M_PER_FT:g} ft <= 0: the leader is not ahead of the follower (columns swapped?)")
+    return pair
 
 
 def load_pairs(directory: str | Path, *, limit: int | None = None) -> tuple[CarFollowingPair, ...]:

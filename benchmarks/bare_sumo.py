@@ -7,7 +7,7 @@ import subprocess
 import time
 from pathlib import Path
 
-from scenarios.spec import ScenarioSpec
+from scenarios.spec.model import ScenarioSpec
 from sim.sumo_inputs import prepare_inputs, sumo_args, sumo_binary
 
 

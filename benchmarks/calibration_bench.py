@@ -8,7 +8,7 @@ For each model and each checkout (the baseline first, then this one), runs
 ``merge-irl calibrate fit --holdout H --seed S`` in a fresh process with that checkout first on
 ``PYTHONPATH`` (population + per-pair fits through the sweep runner), times it (wall clock), and
 scores the fitted population on the held-out followers with *this* checkout's
-``scenarios.calibration.evaluate`` (the same replica and the same SUMO defaults for both, 95 %
+``analysis.calibration.evaluate`` (the same replica and the same SUMO defaults for both, 95 %
 bootstrap intervals over pairs). Prints, side by side with ratios this / baseline:
 
 * wall time and CPU time (all its processes) of the whole fit, and the population / per-pair
@@ -36,7 +36,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from scenarios.calibration import CalibrationResult, Evaluation, evaluate, load_pairs, load_result, split_by_follower
+from analysis.calibration import CalibrationResult, Evaluation, evaluate, load_pairs, load_result, split_by_follower
 
 TARGET_RATIO = 0.8
 TARGET_POPULATION_S = 60.0

@@ -6,7 +6,7 @@ Side by side on the same scenario, network, routes and seed:
   ``--fcd-output`` from the warm-up on (what a user would run to get trajectories);
 * ``closed loop``: ``sim.run.run_scenario`` with the :class:`sim.controller.Controller`
   driving every merge's lag car with a learned-policy table (a random ``[1250, 5]`` Q table,
-  sampled actions) and the :class:`analysis.rerun_log.RerunLogger` writing an ``.rrd``;
+  sampled actions) and the :class:`analysis.recording.log.RerunLogger` writing an ``.rrd``;
 * ``rerun logging alone``: the wall time spent inside the logger's hook calls, per
   vehicle-frame.
 
@@ -23,12 +23,12 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.rerun_log import RerunLogger
+from analysis.recording.log import RerunLogger
 from benchmarks.bare_sumo import time_bare
 from scenarios.loader import load_scenario
-from scenarios.spec_parse import with_overrides
+from scenarios.spec.parse import with_overrides
 from sim.controller import Controller
-from irl.domains.merge_bins import MergeBins
+from irl.domains.merge.bins import MergeBins
 from sim.policy import LearnedPolicy
 from sim.run import run_scenario
 

@@ -1,6 +1,6 @@
 """Benchmark: the synthetic closed-loop target of issue 11, printed side by side (not timed).
 
-One run of the whole pipeline (:func:`analysis.pipeline.run_demo`): SUMO's drivers of the
+One run of the whole pipeline (:func:`analysis.demo.pipeline.run_demo`): SUMO's drivers of the
 scenario generate the training encounters (``--train-seeds``, at least 3 runs) and
 ``--heldout-runs`` held-out runs (default 10: the reference demonstrations of every
 Wasserstein distance and of the held-out log-likelihood; the demo uses one); the IRL methods
@@ -23,7 +23,7 @@ learn; every learned driver and every baseline (``sumo``, ``uniform``, ``margina
 * the safety-filter variant of the default learned driver (``--safety-ttc``, same episodes):
   its collisions and how often the filter replaced the driver's action;
 * the car-following logit driver trained with DAgger on critical labels
-  (:mod:`analysis.dagger` through the demo's ``dagger_rounds``, ``--cf-rounds``, default 4;
+  (:mod:`analysis.experiments.dagger` through the demo's ``dagger_rounds``, ``--cf-rounds``, default 4;
   0: not run) as the row ``cf-dagger``, and its round 0 (the demonstrations alone) as
   ``cf-logit``, evaluated on the same episodes with the same held-out demonstrations;
   ``cf-dagger`` is the demo's default learned driver;
@@ -57,15 +57,15 @@ from pathlib import Path
 
 import pandas as pd
 
-from analysis.commands._arg_types import non_negative_int, positive_int
-from analysis.dagger import DaggerConfig
-from analysis.demo_signal import bin_change_rate, braking_cap_share
-from analysis.evaluate import evaluate
-from analysis.evaluate_policies import cf_policy
-from analysis.metrics_demos import wasserstein
-from analysis.demo_config import CF_DRIVER, DemoConfig, check_dagger_seeds
-from analysis.pipeline import run_demo
-from irl.domains.merge_cf_logit import CarFollowingLogit
+from analysis.cli.commands._arg_types import non_negative_int, positive_int
+from analysis.experiments.dagger import DaggerConfig
+from analysis.demo.signal import bin_change_rate, braking_cap_share
+from analysis.evaluation.evaluate import evaluate
+from analysis.evaluation.policies import cf_policy
+from analysis.evaluation.distances import wasserstein
+from analysis.demo.config import CF_DRIVER, DemoConfig, check_dagger_seeds
+from analysis.demo.pipeline import run_demo
+from irl.domains.merge.cf_logit import CarFollowingLogit
 from irl.errors import ConfigError
 from sim.control_records import COLLISION_KINDS
 from sim.controller_config import ControllerConfig
@@ -143,7 +143,7 @@ def main(argv=None) -> int:
                     help="DAgger rounds of the car-following logit driver cf-dagger, trained by the demo "
                          "pipeline (0: neither cf row is run)")
     ap.add_argument("--encounter-rule", choices=ENCOUNTER_RULES, default=ENCOUNTER_RULES[0],
-                    help="how the data runs become demonstrations (sim.demonstrations)")
+                    help="how the data runs become demonstrations (sim.demonstrators)")
     ap.add_argument("--out", default="runs/closed-loop-target", help="output folder (default runs/closed-loop-target)")
     args = ap.parse_args(argv)
     methods = tuple(m for m in args.methods.split(",") if m)

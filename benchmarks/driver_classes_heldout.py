@@ -24,10 +24,10 @@ import time
 import numpy as np
 
 from benchmarks.heldout_args import add_split_arguments
-from scenarios.calibration import CarFollowingPair, PairBatch, load_pairs, split_by_follower
-from scenarios.calibration.fit import fit_population
-from scenarios.calibration.models import SUMO_DEFAULTS, CFParams
-from scenarios.calibration.objective import spacing_rmse
+from analysis.calibration import CarFollowingPair, PairBatch, load_pairs, split_by_follower
+from analysis.calibration.fit import fit_population
+from analysis.calibration.models import SUMO_DEFAULTS, CFParams
+from analysis.calibration.objective import spacing_rmse
 
 
 def initial_time_headway(pair: CarFollowingPair) -> float:

@@ -7,8 +7,8 @@ nats with ``--features driver``, at a real discount). Prints a table; not a time
         [--unobserved terminal,self,kinematic] [--unvisited none,nearest] [--nested-gamma]
 
 One row per method x ``unobserved`` rule (Q-Avg/Q-SM: what a pair with no observed successor
-bootstraps from, :mod:`irl.unobserved`; MLIRL and REIRL have no such pairs and run once) x
-gamma x ``unvisited`` rule (:mod:`irl.unvisited`) x L2 strength. ``--nested-gamma`` adds, per
+bootstraps from, :mod:`irl.unobserved_successors`; MLIRL and REIRL have no such pairs and run once) x
+gamma x ``unvisited`` rule (:mod:`irl.unvisited_states`) x L2 strength. ``--nested-gamma`` adds, per
 method and rule, a row whose gamma is chosen inside each fold by leave-one-out on the 11
 training trajectories (the gamma of ``--gamma`` with the best inner sum), so the held-out
 trajectory never picks its own gamma.
@@ -27,7 +27,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from analysis.learn import fit_problem
+from analysis.experiments.learn import fit_problem
 from irl.baselines import (
     BASELINES,
     TabularPolicy,
@@ -36,7 +36,7 @@ from irl.baselines import (
 )
 from irl.config import UNOBSERVED_RULES, IRLConfig
 from irl.problems import Problem, load_problem
-from irl.unvisited import apply_unvisited_rule, visited_states
+from irl.unvisited_states import apply_unvisited_rule, visited_states
 
 MODEL_FREE = ("qavg", "qsm")
 #: the issue's target: the best method's LOO LL above ``marginal`` with driver features (nats)
@@ -105,7 +105,7 @@ def main(argv=None) -> int:
     p.add_argument("--methods", default="qavg,qsm,mlirl,reirl")
     p.add_argument("--features", default="paper,driver")
     p.add_argument("--unobserved", default=",".join(UNOBSERVED_RULES),
-                   help="Q-Avg/Q-SM rules for pairs with no observed successor (irl.unobserved)")
+                   help="Q-Avg/Q-SM rules for pairs with no observed successor (irl.unobserved_successors)")
     p.add_argument("--unvisited", default="none,nearest")
     p.add_argument("--nested-gamma", action="store_true",
                    help="also choose gamma inside each fold by leave-one-out on its training trajectories")

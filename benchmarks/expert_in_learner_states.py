@@ -38,13 +38,13 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import minimize
 
-from analysis.evaluate import evaluate
-from analysis.commands._arg_types import non_negative_int, positive_int
+from analysis.evaluation.evaluate import evaluate
+from analysis.cli.commands._arg_types import non_negative_int, positive_int
 from irl.boltzmann import log_policy, step_counts
-from irl.conditional_logit import penalised_nll
+from irl.methods.conditional_logit import penalised_nll
 from irl.errors import IRLError
-from irl.domains.merge_features import feature_array
-from irl.merge_mdp import resample_encounters
+from irl.domains.merge.features import feature_array
+from irl.domains.merge.mdp import resample_encounters
 from irl.result import SavedModel
 from scenarios.errors import ScenarioError
 from scenarios.loader import load_scenario
@@ -57,7 +57,7 @@ from sim.run import run_scenario
 
 
 def fit_logit(F: np.ndarray, s: np.ndarray, a: np.ndarray, l2: float, x0: np.ndarray | None = None) -> np.ndarray:
-    """``[K]`` weights minimising :func:`irl.conditional_logit.penalised_nll` over the state
+    """``[K]`` weights minimising :func:`irl.methods.conditional_logit.penalised_nll` over the state
     table (L-BFGS): Q-Avg at gamma 0, whose own L2 convention may differ. ``F [S, A, K]``
     features, ``s, a [N]`` state and action indices."""
     counts = step_counts(np.asarray(s), np.asarray(a), F.shape[0], F.shape[1])

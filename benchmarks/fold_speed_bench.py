@@ -39,7 +39,7 @@ def worker(data: str, method: str, gamma: float, fold: int, encoding: str) -> di
     held out (``-1``: fit on every trajectory). Returns the figures as a dict."""
     from dataclasses import replace
 
-    from analysis.learn import fit_problem
+    from analysis.experiments.learn import fit_problem
     from irl.config import IRLConfig
     from irl.problems import load_problem
 

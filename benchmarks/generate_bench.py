@@ -23,8 +23,8 @@ from pathlib import Path
 
 from benchmarks.bare_sumo import time_bare
 from scenarios.loader import load_scenario
-from scenarios.spec import ScenarioSpec
-from scenarios.spec_parse import with_overrides
+from scenarios.spec.model import ScenarioSpec
+from scenarios.spec.parse import with_overrides
 from sim.generate import generate
 
 

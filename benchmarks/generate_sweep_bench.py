@@ -18,7 +18,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from analysis.generate_sweep import generate_many, parse_scales, parse_seeds
+from analysis.sweep.generate import generate_many, parse_scales, parse_seeds
 from scenarios.loader import load_scenario
 
 

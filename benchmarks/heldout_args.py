@@ -1,5 +1,5 @@
 """The command-line options the held-out calibration benchmarks share: the pairs folder and the
-splits by follower (``scenarios.calibration.split_by_follower``)."""
+splits by follower (``analysis.calibration.split_by_follower``)."""
 
 from __future__ import annotations
 

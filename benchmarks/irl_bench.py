@@ -26,8 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.learn import fit_problem
-from analysis.trials import table_problem, trial_seeds
+from analysis.experiments.learn import fit_problem
+from analysis.experiments.trials import table_problem, trial_seeds
 from irl.config import IRLConfig
 from irl.fit import METHODS
 from irl.problems import Problem

@@ -16,9 +16,9 @@ import time
 
 import numpy as np
 
-from analysis.commands._arg_types import positive_int
-from analysis.learn import fit_problem
-from analysis.trials import cached_table_problem
+from analysis.cli.commands._arg_types import positive_int
+from analysis.experiments.learn import fit_problem
+from analysis.experiments.trials import cached_table_problem
 from irl.config import IRLConfig
 
 TARGETS_S = {"qavg": (0.05, 0.05, 0.05), "qsm": (1.0, 1.0, 10.0), "mlirl": (1.0, 1.0, 10.0)}

@@ -27,10 +27,10 @@ import math
 import numpy as np
 import pandas as pd
 
-from analysis.commands._arg_types import positive_int
+from analysis.cli.commands._arg_types import positive_int
 from scenarios.errors import ScenarioError
 from scenarios.loader import load_scenario
-from scenarios.spec_parse import with_overrides
+from scenarios.spec.parse import with_overrides
 from sim.run import run_scenario
 
 #: The rightmost main lane before the merge and along the auxiliary lane (scenarios.network).

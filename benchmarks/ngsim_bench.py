@@ -4,7 +4,7 @@
 
 1. Generates an NGSIM-format CSV of at least ``--size-mb`` MB in the temp folder (deleted
    afterwards unless ``--keep``): vehicles driving along Local_Y in lanes 1..7, written with
-   :func:`sim.ngsim_io.write_ngsim_csv_blocks`.
+   :func:`sim.ngsim.io.write_ngsim_csv_blocks`.
 2. In a fresh subprocess each: ``read_ngsim`` of the whole file, ``read_ngsim`` with a lane
    filter (lanes 6 and 7, the merge lanes), and ``pandas.read_csv`` of the whole file. Each
    child reports its wall time and its peak resident memory (``VmHWM`` of /proc/self/status:
@@ -30,14 +30,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from scenarios.calibration import fit_population, load_pairs
-from sim.ngsim_io import write_ngsim_csv_blocks
+from analysis.calibration import fit_population, load_pairs
+from sim.ngsim.io import write_ngsim_csv_blocks
 from sim.schema import COLUMNS
 
 _CHILD = textwrap.dedent("""
     import json, sys, time
     import numpy, pandas, pyarrow, pyarrow.csv
-    from sim.ngsim_io import read_ngsim
+    from sim.ngsim.io import read_ngsim
     mode, path = sys.argv[1], sys.argv[2]
     t0 = time.perf_counter()
     rows = 0

@@ -36,10 +36,10 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import differential_evolution
 
-from scenarios.calibration import BOUNDS, FITTED, CarFollowingPair, PairBatch, load_pairs, split_by_follower
-from scenarios.calibration.fit import fit_population
-from scenarios.calibration.models import DT, SUMO_DEFAULTS
-from scenarios.calibration.objective import spacing_rmse
+from analysis.calibration import BOUNDS, FITTED, CarFollowingPair, PairBatch, load_pairs, split_by_follower
+from analysis.calibration.fit import fit_population
+from analysis.calibration.models import DT, SUMO_DEFAULTS
+from analysis.calibration.objective import spacing_rmse
 
 TARGET_RATIO = 0.8
 

@@ -12,7 +12,7 @@ on all 12 trajectories (beta 1, l2 0.01, seed 0).
 * ``dense``: the model as the project built it before, ``[S, A, S]`` float64 arrays (counts,
   the kinematic fallback, the estimate), handed to the fit as an array (the fit converts it to
   the sparse successor model: the solvers were already sparse).
-* ``sparse``: :func:`irl.merge_mdp.estimated_transitions` as it is now, a ``[S*A, S]`` CSR model.
+* ``sparse``: :func:`irl.domains.merge.mdp.estimated_transitions` as it is now, a ``[S*A, S]`` CSR model.
 
 Paper encoding: 1250 states; driver encoding: 6250 (A's previous action in the state). The dense
 driver model (1.56 GB per array) is only built with ``--driver-dense`` (construction alone: the
@@ -30,10 +30,10 @@ from dataclasses import replace
 
 import numpy as np
 
-from analysis.learn import fit_problem
+from analysis.experiments.learn import fit_problem
 from irl.config import IRLConfig
 from irl.demonstrations import Demonstrations
-from irl.merge_mdp import estimated_transitions, kinematic_next_state
+from irl.domains.merge.mdp import estimated_transitions, kinematic_next_state
 from irl.problems import load_problem
 from irl.transitions import TransitionModel, model_successors
 

@@ -21,8 +21,8 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
-from analysis.reproduce import reproduce_tables
-from analysis.reproduce_report import METHOD_ORDER
+from analysis.experiments.reproduce import reproduce_tables
+from analysis.experiments.reproduce_report import METHOD_ORDER
 
 DEFAULT_DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "railusm"
 

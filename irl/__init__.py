@@ -3,7 +3,7 @@
 Pure numpy / scipy / cvxpy: never imports SUMO. Fit with ``irl.fit.fit(method, demos, config, rng)``.
 
 The names below are loaded on first use (PEP 562), so that importing a leaf module such as
-:mod:`irl.units` or :mod:`irl.atomic` (which :mod:`scenarios` does) loads nothing else of ``irl``.
+:mod:`merge_irl.units` or :mod:`merge_irl.atomic` (which :mod:`scenarios` does) loads nothing else of ``irl``.
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ from irl.errors import ConfigError
 
 SOLVERS = ("exact", "faithful")
 #: What a model-free method (Q-Avg, Q-SM) bootstraps from at a pair with no observed successor
-#: (:mod:`irl.unobserved`).
+#: (:mod:`irl.unobserved_successors`).
 UNOBSERVED_RULES = ("terminal", "self", "kinematic")
 
 
@@ -37,7 +37,7 @@ class IRLConfig:
         step_size: length of the faithful solver's unit-normalised gradient step.
         l2: L2 penalty ``l2/2 ||theta||^2`` subtracted from the objective (0 = none).
         unobserved: Q-Avg and Q-SM only: the successor of a pair with no observed successor,
-            one of :data:`UNOBSERVED_RULES` (:mod:`irl.unobserved`): ``"terminal"`` (``Q = R``,
+            one of :data:`UNOBSERVED_RULES` (:mod:`irl.unobserved_successors`): ``"terminal"`` (``Q = R``,
             the paper's and the authors' code's), ``"self"`` (the state itself,
             ``Q = R + gamma V(s)``) or ``"kinematic"`` (a domain model's next state, passed to
             the fit as ``fallback_next``). The exact solver only.

@@ -12,10 +12,10 @@ import numpy as np
 from irl.config import IRLConfig
 from irl.demonstrations import Demonstrations
 from irl.errors import ConfigError
-from irl.mlirl import fit_mlirl
-from irl.qavg import fit_qavg
-from irl.qsm import fit_qsm
-from irl.reirl import fit_reirl
+from irl.methods.mlirl import fit_mlirl
+from irl.methods.qavg import fit_qavg
+from irl.methods.qsm import fit_qsm
+from irl.methods.reirl import fit_reirl
 from irl.result import FitResult
 from irl.transitions import TransitionModel
 
@@ -72,11 +72,11 @@ def fit(method: str, demos: Demonstrations, config: IRLConfig, rng: np.random.Ge
         progress: show a progress bar on stderr (only when it is a terminal).
         **options: the method's own options (``Method.options``); Q-Avg's and Q-SM's:
             ``fallback_next`` (``[S, A]`` int next states for ``config.unobserved ==
-            "kinematic"``, :mod:`irl.unobserved`); REIRL's: ``baseline``
+            "kinematic"``, :mod:`irl.unobserved_successors`); REIRL's: ``baseline``
             (sampling trajectories, default generated), ``epsilon`` (L1 weight; None: the
             Hoeffding bound at confidence ``1 - delta``), ``delta``, ``n_baseline``,
             ``pad_step`` (how trajectories are prolonged), ``theta_cap``
-            (see :func:`irl.reirl.fit_reirl`).
+            (see :func:`irl.methods.reirl.fit_reirl`).
 
     Returns:
         The fit (theta ``[K]``, log-likelihood, Q ``[S, A]``, traces).

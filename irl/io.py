@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from irl.atomic import write_atomic, write_text_atomic
+from merge_irl.atomic import write_atomic, write_text_atomic
 from irl.demonstrations import Demonstrations
 from irl.errors import DemonstrationError
 

@@ -18,12 +18,12 @@ from collections.abc import Callable
 import numpy as np
 import pandas as pd
 
-from irl import merge_mdp
+from irl.domains.merge import mdp as merge_mdp
 from irl.demonstrations import Demonstrations
 from irl.domains import gridworld
-from irl.domains.merge_actions import ACTION_ACC_FT_S2
-from irl.domains.merge_bins import MergeBins, fit_quantile_bins
-from irl.domains.merge_features import FeatureSet, feature_set
+from irl.domains.merge.actions import ACTION_ACC_FT_S2
+from irl.domains.merge.bins import MergeBins, fit_quantile_bins
+from irl.domains.merge.features import FeatureSet, feature_set
 from irl.errors import ConfigError, DemonstrationError
 from irl.io import load_feature_names, load_npz
 from irl.transitions import SuccessorModel, TransitionModel, estimate_transitions, model_successors
@@ -220,7 +220,7 @@ def load_problem(
             fallback uses it (default 0.3 s for tables, 0.1 s for text files and other domains).
         encoding: merge state encoding, ``"paper"`` or ``"driver"``.
         features: merge features: a set name (``"paper"``, ``"driver"``), a tuple of names, or
-            your own :class:`irl.domains.merge_features.FeatureSet` (``FeatureSet.custom(names,
+            your own :class:`irl.domains.merge.features.FeatureSet` (``FeatureSet.custom(names,
             array [S, A, K])``); None: the paper's three.
 
     Raises:

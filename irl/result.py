@@ -11,12 +11,12 @@ from typing import Any
 
 import numpy as np
 
-from irl.atomic import write_json_atomic
+from merge_irl.atomic import write_json_atomic
 from irl.boltzmann import log_policy
 from irl.config import IRLConfig
-from irl.domains.merge_actions import ACTION_ACC_FT_S2
-from irl.domains.merge_cf_logit import CF_FORMAT, OLD_CF_FORMATS
-from irl.domains.merge_states import STATE_ENCODINGS
+from irl.domains.merge.actions import ACTION_ACC_FT_S2
+from irl.domains.merge.cf_logit import CF_FORMAT, OLD_CF_FORMATS
+from irl.domains.merge.states import STATE_ENCODINGS
 from irl.errors import ModelFileError
 
 #: Method names a model file may carry (the methods themselves: :data:`irl.fit.REGISTRY`).
@@ -97,7 +97,7 @@ class SavedModel:
         domain: ``"gridworld" | "merge" | "npz"``.
         info: free-form provenance (data path, seed, trials, versions).
         state_encoding: merge state encoding, ``"paper"`` (1250 states) or ``"driver"``
-            (6250: times A's previous action); :data:`irl.domains.merge_states.STATE_ENCODINGS`.
+            (6250: times A's previous action); :data:`irl.domains.merge.states.STATE_ENCODINGS`.
         decision_step_s: seconds between decisions the demonstrations were resampled at (and
             the kinematic fallback used); files without it load as 0.1.
         action_acc_ft_s2: ``[5]`` acceleration (ft/s^2) the closed loop applies per action:
@@ -105,7 +105,7 @@ class SavedModel:
             the bin midpoints.
         feature_set: name of the feature set (``"paper"``, ``"driver"`` or ``"custom"``).
         unvisited_rule: how ``q`` is defined in states never seen in training
-            (``"none"``: the method's own value; see :mod:`irl.unvisited`).
+            (``"none"``: the method's own value; see :mod:`irl.unvisited_states`).
     """
 
     method: str

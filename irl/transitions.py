@@ -7,7 +7,7 @@ Two sources, one representation (:class:`SuccessorModel`):
   over the pair's non-final occurrences. A pair with no observed successor (never seen, or only
   seen as a trajectory's final step) is **terminal**: its Q is its reward, ``Q(s,a) = R(s,a)``
   (the authors' code pulls every such pair to ``R``; see REFERENCE.md), unless a fallback
-  successor table is given (:mod:`irl.unobserved`).
+  successor table is given (:mod:`irl.unobserved_successors`).
 * **model-based** (MLIRL, REIRL): a full row-stochastic transition model (the true one, or
   :func:`estimate_transitions` with a domain-supplied fallback). No pair is terminal. Stored
   sparse: a model of the merge domain's ``driver`` encoding, ``[6250, 5, 6250]`` dense, is 1.5 GB
@@ -58,13 +58,13 @@ class SuccessorModel:
 
     @cached_property
     def jacobian_pattern(self) -> JacobianPattern:
-        """Precomputed sparsity of ``I - gamma P W(c)`` (see :func:`irl.bellman.backup_jacobian`)."""
+        """Precomputed sparsity of ``I - gamma P W(c)`` (see :func:`irl.bellman.operators.backup_jacobian`)."""
         return JacobianPattern.of(self)
 
     @cached_property
     def state_pattern(self) -> JacobianPattern:
         """Precomputed sparsity of the state system ``I - gamma W(c) P``, ``[S, S]`` (see
-        :func:`irl.bellman.solve_backup_system`)."""
+        :func:`irl.bellman.operators.solve_backup_system`)."""
         return JacobianPattern.state_system(self)
 
 
@@ -128,7 +128,7 @@ def model_free_successors(demos: Demonstrations, fallback_next: np.ndarray | Non
     """The demonstrations' empirical successor model.
 
     A pair with no observed successor is terminal, or, with ``fallback_next`` (``[S, A]`` int,
-    see :mod:`irl.unobserved`), moves to ``fallback_next[s, a]`` with probability 1 (then no
+    see :mod:`irl.unobserved_successors`), moves to ``fallback_next[s, a]`` with probability 1 (then no
     pair is terminal). Observed pairs keep their relative counts either way.
 
     Raises:

@@ -22,7 +22,7 @@ from collections.abc import Callable, Iterable
 
 import numpy as np
 
-from irl.bellman import solve_backup_system
+from irl.bellman.operators import solve_backup_system
 from irl.transitions import SuccessorModel
 
 #: Relative tolerance (of the Q scale ``max|R|/(1-gamma)``) below which two Q values tie.

@@ -4,13 +4,13 @@
     spec = load_scenario("synthetic")          # a preset, or a path to a .toml file
     spec = with_overrides(spec, seed=3, duration_s=120)
 
-Layering: ``scenarios`` imports nothing of ours but :mod:`irl.units`, a leaf module of unit
+Layering: ``scenarios`` imports nothing of ours but :mod:`merge_irl.units`, a leaf module of unit
 constants (feet and metres) that itself imports nothing.
 """
 
 from scenarios.errors import ScenarioError, SpecError
 from scenarios.loader import DEFAULT_SCENARIO, load_preset, load_scenario, preset_names
-from scenarios.spec import (
+from scenarios.spec.model import (
     DemandSpec,
     DriversSpec,
     RoadSpec,
@@ -18,7 +18,7 @@ from scenarios.spec import (
     SimulationSpec,
     VTypeSpec,
 )
-from scenarios.spec_parse import spec_from_dict, spec_from_file, spec_from_toml, with_overrides
+from scenarios.spec.parse import spec_from_dict, spec_from_file, spec_from_toml, with_overrides
 
 __all__ = [
     "DEFAULT_SCENARIO",

@@ -6,8 +6,8 @@ from importlib import resources
 from pathlib import Path
 
 from scenarios.errors import SpecError
-from scenarios.spec import ScenarioSpec
-from scenarios.spec_parse import spec_from_file, spec_from_toml
+from scenarios.spec.model import ScenarioSpec
+from scenarios.spec.parse import spec_from_file, spec_from_toml
 
 DEFAULT_SCENARIO = "synthetic"
 

@@ -36,7 +36,7 @@ from dataclasses import asdict
 from pathlib import Path
 
 from scenarios.errors import ScenarioError
-from scenarios.spec import RoadSpec
+from scenarios.spec.model import RoadSpec
 
 NETWORK_FORMAT_VERSION = 1
 #: Length (m) of the bottleneck's last edge, past the lane drop.

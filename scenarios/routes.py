@@ -13,7 +13,7 @@ from __future__ import annotations
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
-from scenarios.spec import ScenarioSpec, VTypeSpec
+from scenarios.spec.model import ScenarioSpec, VTypeSpec
 
 #: vClass written for each of the spec's vehicle classes.
 SUMO_VCLASS = {"car": "passenger", "truck": "truck"}

@@ -40,8 +40,8 @@ from typing import Any
 
 import numpy as np
 
-from irl.domains.merge_actions import ACTION_ACC_FT_S2, HIGH_BRAKE, ZERO_ACTION, action_of
-from irl.units import FT_PER_M, M_PER_FT
+from irl.domains.merge.actions import ACTION_ACC_FT_S2, HIGH_BRAKE, ZERO_ACTION, action_of
+from merge_irl.units import FT_PER_M, M_PER_FT
 from sim.control_records import Control, DecisionLog
 from sim.controller_config import ControllerConfig
 from sim.hooks import FrameState, RunContext

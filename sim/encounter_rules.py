@@ -1,9 +1,9 @@
-"""The names of the ways a simulated run becomes demonstrations (:mod:`sim.demonstrations`
+"""The names of the ways a simulated run becomes demonstrations (:mod:`sim.demonstrators`
 describes them), in a module light enough for the command line's ``--help``."""
 
 from __future__ import annotations
 
-#: ``in-lane`` (default), ``take-over``, ``merge-frame``: see :mod:`sim.demonstrations`.
+#: ``in-lane`` (default), ``take-over``, ``merge-frame``: see :mod:`sim.demonstrators`.
 ENCOUNTER_RULES = ("in-lane", "take-over", "merge-frame")
 
 

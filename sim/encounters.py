@@ -20,7 +20,7 @@ its ramp lanes for 7, its merge lane for 6; unknown lane codes are an error):
   NaN when the table has no such column or the length is not > 0). The next frame may lie beyond the window: A's row at
   t+1 is taken from the table wherever it is. A frame whose t+1 row of A is not in the table
   has no action and no row. The columns, dtypes and units are
-  :data:`irl.domains.merge_encounters.ENCOUNTER_SCHEMA`.
+  :data:`irl.domains.merge.encounters.ENCOUNTER_SCHEMA`.
 * **Window** (:class:`EncounterWindow`): from the first frame in which A and B are both in the
   table (both in the section), or at most ``max_frames_before`` frames before the merge, until
   ``frames_after`` frames after the merge frame (0: the merge frame is the last row). Frames in
@@ -29,7 +29,7 @@ its ramp lanes for 7, its merge lane for 6; unknown lane codes are an error):
   ``A_id = 0`` when no lane-6 vehicle is behind it at the merge frame and ``C_id = 0`` when
   none is ahead. Without A there is no per-frame row (A is the driver being modelled). Without C
   (or in frames where C is not in the table) ``d_AC`` and ``v_AC`` are NaN: the no-lead-car
-  rule of :mod:`irl.domains.merge_bins`.
+  rule of :mod:`irl.domains.merge.bins`.
 """
 
 from __future__ import annotations
@@ -40,8 +40,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from irl.domains.merge_actions import forward_acceleration
-from irl.domains.merge_encounters import ENCOUNTER_COLUMNS
+from irl.domains.merge.actions import forward_acceleration
+from irl.domains.merge.encounters import ENCOUNTER_COLUMNS
 from sim.errors import TrajectoryFormatError
 from sim.observe import lag_lead_positions
 from sim.schema import FRAME_S, V_CLASS_TRUCK
@@ -189,7 +189,7 @@ def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),
     merge frame's (:mod:`sim.take_over`: A is handed to B in the take-over zone, C is A's lead
     car other than B in every frame, the window runs from the take-over until the controller
     would release A); ``window`` must then be left at its default. Simulated demonstrations use
-    it (:func:`sim.demonstrations.encounters_of_run`), so that they are what the controller observes.
+    it (:func:`sim.demonstrators.encounters_of_run`), so that they are what the controller observes.
 
     Raises:
         TrajectoryFormatError: see :func:`find_merges`; duplicate (Vehicle_ID, Frame_ID) rows.

@@ -18,8 +18,8 @@ from typing import NamedTuple
 
 import pandas as pd
 
-from irl.domains.merge_actions import action_of
-from irl.units import M_PER_FT
+from irl.domains.merge.actions import action_of
+from merge_irl.units import M_PER_FT
 from sim.controller import Controller
 from sim.hooks import FrameState, RunContext
 

@@ -3,15 +3,15 @@
 Files written into the output folder (each atomically; see ``sim.outputs``):
 
 * ``trajectories.parquet``  the NGSIM-schema trajectory table;
-* ``encounters.parquet``    per-frame merge encounters (``irl.domains.merge_encounters.ENCOUNTER_SCHEMA``);
+* ``encounters.parquet``    per-frame merge encounters (``irl.domains.merge.encounters.ENCOUNTER_SCHEMA``);
 * ``merges.parquet``        one row per merging vehicle (``sim.encounters.MERGE_COLUMNS``);
 * ``scenario.toml``         the spec simulated, with the seed and duration actually used;
 * ``run.toml``              how the encounters were cut (``encounter_rule``) and what SUMO reported
   (:class:`sim.run_result.RunEvents`): requested and served flow, insertion backlog, teleports,
   collisions, emergency stops, and the merges left out;
-* ``trajectories.csv``      on request, in NGSIM's text format (``sim.ngsim_io``).
+* ``trajectories.csv``      on request, in NGSIM's text format (``sim.ngsim.io``).
 
-The files are published as a set (:mod:`irl.run_folder`): written into a hidden staging folder
+The files are published as a set (:mod:`merge_irl.run_folder`): written into a hidden staging folder
 beside the output folder, then renamed into place in one step, so a run killed at any point
 publishes nothing under the final name. The output folder is locked for the run (a second run
 into it fails at once), must hold nothing but a previous run's files (removed before simulating,
@@ -27,18 +27,18 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from irl.atomic import write_text_atomic
-from irl.run_folder import (
+from merge_irl.atomic import write_text_atomic
+from merge_irl.run_folder import (
     check_replaceable,
     locked,
     publish,
     remove_temporaries,
     staging_folder,
 )
-from scenarios.spec import ScenarioSpec
-from scenarios.spec_parse import with_overrides
+from scenarios.spec.model import ScenarioSpec
+from scenarios.spec.parse import with_overrides
 from scenarios.toml_write import dumps
-from sim.demonstrations import simulate_demonstrations
+from sim.demonstrators import simulate_demonstrations
 from sim.encounter_rules import ENCOUNTER_RULES, check_rule
 from sim.encounters import Encounters, EncounterWindow
 from sim.hooks import StepHook
@@ -83,7 +83,7 @@ def generate(
 ) -> GenerateResult:
     """Simulate ``spec`` (optionally with another seed / duration) and write the output files.
 
-    ``encounter_rule``: how the run becomes demonstrations (:mod:`sim.demonstrations`):
+    ``encounter_rule``: how the run becomes demonstrations (:mod:`sim.demonstrators`):
     ``"in-lane"`` (default) SUMO's drivers observed by the closed-loop controller with A's lane
     changes off, encounters cut by the controller's rule; ``"take-over"`` the same cut without
     holding A's lane; ``"merge-frame"`` the lag car at B's merge frame over ``window``.
@@ -130,7 +130,7 @@ def _generate_into(out: Path, spec: ScenarioSpec, *, csv: bool, progress: bool, 
         write_text_atomic(out / RUN_REPORT, run_report_toml(result, enc, encounter_rule)),
     ]
     if csv:
-        from sim.ngsim_io import write_ngsim_csv
+        from sim.ngsim.io import write_ngsim_csv
 
         files.append(Path(write_ngsim_csv(result.table, out / CSV)))
     return GenerateResult(out_dir=out, files=tuple(files), simulation=result, encounters=enc)
@@ -138,7 +138,7 @@ def _generate_into(out: Path, spec: ScenarioSpec, *, csv: bool, progress: bool, 
 
 def run_report_toml(result: SimulationResult, enc: Encounters, encounter_rule: str | None = None) -> str:
     """``run.toml``: SUMO's events and the served demand of ``result``, the merges left out, and
-    how the encounters were cut (``encounter_rule``, :mod:`sim.demonstrations`; the auxiliary
+    how the encounters were cut (``encounter_rule``, :mod:`sim.demonstrators`; the auxiliary
     lane's start ``aux_lane_start_ft`` the take-over zone is measured from)."""
     ev: dict = {}
     if encounter_rule is not None:

@@ -34,7 +34,7 @@ class RunContext:
     """What a run knows that does not change from frame to frame.
 
     Attributes:
-        spec: the :class:`scenarios.spec.ScenarioSpec` being simulated.
+        spec: the :class:`scenarios.spec.model.ScenarioSpec` being simulated.
         seed: the SUMO random seed of this run.
         step_length_s: SUMO's simulation step (s).
         frame_s: time between two recorded frames (s), 0.1 (the NGSIM frame).

@@ -3,7 +3,7 @@
 :class:`IdmPolicy` drives car A by the IDM acceleration (Treiber, Hennecke & Helbing 2000,
 Phys. Rev. E 62, 1805) ``a_max (1 - (v/v0)^4 - (s*/s)^2)`` towards A's leader (the lead car C;
 once B has merged into lane 6 ahead of A and nearer than C, B; free road without either), with ``s* = s0 + v T + v dv / (2 sqrt(a_max b))``, and takes the action whose bin
-holds that acceleration (:func:`irl.domains.merge_actions.action_of`, the rule that labels the
+holds that acceleration (:func:`irl.domains.merge.actions.action_of`, the rule that labels the
 demonstrations), deterministically. The controller applies it as every policy's action: at
 ``action_acc_ft_s2``, once per decision step, with SUMO's own safety checks off.
 
@@ -24,9 +24,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from irl.domains.merge_actions import ACTION_ACC_FT_S2, N_ACTIONS, action_of
-from irl.domains.merge_car_following import GapNeed
-from irl.units import FT_PER_M
+from irl.domains.merge.actions import ACTION_ACC_FT_S2, N_ACTIONS, action_of
+from irl.domains.merge.car_following import GapNeed
+from merge_irl.units import FT_PER_M
 from sim.observe import MergeObservation
 
 #: The bound of ``(s*/s)^2``: braking is at most ``a_max x 1000``, far beyond any action's bin.

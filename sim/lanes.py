@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from scenarios.spec import ScenarioSpec
+from scenarios.spec.model import ScenarioSpec
 from sim.hooks import RunContext
 from sim.schema import FT_PER_M, RAMP_LANE, RIGHTMOST_MAIN_LANE
 

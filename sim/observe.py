@@ -8,7 +8,7 @@ Conventions (the paper's section 4.2, as in ``sim.encounters``; NGSIM units):
 * ``B_is_truck``: B's NGSIM class is 3.
 
 When there is no lead car C, ``d_AC`` and ``v_AC`` are NaN: the no-lead-car rule of
-:mod:`irl.domains.merge_bins`, whose :class:`~irl.domains.merge_bins.MergeBins` encodes the state with
+:mod:`irl.domains.merge.bins`, whose :class:`~irl.domains.merge.bins.MergeBins` encodes the state with
 the model's saved bin edges (state = 625 truck + 125 x1 + 25 x2 + 5 x3 + x4).
 """
 

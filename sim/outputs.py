@@ -1,4 +1,4 @@
-"""Parquet output of simulation tables, written atomically (see :mod:`irl.atomic`)."""
+"""Parquet output of simulation tables, written atomically (see :mod:`merge_irl.atomic`)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from irl.atomic import write_atomic
+from merge_irl.atomic import write_atomic
 
 
 def write_parquet(table: pd.DataFrame, path: str | Path) -> Path:

@@ -4,9 +4,9 @@ A policy maps the merge observation of car A (:class:`sim.observe.MergeObservati
 continuous variables, B's truck flag and the discrete state) to probabilities over the merge
 domain's five acceleration actions (High Brake, Low Brake, Zero, Low Accel, High Accel). The
 controller samples an action (or takes the mode) and applies
-:data:`irl.domains.merge_actions.ACTION_ACC_FT_S2`, the representative acceleration of each action bin
-(the action bins and names are :mod:`irl.domains.merge_actions`', the state encoding
-:mod:`irl.domains.merge_states`').
+:data:`irl.domains.merge.actions.ACTION_ACC_FT_S2`, the representative acceleration of each action bin
+(the action bins and names are :mod:`irl.domains.merge.actions`', the state encoding
+:mod:`irl.domains.merge.states`').
 
 Policies in the same harness:
 
@@ -17,7 +17,7 @@ Policies in the same harness:
 * :class:`UniformPolicy`: uniform random over the 5 actions.
 * :class:`BaselineTabularPolicy`: ``marginal``, ``markov`` or ``bc`` fitted on the training
   demonstrations (:mod:`irl.baselines`); ``markov`` conditions on A's previous action.
-* :class:`CarFollowingLogitPolicy`: a :class:`irl.domains.merge_cf_logit.CarFollowingLogit`
+* :class:`CarFollowingLogitPolicy`: a :class:`irl.domains.merge.cf_logit.CarFollowingLogit`
   driver on the continuous observation (A's speed, gaps, closing speeds, previous action).
 * :class:`ConstantPolicy`: always the same action (e.g. always brake hard, for tests).
 """
@@ -31,14 +31,14 @@ from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import numpy as np
 
-from irl.domains.merge_actions import ACTION_ACC_FT_S2, ACTION_NAMES, N_ACTIONS
-from irl.domains.merge_bins import MergeBins
+from irl.domains.merge.actions import ACTION_ACC_FT_S2, ACTION_NAMES, N_ACTIONS
+from irl.domains.merge.bins import MergeBins
 from irl.errors import ConfigError
 from sim.errors import SimError
 
 if TYPE_CHECKING:  # pragma: no cover
     from irl.baselines import BaselinePolicy
-    from irl.domains.merge_cf_logit import CarFollowingLogit
+    from irl.domains.merge.cf_logit import CarFollowingLogit
     from irl.result import SavedModel
     from sim.observe import MergeObservation
 
@@ -135,7 +135,7 @@ class LearnedPolicy:
 
     Attributes:
         log_pi: ``[S, 5]`` log-policy table (``SavedModel.log_policy()``).
-        encoder: the state bins the model was trained with (:class:`irl.domains.merge_bins.MergeBins`,
+        encoder: the state bins the model was trained with (:class:`irl.domains.merge.bins.MergeBins`,
             the one merge-state encoder; see :meth:`from_model`).
         name: label (e.g. the method).
         action_acc_ft_s2: ``[5]`` acceleration applied for each action (ft/s^2): the model's
@@ -260,7 +260,7 @@ class BaselineTabularPolicy:
 
 @dataclass(frozen=True)
 class CarFollowingLogitPolicy:
-    """A car-following logit driver (:class:`irl.domains.merge_cf_logit.CarFollowingLogit`).
+    """A car-following logit driver (:class:`irl.domains.merge.cf_logit.CarFollowingLogit`).
 
     ``probs`` evaluates the model's features on the observation itself (``d_AC, v_AC, d_AB,
     v_AB``, ``speed_A`` and the lengths ``len_C``, ``len_B``; ft and ft/s; no bins) and A's previous action in this control

@@ -34,8 +34,8 @@ from pathlib import Path
 import numpy as np
 
 from scenarios.routes import type_class_map
-from scenarios.spec import ScenarioSpec
-from scenarios.spec_parse import with_overrides
+from scenarios.spec.model import ScenarioSpec
+from scenarios.spec.parse import with_overrides
 from sim.errors import SimulationError
 from sim.hooks import FrameState, RunContext, StepHook
 from sim.lanes import LaneNumbering, aux_lane_start_ft, lane_tables

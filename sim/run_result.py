@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import pandas as pd
 
-from scenarios.spec import ScenarioSpec
+from scenarios.spec.model import ScenarioSpec
 
 #: Served demand more than this share below the requested one is warned about.
 DEMAND_SHORTFALL_WARN = 0.05

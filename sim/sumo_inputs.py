@@ -7,7 +7,7 @@ from pathlib import Path
 
 from scenarios.network import build_network
 from scenarios.routes import write_routes
-from scenarios.spec import ScenarioSpec
+from scenarios.spec.model import ScenarioSpec
 
 
 def sumo_binary(name: str = "sumo") -> str:

@@ -15,12 +15,12 @@ from pathlib import Path
 
 import pytest
 
-from analysis.cli import build_parser
+from analysis.cli.main import build_parser
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
 PAGES = sorted((ROOT / "docs").glob("*.md"))
-OUR_PACKAGES = ("irl", "sim", "scenarios", "analysis")
+OUR_PACKAGES = ("merge_irl", "irl", "sim", "scenarios", "analysis")
 #: a synopsis, not a command: [optional], a|b, <name>, ...
 PLACEHOLDER = re.compile(r"^\[|\]$|\||<[A-Za-z_-]+>|\.\.\.")
 FENCE = re.compile(r"^```(\w*)[^\n]*\n(.*?)^```", re.DOTALL | re.MULTILINE)

@@ -13,9 +13,9 @@ import pytest
 from ngsim_testdata import synthetic_table
 
 from scenarios.errors import SpecError
-from scenarios.spec_parse import spec_from_toml
+from scenarios.spec.parse import spec_from_toml
 from sim.errors import TrajectoryFormatError
-from sim.ngsim_io import read_ngsim, write_ngsim_csv
+from sim.ngsim.io import read_ngsim, write_ngsim_csv
 
 
 @pytest.fixture
@@ -63,7 +63,7 @@ def test_huge_sparse_file_is_refused_with_bounded_memory(tmp_path, table):
     script = textwrap.dedent(f"""
         import resource, sys
         from sim.errors import TrajectoryFormatError
-        from sim.ngsim_io import read_ngsim
+        from sim.ngsim.io import read_ngsim
         try:
             read_ngsim({str(path)!r})
         except TrajectoryFormatError as e:

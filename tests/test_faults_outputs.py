@@ -12,8 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from irl.atomic import temporary_path
-from irl.run_folder import (
+from merge_irl.atomic import temporary_path
+from merge_irl.run_folder import (
     OutputLockedError,
     check_replaceable,
     locked,
@@ -69,7 +69,7 @@ def sim_env(tmp_path):
 def test_lock_is_exclusive_across_processes_and_freed_by_death(tmp_path):
     out = tmp_path / "out"
     holder = subprocess.Popen([sys.executable, "-c", (
-        "import sys, time; from irl.run_folder import locked\n"
+        "import sys, time; from merge_irl.run_folder import locked\n"
         f"with locked({str(out)!r}):\n    print('held', flush=True); time.sleep(60)")],
         stdout=subprocess.PIPE, text=True)
     try:
@@ -258,7 +258,7 @@ def test_moved_sweep_folder_resumes_without_recomputing(tmp_path, sim_env):
 def test_second_evaluate_into_the_same_out_fails_at_once(tmp_path, sim_env):
     out = tmp_path / "eval"
     holder = subprocess.Popen([sys.executable, "-c", (
-        "import time; from irl.run_folder import locked\n"
+        "import time; from merge_irl.run_folder import locked\n"
         f"with locked({str(out)!r}):\n    print('held', flush=True); time.sleep(60)")],
         stdout=subprocess.PIPE, text=True)
     try:

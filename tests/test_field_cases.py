@@ -14,18 +14,18 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.cli import main as cli
-from analysis.rerun_log import RerunLogger
-from irl import merge_mdp
-from irl.domains.merge_bins import DegenerateBinsWarning, fit_quantile_bins
+from analysis.cli.main import main as cli
+from analysis.recording.log import RerunLogger
+from irl.domains.merge import mdp as merge_mdp
+from irl.domains.merge.bins import DegenerateBinsWarning, fit_quantile_bins
 from irl.errors import DemonstrationError
 from irl.problems import RawAccelerationWarning, load_merge_demos
 from scenarios.loader import load_scenario
-from scenarios.spec_parse import with_overrides
+from scenarios.spec.parse import with_overrides
 from sim.encounters import extract
 from sim.errors import TrajectoryFormatError
 from sim.generate import RUN_REPORT, generate
-from sim.ngsim_io import read_ngsim, write_ngsim_csv
+from sim.ngsim.io import read_ngsim, write_ngsim_csv
 from sim.run import run_scenario
 from sim.sites import I80, US101, SiteProfile, load_site
 

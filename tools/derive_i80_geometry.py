@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from irl.atomic import write_text_atomic
+from merge_irl.atomic import write_text_atomic
 
 FT_TO_M = 0.3048
 

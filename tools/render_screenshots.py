@@ -1,7 +1,7 @@
 """Render rerun recordings to PNG screenshots for the docs, headless.
 
 For each ``.rrd`` this writes a blueprint file (``.rbl``) like the one the recording carries
-(:func:`analysis.rerun_blueprint.merge_blueprint`) but *playing* the first take-over in a loop
+(:func:`analysis.recording.blueprint.merge_blueprint`) but *playing* the first take-over in a loop
 (rerun's blueprint cannot place the time cursor, which otherwise stays on the first frame,
 before any car is controlled), then runs::
 
@@ -33,9 +33,9 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.rerun_blueprint import merge_blueprint
-from analysis.rerun_log import MIRROR_Y
-from analysis.rrd_read import read_rrd_table, recording_info
+from analysis.recording.blueprint import merge_blueprint
+from analysis.recording.log import MIRROR_Y
+from analysis.recording.read import read_rrd_table, recording_info
 
 
 def blueprint_inputs(rrd: Path) -> dict:

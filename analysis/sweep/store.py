@@ -9,8 +9,8 @@ import os
 from pathlib import Path
 from typing import Any
 
-from irl.atomic import write_json_atomic
-from irl.run_folder import remove_temporaries
+from merge_irl.atomic import write_json_atomic
+from merge_irl.run_folder import remove_temporaries
 
 
 #: Dataclass field metadata that leaves a field out of the task digest (e.g. an absolute output

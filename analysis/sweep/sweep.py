@@ -19,7 +19,7 @@ from analysis.sweep.executors import ExecutorSpec, parse_executor
 from analysis.sweep.seeds import derive_seed
 from analysis.sweep.store import ResultStore, task_digest
 from analysis.sweep.worker import call_task, die_with_parent
-from irl.spawn_guard import GUARD_HINT, importing_main_in_worker
+from merge_irl.spawn_guard import GUARD_HINT, importing_main_in_worker
 
 
 @dataclass(frozen=True)
@@ -237,7 +237,7 @@ def _store_finished(in_flight: dict[Future, _Pending], finish) -> None:
 
 def _stop_workers(pool: ProcessPoolExecutor) -> None:
     """End the pool now: queued tasks cancelled, the workers' runs in flight killed (their
-    output folders stay unpublished, see :mod:`irl.run_folder`)."""
+    output folders stay unpublished, see :mod:`merge_irl.run_folder`)."""
     procs = list((getattr(pool, "_processes", None) or {}).values())
     pool.shutdown(wait=False, cancel_futures=True)
     for proc in procs:
@@ -295,7 +295,7 @@ def _run_process_pool(todo: Sequence[_Pending], finish, workers: int) -> None:
                         crashed.extend(in_flight.values())
                         in_flight.clear()
                         break
-            except BaseException:  # Ctrl-C, SIGTERM (see analysis.cli), or an error storing a result
+            except BaseException:  # Ctrl-C, SIGTERM (see analysis.cli.main), or an error storing a result
                 _store_finished(in_flight, finish)
                 _stop_workers(pool)
                 raise

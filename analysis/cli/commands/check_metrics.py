@@ -1,0 +1,32 @@
+"""``merge-irl check-metrics``: exit 1 if an evaluation's metrics.json breaches a threshold."""
+
+from __future__ import annotations
+
+# API imports sit inside the functions: `merge-irl --help` imports every command module (analysis/cli/commands/__init__.py).
+import argparse
+import sys
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "check-metrics", help="check an evaluation's metrics.json against thresholds (CI gate)",
+        description="Read METRICS.json written by 'merge-irl evaluate' and exit 1 if any --fail-if "
+                    "threshold holds for any policy (or the named one). Syntax: [POLICY.]METRIC OP NUMBER, "
+                    "OP one of > >= < <= == !=; e.g. --fail-if 'collisions>0' --fail-if 'qavg.min_ttc_s<1.5'. "
+                    "A NaN metric counts as a breach. Exit 0: all pass; 1: a threshold holds; 2: bad input.")
+    p.add_argument("metrics", metavar="METRICS.json", help="metrics.json of an evaluation")
+    p.add_argument("--fail-if", action="append", default=[], required=True, metavar="EXPR",
+                   help="failure condition (repeat, or separate with commas)")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from analysis.evaluation.thresholds import check_file, parse_thresholds
+
+    thresholds = parse_thresholds(args.fail_if)
+    breaches = check_file(args.metrics, args.fail_if)
+    for b in breaches:
+        print(f"FAIL {b}", file=sys.stderr)
+    if not breaches:
+        print(f"ok: {len(thresholds)} threshold(s) pass ({', '.join(map(str, thresholds))})", file=sys.stderr)
+    return 1 if breaches else 0

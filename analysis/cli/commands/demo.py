@@ -1,0 +1,80 @@
+"""``merge-irl demo``: the whole pipeline on the default scenario, in one command.
+
+Generate synthetic merges, learn Q-Avg (MLIRL, Q-SM, REIRL on request) and the car-following logit
+driver cf-dagger (DAgger), re-inject the learned drivers into SUMO, evaluate them against SUMO's own
+driver and the trivial baselines, write the report
+and the ``.rrd`` log, and print where they are. See :func:`analysis.demo.pipeline.run_demo`.
+"""
+
+from __future__ import annotations
+
+# API imports sit inside the functions: `merge-irl --help` imports every command module (analysis/cli/commands/__init__.py).
+import argparse
+from dataclasses import replace
+
+from analysis.cli.commands._arg_types import non_negative_int, positive_int
+from sim.encounter_rules import ENCOUNTER_RULES
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "demo", help="the whole pipeline on the default scenario (generate, learn, evaluate, log)",
+        description="Generate synthetic merges, learn with Q-Avg (--methods adds MLIRL, Q-SM, REIRL) and train the "
+                    "car-following logit driver cf-dagger (--dagger-rounds), re-inject the learned drivers into "
+                    "SUMO, evaluate them beside SUMO's driver and the baselines uniform, marginal, markov and bc, "
+                    "write report.md, metrics.json and a rerun .rrd; print where they are.")
+    p.add_argument("--out", default=None, metavar="DIR", help="output folder (default: ./runs/demo)")
+    p.add_argument("--scenario", default="synthetic", metavar="NAME|FILE.toml",
+                   help="scenario preset or TOML file (default: synthetic)")
+    p.add_argument("--duration", type=float, default=None, metavar="S",
+                   help="simulated seconds of each data run (default: the scenario's)")
+    p.add_argument("--episodes", type=positive_int, default=None, metavar="N",
+                   help="evaluation episodes per policy (default 3)")
+    p.add_argument("--methods", default=None, metavar="LIST",
+                   help="comma-separated IRL methods (default: qavg; mlirl, qsm and reirl are slower at the driver "
+                        "encoding's 6250 states, add them here)")
+    p.add_argument("--heldout-runs", type=positive_int, default=1, metavar="N",
+                   help="held-out data runs (consecutive seeds) whose demonstrations score the drivers (held-out "
+                        "log-likelihood, Wasserstein distances; default 1: one run is a noisy reference for the "
+                        "distances, 10 rank the drivers, see docs/closed-loop.md)")
+    p.add_argument("--dagger-rounds", type=non_negative_int, default=None, metavar="N",
+                   help="DAgger rounds of the car-following logit driver cf-dagger, the default learned driver "
+                        "(SUMO's High Brake labels in the states it reaches; about 5 s per round on 2 idle cores), "
+                        "evaluated beside the others (default 4; 0: not trained, the demo then takes about a "
+                        "third of the time)")
+    p.add_argument("--encounter-rule", choices=ENCOUNTER_RULES, default=ENCOUNTER_RULES[0],
+                   help="how the data runs become demonstrations (default in-lane: as the closed-loop controller "
+                        "observes SUMO's drivers, A's lane held; see merge-irl generate --help)")
+    p.add_argument("--workers", type=positive_int, default=None, metavar="N", help="processes (default 2)")
+    p.add_argument("--executor", default=None,
+                   help="where data runs and episodes run: serial, process[:N], dask-local[:N], dask://HOST:PORT "
+                        "(default: process:<workers>)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from analysis.demo.config import DemoConfig
+    from analysis.demo.pipeline import run_demo
+
+    config = DemoConfig(scenario=args.scenario, encounter_rule=args.encounter_rule, heldout_runs=args.heldout_runs)
+    if args.duration is not None:
+        config = replace(config, data_duration_s=args.duration)
+    if args.episodes is not None:
+        config = replace(config, eval_episodes=args.episodes)
+    if args.methods:
+        config = replace(config, methods=tuple(m.strip() for m in args.methods.split(",") if m.strip()))
+    if args.dagger_rounds is not None:
+        config = replace(config, dagger_rounds=args.dagger_rounds)
+    if args.workers is not None:
+        config = replace(config, workers=args.workers)
+    if args.executor is not None:
+        from analysis.evaluation.evaluate import resolve_executor
+        from sim.errors import SimError
+
+        if args.workers is not None:
+            raise SimError("give --executor or --workers, not both")
+        config = replace(config, executor=resolve_executor(args.executor, None))
+    result = run_demo(args.out, config, progress=not args.no_progress)
+    print(result.format())
+    return 0

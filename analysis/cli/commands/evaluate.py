@@ -1,0 +1,115 @@
+"""``merge-irl evaluate``: closed-loop evaluation of learned models against SUMO and random."""
+
+from __future__ import annotations
+
+# API imports sit inside the functions: `merge-irl --help` imports every command module (analysis/cli/commands/__init__.py).
+import argparse
+import sys
+from pathlib import Path
+
+from analysis.cli.commands._arg_types import positive_int
+from sim.controller_config import HIGH_BRAKE_RULES
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "evaluate", help="drive merge lag cars with learned models in SUMO and compare with baselines",
+        description="Re-inject learned IRL models as the lag car A of every merge, run N episodes per "
+                    "policy beside the baselines (SUMO's own driver, uniform, marginal, markov, bc; on request "
+                    "idm and sumo-in-lane), and write report.md, "
+                    "metrics.json, PNG plots and rerun recordings.")
+    p.add_argument("--model", action="append", default=[], metavar="MODEL.json",
+                   help="a saved merge model (repeat for several); none: only the baselines")
+    p.add_argument("--cf-model", action="append", default=[], metavar="CF_MODEL.json",
+                   help="a car-following logit driver written by 'merge-irl dagger' (repeatable)")
+    p.add_argument("--scenario", default="synthetic", help="preset name or scenario TOML (default synthetic)")
+    p.add_argument("--episodes", type=int, default=3, help="episodes (seeds) per policy")
+    p.add_argument("--seed", type=int, default=0, help="first seed; episode i uses seed + i")
+    p.add_argument("--duration", type=float, default=None, help="simulated seconds per episode (default: the scenario's)")
+    p.add_argument("--demos", default=None,
+                   help="held-out encounter table (.parquet/.csv) for the action divergence and held-out LL")
+    p.add_argument("--train-demos", default=None,
+                   help="training encounter table (.parquet/.csv) of the marginal, markov and bc baselines")
+    p.add_argument("--baselines", default="sumo,uniform,marginal,markov,bc",
+                   help="comma-separated baselines among sumo, uniform, marginal, markov, bc, idm, sumo-in-lane "
+                        "('' for none; marginal, markov and bc need --train-demos; idm: the Intelligent Driver Model "
+                        "with the scenario's car parameters, driven through the controller; sumo-in-lane: SUMO's "
+                        "driver with A's lane changes off, as for every commanded driver)")
+    p.add_argument("--decision-step", type=float, default=None,
+                   help="seconds between two decisions of A (default: the first model's decision step, else the first "
+                        "--cf-model's, else 0.3; a model driven at another step than its own is warned about)")
+    p.add_argument("--high-brake", choices=HIGH_BRAKE_RULES, default=HIGH_BRAKE_RULES[0],
+                   help="how High Brake is applied: need (default) = at the action's mean acceleration, or harder "
+                        "when that would not keep A behind its lane-6 leader (the extra at most A's decel); mean = "
+                        "always at the mean")
+    p.add_argument("--safety-ttc", type=float, default=None, metavar="S",
+                   help="safety-filter variant: replace an action that would bring A's TTC to its leader "
+                        "below S seconds (default: raw, no filter); interventions are reported")
+    p.add_argument("--mode", action="store_true", help="take the most likely action instead of sampling")
+    p.add_argument("--executor", default=None,
+                   help="where episodes run: serial, process[:N] (default: every core), dask-local[:N], "
+                        "dask://HOST:PORT")
+    p.add_argument("--workers", type=positive_int, default=None, help="processes (one SUMO each); same as --executor process:N")
+    p.add_argument("--no-rrd", action="store_true", help="do not write rerun recordings")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--out", default=None, help="output folder (default ./runs/evaluate-<scenario>-<seed>/)")
+    p.add_argument("--fail-if", action="append", default=[], metavar="EXPR",
+                   help="exit 1 if a metric threshold holds, e.g. 'collisions>0' or "
+                        "'qavg.min_ttc_s<1.5' (repeat, or separate with commas); checked on metrics.json")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from analysis.evaluation.evaluate import evaluate
+    from analysis.evaluation.policies import KNOWN_BASELINES
+    from analysis.evaluation.thresholds import check_file, parse_thresholds
+    from sim.controller_config import ControllerConfig
+    from sim.errors import SimError
+
+    thresholds = parse_thresholds(args.fail_if) if args.fail_if else ()  # syntax errors before any work
+    from analysis.evaluation.evaluate import resolve_executor
+
+    if args.executor is not None and args.workers is not None:
+        raise SimError("give --executor or --workers, not both")
+    executor = resolve_executor(args.executor, args.workers)
+
+    baselines = tuple(b.strip() for b in args.baselines.split(",") if b.strip())
+    bad = [b for b in baselines if b not in KNOWN_BASELINES]
+    if bad:
+        raise SimError(f"--baselines: unknown baseline(s) {bad}; expected {', '.join(KNOWN_BASELINES)}")
+    if not args.model and not args.cf_model and not baselines:
+        raise SimError("nothing to evaluate: give --model, --cf-model and/or --baselines")
+    from analysis.evaluation.policies import cf_policy
+
+    cf = [cf_policy(path) for path in args.cf_model]  # malformed files before any work
+    scen = Path(args.scenario).stem if args.scenario.endswith(".toml") else args.scenario
+    out = Path(args.out) if args.out else Path("runs") / f"evaluate-{scen}-{args.seed}"
+    from merge_irl.run_folder import locked
+
+    with locked(out):  # a second evaluate into the same folder fails at once (one line)
+        report = evaluate(
+            args.model, args.scenario, args.episodes, args.seed, out, duration_s=args.duration, demos=args.demos,
+            baselines=baselines, train_demos=args.train_demos, policies=cf,
+            controller=ControllerConfig(decision_s=args.decision_step, mode=args.mode, safety_ttc_s=args.safety_ttc,
+                                        high_brake=args.high_brake),
+            executor=executor, rrd=not args.no_rrd, progress=not args.no_progress,
+        )
+    from analysis.evaluation.report import flag_lines, report_table
+
+    print(report_table(report.aggregates))
+    for line in flag_lines(report.aggregates):
+        print(line, file=sys.stderr)
+    if args.train_demos is None and any(b in ("marginal", "markov", "bc") for b in baselines):
+        print("note: marginal, markov and bc are left out without --train-demos", file=sys.stderr)
+    print(f"report:  {report.report_md}")
+    print(f"metrics: {report.metrics_json}")
+    for name, path in report.rrd.items():
+        print(f"rerun:   {path}  ({name}; open with: merge-irl view {path})")
+    if thresholds:
+        breaches = check_file(report.metrics_json, args.fail_if)
+        for b in breaches:
+            print(f"FAIL {b}", file=sys.stderr)
+        if breaches:
+            return 1
+        print(f"ok: {len(thresholds)} threshold(s) pass", file=sys.stderr)
+    return 0

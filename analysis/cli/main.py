@@ -1,0 +1,99 @@
+"""The ``merge-irl`` command line.
+
+Every subcommand lives in its own module under ``analysis/cli/commands/`` and is a thin layer over
+the Python API. A command module defines ``register(subparsers)``, which adds its parser and
+sets ``func`` (called with the parsed arguments; returns the exit status). Modules are found
+automatically, so adding a command never edits this file.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import pkgutil
+import signal
+import sys
+import threading
+import warnings
+
+from irl.errors import IRLError
+from scenarios.errors import ScenarioError
+from sim.errors import SimError
+
+import analysis.cli.commands as _commands
+from merge_irl.provenance import version_line
+
+#: Errors that are the user's input at fault: printed as one line, exit status 2.
+USER_ERRORS: tuple[type[BaseException], ...] = (IRLError, ScenarioError, SimError, FileNotFoundError)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="merge-irl",
+        description="Learn merge-driving reward weights with model-free IRL and test them in SUMO.",
+    )
+    parser.add_argument("--version", action=_VersionAction, help="print the package, SUMO and git versions and exit")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+    for info in sorted(pkgutil.iter_modules(_commands.__path__), key=lambda m: m.name):
+        if info.name.startswith("_"):
+            continue
+        module = importlib.import_module(f"{_commands.__name__}.{info.name}")
+        module.register(sub)
+    return parser
+
+
+class _VersionAction(argparse.Action):
+    """``--version``: :func:`merge_irl.provenance.version_line`, computed only when asked for."""
+
+    def __init__(self, option_strings, dest, **kw):
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kw)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(version_line())
+        parser.exit()
+
+
+def _terminate_as_interrupt(signum, frame) -> None:
+    """SIGTERM handler: stop like Ctrl-C (finished work stored, workers stopped, nothing half
+    published)."""
+    raise KeyboardInterrupt(f"signal {signal.Signals(signum).name}")
+
+
+def os_error_line(e: OSError) -> str:
+    """One line for an OS error: what failed and on which path (``[Errno 13] ...`` without
+    the number)."""
+    what = e.strerror or type(e).__name__
+    paths = [str(p) for p in (e.filename, e.filename2) if p is not None]
+    return f"{what}: {' -> '.join(paths)}" if paths else str(e) or what
+
+
+def _warning_line(command: str):
+    """A ``warnings.formatwarning`` that writes one line, as the errors are (not the source file
+    and line of the code that warned, which reads like a traceback to a user)."""
+    def fmt(message, category, filename, lineno, line=None) -> str:
+        return f"merge-irl {command}: warning: {message}\n"
+    return fmt
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    warnings.formatwarning = _warning_line(args.command)
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, _terminate_as_interrupt)
+    try:
+        return int(args.func(args) or 0)
+    except USER_ERRORS as e:
+        print(f"merge-irl {args.command}: error: {e}", file=sys.stderr)
+        return 2
+    except OSError as e:  # permission, full disk, a path that is a file, a locked output folder
+        print(f"merge-irl {args.command}: error: {os_error_line(e)}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"merge-irl {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

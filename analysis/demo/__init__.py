@@ -1,0 +1,1 @@
+"""`merge-irl demo`: the whole pipeline on the default scenario."""

@@ -1,0 +1,215 @@
+"""Closed-loop metrics of one episode (one simulation run): :func:`~analysis.evaluation.metrics.episode_metrics`.
+
+Aggregated over seeds they are :mod:`analysis.evaluation.aggregate`'s; the distances to the
+demonstrations (Jensen-Shannon divergence, held-out log-likelihood, Wasserstein-1) are
+:mod:`analysis.evaluation.distances`'.
+
+An episode is one run of a scenario with a :class:`sim.controller.Controller`; its inputs are
+the trajectory table, the controller's control episodes (one per lag car A) and decisions.
+Definitions (NGSIM units in, SI where stated):
+
+* ``collisions``: collision events in the whole run (SUMO's collision detection, pairs), and
+  ``a_collisions``: control episodes that ended because A collided.
+* ``emergency_brakings``: braking events harder than ``emergency_decel_m_s2`` (default
+  4.5 m/s^2 = 14.76 ft/s^2, the default ``decel`` of SUMO's passenger car, beyond which SUMO
+  itself speaks of emergency braking) by A, B or the car following A while A is controlled;
+  an event is a maximal run of consecutive frames of one vehicle below the threshold.
+  ``emergency_brakings_all`` counts the same over every vehicle of the run.
+* ``min_ttc_s``: smallest time-to-collision over the controlled windows, for A behind its
+  leader and for A's follower behind A: ``gap / (v_follower - v_leader)`` when closing,
+  ``gap = Space_Headway - leader length`` (bumper to bumper). ``inf`` if never closing.
+* ``b_ahead_rate``: share of the merges (B reached lane 6 while A was controlled) with B ahead
+  of A at the merge frame.
+* ``travel_time_s``: mean time A needs to cross the section (first to last frame with
+  ``0 <= Local_Y <= section length``), over the As whose record spans the whole section.
+* ``action_counts``: A's actions at the decisions (for the SUMO baseline, the bin of A's
+  measured acceleration); ``js_divergence``: Jensen-Shannon divergence (base 2, in [0, 1])
+  between that distribution and the demonstrations' action distribution.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, fields
+
+import numpy as np
+import pandas as pd
+
+from analysis.evaluation.distances import js_divergence
+from irl.domains.merge.actions import N_ACTIONS
+from merge_irl.units import FRAME_S, FT_PER_M
+
+
+@dataclass(frozen=True)
+class MetricsConfig:
+    """Thresholds of :func:`episode_metrics`.
+
+    Attributes:
+        emergency_decel_m_s2: deceleration beyond which braking counts as emergency (m/s^2).
+        section_margin_ft: a travel time counts when A's record starts within this of the
+            section start and ends within this of its end (ft).
+    """
+
+    emergency_decel_m_s2: float = 4.5
+    section_margin_ft: float = 60.0
+
+
+@dataclass(frozen=True)
+class EpisodeMetrics:
+    """Metrics of one episode. Counts are ints; rates and times floats (NaN when undefined)."""
+
+    policy: str
+    seed: int
+    n_controls: int
+    n_merges: int
+    collisions: int
+    a_collisions: int
+    teleports: int
+    emergency_brakings: int
+    emergency_brakings_all: int
+    min_ttc_s: float
+    b_ahead_rate: float
+    travel_time_s: float
+    mean_speed_A_ft_s: float
+    action_counts: tuple[int, ...]
+    js_divergence: float
+    release_reasons: dict[str, int] = field(default_factory=dict)
+    n_decisions: int = 0
+    safety_interventions: int = 0
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["action_counts"] = list(self.action_counts)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> EpisodeMetrics:
+        kw = {f.name: d[f.name] for f in fields(cls) if f.name in d}
+        kw["action_counts"] = tuple(int(x) for x in kw["action_counts"])
+        for k in ("min_ttc_s", "b_ahead_rate", "travel_time_s", "mean_speed_A_ft_s", "js_divergence"):
+            kw[k] = float("nan") if kw[k] is None else float(kw[k])
+        return cls(**kw)
+
+
+def _runs_below(acc: np.ndarray, vid: np.ndarray, frame: np.ndarray, thr: float) -> int:
+    """Number of maximal runs of consecutive frames per vehicle with ``acc < thr``.
+
+    Inputs sorted by (vid, frame), all ``[N]``.
+    """
+    below = acc < thr
+    if not below.any():
+        return 0
+    idx = np.flatnonzero(below)
+    new = np.ones(idx.size, dtype=bool)
+    new[1:] = (vid[idx[1:]] != vid[idx[:-1]]) | (frame[idx[1:]] != frame[idx[:-1]] + 1)
+    return int(new.sum())
+
+
+def _windows(controls: pd.DataFrame, last_frame: int) -> list[tuple[int, int, int, int]]:
+    """(a_id, b_id, start, end) frames of each control episode (end inclusive)."""
+    out = []
+    for r in controls.itertuples(index=False):
+        end = int(r.end_frame) if int(r.end_frame) >= 0 else last_frame
+        out.append((int(r.a_id), int(r.b_id), int(r.start_frame), end))
+    return out
+
+
+def episode_metrics(
+    table: pd.DataFrame,
+    controls: pd.DataFrame,
+    decisions: pd.DataFrame,
+    *,
+    policy: str,
+    seed: int,
+    section_length_ft: float,
+    collisions: int = 0,
+    teleports: int = 0,
+    demo_action_counts: np.ndarray | None = None,
+    config: MetricsConfig = MetricsConfig(),
+) -> EpisodeMetrics:
+    """Metrics of one episode (see the module docstring).
+
+    Args:
+        table: the run's trajectory table (NGSIM schema).
+        controls: ``Controller.control_table()``; decisions: ``Controller.decision_table()``.
+        policy, seed: labels.
+        section_length_ft: length of the main road (ft).
+        collisions, teleports: whole-run counts (``Controller.n_collisions`` / ``n_teleports``).
+        demo_action_counts: ``[5]`` action counts of the demonstrations (for the divergence).
+    """
+    thr = -config.emergency_decel_m_s2 * FT_PER_M
+    t = table.sort_values(["Vehicle_ID", "Frame_ID"], kind="stable")
+    vid = t["Vehicle_ID"].to_numpy()
+    frm = t["Frame_ID"].to_numpy()
+    acc = t["v_Acc"].to_numpy(dtype=np.float64)
+    eb_all = _runs_below(acc, vid, frm, thr)
+    last_frame = int(frm.max()) if frm.size else 0
+    wins = _windows(controls, last_frame)
+
+    # rows of A, B and A's follower inside their windows
+    if wins:
+        w = pd.DataFrame(wins, columns=["a_id", "b_id", "start", "end"])
+        a_rows = t.merge(w[["a_id", "start", "end"]], left_on="Vehicle_ID", right_on="a_id")
+        a_rows = a_rows[(a_rows["Frame_ID"] >= a_rows["start"]) & (a_rows["Frame_ID"] <= a_rows["end"])]
+        b_rows = t.merge(w[["b_id", "start", "end"]], left_on="Vehicle_ID", right_on="b_id")
+        b_rows = b_rows[(b_rows["Frame_ID"] >= b_rows["start"]) & (b_rows["Frame_ID"] <= b_rows["end"])]
+        fol_keys = a_rows.loc[a_rows["Following"] > 0, ["Following", "Frame_ID"]].rename(columns={"Following": "fid"})
+        f_rows = t.merge(fol_keys.drop_duplicates(), left_on=["Vehicle_ID", "Frame_ID"], right_on=["fid", "Frame_ID"])
+        near = pd.concat([a_rows[t.columns], b_rows[t.columns], f_rows[t.columns]])
+        near = near.drop_duplicates(["Vehicle_ID", "Frame_ID"]).sort_values(["Vehicle_ID", "Frame_ID"])
+        eb_near = _runs_below(near["v_Acc"].to_numpy(float), near["Vehicle_ID"].to_numpy(),
+                              near["Frame_ID"].to_numpy(), thr)
+        ttc = _min_ttc(t, pd.concat([a_rows[t.columns], f_rows[t.columns]]))
+        mean_speed = float(a_rows["v_Vel"].mean()) if len(a_rows) else float("nan")
+    else:
+        eb_near, ttc, mean_speed = 0, float("inf"), float("nan")
+
+    merged = controls[controls["merge_frame"] >= 0] if len(controls) else controls
+    b_ahead = float(np.mean(merged["b_ahead"].astype(bool))) if len(merged) else float("nan")
+    tt = _travel_times(t, [x[0] for x in wins], section_length_ft, config.section_margin_ft)
+    counts = np.zeros(N_ACTIONS, dtype=np.int64)
+    if len(decisions):
+        np.add.at(counts, decisions["action"].to_numpy(dtype=np.int64), 1)
+    jsd = js_divergence(counts, demo_action_counts) if demo_action_counts is not None else float("nan")
+    reasons = controls["reason"].value_counts().to_dict() if len(controls) else {}
+    return EpisodeMetrics(
+        policy=policy, seed=int(seed), n_controls=int(len(controls)), n_merges=int(len(merged)),
+        collisions=int(collisions), a_collisions=int(reasons.get("collision", 0)), teleports=int(teleports),
+        emergency_brakings=int(eb_near), emergency_brakings_all=int(eb_all), min_ttc_s=float(ttc),
+        b_ahead_rate=b_ahead, travel_time_s=float(np.nanmean(tt)) if np.isfinite(tt).any() else float("nan"),
+        mean_speed_A_ft_s=mean_speed, action_counts=tuple(int(x) for x in counts), js_divergence=jsd,
+        release_reasons={str(k): int(v) for k, v in reasons.items()},
+        n_decisions=int(len(decisions)),
+        safety_interventions=int(decisions["filtered"].astype(bool).sum()) if "filtered" in decisions else 0,
+    )
+
+
+def _min_ttc(table: pd.DataFrame, rows: pd.DataFrame) -> float:
+    """Smallest TTC (s) of the follower->leader pairs of ``rows`` (each row = a follower)."""
+    rows = rows[rows["Preceding"] > 0]
+    if rows.empty:
+        return float("inf")
+    lead = table[["Vehicle_ID", "Frame_ID", "v_Vel", "v_Length", "Local_Y"]].rename(
+        columns={"Vehicle_ID": "Preceding", "v_Vel": "v_lead", "v_Length": "len_lead", "Local_Y": "y_lead"})
+    m = rows.merge(lead, on=["Preceding", "Frame_ID"])
+    gap = (m["y_lead"] - m["Local_Y"] - m["len_lead"]).to_numpy(float)
+    closing = (m["v_Vel"] - m["v_lead"]).to_numpy(float)
+    ok = closing > 1e-6
+    if not ok.any():
+        return float("inf")
+    return float(max(0.0, np.min(np.maximum(gap[ok], 0.0) / closing[ok])))
+
+
+def _travel_times(table: pd.DataFrame, a_ids: list[int], section_ft: float, margin: float) -> np.ndarray:
+    """Section crossing time (s) of each A whose record spans the section; NaN otherwise."""
+    out = np.full(len(a_ids), np.nan)
+    if not a_ids:
+        return out
+    sub = table[table["Vehicle_ID"].isin(a_ids) & (table["Local_Y"] >= 0) & (table["Local_Y"] <= section_ft)]
+    g = sub.groupby("Vehicle_ID").agg(f0=("Frame_ID", "min"), f1=("Frame_ID", "max"),
+                                      y0=("Local_Y", "min"), y1=("Local_Y", "max"))
+    for i, a in enumerate(a_ids):
+        if a in g.index:
+            r = g.loc[a]
+            if r.y0 <= margin and r.y1 >= section_ft - margin:
+                out[i] = (r.f1 - r.f0) * FRAME_S
+    return out

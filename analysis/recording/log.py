@@ -1,0 +1,344 @@
+"""Write a run to a rerun ``.rrd`` file, headless (no viewer, no display needed).
+
+:class:`RerunLogger` is a :class:`sim.hooks.StepHook`. Entities (hierarchical, units ft, ft/s):
+
+* ``world/lanes`` (static): one ``LineStrips2D`` strip per lane centre line (I-80 numbering,
+  labelled), from the run's lane shapes; ``world`` (static) carries an ``AnnotationContext``
+  naming the vehicle roles and a ``Transform3D`` mirroring y, so that the top-down 2D views
+  (whose y axis points down) show the road as SUMO draws it (ramp on the right of travel).
+* ``world/vehicles``: every vehicle of every frame as ONE batched ``Boxes2D`` entity, in the
+  vehicles' real size: centres (the box centre, half a length behind the front bumper along
+  +x), half sizes (length/2, width/2), ``class_ids`` = role (:data:`ROLE_IDS`: 0 other,
+  1 A controlled, 2 B merging, 3 C lead, 4 A observed, i.e. a lag car the policy does not
+  drive, as with the ``sumo`` baseline) with matching ``colors``, ``labels`` on A, B and C
+  only ("A 12"; others ""), and an extra component ``vehicle_id`` (the table's Vehicle_ID), so
+  each box can be matched to the trajectory table (front bumper = centre + (length/2, 0)).
+* ``follow`` (``Transform3D`` per frame): the centre of the current merge (car A of the lowest
+  Vehicle_ID under control; held between merges) in the mirrored frame; the blueprint's
+  "merge" view has it as origin, so that view follows the merge.
+* ``policy/A_<id>/probs`` (``Scalars``, 5 series named by action), ``policy/A_<id>/action``
+  (``Scalars``: action index 0..4), ``policy/action_probs`` (``BarChart``: the 5 probabilities
+  of the latest decision of any controlled car, in ``ACTION_NAMES`` order),
+  ``policy/A_<id>/features/<name>`` (``Scalars``: the paper's reward features of the chosen
+  action, from the continuous observation) at each decision of controlled car ``<id>``.
+* ``metrics/A_<id>/speed``, ``.../d_AC``, ``.../d_AB``, ``.../ttc`` (``Scalars``) per frame
+  while ``<id>`` is controlled (``ttc`` only when A closes in on its leader).
+* ``train/<method>/loglik`` and ``train/<method>/theta/<k>`` (``Scalars`` on the
+  ``iteration`` timeline): IRL training traces, via :func:`log_training`.
+
+Timelines: ``sim_time`` (duration, s) and ``step`` (sequence: Frame_ID).
+
+Every recording written by :class:`RerunLogger` carries a blueprint (:func:`~analysis.recording.blueprint.merge_blueprint`),
+sent with the data, so the viewer opens on the merge view, car A's time series, the action
+probabilities and (when logged) the training traces instead of its automatic layout. Frames are buffered
+and sent in columns (``send_columns``) every ``flush_every`` frames, which keeps logging well
+under 10 microseconds per vehicle-frame. The file is written under a temporary name
+(``<name>.partial``) and renamed only when the run succeeds (``on_end``); a run that fails or
+is interrupted (``on_abort``) leaves the ``.partial`` file, never a complete-looking ``.rrd``.
+Naming, opening and closing the file: :mod:`analysis.recording.files`. Reading a recording back:
+:mod:`analysis.recording.read`.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import rerun as rr
+
+from analysis.recording.blueprint import merge_blueprint
+from analysis.recording.columns import bar_chart_column
+from analysis.recording.files import close_recording, open_recording, recording_identity
+from irl.domains.merge.actions import ACTION_NAMES
+from irl.domains.merge.features import FEATURE_NAMES, paper_features
+from sim.hooks import FrameState, RunContext
+from sim.observe import lead_of
+from sim.schema import RAMP_LANE
+
+#: ``class_ids`` of the vehicle boxes, by role.
+ROLE_IDS = {"other": 0, "A": 1, "B": 2, "C": 3, "A observed": 4}
+#: Short label drawn on a box, by role id ("" = no label).
+ROLE_LABELS = ("", "A", "B", "C", "A")
+#: RGBA colours of the roles, indexed by role id.
+ROLE_COLORS = np.array(
+    [[150, 150, 150, 255], [230, 40, 40, 255], [40, 110, 230, 255], [40, 180, 70, 255], [240, 150, 30, 255]],
+    dtype=np.uint8,
+)
+ROLE_RGBA_U32 = (ROLE_COLORS.astype(np.uint32) @ np.array([1 << 24, 1 << 16, 1 << 8, 1], dtype=np.uint32)).astype(np.uint32)
+#: The ``world`` transform: y mirrored (2D views draw y downwards).
+MIRROR_Y = np.diag([1.0, -1.0, 1.0])
+
+
+def log_training(rec: rr.RecordingStream, method: str, loglik_trace: np.ndarray, theta_trace: np.ndarray,
+                 feature_names: Sequence[str] = ()) -> None:
+    """IRL training traces: ``train/<method>/loglik`` and ``train/<method>/theta/<k>``.
+
+    Args:
+        loglik_trace: ``[n_iter]``; theta_trace: ``[n_iter, K]``; on the ``iteration`` timeline.
+    """
+    ll = np.asarray(loglik_trace, dtype=np.float64).reshape(-1)
+    th = np.asarray(theta_trace, dtype=np.float64).reshape(ll.size, -1) if ll.size else np.zeros((0, 0))
+    if ll.size == 0:
+        return
+    it = [rr.TimeColumn("iteration", sequence=np.arange(ll.size))]
+    rec.send_columns(f"train/{method}/loglik", indexes=it, columns=rr.Scalars.columns(scalars=ll))
+    for k in range(th.shape[1]):
+        name = feature_names[k] if k < len(feature_names) else str(k)
+        rec.send_columns(f"train/{method}/theta/{name}", indexes=it, columns=rr.Scalars.columns(scalars=th[:, k]))
+
+
+class RerunLogger:
+    """Step hook writing the run to ``path`` (``.rrd``); see the module docstring.
+
+    Args:
+        path: output file.
+        controller: the run's :class:`sim.controller.Controller` (must run *before* this hook);
+            gives roles, decisions and controlled cars. Without it, lane-7 vehicles are shown as B.
+        recording: an open stream (from :func:`~analysis.recording.files.open_recording`) to add to instead of opening
+            one; then the caller closes it.
+        flush_every: frames buffered before they are sent.
+        log_vehicles: log ``world/vehicles`` (False: only policy/metrics scalars).
+        episode: the episode's index, if the file holds one episode of several; it goes into
+            the recording id and name (:func:`~analysis.recording.files.recording_identity`) with the scenario, the
+            controller's policy (``sumo`` without a controller) and the seed.
+        training_methods: methods whose traces (:func:`log_training`) the recording holds,
+            for the blueprint's training tab.
+    """
+
+    def __init__(self, path: str | os.PathLike, *, controller=None, recording: tuple[rr.RecordingStream, Path] | None = None,
+                 flush_every: int = 600, log_vehicles: bool = True, application_id: str = "merge-irl",
+                 episode: int | None = None, training_methods: Sequence[str] = ()):
+        self.path = Path(path)
+        self.training_methods = tuple(training_methods)
+        self._section: tuple[float, float, float, float] | None = None
+        self._focus = np.zeros(2)
+        self.episode = episode
+        self.controller = controller
+        self.flush_every = int(flush_every)
+        self.log_vehicles = log_vehicles
+        self._own = recording is None
+        self._app = application_id
+        self._rec: rr.RecordingStream | None
+        self._tmp: Path | None
+        self._rec, self._tmp = recording if recording is not None else (None, None)
+        self._reset_buffers()
+        # per controlled car: rows (step, t, speed, d_AC, d_AB, ttc) and decision rows
+        # (step, t, p0..p4, action, features...), sent as columns when the run ends
+        self._metric_rows: dict[int, list[tuple]] = {}
+        self._decision_rows: dict[int, list[tuple]] = {}
+        self.n_vehicle_frames = 0
+
+    def _reset_buffers(self) -> None:
+        self._steps: list[int] = []
+        self._times: list[float] = []
+        self._lens: list[int] = []
+        self._gx: list[np.ndarray] = []
+        self._gy: list[np.ndarray] = []
+        self._len: list[np.ndarray] = []
+        self._wid: list[np.ndarray] = []
+        self._roles: list[np.ndarray] = []
+        self._ids: list[np.ndarray] = []
+        self._labels: list[np.ndarray] = []
+        self._foci: list[np.ndarray] = []
+
+    @property
+    def _stream(self) -> rr.RecordingStream:
+        if self._rec is None:
+            raise RuntimeError("RerunLogger: the recording opens in on_start; nothing can be logged before")
+        return self._rec
+
+    # -- hook protocol -------------------------------------------------------------------
+    def on_start(self, ctx: RunContext) -> None:
+        if self._rec is None:
+            policy = self.controller.policy.name if self.controller is not None else "sumo"
+            rid, name = recording_identity(ctx.spec.name, policy, ctx.seed, self.episode)
+            self._rec, self._tmp = open_recording(self.path, application_id=self._app, recording_id=rid, name=name)
+        rec = self._rec
+        names = sorted(ctx.lane_shapes, key=lambda s: int(s) if s.isdigit() else 99)
+        strips = [np.asarray(ctx.lane_shapes[n], float)[:, :2] for n in names]
+        rec.log("world/lanes", rr.LineStrips2D(strips, labels=[f"lane {n}" for n in names], draw_order=10.0,
+                                               radii=rr.Radius.ui_points(1.0),
+                                               colors=[[110, 110, 110, 255]] * len(strips)), static=True)
+        rec.log("world", rr.AnnotationContext(
+            [(i, name, tuple(int(c) for c in ROLE_COLORS[i][:3])) for name, i in ROLE_IDS.items()]), static=True)
+        rec.log("world", rr.Transform3D(mat3x3=MIRROR_Y), static=True)
+        if strips:
+            pts = np.concatenate(strips) @ MIRROR_Y[:2, :2]
+            lo, hi = pts.min(axis=0) - 30.0, pts.max(axis=0) + 30.0
+            self._section = (float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1]))
+            self._focus = 0.5 * (lo + hi)
+
+    def on_step(self, ctx: RunContext, frame: FrameState) -> None:
+        n = len(frame.sumo_ids)
+        roles = self._roles_of(frame)
+        if self.log_vehicles:
+            # the frame's arrays are read-only and never reused: keep references, not copies
+            self._gx.append(frame.global_x)
+            self._gy.append(frame.global_y)
+            self._len.append(frame.length)
+            self._wid.append(frame.width)
+            self._roles.append(roles)
+            self._ids.append(frame.vehicle_id)
+            self._labels.append(self._labels_of(roles, frame.vehicle_id))
+            self._foci.append(self._focus_of(frame, roles))
+            self._lens.append(n)
+            self._steps.append(int(frame.frame))
+            self._times.append(float(frame.time_s))
+            self.n_vehicle_frames += n
+        if self.controller is not None:
+            self._log_controlled(frame)
+        if len(self._steps) >= self.flush_every:
+            self._flush()
+
+    def on_end(self, ctx: RunContext) -> None:
+        self._flush()
+        a_ids, first = self._controls()
+        # TTC is logged only while A closes in on its leader: name only the series that exist
+        ttc_ids = [a for a in a_ids if any(r[5] == r[5] for r in self._metric_rows.get(a, ()))]
+        self._flush_scalars()
+        self._stream.send_blueprint(merge_blueprint(a_ids, training_methods=self.training_methods,
+                                                    section_bounds=self._section, first_control=first,
+                                                    ttc_ids=ttc_ids))
+        if self._own and self._rec is not None and self._tmp is not None:
+            close_recording(self._rec, self._tmp, self.path)
+            self._rec = None
+
+    def on_abort(self, ctx: RunContext) -> None:
+        """The run failed or was interrupted: close the stream and leave it under its temporary
+        ``.partial`` name, never under the final one."""
+        if self._own and self._rec is not None:
+            self._rec.flush()
+            self._rec.disconnect()
+            self._rec = None
+
+    # -- internals ----------------------------------------------------------------------
+    def _roles_of(self, frame: FrameState) -> np.ndarray:
+        roles = np.zeros(len(frame.sumo_ids), dtype=np.uint16)
+        if self.controller is None:
+            roles[frame.lane_id == RAMP_LANE] = ROLE_IDS["B"]
+            return roles
+        a_role = ROLE_IDS["A"] if getattr(self.controller.policy, "controls", True) else ROLE_IDS["A observed"]
+        for row, role in self.controller.role_rows.items():
+            roles[row] = a_role if role == "A" else ROLE_IDS[role]
+        return roles
+
+    @staticmethod
+    def _labels_of(roles: np.ndarray, ids: np.ndarray) -> np.ndarray:
+        """``[n]`` object array: "A 12" etc. on A, B and C, "" on the others."""
+        labels = np.full(roles.size, "", dtype=object)
+        for i in np.flatnonzero(roles):
+            labels[i] = f"{ROLE_LABELS[roles[i]]} {int(ids[i])}"
+        return labels
+
+    def _focus_of(self, frame: FrameState, roles: np.ndarray) -> np.ndarray:
+        """Centre (mirrored frame, ft) of the current merge's car A; the last one between merges."""
+        a_rows = np.flatnonzero((roles == ROLE_IDS["A"]) | (roles == ROLE_IDS["A observed"]))
+        if a_rows.size:
+            i = a_rows[np.argmin(frame.vehicle_id[a_rows])]
+            self._focus = np.array([float(frame.global_x[i]) - 0.5 * float(frame.length[i]), -float(frame.global_y[i])])
+        return self._focus
+
+    def _controls(self) -> tuple[list[int], tuple[int, int] | None]:
+        """Controlled cars' ids (in order of take-over) and the first take-over's frame range."""
+        if self.controller is None or not self.controller.controls:
+            return [], None
+        cs = sorted(self.controller.controls, key=lambda c: (c.start_frame, c.a_id))
+        c = cs[0]
+        end = c.end_frame if c.end_frame >= 0 else c.start_frame + 300
+        return list(dict.fromkeys(int(x.a_id) for x in cs)), (int(c.start_frame), int(end))
+
+    def _log_controlled(self, frame: FrameState) -> None:
+        """Buffers one row per controlled car and frame (and one per decision); see _flush_scalars."""
+        ctl = self.controller
+        if not ctl.last:
+            return
+        step, t = int(frame.frame), float(frame.time_s)
+        rows = ctl.rows
+        for a_id, (obs, probs, action) in ctl.last.items():
+            ia = rows.get(a_id)
+            if ia is None:
+                continue
+            speed, y = float(frame.speed[ia]), float(frame.local_y[ia])
+            ttc = np.nan  # only while A closes in on its leader
+            il = lead_of(frame, y, lane=int(frame.lane_id[ia]), exclude=(ia,))
+            if il is not None:
+                closing = speed - float(frame.speed[il])
+                if closing > 1e-6:
+                    ttc = max(float(frame.local_y[il]) - y - float(frame.length[il]), 0.0) / closing
+            self._metric_rows.setdefault(a_id, []).append((step, t, speed, obs.d_AC, obs.d_AB, ttc))
+            if a_id in ctl.decided:
+                self._decision_rows.setdefault(a_id, []).append(
+                    (step, t, *probs.tolist(), float(action), *paper_features(obs.d_AC, obs.b_is_truck, action)))
+
+    def _flush(self) -> None:
+        if not self._steps:
+            return
+        lens = np.asarray(self._lens)
+        ids = np.concatenate(self._ids)
+        roles = np.concatenate(self._roles)
+        length = np.concatenate(self._len)
+        n = length.size
+        centers = np.empty((n, 2), dtype=np.float32)
+        centers[:, 0] = np.concatenate(self._gx) - 0.5 * length
+        centers[:, 1] = np.concatenate(self._gy)
+        half = np.empty((n, 2), dtype=np.float32)
+        half[:, 0] = 0.5 * length
+        half[:, 1] = 0.5 * np.concatenate(self._wid)
+        cols = [
+            *rr.Boxes2D.columns(centers=centers, half_sizes=half, class_ids=roles, colors=ROLE_RGBA_U32[roles],
+                                labels=pa.array(np.concatenate(self._labels), type=pa.string())).partition(lens),
+            # the viewer hides the labels of entities with many instances; the others' labels are ""
+            *rr.Boxes2D.columns(show_labels=[True] * lens.size),
+            # an arrow array, not numpy: rerun turns a numpy column into one Python list per value
+            *rr.AnyValues.columns(vehicle_id=pa.array(ids)).partition(lens),
+        ]
+        indexes = [rr.TimeColumn("step", sequence=np.asarray(self._steps)),
+                   rr.TimeColumn("sim_time", duration=np.asarray(self._times))]
+        self._stream.send_columns("world/vehicles", indexes=indexes, columns=cols)
+        foci = np.zeros((len(self._foci), 3))
+        foci[:, :2] = self._foci
+        self._stream.send_columns("follow", indexes=indexes, columns=rr.Transform3D.columns(translation=foci))
+        self._reset_buffers()
+
+    def _flush_scalars(self) -> None:
+        """Sends the buffered per-car series as columns, one ``send_columns`` per entity."""
+        for a_id, rows in self._metric_rows.items():
+            m = np.asarray(rows, dtype=np.float64)  # [n, 6]: step, t, speed, d_AC, d_AB, ttc
+            for k, name in enumerate(("speed", "d_AC", "d_AB", "ttc"), start=2):
+                keep = ~np.isnan(m[:, k]) if name == "ttc" else slice(None)
+                self._send_series(f"metrics/A_{a_id}/{name}", m[keep, 0], m[keep, 1], m[keep, k])
+        bars: list[np.ndarray] = []
+        for a_id, rows in self._decision_rows.items():
+            d = np.asarray(rows, dtype=np.float64)  # [n, 2 + 5 + 1 + 3]
+            base = f"policy/A_{a_id}"
+            self._stream.log(f"{base}/probs", rr.SeriesLines(names=[n.lower() for n in ACTION_NAMES]), static=True)
+            self._send_series(f"{base}/probs", d[:, 0], d[:, 1], d[:, 2:7])
+            self._send_series(f"{base}/action", d[:, 0], d[:, 1], d[:, 7])
+            bars.append(d[:, :7])
+            for k, name in enumerate(FEATURE_NAMES, start=8):
+                self._send_series(f"{base}/features/{name}", d[:, 0], d[:, 1], d[:, k])
+        if bars:
+            b = np.concatenate(bars)
+            b = b[np.argsort(b[:, 0], kind="stable")]  # [n, 7]: step, t, p0..p4, by step
+            self._stream.send_columns(
+                "policy/action_probs",
+                indexes=[rr.TimeColumn("step", sequence=b[:, 0].astype(np.int64)), rr.TimeColumn("sim_time", duration=b[:, 1])],
+                columns=[bar_chart_column(b[:, 2:7])])
+        self._metric_rows, self._decision_rows = {}, {}
+
+    def _send_series(self, entity: str, steps: np.ndarray, times: np.ndarray, values: np.ndarray) -> None:
+        """``values [n]`` (one series) or ``[n, S]`` (S series per row) on the step and sim_time timelines."""
+        if steps.size == 0:
+            return
+        cols = rr.Scalars.columns(scalars=values.reshape(-1))
+        if values.ndim == 2:
+            cols = cols.partition(np.full(values.shape[0], values.shape[1]))
+        self._stream.send_columns(
+            entity,
+            indexes=[rr.TimeColumn("step", sequence=steps.astype(np.int64)),
+                     rr.TimeColumn("sim_time", duration=times)],
+            columns=cols,
+        )

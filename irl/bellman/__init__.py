@@ -1,0 +1,1 @@
+"""Bellman operators of the tabular methods, their fixed points and their stability."""

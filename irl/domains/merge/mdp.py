@@ -1,0 +1,311 @@
+"""The freeway-merge MDP (paper section 4.2): transitions and tabular demonstrations.
+
+The domain itself (state and action bins, encoding, encounter schema, the no-lead-car rule,
+features) is :mod:`irl.domains` (``merge_actions``, ``merge_states``, ``merge_bins``,
+``merge_encounters``, ``merge_features``); this module builds the MDP from it: tabular
+demonstrations from an encounter table (:func:`discretize`), the kinematic fallback model
+(:func:`kinematic_next_state`) and the estimated transition model, REIRL's padding, and
+readers of the authors' files and of encounter tables.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import scipy.sparse as sp
+
+from irl.demonstrations import Demonstrations
+from irl.domains.merge.actions import ACTION_ACC_FT_S2, N_ACTIONS, ZERO_ACTION, actions_of
+from irl.domains.merge.bins import MergeBins
+from irl.domains.merge.encounters import validate_encounters
+from irl.domains.merge.features import driver_encode_sequence, feature_set, features
+from irl.domains.merge.states import N_STATES, VARIABLES, n_states, split_driver_state, state_index, state_parts
+from irl.errors import ConfigError, DemonstrationError
+from irl.io import load_railusm
+from irl.transitions import SuccessorModel, estimate_transitions
+from merge_irl.units import FRAME_S
+
+#: Default decision step (s) at which merge demonstrations are resampled: the controller's.
+DEFAULT_DECISION_STEP_S = 0.3
+
+
+@dataclass(frozen=True)
+class Discretized:
+    """What :func:`discretize` returns.
+
+    Attributes:
+        demos: the tabular demonstrations.
+        action_acc_ft_s2: ``[5]`` mean acceleration (ft/s^2) of the decisions of each action;
+            the bin midpoint (``ACTION_ACC_FT_S2``) for an action that never occurs.
+        rows: ``[N]`` int64, the row position (``iloc``) in the encounter table of each
+            decision, in the order of ``demos.flat()``: the frame whose continuous variables
+            the decision's state encodes (e.g. for :mod:`irl.domains.merge.car_following`).
+    """
+
+    demos: Demonstrations
+    action_acc_ft_s2: tuple[float, ...]
+    rows: np.ndarray
+
+
+def action_mean_acc(acc, actions) -> tuple[float, ...]:
+    """``[5]`` conditional mean of ``acc`` (ft/s^2) per action; bin midpoint where absent."""
+    acc = np.asarray(acc, dtype=np.float64)
+    actions = np.asarray(actions, dtype=np.int64)
+    out = []
+    for a in range(N_ACTIONS):
+        sel = acc[actions == a]
+        out.append(float(sel.mean()) if sel.size else float(ACTION_ACC_FT_S2[a]))
+    return tuple(out)
+
+
+def frames_per_step(decision_step_s: float) -> int:
+    """The number of 0.1 s frames in one decision step.
+
+    Raises:
+        ConfigError: ``decision_step_s`` is not a positive finite multiple of the frame (0.1 s).
+    """
+    ok = isinstance(decision_step_s, (int, float)) and not isinstance(decision_step_s, bool) \
+        and math.isfinite(decision_step_s) and decision_step_s > 0
+    k = int(round(decision_step_s / FRAME_S)) if ok else 0
+    if k < 1 or abs(k * FRAME_S - decision_step_s) > 1e-9:
+        raise ConfigError(f"decision_step_s must be a positive multiple of {FRAME_S} s, got {decision_step_s}")
+    return k
+
+
+def discretize(encounters_df, bins: MergeBins, *, where: str = "encounters", encoding: str = "paper",
+               decision_step_s: float = DEFAULT_DECISION_STEP_S, features=None) -> Demonstrations:
+    """The demonstrations of :func:`resample_encounters` (same arguments and errors)."""
+    return resample_encounters(encounters_df, bins, where=where, encoding=encoding,
+                               decision_step_s=decision_step_s, features=features).demos
+
+
+def resample_encounters(encounters_df, bins: MergeBins, *, where: str = "encounters", encoding: str = "paper",
+                        decision_step_s: float = DEFAULT_DECISION_STEP_S, features=None) -> Discretized:
+    """Resample each encounter at the decision step and encode it (issue 11, cause 2).
+
+    One trajectory per ``encounter_id`` (rows in table order = frame order). With ``k =
+    decision_step_s / 0.1 s`` frames per decision, decision ``j`` of an encounter is its row
+    ``j k`` (the state at that frame); its action is the forward difference of A's speed over
+    the step, ``(v_A(t + k) - v_A(t)) / (k 0.1 s)``, i.e. the mean of ``acc_A`` over rows
+    ``t .. t+k-1`` (each row's ``acc_A`` is a one-frame forward difference). An incomplete
+    last step is dropped. With the ``"driver"`` encoding the first decision is row ``k``
+    so that its previous action (the step over rows ``0 .. k-1``) comes from A's speed history;
+    an encounter shorter than ``2k`` rows keeps row 0 with previous action Zero (unknown).
+
+    Args:
+        encounters_df: the encounter table of :mod:`irl.domains.merge.encounters`.
+        bins: state bin edges.
+        encoding: ``"paper"`` or ``"driver"`` (:data:`irl.domains.merge.states.STATE_ENCODINGS`).
+        decision_step_s: seconds per decision, a multiple of 0.1 (0.1 keeps every frame).
+        features: a :class:`~irl.domains.merge.features.FeatureSet` (``[S, A, K]``), a set name
+            or None (the paper's three).
+
+    Returns:
+        :class:`Discretized`: demonstrations over ``n_states(encoding)`` states and 5 actions,
+        trajectories in order of first appearance, named ``encounter <id>``; and the per-action
+        mean acceleration of the decisions.
+
+    Raises:
+        DemonstrationError: the table breaks :func:`irl.domains.merge.encounters.validate_encounters`, or
+            every encounter has fewer than ``k`` rows (no whole decision step). Shorter
+            encounters among longer ones are left out with a :class:`ShortEncounterWarning`.
+        ConfigError: a bad encoding or decision step.
+    """
+    validate_encounters(encounters_df, where)
+    k = frames_per_step(decision_step_s)
+    S = n_states(encoding)
+    fs = feature_set(features or "paper", bins, encoding, dt=decision_step_s)
+    if fs.array.shape[0] != S:
+        raise ConfigError(f"features have {fs.array.shape[0]} states, the {encoding!r} encoding {S}")
+    paper_states = bins.encode(encounters_df)
+    acc = encounters_df["acc_A"].to_numpy(dtype=np.float64)
+    ids = encounters_df["encounter_id"].to_numpy()
+    # a trajectory is a run of rows with one id (and increasing Frame_ID when present): tables
+    # concatenated from several files or runs may reuse ids, and must not be glued together
+    brk = np.ones(len(ids), dtype=bool)
+    brk[1:] = ids[1:] != ids[:-1]
+    if "Frame_ID" in encounters_df.columns and len(ids) > 1:
+        fr = encounters_df["Frame_ID"].to_numpy()
+        brk[1:] |= fr[1:] <= fr[:-1]
+    run = np.cumsum(brk)
+    order: dict = {}
+    for i, (key, r) in enumerate(zip(ids, run)):
+        order.setdefault((key, r), []).append(i)
+    states, actions, all_acc, all_act, names, used = [], [], [], [], [], []
+    short = []  # encounters shorter than one decision step: no decision to learn from
+    for (key, _), rows in order.items():
+        rows = np.asarray(rows)
+        n = rows.size // k
+        if n == 0:
+            short.append(f"{key} ({rows.size} rows)")
+            continue
+        names.append(f"encounter {key}")
+        step_acc = acc[rows[: n * k]].reshape(n, k).mean(axis=1)  # [n]
+        step_act = actions_of(step_acc)
+        at = rows[: n * k: k]
+        s = paper_states[at]
+        if encoding == "driver":
+            if n >= 2:
+                s, prev, step_acc, step_act, at = s[1:], step_act[:-1], step_acc[1:], step_act[1:], at[1:]
+            else:
+                prev = np.array([ZERO_ACTION])
+            s = s * N_ACTIONS + prev
+        states.append(s.astype(np.int64))
+        used.append(at)
+        actions.append(step_act)
+        all_acc.append(step_acc)
+        all_act.append(step_act)
+    if not states:
+        raise DemonstrationError(f"{where}: every encounter is shorter than one decision step of {k} frames "
+                                 f"({decision_step_s} s): {', '.join(short[:5])}")
+    if short:
+        warnings.warn(f"{where}: {len(short)} encounter(s) shorter than one decision step of {k} frames "
+                      f"({decision_step_s} s) left out: {', '.join(short[:5])}", ShortEncounterWarning, stacklevel=2)
+    demos = Demonstrations(states=tuple(states), actions=tuple(actions), features=fs.array, n_states=S,
+                           n_actions=N_ACTIONS, source=where, names=tuple(names))
+    return Discretized(demos, action_mean_acc(np.concatenate(all_acc), np.concatenate(all_act)),
+                       np.concatenate(used).astype(np.int64))
+
+
+class ShortEncounterWarning(UserWarning):
+    """Encounters left out because they are shorter than one decision step."""
+
+
+def driver_encoded(demos: Demonstrations, features: np.ndarray) -> Demonstrations:
+    """Paper-encoded demonstrations (e.g. the authors' files) in the ``"driver"`` encoding: the
+    previous action of step t is action t-1 of the trajectory; of step 0, Zero (unknown).
+
+    Args:
+        demos: over the 1250 paper states.
+        features: ``[6250, 5, K]``.
+    """
+    if demos.n_states != N_STATES:
+        raise DemonstrationError(f"{demos.source}: expected {N_STATES} paper states, got {demos.n_states}")
+    states = tuple(driver_encode_sequence(s, a) for s, a in zip(demos.states, demos.actions))
+    return Demonstrations(states=states, actions=demos.actions, features=features, n_states=n_states("driver"),
+                          n_actions=N_ACTIONS, source=demos.source, names=demos.names)
+
+
+def kinematic_next_state(states, actions, bins: MergeBins, dt: float = 0.1, *, encoding: str = "paper",
+                         action_acc=ACTION_ACC_FT_S2) -> np.ndarray:
+    """Next state predicted by constant-acceleration kinematics (the paper's fallback model).
+
+    Takes each state's bin representatives (``MergeBins.representatives``) and the action's
+    representative acceleration ``a`` (``ACTION_ACC_FT_S2``), holds them over one decision step ``dt``
+    seconds and re-bins. Only A accelerates; B and C keep their speeds, and B's truck flag is
+    unchanged:
+
+        v_AC' = v_AC + a dt            v_AB' = v_AB + a dt
+        d_AC' = d_AC - v_AC dt - a dt^2 / 2
+        d_AB' = d_AB - v_AB dt - a dt^2 / 2
+
+    (``d_AX`` is the gap from A forward to X, so it shrinks when A is faster than X.)
+
+    With the ``"driver"`` encoding the next state's previous action is ``actions``.
+
+    Args:
+        states, actions: integer arrays of equal shape.
+        action_acc: ``[5]`` acceleration per action (ft/s^2).
+
+    Returns:
+        next states, same shape.
+
+    Raises:
+        ConfigError: ``dt`` is not positive.
+    """
+    if not dt > 0:
+        raise ConfigError(f"decision step dt must be positive, got {dt}")
+    if encoding == "driver":
+        s_paper, _ = split_driver_state(states)
+        nxt = kinematic_next_state(s_paper, actions, bins, dt, action_acc=action_acc)
+        return (nxt * N_ACTIONS + np.asarray(actions, dtype=np.int64)).astype(np.int64)
+    parts = state_parts(states)
+    acc = np.asarray(action_acc, dtype=np.float64)[np.asarray(actions, dtype=np.int64)]
+    rep = {name: bins.representatives(name)[parts[..., i + 1]] for i, name in enumerate(VARIABLES)}
+    v_ac = rep["v_AC"] + acc * dt
+    v_ab = rep["v_AB"] + acc * dt
+    d_ac = rep["d_AC"] - rep["v_AC"] * dt - 0.5 * acc * dt * dt
+    d_ab = rep["d_AB"] - rep["v_AB"] * dt - 0.5 * acc * dt * dt
+    new = [bins.bin_index("d_AC", d_ac), bins.bin_index("d_AB", d_ab),
+           bins.bin_index("v_AC", v_ac), bins.bin_index("v_AB", v_ab)]
+    return state_index(parts[..., 0], *new).astype(np.int64)
+
+
+def kinematic_successors(bins: MergeBins, dt: float = 0.1, encoding: str = "paper",
+                         action_acc=ACTION_ACC_FT_S2) -> np.ndarray:
+    """``[S, 5]`` int: :func:`kinematic_next_state` of every (state, action) pair (``S`` of the
+    encoding), the ``fallback_next`` of Q-Avg/Q-SM's ``unobserved="kinematic"`` (:mod:`irl.unobserved_successors`).
+
+    Raises:
+        ConfigError: ``dt`` is not positive.
+    """
+    S = n_states(encoding)
+    s = np.repeat(np.arange(S), N_ACTIONS)
+    a = np.tile(np.arange(N_ACTIONS), S)
+    return kinematic_next_state(s, a, bins, dt, encoding=encoding, action_acc=action_acc).reshape(S, N_ACTIONS)
+
+
+def kinematic_model(bins: MergeBins, dt: float = 0.1, encoding: str = "paper") -> SuccessorModel:
+    """The deterministic transition model of ``kinematic_next_state``: ``[S, 5, S]`` (``S`` of the
+    encoding: 1250 or 6250), stored sparse (one entry per (s, a) row; ``.to_dense()`` for the array).
+
+    Raises:
+        ConfigError: ``dt`` is not positive.
+    """
+    S = n_states(encoding)
+    nxt = kinematic_successors(bins, dt, encoding).ravel()
+    p = sp.csr_matrix((np.ones(S * N_ACTIONS), nxt, np.arange(S * N_ACTIONS + 1)), shape=(S * N_ACTIONS, S))
+    return SuccessorModel(p=p, terminal=np.zeros(S * N_ACTIONS, dtype=bool), n_states=S, n_actions=N_ACTIONS)
+
+
+def estimated_transitions(demos: Demonstrations, bins: MergeBins, dt: float = 0.1) -> SuccessorModel:
+    """``[S, 5, S]`` relative transition counts of ``demos``, with the kinematic model at the
+    decision step ``dt`` for every (s, a) never observed (the paper's MLIRL model for the merge
+    domain); the encoding follows ``demos.n_states``. Sparse (:func:`irl.transitions.estimate_transitions`):
+    about 1 MB for the driver encoding's 6250 states, where the dense array is 1.5 GB."""
+    encoding = "driver" if demos.n_states == n_states("driver") else "paper"
+    return estimate_transitions(demos, fallback=kinematic_model(bins, dt, encoding))
+
+
+@dataclass(frozen=True)
+class ConstantVelocityPad:
+    """REIRL padding for the merge domain (paper section 4.2): beyond its last frame a trajectory
+    continues with A, B and C at constant velocity, i.e. the Zero-acceleration action under the
+    kinematic model. Callable ``state -> (next_state, action)``; picklable."""
+
+    bins: MergeBins
+    dt: float = 0.1
+    encoding: str = "paper"
+
+    def __call__(self, state: int) -> tuple[int, int]:
+        nxt = kinematic_next_state(np.array([state]), np.array([ZERO_ACTION]), self.bins, self.dt, encoding=self.encoding)
+        return int(nxt[0]), ZERO_ACTION
+
+
+def load(path) -> Demonstrations:
+    """Merge trajectories in the authors' text format (their state layout), with the features."""
+    return load_railusm(path, n_states=N_STATES, n_actions=N_ACTIONS, features=features())
+
+
+def read_encounters(path: str | os.PathLike):
+    """An encounter table from Parquet (``.parquet``/``.pq``) or CSV (anything else).
+
+    Raises:
+        DemonstrationError: the file is missing or unreadable.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise DemonstrationError(f"{path}: no such encounter file")
+    try:
+        if path.suffix.lower() in (".parquet", ".pq"):
+            return pd.read_parquet(path)
+        return pd.read_csv(path)
+    except Exception as e:  # pandas/pyarrow raise many types for unreadable files
+        reason = " ".join(str(e).split())  # pandas' messages may end in a newline: one line
+        raise DemonstrationError(f"{path}: cannot read encounter table ({type(e).__name__}: {reason})") from None

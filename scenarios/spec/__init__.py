@@ -1,0 +1,1 @@
+"""The scenario spec: the frozen dataclasses, their fields and the TOML parser."""

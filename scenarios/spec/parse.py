@@ -1,0 +1,354 @@
+"""Parsing and validating scenario specs: TOML text or a plain mapping -> :class:`ScenarioSpec`.
+
+Every problem raises :class:`scenarios.errors.SpecError` of the form ``file: field.path: problem``
+before anything is simulated. The file layout is described in :mod:`scenarios.spec.model`.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import tomllib
+from dataclasses import fields
+from pathlib import Path
+from typing import Any
+
+from scenarios.errors import SpecError
+from scenarios.spec.model import (
+    VEHICLE_CLASSES,
+    DemandSpec,
+    DriversSpec,
+    RoadSpec,
+    ScenarioSpec,
+    SimulationSpec,
+    VTypeSpec,
+)
+from scenarios.spec.fields import (
+    FieldContext,
+    check_keys,
+    is_float,
+    non_negative,
+    number,
+    positive,
+    string,
+)
+
+CAR_FOLLOW_MODELS = (
+    "Krauss", "KraussOrig1", "KraussPS", "KraussX", "EIDM", "IDM", "IDMM", "BKerner",
+    "Wiedemann", "W99", "PWagner2009", "PWagner2012", "SmartSK", "Daniel1", "ACC", "CACC",
+)
+LANE_CHANGE_MODELS = ("LC2013", "SL2015", "DK2008")
+_PARAM_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
+#: Plausible ranges of the road's sizes and speeds (inclusive): outside them a value is a typo
+#: or a unit mix-up (a 0.1 m lane, a 1 m road), not a road SUMO should build. Lengths hold a
+#: few cars (5 m each); lanes are 2.5-5 m wide in practice; speeds up to 250 km/h.
+ROAD_RANGES: dict[str, tuple[float, float, str]] = {
+    "main_length_m": (50.0, 20_000.0, "m"),
+    "merge_position_m": (10.0, 20_000.0, "m"),
+    "ramp_length_m": (20.0, 5_000.0, "m"),
+    "aux_length_m": (10.0, 5_000.0, "m"),
+    "lane_width_m": (2.5, 5.0, "m"),
+    "speed_limit_mps": (1.0, 70.0, "m/s"),
+    "ramp_speed_limit_mps": (1.0, 70.0, "m/s"),
+    "bottleneck_length_m": (0.0, 20_000.0, "m"),
+    "bottleneck_speed_mps": (0.0, 70.0, "m/s"),
+}
+
+
+def _road(ctx: FieldContext, data: Any) -> RoadSpec:
+    names = [f.name for f in fields(RoadSpec)]
+    d = check_keys(ctx, "road", data, names)
+    kw: dict[str, Any] = {}
+    for n in names:
+        if n not in d:
+            continue
+        p = f"road.{n}"
+        if n == "main_lanes":
+            kw[n] = positive(ctx, p, d[n], integer=True)
+            if kw[n] > 6:
+                raise ctx.fail(p, f"must be at most 6 (I-80 numbering 1..6), got {d[n]}")
+        elif n == "ramp_angle_deg":
+            kw[n] = number(ctx, p, d[n])
+            if not 0 < kw[n] < 45:
+                raise ctx.fail(p, f"must be in (0, 45) degrees, got {d[n]!r}")
+        elif n == "bottleneck_drop":
+            kw[n] = string(ctx, p, d[n], ("right", "left"))
+        elif n == "bottleneck_lanes":  # 0 = as many as the main road
+            kw[n] = number(ctx, p, d[n], integer=True)
+            if not 0 <= kw[n] <= 6:
+                raise ctx.fail(p, f"must be 0 (as the main road) to 6, got {d[n]}")
+        elif n.startswith("bottleneck_"):  # 0 = no bottleneck
+            kw[n] = number(ctx, p, d[n])
+            lo, hi, unit = ROAD_RANGES[n]
+            if not lo <= kw[n] <= hi:
+                raise ctx.fail(p, f"{kw[n]:g} {unit} is implausible; expected {lo:g} to {hi:g} {unit}")
+        else:
+            kw[n] = positive(ctx, p, d[n])
+            lo, hi, unit = ROAD_RANGES.get(n, (0.0, math.inf, ""))
+            if not lo <= kw[n] <= hi:
+                raise ctx.fail(p, f"{kw[n]:g} {unit} is implausible; expected {lo:g} to {hi:g} {unit}")
+    r = RoadSpec(**kw)
+    if r.merge_position_m + r.aux_length_m >= r.main_length_m:
+        raise ctx.fail(
+            "road.aux_length_m",
+            f"merge_position_m + aux_length_m = {r.merge_position_m + r.aux_length_m:g} m must be "
+            f"shorter than main_length_m = {r.main_length_m:g} m (the auxiliary lane ends on the road)",
+        )
+    if r.bottleneck_length_m > 0 and "bottleneck_speed_mps" not in d:  # its default 0 means "no bottleneck"
+        raise ctx.fail("road.bottleneck_speed_mps",
+                       f"missing: a bottleneck of {r.bottleneck_length_m:g} m needs its speed limit (for a lane "
+                       f"drop alone, the road's speed_limit_mps = {r.speed_limit_mps:g})")
+    if r.bottleneck_length_m > 0 and not r.bottleneck_speed_mps >= 1.0:
+        raise ctx.fail("road.bottleneck_speed_mps",
+                       f"a bottleneck of {r.bottleneck_length_m:g} m needs a speed limit of at least 1 m/s, "
+                       f"got {r.bottleneck_speed_mps:g}")
+    if not r.bottleneck_length_m > 0:
+        no_bottleneck = RoadSpec()
+        given = sorted(k for k in d if k.startswith("bottleneck_") and k != "bottleneck_length_m"
+                       and getattr(r, k) != getattr(no_bottleneck, k))  # a written spec repeats the defaults
+        if given:
+            raise ctx.fail("road.bottleneck_length_m",
+                           f"{', '.join(given)} given but no bottleneck: set bottleneck_length_m > 0 "
+                           f"(the bottleneck's length past main_length_m) or remove them")
+    elif (r.bottleneck_lanes in (0, r.main_lanes) and r.bottleneck_speed_mps >= r.speed_limit_mps):
+        raise ctx.fail("road.bottleneck_speed_mps",
+                       f"the bottleneck changes nothing: no lane drop (bottleneck_lanes {r.bottleneck_lanes or r.main_lanes}"
+                       f" of {r.main_lanes}) and a speed limit of {r.bottleneck_speed_mps:g} m/s, not below the road's "
+                       f"{r.speed_limit_mps:g} m/s")
+    if r.bottleneck_lanes > r.main_lanes:
+        raise ctx.fail("road.bottleneck_lanes", f"{r.bottleneck_lanes} lanes: a bottleneck has at most main_lanes = "
+                                                f"{r.main_lanes}")
+    ramp_dx = r.ramp_length_m * math.cos(math.radians(r.ramp_angle_deg))
+    if ramp_dx > r.merge_position_m:
+        raise ctx.fail(
+            "road.ramp_length_m",
+            f"the ramp ({r.ramp_length_m:g} m at {r.ramp_angle_deg:g} deg) would start before the section "
+            f"start: its length along the road, {ramp_dx:.1f} m, must be at most merge_position_m = "
+            f"{r.merge_position_m:g} m",
+        )
+    return r
+
+
+def _demand(ctx: FieldContext, data: Any, main_lanes: int) -> DemandSpec:
+    names = [f.name for f in fields(DemandSpec)]
+    d = check_keys(ctx, "demand", data, names)
+    kw: dict[str, Any] = {}
+    if "main_veh_h" in d:
+        v = d["main_veh_h"]
+        if isinstance(v, list):
+            if len(v) != main_lanes:
+                raise ctx.fail("demand.main_veh_h", f"must have one value per main lane ({main_lanes}), got {len(v)}")
+            kw["main_veh_h"] = tuple(non_negative(ctx, f"demand.main_veh_h[{i}]", x) for i, x in enumerate(v))
+        else:
+            kw["main_veh_h"] = (non_negative(ctx, "demand.main_veh_h", v),) * main_lanes
+    else:
+        base = DemandSpec().main_veh_h
+        kw["main_veh_h"] = tuple(base[min(i, len(base) - 1)] for i in range(main_lanes))
+    if "ramp_veh_h" in d:
+        kw["ramp_veh_h"] = non_negative(ctx, "demand.ramp_veh_h", d["ramp_veh_h"])
+    if "truck_share" in d:
+        kw["truck_share"] = non_negative(ctx, "demand.truck_share", d["truck_share"])
+        if kw["truck_share"] > 1:
+            raise ctx.fail("demand.truck_share", f"must be in [0, 1], got {d['truck_share']!r}")
+    if "arrivals" in d:
+        kw["arrivals"] = string(ctx, "demand.arrivals", d["arrivals"], ("poisson", "uniform"))
+    if "depart_speed" in d:
+        v = d["depart_speed"]
+        if isinstance(v, str) and is_float(v):  # a speed written back as text by to_toml
+            v = float(v)
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            kw["depart_speed"] = str(non_negative(ctx, "demand.depart_speed", v))
+        else:
+            kw["depart_speed"] = string(ctx, "demand.depart_speed", v, ("desired", "max", "avg", "speedLimit", "random", "last"))
+    dem = DemandSpec(**kw)
+    if sum(dem.main_veh_h) + dem.ramp_veh_h <= 0:
+        raise ctx.fail("demand", "zero demand everywhere: main_veh_h and ramp_veh_h are all 0")
+    return dem
+
+
+def _params(ctx: FieldContext, path: str, v: Any, prefix: str = "") -> tuple[tuple[str, Any], ...]:
+    if not isinstance(v, dict):
+        raise ctx.fail(path, f"must be a table of SUMO attributes, got {type(v).__name__}")
+    out = []
+    reserved = {"id", "vClass", "length", "width", "minGap", "maxSpeed", "accel", "decel",
+                "emergencyDecel", "sigma", "tau", "speedFactor", "speedDev", "carFollowModel",
+                "laneChangeModel", "probability"}
+    for k in sorted(v):
+        val = v[k]
+        if not _PARAM_NAME.match(k) or k in reserved or (prefix and not k.startswith(prefix)):
+            need = f"a SUMO attribute name starting with {prefix!r}" if prefix else "a SUMO attribute name"
+            raise ctx.fail(f"{path}.{k}", f"must be {need}, not one of the spec's own fields")
+        if not isinstance(val, (int, float, str, bool)):
+            raise ctx.fail(f"{path}.{k}", f"must be a number, string or boolean, got {type(val).__name__}")
+        if isinstance(val, (int, float)) and not isinstance(val, bool):
+            number(ctx, f"{path}.{k}", val)  # finite, of sane magnitude
+        out.append((k, val))
+    return tuple(out)
+
+
+def _vtype(ctx: FieldContext, path: str, data: Any, cls: str) -> VTypeSpec:
+    names = [f.name for f in fields(VTypeSpec)]
+    d = check_keys(ctx, path, data, names)
+    if "id" not in d:
+        raise ctx.fail(f"{path}.id", "missing (every vType needs an id)")
+    kw: dict[str, Any] = {"id": string(ctx, f"{path}.id", d["id"])}
+    if not _PARAM_NAME.match(kw["id"]):
+        raise ctx.fail(f"{path}.id", f"must be letters, digits and _, got {kw['id']!r}")
+    defaults = DriversSpec().truck[0] if cls == "truck" else VTypeSpec(id="car")
+    for n in names:
+        if n == "id":
+            continue
+        p = f"{path}.{n}"
+        if n not in d:
+            kw[n] = getattr(defaults, n)
+            continue
+        v = d[n]
+        if n == "car_follow_model":
+            kw[n] = string(ctx, p, v, CAR_FOLLOW_MODELS)
+        elif n == "lane_change_model":
+            kw[n] = string(ctx, p, v, LANE_CHANGE_MODELS)
+        elif n == "cf_params":
+            kw[n] = _params(ctx, p, v)
+        elif n == "lc_params":
+            kw[n] = _params(ctx, p, v, prefix="lc")
+        elif n in ("sigma", "speed_dev"):
+            kw[n] = non_negative(ctx, p, v)
+            if n == "sigma" and kw[n] > 1:
+                raise ctx.fail(p, f"must be in [0, 1], got {v!r}")
+        else:
+            kw[n] = positive(ctx, p, v)
+    return VTypeSpec(**kw)
+
+
+def _drivers(ctx: FieldContext, data: Any) -> DriversSpec:
+    d = check_keys(ctx, "drivers", data, list(VEHICLE_CLASSES))
+    kw: dict[str, Any] = {}
+    seen: set[str] = set()
+    for cls in VEHICLE_CLASSES:
+        if cls not in d:
+            kw[cls] = getattr(DriversSpec(), cls)
+        else:
+            items = d[cls]
+            if isinstance(items, dict):
+                items = [items]
+            if not isinstance(items, list) or not items:
+                raise ctx.fail(f"drivers.{cls}", f"must be a non-empty array of vType tables ([[drivers.{cls}]])")
+            kw[cls] = tuple(_vtype(ctx, f"drivers.{cls}[{i}]", it, cls) for i, it in enumerate(items))
+        for i, vt in enumerate(kw[cls]):
+            if vt.id in seen:
+                raise ctx.fail(f"drivers.{cls}[{i}].id", f"duplicate vType id {vt.id!r}")
+            seen.add(vt.id)
+    return DriversSpec(**kw)
+
+
+def _simulation(ctx: FieldContext, data: Any) -> SimulationSpec:
+    names = [f.name for f in fields(SimulationSpec)]
+    d = check_keys(ctx, "simulation", data, names)
+    kw: dict[str, Any] = {}
+    if "step_s" in d:
+        kw["step_s"] = positive(ctx, "simulation.step_s", d["step_s"])
+        ratio = 0.1 / kw["step_s"]
+        if not ratio <= 1000 or abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+            raise ctx.fail("simulation.step_s", f"must divide the 0.1 s NGSIM frame (0.1, 0.05, 0.02, ...), got {d['step_s']!r}")
+    if "duration_s" in d:
+        kw["duration_s"] = positive(ctx, "simulation.duration_s", d["duration_s"])
+    if "warmup_s" in d:
+        kw["warmup_s"] = non_negative(ctx, "simulation.warmup_s", d["warmup_s"])
+    if "seed" in d:
+        kw["seed"] = number(ctx, "simulation.seed", d["seed"], integer=True)
+        if not 0 <= kw["seed"] < 2**31:
+            raise ctx.fail("simulation.seed", f"must be in [0, 2**31), got {d['seed']!r}")
+    if "time_to_teleport_s" in d:
+        kw["time_to_teleport_s"] = non_negative(ctx, "simulation.time_to_teleport_s", d["time_to_teleport_s"])
+    sim = SimulationSpec(**kw)
+    if sim.warmup_s >= sim.duration_s:
+        raise ctx.fail("simulation.warmup_s", f"must be shorter than duration_s = {sim.duration_s:g} s, got {sim.warmup_s:g}")
+    return sim
+
+
+def spec_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> ScenarioSpec:
+    """Validate a parsed TOML mapping and build the spec; raises ``SpecError`` naming the field.
+
+    Raises:
+        SpecError: a missing or invalid field (the message names it and what was expected).
+    """
+    ctx = FieldContext(source)
+    d = check_keys(ctx, "", data, ["name", "road", "demand", "drivers", "simulation"])
+    if "name" not in d:
+        raise ctx.fail("name", "missing (the scenario needs a name)")
+    name = string(ctx, "name", d["name"])
+    if not _PARAM_NAME.match(name.replace("-", "_")):
+        raise ctx.fail("name", f"must be letters, digits, - and _, got {name!r}")
+    road = _road(ctx, d.get("road", {}))
+    return ScenarioSpec(
+        name=name,
+        road=road,
+        demand=_demand(ctx, d.get("demand", {}), road.main_lanes),
+        drivers=_drivers(ctx, d.get("drivers", {})),
+        simulation=_simulation(ctx, d.get("simulation", {})),
+        source=source,
+    )
+
+
+def spec_from_toml(text: str, *, source: str = "<toml>") -> ScenarioSpec:
+    """Parse TOML text and validate it.
+
+    Raises:
+        SpecError: invalid TOML, or a missing or invalid field (see :func:`spec_from_dict`).
+    """
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise SpecError(f"{source}: invalid TOML: {e}") from e
+    return spec_from_dict(data, source=source)
+
+
+def spec_from_file(path: str | Path) -> ScenarioSpec:
+    """The scenario in the UTF-8 TOML file ``path``.
+
+    Raises:
+        SpecError: the file cannot be read, is not UTF-8 text, or does not hold a valid scenario (see
+            :func:`spec_from_toml`).
+    """
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as e:
+        raise SpecError(f"{p}: cannot read scenario file: {e.strerror}") from e
+    except UnicodeDecodeError as e:
+        raise SpecError(f"{p}: not a UTF-8 text file (byte {e.start}); expected scenario TOML") from None
+    return spec_from_toml(text, source=p.name)
+
+
+def with_overrides(
+    spec: ScenarioSpec, *, seed: int | None = None, duration_s: float | None = None,
+    demand_scale: float | None = None,
+) -> ScenarioSpec:
+    """A copy of ``spec`` with another seed, duration and/or demand, validated again.
+
+    Args:
+        spec: the scenario.
+        seed: SUMO's random seed.
+        duration_s: simulated seconds, warm-up included.
+        demand_scale: multiplies every demand flow (each ``main_veh_h`` entry and
+            ``ramp_veh_h``); a positive finite number.
+
+    Raises:
+        SpecError: if an override is invalid (naming the field).
+    """
+    source = spec.source or "<overrides>"
+    data = spec.to_dict()
+    if seed is not None:
+        data["simulation"]["seed"] = seed
+    if duration_s is not None:
+        warmup = spec.simulation.warmup_s
+        if isinstance(duration_s, (int, float)) and not isinstance(duration_s, bool) and 0 < duration_s <= warmup:
+            # name the override, not the scenario file's warmup_s, which is fine as it is
+            raise SpecError(f"{source}: simulation.duration_s: overridden (e.g. --duration) with {duration_s:g} s; "
+                            f"must be longer than the scenario's simulation.warmup_s = {warmup:g} s")
+        data["simulation"]["duration_s"] = duration_s
+    if demand_scale is not None:
+        k = positive(FieldContext(source), "demand_scale", demand_scale)
+        data["demand"]["main_veh_h"] = [x * k for x in data["demand"]["main_veh_h"]]
+        data["demand"]["ramp_veh_h"] = data["demand"]["ramp_veh_h"] * k
+    return spec_from_dict(data, source=source)

@@ -1,0 +1,1 @@
+"""NGSIM trajectory files: read, validate, smooth, assemble and write the NGSIM-schema trajectory table."""

@@ -1,0 +1,57 @@
+"""The demo's configuration: held-out runs and seed overlaps, checked before any work."""
+
+from __future__ import annotations
+
+import pytest
+
+from analysis.cli.main import main
+from analysis.demo.config import DemoConfig, check_dagger_seeds
+from irl.errors import ConfigError
+from sim.errors import SimError
+
+
+def test_heldout_runs_are_consecutive_seeds_apart_from_the_training_seeds():
+    assert DemoConfig().heldout_seeds == (201,)
+    assert DemoConfig(heldout_seed=5, heldout_runs=3).heldout_seeds == (5, 6, 7)
+    for bad in (0, -1, 1.5, True):
+        with pytest.raises(ConfigError, match="heldout_runs"):
+            DemoConfig(heldout_runs=bad)
+    with pytest.raises(ConfigError, match=r"\[103\].*training and held-out"):
+        DemoConfig(train_seeds=(101, 102, 103), heldout_seed=103)
+    with pytest.raises(ConfigError, match=r"\[101, 102\].*held-out: 97\.\.102"):
+        DemoConfig(train_seeds=(101, 102, 103), heldout_seed=97, heldout_runs=6)
+    import numpy as np
+
+    assert DemoConfig(heldout_runs=np.int64(2)).heldout_seeds == (201, 202)
+    for kw in ({"heldout_seed": -1}, {"heldout_seed": 201.5}, {"heldout_seed": "201"}, {"eval_duration_s": 0.0},
+               {"eval_duration_s": float("nan")}, {"eval_duration_s": float("inf")}, {"eval_duration_s": "60"}):
+        with pytest.raises(ConfigError):
+            DemoConfig(**kw)
+    # data seeds may not be evaluation seeds: the drivers would be scored on their demonstrations' traffic
+    with pytest.raises(ConfigError, match=r"\[2, 3\].*evaluation: 1\.\.3"):
+        DemoConfig(heldout_seed=2, heldout_runs=5, eval_episodes=3)
+    with pytest.raises(ConfigError, match=r"\[101\]"):
+        DemoConfig(eval_seed=95, eval_episodes=7)
+
+
+def test_dagger_labelling_seeds_may_not_be_held_out_seeds():
+    check_dagger_seeds(DemoConfig(dagger_rounds=1, heldout_seed=201, heldout_runs=10))  # 500.. is free
+    with pytest.raises(SimError, match="overlap"):
+        check_dagger_seeds(DemoConfig(dagger_rounds=1, heldout_seed=495, heldout_runs=10))  # 495..504 vs 500..514
+    with pytest.raises(SimError, match="500..514"):
+        check_dagger_seeds(DemoConfig(dagger_rounds=1, eval_seed=510, eval_episodes=30))  # evaluation 510..539
+    check_dagger_seeds(DemoConfig(dagger_rounds=1, eval_seed=515, eval_episodes=30))
+    # seed ranges are compared as ranges: a huge count is checked at once (a set of every seed
+    # filled the machine's memory)
+    check_dagger_seeds(DemoConfig(dagger_rounds=10**12))
+    with pytest.raises(SimError, match="overlap"):
+        check_dagger_seeds(DemoConfig(dagger_rounds=10**12, eval_seed=10**9, eval_episodes=10**12))
+    with pytest.raises(ConfigError, match=r"\[101, 102, 103, 201\]"):
+        DemoConfig(eval_episodes=10**12)
+
+
+def test_cli_rejects_a_bad_heldout_count_before_any_run(tmp_path, capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["demo", "--heldout-runs", "0", "--out", str(tmp_path / "d")])
+    assert e.value.code == 2 and "--heldout-runs" in capsys.readouterr().err
+    assert not (tmp_path / "d").exists()

@@ -1,0 +1,99 @@
+"""The Policy protocol: the frozen-dataclass policies satisfy it; duplicate names are renamed
+only where a policy can be renamed (no SUMO run: the checks happen before any episode)."""
+
+from dataclasses import FrozenInstanceError
+
+import numpy as np
+import pytest
+
+from analysis.evaluation.evaluate import evaluate
+from sim.policy import ConstantPolicy, Policy, PolicyError, SumoPolicy, UniformPolicy
+
+
+@pytest.mark.parametrize("policy", [SumoPolicy(), UniformPolicy(), ConstantPolicy(0)])
+def test_frozen_dataclass_policies_are_policies(policy):
+    assert isinstance(policy, Policy)
+    with pytest.raises(FrozenInstanceError):
+        policy.name = "renamed"  # read-only, which the protocol's properties allow
+
+
+class PlainPolicy:
+    """A user policy that is not a dataclass."""
+
+    name = "plain"
+    controls = True
+
+    def probs(self, obs):
+        return np.full(5, 0.2)
+
+
+def test_duplicate_names_of_a_non_dataclass_policy_is_a_policy_error(tmp_path):
+    assert isinstance(PlainPolicy(), Policy)
+    with pytest.raises(PolicyError, match="'plain'.*PlainPolicy is not a dataclass"):
+        evaluate([], "synthetic", 1, 0, tmp_path, baselines=(), policies=[PlainPolicy(), PlainPolicy()],
+                 rrd=False, progress=False)
+
+
+class SteppedPolicy(PlainPolicy):
+    """A user policy trained at 0.3 s decisions."""
+
+    name = "stepped"
+    decision_step_s = 0.3
+
+
+def test_a_decision_step_other_than_a_policys_own_is_said_before_any_episode(tmp_path):
+    from analysis.evaluation.evaluate import DecisionStepWarning
+    from sim.controller_config import ControllerConfig
+
+    # the duplicate names stop the evaluation before SUMO starts; the warning comes first
+    with pytest.warns(DecisionStepWarning, match=r"every 0.1 s, but stepped was trained at 0.3 s"), \
+            pytest.raises(PolicyError):
+        evaluate([], "synthetic", 1, 0, tmp_path, baselines=(), policies=[SteppedPolicy(), PlainPolicy(), PlainPolicy()],
+                 controller=ControllerConfig(decision_s=0.1), rrd=False, progress=False)
+
+
+class SlowPolicy(SteppedPolicy):
+    """The same name as SteppedPolicy, trained at 0.6 s decisions."""
+
+    decision_step_s = 0.6
+
+
+def test_the_first_policys_step_is_the_default_even_when_names_repeat(tmp_path):
+    from analysis.evaluation.evaluate import DecisionStepWarning
+
+    with pytest.warns(DecisionStepWarning, match=r"every 0.3 s, but stepped was trained at 0.6 s"), \
+            pytest.raises(PolicyError):
+        evaluate([], "synthetic", 1, 0, tmp_path, baselines=(), policies=[SteppedPolicy(), SlowPolicy()],
+                 rrd=False, progress=False)
+
+
+@pytest.mark.parametrize("step", [0.25, 0.05, 1e-9])
+def test_a_decision_step_off_the_simulation_step_is_refused_before_any_work(tmp_path, step):
+    from sim.controller_config import ControllerConfig
+    from sim.errors import SimError
+
+    with pytest.raises(SimError, match="positive multiple of the 0.1 s simulation step"):
+        evaluate([], "synthetic", 1, 0, tmp_path / "out", baselines=("uniform",),
+                 controller=ControllerConfig(decision_s=step), rrd=False, progress=False)
+    assert not (tmp_path / "out").exists()
+
+
+def test_held_out_tables_are_checked_before_any_episode(tmp_path):
+    import pandas as pd
+
+    from irl.errors import DemonstrationError
+
+    no_id = pd.DataFrame({"d_AC": [100.0] * 4, "d_AB": [10.0] * 4, "v_AC": [0.0] * 4, "v_AB": [0.0] * 4,
+                          "B_is_truck": False, "acc_A": [0.0] * 4})
+    with pytest.raises(DemonstrationError, match=r"lacks column\(s\) \['encounter_id'\]"):
+        evaluate([], "synthetic", 1, 0, tmp_path / "a", baselines=("uniform",), demos=no_id, rrd=False,
+                 progress=False)
+    other = pd.DataFrame({"x": [1.0], "y": [2.0]})  # e.g. a trajectory table given as encounters
+    with pytest.raises(DemonstrationError, match="lacks column"):
+        evaluate([], "synthetic", 1, 0, tmp_path / "b", baselines=("idm",), train_demos=other, rrd=False,
+                 progress=False)
+    short = no_id.assign(encounter_id=[1, 1, 2, 2])  # every encounter shorter than one 0.3 s decision
+    with pytest.raises(DemonstrationError, match="shorter than one decision step"):
+        evaluate([], "synthetic", 1, 0, tmp_path / "c", baselines=("uniform",), demos=short, rrd=False,
+                 progress=False)
+    assert not any((tmp_path / d).exists() for d in "abc")

@@ -29,7 +29,7 @@ import numpy as np
 from analysis.experiments.learn import fit_problem
 from analysis.experiments.trials import table_problem, trial_seeds
 from irl.config import IRLConfig
-from irl.fit import METHODS
+from irl.fit import method_names
 from irl.problems import Problem
 
 DATASETS = {1: "grid 0%", 2: "grid 10%", 3: "NGSIM"}
@@ -84,7 +84,8 @@ def measure(problem: Problem, method: str, config: IRLConfig, seeds: list[int]) 
 
 
 def run(data: Path, trials: int, grid_outer: int, ngsim_outer: int, tables=(1, 2, 3),
-        methods=METHODS, skip_faithful: bool = False) -> list[dict]:
+        methods: tuple[str, ...] | None = None, skip_faithful: bool = False) -> list[dict]:
+    methods = method_names() if methods is None else methods
     rows = []
     for table in tables:
         problem = table_problem(table, data)
@@ -156,7 +157,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--grid-outer", type=int, default=50, help="faithful outer-step cap on gridworld")
     p.add_argument("--ngsim-outer", type=int, default=3, help="faithful outer-step cap on NGSIM")
     p.add_argument("--tables", default="1,2,3", help="data sets: 1 grid 0%%, 2 grid 10%%, 3 NGSIM")
-    p.add_argument("--methods", default=",".join(METHODS))
+    p.add_argument("--methods", default=",".join(method_names()))
     p.add_argument("--skip-faithful", action="store_true")
     p.add_argument("--markdown", help="also write the table as Markdown to this file")
     args = p.parse_args(argv)

@@ -61,7 +61,7 @@ def dense_kinematic(problem) -> np.ndarray:
     S, A = problem.demos.n_states, problem.demos.n_actions
     s = np.repeat(np.arange(S), A)
     a = np.tile(np.arange(A), S)
-    nxt = kinematic_next_state(s, a, problem.bins, problem.dt, encoding=problem.state_encoding)
+    nxt = kinematic_next_state(s, a, problem.bins, problem.decision_step_s, encoding=problem.state_encoding)
     t = np.zeros((S, A, S))
     t[s, a, nxt] = 1.0
     return t
@@ -81,7 +81,7 @@ def run_case(data: str, encoding: str, model: str, method: str | None, gamma: fl
         transitions = dense_estimate(problem.demos, dense_kinematic(problem))
         model_successors(transitions)  # what a fit does with it first
     else:
-        transitions = estimated_transitions(problem.demos, problem.bins, problem.dt)
+        transitions = estimated_transitions(problem.demos, problem.bins, problem.decision_step_s)
     t1 = time.perf_counter()
     ll, flags = float("nan"), "-"
     if method is not None:

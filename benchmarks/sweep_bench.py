@@ -22,7 +22,7 @@ from collections import defaultdict
 from pathlib import Path
 
 from analysis.experiments.reproduce import reproduce_tables
-from analysis.experiments.reproduce_report import METHOD_ORDER
+from irl.methods.registry import method_names
 
 DEFAULT_DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "railusm"
 
@@ -41,7 +41,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--data", default=str(DEFAULT_DATA), help="the authors' data (railusm/)")
     ap.add_argument("--tables", default="1,2,3", help="comma-separated tables (default 1,2,3)")
     ap.add_argument("--trials", type=int, default=None, help="trials per method (default: the paper's 30/30/10)")
-    ap.add_argument("--methods", default=",".join(METHOD_ORDER), help="comma-separated methods")
+    ap.add_argument("--methods", default=",".join(method_names()), help="comma-separated methods")
     ap.add_argument("--no-holdout", action="store_true", help="skip the leave-one-trajectory-out folds")
     ap.add_argument("--executors", default="process:1,process:2,dask-local:2",
                     help="executors to time (default process:1,process:2,dask-local:2)")

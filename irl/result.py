@@ -12,15 +12,15 @@ from typing import Any
 import numpy as np
 
 from merge_irl.atomic import write_json_atomic
+from merge_irl.units import FRAME_S
 from irl.boltzmann import log_policy
 from irl.config import IRLConfig
 from irl.domains.merge.actions import ACTION_ACC_FT_S2
 from irl.domains.merge.cf_logit import CF_FORMAT, OLD_CF_FORMATS
 from irl.domains.merge.states import STATE_ENCODINGS
 from irl.errors import ModelFileError
+from irl.methods.registry import method_names
 
-#: Method names a model file may carry (the methods themselves: :data:`irl.fit.REGISTRY`).
-METHODS = ("qavg", "qsm", "mlirl", "reirl")
 #: ``action_acc_ft_s2`` of files written before the field existed: the bin midpoints.
 DEFAULT_ACTION_ACC: tuple[float, ...] = tuple(float(x) for x in ACTION_ACC_FT_S2)
 
@@ -30,7 +30,7 @@ class FitResult:
     """What every IRL method returns.
 
     Attributes:
-        method: one of ``METHODS``.
+        method: a registered method (:data:`irl.methods.registry.REGISTRY`).
         theta: ``[K]`` learned reward weights.
         loglik: final log-likelihood ``L(theta)`` of the training demonstrations (Eq. 5 without
             ``log Pr(s_1)``), for the model-free methods under their own Q; for REIRL under the
@@ -120,7 +120,7 @@ class SavedModel:
     unbounded: bool = False
     info: dict[str, Any] = field(default_factory=dict)
     state_encoding: str = "paper"
-    decision_step_s: float = 0.1
+    decision_step_s: float = FRAME_S  # files written before the field: the 0.1 s frame
     action_acc_ft_s2: tuple[float, ...] = DEFAULT_ACTION_ACC
     feature_set: str = ""
     unvisited_rule: str = "none"
@@ -186,8 +186,8 @@ class SavedModel:
         for key in ("method", "theta", "loglik", "settings", "q"):
             if key not in data:
                 raise ModelFileError(f"{path}: missing field {key!r}")
-        if not isinstance(data["method"], str) or data["method"] not in METHODS:
-            raise ModelFileError(f"{path}: field 'method' must be one of {METHODS}, got {_brief(data['method'])}")
+        if not isinstance(data["method"], str) or data["method"] not in method_names():
+            raise ModelFileError(f"{path}: field 'method' must be one of {method_names()}, got {_brief(data['method'])}")
         theta = _number_array(path, "theta", data["theta"], 1)
         q = _number_array(path, "q", data["q"], 2)
         if not np.all(np.isfinite(theta)):
@@ -251,7 +251,7 @@ def _driver_fields(path: Path, data: dict) -> dict[str, Any]:
     if enc not in STATE_ENCODINGS:
         raise ModelFileError(f"{path}: field 'state_encoding' must be one of {STATE_ENCODINGS}, got {_brief(enc)}")
     out["state_encoding"] = enc
-    raw = data.get("decision_step_s", 0.1)
+    raw = data.get("decision_step_s", FRAME_S)
     try:  # a JSON integer may be too large for a float
         step = float(raw) if isinstance(raw, (int, float)) and not isinstance(raw, bool) else math.nan
     except OverflowError:

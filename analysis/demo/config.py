@@ -38,7 +38,7 @@ class DemoConfig:
         methods: IRL methods to learn (default Q-Avg alone: with the driver state encoding
             (6250 states) MLIRL's Boltzmann backups take minutes per fit (its transition model is
             sparse, memory is not the limit), and Q-SM's fixed-point iteration took 26-57 s of the
-            demo; all are optional, ``methods=irl.fit.METHODS`` or ``merge-irl demo --methods ...``).
+            demo; all are optional, ``methods=irl.fit.method_names()`` or ``merge-irl demo --methods ...``).
         features: merge feature set (None: as ``merge-irl learn`` on encounter tables,
             :func:`analysis.experiments.learn.merge_features`, the driver set with A's previous action in the
             state); the IRL settings are :func:`analysis.experiments.learn.merge_config`'s (beta 1).
@@ -51,7 +51,7 @@ class DemoConfig:
             conditional logit on the driver features), and it drives with fewer collisions
             (3 vs 9 A collisions in 6 episodes). Measured with the terminal rule for unobserved
             pairs; at gamma 0 the rule changes nothing, and the kinematic backup that the merge
-            defaults now use at gamma > 0 (:data:`analysis.experiments.learn.MERGE_UNOBSERVED`) has not been
+            defaults now use at gamma > 0 (``irl.problems.DOMAINS["merge"].defaults.unobserved``) has not been
             compared in the closed loop yet.
         l2: L2 penalty of the IRL fits. Default 1: the likelihood is bounded without it, but at
             l2 0 the fit trades a positive weight on the inverse TTC to C (a reward for closing

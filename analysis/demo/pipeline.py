@@ -55,7 +55,7 @@ from merge_irl.provenance import provenance, provenance_markdown, text_digest, w
 from analysis.sweep import Task, run_sweep
 from merge_irl.atomic import write_text_atomic
 from irl.errors import IRLError
-from irl.fit import METHODS
+from irl.methods.registry import method_names
 from irl.domains.merge.bins import fit_quantile_bins
 from irl.problems import load_problem
 from scenarios.loader import load_scenario
@@ -264,7 +264,7 @@ def _remove_stale_models(folder: Path, written: set[Path]) -> None:
     """Remove the model files an earlier demo left in ``folder`` that this run did not write (a
     method not learned this time, ``cf-dagger``/``cf-logit`` with ``dagger_rounds`` 0): they would
     read as this run's. Files of other names are left alone."""
-    for name in (*METHODS, CF_DRIVER, "cf-logit"):
+    for name in (*method_names(), CF_DRIVER, "cf-logit"):
         path = folder / f"{name}.json"
         if path not in written and path.is_file():
             path.unlink()

@@ -34,6 +34,7 @@ from analysis.sweep import Task, run_sweep
 from irl.domains.merge.actions import N_ACTIONS
 from irl.domains.merge.car_following import OBS_COLUMNS, CFDecisions, car_following_decisions
 from irl.domains.merge.cf_logit import CarFollowingLogit
+from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S
 from irl.errors import ConfigError
 from scenarios.loader import load_scenario
 from scenarios.spec.parse import with_overrides
@@ -66,7 +67,7 @@ class DaggerConfig:
     duration_s: float = 240.0
     l2: float = 0.1
     critical_actions: tuple[int, ...] = (0,)
-    decision_step_s: float = 0.3
+    decision_step_s: float = DEFAULT_DECISION_STEP_S
 
     def __post_init__(self) -> None:
         def whole(name: str, lowest: int) -> None:

@@ -17,7 +17,6 @@ import os
 from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -25,48 +24,40 @@ from merge_irl.provenance import provenance as provenance_record
 from merge_irl.provenance import write_timings
 from irl.config import IRLConfig
 from irl.domains.merge.bins import MergeBins
-from irl.errors import ConfigError, ConvergenceError
-from irl.fit import METHODS, fit
-from irl.domains.merge.mdp import kinematic_successors
-from irl.problems import Problem, load_problem
+from irl.errors import ConvergenceError
+from irl.fit import fit, get_method
+from irl.problems import DOMAINS, Problem, load_problem
 from irl.methods.reirl import DEFAULT_EPSILON, DEFAULT_N_BASELINE
 from irl.result import FitResult, SavedModel
 from merge_irl.run_folder import check_writable
 from irl.unvisited_states import apply_unvisited_rule, visited_states
 
 
-#: beta of merge fits: the policy depends only on beta * theta (issue 11, cause 7), so beta is 1
-#: and theta carries the scale.
-MERGE_BETA = 1.0
-#: L2 penalty of merge fits: 0, because with the driver features the Q-Avg likelihood of the
-#: simulated encounters is bounded (checked by the fit's unbounded test, flagged if not).
-MERGE_L2 = 0.0
-#: Q-Avg/Q-SM rule for pairs with no observed successor in merge fits (exact solver), chosen by
-#: leave-one-trajectory-out likelihood on the authors' NGSIM data (docs/irl.md, benchmarks/driver_loo.py).
-MERGE_UNOBSERVED = "kinematic"
-
-
 def merge_config(base: IRLConfig | None = None, *, beta: float | None = None, l2: float | None = None,
                  gamma: float | None = None, method: str | None = None, unobserved: str | None = None) -> IRLConfig:
     """The IRL settings of a merge fit on encounter tables: ``base`` (default the paper's) with
-    beta :data:`MERGE_BETA` and L2 :data:`MERGE_L2`, unless ``beta`` / ``l2`` are given;
-    ``gamma`` (None: ``base``'s) overrides the discount; ``unobserved`` (None: :data:`MERGE_UNOBSERVED`
-    when ``method`` is Q-Avg or Q-SM with the exact solver, else ``base``'s) the rule for pairs with
-    no observed successor (:mod:`irl.unobserved_successors`).
-
-    The one home of these defaults for ``merge-irl learn`` and ``merge-irl demo``.
+    the merge domain's beta and L2 (``irl.problems.DOMAINS["merge"].defaults``, their one home),
+    unless ``beta`` / ``l2`` are given; ``gamma`` (None: ``base``'s) overrides the discount;
+    ``unobserved`` (None: the domain's default when ``method`` is Q-Avg or Q-SM with the exact
+    solver, else ``base``'s) the rule for pairs with no observed successor
+    (:mod:`irl.unobserved_successors`). What ``merge-irl learn`` and ``merge-irl demo`` use.
 
     Raises:
         ConfigError: a value :class:`irl.config.IRLConfig` rejects.
     """
     base = base or IRLConfig.paper()
-    cfg = replace(base, beta=MERGE_BETA if beta is None else float(beta), l2=MERGE_L2 if l2 is None else float(l2))
+    d = DOMAINS["merge"].defaults
+    cfg = replace(base, beta=base.beta if d.beta is None else d.beta, l2=base.l2 if d.l2 is None else d.l2)
+    if beta is not None:
+        cfg = replace(cfg, beta=float(beta))
+    if l2 is not None:
+        cfg = replace(cfg, l2=float(l2))
     if gamma is not None:
         cfg = replace(cfg, gamma=float(gamma))
     if unobserved is not None:
         return replace(cfg, unobserved=unobserved)
-    if method in ("qavg", "qsm") and cfg.solver == "exact":
-        return replace(cfg, unobserved=MERGE_UNOBSERVED)
+    if method in ("qavg", "qsm") and cfg.solver == "exact" and d.unobserved is not None:
+        return replace(cfg, unobserved=d.unobserved)
     return cfg
 
 
@@ -97,24 +88,18 @@ def fit_problem(
 ) -> FitResult:
     """Fit ``method`` on ``problem`` with ``numpy.random.default_rng(seed)``.
 
-    Q-Avg and Q-SM see only the demonstrations (and, with ``config.unobserved == "kinematic"``, the
-    merge domain's kinematic successors at ``problem.dt``: :func:`irl.domains.merge.mdp.kinematic_successors`
-    with the problem's per-action accelerations); MLIRL gets ``problem.transitions``; REIRL gets
-    the transitions (for its baseline and final log-likelihood), the baseline and the padding
-    rule of the domain. A pure function of its arguments.
+    What the method gets from the problem besides the demonstrations is the registry's to say
+    (:attr:`irl.methods.registry.Method.needs_transitions`, ``problem_options``): Q-Avg and Q-SM
+    see only the demonstrations (and, with ``config.unobserved == "kinematic"``, the domain's
+    kinematic successors at the problem's decision step); MLIRL gets ``problem.transitions``;
+    REIRL gets the transitions (for its baseline and final log-likelihood), the baseline and the
+    padding rule of the domain. A pure function of its arguments.
 
     Raises:
-        ConfigError: ``method`` is not one of :data:`irl.fit.METHODS`.
+        ConfigError: ``method`` is not a registered method (:data:`irl.fit.REGISTRY`).
         DemonstrationError, ConvergenceError: from the method (see :func:`irl.fit.fit`).
     """
-    if method not in METHODS:
-        raise ConfigError(f"method must be one of {METHODS}, got {method!r}")
-    options: dict[str, Any] = {}
-    if method in ("qavg", "qsm") and config.unobserved == "kinematic" and problem.bins is not None:
-        options["fallback_next"] = kinematic_successors(problem.bins, problem.dt, problem.state_encoding,
-                                                        problem.action_acc_ft_s2)
-    if method == "reirl":
-        options = dict(baseline=problem.baseline, epsilon=epsilon, n_baseline=n_baseline, pad_step=problem.pad_step())
+    options = get_method(method).options_for(problem, config, epsilon=epsilon, n_baseline=n_baseline)
     return fit(method, problem.demos, config, np.random.default_rng(seed), transitions=problem.transitions,
                progress=progress, **options)
 
@@ -151,7 +136,7 @@ def saved_model(fit: FitResult, problem: Problem, *, seed: int, source: str = ""
     if problem.domain == "gridworld":
         info["noise"] = problem.noise
     if problem.domain == "merge":
-        info["dt"] = problem.dt
+        info["dt"] = problem.decision_step_s  # kept for readers of older files; the field is decision_step_s
     if provenance is not None:
         info["provenance"] = provenance
     merge = problem.domain == "merge"
@@ -162,7 +147,7 @@ def saved_model(fit: FitResult, problem: Problem, *, seed: int, source: str = ""
         method=fit.method, theta=np.asarray(fit.theta), loglik=fit.loglik, q=np.asarray(q), config=fit.config,
         converged=fit.converged, unbounded=fit.unbounded,
         state_encoding=problem.state_encoding if merge else "paper",
-        decision_step_s=float(problem.dt),
+        decision_step_s=float(problem.decision_step_s),
         action_acc_ft_s2=tuple(problem.action_acc_ft_s2),
         feature_set=problem.feature_set if merge else "",
         unvisited_rule=unvisited if merge else "none",
@@ -183,7 +168,7 @@ def learn(
     noise: float = 0.0,
     baseline_path: str | os.PathLike | None = None,
     bins: MergeBins | str | os.PathLike | None = None,
-    dt: float | None = None,
+    decision_step_s: float | None = None,
     epsilon: float | None = DEFAULT_EPSILON,
     out: str | os.PathLike | None = None,
     progress: bool = False,
@@ -200,7 +185,7 @@ def learn(
     ``<out stem>.timings.json`` beside it, not into ``model.json``: identical runs write
     identical model files.
 
-    Merge options: ``dt`` the decision step (s) the encounters are resampled at (default 0.3
+    Merge options: ``decision_step_s`` the decision step (s) the encounters are resampled at (default 0.3
     s; 0.1 for the authors' text files), ``encoding`` ``"paper"`` or ``"driver"`` (A's previous
     action in the state), ``features`` a set name (``"paper"``, ``"driver"``), a tuple of names
     or your own :class:`irl.domains.merge.features.FeatureSet`, ``unvisited`` the rule for
@@ -221,7 +206,7 @@ def learn(
     bins_path = None
     if bins is not None and not isinstance(bins, MergeBins):
         bins_path, bins = bins, MergeBins.load(bins)
-    problem = load_problem(domain, demos_path, noise=noise, baseline_path=baseline_path, bins=bins, dt=dt,
+    problem = load_problem(domain, demos_path, noise=noise, baseline_path=baseline_path, bins=bins, decision_step_s=decision_step_s,
                            encoding=encoding, features=features)
     demos_list = [demos_path] if isinstance(demos_path, (str, os.PathLike)) else list(demos_path)
     inputs = {("demos" if len(demos_list) == 1 else f"demos{i}"): p for i, p in enumerate(demos_list, start=1)}

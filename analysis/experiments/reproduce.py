@@ -31,11 +31,12 @@ from pathlib import Path
 from collections.abc import Sequence
 
 from merge_irl.provenance import provenance
-from analysis.experiments.reproduce_report import METHOD_ORDER, ReproductionReport, _table_report
+from analysis.experiments.reproduce_report import ReproductionReport, _table_report
 from analysis.sweep import ResultStore, SweepReport, Task, run_sweep
 from analysis.experiments.trials import TrialOutcome, TrialSpec, cached_table_problem, resolve_data_dir, run_trial_spec, trial_seeds
 from irl.config import IRLConfig
 from irl.errors import ConfigError
+from irl.methods.registry import REGISTRY, method_names
 from irl.methods.reirl import DEFAULT_EPSILON
 
 DEFAULT_TRIALS = {1: 30, 2: 30, 3: 10}
@@ -70,11 +71,8 @@ def _trial_specs(table: int, data_dir: str, config: IRLConfig, n: int, seed: int
     return specs
 
 
-_METHOD_COST = {"qsm": 3, "mlirl": 2, "reirl": 1, "qavg": 0}
-
-
 def _expected_cost(spec: TrialSpec) -> tuple[int, int, int]:
-    return (spec.table == 3, _METHOD_COST.get(spec.method, 0), spec.holdout is None)
+    return (spec.table == 3, REGISTRY[spec.method].cost if spec.method in REGISTRY else 0, spec.holdout is None)
 
 
 @dataclass(frozen=True)
@@ -102,7 +100,7 @@ def reproduce_tables(
     settings: str = "paper",
     config: IRLConfig | None = None,
     seed: int = 0,
-    methods: tuple[str, ...] = METHOD_ORDER,
+    methods: tuple[str, ...] | None = None,
     holdout: bool = True,
     epsilon: float | None = DEFAULT_EPSILON,
     executor: str = "process",
@@ -139,9 +137,10 @@ def reproduce_tables(
         raise ConfigError("no table to reproduce")
     if settings not in ("paper", "reference"):
         raise ConfigError(f"settings must be 'paper' or 'reference', got {settings!r}")
-    bad = [m for m in methods if m not in METHOD_ORDER]
+    methods = method_names() if methods is None else tuple(methods)
+    bad = [m for m in methods if m not in REGISTRY]
     if bad:
-        raise ConfigError(f"methods: unknown {bad}; expected some of {list(METHOD_ORDER)}")
+        raise ConfigError(f"methods: unknown {bad}; expected some of {list(method_names())}")
     if config is None:
         config = IRLConfig.reference() if settings == "reference" else IRLConfig.paper()
     if trials is not None and int(trials) < 1:
@@ -177,7 +176,7 @@ def reproduce(
     settings: str = "paper",
     config: IRLConfig | None = None,
     seed: int = 0,
-    methods: tuple[str, ...] = METHOD_ORDER,
+    methods: tuple[str, ...] | None = None,
     holdout: bool = True,
     epsilon: float | None = DEFAULT_EPSILON,
     executor: str = "process",

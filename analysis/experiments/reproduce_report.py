@@ -25,12 +25,17 @@ from analysis.experiments.trials import TrialOutcome, cached_table_problem, conf
 from merge_irl.atomic import write_json_atomic
 from irl.baselines import BASELINES, baseline_leave_one_out, fit_baseline, paired_test
 from irl.config import IRLConfig
+from irl.methods.registry import REGISTRY
 from irl.problems import Problem
 
-#: Row order of the paper's tables.
-METHOD_ORDER = ("mlirl", "qavg", "qsm", "reirl")
-METHOD_LABELS = {"mlirl": "MLIRL", "qavg": "Q-Avg", "qsm": "Q-SM", "reirl": "REIRL", "uniform": "uniform",
-                 "marginal": "marginal", "markov": "markov", "bc": "bc"}
+
+
+def row_label(name: str) -> str:
+    """A table row's label: the registered method's (``"Q-Avg"``, ...), else the name itself (the
+    baselines ``uniform``, ``marginal``, ``markov``, ``bc``)."""
+    m = REGISTRY.get(name)
+    return m.label if m is not None else name
+
 TITLES = {
     1: "Table 1: gridworld, no transition noise",
     2: "Table 2: gridworld, 10% transition noise",
@@ -228,15 +233,15 @@ def format_report(report: ReproductionReport) -> str:
     k = len(report.feature_names)
     head = ["Method"] + [f"θ_{i + 1} ({n})" for i, n in enumerate(report.feature_names)] + \
         ["Final log-likelihood", "LOO held-out LL", "p vs MLIRL", "p vs marginal", "conv/unb", "s/trial"]
-    lines = [[METHOD_LABELS[r.method]] + ([_pm(m, s) for m, s in zip(r.theta_mean, r.theta_std)] or ["-"] * k)
+    lines = [[row_label(r.method)] + ([_pm(m, s) for m, s in zip(r.theta_mean, r.theta_std)] or ["-"] * k)
              + [_pm(r.loglik_mean, r.loglik_std),
                 f"{r.heldout_loglik:.2f}" if math.isfinite(r.heldout_loglik) else "-",
                 _p(r.p_vs_mlirl), _p(r.p_vs_marginal),
                 f"{r.n_converged}/{r.n_unbounded}", f"{r.time_mean_s:.3f}"] for r in report.rows]
     paper = PAPER.get(report.table, {})
-    paper_lines = [[f"paper {METHOD_LABELS[m]}"] + [f"{v:.2f}" for v in paper[m][:k]] + [f"{paper[m][k]:.2f}", "", "",
+    paper_lines = [[f"paper {row_label(m)}"] + [f"{v:.2f}" for v in paper[m][:k]] + [f"{paper[m][k]:.2f}", "", "",
                                                                                         "", "", ""]
-                   for m in METHOD_ORDER if m in paper and len(paper[m]) == k + 1]
+                   for m in REGISTRY if m in paper and len(paper[m]) == k + 1]
     table = [head] + lines + paper_lines
     widths = [max(len(row[c]) for row in table) for c in range(len(head))]
     n_trials = report.rows[0].n_trials if report.rows else 0

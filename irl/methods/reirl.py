@@ -328,3 +328,11 @@ def fit_reirl(
                "uninformative": float(uninformative), "epsilon_hoeffding": float(epsilon is None),
                **{f"epsilon_{k}": float(e) for k, e in enumerate(eps)}},
     )
+
+
+def problem_options(problem, config: IRLConfig, *, epsilon: float | None = DEFAULT_EPSILON,
+                    n_baseline: int = DEFAULT_N_BASELINE, **_: object) -> dict:
+    """REIRL's options from an :class:`irl.problems.Problem` (the method registry's
+    ``problem_options``): its baseline trajectories (None: generated), the L1 weight
+    ``epsilon``, ``n_baseline`` and the domain's padding rule."""
+    return dict(baseline=problem.baseline, epsilon=epsilon, n_baseline=n_baseline, pad_step=problem.pad_step())

@@ -85,11 +85,13 @@ def test_learn_bad_input_is_one_line_exit_2(tmp_path):
 
 def test_merge_defaults_have_one_home(tmp_path):
     """``merge-irl learn`` and ``merge-irl demo`` take the merge settings from analysis.experiments.learn."""
-    from analysis.experiments.learn import MERGE_BETA, MERGE_L2, merge_config, merge_encoding, merge_features
+    from analysis.experiments.learn import merge_config, merge_encoding, merge_features
+    from irl.problems import DOMAINS
+    d = DOMAINS["merge"].defaults
     from irl.config import IRLConfig
 
     cfg = merge_config()
-    assert (cfg.beta, cfg.l2, cfg.gamma) == (MERGE_BETA, MERGE_L2, IRLConfig.paper().gamma) == (1.0, 0.0, 0.99)
+    assert (cfg.beta, cfg.l2, cfg.gamma) == (d.beta, d.l2, IRLConfig.paper().gamma) == (1.0, 0.0, 0.99)
     ref = merge_config(IRLConfig.reference(), l2=0.5, gamma=0.0)
     assert (ref.beta, ref.l2, ref.gamma, ref.alpha) == (1.0, 0.5, 0.0, IRLConfig.reference().alpha)
     assert merge_config(beta=5.0).beta == 5.0

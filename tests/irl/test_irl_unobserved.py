@@ -9,7 +9,7 @@ import pytest
 from irl_testdata import random_mdp
 
 from analysis.cli.main import main
-from analysis.experiments.learn import MERGE_UNOBSERVED
+from irl.problems import DOMAINS
 
 from irl.bellman.fixed_point import iteration_fixed_point
 from irl.boltzmann import demo_counts, loglik_from_counts, loglik_grad_from_counts
@@ -219,7 +219,7 @@ def test_learn_default_rule_for_merge_and_old_files(tmp_path):
     out = tmp_path / "m.json"
     assert main(["learn", "--method", "qavg", "--domain", "merge", "--demos", str(table), "--features", "paper",
                  "--l2", "0.1", "--out", str(out), "--no-progress"]) == 0
-    assert SavedModel.load(out).config.unobserved == MERGE_UNOBSERVED
+    assert SavedModel.load(out).config.unobserved == DOMAINS["merge"].defaults.unobserved
     # a model.json written before the setting existed reads as the paper's terminal pairs
     data = json.loads(out.read_text())
     del data["settings"]["unobserved"]

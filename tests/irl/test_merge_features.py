@@ -68,7 +68,7 @@ def test_custom_features_from_python(tmp_path):
     path = tmp_path / "enc.csv"
     df.to_csv(path, index=False)
     p = load_problem("merge", path, bins=BINS, features=fs)
-    assert p.feature_names == ("a", "b") and p.feature_set == "custom" and p.dt == 0.3
+    assert p.feature_names == ("a", "b") and p.feature_set == "custom" and p.decision_step_s == 0.3
     np.testing.assert_array_equal(p.demos.features, arr)
     assert p.demos.n_steps == 4
 

@@ -194,7 +194,7 @@ def test_mlirl_on_the_authors_merge_data_dense_equals_sparse(railusm):
 
     p = load_problem("merge", railusm / "merge_ngsim")
     assert p.bins is not None
-    dense = dense_estimate(p.demos, merge_mdp.kinematic_model(p.bins, p.dt).to_dense())
+    dense = dense_estimate(p.demos, merge_mdp.kinematic_model(p.bins, p.decision_step_s).to_dense())
     np.testing.assert_array_equal(p.transitions.to_dense(), dense)
     config = IRLConfig.paper(beta=1.0, gamma=0.99, l2=0.01)
     a = fit("mlirl", p.demos, config, np.random.default_rng(0), transitions=dense)

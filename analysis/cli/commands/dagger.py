@@ -48,7 +48,8 @@ def register(subparsers) -> None:
     p.add_argument("--critical", type=_actions, default=(0,), metavar="ACTIONS",
                    help=f"expert actions whose labels are kept, comma-separated among {', '.join(ACTION_KEYS)} "
                         "(default high_brake; all five: plain DAgger)")
-    p.add_argument("--decision-step", type=float, default=0.3, help="seconds per decision (default 0.3)")
+    p.add_argument("--decision-step-s", "--decision-step", dest="decision_step_s", type=float, default=None,
+                   help="seconds per decision (default: the merge domain's, 0.3; --decision-step is the older spelling)")
     p.add_argument("--workers", type=positive_int, default=None,
                    help="processes for the labelling runs (one SUMO each; default every core)")
     p.add_argument("--no-progress", action="store_true", help="no line per round")
@@ -59,13 +60,13 @@ def register(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from analysis.experiments.dagger import DaggerConfig, train_cf_driver
     from irl.domains.merge.car_following import car_following_decisions
-    from irl.domains.merge.mdp import read_encounters
+    from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, read_encounters
     from merge_irl.run_folder import check_writable, locked
     from scenarios.loader import load_scenario
 
     config = DaggerConfig(rounds=args.rounds, episodes_per_round=args.episodes_per_round,
                           label_seed=args.label_seed, duration_s=args.duration, l2=args.l2,
-                          critical_actions=args.critical, decision_step_s=args.decision_step)
+                          critical_actions=args.critical, decision_step_s=DEFAULT_DECISION_STEP_S if args.decision_step_s is None else args.decision_step_s)
     spec = load_scenario(args.scenario)  # errors before any work
     train = read_encounters(args.train)
     car_following_decisions(train, decision_step_s=config.decision_step_s, where=str(args.train))  # before --out is made

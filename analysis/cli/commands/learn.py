@@ -9,7 +9,7 @@ from dataclasses import replace
 
 from irl.config import SOLVERS, UNOBSERVED_RULES, IRLConfig
 from irl.problems import DOMAINS
-from irl.result import METHODS  # names only: irl.fit loads scipy.optimize
+from irl.methods.registry import method_names  # names only: irl.fit loads scipy.optimize
 
 def add_config_arguments(p: argparse.ArgumentParser) -> None:
     """The IRL settings shared by ``learn`` and ``reproduce``."""
@@ -41,7 +41,7 @@ def register(subparsers) -> None:
         "learn", help="fit reward weights (Q-Avg, Q-SM, MLIRL or REIRL) and save model.json",
         description="Fit one IRL method on tabular demonstrations and save the result as model.json "
                     "(theta, loglik, q, settings, merge bin edges).")
-    p.add_argument("--method", choices=METHODS, required=True)
+    p.add_argument("--method", choices=method_names(), required=True)
     p.add_argument("--demos", required=True, action="append",
                    help="trajectories (merge encounter tables: repeat for several files or runs, kept apart): "
                         "a directory/file in the authors' text format (gridworld, merge), "
@@ -52,9 +52,10 @@ def register(subparsers) -> None:
                                       "default: uniform-random ones generated under the model")
     p.add_argument("--bins", help="merge: JSON file of bin edges (default: assumed edges for text files, "
                                   "quantile bins fitted on an encounter table)")
-    p.add_argument("--dt", type=float, default=None,
+    p.add_argument("--decision-step-s", "--dt", dest="decision_step_s", type=float, default=None,
                    help="merge: decision step (s) the encounters are resampled at and the kinematic fallback uses "
-                        "(default 0.3 for encounter tables, 0.1 for the authors' text files)")
+                        "(default: the merge domain's, 0.3 for encounter tables; the authors' text files are at "
+                        "their 0.1 s frame; --dt is the older spelling)")
     p.add_argument("--features", choices=("paper", "driver"), default=None,
                    help="merge feature set (default: driver for encounter tables, paper for the authors' files); "
                         "driver also puts A's previous action in the state")
@@ -75,12 +76,12 @@ def run(args: argparse.Namespace) -> int:
 
     config = config_from_args(args)
     features = args.features
-    if args.domain == "merge":  # the merge defaults (beta 1, driver features for tables) live in analysis.experiments.learn
+    if args.domain == "merge":  # the merge defaults: irl.problems.DOMAINS['merge'].defaults
         config = merge_config(config, beta=args.beta, l2=args.l2, method=args.method, unobserved=args.unobserved)
         features = merge_features(args.demos, features)
     model = learn(
         args.method, args.domain, args.demos, config=config, seed=args.seed,
-        noise=args.noise, baseline_path=args.baseline, bins=args.bins or None, dt=args.dt,
+        noise=args.noise, baseline_path=args.baseline, bins=args.bins or None, decision_step_s=args.decision_step_s,
         epsilon=DEFAULT_EPSILON if args.epsilon is None else args.epsilon,
         out=args.out, progress=not args.no_progress and sys.stderr.isatty(),
         encoding=merge_encoding(features), features=features, unvisited=args.unvisited,

@@ -37,7 +37,7 @@ from irl.domains.merge.bins import MergeBins
 from irl.domains.merge.features import ACC_SCALE_FT_S2, BIAS_FEATURES, bias_columns, persistence_columns
 from irl.domains.merge.states import split_driver_state
 from irl.errors import ConfigError, DemonstrationError
-from irl.domains.merge.mdp import resample_encounters
+from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, resample_encounters
 from merge_irl.units import FT_PER_M
 
 #: The car-following feature names, in the order of the feature axis.
@@ -122,7 +122,7 @@ class CFDecisions:
         return int(self.actions.size)
 
 
-def car_following_decisions(encounters_df: pd.DataFrame, *, decision_step_s: float = 0.3,
+def car_following_decisions(encounters_df: pd.DataFrame, *, decision_step_s: float = DEFAULT_DECISION_STEP_S,
                             where: str = "encounters") -> CFDecisions:
     """The decisions of ``encounters_df`` resampled at ``decision_step_s`` (the rule of
     :func:`irl.domains.merge.mdp.resample_encounters` with the driver encoding) and their observations

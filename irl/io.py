@@ -94,7 +94,7 @@ def read_text_trajectory(path: Path, n_states: int, n_actions: int) -> tuple[np.
     return np.asarray(states, dtype=np.int64), np.asarray(actions, dtype=np.int64)
 
 
-def load_railusm(
+def load_text_trajectories(
     path_or_dir: str | os.PathLike, *, n_states: int, n_actions: int, features: np.ndarray
 ) -> Demonstrations:
     """Load the authors' text format.
@@ -129,7 +129,7 @@ def load_railusm(
     )
 
 
-def save_railusm(demos: Demonstrations, directory: str | os.PathLike, prefix: str = "traj_") -> list[Path]:
+def save_text_trajectories(demos: Demonstrations, directory: str | os.PathLike, prefix: str = "traj_") -> list[Path]:
     """Write one ``state<TAB>action<TAB>`` file per trajectory (``prefix{i}.txt``)."""
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)

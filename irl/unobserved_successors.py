@@ -1,4 +1,4 @@
-"""What Q-Avg and Q-SM bootstrap from at a pair with no observed successor (issue 11, cause 4).
+"""What Q-Avg and Q-SM bootstrap from at a pair with no observed successor.
 
 The model-free methods take successors from the demonstrations only (:mod:`irl.transitions`).
 A pair ``(s, a)`` with no observed successor (an action never taken in ``s``, or taken only at

@@ -1,4 +1,4 @@
-"""The policy in states never seen in training (issue 11, cause 4).
+"""The policy in states never seen in training.
 
 A model-free method's Q in a state no demonstration visited is its reward alone (terminal
 pairs, :mod:`irl.transitions`), whatever the state's neighbours did. :func:`apply_unvisited_rule`

@@ -1,7 +1,7 @@
 """The closed-loop controller's choice of the lag car A, applied to a recorded trajectory table.
 
-Demonstrations and closed-loop control must see the same encounters (issue 11, cause 2: learn
-and act on the same terms). The controller (:mod:`sim.controller`) cannot know which car will
+Demonstrations and closed-loop control must see the same encounters (so that a driver learns
+and acts on the same terms). The controller (:mod:`sim.controller`) cannot know which car will
 end up behind B when B merges; it hands B a lag car A when B reaches the take-over zone and
 keeps it. :class:`TakeOverRule` states that rule and :func:`take_overs` applies it to a whole
 table (through its :class:`TableIndex`), so that :func:`sim.encounters.extract` can cut the demonstrations exactly where the

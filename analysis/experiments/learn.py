@@ -63,7 +63,7 @@ def merge_config(base: IRLConfig | None = None, *, beta: float | None = None, l2
 
 def merge_features(demos_paths, features: str | None = None) -> str:
     """The merge feature set name: ``features`` if given, else ``"paper"`` for the authors' text
-    trajectories (a folder or ``.txt``) and ``"driver"`` for encounter tables (issue 11, cause 6)."""
+    trajectories (a folder or ``.txt``) and ``"driver"`` for encounter tables (the paper's three cannot tell persistence from safety)."""
     if features is not None:
         return features
     paths = [demos_paths] if isinstance(demos_paths, (str, os.PathLike)) else list(demos_paths)

@@ -178,6 +178,6 @@ def generate_baseline(
 
 def load(path) -> Demonstrations:
     """Gridworld trajectories in the authors' text format, with the gridworld features."""
-    from irl.io import load_railusm
+    from irl.io import load_text_trajectories
 
-    return load_railusm(path, n_states=N_STATES, n_actions=N_ACTIONS, features=features())
+    return load_text_trajectories(path, n_states=N_STATES, n_actions=N_ACTIONS, features=features())

@@ -12,14 +12,14 @@ from analysis.cli.main import main
 from irl.boltzmann import log_policy
 from irl.domains import gridworld
 from irl.domains.merge.bins import MergeBins, fit_quantile_bins
-from irl.io import save_npz, save_railusm
+from irl.io import save_npz, save_text_trajectories
 from irl.result import SavedModel
 
 
 def test_learn_gridworld_qavg_round_trip(tmp_path, capsys):
     out = tmp_path / "model.json"
     demos_dir = tmp_path / "noise_0.1_expert_trajs"
-    save_railusm(gridworld_demos("0.1"), demos_dir)  # the authors' text format
+    save_text_trajectories(gridworld_demos("0.1"), demos_dir)  # the authors' text format
     rc = main(["learn", "--method", "qavg", "--domain", "gridworld", "--noise", "0.1",
                "--demos", str(demos_dir), "--l2", "0.01",
                "--seed", "3", "--out", str(out), "--no-progress"])

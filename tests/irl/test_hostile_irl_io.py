@@ -15,7 +15,7 @@ from hypothesis.extra import numpy as hnp
 
 from irl.demonstrations import Demonstrations
 from irl.errors import DemonstrationError
-from irl.io import load_npz, load_railusm, save_npz
+from irl.io import load_npz, load_text_trajectories, save_npz
 
 pytestmark = pytest.mark.hostile
 
@@ -35,7 +35,7 @@ def _valid(d: Demonstrations, n_states: int, n_actions: int):
 
 def _check_text(path, n_states=S, n_actions=A, features=FEATS):
     try:
-        d = load_railusm(path, n_states=n_states, n_actions=n_actions, features=features)
+        d = load_text_trajectories(path, n_states=n_states, n_actions=n_actions, features=features)
     except DemonstrationError as e:
         assert str(path) in str(e) or path.name in str(e)
         return None

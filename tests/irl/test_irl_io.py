@@ -7,7 +7,7 @@ import pytest
 
 from irl.demonstrations import Demonstrations
 from irl.errors import DemonstrationError
-from irl.io import load_npz, load_railusm, natural_key, save_npz, save_railusm
+from irl.io import load_npz, load_text_trajectories, natural_key, save_npz, save_text_trajectories
 
 S, A, K = 6, 3, 2
 
@@ -26,7 +26,7 @@ def test_text_directory_loads_in_natural_order(tmp_path):
     for i, text in [(10, "5\t2\t\n"), (2, "1\t0\t\n2\t1\t\n"), (1, "0\t0\t\n")]:
         write(tmp_path / f"traj_{i}.txt", text)
     write(tmp_path / "notes.md", "ignored")
-    d = load_railusm(tmp_path, n_states=S, n_actions=A, features=feats())
+    d = load_text_trajectories(tmp_path, n_states=S, n_actions=A, features=feats())
     assert d.names == ("traj_1.txt", "traj_2.txt", "traj_10.txt")
     assert [list(s) for s in d.states] == [[0], [1, 2], [5]]
     assert [list(a) for a in d.actions] == [[0], [0, 1], [2]]
@@ -34,9 +34,9 @@ def test_text_directory_loads_in_natural_order(tmp_path):
 
 
 def test_text_round_trip(tmp_path):
-    d = load_railusm(write(tmp_path / "a" / "t.txt", "1 2\n3 0\n\n"), n_states=S, n_actions=A, features=feats())
-    save_railusm(d, tmp_path / "out")
-    back = load_railusm(tmp_path / "out", n_states=S, n_actions=A, features=feats())
+    d = load_text_trajectories(write(tmp_path / "a" / "t.txt", "1 2\n3 0\n\n"), n_states=S, n_actions=A, features=feats())
+    save_text_trajectories(d, tmp_path / "out")
+    back = load_text_trajectories(tmp_path / "out", n_states=S, n_actions=A, features=feats())
     assert [list(s) for s in back.states] == [[1, 3]]
     assert [list(a) for a in back.actions] == [[2, 0]]
 
@@ -58,22 +58,22 @@ def test_text_round_trip(tmp_path):
 def test_text_rejects_bad_files(tmp_path, text, message):
     path = write(tmp_path / "t.txt", text)
     with pytest.raises(DemonstrationError, match=message):
-        load_railusm(path, n_states=S, n_actions=A, features=feats())
+        load_text_trajectories(path, n_states=S, n_actions=A, features=feats())
 
 
 def test_text_rejects_empty_dir_missing_path_and_bad_features(tmp_path):
     (tmp_path / "empty").mkdir()
     with pytest.raises(DemonstrationError, match=r"empty: directory holds no trajectory files"):
-        load_railusm(tmp_path / "empty", n_states=S, n_actions=A, features=feats())
+        load_text_trajectories(tmp_path / "empty", n_states=S, n_actions=A, features=feats())
     with pytest.raises(DemonstrationError, match=r"nope: no such file or directory"):
-        load_railusm(tmp_path / "nope", n_states=S, n_actions=A, features=feats())
+        load_text_trajectories(tmp_path / "nope", n_states=S, n_actions=A, features=feats())
     path = write(tmp_path / "t.txt", "1\t0\t\n")
     with pytest.raises(DemonstrationError, match=r"features must have shape \[S=6, A=3, K\]"):
-        load_railusm(path, n_states=S, n_actions=A, features=np.zeros((S, A + 1, K)))
+        load_text_trajectories(path, n_states=S, n_actions=A, features=np.zeros((S, A + 1, K)))
     bad = feats()
     bad[2, 1, 0] = np.nan
     with pytest.raises(DemonstrationError, match=r"feature \[2, 1, 0\] is not finite in .*t\.txt"):
-        load_railusm(path, n_states=S, n_actions=A, features=bad)
+        load_text_trajectories(path, n_states=S, n_actions=A, features=bad)
 
 
 def make_npz(path, **over):

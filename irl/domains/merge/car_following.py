@@ -1,4 +1,4 @@
-"""Car-following features of the continuous merge observation (issue 11: A's own speed).
+"""Car-following features of the continuous merge observation with A's own speed.
 
 The binned merge state (:mod:`irl.domains.merge.states`) has no speed of A and five bins per
 gap and closing speed; a driver that does not run into a stopping lead car needs both (see

@@ -1,4 +1,4 @@
-"""Named, composable reward features of the merge domain (issue 11, causes 5 and 6).
+"""Named, composable reward features of the merge domain.
 
 Every feature is a function of one state's bin representatives and one action, evaluated on
 the whole table: :func:`feature_array` returns ``[S, A, K]`` for a tuple of names, ``S`` the
@@ -78,7 +78,7 @@ def persistence_columns(prev: np.ndarray, action_acc) -> tuple[np.ndarray, np.nd
     """``(keep_action, jerk)``, each ``[N, 5]``, for previous actions ``prev [N]`` (0..4) and the
     actions' accelerations ``action_acc [5]`` (ft/s^2): ``keep_action`` is 1 when the action
     repeats the previous one, ``jerk`` is ``|acc_a - acc_prev|`` per :data:`ACC_SCALE_FT_S2`
-    (persistence, issue 11 cause 5)."""
+    (persistence: human acceleration persists)."""
     prev = np.asarray(prev, dtype=np.int64)
     acc = np.asarray(action_acc, dtype=np.float64)
     keep = (np.arange(N_ACTIONS)[None, :] == prev[:, None]).astype(np.float64)

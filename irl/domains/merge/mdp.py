@@ -27,7 +27,7 @@ from irl.domains.merge.encounters import validate_encounters
 from irl.domains.merge.features import driver_encode_sequence, feature_set, features
 from irl.domains.merge.states import N_STATES, VARIABLES, n_states, split_driver_state, state_index, state_parts
 from irl.errors import ConfigError, DemonstrationError
-from irl.io import load_railusm
+from irl.io import load_text_trajectories
 from irl.transitions import SuccessorModel, estimate_transitions
 from merge_irl.units import FRAME_S
 
@@ -87,7 +87,7 @@ def discretize(encounters_df, bins: MergeBins, *, where: str = "encounters", enc
 
 def resample_encounters(encounters_df, bins: MergeBins, *, where: str = "encounters", encoding: str = "paper",
                         decision_step_s: float = DEFAULT_DECISION_STEP_S, features=None) -> Discretized:
-    """Resample each encounter at the decision step and encode it (issue 11, cause 2).
+    """Resample each encounter at the decision step and encode it, as the closed-loop controller decides.
 
     One trajectory per ``encounter_id`` (rows in table order = frame order). With ``k =
     decision_step_s / 0.1 s`` frames per decision, decision ``j`` of an encounter is its row
@@ -290,7 +290,7 @@ class ConstantVelocityPad:
 
 def load(path) -> Demonstrations:
     """Merge trajectories in the authors' text format (their state layout), with the features."""
-    return load_railusm(path, n_states=N_STATES, n_actions=N_ACTIONS, features=features())
+    return load_text_trajectories(path, n_states=N_STATES, n_actions=N_ACTIONS, features=features())
 
 
 def read_encounters(path: str | os.PathLike):

@@ -14,7 +14,7 @@ with ``x1..x4`` the 5-bin indices of ``d_AC, d_AB, v_AC, v_AB`` under
 :class:`~irl.domains.merge.bins.MergeBins` (the bin rules are in :mod:`irl.domains.merge.bins`).
 
 **State encodings** (:data:`STATE_ENCODINGS`): ``"paper"`` is the index above (1250 states);
-``"driver"`` adds A's previous action (issue 11, cause 5: human acceleration persists),
+``"driver"`` adds A's previous action (human acceleration persists from one decision to the next),
 ``s_driver = s_paper * N_ACTIONS + prev_action`` (6250 states, :func:`n_states`). The previous
 action at an encounter's first decision is the bin of A's acceleration over the decision step
 before it, from A's speed history (:func:`previous_action`);

@@ -56,7 +56,7 @@ def score(model, demos_path: str, domain: str | None = None) -> dict:
     bins = MergeBins.from_dict(model.bin_edges, where="model bin_edges") if domain == "merge" and model.bin_edges \
         else None
     # merge: the model's decision step and state encoding (features only shape the demonstrations, not the score)
-    kw: dict[str, Any] = {"bins": bins, "dt": model.decision_step_s, "encoding": model.state_encoding,
+    kw: dict[str, Any] = {"bins": bins, "decision_step_s": model.decision_step_s, "encoding": model.state_encoding,
                           "features": model.feature_set if model.feature_set in ("paper", "driver") else None
                           } if domain == "merge" else {}
     if domain == "gridworld":

@@ -29,7 +29,7 @@ import numpy as np
 
 from analysis.experiments.learn import fit_problem
 from irl.baselines import (
-    BASELINES,
+    TABULAR_BASELINES,
     TabularPolicy,
     baseline_leave_one_out,
     leave_one_out,
@@ -120,7 +120,7 @@ def main(argv=None) -> int:
     for fs in feats:
         enc = "driver" if fs == "driver" else "paper"
         problem = load_problem("merge", args.data, encoding=enc, features=fs)
-        for b in BASELINES:
+        for b in TABULAR_BASELINES:
             rows.setdefault((b, "", "", "", ""), {})[fs] = baseline_leave_one_out(b, problem.demos).sum()
         methods = [m for m in args.methods.split(",") if fs != "driver" or m in args.driver_methods.split(",")]
         for m in methods:
@@ -153,7 +153,7 @@ def main(argv=None) -> int:
         print(n)
     if "driver" in feats:
         real = {k: r["driver"] for k, r in rows.items()
-                if "driver" in r and k[0] not in BASELINES and np.isfinite(r["driver"])
+                if "driver" in r and k[0] not in TABULAR_BASELINES and np.isfinite(r["driver"])
                 and k[2] != "nested" and float(k[2]) >= 0.9}  # a real discount, not the myopic gamma 0
         if real:
             best = max(real, key=lambda k: real[k])

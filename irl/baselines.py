@@ -32,7 +32,9 @@ from scipy.stats import wilcoxon
 from irl.demonstrations import Demonstrations
 from irl.errors import ConfigError, DemonstrationError
 
-BASELINES = ("uniform", "marginal", "markov", "bc")
+#: The tabular baselines of the paper tables, scored by leave-one-trajectory-out (not the closed-loop
+#: drivers of an evaluation: those are :data:`analysis.evaluation.policies.BASELINES`).
+TABULAR_BASELINES = ("uniform", "marginal", "markov", "bc")
 
 
 class TrajectoryScorer(Protocol):
@@ -83,7 +85,7 @@ class BaselinePolicy:
     ``log pi(a | a_prev)`` for the later ones.
 
     Attributes:
-        name: one of ``BASELINES``.
+        name: one of ``TABULAR_BASELINES``.
         log_first: ``[S, A]`` log-probabilities of a trajectory's first step (and of every step
             when ``log_next`` is None).
         log_next: ``[A, A]`` ``log pi(a | a_prev)`` indexed ``[a_prev, a]``, or None.
@@ -128,7 +130,7 @@ def _smoothed_log(counts: np.ndarray) -> np.ndarray:
 
 
 def fit_baseline(name: str, demos: Demonstrations) -> BaselinePolicy:
-    """Fit baseline ``name`` (one of ``BASELINES``) on ``demos``; see the module doc.
+    """Fit baseline ``name`` (one of ``TABULAR_BASELINES``) on ``demos``; see the module doc.
 
     Raises:
         ConfigError: unknown ``name``.
@@ -149,7 +151,7 @@ def fit_baseline(name: str, demos: Demonstrations) -> BaselinePolicy:
         counts = np.zeros((S, A))
         np.add.at(counts, (states, actions), 1.0)
         return BaselinePolicy(name, _smoothed_log(counts))
-    raise ConfigError(f"unknown baseline {name!r}; expected one of {BASELINES}")
+    raise ConfigError(f"unknown baseline {name!r}; expected one of {TABULAR_BASELINES}")
 
 
 def leave_one_out(demos: Demonstrations,

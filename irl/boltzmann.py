@@ -66,3 +66,21 @@ def loglik_grad_from_counts(
     expected_dq = np.einsum("sa,sak->sk", pi, dq)  # [S, K]
     grad = beta * (np.einsum("sa,sak->k", counts, dq) - n_s @ expected_dq)
     return ll, grad
+
+
+def heldout_loglik(log_pi: np.ndarray, states: np.ndarray, actions: np.ndarray) -> tuple[float, float]:
+    """Log-likelihood of demonstration steps under a policy.
+
+    Args:
+        log_pi: ``[S, A]`` log pi(a|s).
+        states, actions: ``[N]`` int steps (all trajectories concatenated).
+
+    Returns:
+        ``(sum, mean per step)`` of ``log pi(a_t|s_t)`` (Eq. 5 without ``log Pr(s_1)``).
+    """
+    s = np.asarray(states, dtype=np.int64)
+    a = np.asarray(actions, dtype=np.int64)
+    if s.size == 0:
+        return float("nan"), float("nan")
+    total = float(np.sum(np.asarray(log_pi)[s, a]))
+    return total, total / s.size

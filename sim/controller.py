@@ -41,13 +41,14 @@ from typing import Any
 import numpy as np
 
 from irl.domains.merge.actions import ACTION_ACC_FT_S2, HIGH_BRAKE, ZERO_ACTION, action_of
+from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S
 from merge_irl.units import FT_PER_M, M_PER_FT
 from sim.control_records import Control, DecisionLog
 from sim.controller_config import ControllerConfig
 from sim.hooks import FrameState, RunContext
 from sim.lanes import aux_lane_start_ft
 from sim.observe import MergeObservation, lag_of, lead_of, observe
-from sim.policy import Policy, choose_action
+from sim.policy import Policy, check_policy, choose_action
 from sim.schema import RAMP_LANE, RIGHTMOST_MAIN_LANE
 
 #: A that reaches the end of its route within this of the section end has left the section (ft).
@@ -98,6 +99,7 @@ class Controller:
     """
 
     def __init__(self, policy: Policy, config: ControllerConfig = ControllerConfig()):
+        check_policy(policy, scoring=False, where="controller")
         self.policy = policy
         self.config = config
         self.controls: list[Control] = []
@@ -123,10 +125,11 @@ class Controller:
     @property
     def decision_s(self) -> float:
         """Seconds between two decisions: the config's, else the policy's ``decision_step_s``,
-        else 0.3."""
+        else (a policy for any step) :data:`irl.domains.merge.mdp.DEFAULT_DECISION_STEP_S`."""
         if self.config.decision_s is not None:
             return float(self.config.decision_s)
-        return float(getattr(self.policy, "decision_step_s", 0.3) or 0.3)
+        step = self.policy.decision_step_s
+        return float(step) if step is not None else DEFAULT_DECISION_STEP_S
 
     # -- hook protocol -------------------------------------------------------------------
     def on_start(self, ctx: RunContext) -> None:

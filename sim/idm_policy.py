@@ -23,11 +23,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+import pandas as pd
 
 from irl.domains.merge.actions import ACTION_ACC_FT_S2, N_ACTIONS, action_of
 from irl.domains.merge.car_following import GapNeed
 from merge_irl.units import FT_PER_M
 from sim.observe import MergeObservation
+from sim.policy import NO_LIKELIHOOD
 
 #: The bound of ``(s*/s)^2``: braking is at most ``a_max x 1000``, far beyond any action's bin.
 IDM_NEED_CLIP = 1000.0
@@ -86,3 +88,13 @@ class IdmPolicy:
         p = np.zeros(N_ACTIONS)
         p[action_of(self.acceleration(obs))] = 1.0
         return p
+
+    @property
+    def decision_step_s(self) -> None:
+        """Any step (IDM is not trained)."""
+        return None
+
+    def heldout_loglik(self, encounters: pd.DataFrame, *, decision_step_s: float,
+                       where: str) -> tuple[float, float]:
+        """NaN, NaN: a deterministic reference driver has no likelihood to speak of."""
+        return NO_LIKELIHOOD

@@ -20,6 +20,10 @@ Policies in the same harness:
 * :class:`CarFollowingLogitPolicy`: a :class:`irl.domains.merge.cf_logit.CarFollowingLogit`
   driver on the continuous observation (A's speed, gaps, closing speeds, previous action).
 * :class:`ConstantPolicy`: always the same action (e.g. always brake hard, for tests).
+
+Every policy scores held-out demonstrations itself (:meth:`Policy.heldout_loglik`), as learning
+sees them; the evaluation reads that number and nothing else of the policy's kind
+(:func:`analysis.evaluation.heldout_scoring.policy_heldout_loglik`).
 """
 
 from __future__ import annotations
@@ -30,9 +34,13 @@ from itertools import accumulate
 from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import numpy as np
+import pandas as pd
 
+from irl.boltzmann import heldout_loglik
 from irl.domains.merge.actions import ACTION_ACC_FT_S2, ACTION_NAMES, N_ACTIONS
 from irl.domains.merge.bins import MergeBins
+from irl.domains.merge.car_following import CFDecisions, car_following_decisions
+from irl.domains.merge.mdp import discretize
 from irl.errors import ConfigError
 from sim.errors import SimError
 
@@ -42,6 +50,9 @@ if TYPE_CHECKING:  # pragma: no cover
     from irl.result import SavedModel
     from sim.observe import MergeObservation
 
+#: ``(sum, per step)`` of a policy without a likelihood (SUMO's driver, the deterministic IDM).
+NO_LIKELIHOOD = (float("nan"), float("nan"))
+
 
 class PolicyError(SimError, ValueError):
     """A policy cannot be built from its inputs (e.g. a model that is not a merge model)."""
@@ -49,12 +60,17 @@ class PolicyError(SimError, ValueError):
 
 @runtime_checkable
 class Policy(Protocol):
-    """Observation -> action distribution.
+    """Observation -> action distribution, and the policy's own held-out score.
+
+    Everything the controller and the evaluation read of a policy is declared here.
 
     Attributes:
         name: label used in reports and logs.
         controls: False when the vehicle is left to SUMO (the baseline); the controller then
             only observes it.
+        decision_step_s: seconds per decision the driver was trained at; None: any step (the
+            controller then decides every
+            :data:`irl.domains.merge.mdp.DEFAULT_DECISION_STEP_S`, unless told otherwise).
     """
 
     # read-only properties, so frozen dataclasses (the policies here) satisfy the protocol
@@ -64,9 +80,62 @@ class Policy(Protocol):
     @property
     def controls(self) -> bool: ...
 
+    @property
+    def decision_step_s(self) -> float | None: ...
+
     def probs(self, obs: MergeObservation) -> np.ndarray:
         """``[5]`` action probabilities (sum to 1)."""
         ...
+
+    def heldout_loglik(self, encounters: pd.DataFrame, *, decision_step_s: float,
+                       where: str) -> tuple[float, float]:
+        """``(sum, per step)`` log-likelihood (nats) of held-out encounter frames under the
+        policy, scored as learning sees them: resampled at a decision step
+        (:func:`irl.domains.merge.mdp.discretize`; ``decision_step_s``, the evaluation's, unless
+        the policy has its own), so an action is the forward difference of A's speed over one
+        decision. ``(NaN, NaN)`` where no likelihood exists (:data:`NO_LIKELIHOOD`).
+        ``encounters``: prepared frames
+        (:func:`analysis.evaluation.heldout_scoring.prepare_encounters`); ``where`` names them
+        in errors.
+
+        Raises:
+            DemonstrationError: the frames cannot be resampled (e.g. every encounter shorter
+                than one decision step).
+        """
+        ...
+
+
+def missing_members(policy: object, *, scoring: bool = True) -> list[str]:
+    """The members of :class:`Policy` that ``policy`` lacks (``heldout_loglik`` only when
+    ``scoring``); empty: it has them all."""
+    names = ["name", "controls", "decision_step_s", "probs"] + (["heldout_loglik"] if scoring else [])
+    return [n for n in names if not hasattr(policy, n)]
+
+
+def check_policy(policy: object, *, scoring: bool = True, where: str = "") -> None:
+    """Refuse an object that does not declare what the controller (and, with ``scoring``, the
+    held-out evaluation) reads of a :class:`Policy`.
+
+    Raises:
+        PolicyError: a member is missing (named, with the class).
+    """
+    missing = missing_members(policy, scoring=scoring)
+    if missing:
+        raise PolicyError(f"{where + ': ' if where else ''}{type(policy).__name__} is not a sim.policy.Policy: it "
+                          f"lacks {', '.join(missing)} (a driver declares name, controls, decision_step_s (None: any "
+                          "step), probs and heldout_loglik (NaN, NaN without a likelihood))")
+
+
+def state_independent_loglik(p: np.ndarray, encounters: pd.DataFrame, *, decision_step_s: float,
+                             where: str) -> tuple[float, float]:
+    """``(sum, per step)`` of ``log p(a)`` over the held-out decisions (paper bins at
+    ``decision_step_s``), for a policy whose ``[5]`` probabilities ``p`` do not depend on the
+    observation (uniform, constant). A decision of probability 0 scores ``-inf``."""
+    d = discretize(encounters, MergeBins.assumed_authors(), where=where, decision_step_s=decision_step_s)
+    _, actions, _ = d.flat()
+    with np.errstate(divide="ignore"):
+        lp = np.log(np.asarray(p, dtype=float))[actions]
+    return float(lp.sum()), float(lp.mean()) if lp.size else float("nan")
 
 
 def choose_action(probs: np.ndarray, rng: np.random.Generator, *, mode: bool = False) -> int:
@@ -86,8 +155,19 @@ class UniformPolicy:
     name: str = "uniform"
     controls: bool = True
 
+    @property
+    def decision_step_s(self) -> None:
+        """Any step."""
+        return None
+
     def probs(self, obs: MergeObservation) -> np.ndarray:
         return np.full(N_ACTIONS, 1.0 / N_ACTIONS)
+
+    def heldout_loglik(self, encounters: pd.DataFrame, *, decision_step_s: float,
+                       where: str) -> tuple[float, float]:
+        """``log 1/5`` per decision at ``decision_step_s``."""
+        return state_independent_loglik(np.full(N_ACTIONS, 1.0 / N_ACTIONS), encounters,
+                                        decision_step_s=decision_step_s, where=where)
 
 
 @dataclass(frozen=True)
@@ -104,10 +184,22 @@ class ConstantPolicy:
         if not self.name:
             object.__setattr__(self, "name", f"constant-{ACTION_NAMES[int(self.action)].lower().replace(' ', '-')}")
 
+    @property
+    def decision_step_s(self) -> None:
+        """Any step."""
+        return None
+
     def probs(self, obs: MergeObservation) -> np.ndarray:
         p = np.zeros(N_ACTIONS)
         p[int(self.action)] = 1.0
         return p
+
+    def heldout_loglik(self, encounters: pd.DataFrame, *, decision_step_s: float,
+                       where: str) -> tuple[float, float]:
+        """``log 1`` per decision of ``action`` at ``decision_step_s``, ``-inf`` for any other."""
+        p = np.zeros(N_ACTIONS)
+        p[int(self.action)] = 1.0
+        return state_independent_loglik(p, encounters, decision_step_s=decision_step_s, where=where)
 
 
 @dataclass(frozen=True)
@@ -125,8 +217,18 @@ class SumoPolicy:
     controls: bool = False
     keep_lane: bool = False
 
+    @property
+    def decision_step_s(self) -> None:
+        """Any step (SUMO's driver acts every simulation step; the controller only observes)."""
+        return None
+
     def probs(self, obs: MergeObservation) -> np.ndarray:
         return np.full(N_ACTIONS, 1.0 / N_ACTIONS)
+
+    def heldout_loglik(self, encounters: pd.DataFrame, *, decision_step_s: float,
+                       where: str) -> tuple[float, float]:
+        """NaN, NaN: SUMO's driver has no likelihood over the five actions."""
+        return NO_LIKELIHOOD
 
 
 @dataclass(frozen=True)
@@ -194,7 +296,7 @@ class LearnedPolicy:
         acc = getattr(model, "action_acc_ft_s2", None)
         return cls(log_pi=model.log_policy(), encoder=encoder, name=name or model.method,
                    action_acc_ft_s2=tuple(ACTION_ACC_FT_S2) if acc is None or len(acc) == 0 else tuple(acc),
-                   decision_step_s=float(getattr(model, "decision_step_s", 0.1) or 0.1),
+                   decision_step_s=float(model.decision_step_s),
                    state_encoding=str(getattr(model, "state_encoding", "paper") or "paper"),
                    flags=model_flags(model))
 
@@ -211,6 +313,15 @@ class LearnedPolicy:
         if not 0 <= obs.state < self.n_states:
             raise PolicyError(f"state {obs.state} out of range [0, {self.n_states}) for policy {self.name!r}")
         return np.exp(self.log_pi[obs.state])
+
+    def heldout_loglik(self, encounters: pd.DataFrame, *, decision_step_s: float,
+                       where: str) -> tuple[float, float]:
+        """``log pi(a|s)`` over the held-out decisions in the model's own bins, state encoding and
+        decision step (``decision_step_s``, the evaluation's, is not used)."""
+        d = discretize(encounters, self.encoder, where=where, encoding=self.state_encoding,
+                       decision_step_s=self.decision_step_s)
+        s, a, _ = d.flat()
+        return heldout_loglik(self.log_pi, s, a)
 
 
 def model_flags(model: SavedModel) -> tuple[str, ...]:
@@ -235,6 +346,8 @@ class BaselineTabularPolicy:
         name: label (the baseline's name).
         action_acc_ft_s2: ``[5]`` acceleration applied per action (ft/s^2), as
             :class:`LearnedPolicy`.
+        decision_step_s: the step the baseline was fitted at (None: any; scored at the
+            evaluation's).
 
     ``markov`` scores ``pi(a | a_prev)`` with ``obs.prev_action`` (A's previous action in the
     closed loop) and falls back to the first-step table (the marginal) without one.
@@ -245,6 +358,7 @@ class BaselineTabularPolicy:
     name: str = ""
     controls: bool = True
     action_acc_ft_s2: tuple[float, ...] = tuple(float(x) for x in ACTION_ACC_FT_S2)
+    decision_step_s: float | None = None
 
     def __post_init__(self) -> None:
         if not self.name:
@@ -256,6 +370,16 @@ class BaselineTabularPolicy:
             return np.exp(b.log_next[obs.prev_action])
         s = obs.state if 0 <= obs.state < b.log_first.shape[0] else 0
         return np.exp(b.log_first[s])
+
+    def heldout_loglik(self, encounters: pd.DataFrame, *, decision_step_s: float,
+                       where: str) -> tuple[float, float]:
+        """The baseline's log-likelihood of the held-out decisions in its bins, at its own step
+        (else ``decision_step_s``); ``markov`` scores a trajectory's first step by its marginal."""
+        d = discretize(encounters, self.encoder, where=where,
+                       decision_step_s=self.decision_step_s if self.decision_step_s is not None else decision_step_s)
+        n = sum(len(x) for x in d.actions)
+        total = float(self.baseline.loglik(d))
+        return total, total / n if n else float("nan")
 
 
 @dataclass(frozen=True)
@@ -302,3 +426,14 @@ class CarFollowingLogitPolicy:
         x = np.array([[obs.d_AC, obs.v_AC, obs.d_AB, obs.v_AB, obs.speed_A, obs.len_C, obs.len_B]], dtype=np.float64)
         prev = obs.prev_action if obs.prev_action >= 0 else obs.initial_action
         return np.exp(self.model.log_policy(x, np.array([prev]))[0])
+
+    def heldout_loglik(self, encounters: pd.DataFrame, *, decision_step_s: float, where: str,
+                       cf_decisions: CFDecisions | None = None) -> tuple[float, float]:
+        """The model's log-likelihood of the held-out decisions at its own step
+        (``decision_step_s``, the evaluation's, is not used). ``cf_decisions``: those decisions
+        when already taken (:func:`~irl.domains.merge.car_following.car_following_decisions` of
+        ``encounters`` at the model's step), so several drivers of one step share them."""
+        dec = cf_decisions if cf_decisions is not None else car_following_decisions(
+            encounters, decision_step_s=self.decision_step_s, where=where)
+        total = self.model.loglik_of(dec)
+        return total, total / dec.n

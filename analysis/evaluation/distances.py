@@ -1,10 +1,10 @@
 """How far closed-loop behaviour is from the demonstrations: the Jensen-Shannon divergence of
-action distributions, the held-out log-likelihood of a policy, and Wasserstein-1 distances.
+action distributions and Wasserstein-1 distances (a policy's held-out log-likelihood is its own
+:meth:`sim.policy.Policy.heldout_loglik`).
 
 * ``js_divergence``: Jensen-Shannon divergence (base 2, in [0, 1]) between A's action
   distribution at the decisions (``action_counts``, :mod:`analysis.evaluation.metrics`) and the
   demonstrations' action distribution.
-* ``heldout_loglik``: log-likelihood of held-out demonstration steps under the policy.
 * ``w1_speed_A_ft_s``, ``w1_acc_A_ft_s2``, ``w1_d_AC_ft``, ``w1_ttc_s``: Wasserstein-1
   distances (``scipy.stats.wasserstein_distance``) between the closed-loop values at A's
   decisions (speed, applied acceleration, d_AC, TTC to C) and the held-out demonstration
@@ -40,24 +40,6 @@ def js_divergence(p: np.ndarray, q: np.ndarray) -> float:
         return float(np.sum(x[nz] * np.log2(x[nz] / y[nz])))
 
     return max(0.0, 0.5 * kl(p, m) + 0.5 * kl(q, m))
-
-
-def heldout_loglik(log_pi: np.ndarray, states: np.ndarray, actions: np.ndarray) -> tuple[float, float]:
-    """Log-likelihood of demonstration steps under a policy.
-
-    Args:
-        log_pi: ``[S, A]`` log pi(a|s).
-        states, actions: ``[N]`` int steps (all trajectories concatenated).
-
-    Returns:
-        ``(sum, mean per step)`` of ``log pi(a_t|s_t)`` (Eq. 5 without ``log Pr(s_1)``).
-    """
-    s = np.asarray(states, dtype=np.int64)
-    a = np.asarray(actions, dtype=np.int64)
-    if s.size == 0:
-        return float("nan"), float("nan")
-    total = float(np.sum(np.asarray(log_pi)[s, a]))
-    return total, total / s.size
 
 
 def ttc_to_c(d_ac: np.ndarray, v_ac: np.ndarray) -> np.ndarray:

@@ -33,8 +33,8 @@ import pandas as pd
 
 from analysis.evaluation.episode import EpisodeResult, EpisodeSpec, run_episode_task
 from analysis.evaluation.heldout_scoring import load_heldout, policy_heldout_loglik
-from analysis.evaluation.policies import (BASELINES, FITTED_BASELINES, KNOWN_BASELINES, baseline_drivers, learned_policy,
-                                        with_distinct_names)
+from analysis.evaluation.policies import (baseline_drivers, check_baselines, default_baselines, learned_policy,
+                                         left_out_baselines, with_distinct_names)
 from analysis.evaluation.report import write_outputs
 from analysis.evaluation.metrics import MetricsConfig
 from analysis.evaluation.aggregate import AggregateMetrics, aggregate
@@ -43,14 +43,14 @@ from merge_irl.provenance import provenance, text_digest, write_timings
 from analysis.sweep import Task, parse_executor, run_sweep
 from irl.domains.merge.car_following import CFDecisions, car_following_decisions
 from irl.errors import ConfigError
-from irl.domains.merge.mdp import frames_per_step
+from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, frames_per_step
 from irl.result import SavedModel
 from merge_irl.run_folder import check_writable
 from merge_irl.units import FRAME_S, FT_PER_M
 from scenarios.loader import load_scenario
 from sim.controller_config import ControllerConfig
 from sim.errors import SimError
-from sim.policy import CarFollowingLogitPolicy, LearnedPolicy, Policy
+from sim.policy import CarFollowingLogitPolicy, LearnedPolicy, Policy, check_policy
 
 
 
@@ -136,7 +136,7 @@ def evaluate(
     *,
     duration_s: float | None = None,
     demos: str | os.PathLike | pd.DataFrame | None = None,
-    baselines: Sequence[str] = BASELINES,
+    baselines: Sequence[str] | None = None,
     train_demos: str | os.PathLike | pd.DataFrame | None = None,
     policies: Sequence[Policy] = (),
     controller: ControllerConfig = ControllerConfig(),
@@ -156,13 +156,15 @@ def evaluate(
         duration_s: override the scenario's duration.
         demos: held-out encounters (Parquet/CSV/DataFrame) for the action divergence and the
             held-out log-likelihood; None: both are NaN.
-        baselines: any of ``KNOWN_BASELINES`` (default ``BASELINES``): ``"sumo"`` (not taken over),
+        baselines: names of :data:`analysis.evaluation.policies.BASELINES` (None: its default
+            set, :func:`~analysis.evaluation.policies.default_baselines`): ``"sumo"`` (not taken over),
             ``"uniform"`` (random actions), ``"marginal"``, ``"markov"``, ``"bc"`` (fitted on
             ``train_demos`` in the first model's state bins; left out, and said so in report.md,
             without them), ``"idm"`` (:class:`sim.idm_policy.IdmPolicy` of the scenario's car type;
             its actions applied at ``train_demos``' mean acceleration per action bin, as the fitted
             baselines', else at the bin midpoints), ``"sumo-in-lane"`` (SUMO's driver, A's lane
-            changes off while observed).
+            changes off while observed), and any registered by
+            :func:`~analysis.evaluation.policies.register_baseline`.
         train_demos: training encounters (Parquet/CSV/DataFrame) of the fitted baselines.
         policies: further policies to evaluate (e.g. ``ConstantPolicy(0)``, or a car-following
             logit driver of :func:`~analysis.evaluation.policies.cf_policy`).
@@ -170,7 +172,9 @@ def evaluate(
         executor: where episodes run (see :func:`run_episodes`); overrides ``workers``.
         rrd: write a rerun recording of each policy's first episode.
         controller: ``decision_s`` None: the first model's ``decision_step_s`` (else the first
-            of ``policies`` that has one, else 0.3 s) for every policy, so all decide on the same step.
+            of ``policies`` whose ``decision_step_s`` is not None, else
+            :data:`~irl.domains.merge.mdp.DEFAULT_DECISION_STEP_S`) for every policy, so all decide
+            on the same step.
 
     Every input is read and checked, and the held-out scores taken, before the output folder is
     made and any episode runs.
@@ -178,7 +182,8 @@ def evaluate(
     Raises:
         SimError: ``episodes`` < 1, an unknown baseline name, or a decision step that is not a
             positive multiple of the 0.1 s simulation step.
-        PolicyError: a model is not a merge model, or two policies share a name and one of them is not a
+        PolicyError: a model is not a merge model, a policy lacks a member of
+            :class:`sim.policy.Policy`, or two policies share a name and one of them is not a
             dataclass that can be renamed.
         ModelFileError: a model file is missing or malformed.
         DemonstrationError: the held-out or training encounters cannot be read, lack columns, or
@@ -188,15 +193,16 @@ def evaluate(
     if episodes < 1:
         raise SimError(f"evaluate: episodes must be >= 1, got {episodes}")
     spec = load_scenario(scenario) if isinstance(scenario, (str, Path)) else scenario  # validate before SUMO
-    bad = [b for b in baselines if b not in KNOWN_BASELINES]
-    if bad:
-        raise SimError(f"evaluate: unknown baseline(s) {bad}; expected some of {', '.join(KNOWN_BASELINES)}")
+    baselines = default_baselines() if baselines is None else tuple(baselines)
+    check_baselines(baselines)
+    for p in policies:
+        check_policy(p, scoring=demos is not None, where="evaluate")
     learned: list[LearnedPolicy] = [learned_policy(m) for m in models]
     pols: list[Policy] = list(learned)
     step = controller.decision_s
-    steps = [(p.name, p.decision_step_s) for p in (*learned, *policies) if hasattr(p, "decision_step_s")]
+    steps = [(p.name, float(s)) for p in (*learned, *policies) if (s := p.decision_step_s) is not None]
     if step is None:
-        step = steps[0][1] if steps else 0.3
+        step = steps[0][1] if steps else DEFAULT_DECISION_STEP_S
         controller = replace(controller, decision_s=step)
     try:
         frames_per_step(step)
@@ -251,7 +257,7 @@ def evaluate(
         out, aggs, by_policy, held, scenario=str(scen_name), seed=seed, episodes=episodes,
         duration_s=duration_s, controller=controller, metrics=metrics,
         provenance=prov, speed_limit_ft_s=spec.road.speed_limit_mps * FT_PER_M,
-        left_out=[b for b in baselines if b in FITTED_BASELINES and train_demos is None],
+        left_out=left_out_baselines(baselines, train_demos),
     )
     write_timings(out, {"episode_wall_time_s": {name: [float(r.wall_time_s) for r in rs]
                                                 for name, rs in by_policy.items()}})

@@ -1,8 +1,9 @@
 """Held-out demonstrations of a closed-loop evaluation and every policy's held-out score.
 
 :func:`load_heldout` reads an encounter table (:data:`irl.domains.merge.encounters.ENCOUNTER_SCHEMA`)
-as :class:`HeldOut`; :func:`policy_heldout_loglik` scores a policy on it as learning sees the
-demonstrations (resampled at the decision step). Used by :func:`analysis.evaluation.evaluate.evaluate`.
+as :class:`HeldOut`; :func:`policy_heldout_loglik` scores a policy on it by the policy's own
+:meth:`~sim.policy.Policy.heldout_loglik` (as learning sees the demonstrations: resampled at the
+decision step). Used by :func:`analysis.evaluation.evaluate.evaluate`.
 """
 
 from __future__ import annotations
@@ -13,16 +14,12 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from analysis.evaluation.distances import heldout_loglik
 from irl.domains.merge.actions import N_ACTIONS, actions_of
-from irl.domains.merge.bins import MergeBins
-from irl.domains.merge.car_following import CFDecisions, car_following_decisions
+from irl.domains.merge.car_following import CFDecisions
 from irl.domains.merge.encounters import REQUIRED_COLUMNS
 from irl.errors import DemonstrationError
-from irl.domains.merge.mdp import discretize, read_encounters
-from sim.idm_policy import IdmPolicy
-from sim.observe import MergeObservation
-from sim.policy import BaselineTabularPolicy, CarFollowingLogitPolicy, LearnedPolicy, Policy
+from irl.domains.merge.mdp import read_encounters
+from sim.policy import CarFollowingLogitPolicy, Policy, check_policy
 
 
 @dataclass(frozen=True)
@@ -71,36 +68,19 @@ def load_heldout(demos: str | os.PathLike | pd.DataFrame) -> HeldOut:
 
 def policy_heldout_loglik(policy: Policy, heldout: HeldOut, decision_step_s: float = 0.1, *,
                           cf_decisions: CFDecisions | None = None) -> tuple[float, float]:
-    """``(sum, per step)`` state-conditional log-likelihood of the held-out demonstrations under
-    ``policy`` (NaN for SUMO), scored as learning sees them: resampled at the decision step
-    (:func:`irl.domains.merge.mdp.discretize`; a learned policy at its model's ``decision_step_s`` and
-    state encoding, every other policy at ``decision_step_s``), so an action is the forward
-    difference of A's speed over one decision. ``markov`` scores a trajectory's first step by
-    its marginal. ``cf_decisions``: the held-out decisions of a car-following driver when
-    already taken (:func:`~irl.domains.merge.car_following.car_following_decisions` at its step).
-    NaN for the deterministic IDM reference driver as well (no likelihood to speak of)."""
-    if not policy.controls or isinstance(policy, IdmPolicy):
-        return float("nan"), float("nan")
-    df = heldout.encounters
-    if isinstance(policy, CarFollowingLogitPolicy):
-        dec = cf_decisions if cf_decisions is not None else car_following_decisions(
-            df, decision_step_s=policy.decision_step_s, where=heldout.source)
-        total = policy.model.loglik_of(dec)
-        return total, total / dec.n
-    if isinstance(policy, LearnedPolicy):
-        d = discretize(df, policy.encoder, where=heldout.source, encoding=policy.state_encoding,
-                       decision_step_s=policy.decision_step_s)
-        s, a, _ = d.flat()
-        return heldout_loglik(policy.log_pi, s, a)
-    bins = policy.encoder if isinstance(policy, BaselineTabularPolicy) else MergeBins.assumed_authors()
-    d = discretize(df, bins, where=heldout.source, decision_step_s=decision_step_s)
-    n = sum(len(x) for x in d.actions)
-    if isinstance(policy, BaselineTabularPolicy):
-        total = float(policy.baseline.loglik(d))
-        return total, total / n if n else float("nan")
-    # state-independent policies (uniform, constant): log p(a)
-    _, actions, _ = d.flat()
-    p = np.asarray(policy.probs(MergeObservation(0, 0, 0, 0, False, 0)), dtype=float)
-    with np.errstate(divide="ignore"):
-        lp = np.log(p)[actions]
-    return float(lp.sum()), float(lp.mean()) if lp.size else float("nan")
+    """``(sum, per step)`` log-likelihood of the held-out demonstrations under ``policy``: the
+    policy's own :meth:`~sim.policy.Policy.heldout_loglik` at the evaluation's
+    ``decision_step_s`` (NaN, NaN where it has no likelihood, as SUMO's driver and the IDM
+    reference). ``cf_decisions``: the held-out decisions of a car-following driver when already
+    taken (:func:`~irl.domains.merge.car_following.car_following_decisions` at its step).
+
+    Raises:
+        PolicyError: ``policy`` does not implement ``heldout_loglik`` (the class named): a
+            number from a guess at its kind would be silently wrong.
+        DemonstrationError: the held-out frames cannot be scored.
+    """
+    check_policy(policy, where="held-out scoring")
+    if cf_decisions is not None and isinstance(policy, CarFollowingLogitPolicy):
+        return policy.heldout_loglik(heldout.encounters, decision_step_s=decision_step_s, where=heldout.source,
+                                     cf_decisions=cf_decisions)
+    return policy.heldout_loglik(heldout.encounters, decision_step_s=decision_step_s, where=heldout.source)

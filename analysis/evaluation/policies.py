@@ -1,8 +1,11 @@
 """The drivers of a closed-loop evaluation: the baselines by name, learned IRL models and
 car-following drivers from their files, and distinct names for all.
 
-Used by :func:`analysis.evaluation.evaluate.evaluate`; the baselines are issue 11's (uniform, action
-frequencies, markov, behaviour cloning beside SUMO's own driver), plus two references on request.
+Used by :func:`analysis.evaluation.evaluate.evaluate`. The baselines are one registry,
+:data:`BASELINES` (name -> :class:`Baseline`: a factory of a :class:`BaselineContext`, whether it
+needs training encounters, whether it runs by default): issue 11's (uniform, action frequencies,
+markov, behaviour cloning beside SUMO's own driver) by default, plus two references on request
+(``idm``, ``sumo-in-lane``). A new baseline is one :func:`register_baseline` call.
 """
 
 from __future__ import annotations
@@ -10,51 +13,168 @@ from __future__ import annotations
 import os
 import warnings
 from collections.abc import Callable, Sequence
-from dataclasses import is_dataclass, replace
+from dataclasses import dataclass, is_dataclass, replace
+from functools import cached_property
 from pathlib import Path
+from typing import Any
 
 import pandas as pd
 
 from analysis.evaluation.heldout_scoring import prepare_encounters
 from irl.baselines import fit_baseline
+from irl.demonstrations import Demonstrations
 from irl.domains.merge.actions import ACTION_ACC_FT_S2, actions_of
 from irl.domains.merge.bins import MergeBins, fit_quantile_bins
 from irl.domains.merge.cf_logit import CarFollowingLogit
 from irl.domains.merge.mdp import action_mean_acc, discretize, read_encounters
 from irl.result import SavedModel
+from sim.errors import SimError
 from sim.idm_policy import IdmPolicy
 from sim.policy import (BaselineTabularPolicy, CarFollowingLogitPolicy, LearnedPolicy, Policy, PolicyError,
                         SumoPolicy, UniformPolicy)
 
-#: Baselines of every evaluation (issue 11): SUMO's own driver, uniform random, and the
-#: tabular baselines fitted on the training demonstrations (:mod:`irl.baselines`).
-BASELINES = ("sumo", "uniform", "marginal", "markov", "bc")
-#: Every baseline an evaluation can run: :data:`BASELINES` and, on request, ``idm``, the
-#: Intelligent Driver Model with the scenario's car parameters through the controller
-#: (:class:`sim.idm_policy.IdmPolicy`), and ``sumo-in-lane``, SUMO's driver with A's lane
-#: changes switched off while observed (:class:`sim.policy.SumoPolicy` ``keep_lane``).
-KNOWN_BASELINES = (*BASELINES, "idm", "sumo-in-lane")
-#: The baselines that need training demonstrations.
-FITTED_BASELINES = ("marginal", "markov", "bc")
+@dataclass(frozen=True, eq=False)
+class BaselineContext:
+    """What a baseline's factory may need, read lazily (a baseline that needs nothing reads nothing).
 
-_BASELINES: dict[str, Callable[[], Policy]] = {"sumo": SumoPolicy, "uniform": UniformPolicy,
-                                               "sumo-in-lane": lambda: SumoPolicy("sumo-in-lane", keep_lane=True)}
+    Attributes:
+        spec: the scenario (:class:`scenarios.spec.model.ScenarioSpec`) the drivers run in.
+        decision_step_s: the evaluation's decision step (s).
+        train_demos: the training encounters (Parquet/CSV path or DataFrame); None: none given.
+        bins: the paper state bins of the fitted baselines (the first model's); None: quantile
+            bins fitted on the training encounters.
+    """
+
+    spec: Any
+    decision_step_s: float
+    train_demos: str | os.PathLike | pd.DataFrame | None = None
+    bins: MergeBins | None = None
+
+    @property
+    def where(self) -> str:
+        """The training encounters' name in errors."""
+        return str(self.train_demos) if isinstance(self.train_demos, (str, os.PathLike)) else "training encounters"
+
+    @cached_property
+    def training(self) -> pd.DataFrame:
+        """The training encounter frames, prepared.
+
+        Raises:
+            PolicyError: no training encounters were given.
+            DemonstrationError: they cannot be read.
+        """
+        if self.train_demos is None:
+            raise PolicyError("this baseline needs training encounters (train_demos / --train-demos)")
+        return _training_table(self.train_demos)
+
+    @cached_property
+    def training_bins(self) -> MergeBins:
+        """:attr:`bins`, else quantile bins fitted on the training encounters."""
+        return self.bins if self.bins is not None else fit_quantile_bins(self.training, where=self.where)
+
+    @cached_property
+    def demos(self) -> Demonstrations:
+        """The training encounters discretized in :attr:`training_bins` at :attr:`decision_step_s`.
+
+        Raises:
+            DemonstrationError: they cannot be read or discretized.
+        """
+        return discretize(self.training, self.training_bins, where=self.where, decision_step_s=self.decision_step_s)
+
+    @cached_property
+    def action_acc_ft_s2(self) -> tuple[float, ...]:
+        """``[5]`` acceleration (ft/s^2) a baseline applies per action: the training frames' mean
+        per action bin (as :func:`training_action_acc`), else the bins' midpoints."""
+        if self.train_demos is None:
+            return tuple(float(x) for x in ACTION_ACC_FT_S2)
+        acc = self.training["acc_A"].to_numpy(float)
+        return action_mean_acc(acc, actions_of(acc))
 
 
-def baseline_policies(names: Sequence[str], train_demos: str | os.PathLike | pd.DataFrame,
-                      bins: MergeBins | None = None, decision_step_s: float = 0.3) -> list[BaselineTabularPolicy]:
-    """The fitted baselines ``names`` (of ``FITTED_BASELINES``) from training encounters, in
-    the paper state bins ``bins`` (None: quantile bins fitted on the training encounters).
+@dataclass(frozen=True)
+class Baseline:
+    """A baseline driver of the evaluation, registered by name (:func:`register_baseline`).
+
+    Attributes:
+        name: its name (``--baselines``, reports); the factory's policy is named so.
+        factory: ``context -> Policy`` (:class:`BaselineContext`).
+        fitted: needs training encounters (left out, and said so in report.md, without them).
+        default: in the default set of :func:`analysis.evaluation.evaluate.evaluate`.
+        help: one line for users.
+    """
+
+    name: str
+    factory: Callable[[BaselineContext], Policy]
+    fitted: bool = False
+    default: bool = False
+    help: str = ""
+
+
+#: The baselines, by name, in their order (:func:`register_baseline`): issue 11's (SUMO's own
+#: driver, uniform random, and the tabular baselines of :mod:`irl.baselines` fitted on the
+#: training demonstrations) by default, and two references on request.
+BASELINES: dict[str, Baseline] = {}
+
+
+def register_baseline(baseline: Baseline) -> Baseline:
+    """Add ``baseline`` to :data:`BASELINES` (after the others); returns it.
 
     Raises:
-        DemonstrationError: the training encounters cannot be read or discretized.
+        PolicyError: a baseline of that name is registered already.
     """
-    df = _training_table(train_demos)
-    where = "training encounters" if isinstance(train_demos, pd.DataFrame) else str(train_demos)
-    bins = bins if bins is not None else fit_quantile_bins(df, where=where)
-    demos = discretize(df, bins, where=where, decision_step_s=decision_step_s)
-    means = training_action_acc(df)
-    return [BaselineTabularPolicy(fit_baseline(n, demos), bins, n, action_acc_ft_s2=means) for n in names]
+    if baseline.name in BASELINES:
+        raise PolicyError(f"a baseline named {baseline.name!r} is registered already")
+    BASELINES[baseline.name] = baseline
+    return baseline
+
+
+def default_baselines() -> tuple[str, ...]:
+    """The names of the baselines every evaluation runs unless told otherwise, in order."""
+    return tuple(b.name for b in BASELINES.values() if b.default)
+
+
+def check_baselines(names: Sequence[str], where: str = "evaluate") -> None:
+    """Refuse a name that is not a registered baseline.
+
+    Raises:
+        SimError: an unknown name (the known ones listed).
+    """
+    bad = [b for b in names if b not in BASELINES]
+    if bad:
+        raise SimError(f"{where}: unknown baseline(s) {bad}; expected some of {', '.join(BASELINES)}")
+
+
+def _tabular(name: str) -> Callable[[BaselineContext], Policy]:
+    def make(ctx: BaselineContext) -> Policy:
+        return BaselineTabularPolicy(fit_baseline(name, ctx.demos), ctx.training_bins, name,
+                                     action_acc_ft_s2=ctx.action_acc_ft_s2, decision_step_s=ctx.decision_step_s)
+    return make
+
+
+def _idm(ctx: BaselineContext) -> Policy:
+    if ctx.train_demos is None:
+        warnings.warn("evaluate: idm without training encounters applies the action bins' midpoints "
+                      f"{tuple(ACTION_ACC_FT_S2)} ft/s^2 (High Brake too weak to stop behind a braking car; "
+                      "give train_demos / --train-demos)", UserWarning, stacklevel=4)
+    return IdmPolicy.from_scenario(ctx.spec, action_acc_ft_s2=ctx.action_acc_ft_s2)
+
+
+register_baseline(Baseline("sumo", lambda ctx: SumoPolicy(), default=True,
+                           help="SUMO's own car-following model drives A (not taken over)"))
+register_baseline(Baseline("uniform", lambda ctx: UniformPolicy(), default=True,
+                           help="the five actions uniformly at random"))
+register_baseline(Baseline("marginal", _tabular("marginal"), fitted=True, default=True,
+                           help="the training demonstrations' action frequencies"))
+register_baseline(Baseline("markov", _tabular("markov"), fitted=True, default=True,
+                           help="the training demonstrations' action given A's previous action"))
+register_baseline(Baseline("bc", _tabular("bc"), fitted=True, default=True,
+                           help="behaviour cloning: the training demonstrations' action given the paper state"))
+register_baseline(Baseline("idm", _idm,
+                           help="the Intelligent Driver Model with the scenario's car parameters, driven through "
+                                "the controller (sim.idm_policy.IdmPolicy)"))
+register_baseline(Baseline("sumo-in-lane", lambda ctx: SumoPolicy("sumo-in-lane", keep_lane=True),
+                           help="SUMO's driver with A's lane changes off while observed, as for every commanded "
+                                "driver"))
 
 
 def _training_table(train_demos: str | os.PathLike | pd.DataFrame) -> pd.DataFrame:
@@ -106,34 +226,32 @@ def cf_policy(path: str | os.PathLike, name: str = "") -> CarFollowingLogitPolic
 
 def baseline_drivers(baselines: Sequence[str], spec, train_demos, bins: MergeBins | None,
                      decision_step_s: float) -> list[Policy]:
-    """The drivers of ``baselines`` (names of :data:`KNOWN_BASELINES`, in their order): the
-    fitted ones from ``train_demos`` in ``bins`` (left out without training encounters), ``idm``
-    of ``spec``'s car type with the training frames' action accelerations (warned about without
-    them), the others as they are.
+    """The drivers of ``baselines`` (names of :data:`BASELINES`, in the order given), each of
+    its factory with one :class:`BaselineContext`; the fitted ones left out without training
+    encounters.
 
     Raises:
+        SimError: an unknown name.
+        PolicyError: a factory's policy is not named as its baseline.
         DemonstrationError: the training encounters cannot be read or discretized.
     """
+    check_baselines(baselines)
+    ctx = BaselineContext(spec, decision_step_s, train_demos, bins)
     pols: list[Policy] = []
-    fitted = [b for b in baselines if b in FITTED_BASELINES]
-    fitted_pols = baseline_policies(fitted, train_demos, bins, decision_step_s) \
-        if fitted and train_demos is not None else []
-    by_name = {p.name: p for p in fitted_pols}
-    for b in baselines:
-        if b in FITTED_BASELINES:
-            if b in by_name:
-                pols.append(by_name[b])
-        elif b == "idm":  # applies its actions as the fitted baselines do, when there are training encounters
-            if train_demos is None:
-                warnings.warn("evaluate: idm without training encounters applies the action bins' midpoints "
-                              f"{tuple(ACTION_ACC_FT_S2)} ft/s^2 (High Brake too weak to stop behind a braking car; "
-                              "give train_demos / --train-demos)", UserWarning, stacklevel=3)
-            acc = fitted_pols[0].action_acc_ft_s2 if fitted_pols else training_action_acc(train_demos) \
-                if train_demos is not None else tuple(float(x) for x in ACTION_ACC_FT_S2)
-            pols.append(IdmPolicy.from_scenario(spec, action_acc_ft_s2=acc))
-        else:
-            pols.append(_BASELINES[b]())
+    for name in baselines:
+        b = BASELINES[name]
+        if b.fitted and train_demos is None:
+            continue
+        p = b.factory(ctx)
+        if p.name != b.name:
+            raise PolicyError(f"baseline {b.name!r}: its factory made a policy named {p.name!r}")
+        pols.append(p)
     return pols
+
+
+def left_out_baselines(baselines: Sequence[str], train_demos) -> list[str]:
+    """The fitted ones of ``baselines``, when there are no training encounters (else none)."""
+    return [b for b in baselines if BASELINES[b].fitted and train_demos is None]
 
 
 def with_distinct_names(pols: list[Policy]) -> list[Policy]:

@@ -18,7 +18,7 @@ import numpy as np
 
 from analysis.experiments.learn import fit_problem
 from analysis.experiments.trials import table_problem
-from irl.baselines import BASELINES, TabularPolicy, baseline_leave_one_out, leave_one_out, paired_test
+from irl.baselines import TABULAR_BASELINES, TabularPolicy, baseline_leave_one_out, leave_one_out, paired_test
 from irl.config import IRLConfig
 from irl.problems import Problem
 from irl.methods.reirl import DEFAULT_EPSILON
@@ -27,9 +27,9 @@ from irl.methods.reirl import DEFAULT_EPSILON
 def method_leave_one_out(problem: Problem, method: str, config: IRLConfig, seed: int = 0,
                          epsilon: float | None = DEFAULT_EPSILON) -> np.ndarray:
     """``[n_trajectories]`` held-out log-likelihood of each trajectory (nats) under ``method`` (a
-    baseline of ``irl.baselines.BASELINES`` or an IRL method) fitted on the others; IRL fits use
+    baseline of ``irl.baselines.TABULAR_BASELINES`` or an IRL method) fitted on the others; IRL fits use
     ``numpy.random.default_rng(seed)`` and ``problem.subset`` (its model re-estimated per fold)."""
-    if method in BASELINES:
+    if method in TABULAR_BASELINES:
         return baseline_leave_one_out(method, problem.demos)
 
     def fit_fold(train: np.ndarray) -> TabularPolicy:

@@ -23,7 +23,7 @@ from merge_irl.provenance import write_timings
 from analysis.sweep import TaskFailure
 from analysis.experiments.trials import TrialOutcome, cached_table_problem, config_label
 from merge_irl.atomic import write_json_atomic
-from irl.baselines import BASELINES, baseline_leave_one_out, fit_baseline, paired_test
+from irl.baselines import TABULAR_BASELINES, baseline_leave_one_out, fit_baseline, paired_test
 from irl.config import IRLConfig
 from irl.methods.registry import REGISTRY
 from irl.problems import Problem
@@ -212,7 +212,7 @@ def _table_report(table: int, data_dir: str, config: IRLConfig, methods: Sequenc
     marginal = baseline_leave_one_out("marginal", problem.demos) if with_holdout else None
     mlirl = _folds(held["mlirl"]) if held.get("mlirl") else None
     rows = tuple(summarize(m, by_method[m], mlirl, held[m], marginal) for m in methods if by_method[m])
-    rows += tuple(baseline_summary(b, problem, with_holdout, mlirl, marginal) for b in BASELINES)
+    rows += tuple(baseline_summary(b, problem, with_holdout, mlirl, marginal) for b in TABULAR_BASELINES)
     names = tuple(problem.feature_names)
     return ReproductionReport(table, TITLES[table], config, names, rows, tuple(main), tuple(folds), int(seed),
                               failures, provenance=prov)

@@ -42,14 +42,14 @@ def _encounters(n=60, seed=1) -> pd.DataFrame:
 @pytest.mark.sumo
 def test_evaluate_writes_report_metrics_plots(tmp_path):
     from analysis.evaluation.evaluate import evaluate
-    from analysis.evaluation.policies import BASELINES, training_action_acc
+    from analysis.evaluation.policies import default_baselines, training_action_acc
     from sim.policy import ConstantPolicy
 
     model_path = _model().save(tmp_path / "m" / "qavg.json")
     demos = _encounters()
     train = _encounters(120, seed=2)
     rep = evaluate([model_path], "synthetic", 2, 3, tmp_path / "out", duration_s=110.0, demos=demos,
-                   train_demos=train, baselines=(*BASELINES, "idm"), policies=[ConstantPolicy(0)], workers=2,
+                   train_demos=train, baselines=(*default_baselines(), "idm"), policies=[ConstantPolicy(0)], workers=2,
                    progress=False)
     names = ["qavg", "sumo", "uniform", "marginal", "markov", "bc", "idm", "constant-high-brake"]
     assert list(rep.aggregates) == names

@@ -10,7 +10,8 @@ import pytest
 
 from analysis.evaluation.metrics import EpisodeMetrics, MetricsConfig, episode_metrics
 from analysis.evaluation.aggregate import aggregate
-from analysis.evaluation.distances import heldout_loglik, js_divergence
+from analysis.evaluation.distances import js_divergence
+from irl.boltzmann import heldout_loglik
 from merge_irl.units import FT_PER_M
 from sim.schema import COLUMNS
 

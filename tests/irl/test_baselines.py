@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from irl.baselines import (BASELINES, TabularPolicy, baseline_leave_one_out, fit_baseline, leave_one_out,
+from irl.baselines import (TABULAR_BASELINES, TabularPolicy, baseline_leave_one_out, fit_baseline, leave_one_out,
                            paired_test)
 from irl.demonstrations import Demonstrations
 from irl.errors import ConfigError, DemonstrationError
@@ -38,7 +38,7 @@ def test_hand_computed_probabilities():
     assert u.loglik(d) == pytest.approx(5 * np.log(0.5))
 
 
-@pytest.mark.parametrize("name", BASELINES)
+@pytest.mark.parametrize("name", TABULAR_BASELINES)
 def test_every_conditional_is_a_distribution(name):
     _, d = random_mdp(3, n_states=7, n_actions=4)
     pol = fit_baseline(name, d)
@@ -84,7 +84,7 @@ def test_tabular_policy_scores_a_state_policy():
 def test_authors_ngsim_leave_one_out_figures(railusm):
     """Issue 11's figures on the authors' 12 trajectories: marginal -1529.8, markov -907.5."""
     d = load_problem("merge", railusm / "merge_ngsim").demos
-    totals = {name: float(baseline_leave_one_out(name, d).sum()) for name in BASELINES}
+    totals = {name: float(baseline_leave_one_out(name, d).sum()) for name in TABULAR_BASELINES}
     assert totals["uniform"] == pytest.approx(1197 * np.log(1 / 5))
     assert totals["marginal"] == pytest.approx(-1529.8, abs=0.05)
     assert totals["markov"] == pytest.approx(-907.5, abs=0.05)

@@ -51,6 +51,7 @@ class Tailgater:
 
     name: str = "tailgater"
     controls: bool = True
+    decision_step_s: float | None = None
 
     def probs(self, obs):
         late = obs.v_AC > 0 and obs.d_AC / obs.v_AC < 2.0
@@ -207,7 +208,7 @@ def test_observations_say_when_b_has_merged(spec):
     from sim.run import run_scenario
 
     class Recorder:
-        name, controls = "recorder", True
+        name, controls, decision_step_s = "recorder", True, None
 
         def __init__(self):
             self.seen = []

@@ -61,7 +61,7 @@ def register(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from analysis.evaluation.evaluate import evaluate
-    from analysis.evaluation.policies import KNOWN_BASELINES
+    from analysis.evaluation.policies import check_baselines, left_out_baselines
     from analysis.evaluation.thresholds import check_file, parse_thresholds
     from sim.controller_config import ControllerConfig
     from sim.errors import SimError
@@ -74,9 +74,7 @@ def run(args: argparse.Namespace) -> int:
     executor = resolve_executor(args.executor, args.workers)
 
     baselines = tuple(b.strip() for b in args.baselines.split(",") if b.strip())
-    bad = [b for b in baselines if b not in KNOWN_BASELINES]
-    if bad:
-        raise SimError(f"--baselines: unknown baseline(s) {bad}; expected {', '.join(KNOWN_BASELINES)}")
+    check_baselines(baselines, "--baselines")
     if not args.model and not args.cf_model and not baselines:
         raise SimError("nothing to evaluate: give --model, --cf-model and/or --baselines")
     from analysis.evaluation.policies import cf_policy
@@ -99,8 +97,10 @@ def run(args: argparse.Namespace) -> int:
     print(report_table(report.aggregates))
     for line in flag_lines(report.aggregates):
         print(line, file=sys.stderr)
-    if args.train_demos is None and any(b in ("marginal", "markov", "bc") for b in baselines):
-        print("note: marginal, markov and bc are left out without --train-demos", file=sys.stderr)
+    left_out = left_out_baselines(baselines, args.train_demos)
+    if left_out:
+        print(f"note: {', '.join(left_out)} {'is' if len(left_out) == 1 else 'are'} left out without --train-demos",
+              file=sys.stderr)
     print(f"report:  {report.report_md}")
     print(f"metrics: {report.metrics_json}")
     for name, path in report.rrd.items():

@@ -29,7 +29,7 @@ from scenarios.loader import load_scenario
 from scenarios.spec.parse import with_overrides
 from sim.controller import Controller
 from irl.domains.merge.bins import MergeBins
-from sim.policy import LearnedPolicy
+from sim.learned_policies import LearnedPolicy
 from sim.run import run_scenario
 
 

@@ -71,7 +71,7 @@ from sim.control_records import COLLISION_KINDS
 from sim.controller_config import ControllerConfig
 from sim.encounter_rules import ENCOUNTER_RULES
 from sim.errors import SimError
-from sim.policy import CarFollowingLogitPolicy
+from sim.learned_policies import CarFollowingLogitPolicy
 
 
 def _seeds(text: str) -> tuple[int, ...]:

@@ -52,7 +52,7 @@ from sim.controller import Controller
 from sim.controller_config import ControllerConfig
 from sim.expert_labels import ExpertLabels
 from sim.errors import SimError
-from sim.policy import LearnedPolicy
+from sim.learned_policies import LearnedPolicy
 from sim.run import run_scenario
 
 
@@ -139,7 +139,7 @@ def run(args, spec, model: SavedModel, base: LearnedPolicy, train_path: Path, he
         t0 = time.perf_counter()
         labels: list[tuple[int, int]] = []
         for e in range(args.episodes_per_round):
-            ctl = Controller(policies[-1], ControllerConfig(decision_s=dt))
+            ctl = Controller(policies[-1], ControllerConfig(decision_step_s=dt))
             hook = ExpertLabels(ctl)
             run_scenario(spec, seed=args.label_seed + r * args.episodes_per_round + e, duration_s=args.duration,
                          hooks=[ctl, hook])

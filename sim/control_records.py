@@ -31,7 +31,14 @@ class Control:
         gap_AB_start_ft: d_AB at the take-over (ft).
         n_decisions: decisions taken.
         n_interventions: decisions whose action the safety filter replaced.
+        n_need_brakes: decisions whose High Brake the ``need`` rule made harder than the
+            driver's own (``ControllerConfig.high_brake == "need"``; 0 otherwise).
         prev_action: A's action at the latest decision (-1: none yet).
+        prev_acc: the acceleration applied at the latest decision (ft/s^2; NaN: none yet).
+        prev_v_c: C's speed at the latest decision (ft/s; NaN: no C), for C's acceleration as
+            A sees it (its speed change over one decision).
+        max_decel_ft_s2: A's physical deceleration limit (SUMO's ``emergencyDecel``, ft/s^2 > 0;
+            NaN until taken over): no commanded acceleration is harder.
         c_id: Vehicle_ID of C at the latest decision (0: none).
         collision_kind: for ``reason == "collision"``, one of ``COLLISION_KINDS``; else "".
     """
@@ -48,7 +55,11 @@ class Control:
     b_ahead: bool | None = None
     n_decisions: int = 0
     n_interventions: int = 0
+    n_need_brakes: int = 0
     prev_action: int = -1
+    prev_acc: float = float("nan")
+    prev_v_c: float = float("nan")
+    max_decel_ft_s2: float = float("nan")
     c_id: int = 0
     collision_kind: str = ""
     speed_mode: int = -1
@@ -63,6 +74,7 @@ class Control:
 _DECISION_FIELDS = (
     "frame", "time_s", "a_id", "b_id", "c_id", "state", "action", "acc_cmd", "speed_A",
     "d_AC", "d_AB", "v_AC", "v_AB", "b_is_truck", "len_C", "len_B", "p0", "p1", "p2", "p3", "p4", "filtered",
+    "need_brake",
 )
 
 
@@ -71,7 +83,8 @@ class DecisionLog:
     """Column buffers, one row per decision (units ft, ft/s, ft/s^2; ``acc_cmd`` is the
     commanded acceleration (High Brake's can be harder than the action's mean:
     ``ControllerConfig.high_brake``), or for the SUMO baseline A's measured one; ``action`` likewise;
-    ``filtered``: the safety filter replaced the policy's action).
+    ``filtered``: the safety filter replaced the policy's action; ``need_brake``: the ``need`` rule
+    braked harder than the driver's own High Brake).
     """
 
     rows: list[tuple] = field(default_factory=list)

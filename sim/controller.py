@@ -4,7 +4,7 @@ Selection (default): every vehicle B on the ramp / auxiliary lane (lane 7) that 
 take-over zone (``Local_Y >= zone_start_ft``) gets, once, a lag car A: the nearest lane-6
 vehicle strictly behind B's ``Local_Y`` within ``max_lag_ft`` that is not already controlled
 (the rule :mod:`sim.take_over` applies to recorded tables).
-From then on, every ``decision_s`` seconds the controller observes A, B and C (C = A's lead
+From then on, every ``decision_step_s`` seconds the controller observes A, B and C (C = A's lead
 car: the nearest lane-6 vehicle ahead of A, other than B), encodes the state, asks the policy for its action
 distribution, samples an action (or takes its mode, ``mode=True``) and applies the action's
 acceleration (High Brake harder when A needs it to stop behind its leader, up to A's ``decel``:
@@ -40,7 +40,7 @@ from typing import Any
 
 import numpy as np
 
-from irl.domains.merge.actions import ACTION_ACC_FT_S2, HIGH_BRAKE, ZERO_ACTION, action_of
+from irl.domains.merge.actions import HIGH_BRAKE, ZERO_ACTION, action_of
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S
 from merge_irl.units import FT_PER_M, M_PER_FT
 from sim.control_records import Control, DecisionLog
@@ -123,11 +123,11 @@ class Controller:
         self.n_teleports = 0  # teleports in the whole run, all vehicles
 
     @property
-    def decision_s(self) -> float:
+    def decision_step_s(self) -> float:
         """Seconds between two decisions: the config's, else the policy's ``decision_step_s``,
         else (a policy for any step) :data:`irl.domains.merge.mdp.DEFAULT_DECISION_STEP_S`."""
-        if self.config.decision_s is not None:
-            return float(self.config.decision_s)
+        if self.config.decision_step_s is not None:
+            return float(self.config.decision_step_s)
         step = self.policy.decision_step_s
         return float(step) if step is not None else DEFAULT_DECISION_STEP_S
 
@@ -137,7 +137,7 @@ class Controller:
 
         self._traci = libsumo
         cfg = self.config
-        self._every = max(1, int(round(self.decision_s / ctx.frame_s)))
+        self._every = max(1, int(round(self.decision_step_s / ctx.frame_s)))
         self._hold_frames = cfg.hold_frames(ctx.frame_s)
         self._max_frames = cfg.max_frames(ctx.frame_s)
         self._frame_s = ctx.frame_s
@@ -288,23 +288,30 @@ class Controller:
                 a_id=a_id, b_id=b_id, a_sumo=frame.sumo_ids[ia], start_frame=frame.frame,
                 commanded=bool(self.policy.controls), gap_AB_start_ft=yb - float(frame.local_y[ia]),
             )
-            if c.commanded or getattr(self.policy, "keep_lane", False):
+            if c.commanded or self.policy.keep_lane:
                 v = self._traci.vehicle
                 c.lane_change_mode = v.getLaneChangeMode(c.a_sumo)
                 v.setLaneChangeMode(c.a_sumo, 0)
                 if c.commanded:
                     c.speed_mode = v.getSpeedMode(c.a_sumo)
                     v.setSpeedMode(c.a_sumo, 0)
+                    c.max_decel_ft_s2 = float(v.getEmergencyDecel(c.a_sumo)) * FT_PER_M
             self.controls.append(c)
             self._active[a_id] = c
 
     def _decide(self, c: Control, frame: FrameState, ia: int, ib: int, ic: int | None) -> None:
         d_ac, d_ab, v_ac, v_ab, truck = observe(frame, ia, ib, ic)
-        encoder = getattr(self.policy, "encoder", None)
-        encoding = getattr(self.policy, "state_encoding", "paper")
+        encoder = self.policy.encoder
+        encoding = self.policy.state_encoding
         # before the first decision: the bin of A's acceleration in the last frame (SUMO's, over 0.1 s)
         acc_now = float(frame.acc[ia])
         initial = action_of(acc_now) if c.prev_action < 0 and math.isfinite(acc_now) else -1
+        # C's acceleration as A sees it: its speed change since the previous decision (same C only)
+        c_id = int(frame.vehicle_id[ic]) if ic is not None else 0
+        v_c = float(frame.speed[ic]) if ic is not None else math.nan
+        step_s = self._every * self._frame_s
+        acc_c = (v_c - c.prev_v_c) / step_s if c_id and c_id == c.c_id and math.isfinite(c.prev_v_c) else 0.0
+        acc_prev = c.prev_acc if c.prev_action >= 0 else acc_now
         if encoder is None:
             state = -1
         elif encoding == "paper":
@@ -314,34 +321,39 @@ class Controller:
             state = encoder.state(d_ac, d_ab, v_ac, v_ab, truck, prev_action=prev, encoding=encoding)
         obs = MergeObservation(d_ac, d_ab, v_ac, v_ab, truck, state, float(frame.speed[ia]), c.prev_action, initial,
                                c.merge_frame >= 0, float(frame.length[ic]) if ic is not None else math.nan,
-                               float(frame.length[ib]))
+                               float(frame.length[ib]), acc_prev, acc_c)
         probs = np.asarray(self.policy.probs(obs), dtype=np.float64)
-        filtered = False
+        filtered = need = False
         if c.commanded:
             assert self._rng is not None, "on_start seeds the generator before any step"
             action = choose_action(probs, self._rng, mode=self.config.mode)
-            acc_table = getattr(self.policy, "action_acc_ft_s2", ACTION_ACC_FT_S2)
             if self.config.safety_ttc_s is not None:
+                acc_table = [self.policy.acceleration(obs, a) for a in range(len(probs))]
                 safe = self._safe_action(frame, ia, action, acc_table)
                 filtered = safe != action
                 action = safe
                 c.n_interventions += int(filtered)
-            acc = float(acc_table[action])
+            acc = float(self.policy.acceleration(obs, action))
             if action == HIGH_BRAKE and self.config.high_brake == "need":
+                own = acc
                 acc = self._brake_to_need(frame, ia, acc, c.a_sumo)
-            self._traci.vehicle.setAcceleration(c.a_sumo, acc * M_PER_FT, self._every * self._frame_s)
+                need = acc < own
+                c.n_need_brakes += int(need)
+            acc = max(acc, -c.max_decel_ft_s2) if math.isfinite(c.max_decel_ft_s2) else acc  # A's physical limit
+            self._traci.vehicle.setAcceleration(c.a_sumo, acc * M_PER_FT, step_s)
         else:
             acc = float(frame.acc[ia])
             action = action_of(acc)
         c.prev_action = action
+        c.prev_acc = acc
+        c.prev_v_c = v_c
         c.n_decisions += 1
-        c_id = int(frame.vehicle_id[ic]) if ic is not None else 0
         c.c_id = c_id
         self.decided.add(c.a_id)
         self.last[c.a_id] = (obs, probs, action)
         self.decisions.append((
             frame.frame, frame.time_s, c.a_id, c.b_id, c_id, state, action, acc, obs.speed_A,
-            d_ac, d_ab, v_ac, v_ab, truck, obs.len_C, obs.len_B, *probs.tolist(), filtered,
+            d_ac, d_ab, v_ac, v_ab, truck, obs.len_C, obs.len_B, *probs.tolist(), filtered, need,
         ))
 
     def _safe_action(self, frame: FrameState, ia: int, action: int, acc_table) -> int:
@@ -387,5 +399,6 @@ class Controller:
         import pandas as pd
 
         cols = ("a_id", "b_id", "a_sumo", "start_frame", "end_frame", "reason", "merge_frame",
-                "b_ahead", "commanded", "gap_AB_start_ft", "n_decisions", "n_interventions", "collision_kind")
+                "b_ahead", "commanded", "gap_AB_start_ft", "n_decisions", "n_interventions", "n_need_brakes",
+                "collision_kind")
         return pd.DataFrame([{k: getattr(c, k) for k in cols} for c in self.controls], columns=list(cols))

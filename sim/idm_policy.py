@@ -29,14 +29,14 @@ from irl.domains.merge.actions import ACTION_ACC_FT_S2, N_ACTIONS, action_of
 from irl.domains.merge.car_following import GapNeed
 from merge_irl.units import FT_PER_M
 from sim.observe import MergeObservation
-from sim.policy import NO_LIKELIHOOD
+from sim.policy import NO_LIKELIHOOD, PolicyDefaults
 
 #: The bound of ``(s*/s)^2``: braking is at most ``a_max x 1000``, far beyond any action's bin.
 IDM_NEED_CLIP = 1000.0
 
 
 @dataclass(frozen=True)
-class IdmPolicy:
+class IdmPolicy(PolicyDefaults):
     """IDM towards A's leader as a driver (module docstring).
 
     Attributes:
@@ -68,7 +68,7 @@ class IdmPolicy:
                        length_ft=car.length_m * FT_PER_M, clip=IDM_NEED_CLIP)
         return cls(gap_need=need, **kw)
 
-    def acceleration(self, obs: MergeObservation) -> float:
+    def idm_acceleration(self, obs: MergeObservation) -> float:
         """The IDM acceleration (ft/s^2) at ``obs``: towards B (``d_AB``, ``v_AB``) when
         ``b_merged`` and B is ahead of A and nearer than C, else towards C (``d_AC``, ``v_AC``);
         free road when neither applies (``d_AC`` NaN). The bumper gap is the front-to-front
@@ -84,9 +84,9 @@ class IdmPolicy:
         return g.accel_ft_s2 * (free - float(g.need(gap, v, dv, length)))
 
     def probs(self, obs: MergeObservation) -> np.ndarray:
-        """``[5]``: probability 1 on the action whose bin holds :meth:`acceleration`."""
+        """``[5]``: probability 1 on the action whose bin holds :meth:`idm_acceleration`."""
         p = np.zeros(N_ACTIONS)
-        p[action_of(self.acceleration(obs))] = 1.0
+        p[action_of(self.idm_acceleration(obs))] = 1.0
         return p
 
     @property

@@ -43,6 +43,12 @@ class MergeObservation:
         b_merged: B has entered lane 6 (the controller's merge frame is behind this decision).
         len_C, len_B: the lengths of C and B (ft; NaN: unknown, or no C). ``d_AC - len_C`` is the
             bumper gap A follows C at; the car-following logit driver's input.
+        acc_prev: A's acceleration over the previous decision (ft/s^2): what the controller
+            applied; before the first decision, A's acceleration over the last simulation step
+            (NaN: not known).
+        acc_C: C's acceleration as A sees it (ft/s^2): C's speed change over the previous
+            decision divided by its length, as a driver sees brake lights; 0 at the first
+            decision, without C, or when C is another car than at the previous decision.
     """
 
     d_AC: float
@@ -57,6 +63,8 @@ class MergeObservation:
     b_merged: bool = False
     len_C: float = math.nan
     len_B: float = math.nan
+    acc_prev: float = math.nan
+    acc_C: float = 0.0
 
     def as_array(self) -> np.ndarray:
         """``[5]``: d_AC, d_AB, v_AC, v_AB, B_is_truck."""

@@ -65,7 +65,7 @@ from sim.demonstrators import simulate_demonstrations
 from sim.encounter_rules import ENCOUNTER_RULES
 from sim.errors import SimError
 from sim.outputs import write_parquet
-from sim.policy import CarFollowingLogitPolicy
+from sim.learned_policies import CarFollowingLogitPolicy
 from sim.run import run_scenario
 
 @dataclass(frozen=True)

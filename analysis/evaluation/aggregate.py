@@ -54,6 +54,7 @@ class AggregateMetrics:
     n_decisions: int = 0
     safety_interventions: int = 0
     intervention_rate: float = float("nan")
+    need_brakes: int = 0
     w1_speed_A_ft_s: float = float("nan")
     w1_acc_A_ft_s2: float = float("nan")
     w1_d_AC_ft: float = float("nan")
@@ -134,6 +135,7 @@ def aggregate(
         release_reasons=reasons,
         a_collision_rate=rate, a_collision_ci95=(lo, hi), n_decisions=n_dec, safety_interventions=n_int,
         intervention_rate=n_int / n_dec if n_dec else float("nan"),
+        need_brakes=sum(e.need_brakes for e in episodes),
         w1_speed_A_ft_s=w1.get("w1_speed_A_ft_s", float("nan")), w1_acc_A_ft_s2=w1.get("w1_acc_A_ft_s2", float("nan")),
         w1_d_AC_ft=w1.get("w1_d_AC_ft", float("nan")), w1_ttc_s=w1.get("w1_ttc_s", float("nan")),
         flags=tuple(flags), flagged=int(bool(flags)),

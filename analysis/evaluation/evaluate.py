@@ -50,7 +50,8 @@ from merge_irl.units import FRAME_S, FT_PER_M
 from scenarios.loader import load_scenario
 from sim.controller_config import ControllerConfig
 from sim.errors import SimError
-from sim.policy import CarFollowingLogitPolicy, LearnedPolicy, Policy, check_policy
+from sim.policy import Policy, check_policy
+from sim.learned_policies import CarFollowingLogitPolicy, LearnedPolicy
 
 
 
@@ -171,7 +172,7 @@ def evaluate(
         workers: processes (shorthand for ``executor="process:<workers>"``).
         executor: where episodes run (see :func:`run_episodes`); overrides ``workers``.
         rrd: write a rerun recording of each policy's first episode.
-        controller: ``decision_s`` None: the first model's ``decision_step_s`` (else the first
+        controller: ``decision_step_s`` None: the first model's ``decision_step_s`` (else the first
             of ``policies`` whose ``decision_step_s`` is not None, else
             :data:`~irl.domains.merge.mdp.DEFAULT_DECISION_STEP_S`) for every policy, so all decide
             on the same step.
@@ -199,11 +200,11 @@ def evaluate(
         check_policy(p, scoring=demos is not None, where="evaluate")
     learned: list[LearnedPolicy] = [learned_policy(m) for m in models]
     pols: list[Policy] = list(learned)
-    step = controller.decision_s
+    step = controller.decision_step_s
     steps = [(p.name, float(s)) for p in (*learned, *policies) if (s := p.decision_step_s) is not None]
     if step is None:
         step = steps[0][1] if steps else DEFAULT_DECISION_STEP_S
-        controller = replace(controller, decision_s=step)
+        controller = replace(controller, decision_step_s=step)
     try:
         frames_per_step(step)
     except ConfigError:
@@ -251,7 +252,7 @@ def evaluate(
         w1 = w1_to_demos(pd.concat([r.decisions for r in rs], ignore_index=True), held.encounters) \
             if held is not None and rs else None
         aggs[p.name] = aggregate([r.metrics for r in rs], demo_action_counts=counts, heldout=ho, w1=w1,
-                                 flags=tuple(getattr(p, "flags", ())))
+                                 flags=tuple(p.flags))
     scen_name = scenario if isinstance(scenario, (str, Path)) else spec.name
     report_md, metrics_json, plots = write_outputs(
         out, aggs, by_policy, held, scenario=str(scen_name), seed=seed, episodes=episodes,
@@ -275,7 +276,7 @@ def evaluation_provenance(models: Sequence, pols: Sequence[Policy], scenario, sp
     objects), the held-out and training demonstrations and scenario files read, and the SHA-256
     of the scenario actually simulated (its TOML)."""
     files = {p.name: None if isinstance(m, SavedModel) else m for p, m in zip(pols, models)}
-    files.update({p.name: getattr(p, "source", "") or None for p in pols[len(models):]})
+    files.update({p.name: p.source or None for p in pols[len(models):]})
     scenario_file = scenario if isinstance(scenario, (str, Path)) and Path(scenario).is_file() else None
     demos_file = None if isinstance(demos, pd.DataFrame) else demos
     train_file = None if isinstance(train_demos, pd.DataFrame) else train_demos

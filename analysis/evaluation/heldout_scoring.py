@@ -19,7 +19,8 @@ from irl.domains.merge.car_following import CFDecisions
 from irl.domains.merge.encounters import REQUIRED_COLUMNS
 from irl.errors import DemonstrationError
 from irl.domains.merge.mdp import read_encounters
-from sim.policy import CarFollowingLogitPolicy, Policy, check_policy
+from sim.policy import Policy, check_policy
+from sim.learned_policies import CarFollowingLogitPolicy
 
 
 @dataclass(frozen=True)

@@ -75,6 +75,7 @@ class EpisodeMetrics:
     release_reasons: dict[str, int] = field(default_factory=dict)
     n_decisions: int = 0
     safety_interventions: int = 0
+    need_brakes: int = 0
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -180,6 +181,7 @@ def episode_metrics(
         release_reasons={str(k): int(v) for k, v in reasons.items()},
         n_decisions=int(len(decisions)),
         safety_interventions=int(decisions["filtered"].astype(bool).sum()) if "filtered" in decisions else 0,
+        need_brakes=int(decisions["need_brake"].astype(bool).sum()) if "need_brake" in decisions else 0,
     )
 
 

@@ -30,8 +30,8 @@ from irl.domains.merge.mdp import action_mean_acc, discretize, read_encounters
 from irl.result import SavedModel
 from sim.errors import SimError
 from sim.idm_policy import IdmPolicy
-from sim.policy import (BaselineTabularPolicy, CarFollowingLogitPolicy, LearnedPolicy, Policy, PolicyError,
-                        SumoPolicy, UniformPolicy)
+from sim.policy import Policy, PolicyError, SumoPolicy, UniformPolicy
+from sim.learned_policies import BaselineTabularPolicy, CarFollowingLogitPolicy, LearnedPolicy
 
 @dataclass(frozen=True, eq=False)
 class BaselineContext:
@@ -213,7 +213,7 @@ def learned_policy(model: SavedModel | str | os.PathLike, name: str = "") -> Lea
 
 
 def cf_policy(path: str | os.PathLike, name: str = "") -> CarFollowingLogitPolicy:
-    """A :class:`~sim.policy.CarFollowingLogitPolicy` from a car-following logit file
+    """A :class:`~sim.learned_policies.CarFollowingLogitPolicy` from a car-following logit file
     (``cf-dagger.json`` or ``cf-logit.json`` of ``merge-irl dagger``), named ``name`` or the
     file's stem (as :func:`learned_policy` names a model file; the demo's ``cf-dagger`` is
     ``models/cf-dagger.json``). A fit that did not converge is flagged (``not_converged``).

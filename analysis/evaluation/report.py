@@ -45,12 +45,13 @@ def report_table(aggs: dict[str, AggregateMetrics]) -> str:
     """The markdown table, one row per policy (flagged models marked ``FLAGGED``)."""
     head = ("| policy | episodes | As controlled | merges | collisions (all / A) | A collisions / As [95 % CI] "
             "| emergency brakings (near / all) | min TTC (s) | B merged ahead of A | A travel time (s) "
-            "| A mean speed (ft/s) | W1 speed / acc / d_AC / TTC | held-out LL / step | safety interventions "
+            "| A mean speed (ft/s) | W1 speed / acc / d_AC / TTC | held-out LL / step | interventions (filter / need) "
             "| flags |")
     sep = "|" + "---|" * 15
     rows = [head, sep]
     for name, a in aggs.items():
         inter = f"{a.safety_interventions} ({_fmt(a.intervention_rate, 3)})" if a.safety_interventions else "0"
+        inter += f" / {a.need_brakes}"
         flags = ("FLAGGED: " + ", ".join(a.flags)) if a.flags else ""
         rows.append(
             f"| {name} | {a.n_episodes} | {a.n_controls} | {a.n_merges} | {a.collisions} / {a.a_collisions} "
@@ -111,8 +112,12 @@ def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes,
         f"# Closed-loop evaluation: {scenario}",
         "",
         f"{episodes} episode(s) per policy, seeds {seed}..{seed + episodes - 1} (the same traffic for every "
-        f"policy); decision step {controller.decision_s} s, actions {'mode' if controller.mode else 'sampled'}, "
-        f"safety filter {'off (raw)' if controller.safety_ttc_s is None else f'on (TTC >= {controller.safety_ttc_s} s)'}.",
+        f"policy); decision step {controller.decision_step_s} s, actions {'mode' if controller.mode else 'sampled'}, "
+        f"safety filter {'off (raw)' if controller.safety_ttc_s is None else f'on (TTC >= {controller.safety_ttc_s} s)'}; "
+        + ("actuation physical: every action at the driver's own acceleration, capped at A's emergency deceleration."
+           if controller.high_brake == "mean" else
+           "actuation `need`: High Brake harder when the simulator's ground truth (A's true leader and its "
+           "acceleration) says A needs it; not a learned driver's doing (column interventions, need)."),
         "Policy `sumo` is SUMO's own car-following model in role A (not taken over); `uniform` picks actions "
         "uniformly at random; `sumo-in-lane` (if run) is `sumo` with A's lane changes off while observed, as "
         "for every commanded driver; `idm` (if run) is the Intelligent Driver Model with the scenario's car "
@@ -131,7 +136,8 @@ def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes,
         "(`sumo-in-lane`'s the floor of drivers that act on acceleration alone). "
         "Baselines `marginal`, `markov`, `bc` (when run) are fitted on the training demonstrations (add-one "
         "smoothed). "
-        "Safety interventions: actions replaced by the safety filter (0 unless it is on).",
+        "Interventions: actions replaced by the safety filter (0 unless it is on) / High Brakes the `need` "
+        "actuation made harder than the driver's own (0 under the physical actuation).",
         "",
         *flag_lines(aggs),
         *([f"Left out: {', '.join(left_out)} (no training demonstrations given)."] if left_out else []),

@@ -43,7 +43,7 @@ from sim.controller import Controller
 from sim.controller_config import ControllerConfig
 from sim.errors import SimError
 from sim.expert_labels import ExpertLabel, ExpertLabels
-from sim.policy import CarFollowingLogitPolicy
+from sim.learned_policies import CarFollowingLogitPolicy
 from sim.run import run_scenario
 
 
@@ -111,7 +111,7 @@ def label_run_task(run: LabelRun, seed: int) -> dict:
     """Sweep task: one SUMO run of :class:`LabelRun` with :class:`~sim.expert_labels.ExpertLabels`;
     returns ``{"records": [[state, d_AC, v_AC, d_AB, v_AB, v_A, len_C, len_B, prev, action], ...]}``."""
     del seed  # the run's own SUMO seed, as every evaluation episode
-    ctl = Controller(CarFollowingLogitPolicy(run.model), ControllerConfig(decision_s=run.decision_step_s))
+    ctl = Controller(CarFollowingLogitPolicy(run.model), ControllerConfig(decision_step_s=run.decision_step_s))
     hook = ExpertLabels(ctl)
     run_scenario(run.scenario, seed=run.seed, duration_s=run.duration_s, hooks=[ctl, hook])
     return {"records": [list(r) for r in hook.records]}

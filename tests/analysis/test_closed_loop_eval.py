@@ -17,7 +17,7 @@ from irl.domains.merge.actions import ACTION_ACC_FT_S2
 from irl.domains.merge.bins import MergeBins
 from irl.result import SavedModel
 from sim.observe import MergeObservation
-from sim.policy import BaselineTabularPolicy, LearnedPolicy, model_flags
+from sim.learned_policies import BaselineTabularPolicy, LearnedPolicy, model_flags
 
 EDGES = MergeBins.assumed_authors()
 

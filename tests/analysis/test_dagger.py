@@ -19,7 +19,7 @@ from scenarios.loader import load_scenario
 from sim.controller import Controller
 from sim.controller_config import ControllerConfig
 from sim.expert_labels import ExpertLabels
-from sim.policy import CarFollowingLogitPolicy
+from sim.learned_policies import CarFollowingLogitPolicy
 from sim.run import run_scenario
 
 ACC = (-12.3, -4.0, 0.0, 3.0, 8.0)
@@ -44,7 +44,7 @@ def _accelerating_demos(n=6, rows=60, seed=0) -> pd.DataFrame:
 
 @pytest.mark.sumo
 def test_expert_records_are_the_decisions_observations():
-    ctl = Controller(CarFollowingLogitPolicy(_gas_driver()), ControllerConfig(decision_s=0.3))
+    ctl = Controller(CarFollowingLogitPolicy(_gas_driver()), ControllerConfig(decision_step_s=0.3))
     hook = ExpertLabels(ctl)
     run_scenario(load_scenario("synthetic"), seed=3, duration_s=120, hooks=[ctl, hook])
     dec, rec = ctl.decision_table(), hook.table()
@@ -73,7 +73,7 @@ def test_one_round_adds_only_critical_labels_and_teaches_braking():
     assert r1.info["dagger_round"] == 1 and len(kept) == 1 and kept[0] > 0
     assert r1.info["n_label_steps"] == kept[0] and r1.info["critical_actions"] == [0]
     # the same labelling run by hand: the kept labels are exactly its High Brake records
-    ctl = Controller(CarFollowingLogitPolicy(r0), ControllerConfig(decision_s=0.3))
+    ctl = Controller(CarFollowingLogitPolicy(r0), ControllerConfig(decision_step_s=0.3))
     hook = ExpertLabels(ctl)
     run_scenario(load_scenario("synthetic"), seed=11, duration_s=150.0, hooks=[ctl, hook])
     table = hook.table()

@@ -88,7 +88,7 @@ def test_evaluate_writes_report_metrics_plots(tmp_path):
         assert agg["w1_acc_A_ft_s2"] >= 0 and agg["w1_d_AC_ft"] >= 0 and agg["w1_ttc_s"] >= 0
         assert agg["w1_speed_A_ft_s"] is None  # the held-out table has no v_A column
         assert agg["flags"] == [] and agg["flagged"] == 0
-    assert data["controller"]["decision_s"] == pytest.approx(0.1)
+    assert data["controller"]["decision_step_s"] == pytest.approx(0.1)
     assert data["demos"]["action_counts"] == np.bincount(a, minlength=5).tolist()
     # same traffic for every policy: the SUMO baseline never commands, the others do
     for r in rep.episodes["sumo"]:

@@ -12,7 +12,7 @@ from analysis.recording.files import close_recording, open_recording, recording_
 from analysis.recording.read import read_blueprint, read_entities, read_rrd_table, recording_info
 from irl.domains.merge.bins import MergeBins
 from scenarios.loader import load_scenario
-from sim.policy import LearnedPolicy
+from sim.learned_policies import LearnedPolicy
 
 EDGES = {"d_AC": (35, 60, 90, 130), "d_AB": (10, 30, 60, 100), "v_AC": (-7.5, -2.5, 2.5, 7.5),
          "v_AB": (-7.5, -2.5, 2.5, 7.5)}

@@ -24,7 +24,7 @@ from irl.domains.merge.cf_logit import CarFollowingLogit
 from irl.errors import ConfigError, DemonstrationError, ModelFileError
 from irl.domains.merge.mdp import resample_encounters
 from sim.observe import MergeObservation
-from sim.policy import CarFollowingLogitPolicy
+from sim.learned_policies import CarFollowingLogitPolicy
 
 ACC = (-12.0, -3.0, 0.0, 3.0, 9.0)
 COL = {n: i for i, n in enumerate(CF_FEATURES)}

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import libsumo
 import numpy as np
@@ -15,7 +15,7 @@ from scenarios.loader import load_scenario
 from sim.control_records import COLLISION_KINDS, RELEASE_REASONS
 from sim.controller import Controller
 from sim.controller_config import ControllerConfig
-from sim.policy import ConstantPolicy, SumoPolicy, UniformPolicy
+from sim.policy import PolicyDefaults, ConstantPolicy, SumoPolicy, UniformPolicy
 
 pytestmark = pytest.mark.sumo
 
@@ -45,7 +45,7 @@ def brake_run(spec):
 
 
 @dataclass(frozen=True)
-class Tailgater:
+class Tailgater(PolicyDefaults):
     """High Accel until A's TTC to C falls below 2 s (or C is within 40 ft), then High Brake: a
     driver that brakes late and needs to brake hard."""
 
@@ -130,7 +130,8 @@ def test_high_brake_by_need_brakes_harder_only_where_the_leader_requires_it(spec
     from merge_irl.units import FT_PER_M
     from sim.controller import high_brake_need
 
-    ep = run_episode(spec, Tailgater(), SEED, duration_s=DURATION, keep_table=True)
+    ep = run_episode(spec, Tailgater(), SEED, duration_s=DURATION, keep_table=True,
+                     controller=ControllerConfig(high_brake="need"))
     mean = ep.decisions[ep.decisions.action == 0]
     assert len(mean) >= 5
     t = ep.table
@@ -150,9 +151,12 @@ def test_high_brake_by_need_brakes_harder_only_where_the_leader_requires_it(spec
         assert r.acc_cmd == pytest.approx(min(ACTION_ACC_FT_S2[0], max(-need, -decel)), abs=1e-6)
         harder += r.acc_cmd < ACTION_ACC_FT_S2[0] - 1e-9
     assert harder >= 3  # the tailgater needs it
-    # the same driver with the mean rule: every High Brake at the action's acceleration
-    ep_mean = run_episode(spec, Tailgater(), SEED, duration_s=DURATION, controller=ControllerConfig(high_brake="mean"))
+    assert int(ep.decisions.need_brake.sum()) == harder and ep.metrics.need_brakes == harder  # counted
+    # the same driver under the default, physical actuation: every High Brake at the action's acceleration
+    assert ControllerConfig().high_brake == "mean"
+    ep_mean = run_episode(spec, Tailgater(), SEED, duration_s=DURATION)
     assert (ep_mean.decisions.loc[ep_mean.decisions.action == 0, "acc_cmd"] == ACTION_ACC_FT_S2[0]).all()
+    assert not ep_mean.decisions.need_brake.any() and ep_mean.metrics.need_brakes == 0
     with pytest.raises(ValueError, match="high_brake"):
         ControllerConfig(high_brake="max")
 
@@ -207,7 +211,7 @@ def test_observations_say_when_b_has_merged(spec):
     """b_merged is False before the controller's merge frame of that A's B and True from it on."""
     from sim.run import run_scenario
 
-    class Recorder:
+    class Recorder(PolicyDefaults):
         name, controls, decision_step_s = "recorder", True, None
 
         def __init__(self):
@@ -386,3 +390,46 @@ def test_episodes_through_the_sweep_match_in_process_runs(spec, uniform_run):
     assert a.decisions.equals(uniform_run.decisions) and a.controls.equals(uniform_run.controls)
     assert a.speed_profiles.equals(uniform_run.speed_profiles)
     assert b.metrics.policy != a.metrics.policy and b.metrics.n_controls > 0
+
+
+@dataclass(frozen=True)
+class HardBraker(PolicyDefaults):
+    """High Brake at an acceleration no car has (-100 ft/s^2) every fourth decision, High Accel
+    (+9 ft/s^2) otherwise; records what it saw."""
+
+    name: str = "hard-braker"
+    controls: bool = True
+    decision_step_s: float | None = None
+    seen: list = field(default_factory=list, compare=False)
+
+    def probs(self, obs):
+        self.seen.append(obs)
+        return np.eye(5)[0 if len(self.seen) % 4 == 0 else 4]
+
+    def acceleration(self, obs, action):
+        return -100.0 if action == 0 else 9.0
+
+
+def test_the_physical_actuation_caps_at_as_emergency_deceleration_and_the_observation_carries_acc_prev(spec):
+    """The default actuation applies the driver's own acceleration, capped at A's emergencyDecel
+    (SUMO's, of A's type: 9 m/s^2 cars, 7 trucks in this preset); the next observation's
+    ``acc_prev`` is what was applied."""
+    from merge_irl.units import FT_PER_M
+
+    pol = HardBraker()
+    ep = run_episode(spec, pol, SEED, duration_s=DURATION)
+    dec = ep.decisions
+    braked = dec[dec.action == 0]
+    assert len(braked) >= 3
+    limits = sorted({-t.emergency_decel * FT_PER_M for t in (*spec.drivers.car, *spec.drivers.truck)})
+    assert all(min(abs(a - lim) for lim in limits) < 1e-6 for a in braked.acc_cmd)
+    assert (dec.acc_cmd[dec.action == 4] == 9.0).all()
+    # acc_prev of each A's next decision is the acceleration applied at its previous one
+    prev: dict[int, float] = {}
+    checked = 0
+    for obs, row in zip(pol.seen, dec.itertuples()):
+        if row.a_id in prev:
+            assert obs.acc_prev == pytest.approx(prev[row.a_id])
+            checked += 1
+        prev[row.a_id] = row.acc_cmd
+    assert checked >= 10

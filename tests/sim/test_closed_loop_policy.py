@@ -11,7 +11,8 @@ from irl.result import SavedModel
 from sim.controller_config import ControllerConfig, ControllerError
 from sim.errors import SimError
 from sim.observe import MergeObservation
-from sim.policy import ConstantPolicy, LearnedPolicy, PolicyError, SumoPolicy, UniformPolicy, choose_action
+from sim.policy import ConstantPolicy, PolicyError, SumoPolicy, UniformPolicy, choose_action
+from sim.learned_policies import LearnedPolicy
 
 
 def test_choose_action_samples_with_the_generator_and_mode():
@@ -58,8 +59,8 @@ def test_learned_policy_from_model():
 
 
 def test_bad_settings_name_the_field():
-    with pytest.raises(ControllerError, match="decision_s"):
-        ControllerConfig(decision_s=0)
+    with pytest.raises(ControllerError, match="decision_step_s"):
+        ControllerConfig(decision_step_s=0)
     with pytest.raises(ControllerError, match="hold_after_merge_s"):
         ControllerConfig(hold_after_merge_s=-1)
     assert issubclass(ControllerError, SimError) and issubclass(PolicyError, SimError)

@@ -14,7 +14,7 @@ from scenarios.loader import load_scenario
 from sim.controller import Controller
 from sim.controller_config import ControllerConfig
 from sim.expert_labels import ExpertLabels
-from sim.policy import LearnedPolicy
+from sim.learned_policies import LearnedPolicy
 from sim.run import run_scenario
 
 
@@ -38,7 +38,7 @@ def test_expert_labels_every_decision_and_brakes_for_a_driver_that_only_accelera
     log_pi = np.full((n_states("driver"), N_ACTIONS), -50.0)
     log_pi[:, 4] = 0.0  # High Accel
     pol = LearnedPolicy(log_pi=log_pi, encoder=bins, name="gas", decision_step_s=0.3, state_encoding="driver")
-    ctl = Controller(pol, ControllerConfig(decision_s=0.3))
+    ctl = Controller(pol, ControllerConfig(decision_step_s=0.3))
     hook = ExpertLabels(ctl)
     sumo_view: list[tuple[int, int]] = []  # (action, leader) asked with SUMO's own leader and gap
 

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from analysis.evaluation.evaluate import evaluate
-from sim.policy import ConstantPolicy, Policy, PolicyError, SumoPolicy, UniformPolicy, state_independent_loglik
+from sim.policy import (ConstantPolicy, Policy, PolicyDefaults, PolicyError, SumoPolicy, UniformPolicy,
+                        state_independent_loglik)
 
 
 @pytest.mark.parametrize("policy", [SumoPolicy(), UniformPolicy(), ConstantPolicy(0)])
@@ -18,7 +19,7 @@ def test_frozen_dataclass_policies_are_policies(policy):
         policy.name = "renamed"  # read-only, which the protocol's properties allow
 
 
-class PlainPolicy:
+class PlainPolicy(PolicyDefaults):
     """A user policy that is not a dataclass."""
 
     name = "plain"
@@ -54,7 +55,7 @@ def test_a_decision_step_other_than_a_policys_own_is_said_before_any_episode(tmp
     with pytest.warns(DecisionStepWarning, match=r"every 0.1 s, but stepped was trained at 0.3 s"), \
             pytest.raises(PolicyError):
         evaluate([], "synthetic", 1, 0, tmp_path, baselines=(), policies=[SteppedPolicy(), PlainPolicy(), PlainPolicy()],
-                 controller=ControllerConfig(decision_s=0.1), rrd=False, progress=False)
+                 controller=ControllerConfig(decision_step_s=0.1), rrd=False, progress=False)
 
 
 class SlowPolicy(SteppedPolicy):
@@ -79,7 +80,7 @@ def test_a_decision_step_off_the_simulation_step_is_refused_before_any_work(tmp_
 
     with pytest.raises(SimError, match="positive multiple of the 0.1 s simulation step"):
         evaluate([], "synthetic", 1, 0, tmp_path / "out", baselines=("uniform",),
-                 controller=ControllerConfig(decision_s=step), rrd=False, progress=False)
+                 controller=ControllerConfig(decision_step_s=step), rrd=False, progress=False)
     assert not (tmp_path / "out").exists()
 
 
@@ -104,7 +105,7 @@ def test_held_out_tables_are_checked_before_any_episode(tmp_path):
     assert not any((tmp_path / d).exists() for d in "abc")
 
 
-class UnscoredPolicy:
+class UnscoredPolicy(PolicyDefaults):
     """A state-dependent user policy that does not score held-out demonstrations itself."""
 
     name = "unscored"
@@ -139,7 +140,7 @@ def test_a_policy_without_its_own_heldout_scoring_is_refused_not_scored(tmp_path
 def test_a_policy_without_a_decision_step_is_refused_by_the_controller():
     from sim.controller import Controller
 
-    class Stepless:
+    class Stepless(PolicyDefaults):
         name, controls = "stepless", True
 
         def probs(self, obs):
@@ -154,10 +155,10 @@ def test_the_controller_decides_at_the_policys_step_else_the_domains_default():
     from sim.controller import Controller
     from sim.controller_config import ControllerConfig
 
-    assert Controller(UniformPolicy()).decision_s == DEFAULT_DECISION_STEP_S
-    assert Controller(SteppedPolicy()).decision_s == 0.3
-    assert Controller(SlowPolicy()).decision_s == 0.6
-    assert Controller(SlowPolicy(), ControllerConfig(decision_s=0.2)).decision_s == 0.2
+    assert Controller(UniformPolicy()).decision_step_s == DEFAULT_DECISION_STEP_S
+    assert Controller(SteppedPolicy()).decision_step_s == 0.3
+    assert Controller(SlowPolicy()).decision_step_s == 0.6
+    assert Controller(SlowPolicy(), ControllerConfig(decision_step_s=0.2)).decision_step_s == 0.2
 
 
 def test_every_policy_scores_itself_as_the_evaluation_did():

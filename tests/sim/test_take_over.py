@@ -95,7 +95,7 @@ def test_rule_and_window_checks():
 
 @pytest.mark.sumo
 def test_encounters_are_what_the_controller_observes_of_sumos_driver(tmp_path):
-    ctl = Controller(SumoPolicy(), ControllerConfig(decision_s=0.1))  # observes every frame
+    ctl = Controller(SumoPolicy(), ControllerConfig(decision_step_s=0.1))  # observes every frame
     res = short_run(tmp_path, seed=2001, duration_s=240.0, hooks=[ctl])
     enc = extract(res.table, take_over=TakeOverRule.of_controller(ControllerConfig(), res.aux_lane_start_ft),
                   teleported=res.teleported_vehicle_ids)

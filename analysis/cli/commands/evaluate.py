@@ -35,13 +35,14 @@ def register(subparsers) -> None:
                         "('' for none; marginal, markov and bc need --train-demos; idm: the Intelligent Driver Model "
                         "with the scenario's car parameters, driven through the controller; sumo-in-lane: SUMO's "
                         "driver with A's lane changes off, as for every commanded driver)")
-    p.add_argument("--decision-step", type=float, default=None,
+    p.add_argument("--decision-step-s", "--decision-step", dest="decision_step_s", type=float, default=None,
                    help="seconds between two decisions of A (default: the first model's decision step, else the first "
                         "--cf-model's, else 0.3; a model driven at another step than its own is warned about)")
     p.add_argument("--high-brake", choices=HIGH_BRAKE_RULES, default=HIGH_BRAKE_RULES[0],
-                   help="how High Brake is applied: need (default) = at the action's mean acceleration, or harder "
-                        "when that would not keep A behind its lane-6 leader (the extra at most A's decel); mean = "
-                        "always at the mean")
+                   help="actuation: mean (default, physical) = every action at the driver's own acceleration (the "
+                        "model file's per-action mean), capped at A's emergency deceleration; need = High Brake harder "
+                        "when the simulator's ground truth says A would not stay behind its lane-6 leader (a named "
+                        "variant, counted in the report; no learned driver can rely on it)")
     p.add_argument("--safety-ttc", type=float, default=None, metavar="S",
                    help="safety-filter variant: replace an action that would bring A's TTC to its leader "
                         "below S seconds (default: raw, no filter); interventions are reported")
@@ -88,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
         report = evaluate(
             args.model, args.scenario, args.episodes, args.seed, out, duration_s=args.duration, demos=args.demos,
             baselines=baselines, train_demos=args.train_demos, policies=cf,
-            controller=ControllerConfig(decision_s=args.decision_step, mode=args.mode, safety_ttc_s=args.safety_ttc,
+            controller=ControllerConfig(decision_step_s=args.decision_step_s, mode=args.mode, safety_ttc_s=args.safety_ttc,
                                         high_brake=args.high_brake),
             executor=executor, rrd=not args.no_rrd, progress=not args.no_progress,
         )

@@ -1,0 +1,255 @@
+"""The planning driver (:class:`PlanningDriver`), its JSON file (format ``merge-irl-planner/1``)
+and :func:`learn_planning_driver`.
+
+The driver chooses A's acceleration on the fine grid of its :class:`~.model.PlannerConfig`
+(the first action of a receding-horizon tree, :mod:`.model`), by the softmax of its backed-up
+values (:mod:`.policy`); it is scored on the five paper actions, each the sum of its fine actions'
+probabilities.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field, fields, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from irl.domains.merge.actions import N_ACTIONS, action_of
+from irl.domains.merge.planning.decisions import PlanningDecisions, split_groups
+from irl.domains.merge.planning.features import DEFAULT_LENGTH_FT, Shape, fit_shape
+from irl.domains.merge.planning.fit import fit_planner, select
+from irl.domains.merge.planning.model import PathTensors, PlannerConfig, path_tensors
+from irl.domains.merge.planning.policy import bin_log_policy_of_fine, fine_log_policy
+from irl.errors import ConfigError, ModelFileError
+from merge_irl.atomic import write_json_atomic
+
+#: The ``format`` field of a planner file.
+PLANNER_FORMAT = "merge-irl-planner/1"
+
+
+@dataclass(frozen=True)
+class PlanningDriver:
+    """A planning driver with learned reward weights.
+
+    Attributes:
+        theta: ``[K]`` weights of ``feature_names``; feature_names: ``config.feature_names``;
+        config: the planner's settings; shape: the features' shape (fitted on the training
+        decisions); decision_step_s: seconds per decision; action_acc_ft_s2: ``[5]`` mean
+        acceleration of each paper action in training (ft/s^2; the later tree segments' values
+        and for reporting); loglik: training log-likelihood (nats); converged: the fit's
+        optimiser reported success; info: provenance (selection trials, grad norm, ...).
+
+    Raises:
+        ConfigError: ``theta`` or ``feature_names`` that do not match ``config``, a step other
+            than the config's, or ``action_acc_ft_s2`` not 5 finite numbers.
+    """
+
+    theta: np.ndarray
+    feature_names: tuple[str, ...]
+    config: PlannerConfig
+    shape: Shape
+    decision_step_s: float
+    action_acc_ft_s2: tuple[float, ...]
+    loglik: float = float("nan")
+    converged: bool = True
+    info: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        theta = np.asarray(self.theta, dtype=np.float64)
+        object.__setattr__(self, "theta", theta)
+        object.__setattr__(self, "feature_names", tuple(self.feature_names))
+        object.__setattr__(self, "action_acc_ft_s2", tuple(float(x) for x in self.action_acc_ft_s2))
+        if self.feature_names != self.config.feature_names or theta.shape != (len(self.feature_names),) \
+                or not np.all(np.isfinite(theta)):
+            raise ConfigError(f"PlanningDriver: theta must be {len(self.config.feature_names)} finite weights of "
+                              f"{self.config.feature_names}, got {theta.shape} of {self.feature_names}")
+        if abs(self.decision_step_s - self.config.decision_step_s) > 1e-9:
+            raise ConfigError(f"PlanningDriver: decision_step_s {self.decision_step_s} != the config's "
+                              f"{self.config.decision_step_s}")
+        if len(self.action_acc_ft_s2) != N_ACTIONS or not all(map(math.isfinite, self.action_acc_ft_s2)):
+            raise ConfigError(f"PlanningDriver: action_acc_ft_s2 must be {N_ACTIONS} finite numbers")
+
+    @property
+    def fine_grid(self) -> np.ndarray:
+        """``[G]`` the accelerations the driver chooses among (ft/s^2)."""
+        return self.config.fine_grid(np.asarray(self.action_acc_ft_s2))
+
+    def tensors(self, obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray) -> PathTensors:
+        """Path tensors of observations ``obs [N, 7]``, ``prev_acc [N]``, ``acc_C [N]``."""
+        return path_tensors(obs, prev_acc, acc_C, self.action_acc_ft_s2, self.shape, self.config)
+
+    def fine_log_policy(self, obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray) -> np.ndarray:
+        """``[N, G]`` ``log pi(g | x)`` over the fine grid."""
+        return fine_log_policy(self.tensors(obs, prev_acc, acc_C), self.theta, self.config.backup,
+                               self.config.collision_penalty)
+
+    def bin_log_policy(self, obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray) -> np.ndarray:
+        """``[N, 5]`` ``log P(b | x)`` over the paper actions (``-inf``: no fine action in the bin)."""
+        T = self.tensors(obs, prev_acc, acc_C)
+        return bin_log_policy_of_fine(fine_log_policy(T, self.theta, self.config.backup,
+                                                      self.config.collision_penalty), T.bins)
+
+    def act(self, obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray) -> np.ndarray:
+        """``[N]`` the most likely fine acceleration of each observation (ft/s^2)."""
+        return self.fine_grid[np.argmax(self.fine_log_policy(obs, prev_acc, acc_C), axis=1)]
+
+    def choose(self, obs_row, prev_acc: float = 0.0, acc_C: float = 0.0,
+               mode: bool | np.random.Generator = True) -> tuple[int, float]:
+        """``(paper action, acceleration ft/s^2)`` of one observation ``[7]``: the most likely
+        fine action (``mode=True``) or one drawn with the generator ``mode``."""
+        lp = self.fine_log_policy(np.asarray(obs_row, dtype=np.float64).reshape(1, -1), np.array([prev_acc]),
+                                  np.array([acc_C]))[0]
+        if mode is True:
+            g = int(np.argmax(lp))
+        elif isinstance(mode, np.random.Generator):
+            p = np.exp(lp)
+            g = int(mode.choice(lp.size, p=p / p.sum()))
+        else:
+            raise ConfigError(f"choose: mode must be True or a numpy Generator, got {mode!r}")
+        acc = float(self.fine_grid[g])
+        return action_of(acc), acc
+
+    def heldout_ll_per_decision(self, decisions: PlanningDecisions) -> float:
+        """Mean ``log P(b | x)`` of ``decisions`` (nats per decision)."""
+        lp = self.bin_log_policy(decisions.obs, decisions.prev_acc, decisions.acc_C)
+        return float(lp[np.arange(decisions.n), decisions.actions].mean())
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """The file's JSON object (format :data:`PLANNER_FORMAT`; a non-finite ``loglik`` as null)."""
+        return {"format": PLANNER_FORMAT, "feature_names": list(self.feature_names), "theta": self.theta.tolist(),
+                "config": asdict(self.config), "shape": self.shape.as_dict(), "decision_step_s": self.decision_step_s,
+                "action_acc_ft_s2": list(self.action_acc_ft_s2), "fine_grid_ft_s2": self.fine_grid.tolist(),
+                "loglik": self.loglik if math.isfinite(self.loglik) else None, "converged": self.converged,
+                "info": self.info}
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write the JSON file atomically (:func:`merge_irl.atomic.write_json_atomic`)."""
+        return write_json_atomic(path, self.to_json_dict())
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> PlanningDriver:
+        """Read a planner file.
+
+        Raises:
+            ModelFileError: missing, unreadable, another format, or a malformed field (path and
+                field named).
+        """
+        path = Path(path)
+        try:
+            data = json.loads(path.read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            raise ModelFileError(f"{path}: no such planner file") from None
+        except (OSError, ValueError, UnicodeDecodeError, RecursionError) as e:
+            raise ModelFileError(f"{path}: not a readable JSON file ({type(e).__name__}: {str(e)[:200]})") from None
+        got = data.get("format") if isinstance(data, dict) else type(data).__name__
+        if got != PLANNER_FORMAT:
+            raise ModelFileError(f"{path}: expected format {PLANNER_FORMAT!r}, got {got!r}")
+        for key in ("feature_names", "theta", "config", "shape", "decision_step_s", "action_acc_ft_s2"):
+            if key not in data:
+                raise ModelFileError(f"{path}: missing field {key!r}")
+
+        def obj(name: str, kind: type) -> dict[str, Any]:
+            value = data[name]
+            names = {f.name for f in fields(kind)}
+            if not isinstance(value, dict) or set(value) != names:
+                raise ModelFileError(f"{path}: field {name!r} must be an object with the keys {sorted(names)}")
+            return value
+
+        try:
+            config = PlannerConfig(**obj("config", PlannerConfig))
+            shape = Shape(**obj("shape", Shape))
+        except (ConfigError, TypeError) as e:
+            raise ModelFileError(f"{path}: field 'config' or 'shape': {e}") from None
+        theta = _numbers(path, "theta", data["theta"], len(config.feature_names))
+        acc = _numbers(path, "action_acc_ft_s2", data["action_acc_ft_s2"], N_ACTIONS)
+        if data["feature_names"] != list(config.feature_names):
+            raise ModelFileError(f"{path}: field 'feature_names' must be {list(config.feature_names)} for its config")
+        step = _numbers(path, "decision_step_s", [data["decision_step_s"]], 1)[0]
+        loglik = data.get("loglik")
+        loglik = math.nan if loglik is None else float(_numbers(path, "loglik", [loglik], 1)[0])
+        converged = data.get("converged", True)
+        info = data.get("info") or {}
+        if not isinstance(converged, bool) or not isinstance(info, dict) or loglik > 0:
+            raise ModelFileError(f"{path}: field 'converged' must be true/false, 'info' an object and 'loglik' <= 0")
+        try:
+            return cls(theta, tuple(data["feature_names"]), config, shape, float(step), tuple(acc), loglik, converged,
+                       dict(info))
+        except ConfigError as e:
+            raise ModelFileError(f"{path}: {e}") from None
+
+
+def _numbers(path: Path, name: str, value: Any, n: int) -> np.ndarray:
+    if not isinstance(value, list) or len(value) != n or not all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value):
+        raise ModelFileError(f"{path}: field {name!r} must be a list of {n} finite numbers")
+    return np.array(value, dtype=np.float64)
+
+
+def shape_of(decisions: PlanningDecisions) -> Shape:
+    """The feature shape fitted on ``decisions`` (:func:`~.features.fit_shape`)."""
+    len_C = np.where(np.isfinite(decisions.obs[:, 5]), decisions.obs[:, 5], DEFAULT_LENGTH_FT)
+    return fit_shape(decisions.obs[:, 0] - len_C, decisions.obs[:, 4], decisions.obs[:, 1], decisions.acc)
+
+
+def learn_planning_driver(decisions: PlanningDecisions, *, seed: int = 0,
+                          selection: PlannerConfig | str = "heldout", l2: float = 0.1, select_cap: int = 12000,
+                          select_options: dict[str, Any] | None = None,
+                          log: Callable[[str], None] = lambda s: None) -> PlanningDriver:
+    """Learn a planning driver on ``decisions``.
+
+    ``selection="heldout"``: the settings by :func:`~.fit.select` on an inner 70/30 split of the
+    groups (``seed``), the fitting part capped at about ``select_cap`` decisions by drawing whole
+    groups (``seed + 1``); a :class:`~.model.PlannerConfig`: that setting. Then the weights are
+    fitted on all ``decisions`` (L2 ``l2``). The shape and the paper actions' accelerations come
+    from all ``decisions``.
+
+    Raises:
+        ConfigError: an unknown ``selection``, or a config of another decision step.
+        DemonstrationError: fewer than 2 groups to select on.
+    """
+    acc5 = decisions.action_acc_ft_s2()
+    shape = shape_of(decisions)
+    trials: list[dict[str, Any]] = []
+    if isinstance(selection, PlannerConfig):
+        config = selection
+    elif selection == "heldout":
+        fi, va = split_groups(decisions.groups, 0.3, seed)
+        fit_idx, val_idx = np.flatnonzero(fi), np.flatnonzero(va)
+        if fit_idx.size > select_cap:
+            g = np.random.default_rng(seed + 1).permutation(np.unique(decisions.groups[fit_idx]))
+            sizes = np.array([(decisions.groups[fit_idx] == x).sum() for x in g])
+            keep = g[: int(np.searchsorted(np.cumsum(sizes), select_cap)) + 1]
+            fit_idx = fit_idx[np.isin(decisions.groups[fit_idx], keep)]
+        dfit, dval = decisions.take(fit_idx), decisions.take(val_idx)
+        cache: dict[tuple[Any, str], PathTensors] = {}
+
+        def build(cfg: PlannerConfig, which: str) -> PathTensors:
+            key = (replace(cfg, backup="avg"), which)  # the backup does not change the paths
+            if key not in cache:
+                for k in [k for k in cache if k[0] != key[0]]:
+                    del cache[k]
+                d = dfit if which == "fit" else dval
+                cache[key] = path_tensors(d.obs, d.prev_acc, d.acc_C, acc5, shape, cfg)
+            return cache[key]
+
+        base = PlannerConfig(decision_step_s=decisions.decision_step_s)
+        config, tr = select(build, dfit.actions, dval.actions, base=base, l2=l2, log=log, **(select_options or {}))
+        cache.clear()
+        trials = [{**asdict(t.config), "val_ll": t.val_ll, "train_ll": t.train_ll, "converged": t.converged}
+                  for t in tr]
+    else:
+        raise ConfigError(f"selection must be 'heldout' or a PlannerConfig, got {selection!r}")
+    if abs(config.decision_step_s - decisions.decision_step_s) > 1e-9:
+        raise ConfigError(f"config decision step {config.decision_step_s} s != the decisions' "
+                          f"{decisions.decision_step_s} s")
+    T = path_tensors(decisions.obs, decisions.prev_acc, decisions.acc_C, acc5, shape, config)
+    fit = fit_planner(T, decisions.actions, config, l2=l2)
+    info = {"n_decisions": decisions.n, "l2": l2, "seed": seed, "grad_norm": fit.grad_norm, "n_iter": fit.n_iter,
+            "selection": trials}
+    return PlanningDriver(fit.theta, config.feature_names, config, shape, decisions.decision_step_s, acc5,
+                          fit.loglik, fit.converged, info)

@@ -1,0 +1,225 @@
+"""The planner's settings, its fine acceleration grid and the path tensors (kinematics).
+
+**Observation** of one decision: ``obs [N, 7] = (d_AC, v_AC, d_AB, v_AB, v_A, len_C, len_B)``
+(front-to-front gaps ft; closing speeds ``v_A - v_X`` ft/s; A's speed ft/s; leader lengths ft,
+NaN unknown -> a 4.5 m car; ``d_AC``/``v_AC`` NaN without C; B a leader when ``d_AB > 0``),
+``prev_acc [N]`` the acceleration A held over the previous decision (ft/s^2, NaN -> 0) and
+``acc_C [N]`` C's acceleration estimated from its last speed change (ft/s^2, NaN -> 0).
+
+**Action tree**: ``n = round(horizon_s / decision_step_s)`` steps. The first action (step 0) is
+one of the ``G`` values of the fine grid (:data:`GRIDS`); each later segment holds one of ``C``
+coarse accelerations, the five paper actions' training means (``later="bins"``) or those plus
+"hold the first action" (``later="bins+hold"``, ``C = 6``). ``depth=2``: one later segment,
+steps ``1..n-1``; ``depth=3``: steps ``1..m-1`` and ``m..n-1``, ``m = 1 + (n - 1) // 2``. A
+path's features are ``Phi = sum_k gamma^k phi(s_{k+1}, a_k, a_{k-1})``, ``[N, G, C, (C), K]``,
+and its collisions ``Col = sum_k gamma^k 1[s_C(k+1) <= 0]``.
+
+**Kinematic model** (no theta): A holds each step's acceleration exactly (constant
+acceleration, speed stopping at 0); C at constant velocity (``c_model="cv"``) or constant
+acceleration ``acc_C`` until it stops (``"ca"``); B at constant velocity, a leader only if it was
+ahead at the observation and while predicted ahead (front to front). Positions relative to A's.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from irl.domains.merge.actions import N_ACTIONS, actions_of
+from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, frames_per_step
+from irl.domains.merge.planning.features import DEFAULT_LENGTH_FT, Shape, collision, feature_names, step_features
+from irl.errors import ConfigError
+
+BACKUPS = ("avg", "boltzmann", "softmax")
+C_MODELS = ("cv", "ca")
+LATER = ("bins", "bins+hold")
+#: Fine acceleration grids of the first action (ft/s^2); ``"bins"``: the five paper actions'
+#: training means (the coarse driver, for comparison).
+GRIDS: dict[str, tuple[float, ...]] = {
+    "bins": (),
+    "g13": tuple(float(x) for x in np.linspace(-14.0, 10.0, 13)),  # 2 ft/s^2 apart
+    "g24": tuple(float(x) for x in np.arange(-14.0, 10.0, 1.0)),  # 1 ft/s^2 apart
+}
+
+
+@dataclass(frozen=True)
+class PlannerConfig:
+    """Settings of the planner (selected on held-out data, not learned).
+
+    Attributes:
+        horizon_s: planning horizon (s); decision_step_s: seconds per decision (a multiple of
+        0.1 s); depth: 2 or 3 segments per path; backup: one of :data:`BACKUPS`; c_model:
+        ``"cv"`` or ``"ca"``; gamma: discount per step in (0, 1]; grid: a key of :data:`GRIDS`;
+        later: one of :data:`LATER`; with_bias: the paper-action bias features;
+        collision_penalty: reward of a step ending in a collision (<= 0, fixed).
+
+    Raises:
+        ConfigError: a value outside the above.
+    """
+
+    horizon_s: float = 2.1
+    decision_step_s: float = DEFAULT_DECISION_STEP_S
+    depth: int = 2
+    backup: str = "softmax"
+    c_model: str = "ca"
+    gamma: float = 0.9
+    grid: str = "g24"
+    later: str = "bins"
+    with_bias: bool = True
+    collision_penalty: float = -100.0
+
+    def __post_init__(self) -> None:
+        frames_per_step(self.decision_step_s)
+        problems = []
+        if self.depth not in (2, 3):
+            problems.append(f"depth must be 2 or 3, got {self.depth!r}")
+        for name, options in (("backup", BACKUPS), ("c_model", C_MODELS), ("grid", tuple(GRIDS)), ("later", LATER)):
+            if getattr(self, name) not in options:
+                problems.append(f"{name} must be one of {options}, got {getattr(self, name)!r}")
+        if not (isinstance(self.gamma, (int, float)) and 0 < self.gamma <= 1):
+            problems.append(f"gamma must be in (0, 1], got {self.gamma!r}")
+        if not (isinstance(self.horizon_s, (int, float)) and math.isfinite(self.horizon_s)
+                and self.horizon_s >= 2 * self.decision_step_s - 1e-9):
+            problems.append(f"horizon_s must be at least two decision steps, got {self.horizon_s!r}")
+        if not (isinstance(self.collision_penalty, (int, float)) and -math.inf < self.collision_penalty <= 0):
+            problems.append(f"collision_penalty must be a finite number <= 0, got {self.collision_penalty!r}")
+        if problems:
+            raise ConfigError("PlannerConfig: " + "; ".join(problems))
+
+    @property
+    def n_steps(self) -> int:
+        """Decision steps in the horizon."""
+        return max(int(round(self.horizon_s / self.decision_step_s)), self.depth)
+
+    @property
+    def feature_names(self) -> tuple[str, ...]:
+        """The ``K`` learned feature names."""
+        return feature_names(self.with_bias)
+
+    def fine_grid(self, action_acc: np.ndarray) -> np.ndarray:
+        """``[G]`` accelerations of the first action (ft/s^2); ``action_acc [5]`` for ``"bins"``."""
+        g = GRIDS[self.grid]
+        return np.asarray(action_acc if not g else g, dtype=np.float64)
+
+    def segment_starts(self) -> np.ndarray:
+        """``[depth]`` int: the first step of each segment."""
+        n = self.n_steps
+        return np.array([0, 1] if self.depth == 2 else [0, 1, 1 + (n - 1) // 2])
+
+
+def leaf_accelerations(config: PlannerConfig, action_acc: np.ndarray) -> np.ndarray:
+    """``[G, C, (C), n]`` acceleration (ft/s^2) of every step on every path (module docstring)."""
+    fine = config.fine_grid(action_acc)
+    G = fine.size
+    later = np.broadcast_to(np.asarray(action_acc, dtype=np.float64), (G, N_ACTIONS))
+    if config.later == "bins+hold":
+        later = np.concatenate([later, fine[:, None]], axis=1)
+    C = later.shape[1]
+    n = config.n_steps
+    starts = config.segment_starts()
+    out = np.empty((G,) + (C,) * (config.depth - 1) + (n,))
+    out[..., 0] = fine.reshape((G,) + (1,) * (config.depth - 1))
+    for j in range(1, config.depth):
+        k0, k1 = starts[j], (starts[j + 1] if j + 1 < starts.size else n)
+        shp = [G] + [1] * (config.depth - 1)
+        shp[j] = C
+        out[..., k0:k1] = later.reshape(shp)[..., None]
+    return out
+
+
+@dataclass(frozen=True)
+class PathTensors:
+    """Path features of ``N`` decisions (independent of theta).
+
+    Attributes:
+        Phi: ``[N, G, C, (C), K]`` discounted features of each path; Col: ``[N, G, C, (C)]``
+        discounted collision count; bins: ``[G]`` paper action of each fine first action.
+    """
+
+    Phi: np.ndarray
+    Col: np.ndarray
+    bins: np.ndarray
+
+    @property
+    def n(self) -> int:
+        """The number of decisions ``N``."""
+        return int(self.Phi.shape[0])
+
+    def take(self, idx: np.ndarray) -> PathTensors:
+        """The decisions ``idx``."""
+        return PathTensors(self.Phi[idx], self.Col[idx], self.bins)
+
+
+def path_tensors(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray, action_acc, shape: Shape,
+                 config: PlannerConfig, *, chunk: int = 512) -> PathTensors:
+    """Path tensors (module docstring) of ``obs [N, 7]``, ``prev_acc [N]``, ``acc_C [N]`` with
+    the paper actions' accelerations ``action_acc [5]`` (ft/s^2), in chunks of ``chunk`` decisions.
+
+    Raises:
+        ConfigError: ``obs`` not ``[N, 7]``, ``prev_acc``/``acc_C`` not ``[N]``, ``action_acc``
+            not 5 finite numbers.
+    """
+    obs = np.asarray(obs, dtype=np.float64)
+    prev_acc = np.nan_to_num(np.asarray(prev_acc, dtype=np.float64), nan=0.0)
+    acc_C = np.nan_to_num(np.asarray(acc_C, dtype=np.float64), nan=0.0)
+    acc5 = np.asarray(action_acc, dtype=np.float64)
+    if obs.ndim != 2 or obs.shape[1] != 7 or prev_acc.shape != (obs.shape[0],) or acc_C.shape != prev_acc.shape:
+        raise ConfigError(f"obs must be [N, 7], prev_acc and acc_C [N]; got {obs.shape}, {prev_acc.shape}, "
+                          f"{acc_C.shape}")
+    if acc5.shape != (N_ACTIONS,) or not np.all(np.isfinite(acc5)):
+        raise ConfigError(f"action_acc must be {N_ACTIONS} finite numbers, got {acc5}")
+    leaf = leaf_accelerations(config, acc5)
+    tail = leaf.shape[:-1]
+    leaves = leaf.reshape(-1, leaf.shape[-1])  # [L, n]
+    N, K = obs.shape[0], len(config.feature_names)
+    Phi = np.empty((N, leaves.shape[0], K))
+    Col = np.empty((N, leaves.shape[0]))
+    for lo in range(0, N, chunk):
+        hi = min(lo + chunk, N)
+        Phi[lo:hi], Col[lo:hi] = _paths_chunk(obs[lo:hi], prev_acc[lo:hi], acc_C[lo:hi], leaves, shape, config)
+    bins = actions_of(config.fine_grid(acc5))
+    return PathTensors(Phi.reshape((N, *tail, K)), Col.reshape((N, *tail)), bins)
+
+
+def _paths_chunk(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray, leaves: np.ndarray, shape: Shape,
+                 config: PlannerConfig) -> tuple[np.ndarray, np.ndarray]:
+    """``([N, L, K], [N, L])`` of one chunk: every step of every path at once (``[N, L, n]``)."""
+    d_AC, v_AC, d_AB, v_AB, v_A0, len_C, len_B = (obs[:, j:j + 1, None] for j in range(7))
+    len_C = np.where(np.isfinite(len_C), len_C, DEFAULT_LENGTH_FT)
+    len_B = np.where(np.isfinite(len_B), len_B, DEFAULT_LENGTH_FT)
+    has_C = np.isfinite(d_AC) & np.isfinite(v_AC)
+    d_AC = np.where(has_C, d_AC, 1e6)
+    v_C0 = np.where(has_C, v_A0 - np.where(has_C, v_AC, 0.0), 0.0)
+    B_lead = np.isfinite(d_AB) & np.isfinite(v_AB) & (d_AB > 0)
+    d_AB = np.where(B_lead, d_AB, 1e6)
+    v_B0 = np.where(B_lead, v_A0 - np.where(B_lead, v_AB, 0.0), 0.0)
+    L, n = leaves.shape
+    dt = config.decision_step_s
+    t = dt * np.arange(1, n + 1)
+    x_A = np.empty((obs.shape[0], L, n))
+    v_A = np.empty_like(x_A)
+    starts = config.segment_starts()
+    x_s, v_s = np.zeros((1, 1, 1)), v_A0
+    for j, k0 in enumerate(starts):
+        k1 = starts[j + 1] if j + 1 < starts.size else n
+        a = leaves[None, :, k0:k0 + 1]  # [1, L, 1]
+        tau = t[k0:k1] - k0 * dt
+        te = np.minimum(tau, np.where(a < 0, v_s / np.maximum(-a, 1e-9), np.inf))
+        x_A[:, :, k0:k1] = x_s + v_s * te + 0.5 * a * te * te
+        v_A[:, :, k0:k1] = np.maximum(v_s + a * te, 0.0)
+        x_s, v_s = x_A[:, :, k1 - 1:k1], v_A[:, :, k1 - 1:k1]
+    a_C = acc_C[:, None, None] if config.c_model == "ca" else np.zeros((obs.shape[0], 1, 1))
+    te = np.minimum(t, np.where(a_C < 0, v_C0 / np.maximum(-a_C, 1e-9), np.inf))
+    s_C = d_AC + v_C0 * te + 0.5 * a_C * te * te - x_A - len_C
+    v_C = np.maximum(v_C0 + a_C * te, 0.0)
+    d_B = d_AB + v_B0 * t - x_A
+    B_ahead = B_lead & (d_B > 0)
+    acc_prev = np.empty((obs.shape[0], L, n))
+    acc_prev[:, :, 1:] = leaves[None, :, :-1]
+    acc_prev[:, :, 0] = prev_acc[:, None]
+    f = step_features(s_C, v_C, has_C, d_B - len_B, v_B0, B_ahead, v_A, leaves[None], acc_prev, shape,
+                      config.with_bias)
+    g = config.gamma ** np.arange(n)
+    return np.einsum("nlsk,s->nlk", f, g), collision(s_C, has_C) @ g

@@ -1,0 +1,145 @@
+"""The planning driver's numerics (irl/domains/merge/planning: model, policy, fit): exact
+gradients, shapes, determinism, braking, theta recovery. No data files, no SUMO."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from irl.domains.merge.actions import actions_of
+from irl.domains.merge.planning.features import Shape
+from irl.domains.merge.planning.fit import fit_planner
+from irl.domains.merge.planning.model import BACKUPS, PlannerConfig, leaf_accelerations, path_tensors
+from irl.domains.merge.planning.policy import bin_log_policy, fine_log_policy, loglik_grad
+from irl.errors import ConfigError
+
+ACC = np.array([-9.5, -2.2, 0.0, 2.3, 6.1])
+SHAPE = Shape()
+
+
+def random_obs(n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``n`` plausible observations: C mostly present, B ahead half the time."""
+    v_A = rng.uniform(0.0, 90.0, n)
+    d_AC = rng.uniform(20.0, 250.0, n)
+    v_AC = rng.normal(0.0, 8.0, n)
+    no_c = rng.random(n) < 0.1
+    d_AC[no_c] = v_AC[no_c] = np.nan
+    len_C = np.where(rng.random(n) < 0.2, np.nan, rng.choice([14.8, 39.4], n))
+    obs = np.column_stack([d_AC, v_AC, rng.uniform(-80.0, 200.0, n), rng.normal(0.0, 8.0, n), v_A, len_C,
+                           np.full(n, 14.8)])
+    prev = rng.normal(0.0, 3.0, n)
+    prev[rng.random(n) < 0.1] = np.nan
+    return obs, prev, rng.normal(0.0, 2.0, n)
+
+
+@pytest.mark.parametrize("backup", BACKUPS)
+@pytest.mark.parametrize("depth,later", [(2, "bins"), (3, "bins+hold")])
+def test_gradient_matches_central_differences(backup: str, depth: int, later: str) -> None:
+    rng = np.random.default_rng(1)
+    cfg = PlannerConfig(horizon_s=2.1, depth=depth, backup=backup, c_model="ca", gamma=0.9, grid="g13", later=later)
+    obs, prev, acc_C = random_obs(30, rng)
+    T = path_tensors(obs, prev, acc_C, ACC, SHAPE, cfg)
+    y = rng.integers(0, 5, 30)
+    theta = rng.normal(0.0, 0.3, len(cfg.feature_names))
+    w = rng.uniform(0.5, 2.0, 30)
+
+    def ll(th: np.ndarray) -> float:
+        return loglik_grad(th, T, y, backup, cfg.collision_penalty, w)[0]
+
+    g = loglik_grad(theta, T, y, backup, cfg.collision_penalty, w)[1]
+    eps = 1e-6
+    num = np.array([(ll(theta + eps * e) - ll(theta - eps * e)) / (2 * eps) for e in np.eye(theta.size)])
+    np.testing.assert_allclose(g, num, rtol=1e-5, atol=1e-6)
+
+
+@pytest.mark.parametrize("grid,depth,later", [("g24", 2, "bins"), ("g13", 3, "bins+hold"), ("bins", 2, "bins")])
+def test_shapes_and_bins(grid: str, depth: int, later: str) -> None:
+    cfg = PlannerConfig(grid=grid, depth=depth, later=later)
+    obs, prev, acc_C = random_obs(7, np.random.default_rng(2))
+    T = path_tensors(obs, prev, acc_C, ACC, SHAPE, cfg)
+    G = cfg.fine_grid(ACC).size
+    C = 5 + (later == "bins+hold")
+    assert T.Phi.shape == (7, G) + (C,) * (depth - 1) + (len(cfg.feature_names),)
+    assert T.Col.shape == T.Phi.shape[:-1] and np.all(np.isfinite(T.Phi))
+    assert sorted(set(T.bins.tolist())) == [0, 1, 2, 3, 4]
+    np.testing.assert_array_equal(T.bins, actions_of(cfg.fine_grid(ACC)))
+    theta = np.random.default_rng(3).normal(0, 0.5, len(cfg.feature_names))
+    lpf = fine_log_policy(T, theta, cfg.backup, cfg.collision_penalty)
+    lpb = bin_log_policy(T, theta, cfg.backup, cfg.collision_penalty)
+    assert lpf.shape == (7, G) and lpb.shape == (7, 5)
+    np.testing.assert_allclose(np.exp(lpb).sum(axis=1), 1.0)
+    for b in range(5):  # a paper action's probability is the sum of its fine actions'
+        np.testing.assert_allclose(np.exp(lpb[:, b]), np.exp(lpf[:, T.bins == b]).sum(axis=1))
+    leaf = leaf_accelerations(cfg, ACC)
+    assert leaf.shape[-1] == cfg.n_steps
+    np.testing.assert_array_equal(leaf[..., 0].reshape(G, -1)[:, 0], cfg.fine_grid(ACC))
+
+
+def test_bad_config_and_inputs_raise() -> None:
+    with pytest.raises(ConfigError, match="grid"):
+        PlannerConfig(grid="g7")
+    with pytest.raises(ConfigError, match="depth"):
+        PlannerConfig(depth=4)
+    with pytest.raises(ConfigError, match=r"\[N, 7\]"):
+        path_tensors(np.zeros((3, 6)), np.zeros(3), np.zeros(3), ACC, SHAPE, PlannerConfig())
+
+
+def test_fit_is_deterministic() -> None:
+    cfg = PlannerConfig(grid="g13")
+    obs, prev, acc_C = random_obs(300, np.random.default_rng(3))
+    y = np.random.default_rng(4).integers(0, 5, 300)
+    fits = [fit_planner(path_tensors(obs, prev, acc_C, ACC, SHAPE, cfg), y, cfg) for _ in range(2)]
+    np.testing.assert_array_equal(fits[0].theta, fits[1].theta)
+    assert fits[0].loglik == fits[1].loglik and fits[0].converged
+
+
+@pytest.mark.parametrize("backup", BACKUPS)
+def test_brakes_when_closing_fast_on_a_stopped_car(backup: str) -> None:
+    cfg = PlannerConfig(backup=backup, with_bias=False, grid="g24")
+    theta = np.zeros(len(cfg.feature_names))
+    theta[cfg.feature_names.index("gap_need_C")] = -1.0
+    # A at 60 ft/s, a stopped 14.8-ft C 80 ft ahead (front to front): bumper gap ~65 ft
+    obs = np.array([[80.0, 60.0, np.nan, np.nan, 60.0, 14.8, np.nan]])
+    T = path_tensors(obs, np.zeros(1), np.zeros(1), ACC, SHAPE, cfg)
+    lpb = bin_log_policy(T, theta, backup, cfg.collision_penalty)
+    assert int(np.argmax(lpb[0])) == 0, np.exp(lpb)
+    lpf = fine_log_policy(T, theta, backup, cfg.collision_penalty)
+    assert cfg.fine_grid(ACC)[int(np.argmax(lpf[0]))] <= -4.8
+
+
+def test_jerk_relaxes_towards_the_state_demand() -> None:
+    """Free road and a speed wish: with a moderate jerk weight the best fine acceleration leaves
+    Zero but stays inside a coarse bin's width; a heavier jerk weight never asks for more."""
+    cfg = PlannerConfig(with_bias=False, grid="g24", backup="softmax")
+    names = cfg.feature_names
+    obs = np.array([[np.nan, np.nan, np.nan, np.nan, 40.0, np.nan, np.nan]])
+    T = path_tensors(obs, np.zeros(1), np.zeros(1), ACC, SHAPE, cfg)
+    best = []
+    for w_jerk in (5.0, 20.0, 150.0):
+        theta = np.zeros(len(names))
+        theta[names.index("jerk")] = -w_jerk
+        theta[names.index("speed_dev")] = -20.0
+        best.append(cfg.fine_grid(ACC)[int(np.argmax(fine_log_policy(T, theta, "softmax", -100.0)[0]))])
+    assert 0.0 < best[1] < 4.8
+    assert best[0] >= best[1] >= best[2] >= 0.0
+
+
+def test_fit_recovers_theta_of_simulated_data() -> None:
+    rng = np.random.default_rng(5)
+    cfg = PlannerConfig(horizon_s=2.1, backup="boltzmann", with_bias=False, grid="g13")
+    names = cfg.feature_names
+    true = np.zeros(len(names))
+    for name, val in {"gap_need_C": -0.5, "inv_ttc_C": -2.0, "headway_C": -1.0, "speed_gain": 1.0,
+                      "speed_dev": -2.0, "comfort": -3.0, "jerk": -20.0}.items():
+        true[names.index(name)] = val
+    n = 8000
+    obs, prev, acc_C = random_obs(n, rng)
+    T = path_tensors(obs, prev, acc_C, ACC, SHAPE, cfg)
+    p = np.exp(bin_log_policy(T, true, cfg.backup, cfg.collision_penalty))
+    y = np.minimum((rng.random(n)[:, None] > np.cumsum(p, axis=1)).sum(axis=1), 4)
+    fit = fit_planner(T, y, cfg, l2=0.01)
+    assert fit.converged and fit.grad_norm < 1e-3
+    err = np.linalg.norm(fit.theta - true) / np.linalg.norm(true)
+    assert err < 0.35, (err, dict(zip(names, fit.theta.round(2))))
+    big = np.abs(true) >= 1.0
+    assert np.all(np.sign(fit.theta[big]) == np.sign(true[big]))

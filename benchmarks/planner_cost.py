@@ -36,6 +36,10 @@ def per_call_ms(fn: Callable[[], object], repeats: int = 300) -> float:
     return float(np.median(ts) * 1e3)
 
 
+def _act_of(drv: PlanningDriver, obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray) -> Callable[[], object]:
+    return lambda: drv.act(obs, prev_acc, acc_C)
+
+
 def main() -> None:
     rng = np.random.default_rng(0)
     obs = np.array([[120.0, 5.0, 60.0, 3.0, 60.0, 14.8, 14.8]])
@@ -49,7 +53,7 @@ def main() -> None:
         for backup in ("avg", "boltzmann", "softmax"):
             cfg = PlannerConfig(horizon_s=horizon, depth=depth, backup=backup, grid=grid, later=later, c_model="ca")
             drv = PlanningDriver(rng.normal(0, 0.5, len(cfg.feature_names)), cfg.feature_names, cfg, Shape(), 0.3, ACC)
-            t = per_call_ms(lambda d=drv: d.act(obs, prev_acc, acc_C))
+            t = per_call_ms(_act_of(drv, obs, prev_acc, acc_C))
             paths = drv.fine_grid.size * (5 + (later == "bins+hold")) ** (depth - 1)
             name = f"planner {grid} {backup} depth={depth} H={horizon}s {later} ({paths} paths)"
             print(f"{name:58s} {t:11.3f} {t / t_cf:10.1f}")

@@ -42,8 +42,9 @@ class Interval:
     high: float
 
 
-def _interval(stat, samples: tuple[np.ndarray, ...], seed: int) -> Interval:
-    """``stat`` over paired per-pair samples (each float64[P]) with a BCa bootstrap interval."""
+def bootstrap_interval(stat, samples: tuple[np.ndarray, ...], seed: int) -> Interval:
+    """``stat`` over paired per-pair samples (each float64[P]) with a percentile bootstrap interval
+    (:data:`CONFIDENCE`, :data:`N_RESAMPLES` resamples, seeded by ``seed``)."""
     value = float(stat(*samples))
     if len(samples[0]) < 3 or np.all(samples[0] == samples[0][0]):
         return Interval(value, value, value)
@@ -142,7 +143,7 @@ def evaluate(
         "median_ratio": (lambda a, b: np.median(a) / np.median(b), (r, d)),
         "mean_ratio": (lambda a, b: np.mean(a) / np.mean(b), (r, d)),
     }
-    intervals = tuple((k, _interval(f, x, seed + i)) for i, (k, (f, x)) in enumerate(stats.items()))
+    intervals = tuple((k, bootstrap_interval(f, x, seed + i)) for i, (k, (f, x)) in enumerate(stats.items()))
     return Evaluation(
         model=model, params=params, defaults=defaults,
         pairs=tuple(PairScore(p.name, float(a), float(b)) for p, a, b in zip(pairs, r, d)),

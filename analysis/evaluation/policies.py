@@ -224,6 +224,47 @@ def cf_policy(path: str | os.PathLike, name: str = "") -> CarFollowingLogitPolic
     return CarFollowingLogitPolicy(CarFollowingLogit.load(path), name=name or Path(path).stem, source=str(path))
 
 
+def driver_format(path: str | os.PathLike) -> str:
+    """The ``format`` field of a driver file (JSON).
+
+    Raises:
+        ModelFileError: a missing or unreadable file, not a JSON object, or no string ``format``.
+    """
+    import json
+
+    from irl.errors import ModelFileError
+
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError) as e:
+        raise ModelFileError(f"{path}: cannot read a driver file ({e.__class__.__name__}: {e})") from None
+    fmt = data.get("format") if isinstance(data, dict) else None
+    if not isinstance(fmt, str):
+        raise ModelFileError(f"{path}: not a driver file (no 'format' field; expected a file of "
+                             "'merge-irl learn-driver' or 'merge-irl dagger')")
+    return fmt
+
+
+def driver_policy(path: str | os.PathLike, name: str = "") -> Policy:
+    """The closed-loop policy of any driver file, named ``name`` or the file's stem: a planning
+    driver (``merge-irl-planner/...``, :class:`sim.planning_policy.PlanningDriverPolicy`) or a
+    car-following logit (``merge-irl-cf-logit/...``, :func:`cf_policy`).
+
+    Raises:
+        ModelFileError: a missing, unreadable or malformed file, or another format (named).
+    """
+    from irl.errors import ModelFileError
+    from sim.planning_policy import PlanningDriverPolicy
+
+    fmt = driver_format(path)
+    if fmt.startswith("merge-irl-planner/"):
+        return PlanningDriverPolicy.from_file(path, name=name)
+    if fmt.startswith("merge-irl-cf-logit/"):
+        return cf_policy(path, name=name)
+    raise ModelFileError(f"{path}: format {fmt!r} is not a driver's (merge-irl-planner/..., merge-irl-cf-logit/...); "
+                         "a tabular model.json goes to --model")
+
+
 def baseline_drivers(baselines: Sequence[str], spec, train_demos, bins: MergeBins | None,
                      decision_step_s: float) -> list[Policy]:
     """The drivers of ``baselines`` (names of :data:`BASELINES`, in the order given), each of

@@ -22,6 +22,9 @@ def register(subparsers) -> None:
                    help="a saved merge model (repeat for several); none: only the baselines")
     p.add_argument("--cf-model", action="append", default=[], metavar="CF_MODEL.json",
                    help="a car-following logit driver written by 'merge-irl dagger' (repeatable)")
+    p.add_argument("--driver", action="append", default=[], metavar="DRIVER.json",
+                   help="any driver file: a planning driver of 'merge-irl learn-driver' or a car-following logit "
+                        "(repeatable; named after the file's stem)")
     p.add_argument("--scenario", default="synthetic", help="preset name or scenario TOML (default synthetic)")
     p.add_argument("--episodes", type=int, default=3, help="episodes (seeds) per policy")
     p.add_argument("--seed", type=int, default=0, help="first seed; episode i uses seed + i")
@@ -76,11 +79,13 @@ def run(args: argparse.Namespace) -> int:
 
     baselines = tuple(b.strip() for b in args.baselines.split(",") if b.strip())
     check_baselines(baselines, "--baselines")
-    if not args.model and not args.cf_model and not baselines:
-        raise SimError("nothing to evaluate: give --model, --cf-model and/or --baselines")
-    from analysis.evaluation.policies import cf_policy
+    if not args.model and not args.cf_model and not args.driver and not baselines:
+        raise SimError("nothing to evaluate: give --model, --driver, --cf-model and/or --baselines")
+    from analysis.evaluation.policies import cf_policy, driver_policy
+    from sim.policy import Policy
 
-    cf = [cf_policy(path) for path in args.cf_model]  # malformed files before any work
+    # malformed files before any work
+    cf: list[Policy] = [cf_policy(path) for path in args.cf_model] + [driver_policy(path) for path in args.driver]
     scen = Path(args.scenario).stem if args.scenario.endswith(".toml") else args.scenario
     out = Path(args.out) if args.out else Path("runs") / f"evaluate-{scen}-{args.seed}"
     from merge_irl.run_folder import locked

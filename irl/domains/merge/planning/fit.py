@@ -112,7 +112,8 @@ def select(build: Build, y_fit: np.ndarray, y_val: np.ndarray, *, base: PlannerC
     1. every ``grid`` x backup, horizon 2.1 s, depth 2, C at constant velocity, ``gamma`` 1;
     2. the best x every horizon x C model (``cv``, ``ca``);
     3. the best x every ``gamma``;
-    4. the best with later segments ``bins+hold``, with depth 3, and without the biases.
+    4. the best with the other later segments (``bins`` / ``bins+hold``), with depth 3, and with
+       the biases switched.
     """
     trials: list[Trial] = []
     seen: set[PlannerConfig] = set()
@@ -136,7 +137,8 @@ def select(build: Build, y_fit: np.ndarray, y_val: np.ndarray, *, base: PlannerC
     best = run(replace(b0, grid=g, backup=k) for g, k in itertools.product(grids, BACKUPS))
     best = run(replace(best, horizon_s=h, c_model=c) for h, c in itertools.product(horizons, ("cv", "ca")))
     best = run(replace(best, gamma=g) for g in gammas)
-    return run([replace(best, later="bins+hold"), replace(best, depth=3), replace(best, with_bias=not best.with_bias)]), \
+    other = "bins" if best.later == "bins+hold" else "bins+hold"
+    return run([replace(best, later=other), replace(best, depth=3), replace(best, with_bias=not best.with_bias)]), \
         trials
 
 

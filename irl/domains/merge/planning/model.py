@@ -37,10 +37,14 @@ C_MODELS = ("cv", "ca")
 LATER = ("bins", "bins+hold")
 #: Fine acceleration grids of the first action (ft/s^2); ``"bins"``: the five paper actions'
 #: training means (the coarse driver, for comparison).
+#: A's emergency braking (ft/s^2) on every fine grid: about 9 and 6.5 m/s^2, a car's physical
+#: range (SUMO's emergencyDecel), which demonstrations rarely show but a planner must be able to
+#: choose when its model predicts a collision (comfort makes them unlikely otherwise).
+EMERGENCY_FT_S2 = (-28.0, -21.0)
 GRIDS: dict[str, tuple[float, ...]] = {
     "bins": (),
-    "g13": tuple(float(x) for x in np.linspace(-14.0, 10.0, 13)),  # 2 ft/s^2 apart
-    "g24": tuple(float(x) for x in np.arange(-14.0, 10.0, 1.0)),  # 1 ft/s^2 apart
+    "g13": EMERGENCY_FT_S2 + tuple(float(x) for x in np.linspace(-14.0, 10.0, 13)),  # 2 ft/s^2 apart
+    "g24": EMERGENCY_FT_S2 + tuple(float(x) for x in np.arange(-14.0, 10.0, 1.0)),  # 1 ft/s^2 apart
 }
 
 
@@ -66,7 +70,7 @@ class PlannerConfig:
     c_model: str = "ca"
     gamma: float = 0.9
     grid: str = "g24"
-    later: str = "bins"
+    later: str = "bins+hold"
     with_bias: bool = True
     collision_penalty: float = -100.0
 

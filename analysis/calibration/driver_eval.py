@@ -1,0 +1,141 @@
+"""A learned driver on real car-following pairs, beside SUMO's defaults and a calibration.
+
+Each pair's recorded leader is replayed; the learned driver follows from the recorded initial
+state, taking its most likely action every decision (deterministic), integrated exactly at
+0.1 s (:func:`irl.domains.merge.planning.replay.replay`). Scored per pair: the spacing RMSE
+(bumper gap, m) and a collision (bumper gap <= 0). Beside it on the same pairs: IDM with SUMO's
+default parameters (:data:`analysis.calibration.models.SUMO_DEFAULTS`, the numpy replica) and,
+when given, a calibration of ``merge-irl calibrate fit`` (its model, population or driver
+classes). Every statistic weighs the pairs equally, with a bootstrap interval over pairs.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from analysis.calibration.evaluate import Interval, bootstrap_interval, evaluate
+from analysis.calibration.models import SUMO_DEFAULTS
+from analysis.calibration.objective import spacing_rmse
+from analysis.calibration.pairs import CarFollowingPair, PairBatch
+from analysis.calibration.result import CalibrationResult
+from irl.domains.merge.actions import action_of
+from irl.domains.merge.car_following import car_following_features
+from irl.domains.merge.cf_logit import CarFollowingLogit
+from irl.domains.merge.planning.driver import PlanningDriver
+from irl.domains.merge.planning.replay import ActFn, ReplayPair, replay
+from merge_irl.units import FT_PER_M
+from scenarios.errors import SpecError
+
+
+@dataclass(frozen=True)
+class DriverEvaluation:
+    """A driver's spacing RMSE (m) and collisions on pairs, beside SUMO's defaults and a calibration.
+
+    Attributes:
+        driver: the driver file; n_pairs: pairs scored; names: ``[P]`` their names.
+        rmse_m, default_rmse_m: ``[P]`` per pair, the driver's and IDM with SUMO's defaults.
+        calibrated_rmse_m: ``[P]`` the calibration's, or None.
+        collided: ``[P]`` bool, the driver's bumper gap reached 0.
+        intervals: ``(statistic, Interval)`` of the medians, means and ratios (95 % bootstrap).
+    """
+
+    driver: str
+    names: tuple[str, ...]
+    rmse_m: np.ndarray
+    default_rmse_m: np.ndarray
+    calibrated_rmse_m: np.ndarray | None
+    collided: np.ndarray
+    intervals: tuple[tuple[str, Interval], ...]
+
+    @property
+    def n_pairs(self) -> int:
+        return len(self.names)
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """The summary as ``calibrate evaluate --driver --json`` prints it."""
+        out: dict[str, Any] = {
+            "driver": self.driver, "n_pairs": self.n_pairs,
+            "median_rmse_m": float(np.median(self.rmse_m)), "mean_rmse_m": float(np.mean(self.rmse_m)),
+            "default_median_rmse_m": float(np.median(self.default_rmse_m)),
+            "default_mean_rmse_m": float(np.mean(self.default_rmse_m)),
+            "collisions": int(self.collided.sum()),
+        }
+        if self.calibrated_rmse_m is not None:
+            out["calibrated_median_rmse_m"] = float(np.median(self.calibrated_rmse_m))
+            out["calibrated_mean_rmse_m"] = float(np.mean(self.calibrated_rmse_m))
+        out["intervals"] = {k: [iv.value, iv.low, iv.high] for k, iv in self.intervals}
+        return out
+
+
+def replay_pairs(pairs: Sequence[CarFollowingPair]) -> list[ReplayPair]:
+    """The pairs in the replay's units (ft, ft/s)."""
+    return [ReplayPair(p.name, p.x_follower * FT_PER_M, p.v_follower * FT_PER_M, p.x_leader * FT_PER_M,
+                       p.v_leader * FT_PER_M, p.leader_length * FT_PER_M) for p in pairs]
+
+
+def driver_act(path: str | os.PathLike) -> tuple[ActFn, float]:
+    """``(act, decision_step_s)`` of a driver file: a planning driver's most likely fine
+    acceleration, or a car-following logit's most likely action at its per-action acceleration
+    (A's previous action taken as the bin of the acceleration it applied).
+
+    Raises:
+        ModelFileError: a missing, unreadable or malformed file, or not a driver's format.
+    """
+    from analysis.evaluation.policies import driver_format
+    from irl.errors import ModelFileError
+
+    fmt = driver_format(path)
+    if fmt.startswith("merge-irl-planner/"):
+        planner = PlanningDriver.load(path)
+        return planner.act, planner.decision_step_s
+    if fmt.startswith("merge-irl-cf-logit/"):
+        cf = CarFollowingLogit.load(path)
+        acc = np.asarray(cf.action_acc_ft_s2, dtype=np.float64)
+
+        def act(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray) -> np.ndarray:
+            prev = np.array([action_of(float(a)) if np.isfinite(a) else -1 for a in prev_acc], dtype=np.int64)
+            feats = car_following_features(obs, prev, cf.action_acc_ft_s2, cf.gap_need)
+            return acc[np.argmax(feats @ cf.theta, axis=1)]
+
+        return act, cf.decision_step_s
+    raise ModelFileError(f"{path}: format {fmt!r} is not a driver's (merge-irl-planner/..., merge-irl-cf-logit/...)")
+
+
+def evaluate_driver(path: str | os.PathLike, pairs: Sequence[CarFollowingPair], *,
+                    calibration: CalibrationResult | None = None, seed: int = 0) -> DriverEvaluation:
+    """Replay ``pairs`` with the driver of ``path`` and score it beside SUMO's IDM defaults and
+    ``calibration`` (module docstring); ``seed`` seeds the bootstrap.
+
+    Raises:
+        SpecError: no pairs.
+        ModelFileError: a bad driver file.
+    """
+    if not pairs:
+        raise SpecError("evaluate --driver: no pairs to score")
+    act, step = driver_act(path)
+    res = replay(replay_pairs(pairs), act, step)
+    batch = PairBatch.from_pairs(pairs)
+    d = batch.unsort(spacing_rmse("idm", batch, SUMO_DEFAULTS.as_dict()))
+    cal = None
+    if calibration is not None:
+        ev = evaluate(calibration.population, pairs, model=calibration.model, classes=calibration.classes)
+        cal = np.array([s.rmse_m for s in ev.pairs])
+    r = np.asarray(res.rmse_m, dtype=np.float64)
+    stats: dict[str, tuple[Any, tuple[np.ndarray, ...]]] = {
+        "median_rmse_m": (np.median, (r,)), "default_median_rmse_m": (np.median, (d,)),
+        "mean_rmse_m": (np.mean, (r,)), "default_mean_rmse_m": (np.mean, (d,)),
+        "median_ratio": (lambda a, b: np.median(a) / np.median(b), (r, d)),
+        "mean_ratio": (lambda a, b: np.mean(a) / np.mean(b), (r, d)),
+    }
+    if cal is not None:
+        stats["calibrated_median_rmse_m"] = (np.median, (cal,))
+        stats["calibrated_mean_rmse_m"] = (np.mean, (cal,))
+    intervals = tuple((k, bootstrap_interval(f, x, seed + i)) for i, (k, (f, x)) in enumerate(stats.items()))
+    return DriverEvaluation(str(Path(path)), tuple(p.name for p in pairs), r, d, cal,
+                            np.asarray(res.collided, dtype=bool), intervals)

@@ -1,0 +1,119 @@
+"""The planning driver in the closed loop: a :class:`sim.policy.Policy` around a learned
+:class:`irl.domains.merge.planning.driver.PlanningDriver`.
+
+At each decision the driver sees what a driver sees (:class:`sim.observe.MergeObservation`):
+the gaps and closing speeds to C and B, A's speed, the vehicle lengths, the acceleration it
+applied over its previous decision (``acc_prev``) and C's acceleration from C's speed change over
+that decision (``acc_C``: brake lights, not C's true acceleration). It plans over its horizon on
+a kinematic model and returns the probabilities of the five paper actions (the sums of its fine
+accelerations' probabilities in each bin); the controller draws a bin (or takes the most likely
+one) and applies :meth:`PlanningDriverPolicy.acceleration`, the driver's most likely fine
+acceleration within that bin, under the physical actuation (nothing of the simulator's ground
+truth is read).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from irl.domains.merge.actions import N_ACTIONS, action_of
+from irl.domains.merge.planning.decisions import encounter_decisions
+from irl.domains.merge.planning.driver import PlanningDriver
+from sim.observe import MergeObservation
+from sim.policy import PolicyDefaults
+
+
+def observation_row(obs: MergeObservation) -> np.ndarray:
+    """``[7]`` ``d_AC, v_AC, d_AB, v_AB, v_A, len_C, len_B`` of ``obs`` (ft, ft/s; the planning
+    driver's observation columns, :mod:`irl.domains.merge.planning.decisions`)."""
+    return np.array([obs.d_AC, obs.v_AC, obs.d_AB, obs.v_AB, obs.speed_A, obs.len_C, obs.len_B], dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class PlanningDriverPolicy(PolicyDefaults):
+    """A learned planning driver as a closed-loop policy.
+
+    Attributes:
+        driver: the learned driver (``merge-irl learn-driver``'s file, format ``merge-irl-planner/1``).
+        name: label in reports (the file's stem when read from one).
+        source: the file it was read from ("" when built in code).
+        flags: ``("not_converged",)`` when the driver's fit did not converge.
+        action_acc_ft_s2: ``[5]`` the training data's mean acceleration per paper action
+            (ft/s^2), applied for a bin the driver's fine grid does not cover.
+    """
+
+    driver: PlanningDriver
+    name: str = "planner"
+    controls: bool = True
+    source: str = ""
+    flags: tuple[str, ...] = field(init=False, default=())
+    action_acc_ft_s2: tuple[float, ...] = field(init=False, default=())
+    _last: dict[str, Any] = field(default_factory=dict, init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "flags", () if self.driver.converged else ("not_converged",))
+        object.__setattr__(self, "action_acc_ft_s2", tuple(self.driver.action_acc_ft_s2))
+
+    @classmethod
+    def from_file(cls, path: str | os.PathLike, name: str = "") -> PlanningDriverPolicy:
+        """The driver of a ``merge-irl-planner/1`` file, named ``name`` or the file's stem.
+
+        Raises:
+            ModelFileError: a missing, unreadable or malformed file.
+        """
+        return cls(PlanningDriver.load(path), name=name or Path(path).stem, source=str(path))
+
+    @property
+    def decision_step_s(self) -> float:
+        """Seconds per decision the driver was trained at."""
+        return self.driver.decision_step_s
+
+    def _fine_log_policy(self, obs: MergeObservation) -> np.ndarray:
+        """``[G]`` log-probabilities of the fine accelerations at ``obs`` (the controller asks
+        :meth:`probs` and then :meth:`acceleration` of one observation: planned once)."""
+        if self._last.get("obs") is obs:
+            return self._last["lp"]
+        prev = obs.acc_prev if math.isfinite(obs.acc_prev) else 0.0
+        acc_c = obs.acc_C if math.isfinite(obs.acc_C) else 0.0
+        lp = self.driver.fine_log_policy(observation_row(obs)[None, :], np.array([prev]), np.array([acc_c]))[0]
+        self._last.update(obs=obs, lp=lp)
+        return lp
+
+    def probs(self, obs: MergeObservation) -> np.ndarray:
+        """``[5]`` probabilities of the paper actions: the sums over the fine accelerations in each bin."""
+        p = np.exp(self._fine_log_policy(obs))
+        out = np.zeros(N_ACTIONS)
+        np.add.at(out, self._bins, p)
+        return out / out.sum()
+
+    @property
+    def _bins(self) -> np.ndarray:
+        """``[G]`` the paper action of each fine acceleration."""
+        if "bins" not in self._last:
+            self._last["bins"] = np.array([action_of(float(a)) for a in self.driver.fine_grid], dtype=np.int64)
+        return self._last["bins"]
+
+    def acceleration(self, obs: MergeObservation, action: int) -> float:
+        """The driver's most likely fine acceleration (ft/s^2) within the bin ``action`` at
+        ``obs`` (the training mean of the bin when no fine acceleration lies in it)."""
+        lp = self._fine_log_policy(obs)
+        inside = np.flatnonzero(self._bins == action)
+        if inside.size == 0:
+            return float(self.action_acc_ft_s2[action])
+        return float(self.driver.fine_grid[inside[np.argmax(lp[inside])]])
+
+    def heldout_loglik(self, encounters: pd.DataFrame, *, decision_step_s: float,
+                       where: str) -> tuple[float, float]:
+        """``(sum, per decision)`` of ``log P(paper action | x)`` over the held-out encounters'
+        decisions at the driver's own step (:func:`irl.domains.merge.planning.decisions.encounter_decisions`)."""
+        dec = encounter_decisions(encounters, self.driver.decision_step_s, where=where)
+        lp = self.driver.bin_log_policy(dec.obs, dec.prev_acc, dec.acc_C)[np.arange(dec.n), dec.actions]
+        total = float(lp.sum())
+        return total, total / dec.n if dec.n else float("nan")

@@ -19,6 +19,7 @@ import pandas as pd
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, read_encounters
 from irl.domains.merge.planning.decisions import PlanningDecisions, encounter_decisions, pair_decisions
 from irl.domains.merge.planning.driver import PlanningDriver, learn_planning_driver
+from irl.domains.merge.planning.model import PlannerConfig
 from irl.errors import DemonstrationError
 from merge_irl.provenance import provenance
 from merge_irl.units import FT_PER_M
@@ -60,11 +61,13 @@ def load_driver_demos(paths: Sequence[str | os.PathLike], *,
 
 
 def learn_driver(paths: Sequence[str | os.PathLike], out: str | os.PathLike | None = None, *, seed: int = 0,
-                 decision_step_s: float = DEFAULT_DECISION_STEP_S,
+                 decision_step_s: float = DEFAULT_DECISION_STEP_S, select: bool = True,
                  log: Callable[[str], None] = lambda s: None) -> PlanningDriver:
     """Learn a planning driver on the demonstrations of ``paths`` (:func:`load_driver_demos`)
     and, with ``out``, write it (format ``merge-irl-planner/1``) with the provenance of its inputs
-    in ``info["provenance"]``. ``log`` receives one line per selection trial.
+    in ``info["provenance"]``. ``select``: choose the planner's settings by held-out likelihood
+    (else :class:`~irl.domains.merge.planning.model.PlannerConfig`'s defaults). ``log`` receives
+    one line per selection trial.
 
     Raises:
         DemonstrationError, SpecError: bad demonstrations (see :func:`load_driver_demos`).
@@ -72,7 +75,8 @@ def learn_driver(paths: Sequence[str | os.PathLike], out: str | os.PathLike | No
     """
     decisions = load_driver_demos(paths, decision_step_s=decision_step_s)
     log(f"{decisions.n} decisions in {len(set(decisions.groups.tolist()))} encounters/pairs")
-    driver = learn_planning_driver(decisions, seed=seed, log=log)
+    selection = "heldout" if select else PlannerConfig(decision_step_s=decisions.decision_step_s)
+    driver = learn_planning_driver(decisions, seed=seed, selection=selection, log=log)
     inputs = {("demos" if len(paths) == 1 else f"demos{i}"): p for i, p in enumerate(paths, start=1)}
     driver.info["provenance"] = provenance(inputs)
     driver.info["demos"] = [str(p) for p in paths]

@@ -59,8 +59,15 @@ def register(subparsers) -> None:
                    help="processes for the per-pair fits (default: one per core)")
     f.set_defaults(func=run_fit)
 
-    e = sub.add_parser("evaluate", help="per-pair and median spacing RMSE vs SUMO's defaults")
-    e.add_argument("--params", required=True, metavar="FILE", help="params TOML from 'calibrate fit'")
+    e = sub.add_parser("evaluate", help="per-pair and median spacing RMSE vs SUMO's defaults",
+                       description="Replay each pair's recorded leader and score the follower's spacing RMSE: a "
+                                   "calibration (--params) beside SUMO's defaults, or a learned driver (--driver, "
+                                   "its most likely action each decision) beside SUMO's IDM defaults and, with "
+                                   "--params, that calibration.")
+    e.add_argument("--params", default=None, metavar="FILE",
+                   help="params TOML from 'calibrate fit' (required without --driver)")
+    e.add_argument("--driver", default=None, metavar="DRIVER.json",
+                   help="a driver file of 'merge-irl learn-driver' (or a car-following logit) to replay")
     e.add_argument("--pairs", required=True, metavar="DIR",
                    help="folder of pair CSVs (or with a train/ subfolder) to score; any folder")
     e.add_argument("--holdout", type=float, default=0.0, metavar="FRACTION",
@@ -186,6 +193,10 @@ def run_evaluate(args: argparse.Namespace) -> int:
     from analysis.calibration import evaluate, load_result
     from scenarios.errors import SpecError
 
+    if args.driver is not None:
+        return run_evaluate_driver(args)
+    if args.params is None:
+        raise SpecError("calibrate evaluate: give --params FILE (a calibration) or --driver DRIVER.json")
     result = load_result(args.params)
     pairs = _pairs(args, held_out=True)
     trained = set(result.train_followers) or {f.group for f in result.per_pair}
@@ -219,6 +230,34 @@ def run_evaluate(args: argparse.Namespace) -> int:
         print("95% bootstrap intervals over pairs (pairs weighted equally):")
         for name, iv in ev.intervals:
             print(f"  {name:<22} {iv.value:8.3f}  [{iv.low:.3f}, {iv.high:.3f}]")
+    return 0
+
+
+def run_evaluate_driver(args: argparse.Namespace) -> int:
+    """``calibrate evaluate --driver``: the driver's replay beside SUMO's IDM defaults (and ``--params``)."""
+    from analysis.calibration import load_result
+    from analysis.calibration.driver_eval import evaluate_driver
+
+    calibration = load_result(args.params) if args.params is not None else None
+    pairs = _pairs(args, held_out=True)
+    ev = evaluate_driver(args.driver, pairs, calibration=calibration, seed=args.seed)
+    summary = ev.to_json_dict()
+    if args.json:
+        print(json.dumps(summary))
+        return 0
+    cal = ev.calibrated_rmse_m
+    print(f"{args.driver} on {ev.n_pairs} pairs (spacing RMSE, m; most likely action each decision), beside IDM with "
+          f"SUMO's defaults{' and ' + str(args.params) if cal is not None else ''}")
+    width = max(len(n) for n in ev.names)
+    print(f"{'pair':<{width}}  {'rmse_m':>8}  {'default_rmse_m':>14}" + ("  calibrated_rmse_m" if cal is not None else "")
+          + "  collided")
+    for i, name in enumerate(ev.names):
+        extra = f"  {cal[i]:17.3f}" if cal is not None else ""
+        print(f"{name:<{width}}  {ev.rmse_m[i]:8.3f}  {ev.default_rmse_m[i]:14.3f}{extra}  {'yes' if ev.collided[i] else ''}")
+    print(f"collisions: {summary['collisions']} of {ev.n_pairs} pairs")
+    print("95% bootstrap intervals over pairs (pairs weighted equally):")
+    for name, iv in ev.intervals:
+        print(f"  {name:<26} {iv.value:8.3f}  [{iv.low:.3f}, {iv.high:.3f}]")
     return 0
 
 

@@ -23,6 +23,8 @@ def register(subparsers) -> None:
     p.add_argument("--decision-step-s", dest="decision_step_s", type=float, default=None,
                    help="seconds per decision, a multiple of 0.1 (default: the merge domain's, 0.3)")
     p.add_argument("--seed", type=int, default=0, help="seed of the held-out selection split (default 0)")
+    p.add_argument("--no-selection", action="store_true",
+                   help="skip the held-out selection of the planner's settings: fit the defaults (faster)")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     p.set_defaults(func=run)
 
@@ -39,7 +41,8 @@ def run(args: argparse.Namespace) -> int:
             print(line, file=sys.stderr, flush=True)
 
     step = DEFAULT_DECISION_STEP_S if args.decision_step_s is None else args.decision_step_s
-    driver = learn_driver(args.demos, args.out, seed=args.seed, decision_step_s=step, log=log)
+    driver = learn_driver(args.demos, args.out, seed=args.seed, decision_step_s=step, select=not args.no_selection,
+                          log=log)
     c = driver.config
     weights = ", ".join(f"{n}={t:.3g}" for n, t in zip(driver.feature_names, driver.theta))
     print(f"planning driver: {driver.info['n_decisions']} decisions, loglik {driver.loglik:.1f} "

@@ -18,6 +18,8 @@ from sim.errors import SimError
 
 #: The demo's name (and policy name) of the car-following logit driver trained with DAgger.
 CF_DRIVER = "cf-dagger"
+#: The name of the planning driver (learned from the demonstrations alone) in the demo's reports.
+PLANNER_DRIVER = "planner"
 
 
 @dataclass(frozen=True)

@@ -44,7 +44,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.experiments.dagger import DaggerConfig, train_cf_driver
-from analysis.demo.config import CF_DRIVER, DemoConfig, check_dagger_seeds
+from analysis.demo.config import CF_DRIVER, PLANNER_DRIVER, DemoConfig, check_dagger_seeds
 from analysis.evaluation.episode import frame_from_dict, frame_to_dict
 from analysis.evaluation.evaluate import EvaluationReport, evaluate, resolve_executor
 from analysis.evaluation.heldout_scoring import prepare_encounters
@@ -57,6 +57,9 @@ from merge_irl.atomic import write_text_atomic
 from irl.errors import IRLError
 from irl.methods.registry import method_names
 from irl.domains.merge.bins import fit_quantile_bins
+from irl.domains.merge.planning.decisions import encounter_decisions
+from irl.domains.merge.planning.driver import learn_planning_driver
+from irl.domains.merge.planning.model import PlannerConfig
 from irl.problems import load_problem
 from scenarios.loader import load_scenario
 from scenarios.spec.model import ScenarioSpec
@@ -66,6 +69,8 @@ from sim.encounter_rules import ENCOUNTER_RULES
 from sim.errors import SimError
 from sim.outputs import write_parquet
 from sim.learned_policies import CarFollowingLogitPolicy
+from sim.planning_policy import PlanningDriverPolicy
+from sim.policy import Policy
 from sim.run import run_scenario
 
 @dataclass(frozen=True)
@@ -218,18 +223,31 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
             models[method] = model.save(out / "models" / f"{method}.json")
     if not models:
         raise IRLError("demo: no IRL method produced a usable model: " + "; ".join(f"{k}: {v}" for k, v in messages.items()))
-    drivers = []
+    drivers: list[Policy] = []
     if config.dagger_rounds > 0:
         t_cf = time.perf_counter()
         cf = train_cf_driver(train, config.scenario, DaggerConfig(rounds=config.dagger_rounds), workers=config.workers,
                              executor=config.executor, where=str(train_path), progress=not quiet)
         models[CF_DRIVER] = cf[-1].save(out / "models" / "cf-dagger.json")
-        cf[0].save(out / "models" / "cf-logit.json")  # round 0, the demonstrations alone (not evaluated here)
+        models["cf-logit"] = cf[0].save(out / "models" / "cf-logit.json")  # round 0, the demonstrations alone
         drivers.append(CarFollowingLogitPolicy(cf[-1], name=CF_DRIVER, source=str(models[CF_DRIVER])))
+        drivers.append(CarFollowingLogitPolicy(cf[0], name="cf-logit", source=str(models["cf-logit"])))
         fit_times[CF_DRIVER] = time.perf_counter() - t_cf
         _say(f"      {CF_DRIVER}: {config.dagger_rounds} DAgger rounds, High Brake labels per round "
              f"{cf[-1].info['labels_per_round']} ({fit_times[CF_DRIVER]:.0f} s)"
              f"{'' if cf[-1].converged else ' FLAGGED not_converged'}", quiet)
+
+    # the planning driver, from the demonstrations alone, at the settings the held-out selection of
+    # `merge-irl learn-driver` chose on this scenario's data (PlannerConfig's defaults; docs/closed-loop.md)
+    t_pl = time.perf_counter()
+    planner = learn_planning_driver(encounter_decisions(train, where=str(train_path)), seed=config.fit_seed,
+                                    selection=PlannerConfig())
+    models[PLANNER_DRIVER] = planner.save(out / "models" / f"{PLANNER_DRIVER}.json")
+    drivers.append(PlanningDriverPolicy(planner, name=PLANNER_DRIVER, source=str(models[PLANNER_DRIVER])))
+    fit_times[PLANNER_DRIVER] = time.perf_counter() - t_pl
+    _say(f"      {PLANNER_DRIVER}: {planner.info['n_decisions']} decisions, loglik "
+         f"{planner.loglik / planner.info['n_decisions']:.3f} per decision ({fit_times[PLANNER_DRIVER]:.1f} s)"
+         f"{'' if planner.converged else ' FLAGGED not_converged'}", quiet)
 
     _say("[4/5] one closed-loop episode with Q-Avg, logged to demo.rrd", quiet)
     first = "qavg" if "qavg" in models else next(iter(models))
@@ -241,7 +259,7 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
 
     _say(f"[5/5] evaluating {len(models)} model{'s' * (len(models) > 1)} + sumo, uniform, marginal, markov, bc, "
          f"{config.eval_episodes} episodes each", quiet)
-    irl_models = [path for name, path in models.items() if name != CF_DRIVER]
+    irl_models = [path for name, path in models.items() if name not in (CF_DRIVER, "cf-logit", PLANNER_DRIVER)]
     report = evaluate(irl_models, config.scenario, config.eval_episodes, config.eval_seed,
                       out / "evaluation", duration_s=config.eval_duration_s, demos=held_path, train_demos=train_path,
                       policies=drivers, workers=config.workers, executor=config.executor, progress=progress)
@@ -255,8 +273,7 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     write_text_atomic(out / "summary.md", "# merge-irl demo\n\n```\n" + result.format(timings=False) + "\n```\n\n"
                       + provenance_markdown(summary_prov) + "\n")
     write_timings(out, {"wall_time_s": wall, "fit_wall_time_s": fit_times})
-    _remove_stale_models(out / "models", written={*models.values(), out / "models" / "cf-logit.json"}
-                         if config.dagger_rounds > 0 else set(models.values()))
+    _remove_stale_models(out / "models", written=set(models.values()))
     return result
 
 
@@ -264,7 +281,7 @@ def _remove_stale_models(folder: Path, written: set[Path]) -> None:
     """Remove the model files an earlier demo left in ``folder`` that this run did not write (a
     method not learned this time, ``cf-dagger``/``cf-logit`` with ``dagger_rounds`` 0): they would
     read as this run's. Files of other names are left alone."""
-    for name in (*method_names(), CF_DRIVER, "cf-logit"):
+    for name in (*method_names(), CF_DRIVER, "cf-logit", PLANNER_DRIVER):
         path = folder / f"{name}.json"
         if path not in written and path.is_file():
             path.unlink()

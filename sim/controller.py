@@ -47,46 +47,13 @@ from sim.control_records import Control, DecisionLog
 from sim.controller_config import ControllerConfig
 from sim.hooks import FrameState, RunContext
 from sim.lanes import aux_lane_start_ft
+from sim.actuation import high_brake_need, leader_gap
 from sim.observe import MergeObservation, lag_of, lead_of, observe
 from sim.policy import Policy, check_policy, choose_action
 from sim.schema import RAMP_LANE, RIGHTMOST_MAIN_LANE
 
 #: A that reaches the end of its route within this of the section end has left the section (ft).
 EXIT_MARGIN_FT = 150.0
-
-
-def high_brake_need(v_a: float, v_lead: float, acc_lead: float, gap: float) -> float:
-    """Constant deceleration (ft/s^2, >= 0) that keeps A behind its leader, the leader holding
-    its own deceleration ``-acc_lead`` until it stops (A's speed ``v_a``, the leader's ``v_lead``,
-    ft/s; ``gap`` ft, the bumper gap less A's minimum gap, > 0; the controller passes at least
-    1 ft). With ``closing = v_a - v_lead``:
-
-    * leader not braking (``acc_lead >= 0``): ``closing^2 / (2 gap)`` when closing (A reaches the
-      leader's speed at the gap), else 0;
-    * leader braking at ``d = -acc_lead``, A reaching its speed before it stops
-      (``2 gap / closing <= v_lead / d``): ``d + closing^2 / (2 gap)``;
-    * leader braking and stopping first: ``v_a^2 / (2 (gap + v_lead^2 / (2 d)))`` (A stops
-      behind the leader's stopping point).
-
-    Used by :attr:`ControllerConfig.high_brake <sim.controller_config.ControllerConfig>` ``"need"``.
-    """
-    closing = v_a - v_lead
-    if not acc_lead < 0.0:
-        return closing * closing / (2.0 * gap) if closing > 0.0 else 0.0
-    d = -acc_lead
-    if closing > 0.0 and 2.0 * gap / closing <= v_lead / d:
-        return d + closing * closing / (2.0 * gap)
-    return max(v_a, 0.0) ** 2 / (2.0 * (gap + v_lead * v_lead / (2.0 * d)))
-
-
-def _leader_gap(frame: FrameState, ia: int) -> tuple[int, float] | None:
-    """A's leader in lane 6 (row) and the bumper gap to it (ft), or None without a leader: what
-    the safety filter and High Brake by need act on."""
-    ya = float(frame.local_y[ia])
-    il = lead_of(frame, ya, exclude=(ia,))
-    if il is None:
-        return None
-    return il, float(frame.local_y[il]) - ya - float(frame.length[il])
 
 
 class Controller:
@@ -360,7 +327,7 @@ class Controller:
         """``action``, or the nearest harder-braking one whose predicted gap to A's leader in
         lane 6 stays positive with a closing TTC of at least ``safety_ttc_s`` after one decision
         step (see :class:`~sim.controller_config.ControllerConfig`); High Brake (0) if none does."""
-        leader = _leader_gap(frame, ia)
+        leader = leader_gap(frame, ia)
         if leader is None:
             return action
         il, gap = leader
@@ -379,7 +346,7 @@ class Controller:
         """The High Brake acceleration (ft/s^2) of ``ControllerConfig.high_brake == "need"``:
         ``acc`` (the action's), or harder when A closes in on its leader in lane 6 faster than
         ``acc`` stops it, by need at most A's ``decel`` (see :class:`~sim.controller_config.ControllerConfig`)."""
-        leader = _leader_gap(frame, ia)
+        leader = leader_gap(frame, ia)
         if leader is None:
             return acc
         il, bumper_gap = leader

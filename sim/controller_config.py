@@ -51,7 +51,7 @@ class ControllerConfig:
             action's acceleration, or harder when that does not keep A behind its leader in lane 6: the constant
             deceleration that brings A to the leader's speed at A's minimum gap (the leader
             holding its own deceleration), or stops A behind the point where a braking leader
-            stops, whichever comes first (:func:`sim.controller.high_brake_need`),
+            stops, whichever comes first (:func:`sim.actuation.high_brake_need`),
             at most A's ``decel`` (SUMO's hardest non-emergency braking of A's type, 4.5 m/s^2 =
             14.8 ft/s^2 for the synthetic cars, where over half of the demonstrators' High Brake
             frames sit); how often it braked harder than the driver is counted per control

@@ -128,7 +128,7 @@ def test_high_brake_by_need_brakes_harder_only_where_the_leader_requires_it(spec
     harder, by the kinematic need recomputed here from the table (lane-6 leader, its speed and
     SUMO's backward-difference acceleration, A's minGap of 2.0 m), never beyond A's decel."""
     from merge_irl.units import FT_PER_M
-    from sim.controller import high_brake_need
+    from sim.actuation import high_brake_need
 
     ep = run_episode(spec, Tailgater(), SEED, duration_s=DURATION, keep_table=True,
                      controller=ControllerConfig(high_brake="need"))
@@ -177,7 +177,7 @@ def _min_gap(v_a, v_l, acc_l, gap, b):
 
 
 def test_high_brake_need_by_hand_and_by_simulation():
-    from sim.controller import high_brake_need
+    from sim.actuation import high_brake_need
 
     assert high_brake_need(30.0, 20.0, 0.0, 50.0) == pytest.approx(1.0)  # 10^2 / 100: match the speed
     assert high_brake_need(20.0, 30.0, 0.0, 50.0) == 0.0  # opening, leader not braking

@@ -125,7 +125,7 @@ def main(argv=None) -> int:
 def run(args, spec, model: SavedModel, base: LearnedPolicy, train_path: Path, held_path: Path) -> list[str]:
     """The DAgger rounds and the evaluations; returns the results table's lines (also printed)."""
     dt = base.decision_step_s
-    F = feature_array(tuple(model.feature_names), base.encoder, base.state_encoding, dt=dt,
+    F = feature_array(tuple(model.feature_names), base.encoder, base.state_encoding, decision_step_s=dt,
                       action_acc=base.action_acc_ft_s2)
     train = resample_encounters(pd.read_parquet(train_path), base.encoder, encoding=base.state_encoding,
                                 decision_step_s=dt).demos

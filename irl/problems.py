@@ -182,7 +182,7 @@ def load_merge_demos(path: str | os.PathLike | Sequence[str | os.PathLike], bins
             raise ConfigError(f"{paths[0]}: the authors' trajectories are 0.1 s steps and cannot be resampled "
                               f"at {decision_step_s} s")
         bins = bins or MergeBins.assumed_authors()
-        fs = feature_set(features or "paper", bins, encoding, dt=FRAME_S)
+        fs = feature_set(features or "paper", bins, encoding, decision_step_s=FRAME_S)
         demos = merge_mdp.load(paths[0])
         if encoding == "driver":
             demos = merge_mdp.driver_encoded(demos, fs.array)
@@ -200,7 +200,7 @@ def load_merge_demos(path: str | os.PathLike | Sequence[str | os.PathLike], bins
     where = ", ".join(str(p) for p in paths)
     joined = pd.concat(tables, ignore_index=True) if len(tables) > 1 else tables[0]
     bins = bins or fit_quantile_bins(joined, where=where)
-    fs = feature_set(features or "paper", bins, encoding, dt=step)
+    fs = feature_set(features or "paper", bins, encoding, decision_step_s=step)
     if len(tables) == 1:
         r = merge_mdp.resample_encounters(tables[0], bins, where=where, encoding=encoding, decision_step_s=step,
                                           features=fs)

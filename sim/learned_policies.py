@@ -24,6 +24,7 @@ from irl.domains.merge.bins import MergeBins
 from irl.domains.merge.car_following import CFDecisions, car_following_decisions
 from irl.domains.merge.mdp import discretize
 from irl.errors import ConfigError
+from merge_irl.units import FRAME_S
 from sim.policy import PolicyDefaults, PolicyError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -57,7 +58,7 @@ class LearnedPolicy(PolicyDefaults):
     name: str = "learned"
     controls: bool = True
     action_acc_ft_s2: tuple[float, ...] = tuple(float(x) for x in ACTION_ACC_FT_S2)
-    decision_step_s: float = 0.1
+    decision_step_s: float = FRAME_S  # a model file without the field: the 0.1 s frame
     state_encoding: str = "paper"
     flags: tuple[str, ...] = ()
 

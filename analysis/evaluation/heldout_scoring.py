@@ -18,7 +18,7 @@ from irl.domains.merge.actions import N_ACTIONS, actions_of
 from irl.domains.merge.car_following import CFDecisions
 from irl.domains.merge.encounters import REQUIRED_COLUMNS
 from irl.errors import DemonstrationError
-from irl.domains.merge.mdp import read_encounters
+from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, read_encounters
 from sim.policy import Policy, check_policy
 from sim.learned_policies import CarFollowingLogitPolicy
 
@@ -67,7 +67,7 @@ def load_heldout(demos: str | os.PathLike | pd.DataFrame) -> HeldOut:
     return HeldOut(df, counts.astype(np.int64), src)
 
 
-def policy_heldout_loglik(policy: Policy, heldout: HeldOut, decision_step_s: float = 0.1, *,
+def policy_heldout_loglik(policy: Policy, heldout: HeldOut, decision_step_s: float = DEFAULT_DECISION_STEP_S, *,
                           cf_decisions: CFDecisions | None = None) -> tuple[float, float]:
     """``(sum, per step)`` log-likelihood of the held-out demonstrations under ``policy``: the
     policy's own :meth:`~sim.policy.Policy.heldout_loglik` at the evaluation's

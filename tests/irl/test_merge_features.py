@@ -26,7 +26,7 @@ def test_paper_set_is_the_papers_three_features():
 
 
 def test_driver_features_values_at_representatives():
-    f = feature_set("driver", BINS, "driver", dt=0.3)
+    f = feature_set("driver", BINS, "driver", decision_step_s=0.3)
     assert f.array.shape == (6250, 5, len(DRIVER_FEATURES)) and f.names == DRIVER_FEATURES
     col = {n: f.array[..., i] for i, n in enumerate(f.names)}
     s_paper = BINS.state(20.0, 5.0, 5.0, 0.0, False)  # close to C, closing at 5 ft/s

@@ -69,13 +69,13 @@ def test_kinematic_fallback():
     assert np.all(np.diff(b.representatives("v_AB")) > 0)
     s = state_index(0, 2, 2, 2, 2)  # mid bins; relative speeds 0
     # over a long step, high braking lowers the relative speeds by a bin or more and opens gaps
-    nxt = state_parts(m.kinematic_next_state(np.array([s]), np.array([0]), b, dt=1.0))[0]
+    nxt = state_parts(m.kinematic_next_state(np.array([s]), np.array([0]), b, decision_step_s=1.0))[0]
     assert nxt[3] < 2 and nxt[4] < 2 and nxt[1] <= 2
     # high acceleration raises them
-    nxt = state_parts(m.kinematic_next_state(np.array([s]), np.array([4]), b, dt=1.0))[0]
+    nxt = state_parts(m.kinematic_next_state(np.array([s]), np.array([4]), b, decision_step_s=1.0))[0]
     assert nxt[3] > 2 and nxt[4] > 2
     # truck flag never changes; the model is deterministic and row-stochastic
-    t = m.kinematic_model(b, dt=1.0).to_dense()
+    t = m.kinematic_model(b, decision_step_s=1.0).to_dense()
     np.testing.assert_allclose(t.sum(axis=2), 1.0)
     src, _, dst = np.nonzero(t)
     assert np.all(src // 625 == dst // 625)

@@ -63,7 +63,7 @@ def merge_demos(seed: int, encoding: str = "paper", n_traj: int = 12, length: in
         actions.append(np.array(aa))
     demos = Demonstrations(tuple(states), tuple(actions), features(), N_STATES, N_ACTIONS, source="synthetic")
     if encoding == "driver":
-        demos = merge_mdp.driver_encoded(demos, feature_set("driver", bins, "driver", dt=0.3).array)
+        demos = merge_mdp.driver_encoded(demos, feature_set("driver", bins, "driver", decision_step_s=0.3).array)
     return demos
 
 

@@ -50,6 +50,7 @@ from irl.domains.merge.states import (
     state_parts,
 )
 from irl.errors import ConfigError
+from merge_irl.units import FRAME_S
 
 #: The paper's three binary features (section 4.2), the ``"paper"`` feature set.
 PAPER_FEATURES = ("safe", "time_to_travel", "ahead_of_truck")
@@ -139,7 +140,7 @@ class FeatureSet:
         return cls("custom", names, arr)
 
 
-def feature_set(name_or_names, bins: MergeBins, encoding: str = "paper", *, dt: float = 0.1,
+def feature_set(name_or_names, bins: MergeBins, encoding: str = "paper", *, decision_step_s: float = FRAME_S,
                 action_acc=ACTION_ACC_FT_S2) -> FeatureSet:
     """The :class:`FeatureSet` of a set name (``FEATURE_SETS``) or a tuple of feature names.
 
@@ -154,10 +155,10 @@ def feature_set(name_or_names, bins: MergeBins, encoding: str = "paper", *, dt: 
         label, names = name_or_names, FEATURE_SETS[name_or_names]
     else:
         label, names = "custom", tuple(name_or_names)
-    return FeatureSet(label, names, feature_array(names, bins, encoding, dt=dt, action_acc=action_acc))
+    return FeatureSet(label, names, feature_array(names, bins, encoding, decision_step_s=decision_step_s, action_acc=action_acc))
 
 
-def feature_array(names, bins: MergeBins, encoding: str = "paper", *, dt: float = 0.1,
+def feature_array(names, bins: MergeBins, encoding: str = "paper", *, decision_step_s: float = FRAME_S,
                   action_acc=ACTION_ACC_FT_S2) -> np.ndarray:
     """``[n_states(encoding), 5, K]`` features ``names`` on bin representatives (module doc).
 
@@ -165,7 +166,7 @@ def feature_array(names, bins: MergeBins, encoding: str = "paper", *, dt: float 
         names: feature names of :data:`DRIVER_FEATURES`, in the order wanted.
         bins: state bin edges (their representatives are the state's values).
         encoding: ``"paper"`` or ``"driver"``.
-        dt: decision step (s) over which the action acts (ITTC, relative speeds after it).
+        decision_step_s: decision step (s) over which the action acts (ITTC, relative speeds after it).
         action_acc: ``[5]`` acceleration of each action, ft/s^2.
 
     Raises:
@@ -183,7 +184,7 @@ def feature_array(names, bins: MergeBins, encoding: str = "paper", *, dt: float 
     paper = features()[s_paper]  # [S, A, 3]
 
     def after(d, v):
-        return d - v * dt - 0.5 * acc * dt * dt, v + acc * dt
+        return d - v * decision_step_s - 0.5 * acc * decision_step_s * decision_step_s, v + acc * decision_step_s
 
     d_ac, v_ac = after(rep["d_AC"], rep["v_AC"])
     d_ab, v_ab = after(rep["d_AB"], rep["v_AB"])

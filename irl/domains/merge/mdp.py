@@ -120,7 +120,7 @@ def resample_encounters(encounters_df, bins: MergeBins, *, where: str = "encount
     validate_encounters(encounters_df, where)
     k = frames_per_step(decision_step_s)
     S = n_states(encoding)
-    fs = feature_set(features or "paper", bins, encoding, dt=decision_step_s)
+    fs = feature_set(features or "paper", bins, encoding, decision_step_s=decision_step_s)
     if fs.array.shape[0] != S:
         raise ConfigError(f"features have {fs.array.shape[0]} states, the {encoding!r} encoding {S}")
     paper_states = bins.encode(encounters_df)
@@ -192,18 +192,18 @@ def driver_encoded(demos: Demonstrations, features: np.ndarray) -> Demonstration
                           n_actions=N_ACTIONS, source=demos.source, names=demos.names)
 
 
-def kinematic_next_state(states, actions, bins: MergeBins, dt: float = 0.1, *, encoding: str = "paper",
+def kinematic_next_state(states, actions, bins: MergeBins, decision_step_s: float = FRAME_S, *, encoding: str = "paper",
                          action_acc=ACTION_ACC_FT_S2) -> np.ndarray:
     """Next state predicted by constant-acceleration kinematics (the paper's fallback model).
 
     Takes each state's bin representatives (``MergeBins.representatives``) and the action's
-    representative acceleration ``a`` (``ACTION_ACC_FT_S2``), holds them over one decision step ``dt``
+    representative acceleration ``a`` (``ACTION_ACC_FT_S2``), holds them over one decision step ``decision_step_s``
     seconds and re-bins. Only A accelerates; B and C keep their speeds, and B's truck flag is
     unchanged:
 
-        v_AC' = v_AC + a dt            v_AB' = v_AB + a dt
-        d_AC' = d_AC - v_AC dt - a dt^2 / 2
-        d_AB' = d_AB - v_AB dt - a dt^2 / 2
+        v_AC' = v_AC + a decision_step_s            v_AB' = v_AB + a decision_step_s
+        d_AC' = d_AC - v_AC decision_step_s - a decision_step_s^2 / 2
+        d_AB' = d_AB - v_AB decision_step_s - a decision_step_s^2 / 2
 
     (``d_AX`` is the gap from A forward to X, so it shrinks when A is faster than X.)
 
@@ -217,60 +217,60 @@ def kinematic_next_state(states, actions, bins: MergeBins, dt: float = 0.1, *, e
         next states, same shape.
 
     Raises:
-        ConfigError: ``dt`` is not positive.
+        ConfigError: ``decision_step_s`` is not positive.
     """
-    if not dt > 0:
-        raise ConfigError(f"decision step dt must be positive, got {dt}")
+    if not decision_step_s > 0:
+        raise ConfigError(f"decision step decision_step_s must be positive, got {decision_step_s}")
     if encoding == "driver":
         s_paper, _ = split_driver_state(states)
-        nxt = kinematic_next_state(s_paper, actions, bins, dt, action_acc=action_acc)
+        nxt = kinematic_next_state(s_paper, actions, bins, decision_step_s, action_acc=action_acc)
         return (nxt * N_ACTIONS + np.asarray(actions, dtype=np.int64)).astype(np.int64)
     parts = state_parts(states)
     acc = np.asarray(action_acc, dtype=np.float64)[np.asarray(actions, dtype=np.int64)]
     rep = {name: bins.representatives(name)[parts[..., i + 1]] for i, name in enumerate(VARIABLES)}
-    v_ac = rep["v_AC"] + acc * dt
-    v_ab = rep["v_AB"] + acc * dt
-    d_ac = rep["d_AC"] - rep["v_AC"] * dt - 0.5 * acc * dt * dt
-    d_ab = rep["d_AB"] - rep["v_AB"] * dt - 0.5 * acc * dt * dt
+    v_ac = rep["v_AC"] + acc * decision_step_s
+    v_ab = rep["v_AB"] + acc * decision_step_s
+    d_ac = rep["d_AC"] - rep["v_AC"] * decision_step_s - 0.5 * acc * decision_step_s * decision_step_s
+    d_ab = rep["d_AB"] - rep["v_AB"] * decision_step_s - 0.5 * acc * decision_step_s * decision_step_s
     new = [bins.bin_index("d_AC", d_ac), bins.bin_index("d_AB", d_ab),
            bins.bin_index("v_AC", v_ac), bins.bin_index("v_AB", v_ab)]
     return state_index(parts[..., 0], *new).astype(np.int64)
 
 
-def kinematic_successors(bins: MergeBins, dt: float = 0.1, encoding: str = "paper",
+def kinematic_successors(bins: MergeBins, decision_step_s: float = FRAME_S, encoding: str = "paper",
                          action_acc=ACTION_ACC_FT_S2) -> np.ndarray:
     """``[S, 5]`` int: :func:`kinematic_next_state` of every (state, action) pair (``S`` of the
     encoding), the ``fallback_next`` of Q-Avg/Q-SM's ``unobserved="kinematic"`` (:mod:`irl.unobserved_successors`).
 
     Raises:
-        ConfigError: ``dt`` is not positive.
+        ConfigError: ``decision_step_s`` is not positive.
     """
     S = n_states(encoding)
     s = np.repeat(np.arange(S), N_ACTIONS)
     a = np.tile(np.arange(N_ACTIONS), S)
-    return kinematic_next_state(s, a, bins, dt, encoding=encoding, action_acc=action_acc).reshape(S, N_ACTIONS)
+    return kinematic_next_state(s, a, bins, decision_step_s, encoding=encoding, action_acc=action_acc).reshape(S, N_ACTIONS)
 
 
-def kinematic_model(bins: MergeBins, dt: float = 0.1, encoding: str = "paper") -> SuccessorModel:
+def kinematic_model(bins: MergeBins, decision_step_s: float = FRAME_S, encoding: str = "paper") -> SuccessorModel:
     """The deterministic transition model of ``kinematic_next_state``: ``[S, 5, S]`` (``S`` of the
     encoding: 1250 or 6250), stored sparse (one entry per (s, a) row; ``.to_dense()`` for the array).
 
     Raises:
-        ConfigError: ``dt`` is not positive.
+        ConfigError: ``decision_step_s`` is not positive.
     """
     S = n_states(encoding)
-    nxt = kinematic_successors(bins, dt, encoding).ravel()
+    nxt = kinematic_successors(bins, decision_step_s, encoding).ravel()
     p = sp.csr_matrix((np.ones(S * N_ACTIONS), nxt, np.arange(S * N_ACTIONS + 1)), shape=(S * N_ACTIONS, S))
     return SuccessorModel(p=p, terminal=np.zeros(S * N_ACTIONS, dtype=bool), n_states=S, n_actions=N_ACTIONS)
 
 
-def estimated_transitions(demos: Demonstrations, bins: MergeBins, dt: float = 0.1) -> SuccessorModel:
+def estimated_transitions(demos: Demonstrations, bins: MergeBins, decision_step_s: float = FRAME_S) -> SuccessorModel:
     """``[S, 5, S]`` relative transition counts of ``demos``, with the kinematic model at the
-    decision step ``dt`` for every (s, a) never observed (the paper's MLIRL model for the merge
+    decision step ``decision_step_s`` for every (s, a) never observed (the paper's MLIRL model for the merge
     domain); the encoding follows ``demos.n_states``. Sparse (:func:`irl.transitions.estimate_transitions`):
     about 1 MB for the driver encoding's 6250 states, where the dense array is 1.5 GB."""
     encoding = "driver" if demos.n_states == n_states("driver") else "paper"
-    return estimate_transitions(demos, fallback=kinematic_model(bins, dt, encoding))
+    return estimate_transitions(demos, fallback=kinematic_model(bins, decision_step_s, encoding))
 
 
 @dataclass(frozen=True)
@@ -280,11 +280,11 @@ class ConstantVelocityPad:
     kinematic model. Callable ``state -> (next_state, action)``; picklable."""
 
     bins: MergeBins
-    dt: float = 0.1
+    decision_step_s: float = FRAME_S
     encoding: str = "paper"
 
     def __call__(self, state: int) -> tuple[int, int]:
-        nxt = kinematic_next_state(np.array([state]), np.array([ZERO_ACTION]), self.bins, self.dt, encoding=self.encoding)
+        nxt = kinematic_next_state(np.array([state]), np.array([ZERO_ACTION]), self.bins, self.decision_step_s, encoding=self.encoding)
         return int(nxt[0]), ZERO_ACTION
 
 

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from irl.domains.merge.actions import N_ACTIONS, action_of
+from irl.domains.merge.actions import N_ACTIONS, actions_of
 from irl.domains.merge.planning.decisions import encounter_decisions
 from irl.domains.merge.planning.driver import PlanningDriver
 from sim.observe import MergeObservation
@@ -83,31 +83,28 @@ class PlanningDriverPolicy(PolicyDefaults):
         prev = obs.acc_prev if math.isfinite(obs.acc_prev) else 0.0
         acc_c = obs.acc_C if math.isfinite(obs.acc_C) else 0.0
         lp = self.driver.fine_log_policy(observation_row(obs)[None, :], np.array([prev]), np.array([acc_c]))[0]
-        self._last.update(obs=obs, lp=lp)
+        grid = self.driver.fine_grid
+        applied = self.driver.applied(grid, np.full(grid.size, prev))  # the grid itself unless a lag
+        self._last.update(obs=obs, lp=lp, applied=applied, bins=actions_of(applied))
         return lp
 
     def probs(self, obs: MergeObservation) -> np.ndarray:
         """``[5]`` probabilities of the paper actions: the sums over the fine accelerations in each bin."""
         p = np.exp(self._fine_log_policy(obs))
         out = np.zeros(N_ACTIONS)
-        np.add.at(out, self._bins, p)
+        np.add.at(out, self._last["bins"], p)
         return out / out.sum()
-
-    @property
-    def _bins(self) -> np.ndarray:
-        """``[G]`` the paper action of each fine acceleration."""
-        if "bins" not in self._last:
-            self._last["bins"] = np.array([action_of(float(a)) for a in self.driver.fine_grid], dtype=np.int64)
-        return self._last["bins"]
 
     def acceleration(self, obs: MergeObservation, action: int) -> float:
         """The driver's most likely fine acceleration (ft/s^2) within the bin ``action`` at
-        ``obs`` (the training mean of the bin when no fine acceleration lies in it)."""
+        ``obs``, as applied (under an actuation lag, :meth:`PlanningDriver.applied`; the paper
+        action is the bin of the applied acceleration), or the training mean of the bin when no
+        fine acceleration lies in it."""
         lp = self._fine_log_policy(obs)
-        inside = np.flatnonzero(self._bins == action)
+        inside = np.flatnonzero(self._last["bins"] == action)
         if inside.size == 0:
             return float(self.action_acc_ft_s2[action])
-        return float(self.driver.fine_grid[inside[np.argmax(lp[inside])]])
+        return float(self._last["applied"][inside[np.argmax(lp[inside])]])
 
     def heldout_loglik(self, encounters: pd.DataFrame, *, decision_step_s: float,
                        where: str) -> tuple[float, float]:

@@ -36,7 +36,8 @@ def random_obs(n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray
 @pytest.mark.parametrize("depth,later", [(2, "bins"), (3, "bins+hold")])
 def test_gradient_matches_central_differences(backup: str, depth: int, later: str) -> None:
     rng = np.random.default_rng(1)
-    cfg = PlannerConfig(horizon_s=2.1, depth=depth, backup=backup, c_model="ca", gamma=0.9, grid="g13", later=later)
+    cfg = PlannerConfig(horizon_s=2.1, depth=depth, backup=backup, c_model="ca", gamma=0.9, grid="g13", later=later,
+                        jerk=True)
     obs, prev, acc_C = random_obs(30, rng)
     T = path_tensors(obs, prev, acc_C, ACC, SHAPE, cfg)
     y = rng.integers(0, 5, 30)
@@ -110,7 +111,7 @@ def test_brakes_when_closing_fast_on_a_stopped_car(backup: str) -> None:
 def test_jerk_relaxes_towards_the_state_demand() -> None:
     """Free road and a speed wish: with a moderate jerk weight the best fine acceleration leaves
     Zero but stays inside a coarse bin's width; a heavier jerk weight never asks for more."""
-    cfg = PlannerConfig(with_bias=False, grid="g24", backup="softmax")
+    cfg = PlannerConfig(with_bias=False, grid="g24", backup="softmax", jerk=True)
     names = cfg.feature_names
     obs = np.array([[np.nan, np.nan, np.nan, np.nan, 40.0, np.nan, np.nan]])
     T = path_tensors(obs, np.zeros(1), np.zeros(1), ACC, SHAPE, cfg)
@@ -126,7 +127,7 @@ def test_jerk_relaxes_towards_the_state_demand() -> None:
 
 def test_fit_recovers_theta_of_simulated_data() -> None:
     rng = np.random.default_rng(5)
-    cfg = PlannerConfig(horizon_s=2.1, backup="boltzmann", with_bias=False, grid="g13")
+    cfg = PlannerConfig(horizon_s=2.1, backup="boltzmann", with_bias=False, grid="g13", jerk=True)
     names = cfg.feature_names
     true = np.zeros(len(names))
     for name, val in {"gap_need_C": -0.5, "inv_ttc_C": -2.0, "headway_C": -1.0, "speed_gain": 1.0,
@@ -143,3 +144,62 @@ def test_fit_recovers_theta_of_simulated_data() -> None:
     assert err < 0.35, (err, dict(zip(names, fit.theta.round(2))))
     big = np.abs(true) >= 1.0
     assert np.all(np.sign(fit.theta[big]) == np.sign(true[big]))
+
+
+@pytest.mark.parametrize("backup", ["softmax", "boltzmann"])
+def test_lag_gradient_matches_central_differences(backup: str) -> None:
+    """An actuation lag: per-decision bins and the floor; the exact gradient still holds."""
+    rng = np.random.default_rng(4)
+    cfg = PlannerConfig(horizon_s=2.1, depth=2, backup=backup, grid="g13", later="bins+hold", jerk=False,
+                        free_road=True, lag=0.3, v0_ft_s=95.0)
+    obs, prev, acc_C = random_obs(30, rng)
+    prev[:3] = [-12.0, 9.0, 0.0]
+    T = path_tensors(obs, prev, acc_C, ACC, SHAPE, cfg)
+    assert T.bins.shape == (30, T.Phi.shape[1]) and "jerk" not in cfg.feature_names
+    y = rng.integers(0, 5, 30)
+    y[:2] = [4, 0]  # out of reach of every lagged choice: the floor keeps it finite
+    theta = rng.normal(0.0, 0.3, len(cfg.feature_names))
+
+    def ll(th: np.ndarray) -> float:
+        return loglik_grad(th, T, y, backup, cfg.collision_penalty)[0]
+
+    assert np.isfinite(ll(theta))
+    g = loglik_grad(theta, T, y, backup, cfg.collision_penalty)[1]
+    eps = 1e-6
+    num = np.array([(ll(theta + eps * e) - ll(theta - eps * e)) / (2 * eps) for e in np.eye(theta.size)])
+    np.testing.assert_allclose(g, num, rtol=1e-5, atol=1e-6)
+    lp = bin_log_policy(T, theta, backup, cfg.collision_penalty)
+    np.testing.assert_allclose(np.exp(lp).sum(axis=1), 1.0)
+    assert ll(theta) == pytest.approx(float(lp[np.arange(30), y].sum()))
+
+
+def test_lag_applies_to_the_first_step_and_bins() -> None:
+    cfg = PlannerConfig(horizon_s=0.9, grid="g13", lag=0.5, jerk=False)
+    obs, _, acc_C = random_obs(2, np.random.default_rng(0))
+    prev = np.array([-10.0, np.nan])
+    T = path_tensors(obs, prev, acc_C, ACC, SHAPE, cfg)
+    fine = cfg.fine_grid(ACC)
+    np.testing.assert_array_equal(T.bins, actions_of(np.stack([0.5 * -10.0 + 0.5 * fine, 0.5 * fine])))
+    np.testing.assert_array_equal(T.take(np.array([1])).bins, T.bins[1:])
+    for bad in (0.0, 1.5, True):
+        with pytest.raises(ConfigError, match="lag"):
+            PlannerConfig(lag=bad)
+    with pytest.raises(ConfigError, match="v0_ft_s"):
+        PlannerConfig(v0_ft_s=-1.0)
+
+
+def test_fixed_jerk_weight_is_kept_and_the_rest_fitted() -> None:
+    rng = np.random.default_rng(5)
+    cfg = PlannerConfig(horizon_s=0.9, grid="g13", jerk=True, jerk_weight=-2.0)
+    obs, prev, acc_C = random_obs(200, rng)
+    T = path_tensors(obs, prev, acc_C, ACC, SHAPE, cfg)
+    y = rng.integers(0, 5, 200)
+    fit = fit_planner(T, y, cfg, l2=0.1)
+    j = cfg.feature_names.index("jerk")
+    assert fit.theta[j] == -2.0 and fit.converged and fit.grad_norm < 1e-4
+    ll, g = loglik_grad(fit.theta, T, y, cfg.backup, cfg.collision_penalty)
+    assert ll == pytest.approx(fit.loglik)
+    free = np.arange(fit.theta.size) != j
+    np.testing.assert_allclose((-g + 0.1 * fit.theta)[free] / 200, 0.0, atol=1e-4)
+    with pytest.raises(ConfigError, match="jerk_weight"):
+        PlannerConfig(jerk_weight=1.0)

@@ -147,3 +147,27 @@ def test_replay_on_a_tiny_pair() -> None:
     assert seen[0][0] == 0.0 and seen[1][0] == -3.0
     with pytest.raises(DemonstrationError):
         ReplayPair("r", np.zeros(3), np.zeros(2), np.zeros(3), np.zeros(3), 15.0)
+
+
+def test_lagged_driver_acts_with_its_lag_and_old_files_load(tmp_path) -> None:
+    d = encounter_decisions(encounters())
+    cfg = PlannerConfig(horizon_s=0.9, grid="g13", jerk=False, free_road=True, lag=0.5, v0_ft_s=90.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        drv = learn_planning_driver(d, selection=cfg)
+    assert drv.shape.v0_ft_s == 90.0 and "free_road" in drv.feature_names
+    prev = np.full(d.n, 4.0)
+    g = drv.fine_grid[np.argmax(drv.fine_log_policy(d.obs, prev, d.acc_C), axis=1)]
+    np.testing.assert_allclose(drv.act(d.obs, prev, d.acc_C), 2.0 + 0.5 * g)
+    b, a = drv.choose(d.obs[0], 4.0, d.acc_C[0])
+    assert a == pytest.approx(2.0 + 0.5 * g[0]) and b == actions_of(a)
+    back = PlanningDriver.load(drv.save(tmp_path / "lag.json"))
+    assert back.config == drv.config
+    # a file written before the optional config keys existed loads with their defaults
+    old = learn_planning_driver(d, selection=PlannerConfig(grid="g13", horizon_s=0.9, jerk=True))
+    data = old.to_json_dict()
+    for k in ("jerk", "free_road", "lag", "v0_ft_s", "jerk_weight"):
+        del data["config"][k]
+    (tmp_path / "old.json").write_text(json.dumps(data))
+    assert PlanningDriver.load(tmp_path / "old.json").config == old.config and "jerk" in old.feature_names
+    assert not PlannerConfig().jerk  # the default reward has no action history (the copycat; see the driver)

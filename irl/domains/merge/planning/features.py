@@ -17,11 +17,15 @@ on ``a`` and the acceleration held before it (``a_prev``, continuous):
 ``inv_ttc_C`` / ``_B``    ``min(max(dv, 0) / s, clip_ittc)`` (1/s); 0 without the leader.
 ``headway_C`` / ``_B``    ``exp(-THW / T)``, ``THW = max(s, 0) / max(v_A, 0.1)`` (s).
 ``speed_gain``            ``v_A / v0``; ``speed_dev``: ``(v_A / v0 - 1)^2``.
+``free_road``             ``(v_A / v0)^4``, IDM's free-road term (optional, ``free_road``).
 ``comfort``               ``(a / 8)^2``.
 ``jerk``                  ``((a - a_prev) / 8)^2``, ``a_prev`` continuous: persistence as a
                           smooth cost, so the best acceleration relaxes from ``a_prev`` towards
                           what the state asks for (a binary keep-action feature on 5 coarse bins
                           never lets the driver leave its bin; see docs of the driver).
+                          Optional (``jerk``): without it the reward has no action history
+                          (persistence may instead be an actuation lag, see
+                          :attr:`~irl.domains.merge.planning.model.PlannerConfig.lag`).
 ``bias_<action>``         one-hot of the paper action (bin) of ``a`` (Zero is the reference;
                           optional).
 ========================  ==================================================================
@@ -62,9 +66,10 @@ ACTION_FEATURES = ("comfort", "jerk")
 BIAS_ACTIONS = tuple(a for a in range(N_ACTIONS) if a != ZERO_ACTION)
 
 
-def feature_names(with_bias: bool) -> tuple[str, ...]:
+def feature_names(with_bias: bool, jerk: bool = True, free_road: bool = False) -> tuple[str, ...]:
     """The ``K`` learned feature names, in the order of the feature axis."""
-    return STATE_FEATURES + ACTION_FEATURES + (BIAS_FEATURES if with_bias else ())
+    return (STATE_FEATURES + (("free_road",) if free_road else ()) + ("comfort",) + (("jerk",) if jerk else ())
+            + (BIAS_FEATURES if with_bias else ()))
 
 
 @dataclass(frozen=True)
@@ -160,23 +165,28 @@ def fit_shape(gap_C_ft: np.ndarray, v_A: np.ndarray, dv_C: np.ndarray, acc_ft_s2
 
 def step_features(s_C: np.ndarray, v_C: np.ndarray, has_C: np.ndarray, s_B: np.ndarray, v_B: np.ndarray,
                   B_lead: np.ndarray, v_A: np.ndarray, acc: np.ndarray, acc_prev: np.ndarray, shape: Shape,
-                  with_bias: bool) -> np.ndarray:
+                  with_bias: bool, jerk: bool = True, free_road: bool = False) -> np.ndarray:
     """``[..., K]`` features of one step (module docstring); the inputs broadcast to ``[...]``:
     the step's end state (bumper gaps ``s_C``, ``s_B`` ft; speeds ft/s; ``has_C``, ``B_lead``
     bool) and the step's and the previous accelerations (ft/s^2)."""
     shp = np.broadcast_shapes(*(np.shape(x) for x in (s_C, v_C, s_B, v_A, acc, acc_prev)))
-    out = np.empty(shp + (len(feature_names(with_bias)),))
+    names = feature_names(with_bias, jerk, free_road)
+    col = {n: j for j, n in enumerate(names)}
+    out = np.empty(shp + (len(names),))
     out[..., 0], out[..., 2], out[..., 4] = leader_features(s_C, v_A, v_A - v_C, has_C, shape)
     out[..., 1], out[..., 3], out[..., 5] = leader_features(s_B, v_A, v_A - v_B, B_lead, shape)
     vr = v_A / shape.v0_ft_s
     out[..., 6] = vr
     out[..., 7] = (vr - 1.0) ** 2
-    out[..., 8] = (acc / ACC_SCALE_FT_S2) ** 2
-    out[..., 9] = ((acc - acc_prev) / ACC_SCALE_FT_S2) ** 2
+    if free_road:
+        out[..., col["free_road"]] = vr ** 4
+    out[..., col["comfort"]] = (acc / ACC_SCALE_FT_S2) ** 2
+    if jerk:
+        out[..., col["jerk"]] = ((acc - acc_prev) / ACC_SCALE_FT_S2) ** 2
     if with_bias:
         bins = actions_of(acc)
         for j, a in enumerate(BIAS_ACTIONS):
-            out[..., 10 + j] = bins == a
+            out[..., col[BIAS_FEATURES[j]]] = bins == a
     return out
 
 

@@ -50,7 +50,10 @@ def fit_planner(T: PathTensors, actions: np.ndarray, config: PlannerConfig, *, l
     For conditioning the optimiser works on centred, scaled features: each decision's path
     features minus their mean over its paths (every backup and the softmax are shift-equivariant,
     so the policy does not change), divided by each feature's standard deviation ``s_k``; the
-    weights and the penalty are those of the original features.
+    weights and the penalty are those of the original features. A fixed jerk weight
+    (:attr:`~irl.domains.merge.planning.model.PlannerConfig.jerk_weight`) is not fitted: its
+    feature's return joins the collision penalty's as a fixed part of every path's return, and
+    the weight is returned in its place in ``theta`` (no L2 on it; ``grad_norm`` over the others).
 
     Raises:
         ConfigError: ``l2 < 0``, no decisions, or an observed action without a fine action.
@@ -60,13 +63,20 @@ def fit_planner(T: PathTensors, actions: np.ndarray, config: PlannerConfig, *, l
     t0 = time.perf_counter()
     w = np.ones(T.n) if weights is None else np.asarray(weights, dtype=np.float64)
     wsum = float(w.sum())
+    fixed = config.jerk_weight if config.jerk else None
+    if fixed is not None:  # the fixed return joins the penalty's (penalty 1 on it)
+        j = config.feature_names.index("jerk")
+        T_full, T = T, PathTensors(np.delete(T.Phi, j, axis=-1),
+                                   config.collision_penalty * T.Col + fixed * T.Phi[..., j], T.bins)
+        if theta0 is not None:
+            theta0 = np.delete(np.asarray(theta0, dtype=np.float64), j)
     K = T.Phi.shape[-1]
     Pc = T.Phi - T.Phi.mean(axis=tuple(range(1, T.Phi.ndim - 1)), keepdims=True)
     scale = Pc.reshape(-1, K).std(axis=0)
     scale = np.where(scale > 1e-12, scale, 1.0)
     Pc /= scale
     Tc = PathTensors(Pc, T.Col, T.bins)
-    kind, pen = config.backup, config.collision_penalty
+    kind, pen = config.backup, (config.collision_penalty if fixed is None else 1.0)
 
     def f(tp: np.ndarray) -> tuple[float, np.ndarray]:
         theta = tp / scale
@@ -78,6 +88,9 @@ def fit_planner(T: PathTensors, actions: np.ndarray, config: PlannerConfig, *, l
     theta = np.asarray(res.x, dtype=np.float64) / scale
     ll, g = loglik_grad(theta, T, actions, kind, pen, w)
     grad = (-g + l2 * theta) / wsum
+    if fixed is not None:
+        theta = np.insert(theta, j, fixed)
+        ll = loglik_grad(theta, T_full, actions, kind, config.collision_penalty, w)[0]
     return PlannerFit(theta, ll, bool(res.success), float(np.linalg.norm(grad)), int(res.nit), str(res.message),
                       time.perf_counter() - t0)
 

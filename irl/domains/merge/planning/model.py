@@ -57,7 +57,15 @@ class PlannerConfig:
         0.1 s); depth: 2 or 3 segments per path; backup: one of :data:`BACKUPS`; c_model:
         ``"cv"`` or ``"ca"``; gamma: discount per step in (0, 1]; grid: a key of :data:`GRIDS`;
         later: one of :data:`LATER`; with_bias: the paper-action bias features;
-        collision_penalty: reward of a step ending in a collision (<= 0, fixed).
+        collision_penalty: reward of a step ending in a collision (<= 0, fixed);
+        jerk: the jerk feature (the reward's only action history); free_road: the free-road
+        feature ``(v_A / v0)^4``; lag: ``k`` in (0, 1], the actuation lag of the first step:
+        A applies ``a = (1 - k) a_prev + k a*``, ``a*`` the chosen fine-grid value (1: none; see
+        :func:`path_tensors`); v0_ft_s: the desired speed of the speed features (ft/s; 0: the
+        fitted one of :func:`~irl.domains.merge.planning.features.fit_shape`); jerk_weight: a
+        fixed (not fitted) weight of the jerk feature, ``<= 0``, or None: fitted (a fitted jerk
+        weight makes the driver a copycat of its own last acceleration in closed loop; see the
+        docs of the driver).
 
     Raises:
         ConfigError: a value outside the above.
@@ -73,6 +81,11 @@ class PlannerConfig:
     later: str = "bins+hold"
     with_bias: bool = True
     collision_penalty: float = -100.0
+    jerk: bool = False
+    free_road: bool = False
+    lag: float = 1.0
+    v0_ft_s: float = 0.0
+    jerk_weight: float | None = None
 
     def __post_init__(self) -> None:
         frames_per_step(self.decision_step_s)
@@ -89,6 +102,17 @@ class PlannerConfig:
             problems.append(f"horizon_s must be at least two decision steps, got {self.horizon_s!r}")
         if not (isinstance(self.collision_penalty, (int, float)) and -math.inf < self.collision_penalty <= 0):
             problems.append(f"collision_penalty must be a finite number <= 0, got {self.collision_penalty!r}")
+        if not (isinstance(self.lag, (int, float)) and not isinstance(self.lag, bool) and 0 < self.lag <= 1):
+            problems.append(f"lag must be in (0, 1], got {self.lag!r}")
+        if not (isinstance(self.v0_ft_s, (int, float)) and math.isfinite(self.v0_ft_s) and self.v0_ft_s >= 0):
+            problems.append(f"v0_ft_s must be a finite number >= 0, got {self.v0_ft_s!r}")
+        if self.jerk_weight is not None and not (isinstance(self.jerk_weight, (int, float))
+                                                 and not isinstance(self.jerk_weight, bool)
+                                                 and math.isfinite(self.jerk_weight) and self.jerk_weight <= 0):
+            problems.append(f"jerk_weight must be None or a finite number <= 0, got {self.jerk_weight!r}")
+        for name in ("jerk", "free_road", "with_bias"):
+            if not isinstance(getattr(self, name), bool):
+                problems.append(f"{name} must be true or false, got {getattr(self, name)!r}")
         if problems:
             raise ConfigError("PlannerConfig: " + "; ".join(problems))
 
@@ -100,7 +124,13 @@ class PlannerConfig:
     @property
     def feature_names(self) -> tuple[str, ...]:
         """The ``K`` learned feature names."""
-        return feature_names(self.with_bias)
+        return feature_names(self.with_bias, self.jerk, self.free_road)
+
+    def applied(self, first: np.ndarray, prev_acc: np.ndarray) -> np.ndarray:
+        """``[N, G]`` the accelerations A applies for the fine choices ``first [G]`` after
+        ``prev_acc [N]`` (NaN -> 0): ``(1 - lag) prev_acc + lag first``."""
+        prev = np.nan_to_num(np.asarray(prev_acc, dtype=np.float64), nan=0.0)
+        return (1.0 - self.lag) * prev[:, None] + self.lag * np.asarray(first, dtype=np.float64)[None, :]
 
     def fine_grid(self, action_acc: np.ndarray) -> np.ndarray:
         """``[G]`` accelerations of the first action (ft/s^2); ``action_acc [5]`` for ``"bins"``."""
@@ -113,23 +143,25 @@ class PlannerConfig:
         return np.array([0, 1] if self.depth == 2 else [0, 1, 1 + (n - 1) // 2])
 
 
-def leaf_accelerations(config: PlannerConfig, action_acc: np.ndarray) -> np.ndarray:
-    """``[G, C, (C), n]`` acceleration (ft/s^2) of every step on every path (module docstring)."""
-    fine = config.fine_grid(action_acc)
-    G = fine.size
-    later = np.broadcast_to(np.asarray(action_acc, dtype=np.float64), (G, N_ACTIONS))
+def leaf_accelerations(config: PlannerConfig, action_acc: np.ndarray,
+                       first: np.ndarray | None = None) -> np.ndarray:
+    """``[..., G, C, (C), n]`` acceleration (ft/s^2) of every step on every path (module
+    docstring); ``first [..., G]`` the applied first accelerations (default the fine grid, ``[G]``)."""
+    fine = config.fine_grid(action_acc) if first is None else np.asarray(first, dtype=np.float64)
+    lead, G = fine.shape[:-1], fine.shape[-1]
+    later = np.broadcast_to(np.asarray(action_acc, dtype=np.float64), lead + (G, N_ACTIONS))
     if config.later == "bins+hold":
-        later = np.concatenate([later, fine[:, None]], axis=1)
-    C = later.shape[1]
+        later = np.concatenate([later, fine[..., None]], axis=-1)
+    C = later.shape[-1]
     n = config.n_steps
     starts = config.segment_starts()
-    out = np.empty((G,) + (C,) * (config.depth - 1) + (n,))
-    out[..., 0] = fine.reshape((G,) + (1,) * (config.depth - 1))
+    out = np.empty(lead + (G,) + (C,) * (config.depth - 1) + (n,))
+    out[..., 0] = fine.reshape(lead + (G,) + (1,) * (config.depth - 1))
     for j in range(1, config.depth):
         k0, k1 = starts[j], (starts[j + 1] if j + 1 < starts.size else n)
         shp = [G] + [1] * (config.depth - 1)
         shp[j] = C
-        out[..., k0:k1] = later.reshape(shp)[..., None]
+        out[..., k0:k1] = later.reshape(lead + tuple(shp))[..., None]
     return out
 
 
@@ -139,7 +171,8 @@ class PathTensors:
 
     Attributes:
         Phi: ``[N, G, C, (C), K]`` discounted features of each path; Col: ``[N, G, C, (C)]``
-        discounted collision count; bins: ``[G]`` paper action of each fine first action.
+        discounted collision count; bins: ``[G]`` paper action of each fine first action, or
+        ``[N, G]`` that of the acceleration each applies (a config with an actuation lag).
     """
 
     Phi: np.ndarray
@@ -153,7 +186,7 @@ class PathTensors:
 
     def take(self, idx: np.ndarray) -> PathTensors:
         """The decisions ``idx``."""
-        return PathTensors(self.Phi[idx], self.Col[idx], self.bins)
+        return PathTensors(self.Phi[idx], self.Col[idx], self.bins[idx] if self.bins.ndim == 2 else self.bins)
 
 
 def path_tensors(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray, action_acc, shape: Shape,
@@ -180,16 +213,21 @@ def path_tensors(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray, actio
     N, K = obs.shape[0], len(config.feature_names)
     Phi = np.empty((N, leaves.shape[0], K))
     Col = np.empty((N, leaves.shape[0]))
+    fine = config.fine_grid(acc5)
+    lagged = config.lag < 1.0
     for lo in range(0, N, chunk):
         hi = min(lo + chunk, N)
-        Phi[lo:hi], Col[lo:hi] = _paths_chunk(obs[lo:hi], prev_acc[lo:hi], acc_C[lo:hi], leaves, shape, config)
-    bins = actions_of(config.fine_grid(acc5))
+        lv = leaf_accelerations(config, acc5, config.applied(fine, prev_acc[lo:hi])).reshape(hi - lo, -1, leaf.shape[-1]) \
+            if lagged else leaves[None]
+        Phi[lo:hi], Col[lo:hi] = _paths_chunk(obs[lo:hi], prev_acc[lo:hi], acc_C[lo:hi], lv, shape, config)
+    bins = actions_of(config.applied(fine, prev_acc)) if lagged else actions_of(fine)
     return PathTensors(Phi.reshape((N, *tail, K)), Col.reshape((N, *tail)), bins)
 
 
 def _paths_chunk(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray, leaves: np.ndarray, shape: Shape,
                  config: PlannerConfig) -> tuple[np.ndarray, np.ndarray]:
-    """``([N, L, K], [N, L])`` of one chunk: every step of every path at once (``[N, L, n]``)."""
+    """``([N, L, K], [N, L])`` of one chunk: every step of every path at once (``[N, L, n]``);
+    ``leaves [1 or N, L, n]`` the paths' accelerations."""
     d_AC, v_AC, d_AB, v_AB, v_A0, len_C, len_B = (obs[:, j:j + 1, None] for j in range(7))
     len_C = np.where(np.isfinite(len_C), len_C, DEFAULT_LENGTH_FT)
     len_B = np.where(np.isfinite(len_B), len_B, DEFAULT_LENGTH_FT)
@@ -199,7 +237,7 @@ def _paths_chunk(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray, leave
     B_lead = np.isfinite(d_AB) & np.isfinite(v_AB) & (d_AB > 0)
     d_AB = np.where(B_lead, d_AB, 1e6)
     v_B0 = np.where(B_lead, v_A0 - np.where(B_lead, v_AB, 0.0), 0.0)
-    L, n = leaves.shape
+    L, n = leaves.shape[1:]
     dt = config.decision_step_s
     t = dt * np.arange(1, n + 1)
     x_A = np.empty((obs.shape[0], L, n))
@@ -208,7 +246,7 @@ def _paths_chunk(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray, leave
     x_s, v_s = np.zeros((1, 1, 1)), v_A0
     for j, k0 in enumerate(starts):
         k1 = starts[j + 1] if j + 1 < starts.size else n
-        a = leaves[None, :, k0:k0 + 1]  # [1, L, 1]
+        a = leaves[:, :, k0:k0 + 1]  # [1 or N, L, 1]
         tau = t[k0:k1] - k0 * dt
         te = np.minimum(tau, np.where(a < 0, v_s / np.maximum(-a, 1e-9), np.inf))
         x_A[:, :, k0:k1] = x_s + v_s * te + 0.5 * a * te * te
@@ -221,9 +259,9 @@ def _paths_chunk(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray, leave
     d_B = d_AB + v_B0 * t - x_A
     B_ahead = B_lead & (d_B > 0)
     acc_prev = np.empty((obs.shape[0], L, n))
-    acc_prev[:, :, 1:] = leaves[None, :, :-1]
+    acc_prev[:, :, 1:] = leaves[:, :, :-1]
     acc_prev[:, :, 0] = prev_acc[:, None]
-    f = step_features(s_C, v_C, has_C, d_B - len_B, v_B0, B_ahead, v_A, leaves[None], acc_prev, shape,
-                      config.with_bias)
+    f = step_features(s_C, v_C, has_C, d_B - len_B, v_B0, B_ahead, v_A, leaves, acc_prev, shape,
+                      config.with_bias, config.jerk, config.free_road)
     g = config.gamma ** np.arange(n)
     return np.einsum("nlsk,s->nlk", f, g), collision(s_C, has_C) @ g

@@ -16,6 +16,12 @@ the paper action: ``P(b | x) = sum_{g in b} pi(g | x)`` (``b`` the bin of ``g``'
 The gradient of ``log P(b | x)`` w.r.t. ``theta`` is exact:
 ``sum_g (pi(g | x, b) - pi(g | x)) dQ(g)/dtheta`` with ``dQ(g)/dR(leaf)`` the product of each
 level's derivative (avg ``1/C``; softmax ``p_a``; boltzmann ``p_a (1 + X_a - V)``).
+
+**Actuation lag** (:attr:`~irl.domains.merge.planning.model.PlannerConfig.lag` ``< 1``): a fine
+choice ``g`` applies ``(1 - k) a_prev + k g``, so its bin depends on the decision (``bins [N, G]``)
+and a paper action may be out of reach of every choice; then
+``P(b | x) = (1 - eps) sum_{g: bin_n(g) = b} pi(g | x) + eps / 5`` (:data:`LAG_FLOOR` ``eps``),
+whose gradient is the above times ``(1 - eps) P_model(b) / P(b)``.
 """
 
 from __future__ import annotations
@@ -25,6 +31,9 @@ import numpy as np
 from irl.domains.merge.actions import N_ACTIONS
 from irl.domains.merge.planning.model import PathTensors
 from irl.errors import ConfigError
+
+#: ``eps`` of the uniform floor of the paper-action probabilities under an actuation lag.
+LAG_FLOOR = 1e-4
 
 
 def backup(X: np.ndarray, kind: str) -> tuple[np.ndarray, np.ndarray]:
@@ -68,8 +77,14 @@ def log_softmax(Q: np.ndarray) -> np.ndarray:
 
 def bin_log_policy_of_fine(lp_fine: np.ndarray, bins: np.ndarray) -> np.ndarray:
     """``[N, 5]`` ``log P(b | x)`` from ``lp_fine [N, G]`` and the bins ``[G]`` of the fine
-    actions; ``-inf`` for a paper action without a fine action."""
+    actions (``-inf`` for a paper action without a fine action), or ``[N, G]`` under an actuation
+    lag (with the floor :data:`LAG_FLOOR`, module docstring)."""
     out = np.full((lp_fine.shape[0], N_ACTIONS), -np.inf)
+    if bins.ndim == 2:
+        p = np.exp(lp_fine)  # a normalised log policy: no overflow
+        for b in range(N_ACTIONS):
+            out[:, b] = np.log((1.0 - LAG_FLOOR) * np.where(bins == b, p, 0.0).sum(axis=1) + LAG_FLOOR / N_ACTIONS)
+        return out
     for b in range(N_ACTIONS):
         sel = bins == b
         if sel.any():
@@ -111,14 +126,25 @@ def loglik_grad(theta: np.ndarray, T: PathTensors, actions: np.ndarray, kind: st
     w = np.ones(T.n) if weights is None else np.asarray(weights, dtype=np.float64)
     Q, W = q_values(path_returns(T, theta, penalty), kind)
     lp = log_softmax(Q)  # [N, G]
-    in_bin = T.bins[None, :] == actions[:, None]  # [N, G]
-    if not in_bin.any(axis=1).all():
-        raise ConfigError(f"paper actions {sorted(set(actions.tolist()) - set(T.bins.tolist()))} have no fine action")
-    lpb = np.where(in_bin, lp, -np.inf)
-    m = lpb.max(axis=1, keepdims=True)
-    lse = m + np.log(np.exp(lpb - m).sum(axis=1, keepdims=True))  # [N, 1] log P(b_n)
-    ll = float((w * lse[:, 0]).sum())
-    coef = np.where(in_bin, np.exp(lpb - lse), 0.0) - np.exp(lp)
+    if T.bins.ndim == 2:  # an actuation lag: per-decision bins and the floor
+        in_bin = T.bins == actions[:, None]
+        pg = np.where(in_bin, np.exp(lp), 0.0)
+        pm = pg.sum(axis=1)  # P_model(b_n)
+        P = (1.0 - LAG_FLOOR) * pm + LAG_FLOOR / N_ACTIONS
+        ll = float((w * np.log(P)).sum())
+        # d log P = (1 - eps) / P * sum_{g in b} p_g (dQ_g - E dQ)
+        r = (1.0 - LAG_FLOOR) / P
+        coef = r[:, None] * (pg - pm[:, None] * np.exp(lp))
+    else:
+        in_bin = T.bins[None, :] == actions[:, None]  # [N, G]
+        if not in_bin.any(axis=1).all():
+            raise ConfigError(f"paper actions {sorted(set(actions.tolist()) - set(T.bins.tolist()))} have no fine "
+                              f"action")
+        lpb = np.where(in_bin, lp, -np.inf)
+        m = lpb.max(axis=1, keepdims=True)
+        lse = m + np.log(np.exp(lpb - m).sum(axis=1, keepdims=True))  # [N, 1] log P(b_n)
+        ll = float((w * lse[:, 0]).sum())
+        coef = np.where(in_bin, np.exp(lpb - lse), 0.0) - np.exp(lp)
     coef *= w[:, None]
     K = T.Phi.shape[-1]
     M = coef if W is None else coef.reshape(coef.shape + (1,) * (W.ndim - 2)) * W

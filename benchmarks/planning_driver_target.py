@@ -110,18 +110,24 @@ def closed_loop(args) -> None:
     for text, ok in checks:
         print(f"  [{'met' if ok else 'NOT met'}] {text}")
     if args.bootstrap:
-        dec = encounter_decisions(read_encounters(train))
-        groups = np.unique(dec.groups)
-        rng = np.random.default_rng(0)
-        neg = dict.fromkeys(SAFETY, 0)
-        for _ in range(args.bootstrap):
-            pick = rng.choice(groups, size=groups.size, replace=True)
-            idx = np.concatenate([np.flatnonzero(dec.groups == g) for g in pick])
-            d = learn_planning_driver(dec.take(idx), selection=PlannerConfig())
-            for k in SAFETY:
-                neg[k] += int(d.theta[d.feature_names.index(k)] < 0)
-        print(f"\nsafety weights negative in {args.bootstrap} bootstrap resamples of the training encounters: "
-              + ", ".join(f"{k} {v}/{args.bootstrap}" for k, v in neg.items()))
+        safety_signs(train, args.bootstrap)
+
+
+def safety_signs(train: Path, n: int) -> None:
+    """How many of ``n`` bootstrap resamples (by encounter) of ``train`` give each safety weight
+    a negative sign (the planner at its default settings)."""
+    dec = encounter_decisions(read_encounters(train))
+    groups = np.unique(dec.groups)
+    rng = np.random.default_rng(0)
+    neg = dict.fromkeys(SAFETY, 0)
+    for _ in range(n):
+        pick = rng.choice(groups, size=groups.size, replace=True)
+        idx = np.concatenate([np.flatnonzero(dec.groups == g) for g in pick])
+        d = learn_planning_driver(dec.take(idx), selection=PlannerConfig())
+        for k in SAFETY:
+            neg[k] += int(d.theta[d.feature_names.index(k)] < 0)
+    print(f"\nsafety weights negative in {n} bootstrap resamples of {train}: "
+          + ", ".join(f"{k} {v}/{n}" for k, v in neg.items()))
 
 
 def real_pairs(args) -> None:
@@ -161,13 +167,17 @@ def main(argv=None) -> int:
     ap.add_argument("--bootstrap", type=int, default=20, help="resamples for the safety-weight signs (0: skip)")
     ap.add_argument("--pairs", default=str(default_pairs), help="folder of real pair CSVs")
     ap.add_argument("--params", default=None, help="a calibration (calibrate fit) to show beside the pairs' figures")
-    ap.add_argument("--skip-closed-loop", action="store_true")
+    ap.add_argument("--skip-closed-loop", action="store_true",
+                    help="only the safety-weight signs (on --train) and the real pairs")
+    ap.add_argument("--train", default=None, help="with --skip-closed-loop: the training encounters of the signs")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", default="runs/planning-driver-target")
     args = ap.parse_args(argv)
     Path(args.out).mkdir(parents=True, exist_ok=True)
     if not args.skip_closed_loop:
         closed_loop(args)
+    elif args.train and args.bootstrap:
+        safety_signs(Path(args.train), args.bootstrap)
     real_pairs(args)
     return 0
 

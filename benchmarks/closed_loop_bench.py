@@ -30,6 +30,7 @@ from scenarios.spec.parse import with_overrides
 from sim.controller import Controller
 from irl.domains.merge.bins import MergeBins
 from sim.learned_policies import LearnedPolicy
+from sim.policy import Policy
 from sim.run import run_scenario
 
 
@@ -55,13 +56,20 @@ class _Timed:
         self.seconds += time.perf_counter() - t
 
 
-def time_closed_loop(spec, work: Path) -> dict[str, float]:
-    rng = np.random.default_rng(0)
-    q = rng.normal(size=(1250, 5))
-    lp = q - np.log(np.exp(q).sum(axis=1, keepdims=True))
-    edges = {"d_AC": (35, 60, 90, 130), "d_AB": (10, 30, 60, 100), "v_AC": (-7.5, -2.5, 2.5, 7.5),
-             "v_AB": (-7.5, -2.5, 2.5, 7.5)}
-    ctl = Controller(LearnedPolicy(lp, MergeBins.from_dict(edges), name="bench"))
+def time_closed_loop(spec, work: Path, driver: str | None = None) -> dict[str, float]:
+    """One closed-loop run with rerun logging: a random tabular policy, or the driver file ``driver``."""
+    if driver is not None:
+        from analysis.evaluation.policies import driver_policy
+
+        policy: Policy = driver_policy(driver)
+    else:
+        rng = np.random.default_rng(0)
+        q = rng.normal(size=(1250, 5))
+        lp = q - np.log(np.exp(q).sum(axis=1, keepdims=True))
+        edges = {"d_AC": (35, 60, 90, 130), "d_AB": (10, 30, 60, 100), "v_AC": (-7.5, -2.5, 2.5, 7.5),
+                 "v_AB": (-7.5, -2.5, 2.5, 7.5)}
+        policy = LearnedPolicy(lp, MergeBins.from_dict(edges), name="bench")
+    ctl = Controller(policy)
     tctl = _Timed(ctl)
     log = RerunLogger(work / "bench.rrd", controller=ctl)
     tlog = _Timed(log)
@@ -79,6 +87,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--scenario", default="synthetic")
     ap.add_argument("--duration", type=float, default=None, help="simulated seconds (default: the scenario's)")
     ap.add_argument("--repeat", type=int, default=5, help="repetitions (medians are reported)")
+    ap.add_argument("--driver", default=None, metavar="DRIVER.json",
+                    help="drive with this driver file (e.g. a planning driver) instead of a random tabular policy")
     args = ap.parse_args(argv)
     spec = load_scenario(args.scenario)
     if args.duration is not None:
@@ -93,7 +103,7 @@ def main(argv: list[str] | None = None) -> int:
             bare_cpu.append(cpu)
             fcd.append(time_bare(spec, work, fcd=True)[0])
             (work / f"r{i}").mkdir()
-            ours.append(time_closed_loop(spec, work / f"r{i}"))
+            ours.append(time_closed_loop(spec, work / f"r{i}", args.driver))
     med = lambda xs: float(np.median(xs))  # noqa: E731
     b, f = med(bare), med(fcd)
     o = {k: med([r[k] for r in ours]) for k in ours[0]}

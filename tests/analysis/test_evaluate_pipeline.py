@@ -23,7 +23,7 @@ def test_run_demo_small(tmp_path):
         (tmp_path / "demo" / "models" / name).write_text("{}")
     res = run_demo(tmp_path / "demo", cfg, quiet=True, progress=False)
     out = tmp_path / "demo"
-    assert sorted(p.name for p in (out / "models").iterdir()) == ["mine.json", "qavg.json"]
+    assert sorted(p.name for p in (out / "models").iterdir()) == ["mine.json", "planner.json", "qavg.json"]
     model = SavedModel.load(res.models["qavg"])
     assert set(model.bin_edges) == {"d_AC", "d_AB", "v_AC", "v_AB"}
     # learned as `merge-irl learn` learns on encounter tables (driver features and encoding, beta 1),
@@ -32,7 +32,10 @@ def test_run_demo_small(tmp_path):
     assert (model.config.beta, model.config.gamma, model.config.l2) == (1.0, cfg.gamma, cfg.l2)
     assert res.n_train_steps > 100
     data = json.loads(res.evaluation.metrics_json.read_text())
-    assert set(data["policies"]) == {"qavg", "sumo", "uniform", "marginal", "markov", "bc"}
+    # the planning driver, learned from the demonstrations alone, is evaluated beside them
+    assert set(data["policies"]) == {"qavg", "planner", "sumo", "uniform", "marginal", "markov", "bc"}
+    assert data["policies"]["planner"]["aggregate"]["heldout_loglik_per_step"] < 0
+    assert data["policies"]["planner"]["aggregate"]["need_brakes"] == 0  # the physical actuation
     # the held-out frames carry A's speed: every policy has the Wasserstein distances (TTC only
     # when A closed in on C at some decision of this short run)
     for p in data["policies"].values():
@@ -60,7 +63,7 @@ def test_run_demo_small(tmp_path):
     # no wall time in the results: it is in timings.json
     assert "wall_time" not in res.models["qavg"].read_text()
     assert f"({res.wall_time_s:.0f} s)" not in summary
-    assert set(json.loads((out / "timings.json").read_text())["fit_wall_time_s"]) == {"qavg"}
+    assert set(json.loads((out / "timings.json").read_text())["fit_wall_time_s"]) == {"qavg", "planner"}
 
 
 def test_run_demo_with_the_dagger_driver(tmp_path):
@@ -84,7 +87,8 @@ def test_run_demo_with_the_dagger_driver(tmp_path):
     cf = CarFollowingLogit.load(res.models[CF_DRIVER])
     assert res.models[CF_DRIVER].name == "cf-dagger.json" and cf.info["dagger_round"] == 1
     data = json.loads(res.evaluation.metrics_json.read_text())
-    assert set(data["policies"]) == {"qavg", CF_DRIVER, "sumo", "uniform", "marginal", "markov", "bc"}
+    assert set(data["policies"]) == {"qavg", CF_DRIVER, "cf-logit", "planner", "sumo", "uniform", "marginal", "markov",
+                                     "bc"}
     # the driver file is in the evaluation's provenance, as for evaluate --cf-model
     assert data["provenance"]["models"][CF_DRIVER]["sha256"] == hashlib.sha256(
         res.models[CF_DRIVER].read_bytes()).hexdigest()

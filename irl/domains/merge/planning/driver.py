@@ -1,9 +1,9 @@
 """The planning driver (:class:`PlanningDriver`), its JSON file (format ``merge-irl-planner/1``)
 and :func:`learn_planning_driver`.
 
-The driver chooses A's acceleration on the fine grid of its :class:`~.model.PlannerConfig`
-(the first action of a receding-horizon tree, :mod:`.model`), by the softmax of its backed-up
-values (:mod:`.policy`); it is scored on the five paper actions, each the sum of its fine actions'
+The driver chooses A's acceleration on the fine grid of its :class:`~irl.domains.merge.planning.model.PlannerConfig`
+(the first action of a receding-horizon tree, :mod:`irl.domains.merge.planning.model`), by the softmax of its backed-up
+values (:mod:`irl.domains.merge.planning.policy`); it is scored on the five paper actions, each the sum of its fine actions'
 probabilities.
 
 **Action history (the copycat).** A reward with a fitted jerk weight (``PlannerConfig(jerk=True)``)
@@ -221,7 +221,7 @@ def _numbers(path: Path, name: str, value: Any, n: int) -> np.ndarray:
 
 
 def shape_of(decisions: PlanningDecisions) -> Shape:
-    """The feature shape fitted on ``decisions`` (:func:`~.features.fit_shape`)."""
+    """The feature shape fitted on ``decisions`` (:func:`~irl.domains.merge.planning.features.fit_shape`)."""
     len_C = np.where(np.isfinite(decisions.obs[:, 5]), decisions.obs[:, 5], DEFAULT_LENGTH_FT)
     return fit_shape(decisions.obs[:, 0] - len_C, decisions.obs[:, 4], decisions.obs[:, 1], decisions.acc)
 
@@ -237,12 +237,12 @@ def learn_planning_driver(decisions: PlanningDecisions, *, seed: int = 0,
                           log: Callable[[str], None] = lambda s: None) -> PlanningDriver:
     """Learn a planning driver on ``decisions``.
 
-    ``selection="heldout"``: the settings by :func:`~.fit.select` on an inner 70/30 split of the
+    ``selection="heldout"``: the settings by :func:`~irl.domains.merge.planning.fit.select` on an inner 70/30 split of the
     groups (``seed``), the fitting part capped at about ``select_cap`` decisions by drawing whole
-    groups (``seed + 1``); a :class:`~.model.PlannerConfig`: that setting. Then the weights are
+    groups (``seed + 1``); a :class:`~irl.domains.merge.planning.model.PlannerConfig`: that setting. Then the weights are
     fitted on all ``decisions`` (L2 ``l2``). The shape and the paper actions' accelerations come
     from all ``decisions`` (the desired speed the config's when it sets one, :func:`shape_for`).
-    ``base``: the settings the selection starts from (default :class:`~.model.PlannerConfig`'s,
+    ``base``: the settings the selection starts from (default :class:`~irl.domains.merge.planning.model.PlannerConfig`'s,
     at the decisions' step).
 
     Raises:

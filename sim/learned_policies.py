@@ -223,9 +223,8 @@ class CarFollowingLogitPolicy(PolicyDefaults):
         if not all(np.isfinite([obs.speed_A, obs.d_AB, obs.v_AB])):
             raise PolicyError(f"policy {self.name!r}: A's speed, d_AB and v_AB must be finite, got "
                               f"{obs.speed_A}, {obs.d_AB}, {obs.v_AB}")
-        x = np.array([[obs.d_AC, obs.v_AC, obs.d_AB, obs.v_AB, obs.speed_A, obs.len_C, obs.len_B]], dtype=np.float64)
         prev = obs.prev_action if obs.prev_action >= 0 else obs.initial_action
-        return np.exp(self.model.log_policy(x, np.array([prev]))[0])
+        return np.exp(self.model.log_policy(obs.continuous(), np.array([prev]))[0])
 
     def heldout_loglik(self, encounters: pd.DataFrame, *, decision_step_s: float, where: str,
                        cf_decisions: CFDecisions | None = None) -> tuple[float, float]:

@@ -70,6 +70,13 @@ class MergeObservation:
         """``[5]``: d_AC, d_AB, v_AC, v_AB, B_is_truck."""
         return np.array([self.d_AC, self.d_AB, self.v_AC, self.v_AB, float(self.b_is_truck)])
 
+    def continuous(self) -> np.ndarray:
+        """``[1, 7]``: ``d_AC, v_AC, d_AB, v_AB, v_A, len_C, len_B`` (ft, ft/s), the continuous
+        observation of the car-following and planning drivers
+        (:data:`irl.domains.merge.car_following.OBS_COLUMNS`), as one row."""
+        return np.array([[self.d_AC, self.v_AC, self.d_AB, self.v_AB, self.speed_A, self.len_C, self.len_B]],
+                        dtype=np.float64)
+
 
 def observe(frame: FrameState, ia: int, ib: int, ic: int | None) -> tuple[float, float, float, float, bool]:
     """The merge variables at ``frame`` for rows ``ia`` (A), ``ib`` (B), ``ic`` (C or None).

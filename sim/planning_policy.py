@@ -15,9 +15,7 @@ truth is read).
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -30,18 +28,13 @@ from sim.observe import MergeObservation
 from sim.policy import PolicyDefaults
 
 
-def observation_row(obs: MergeObservation) -> np.ndarray:
-    """``[7]`` ``d_AC, v_AC, d_AB, v_AB, v_A, len_C, len_B`` of ``obs`` (ft, ft/s; the planning
-    driver's observation columns, :mod:`irl.domains.merge.planning.decisions`)."""
-    return np.array([obs.d_AC, obs.v_AC, obs.d_AB, obs.v_AB, obs.speed_A, obs.len_C, obs.len_B], dtype=np.float64)
-
-
 @dataclass(frozen=True)
 class PlanningDriverPolicy(PolicyDefaults):
     """A learned planning driver as a closed-loop policy.
 
     Attributes:
-        driver: the learned driver (``merge-irl learn-driver``'s file, format ``merge-irl-planner/1``).
+        driver: the learned driver (``merge-irl learn-driver``'s file, format ``merge-irl-planner/1``;
+            ``analysis.evaluation.policies.driver_policy`` builds the policy of a file).
         name: label in reports (the file's stem when read from one).
         source: the file it was read from ("" when built in code).
         flags: ``("not_converged",)`` when the driver's fit did not converge.
@@ -61,15 +54,6 @@ class PlanningDriverPolicy(PolicyDefaults):
         object.__setattr__(self, "flags", () if self.driver.converged else ("not_converged",))
         object.__setattr__(self, "action_acc_ft_s2", tuple(self.driver.action_acc_ft_s2))
 
-    @classmethod
-    def from_file(cls, path: str | os.PathLike, name: str = "") -> PlanningDriverPolicy:
-        """The driver of a ``merge-irl-planner/1`` file, named ``name`` or the file's stem.
-
-        Raises:
-            ModelFileError: a missing, unreadable or malformed file.
-        """
-        return cls(PlanningDriver.load(path), name=name or Path(path).stem, source=str(path))
-
     @property
     def decision_step_s(self) -> float:
         """Seconds per decision the driver was trained at."""
@@ -82,7 +66,7 @@ class PlanningDriverPolicy(PolicyDefaults):
             return self._last["lp"]
         prev = obs.acc_prev if math.isfinite(obs.acc_prev) else 0.0
         acc_c = obs.acc_C if math.isfinite(obs.acc_C) else 0.0
-        lp = self.driver.fine_log_policy(observation_row(obs)[None, :], np.array([prev]), np.array([acc_c]))[0]
+        lp = self.driver.fine_log_policy(obs.continuous(), np.array([prev]), np.array([acc_c]))[0]
         grid = self.driver.fine_grid
         applied = self.driver.applied(grid, np.full(grid.size, prev))  # the grid itself unless a lag
         self._last.update(obs=obs, lp=lp, applied=applied, bins=actions_of(applied))

@@ -19,14 +19,12 @@ from typing import Any
 
 import numpy as np
 
-from analysis.calibration.evaluate import Interval, bootstrap_interval, evaluate
+from analysis.calibration.evaluate import Interval, bootstrap_intervals, evaluate, paired_statistics
 from analysis.calibration.models import SUMO_DEFAULTS
 from analysis.calibration.objective import spacing_rmse
 from analysis.calibration.pairs import CarFollowingPair, PairBatch
 from analysis.calibration.result import CalibrationResult
-from irl.domains.merge.actions import action_of
-from irl.domains.merge.car_following import car_following_features
-from irl.domains.merge.cf_logit import CarFollowingLogit
+from irl.domains.merge.actions import actions_of
 from irl.domains.merge.planning.driver import PlanningDriver
 from irl.domains.merge.planning.replay import ActFn, ReplayPair, replay
 from merge_irl.units import FT_PER_M
@@ -87,24 +85,20 @@ def driver_act(path: str | os.PathLike) -> tuple[ActFn, float]:
     Raises:
         ModelFileError: a missing, unreadable or malformed file, or not a driver's format.
     """
-    from analysis.evaluation.policies import driver_format
-    from irl.errors import ModelFileError
+    from analysis.evaluation.policies import load_driver
 
-    fmt = driver_format(path)
-    if fmt.startswith("merge-irl-planner/"):
-        planner = PlanningDriver.load(path)
-        return planner.act, planner.decision_step_s
-    if fmt.startswith("merge-irl-cf-logit/"):
-        cf = CarFollowingLogit.load(path)
-        acc = np.asarray(cf.action_acc_ft_s2, dtype=np.float64)
+    driver = load_driver(path)
+    if isinstance(driver, PlanningDriver):
+        return driver.act, driver.decision_step_s
+    cf = driver
+    acc = np.asarray(cf.action_acc_ft_s2, dtype=np.float64)
 
-        def act(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray) -> np.ndarray:
-            prev = np.array([action_of(float(a)) if np.isfinite(a) else -1 for a in prev_acc], dtype=np.int64)
-            feats = car_following_features(obs, prev, cf.action_acc_ft_s2, cf.gap_need)
-            return acc[np.argmax(feats @ cf.theta, axis=1)]
+    def act(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray) -> np.ndarray:
+        known = np.isfinite(prev_acc)
+        prev = np.where(known, actions_of(np.where(known, prev_acc, 0.0)), -1)
+        return acc[np.argmax(cf.log_policy(obs, prev), axis=1)]
 
-        return act, cf.decision_step_s
-    raise ModelFileError(f"{path}: format {fmt!r} is not a driver's (merge-irl-planner/..., merge-irl-cf-logit/...)")
+    return act, cf.decision_step_s
 
 
 def evaluate_driver(path: str | os.PathLike, pairs: Sequence[CarFollowingPair], *,
@@ -127,15 +121,10 @@ def evaluate_driver(path: str | os.PathLike, pairs: Sequence[CarFollowingPair], 
         ev = evaluate(calibration.population, pairs, model=calibration.model, classes=calibration.classes)
         cal = np.array([s.rmse_m for s in ev.pairs])
     r = np.asarray(res.rmse_m, dtype=np.float64)
-    stats: dict[str, tuple[Any, tuple[np.ndarray, ...]]] = {
-        "median_rmse_m": (np.median, (r,)), "default_median_rmse_m": (np.median, (d,)),
-        "mean_rmse_m": (np.mean, (r,)), "default_mean_rmse_m": (np.mean, (d,)),
-        "median_ratio": (lambda a, b: np.median(a) / np.median(b), (r, d)),
-        "mean_ratio": (lambda a, b: np.mean(a) / np.mean(b), (r, d)),
-    }
+    stats = paired_statistics(r, d, win_fraction=False)
     if cal is not None:
         stats["calibrated_median_rmse_m"] = (np.median, (cal,))
         stats["calibrated_mean_rmse_m"] = (np.mean, (cal,))
-    intervals = tuple((k, bootstrap_interval(f, x, seed + i)) for i, (k, (f, x)) in enumerate(stats.items()))
+    intervals = bootstrap_intervals(stats, seed)
     return DriverEvaluation(str(Path(path)), tuple(p.name for p in pairs), r, d, cal,
                             np.asarray(res.collided, dtype=bool), intervals)

@@ -7,8 +7,9 @@ IDM and Krauss are simulated by the numpy replica, EIDM by real SUMO
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.stats import bootstrap
@@ -52,6 +53,30 @@ def bootstrap_interval(stat, samples: tuple[np.ndarray, ...], seed: int) -> Inte
                    confidence_level=CONFIDENCE, method="percentile",
                    rng=np.random.default_rng(seed)).confidence_interval
     return Interval(value, float(ci.low), float(ci.high))
+
+
+#: A statistic over pairs: ``(function, its per-pair samples)``.
+Statistic = tuple[Callable[..., Any], tuple[np.ndarray, ...]]
+
+
+def paired_statistics(r: np.ndarray, d: np.ndarray, *, win_fraction: bool = True) -> dict[str, Statistic]:
+    """The statistics of per-pair RMSE ``r [P]`` beside the defaults' ``d [P]`` (m): medians,
+    means, (with ``win_fraction``) the share of pairs where ``r < d``, and the ratios of the
+    medians and of the means; in the order their bootstrap seeds follow."""
+    stats: dict[str, Statistic] = {
+        "median_rmse_m": (np.median, (r,)), "default_median_rmse_m": (np.median, (d,)),
+        "mean_rmse_m": (np.mean, (r,)), "default_mean_rmse_m": (np.mean, (d,)),
+    }
+    if win_fraction:
+        stats["win_fraction"] = (lambda a, b: np.mean(a < b), (r, d))
+    stats["median_ratio"] = (lambda a, b: np.median(a) / np.median(b), (r, d))
+    stats["mean_ratio"] = (lambda a, b: np.mean(a) / np.mean(b), (r, d))
+    return stats
+
+
+def bootstrap_intervals(stats: dict[str, Statistic], seed: int) -> tuple[tuple[str, Interval], ...]:
+    """``(name, Interval)`` of every statistic, the ``i``-th bootstrapped with seed ``seed + i``."""
+    return tuple((k, bootstrap_interval(f, x, seed + i)) for i, (k, (f, x)) in enumerate(stats.items()))
 
 
 @dataclass(frozen=True)
@@ -136,14 +161,7 @@ def evaluate(
     else:
         with SumoRmse(pairs, model, workers) as sim:
             r, d = sim([params, defaults]).T
-    stats = {
-        "median_rmse_m": (np.median, (r,)), "default_median_rmse_m": (np.median, (d,)),
-        "mean_rmse_m": (np.mean, (r,)), "default_mean_rmse_m": (np.mean, (d,)),
-        "win_fraction": (lambda a, b: np.mean(a < b), (r, d)),
-        "median_ratio": (lambda a, b: np.median(a) / np.median(b), (r, d)),
-        "mean_ratio": (lambda a, b: np.mean(a) / np.mean(b), (r, d)),
-    }
-    intervals = tuple((k, bootstrap_interval(f, x, seed + i)) for i, (k, (f, x)) in enumerate(stats.items()))
+    intervals = bootstrap_intervals(paired_statistics(r, d), seed)
     return Evaluation(
         model=model, params=params, defaults=defaults,
         pairs=tuple(PairScore(p.name, float(a), float(b)) for p, a, b in zip(pairs, r, d)),

@@ -26,6 +26,7 @@ from irl.demonstrations import Demonstrations
 from irl.domains.merge.actions import ACTION_ACC_FT_S2, actions_of
 from irl.domains.merge.bins import MergeBins, fit_quantile_bins
 from irl.domains.merge.cf_logit import CarFollowingLogit
+from irl.domains.merge.planning.driver import PlanningDriver
 from irl.domains.merge.mdp import action_mean_acc, discretize, read_encounters
 from irl.result import SavedModel
 from sim.errors import SimError
@@ -245,24 +246,39 @@ def driver_format(path: str | os.PathLike) -> str:
     return fmt
 
 
-def driver_policy(path: str | os.PathLike, name: str = "") -> Policy:
-    """The closed-loop policy of any driver file, named ``name`` or the file's stem: a planning
-    driver (``merge-irl-planner/...``, :class:`sim.planning_policy.PlanningDriverPolicy`) or a
-    car-following logit (``merge-irl-cf-logit/...``, :func:`cf_policy`).
+def load_driver(path: str | os.PathLike) -> PlanningDriver | CarFollowingLogit:
+    """The driver of any driver file, by its format: a planning driver (``merge-irl-planner/...``)
+    or a car-following logit (``merge-irl-cf-logit/...``). The one place that tells them apart.
 
     Raises:
         ModelFileError: a missing, unreadable or malformed file, or another format (named).
     """
     from irl.errors import ModelFileError
-    from sim.planning_policy import PlanningDriverPolicy
 
     fmt = driver_format(path)
     if fmt.startswith("merge-irl-planner/"):
-        return PlanningDriverPolicy.from_file(path, name=name)
+        return PlanningDriver.load(path)
     if fmt.startswith("merge-irl-cf-logit/"):
-        return cf_policy(path, name=name)
+        return CarFollowingLogit.load(path)
     raise ModelFileError(f"{path}: format {fmt!r} is not a driver's (merge-irl-planner/..., merge-irl-cf-logit/...); "
                          "a tabular model.json goes to --model")
+
+
+def driver_policy(path: str | os.PathLike, name: str = "") -> Policy:
+    """The closed-loop policy of any driver file (:func:`load_driver`), named ``name`` or the
+    file's stem: :class:`sim.planning_policy.PlanningDriverPolicy` or
+    :class:`~sim.learned_policies.CarFollowingLogitPolicy`.
+
+    Raises:
+        ModelFileError: see :func:`load_driver`.
+    """
+    from sim.planning_policy import PlanningDriverPolicy
+
+    driver = load_driver(path)
+    name = name or Path(path).stem
+    if isinstance(driver, PlanningDriver):
+        return PlanningDriverPolicy(driver, name=name, source=str(path))
+    return CarFollowingLogitPolicy(driver, name=name, source=str(path))
 
 
 def baseline_drivers(baselines: Sequence[str], spec, train_demos, bins: MergeBins | None,

@@ -1,0 +1,279 @@
+"""Benchmark: the ``imitation`` library's learners beside ours, in the same closed loop (issue 28, item 5).
+
+One run, side by side, on the demo's synthetic demonstrations (:func:`analysis.demo.pipeline.run_demo`:
+training runs ``--train-seeds``, ``--heldout-runs`` held-out runs from seed 201; or ``--demo`` a
+folder an earlier run left):
+
+* **ours**: Q-Avg (tabular IRL), the car-following logit ``cf-logit`` (the demonstrations alone)
+  and the planning driver ``planner`` (the default learned driver), as the demo learns them;
+* **imitation 1.0.1**: behaviour cloning (``imitation.algorithms.bc.BC``, its default
+  32x32 actor, ``--bc-epochs`` epochs) and GAIL (``imitation.algorithms.adversarial.gail.GAIL``,
+  a small Stable-Baselines3 PPO generator, ``--gail-steps`` environment steps on
+  ``MergeIRL/OnRampMerge-v0``), both on the same training decisions as ours: the continuous
+  observation (:meth:`sim.observe.MergeObservation.continuous`, NaN filled as the environment
+  fills it, then standardised on the training decisions) and the discrete merge action 0..4
+  (:mod:`sim.transitions`). BC's actor drives twice: its most likely action (``imit-bc``,
+  Stable-Baselines3's ``predict(deterministic=True)``) and an action sampled from its
+  probabilities (``imit-bc-sampled``, as the controller samples our drivers'); GAIL's generator
+  by its most likely action (``imit-gail``);
+* **trivial baselines**: uniform, marginal, markov, bc (tabular, the paper state) and SUMO's
+  own driver (``sumo``; ``sumo-in-lane``: A's lane changes off while observed, the
+  demonstrators' driver).
+
+Every policy drives car A of every merge in seeds ``--seed .. --seed + --episodes - 1`` through
+:func:`analysis.evaluation.evaluate.evaluate` (the imitation policies through
+:class:`sim.callable_policy.CallablePolicy`; every action applied at the training data's mean
+acceleration of its bin, as the fitted baselines'). Printed: the training wall time, A
+collisions with the Wilson 95 % interval, the held-out log-likelihood per decision (the
+evaluation's own for ours and the baselines; for BC and GAIL the actor's probabilities of the
+held-out decisions at 0.3 s, the decisions cf-logit is scored on), and the Wasserstein-1
+distances of the evaluation (TTC to C, A's speed, A's acceleration, d_AC) to the held-out
+demonstrations.
+
+Torch and imitation are imported inside the functions that use them (the ``imitation-bench``
+extra); ``--help`` and the helpers without torch run in the default install. Deterministic where
+the libraries allow: ``torch.manual_seed``, one torch thread, ``numpy`` Generators and
+Stable-Baselines3 seeds from ``--train-seed``.
+
+Run::
+
+    python -m benchmarks.imitation_bench --episodes 5 --gail-steps 4096
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import shlex
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from irl.domains.merge.actions import N_ACTIONS
+from irl.domains.merge.car_following import CFDecisions, car_following_decisions
+from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S
+from sim.observe import MergeObservation
+
+#: The evaluation's trivial baselines, in the table's order.
+BASELINES = ("uniform", "marginal", "markov", "bc", "sumo", "sumo-in-lane")
+
+
+def _f(x: float | None, nd: int = 3) -> str:
+    return "-" if x is None or not math.isfinite(x) else f"{x:.{nd}f}"
+
+
+# -- observations ------------------------------------------------------------------------------
+def filled(obs: np.ndarray) -> np.ndarray:
+    """``[N, 7]`` continuous observations (:meth:`MergeObservation.continuous` rows, NaN without
+    C) -> ``[N, 7]`` float64 without NaN, filled by the rule of
+    ``MergeObservation.continuous(filled=True)`` (the environment's observation), row by row."""
+    x = np.atleast_2d(np.asarray(obs, dtype=np.float64))
+    out = np.empty_like(x)
+    for i, (d_ac, v_ac, d_ab, v_ab, v_a, len_c, len_b) in enumerate(x):
+        o = MergeObservation(float(d_ac), float(d_ab), float(v_ac), float(v_ab), False, speed_A=float(v_a),
+                             len_C=float(len_c), len_B=float(len_b))
+        out[i] = o.continuous(filled=True)[0]
+    return out
+
+
+@dataclass(frozen=True)
+class ObsScaler:
+    """The network input of an observation: filled (:func:`filled`), minus the training mean,
+    over the training standard deviation (per column; a constant column divided by 1).
+
+    Attributes:
+        mean, std: ``[7]`` per column of the filled training observations (ft, ft/s).
+    """
+
+    mean: tuple[float, ...]
+    std: tuple[float, ...]
+
+    @classmethod
+    def fit(cls, obs: np.ndarray) -> ObsScaler:
+        """The scaler of ``[N, 7]`` training observations (NaN allowed: filled first)."""
+        x = filled(obs)
+        sd = x.std(axis=0)
+        return cls(tuple(float(v) for v in x.mean(axis=0)), tuple(float(v) if v > 0 else 1.0 for v in sd))
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        """``[N, 7]`` (or ``[7]``) observations -> ``[N, 7]`` float32 network inputs."""
+        return ((filled(obs) - np.asarray(self.mean)) / np.asarray(self.std)).astype(np.float32)
+
+
+# -- the imitation policies as callables -------------------------------------------------------
+class TorchActor:
+    """A Stable-Baselines3 actor-critic policy (BC's, PPO's) as a callable ``obs [7] -> action``
+    for :class:`sim.callable_policy.CallablePolicy`: the observation scaled by ``scaler``, then
+    the most likely action, or (``sample``) one drawn from the actor's probabilities with a
+    ``numpy`` Generator seeded ``seed`` (each evaluation episode unpickles a fresh copy, so every
+    episode starts the same stream). Picklable (the evaluation's worker processes); one torch
+    thread per process.
+    """
+
+    def __init__(self, policy: Any, scaler: ObsScaler, *, sample: bool = False, seed: int = 0):
+        self.policy, self.scaler, self.sample, self.seed = policy, scaler, sample, seed
+        self._rng = np.random.default_rng(seed)
+
+    def __getstate__(self) -> dict:
+        return {"policy": self.policy, "scaler": self.scaler, "sample": self.sample, "seed": self.seed}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__(state["policy"], state["scaler"], sample=state["sample"], seed=state["seed"])  # type: ignore[misc]
+
+    def probs(self, obs: np.ndarray) -> np.ndarray:
+        """``[N, 5]`` action probabilities of ``[N, 7]`` observations."""
+        import torch
+
+        if torch.get_num_threads() != 1:
+            torch.set_num_threads(1)
+        x = torch.as_tensor(self.scaler(obs))
+        with torch.no_grad():
+            p = self.policy.get_distribution(x).distribution.probs
+        return p.numpy().astype(np.float64)
+
+    def __call__(self, obs: np.ndarray) -> int:
+        p = self.probs(obs)[0]
+        if not self.sample:
+            return int(np.argmax(p))
+        return int(min(np.searchsorted(np.cumsum(p), self._rng.random() * p.sum(), side="right"), N_ACTIONS - 1))
+
+
+def heldout_loglik(actor: TorchActor, dec: CFDecisions) -> tuple[float, float]:
+    """``(sum, per decision)`` log-likelihood (nats) of the held-out decisions ``dec`` under
+    ``actor``'s probabilities."""
+    p = actor.probs(dec.obs)[np.arange(dec.n), dec.actions]
+    with np.errstate(divide="ignore"):
+        lp = np.log(p)
+    return float(lp.sum()), float(lp.mean())
+
+
+# -- training ----------------------------------------------------------------------------------
+def seed_torch(seed: int) -> None:
+    """Seed torch, one thread, deterministic algorithms where torch has them."""
+    import torch
+
+    torch.manual_seed(seed)
+    torch.set_num_threads(1)
+    torch.use_deterministic_algorithms(True, warn_only=True)
+
+
+def observation_space(dim: int) -> Any:
+    import gymnasium as gym
+
+    return gym.spaces.Box(-np.inf, np.inf, (dim,), np.float32)
+
+
+def train_bc(obs: np.ndarray, acts: np.ndarray, *, seed: int, epochs: int, batch_size: int = 64) -> tuple[Any, float]:
+    """imitation's behaviour cloning on ``[N, 7]`` scaled observations and ``[N]`` actions 0..4;
+    returns ``(policy, wall seconds)``."""
+    import gymnasium as gym
+    from imitation.algorithms import bc
+    from imitation.data.types import Transitions
+
+    seed_torch(seed)
+    demos = Transitions(obs=obs.astype(np.float32), acts=acts.astype(np.int64), infos=np.array([{}] * len(acts)),
+                        next_obs=obs.astype(np.float32), dones=np.zeros(len(acts), bool))
+    t0 = time.perf_counter()
+    trainer = bc.BC(observation_space=observation_space(obs.shape[1]), action_space=gym.spaces.Discrete(N_ACTIONS),
+                    demonstrations=demos, rng=np.random.default_rng(seed), batch_size=batch_size, device="cpu")
+    trainer.train(n_epochs=epochs, progress_bar=False, log_interval=10**9)
+    return trainer.policy, time.perf_counter() - t0
+
+
+# -- the benchmark -----------------------------------------------------------------------------
+def demo_data(args) -> tuple[Path, dict[str, float]]:
+    """The demo folder (run now, or ``--demo``) and the training wall times of its models (s)."""
+    from analysis.demo.config import DemoConfig
+    from analysis.demo.pipeline import run_demo
+
+    if args.demo:
+        folder = Path(args.demo)
+    else:
+        folder = Path(args.out) / "demo"
+        cfg = DemoConfig(train_seeds=args.train_seeds, heldout_runs=args.heldout_runs, eval_episodes=1,
+                         eval_duration_s=args.eval_duration, workers=args.workers)
+        run_demo(folder, cfg, quiet=True, progress=False)
+    times = json.loads((folder / "timings.json").read_text(encoding="utf-8")).get("fit_wall_time_s", {})
+    return folder, {k: float(v) for k, v in times.items()}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--episodes", type=int, default=5, help="evaluation seeds --seed .. --seed+N-1 (default 5)")
+    ap.add_argument("--seed", type=int, default=1, help="first evaluation seed (default 1)")
+    ap.add_argument("--eval-duration", type=float, default=180.0, help="simulated seconds per episode (default 180)")
+    ap.add_argument("--train-seeds", type=lambda s: tuple(int(x) for x in s.split(",")), default=(101, 102, 103))
+    ap.add_argument("--heldout-runs", type=int, default=10)
+    ap.add_argument("--demo", default=None, help="reuse this demo folder (its data/ and models/) instead of running it")
+    ap.add_argument("--train-seed", type=int, default=0, help="seed of torch, BC's batches and PPO (default 0)")
+    ap.add_argument("--bc-epochs", type=int, default=20)
+    ap.add_argument("--gail-steps", type=int, default=4096, help="GAIL's generator (PPO) environment steps; 0: no GAIL")
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--out", default="runs/imitation-bench")
+    args = ap.parse_args(argv)
+    print("command: python -m benchmarks.imitation_bench " + shlex.join(sys.argv[1:] if argv is None else argv))
+    return run(args)
+
+
+def run(args) -> int:
+    from analysis.evaluation.evaluate import evaluate
+    from analysis.evaluation.policies import driver_policy, training_action_acc
+    from analysis.experiments.dagger import DaggerConfig
+    from irl.domains.merge.cf_logit import CarFollowingLogit
+    from irl.domains.merge.mdp import read_encounters
+    from sim.callable_policy import CallablePolicy
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    folder, fit_s = demo_data(args)
+    train_path, held_path = folder / "data" / "train_encounters.parquet", folder / "data" / "heldout_encounters.parquet"
+    models = folder / "models"
+    print(f"demonstrations: {folder} ({time.perf_counter() - t0:.0f} s)")
+    step = DEFAULT_DECISION_STEP_S
+    train_dec = car_following_decisions(read_encounters(train_path), decision_step_s=step, where=str(train_path))
+    held_dec = car_following_decisions(read_encounters(held_path), decision_step_s=step, where=str(held_path))
+    print(f"training decisions {train_dec.n}, held-out decisions {held_dec.n} (at {step} s)")
+
+    # cf-logit's fit alone (the demo times it with its DAgger rounds)
+    t = time.perf_counter()
+    CarFollowingLogit.fit(train_dec, l2=DaggerConfig().l2)
+    fit_s["cf-logit"] = time.perf_counter() - t
+
+    scaler = ObsScaler.fit(train_dec.obs)
+    x = scaler(train_dec.obs)
+    bc_policy, fit_s["imit-bc"] = train_bc(x, train_dec.actions, seed=args.train_seed, epochs=args.bc_epochs)
+    fit_s["imit-bc-sampled"] = fit_s["imit-bc"]
+    actors = {"imit-bc": TorchActor(bc_policy, scaler),
+              "imit-bc-sampled": TorchActor(bc_policy, scaler, sample=True, seed=args.train_seed)}
+    print(f"imitation BC: {args.bc_epochs} epochs in {fit_s['imit-bc']:.1f} s")
+    ll = {name: heldout_loglik(a, held_dec) for name, a in actors.items() if name != "imit-bc"}
+
+    acc = training_action_acc(train_path)
+    imit = [CallablePolicy(a, name=name, decision_step_s=step, action_acc_ft_s2=acc) for name, a in actors.items()]
+    ours = [driver_policy(models / f"{k}.json", name=k) for k in ("planner", "cf-logit")]
+    rep = evaluate([models / "qavg.json"], "synthetic", args.episodes, args.seed, out / "evaluation",
+                   duration_s=args.eval_duration, demos=held_path, train_demos=train_path, baselines=BASELINES,
+                   policies=[*ours, *imit], workers=args.workers, rrd=False, progress=False)
+    print(f"\nsynthetic, seeds {args.seed}-{args.seed + args.episodes - 1}, {args.eval_duration:.0f} s each; "
+          f"decision step {step} s")
+    print("| policy | training (s) | As | A collisions [95 % CI] | held-out LL/step | W1 TTC (s) | W1 speed (ft/s) "
+          "| W1 acc (ft/s^2) | W1 d_AC (ft) |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for name, a in rep.aggregates.items():
+        lps = ll[name][1] if name in ll else a.heldout_loglik_per_step
+        print(f"| {name} | {_f(fit_s.get(name), 1)} | {a.n_controls} | {a.a_collisions} "
+              f"[{_f(a.a_collision_ci95[0])}, {_f(a.a_collision_ci95[1])}] | {_f(lps)} | {_f(a.w1_ttc_s, 2)} "
+              f"| {_f(a.w1_speed_A_ft_s, 2)} | {_f(a.w1_acc_A_ft_s2, 2)} | {_f(a.w1_d_AC_ft, 1)} |")
+    print(f"\ntotal {time.perf_counter() - t0:.0f} s; report {rep.report_md}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -125,10 +125,10 @@ class Controller:
             probs, action = self.decide(c, obs)
             self.apply(c, frame, ia, ic, obs, probs, action)
 
-    def advance(self, frame: FrameState, *, take_over: bool = True) -> list[tuple[Control, int, int, int | None]]:
+    def advance(self, frame: FrameState, *, max_take_overs: int | None = None) -> list[tuple[Control, int, int, int | None]]:
         """Everything of one frame but the decisions: SUMO's collisions and teleports, the
-        releases due (:meth:`release`), the take-overs (:meth:`take_over`; none with
-        ``take_over=False``) and the roles of the frame.
+        releases due (:meth:`release`), the take-overs (:meth:`take_over`, at most
+        ``max_take_overs``; None: every one due) and the roles of the frame.
 
         Returns the control episodes due for a decision in this frame, with the rows of A, B
         and C (None without C) in ``frame``, in the order :meth:`on_step` decides them.
@@ -163,8 +163,8 @@ class Controller:
                 # own speed and lane-change modes back like any other released car
                 self.release(c, frame.frame, reason, present=ia is not None or reason == "teleported")
         # 2. new take-overs
-        if take_over:
-            self.take_over(frame, rows)
+        if max_take_overs is None or max_take_overs > 0:
+            self.take_over(frame, limit=max_take_overs)
         if self._active and not rows:
             rows = self.rows = self._rows_of(frame)
         # 3. roles, and the decisions due
@@ -261,13 +261,16 @@ class Controller:
             return "B into A" if vid == c.b_id else "other into A"
         return "A into other"  # SUMO listed A as colliding without a pair (not seen)
 
-    def take_over(self, frame: FrameState, rows: dict[int, int] | None = None) -> list[Control]:
+    def take_over(self, frame: FrameState, *, limit: int | None = None) -> list[Control]:
         """Hand the lag car A of every B newly in the take-over zone (see the module docstring) to
-        the policy: A's lane-change mode (and, when commanded, its speed mode) off. Returns the
-        new control episodes (also appended to :attr:`controls`)."""
+        the policy (at most ``limit`` of them; None: all): A's lane-change mode (and, when
+        commanded, its speed mode) off. Returns the new control episodes (also appended to
+        :attr:`controls`)."""
         ramp = np.flatnonzero((frame.lane_id == self._ramp_lane) & (frame.local_y >= self._zone_start))
         new: list[Control] = []
         for ib in ramp:
+            if limit is not None and len(new) >= limit:
+                break
             b_id = int(frame.vehicle_id[ib])
             if b_id in self._handled_b:
                 continue

@@ -1,5 +1,6 @@
 """The closed-loop controller: a step hook that hands merge lag cars A to a policy.
 
+Lanes are those of the run's site profile (:attr:`sim.hooks.RunContext.site`); I-80's numbers below.
 Selection (default): every vehicle B on the ramp / auxiliary lane (lane 7) that reaches the
 take-over zone (``Local_Y >= zone_start_ft``) gets, once, a lag car A: the nearest lane-6
 vehicle strictly behind B's ``Local_Y`` within ``max_lag_ft`` that is not already controlled
@@ -87,6 +88,8 @@ class Controller:
         self._collision_pairs: set[tuple[str, str]] = set()
         self._frame_collisions: list[tuple[str, str]] = []  # (collider, victim) SUMO ids of the current frame
         self._vehicle_id_of: Any = None
+        self._merge_lane = RIGHTMOST_MAIN_LANE  # the run's site profile's, set by on_start
+        self._ramp_lane = RAMP_LANE
         self.n_teleports = 0  # teleports in the whole run, all vehicles
 
     @property
@@ -113,8 +116,23 @@ class Controller:
         seed = cfg.seed if cfg.seed is not None else int(ctx.seed)
         self._rng = np.random.default_rng(seed)
         self._vehicle_id_of = ctx.vehicle_id_of
+        self._merge_lane = int(ctx.site.merge_lane)
+        self._ramp_lane = int(ctx.site.ramp_lanes[0])
 
     def on_step(self, ctx: RunContext, frame: FrameState) -> None:
+        for c, ia, ib, ic in self.advance(frame):
+            obs = self.observe(c, frame, ia, ib, ic)
+            probs, action = self.decide(c, obs)
+            self.apply(c, frame, ia, ic, obs, probs, action)
+
+    def advance(self, frame: FrameState, *, max_take_overs: int | None = None) -> list[tuple[Control, int, int, int | None]]:
+        """Everything of one frame but the decisions: SUMO's collisions and teleports, the
+        releases due (:meth:`release`), the take-overs (:meth:`take_over`, at most
+        ``max_take_overs``; None: every one due) and the roles of the frame.
+
+        Returns the control episodes due for a decision in this frame, with the rows of A, B
+        and C (None without C) in ``frame``, in the order :meth:`on_step` decides them.
+        """
         sim = self._traci.simulation
         self._last_frame = frame.frame
         # short tuples (usually empty): membership tests need no set
@@ -136,19 +154,21 @@ class Controller:
         for a_id, c in list(self._active.items()):
             ib = rows.get(c.b_id)
             ia = rows.get(a_id)
-            if c.merge_frame < 0 and ib is not None and frame.lane_id[ib] == RIGHTMOST_MAIN_LANE:
+            if c.merge_frame < 0 and ib is not None and frame.lane_id[ib] == self._merge_lane:
                 c.merge_frame = frame.frame
                 c.b_ahead = bool(ia is not None and frame.local_y[ib] > frame.local_y[ia])
             reason = self._release_reason(c, frame, ia, ib, colliding, teleported, arrived)
             if reason:
                 # a teleported car is still known to SUMO (off the road for a while): it gets its
                 # own speed and lane-change modes back like any other released car
-                self._release(c, frame.frame, reason, present=ia is not None or reason == "teleported")
+                self.release(c, frame.frame, reason, present=ia is not None or reason == "teleported")
         # 2. new take-overs
-        self._take_over_new(frame, rows)
+        if max_take_overs is None or max_take_overs > 0:
+            self.take_over(frame, limit=max_take_overs)
         if self._active and not rows:
             rows = self.rows = self._rows_of(frame)
-        # 3. decisions
+        # 3. roles, and the decisions due
+        due: list[tuple[Control, int, int, int | None]] = []
         for a_id, c in self._active.items():
             ia, ib = rows[a_id], rows[c.b_id]
             c.last_y = float(frame.local_y[ia])
@@ -156,7 +176,7 @@ class Controller:
             # the lead of the gap A-C that B merges into, so it is ahead of A and nothing is between
             # them; B's lead would be a car behind A while B is behind A, and would hide A's real
             # lead car while B drives ahead of it on the ramp (collisions "A into other")
-            ic = lead_of(frame, float(frame.local_y[ia]), exclude=(ia, ib))
+            ic = lead_of(frame, float(frame.local_y[ia]), lane=self._merge_lane, exclude=(ia, ib))
             self.roles[a_id] = "A"
             self.roles[c.b_id] = "B"
             self.role_rows[ia] = "A"
@@ -165,11 +185,12 @@ class Controller:
                 self.roles.setdefault(int(frame.vehicle_id[ic]), "C")
                 self.role_rows.setdefault(ic, "C")
             if (frame.frame - c.start_frame) % self._every == 0:
-                self._decide(c, frame, ia, ib, ic)
+                due.append((c, ia, ib, ic))
+        return due
 
     def on_end(self, ctx: RunContext) -> None:
         for c in list(self._active.values()):
-            self._release(c, self._last_frame, "end_of_run", present=True)
+            self.release(c, self._last_frame, "end_of_run", present=True)
 
     @property
     def n_collisions(self) -> int:
@@ -195,7 +216,7 @@ class Controller:
             return "removed"
         if frame.local_y[ia] > self._section_end:
             return "left_section"
-        if frame.lane_id[ia] != RIGHTMOST_MAIN_LANE:
+        if frame.lane_id[ia] != self._merge_lane:
             return "left_lane"
         if c.merge_frame < 0 and ib is None:
             return "b_lost"
@@ -207,7 +228,10 @@ class Controller:
             return "timeout"
         return ""
 
-    def _release(self, c: Control, frame_no: int, reason: str, *, present: bool) -> None:
+    def release(self, c: Control, frame_no: int, reason: str, *, present: bool) -> None:
+        """End control episode ``c`` at ``frame_no`` for ``reason`` (one of
+        :data:`~sim.control_records.RELEASE_REASONS`): A gets its own speed and lane-change
+        modes back (when ``present``: still known to SUMO) and SUMO drives it again."""
         c.end_frame = frame_no
         c.reason = reason
         if reason == "collision":
@@ -237,14 +261,21 @@ class Controller:
             return "B into A" if vid == c.b_id else "other into A"
         return "A into other"  # SUMO listed A as colliding without a pair (not seen)
 
-    def _take_over_new(self, frame: FrameState, rows: dict[int, int]) -> None:
-        ramp = np.flatnonzero((frame.lane_id == RAMP_LANE) & (frame.local_y >= self._zone_start))
+    def take_over(self, frame: FrameState, *, limit: int | None = None) -> list[Control]:
+        """Hand the lag car A of every B newly in the take-over zone (see the module docstring) to
+        the policy (at most ``limit`` of them; None: all): A's lane-change mode (and, when
+        commanded, its speed mode) off. Returns the new control episodes (also appended to
+        :attr:`controls`)."""
+        ramp = np.flatnonzero((frame.lane_id == self._ramp_lane) & (frame.local_y >= self._zone_start))
+        new: list[Control] = []
         for ib in ramp:
+            if limit is not None and len(new) >= limit:
+                break
             b_id = int(frame.vehicle_id[ib])
             if b_id in self._handled_b:
                 continue
             yb = float(frame.local_y[ib])
-            ia = lag_of(frame, yb, max_gap_ft=self.config.max_lag_ft)
+            ia = lag_of(frame, yb, lane=self._merge_lane, max_gap_ft=self.config.max_lag_ft)
             if ia is None:
                 continue
             a_id = int(frame.vehicle_id[ia])
@@ -265,8 +296,12 @@ class Controller:
                     c.max_decel_ft_s2 = float(v.getEmergencyDecel(c.a_sumo)) * FT_PER_M
             self.controls.append(c)
             self._active[a_id] = c
+            new.append(c)
+        return new
 
-    def _decide(self, c: Control, frame: FrameState, ia: int, ib: int, ic: int | None) -> None:
+    def observe(self, c: Control, frame: FrameState, ia: int, ib: int, ic: int | None) -> MergeObservation:
+        """What A (row ``ia``) sees of B (``ib``) and C (``ic``, None without C) at ``frame``, with the
+        state encoded by the policy's encoder (-1 without one). Reads, changes nothing."""
         d_ac, d_ab, v_ac, v_ab, truck = observe(frame, ia, ib, ic)
         encoder = self.policy.encoder
         encoding = self.policy.state_encoding
@@ -286,14 +321,42 @@ class Controller:
         else:  # paper state x A's previous action (the initial one before the first decision, else Zero)
             prev = c.prev_action if c.prev_action >= 0 else (initial if initial >= 0 else ZERO_ACTION)
             state = encoder.state(d_ac, d_ab, v_ac, v_ab, truck, prev_action=prev, encoding=encoding)
-        obs = MergeObservation(d_ac, d_ab, v_ac, v_ab, truck, state, float(frame.speed[ia]), c.prev_action, initial,
-                               c.merge_frame >= 0, float(frame.length[ic]) if ic is not None else math.nan,
-                               float(frame.length[ib]), acc_prev, acc_c)
+        return MergeObservation(d_ac, d_ab, v_ac, v_ab, truck, state, float(frame.speed[ia]), c.prev_action, initial,
+                                c.merge_frame >= 0, float(frame.length[ic]) if ic is not None else math.nan,
+                                float(frame.length[ib]), acc_prev, acc_c)
+
+    def decide(self, c: Control, obs: MergeObservation) -> tuple[np.ndarray, int]:
+        """The policy's decision: ``(probs [5], action)``, the action sampled from ``probs`` with
+        the controller's generator (its mode with ``mode=True``); for a policy that does not
+        command A (``controls = False``), -1: :meth:`apply` then logs what SUMO did."""
         probs = np.asarray(self.policy.probs(obs), dtype=np.float64)
+        if not c.commanded:
+            return probs, -1
+        assert self._rng is not None, "on_start seeds the generator before any step"
+        return probs, choose_action(probs, self._rng, mode=self.config.mode)
+
+    def apply(self, c: Control, frame: FrameState, ia: int, ic: int | None, obs: MergeObservation, probs: np.ndarray,
+              action: int, *, acc_ft_s2: float | None = None) -> float:
+        """Apply ``action`` to A (row ``ia``; C at row ``ic``, None without C) as the controller applies every decision, and log it:
+        the safety filter (``safety_ttc_s``), the action's acceleration (``policy.acceleration``;
+        ``high_brake="need"``), capped at A's emergency deceleration, held for one decision step
+        with ``vehicle.setAcceleration``. ``acc_ft_s2`` (ft/s^2) replaces the action's acceleration
+        (a continuous action; the logged action is then its bin, :func:`irl.domains.merge.actions.action_of`).
+        Not commanded (``c.commanded`` False): nothing is applied; the action logged is the bin of
+        A's acceleration in the frame. Returns the acceleration applied (ft/s^2).
+        """
+        c_id = int(frame.vehicle_id[ic]) if ic is not None else 0
+        v_c = float(frame.speed[ic]) if ic is not None else math.nan
+        step_s = self._every * self._frame_s
+        state = obs.state
+        d_ac, d_ab, v_ac, v_ab, truck = obs.d_AC, obs.d_AB, obs.v_AC, obs.v_AB, obs.b_is_truck
         filtered = need = False
-        if c.commanded:
-            assert self._rng is not None, "on_start seeds the generator before any step"
-            action = choose_action(probs, self._rng, mode=self.config.mode)
+        if c.commanded and acc_ft_s2 is not None:
+            acc = float(acc_ft_s2)
+            action = action_of(acc)
+            acc = max(acc, -c.max_decel_ft_s2) if math.isfinite(c.max_decel_ft_s2) else acc  # A's physical limit
+            self._traci.vehicle.setAcceleration(c.a_sumo, acc * M_PER_FT, step_s)
+        elif c.commanded:
             if self.config.safety_ttc_s is not None:
                 acc_table = [self.policy.acceleration(obs, a) for a in range(len(probs))]
                 safe = self._safe_action(frame, ia, action, acc_table)
@@ -322,6 +385,7 @@ class Controller:
             frame.frame, frame.time_s, c.a_id, c.b_id, c_id, state, action, acc, obs.speed_A,
             d_ac, d_ab, v_ac, v_ab, truck, obs.len_C, obs.len_B, *probs.tolist(), filtered, need,
         ))
+        return acc
 
     def _safe_action(self, frame: FrameState, ia: int, action: int, acc_table) -> int:
         """``action``, or the nearest harder-braking one whose predicted gap to A's leader in

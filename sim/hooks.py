@@ -28,6 +28,8 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from sim.sites import I80, SiteProfile
+
 
 @dataclass(frozen=True)
 class RunContext:
@@ -47,6 +49,9 @@ class RunContext:
         vehicle_id_of: callable, SUMO id -> Vehicle_ID (int), or None if not yet assigned.
         sumo_id_of: callable, Vehicle_ID -> SUMO id, or None if unknown.
         work_dir: folder with the network and route files of this run (str).
+        site: the lane coding of the run (:class:`sim.sites.SiteProfile`, from
+            :func:`sim.sites.site_of`; I-80's by default): ``lane_id`` codes, the merge lane
+            (I-80: 6) and the ramp lane (I-80: 7).
     """
 
     spec: Any
@@ -60,6 +65,7 @@ class RunContext:
     vehicle_id_of: Callable[[str], int | None] = field(repr=False)
     sumo_id_of: Callable[[int], str | None] = field(repr=False)
     work_dir: str = ""
+    site: SiteProfile = I80
 
 
 @dataclass(frozen=True)

@@ -22,6 +22,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from sim.hooks import FrameState
+
+#: ``d_AC`` (ft) of the filled continuous observation without a lead car C
+#: (:meth:`MergeObservation.continuous`): farther than any car-following interaction at freeway
+#: speeds (about 10 s at 100 ft/s), shorter than the section.
+NO_LEAD_GAP_FT = 1000.0
 from sim.schema import RIGHTMOST_MAIN_LANE, V_CLASS_TRUCK
 
 
@@ -70,12 +75,27 @@ class MergeObservation:
         """``[5]``: d_AC, d_AB, v_AC, v_AB, B_is_truck."""
         return np.array([self.d_AC, self.d_AB, self.v_AC, self.v_AB, float(self.b_is_truck)])
 
-    def continuous(self) -> np.ndarray:
+    def continuous(self, *, filled: bool = False) -> np.ndarray:
         """``[1, 7]``: ``d_AC, v_AC, d_AB, v_AB, v_A, len_C, len_B`` (ft, ft/s), the continuous
         observation of the car-following and planning drivers
-        (:data:`irl.domains.merge.car_following.OBS_COLUMNS`), as one row."""
-        return np.array([[self.d_AC, self.v_AC, self.d_AB, self.v_AB, self.speed_A, self.len_C, self.len_B]],
-                        dtype=np.float64)
+        (:data:`irl.domains.merge.car_following.OBS_COLUMNS`), as one row.
+
+        ``filled=True``: without NaN (what a ``gymnasium`` ``Box`` and a neural network take; the
+        observation of :mod:`sim.env`): no lead car C reads as a car
+        :data:`NO_LEAD_GAP_FT` ahead at A's speed (``d_AC``, ``v_AC = 0``), an unknown length
+        (``len_C`` without C too) as the planning driver's
+        :data:`irl.domains.merge.planning.features.DEFAULT_LENGTH_FT` (4.5 m); any other NaN as 0."""
+        row = np.array([[self.d_AC, self.v_AC, self.d_AB, self.v_AB, self.speed_A, self.len_C, self.len_B]],
+                       dtype=np.float64)
+        if filled:
+            from irl.domains.merge.planning.features import DEFAULT_LENGTH_FT  # scipy: only when asked
+
+            if not (math.isfinite(self.d_AC) and math.isfinite(self.v_AC)):
+                row[0, 0:2] = NO_LEAD_GAP_FT, 0.0
+                row[0, 5] = DEFAULT_LENGTH_FT
+            row[0, 5:7] = np.where(np.isfinite(row[0, 5:7]), row[0, 5:7], DEFAULT_LENGTH_FT)
+            row = np.nan_to_num(row, nan=0.0, posinf=0.0, neginf=0.0)
+        return row
 
 
 def observe(frame: FrameState, ia: int, ib: int, ic: int | None) -> tuple[float, float, float, float, bool]:

@@ -80,6 +80,24 @@ US101 = SiteProfile("us-101", (1, 2, 3, 4, 5), 5, (7,), auxiliary_lanes=(6,), ot
 SITES: dict[str, SiteProfile] = {s.name: s for s in (I80, US101)}
 
 
+def site_of(spec: object) -> SiteProfile:
+    """The lane coding of a simulated scenario: the profile named by its ``site`` attribute
+    (a :class:`SiteProfile`, or a name / TOML path for :func:`load_site`) when it has one, else
+    I-80's (every preset: main lanes ``7 - n .. 6``, ramp and auxiliary lane 7).
+
+    A simulated road's lanes take the site's last ``main_lanes`` main lanes from the left and its
+    first ramp lane; the controller takes over on the site's ramp lane and controls the lag car in
+    its ``merge_lane``.
+
+    Raises:
+        TrajectoryFormatError: the named site is unknown (see :func:`load_site`).
+    """
+    site = getattr(spec, "site", None)
+    if site is None:
+        return I80
+    return site if isinstance(site, SiteProfile) else load_site(site)
+
+
 def _lanes(path: Path, d: dict, key: str, required: bool) -> tuple[int, ...]:
     if key not in d:
         if required:

@@ -35,7 +35,7 @@ from irl.domains.merge.actions import N_ACTIONS, action_of
 from irl.domains.merge.planning.decisions import PlanningDecisions, split_groups
 from irl.domains.merge.planning.features import DEFAULT_LENGTH_FT, Shape, fit_shape
 from irl.domains.merge.planning.fit import fit_planner, select
-from irl.domains.merge.planning.model import PathTensors, PlannerConfig, path_tensors
+from irl.domains.merge.planning.model import PathTensors, PlannerConfig, first_step, path_tensors
 from irl.domains.merge.planning.policy import bin_log_policy_of_fine, fine_log_policy
 from irl.errors import ConfigError, ModelFileError
 from merge_irl.atomic import write_json_atomic
@@ -141,6 +141,17 @@ class PlanningDriver:
             raise ConfigError(f"choose: mode must be True or a numpy Generator, got {mode!r}")
         acc = float(self.applied(self.fine_grid[g:g + 1], np.array([prev_acc]))[0])
         return action_of(acc), acc
+
+    def step_reward(self, obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray, acc: np.ndarray) -> np.ndarray:
+        """``[N]`` the learned reward of one decision step: ``theta . phi`` of the step that applies
+        ``acc [N]`` (ft/s^2) from observations ``obs [N, 7]`` (with ``prev_acc [N]`` and C's
+        ``acc_C [N]``, ft/s^2), plus ``collision_penalty`` when the step ends in a collision with C:
+        the first step of every path the planner scores (:func:`~.model.path_tensors`)."""
+        obs = np.asarray(obs, dtype=np.float64).reshape(-1, 7)
+        acc = np.asarray(acc, dtype=np.float64).reshape(-1)
+        phi, col = first_step(obs, np.asarray(prev_acc, dtype=np.float64).reshape(-1),
+                              np.asarray(acc_C, dtype=np.float64).reshape(-1), acc, self.shape, self.config)
+        return phi @ self.theta + self.config.collision_penalty * col
 
     def heldout_ll_per_decision(self, decisions: PlanningDecisions) -> float:
         """Mean ``log P(b | x)`` of ``decisions`` (nats per decision)."""

@@ -23,7 +23,7 @@ ahead at the observation and while predicted ahead (front to front). Positions r
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -222,6 +222,28 @@ def path_tensors(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray, actio
         Phi[lo:hi], Col[lo:hi] = _paths_chunk(obs[lo:hi], prev_acc[lo:hi], acc_C[lo:hi], lv, shape, config)
     bins = actions_of(config.applied(fine, prev_acc)) if lagged else actions_of(fine)
     return PathTensors(Phi.reshape((N, *tail, K)), Col.reshape((N, *tail)), bins)
+
+
+def first_step(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray, acc: np.ndarray, shape: Shape,
+               config: PlannerConfig) -> tuple[np.ndarray, np.ndarray]:
+    """``([N, K] features, [N] collision 0/1)`` of the one decision step that applies ``acc [N]``
+    (ft/s^2) from ``obs [N, 7]`` (``prev_acc``, ``acc_C`` ``[N]``, NaN -> 0): the first step of a
+    path of :func:`path_tensors`, undiscounted.
+
+    Raises:
+        ConfigError: arrays of other shapes.
+    """
+    obs = np.asarray(obs, dtype=np.float64)
+    n = obs.shape[0] if obs.ndim == 2 else -1
+    prev_acc = np.nan_to_num(np.asarray(prev_acc, dtype=np.float64), nan=0.0)
+    acc_C = np.nan_to_num(np.asarray(acc_C, dtype=np.float64), nan=0.0)
+    acc = np.asarray(acc, dtype=np.float64)
+    if obs.ndim != 2 or obs.shape[1] != 7 or any(x.shape != (n,) for x in (prev_acc, acc_C, acc)):
+        raise ConfigError(f"obs must be [N, 7], prev_acc, acc_C and acc [N]; got {obs.shape}, {prev_acc.shape}, "
+                          f"{acc_C.shape}, {acc.shape}")
+    # one path of one step per decision: leaves [N, 1, 1]
+    phi, col = _paths_chunk(obs, prev_acc, acc_C, acc[:, None, None], shape, replace(config, depth=2))
+    return phi[:, 0, :], col[:, 0]
 
 
 def _paths_chunk(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray, leaves: np.ndarray, shape: Shape,

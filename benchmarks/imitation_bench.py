@@ -53,7 +53,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pandas as pd
 
 from irl.domains.merge.actions import N_ACTIONS
 from irl.domains.merge.car_following import CFDecisions, car_following_decisions
@@ -169,21 +168,90 @@ def observation_space(dim: int) -> Any:
     return gym.spaces.Box(-np.inf, np.inf, (dim,), np.float32)
 
 
-def train_bc(obs: np.ndarray, acts: np.ndarray, *, seed: int, epochs: int, batch_size: int = 64) -> tuple[Any, float]:
-    """imitation's behaviour cloning on ``[N, 7]`` scaled observations and ``[N]`` actions 0..4;
-    returns ``(policy, wall seconds)``."""
+def train_bc(obs: np.ndarray, acts: np.ndarray, *, seed: int, epochs: int, log_dir: Path,
+             batch_size: int = 64) -> tuple[Any, float]:
+    """imitation's behaviour cloning on ``[N, 7]`` scaled observations and ``[N]`` actions 0..4
+    (its log as CSV in ``log_dir``); returns ``(policy, wall seconds)``."""
     import gymnasium as gym
     from imitation.algorithms import bc
     from imitation.data.types import Transitions
+    from imitation.util import logger as imit_logger
 
     seed_torch(seed)
     demos = Transitions(obs=obs.astype(np.float32), acts=acts.astype(np.int64), infos=np.array([{}] * len(acts)),
                         next_obs=obs.astype(np.float32), dones=np.zeros(len(acts), bool))
     t0 = time.perf_counter()
     trainer = bc.BC(observation_space=observation_space(obs.shape[1]), action_space=gym.spaces.Discrete(N_ACTIONS),
-                    demonstrations=demos, rng=np.random.default_rng(seed), batch_size=batch_size, device="cpu")
+                    demonstrations=demos, rng=np.random.default_rng(seed), batch_size=batch_size, device="cpu",
+                    custom_logger=imit_logger.configure(log_dir, ["csv"]))
     trainer.train(n_epochs=epochs, progress_bar=False, log_interval=10**9)
     return trainer.policy, time.perf_counter() - t0
+
+
+class ZeroReward:
+    """The environment's reward for GAIL, which learns its own: 0 for every decision. It carries
+    the training data's per-action accelerations (``action_acc_ft_s2``, ft/s^2), which
+    :class:`sim.env.merge_env.MergeEnv` applies for the discrete actions, as the evaluation
+    applies them."""
+
+    def __init__(self, action_acc_ft_s2: tuple[float, ...]):
+        self.action_acc_ft_s2 = tuple(float(a) for a in action_acc_ft_s2)
+
+    def __call__(self, obs: Any, action_bin: int, acc_ft_s2: float) -> float:
+        return 0.0
+
+
+def scaled_env(scaler: ObsScaler, action_acc_ft_s2: tuple[float, ...], scenario: str = "synthetic") -> Any:
+    """``MergeIRL/OnRampMerge-v0`` (discrete actions, reward 0) with observations scaled by
+    ``scaler`` (``Box(-inf, inf, (7,), float32)``)."""
+    import gymnasium as gym
+
+    from sim.env import ENV_ID
+
+    class Scaled(gym.ObservationWrapper):
+        def __init__(self, env: Any):
+            super().__init__(env)
+            self.observation_space = observation_space(len(scaler.mean))
+
+        def observation(self, observation: Any) -> np.ndarray:
+            return scaler(observation)[0]
+
+    return Scaled(gym.make(ENV_ID, scenario=scenario, reward=ZeroReward(action_acc_ft_s2)))
+
+
+def train_gail(obs: np.ndarray, acts: np.ndarray, scaler: ObsScaler, action_acc_ft_s2: tuple[float, ...], *,
+               seed: int, steps: int, env_seed: int, log_dir: Path) -> tuple[Any, float]:
+    """imitation's GAIL on ``[N, 7]`` scaled observations and ``[N]`` actions 0..4: a PPO
+    generator (32x32 actor and critic, 512 steps a round) on the environment
+    (:func:`scaled_env`, SUMO seed ``env_seed`` for its first run) for ``steps`` environment
+    steps, the discriminator :class:`imitation.rewards.reward_nets.BasicRewardNet` on (observation,
+    action) with a running input normalisation; returns ``(generator policy, wall seconds)``
+    (SUMO's simulation included)."""
+    from imitation.algorithms.adversarial.gail import GAIL
+    from imitation.data.types import Transitions
+    from imitation.rewards.reward_nets import BasicRewardNet
+    from imitation.util import logger as imit_logger
+    from imitation.util.networks import RunningNorm
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    seed_torch(seed)
+    demos = Transitions(obs=obs.astype(np.float32), acts=acts.astype(np.int64), infos=np.array([{}] * len(acts)),
+                        next_obs=obs.astype(np.float32), dones=np.zeros(len(acts), bool))
+    t0 = time.perf_counter()
+    venv = DummyVecEnv([lambda: scaled_env(scaler, action_acc_ft_s2)])
+    n_steps = min(512, steps)
+    learner = PPO("MlpPolicy", venv, n_steps=n_steps, batch_size=64, n_epochs=4, seed=seed, device="cpu",
+                  policy_kwargs={"net_arch": [32, 32]})
+    venv.seed(env_seed)  # after PPO's own seeding, which seeds the environment with the PPO seed
+    reward_net = BasicRewardNet(venv.observation_space, venv.action_space, normalize_input_layer=RunningNorm)
+    log_dir.mkdir(parents=True, exist_ok=True)
+    gail = GAIL(demonstrations=demos, demo_batch_size=256, venv=venv, gen_algo=learner, reward_net=reward_net,
+                n_disc_updates_per_round=4, gen_replay_buffer_capacity=n_steps, allow_variable_horizon=True,
+                log_dir=log_dir, custom_logger=imit_logger.configure(log_dir, ["csv"]))
+    gail.train(steps)
+    venv.close()
+    return learner.policy, time.perf_counter() - t0
 
 
 # -- the benchmark -----------------------------------------------------------------------------
@@ -214,6 +282,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--train-seed", type=int, default=0, help="seed of torch, BC's batches and PPO (default 0)")
     ap.add_argument("--bc-epochs", type=int, default=20)
     ap.add_argument("--gail-steps", type=int, default=4096, help="GAIL's generator (PPO) environment steps; 0: no GAIL")
+    ap.add_argument("--gail-env-seed", type=int, default=3001,
+                    help="SUMO seed of the environment's first run while GAIL trains (default 3001; later runs "
+                         "draw theirs from it)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", default="runs/imitation-bench")
     args = ap.parse_args(argv)
@@ -248,14 +319,23 @@ def run(args) -> int:
 
     scaler = ObsScaler.fit(train_dec.obs)
     x = scaler(train_dec.obs)
-    bc_policy, fit_s["imit-bc"] = train_bc(x, train_dec.actions, seed=args.train_seed, epochs=args.bc_epochs)
+    bc_policy, fit_s["imit-bc"] = train_bc(x, train_dec.actions, seed=args.train_seed, epochs=args.bc_epochs,
+                                           log_dir=out / "bc-log")
     fit_s["imit-bc-sampled"] = fit_s["imit-bc"]
     actors = {"imit-bc": TorchActor(bc_policy, scaler),
               "imit-bc-sampled": TorchActor(bc_policy, scaler, sample=True, seed=args.train_seed)}
     print(f"imitation BC: {args.bc_epochs} epochs in {fit_s['imit-bc']:.1f} s")
-    ll = {name: heldout_loglik(a, held_dec) for name, a in actors.items() if name != "imit-bc"}
-
     acc = training_action_acc(train_path)
+    if args.gail_steps:
+        gail_policy, fit_s["imit-gail"] = train_gail(x, train_dec.actions, scaler, acc, seed=args.train_seed,
+                                                     steps=args.gail_steps, env_seed=args.gail_env_seed,
+                                                     log_dir=out / "gail-log")
+        fit_s["imit-gail-sampled"] = fit_s["imit-gail"]
+        actors["imit-gail"] = TorchActor(gail_policy, scaler)
+        actors["imit-gail-sampled"] = TorchActor(gail_policy, scaler, sample=True, seed=args.train_seed)
+        print(f"imitation GAIL: {args.gail_steps} environment steps in {fit_s['imit-gail']:.0f} s")
+    ll = {name: heldout_loglik(a, held_dec) for name, a in actors.items() if a.sample}
+
     imit = [CallablePolicy(a, name=name, decision_step_s=step, action_acc_ft_s2=acc) for name, a in actors.items()]
     ours = [driver_policy(models / f"{k}.json", name=k) for k in ("planner", "cf-logit")]
     rep = evaluate([models / "qavg.json"], "synthetic", args.episodes, args.seed, out / "evaluation",

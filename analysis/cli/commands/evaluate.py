@@ -97,9 +97,8 @@ def run(args: argparse.Namespace) -> int:
         from sim.callable_policy import CallablePolicy
 
         # discrete actions of a callable at the training frames' mean acceleration per bin, as the baselines'
-        acc = training_action_acc(args.train_demos) if args.train_demos else None
-        cf += [CallablePolicy.from_spec(spec, **({"action_acc_ft_s2": acc} if acc is not None else {}))
-               for spec in args.policy]
+        acc = training_action_acc(args.train_demos) if args.train_demos else CallablePolicy.action_acc_ft_s2
+        cf += [CallablePolicy.from_spec(spec, action_acc_ft_s2=acc) for spec in args.policy]
     scen = Path(args.scenario).stem if args.scenario.endswith(".toml") else args.scenario
     out = Path(args.out) if args.out else Path("runs") / f"evaluate-{scen}-{args.seed}"
     from merge_irl.run_folder import locked

@@ -22,12 +22,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from sim.hooks import FrameState
+from sim.schema import RIGHTMOST_MAIN_LANE, V_CLASS_TRUCK
 
 #: ``d_AC`` (ft) of the filled continuous observation without a lead car C
 #: (:meth:`MergeObservation.continuous`): farther than any car-following interaction at freeway
 #: speeds (about 10 s at 100 ft/s), shorter than the section.
 NO_LEAD_GAP_FT = 1000.0
-from sim.schema import RIGHTMOST_MAIN_LANE, V_CLASS_TRUCK
 
 
 @dataclass(frozen=True)

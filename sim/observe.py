@@ -23,12 +23,12 @@ import numpy as np
 
 from irl.domains.merge.car_following import OBS_COLUMNS
 from sim.hooks import FrameState
+from sim.schema import RIGHTMOST_MAIN_LANE, V_CLASS_TRUCK
 
 #: ``d_AC`` (ft) of the filled continuous observation without a lead car C
 #: (:meth:`MergeObservation.continuous`): farther than any car-following interaction at freeway
 #: speeds (about 10 s at 100 ft/s), shorter than the section.
 NO_LEAD_GAP_FT = 1000.0
-from sim.schema import RIGHTMOST_MAIN_LANE, V_CLASS_TRUCK
 
 #: The columns of :meth:`MergeObservation.continuous` (the observation a policy callable, the
 #: exported transitions and the car-following and planning drivers see), in order: the encounter

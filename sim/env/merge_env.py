@@ -10,7 +10,7 @@ including every other merge of the run, is SUMO's.
 
 Spaces:
 
-* observation: ``Box(-inf, inf, (7,), float64)``, the driver's continuous observation
+* observation: ``Box(OBS_LOW, OBS_HIGH, (7,), float64)``, the driver's continuous observation
   :meth:`sim.observe.MergeObservation.continuous` (``filled=True``), columns
   :data:`irl.domains.merge.car_following.OBS_COLUMNS`:
   ``d_AC`` (ft, C's front bumper ahead of A's), ``v_AC`` (ft/s, A's speed minus C's),
@@ -51,6 +51,7 @@ from __future__ import annotations
 
 import math
 import os
+from pathlib import Path
 from collections.abc import Callable
 from typing import Any
 
@@ -72,6 +73,10 @@ from sim.observe import MergeObservation
 from sim.policy import NO_LIKELIHOOD, PolicyDefaults
 from sim.session import SumoSession
 
+#: Bounds of the observation ``Box`` (columns of ``OBS_COLUMNS``; ft, ft/s): wider than any
+#: section and freeway speed (observations are clipped to them, which no test run reached).
+OBS_LOW = np.array([-1e4, -300.0, -1e4, -300.0, 0.0, 0.0, 0.0])
+OBS_HIGH = np.array([1e4, 300.0, 1e4, 300.0, 300.0, 200.0, 200.0])
 #: Release reasons that truncate an episode (a time limit); every other one terminates it.
 TRUNCATING_REASONS = frozenset({"timeout", "end_of_run"})
 #: SUMO runs in a row that may end without a take-over before ``reset`` gives up.
@@ -136,7 +141,7 @@ class MergeEnv(gym.Env):
         else:
             from scenarios.loader import load_scenario
 
-            self.spec_ = load_scenario(scenario)
+            self.spec_ = load_scenario(scenario if isinstance(scenario, str) else Path(scenario))
         self.action_type = action_type
         self.run_s = float(run_s)
         self.controller_config = controller
@@ -146,7 +151,7 @@ class MergeEnv(gym.Env):
         acc5 = tuple(getattr(self.reward_fn, "action_acc_ft_s2", ()) or ACTION_ACC_FT_S2)
         self._agent = _AgentPolicy(encoder, tab.state_encoding if tab is not None else "paper",
                                    tuple(float(x) for x in acc5))
-        self.observation_space = spaces.Box(-np.inf, np.inf, shape=(len(OBS_COLUMNS),), dtype=np.float64)
+        self.observation_space = spaces.Box(OBS_LOW, OBS_HIGH, dtype=np.float64)
         self.action_space: spaces.Space[Any] = (
             spaces.Discrete(N_ACTIONS) if action_type == "discrete"
             else spaces.Box(np.float32(lo), np.float32(hi), shape=(1,), dtype=np.float32))
@@ -181,7 +186,7 @@ class MergeEnv(gym.Env):
             if self._find_take_over():
                 assert self._pending is not None
                 obs = self._pending[3]
-                self._last_obs = obs.continuous(filled=True)[0]
+                self._last_obs = _obs_row(obs)
                 return self._last_obs.copy(), self._info(obs)
             self._start_run(self._draw_seed())
         from sim.errors import SimulationError
@@ -230,7 +235,7 @@ class MergeEnv(gym.Env):
                 if dc is c:
                     o = ctl.observe(c, st.frame, ia2, ib2, ic2)
                     self._pending = (st.frame, ia2, ic2, o)
-                    self._last_obs = o.continuous(filled=True)[0]
+                    self._last_obs = _obs_row(o)
                     return self._last_obs.copy(), reward, False, False, {**self._info(o), **step_info}
         truncated = c.reason in TRUNCATING_REASONS
         info = {**self._info(None), **step_info, "release_reason": c.reason, "collision_kind": c.collision_kind}
@@ -288,7 +293,7 @@ class MergeEnv(gym.Env):
         from sim.observe import lead_of
 
         ic = lead_of(frame, float(frame.local_y[ia]), lane=ctl._merge_lane, exclude=(ia, ib))
-        self._last_obs = ctl.observe(c, frame, ia, ib, ic).continuous(filled=True)[0]
+        self._last_obs = _obs_row(ctl.observe(c, frame, ia, ib, ic))
 
     def _info(self, obs: MergeObservation | None) -> dict[str, Any]:
         c = self._control
@@ -296,6 +301,11 @@ class MergeEnv(gym.Env):
             self._time_s = self._pending[0].time_s
         return {"state": obs.state if obs is not None else -1, "seed": self._run_seed, "time_s": self._time_s,
                 "a_id": c.a_id if c is not None else 0, "b_id": c.b_id if c is not None else 0}
+
+
+def _obs_row(obs: MergeObservation) -> np.ndarray:
+    """``[7]`` the filled continuous observation, clipped to the observation space's bounds."""
+    return np.clip(obs.continuous(filled=True)[0], OBS_LOW, OBS_HIGH)
 
 
 def make_env(**kwargs: Any) -> Callable[[], MergeEnv]:

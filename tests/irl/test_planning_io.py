@@ -16,7 +16,7 @@ from irl.domains.merge.planning.decisions import PlanningDecisions, encounter_de
 from irl.domains.merge.planning.driver import PLANNER_FORMAT, PlanningDriver, learn_planning_driver
 from irl.domains.merge.planning.model import PlannerConfig
 from irl.domains.merge.planning.replay import ReplayPair, replay
-from irl.errors import DemonstrationError, ModelFileError
+from irl.errors import ConfigError, DemonstrationError, ModelFileError
 
 
 def encounters(n: int = 4, rows: int = 31, seed: int = 0) -> pd.DataFrame:
@@ -171,3 +171,22 @@ def test_lagged_driver_acts_with_its_lag_and_old_files_load(tmp_path) -> None:
     (tmp_path / "old.json").write_text(json.dumps(data))
     assert PlanningDriver.load(tmp_path / "old.json").config == old.config and "jerk" in old.feature_names
     assert not PlannerConfig().jerk  # the default reward has no action history (the copycat; see the driver)
+
+
+def test_step_reward_is_the_first_step_of_a_planner_path() -> None:
+    from dataclasses import replace
+
+    from irl.domains.merge.planning.features import Shape
+    from irl.domains.merge.planning.model import _paths_chunk, first_step
+
+    cfg = PlannerConfig()
+    obs = np.array([[80.0, 5.0, 30.0, -2.0, 60.0, 15.0, 15.0], [np.nan, np.nan, -20.0, 3.0, 60.0, np.nan, 15.0]])
+    acc = np.array([-3.0, 2.0])
+    phi, col = first_step(obs, np.zeros(2), np.zeros(2), acc, Shape(), cfg)
+    # a whole path (acceleration held) discounted to almost nothing after its first step
+    leaves = np.repeat(acc[:, None, None], 3, axis=2)
+    path_phi, _ = _paths_chunk(obs, np.zeros(2), np.zeros(2), leaves, Shape(), replace(cfg, gamma=1e-12))
+    np.testing.assert_allclose(phi, path_phi[:, 0, :], rtol=1e-9, atol=1e-9)
+    assert phi.shape == (2, len(cfg.feature_names)) and not col.any()
+    with pytest.raises(ConfigError):
+        first_step(obs, np.zeros(3), np.zeros(2), acc, Shape(), cfg)

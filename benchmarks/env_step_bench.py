@@ -1,0 +1,114 @@
+"""Benchmark: the Gymnasium environment (:mod:`sim.env`) against the closed-loop runner, side by side.
+
+Same scenario, seed and simulated time, Zero (action 2) at every decision:
+
+* ``closed loop``: :func:`sim.run.run_scenario` with the :class:`sim.controller.Controller` driving
+  every merge's lag car (a constant policy);
+* ``env``: :class:`sim.env.MergeEnv` stepped by a Python loop (``reset(seed)`` once, then ``reset()``
+  continues the same SUMO run to its next take-over), one controlled car at a time;
+* ``env x2 (AsyncVectorEnv)``: two worker processes, one SUMO each, for episodes per second.
+
+Printed per decision: wall time, and the overhead (wall time outside ``simulationStep``, i.e.
+Python: reading frames, the controller, the environment); per simulated second: wall time.
+Target (issue 28): the environment's overhead per decision at most 1.3x the closed loop's.
+Run: ``python -m benchmarks.env_step_bench [--sim-s 600] [--seed 1]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from scenarios.loader import load_scenario
+from sim.controller import Controller
+from sim.controller_config import ControllerConfig
+from sim.policy import ConstantPolicy
+from sim.run import run_scenario
+
+ZERO = 2
+
+
+def closed_loop(spec, seed: int, sim_s: float) -> dict[str, float]:
+    ctl = Controller(ConstantPolicy(ZERO), ControllerConfig(decision_step_s=0.3))
+    t = time.perf_counter()
+    res = run_scenario(spec, seed=seed, duration_s=sim_s, hooks=[ctl])
+    wall = time.perf_counter() - t
+    n = len(ctl.decision_table())
+    return {"wall": wall, "sumo": res.sumo_time_s, "decisions": n, "episodes": len(ctl.controls)}
+
+
+def env_loop(spec, seed: int, sim_s: float) -> dict[str, float]:
+    from sim.env import MergeEnv
+
+    env = MergeEnv(spec, run_s=sim_s)
+    t = time.perf_counter()
+    env.reset(seed=seed)
+    session = env._session
+    n = episodes = 0
+    while True:
+        _, _, term, trunc, info = env.step(ZERO)
+        n += 1
+        if term or trunc:
+            episodes += 1
+            if info["release_reason"] == "end_of_run" or session is None or session.done:
+                break
+            env.reset()
+            if env._session is not session:  # the run ended while looking for a take-over
+                break
+    wall = time.perf_counter() - t
+    sumo = session.sumo_time_s if session is not None else float("nan")
+    env.close()
+    return {"wall": wall, "sumo": sumo, "decisions": n, "episodes": episodes}
+
+
+def vector_episodes(spec_name: str, seed: int, steps: int) -> tuple[float, int, float]:
+    import gymnasium as gym
+
+    from sim.env import make_env
+
+    envs = gym.vector.AsyncVectorEnv([make_env(scenario=spec_name, run_s=3600.0)] * 2, context="spawn")
+    try:
+        t0 = time.perf_counter()
+        envs.reset(seed=[seed, seed + 1])
+        t = time.perf_counter()
+        done = 0
+        for _ in range(steps):
+            _, _, term, trunc, _ = envs.step(np.array([ZERO, ZERO]))
+            done += int(np.sum(term | trunc))
+        wall = time.perf_counter() - t
+        return wall, done, t - t0
+    finally:
+        envs.close()
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scenario", default="synthetic")
+    ap.add_argument("--sim-s", type=float, default=600.0, help="simulated seconds of each run (warm-up included)")
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--vector-steps", type=int, default=600, help="steps of the 2-worker AsyncVectorEnv")
+    a = ap.parse_args(argv)
+    spec = load_scenario(a.scenario)
+    cl = closed_loop(spec, a.seed, a.sim_s)
+    ev = env_loop(spec, a.seed, a.sim_s)
+    print(f"scenario {a.scenario}, seed {a.seed}, {a.sim_s:g} simulated s per run, Zero at every 0.3 s decision")
+    print(f"{'':28s}{'decisions':>10s}{'episodes':>10s}{'wall s':>9s}{'ms/decision':>13s}"
+          f"{'overhead ms/dec':>17s}{'ms/sim s':>10s}{'episodes/s':>12s}")
+    for name, r in (("closed loop (run_scenario)", cl), ("env (MergeEnv, 1 process)", ev)):
+        per = 1e3 * r["wall"] / max(r["decisions"], 1)
+        over = 1e3 * (r["wall"] - r["sumo"]) / max(r["decisions"], 1)
+        print(f"{name:28s}{r['decisions']:>10d}{r['episodes']:>10d}{r['wall']:>9.2f}{per:>13.3f}{over:>17.3f}"
+              f"{1e3 * r['wall'] / a.sim_s:>10.2f}{r['episodes'] / r['wall']:>12.2f}")
+    vw, vdone, vstart = vector_episodes(a.scenario, a.seed, a.vector_steps)
+    print(f"{'env x2 (AsyncVectorEnv)':28s}{2 * a.vector_steps:>10d}{vdone:>10d}{vw:>9.2f}"
+          f"{1e3 * vw / (2 * a.vector_steps):>13.3f}{'':>17s}{'':>10s}{vdone / vw:>12.2f}"
+          f"   (+{vstart:.1f} s start and first reset)")
+    r_dec = (ev["wall"] / ev["decisions"]) / (cl["wall"] / cl["decisions"])
+    r_over = ((ev["wall"] - ev["sumo"]) / ev["decisions"]) / ((cl["wall"] - cl["sumo"]) / cl["decisions"])
+    print(f"env / closed loop per decision: wall {r_dec:.2f}x, overhead {r_over:.2f}x (target: overhead <= 1.3x)")
+
+
+if __name__ == "__main__":
+    main()

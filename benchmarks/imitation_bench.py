@@ -9,10 +9,12 @@ folder an earlier run left):
 * **imitation 1.0.1**: behaviour cloning (``imitation.algorithms.bc.BC``, its default
   32x32 actor, ``--bc-epochs`` epochs) and GAIL (``imitation.algorithms.adversarial.gail.GAIL``,
   a small Stable-Baselines3 PPO generator, ``--gail-steps`` environment steps on
-  ``MergeIRL/OnRampMerge-v0``), both on the same training decisions as ours: the continuous
-  observation (:meth:`sim.observe.MergeObservation.continuous`, NaN filled as the environment
-  fills it, then standardised on the training decisions) and the discrete merge action 0..4
-  (:mod:`sim.transitions`). BC's actor drives twice: its most likely action (``imit-bc``,
+  ``MergeIRL/OnRampMerge-v0``), both on the same training encounters as ours, as transitions
+  (:func:`sim.transitions.from_encounters`, the decisions Q-Avg learns from, made
+  ``imitation`` Trajectories by :func:`sim.transitions.to_imitation_trajectories`): the
+  continuous observation (:meth:`sim.observe.MergeObservation.continuous`, NaN filled as the
+  environment fills it, then standardised on the training decisions) and the discrete merge
+  action 0..4. Unlike Q-Avg's and cf-logit's, their observation holds no previous action. BC's actor drives twice: its most likely action (``imit-bc``,
   Stable-Baselines3's ``predict(deterministic=True)``) and an action sampled from its
   probabilities (``imit-bc-sampled``, as the controller samples our drivers'); GAIL's generator
   by its most likely action (``imit-gail``);
@@ -26,7 +28,8 @@ Every policy drives car A of every merge in seeds ``--seed .. --seed + --episode
 acceleration of its bin, as the fitted baselines'). Printed: the training wall time, A
 collisions with the Wilson 95 % interval, the held-out log-likelihood per decision (the
 evaluation's own for ours and the baselines; for BC and GAIL the actor's probabilities of the
-held-out decisions at 0.3 s, the decisions cf-logit is scored on), and the Wasserstein-1
+held-out transitions at 0.3 s, the decisions the tabular drivers are scored on; shown on the
+sampled rows, whose driving those probabilities are), and the Wasserstein-1
 distances of the evaluation (TTC to C, A's speed, A's acceleration, d_AC) to the held-out
 demonstrations.
 
@@ -48,16 +51,16 @@ import math
 import shlex
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from irl.domains.merge.actions import N_ACTIONS
-from irl.domains.merge.car_following import CFDecisions, car_following_decisions
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S
 from sim.observe import MergeObservation
+from sim.transitions import Transitions, to_imitation_trajectories
 
 #: The evaluation's trivial baselines, in the table's order.
 BASELINES = ("uniform", "marginal", "markov", "bc", "sumo", "sumo-in-lane")
@@ -143,10 +146,10 @@ class TorchActor:
         return int(min(np.searchsorted(np.cumsum(p), self._rng.random() * p.sum(), side="right"), N_ACTIONS - 1))
 
 
-def heldout_loglik(actor: TorchActor, dec: CFDecisions) -> tuple[float, float]:
-    """``(sum, per decision)`` log-likelihood (nats) of the held-out decisions ``dec`` under
-    ``actor``'s probabilities."""
-    p = actor.probs(dec.obs)[np.arange(dec.n), dec.actions]
+def heldout_loglik(actor: TorchActor, held: Transitions) -> tuple[float, float]:
+    """``(sum, per decision)`` log-likelihood (nats) of the held-out decisions ``held`` (their
+    ``[N, 7]`` observations and ``[N]`` actions) under ``actor``'s probabilities."""
+    p = actor.probs(held.obs)[np.arange(held.n), held.acts]
     with np.errstate(divide="ignore"):
         lp = np.log(p)
     return float(lp.sum()), float(lp.mean())
@@ -168,20 +171,23 @@ def observation_space(dim: int) -> Any:
     return gym.spaces.Box(-np.inf, np.inf, (dim,), np.float32)
 
 
-def train_bc(obs: np.ndarray, acts: np.ndarray, *, seed: int, epochs: int, log_dir: Path,
-             batch_size: int = 64) -> tuple[Any, float]:
-    """imitation's behaviour cloning on ``[N, 7]`` scaled observations and ``[N]`` actions 0..4
-    (its log as CSV in ``log_dir``); returns ``(policy, wall seconds)``."""
+def scaled_trajectories(t: Transitions, scaler: ObsScaler) -> list[Any]:
+    """``imitation`` Trajectory objects of ``t`` (:func:`sim.transitions.to_imitation_trajectories`)
+    with its observations scaled by ``scaler``."""
+    x = replace(t, obs=scaler(t.obs).astype(np.float64), next_obs=scaler(t.next_obs).astype(np.float64))
+    return to_imitation_trajectories(x)
+
+
+def train_bc(demos: list[Any], *, seed: int, epochs: int, log_dir: Path, batch_size: int = 64) -> tuple[Any, float]:
+    """imitation's behaviour cloning on ``demos`` (:func:`scaled_trajectories`; its log as CSV
+    in ``log_dir``); returns ``(policy, wall seconds)``."""
     import gymnasium as gym
     from imitation.algorithms import bc
-    from imitation.data.types import Transitions
     from imitation.util import logger as imit_logger
 
     seed_torch(seed)
-    demos = Transitions(obs=obs.astype(np.float32), acts=acts.astype(np.int64), infos=np.array([{}] * len(acts)),
-                        next_obs=obs.astype(np.float32), dones=np.zeros(len(acts), bool))
     t0 = time.perf_counter()
-    trainer = bc.BC(observation_space=observation_space(obs.shape[1]), action_space=gym.spaces.Discrete(N_ACTIONS),
+    trainer = bc.BC(observation_space=observation_space(demos[0].obs.shape[1]), action_space=gym.spaces.Discrete(N_ACTIONS),
                     demonstrations=demos, rng=np.random.default_rng(seed), batch_size=batch_size, device="cpu",
                     custom_logger=imit_logger.configure(log_dir, ["csv"]))
     trainer.train(n_epochs=epochs, progress_bar=False, log_interval=10**9)
@@ -219,16 +225,15 @@ def scaled_env(scaler: ObsScaler, action_acc_ft_s2: tuple[float, ...], scenario:
     return Scaled(gym.make(ENV_ID, scenario=scenario, reward=ZeroReward(action_acc_ft_s2)))
 
 
-def train_gail(obs: np.ndarray, acts: np.ndarray, scaler: ObsScaler, action_acc_ft_s2: tuple[float, ...], *,
+def train_gail(demos: list[Any], scaler: ObsScaler, action_acc_ft_s2: tuple[float, ...], *,
                seed: int, steps: int, env_seed: int, log_dir: Path) -> tuple[Any, float]:
-    """imitation's GAIL on ``[N, 7]`` scaled observations and ``[N]`` actions 0..4: a PPO
+    """imitation's GAIL on ``demos`` (:func:`scaled_trajectories`, scaled by ``scaler``): a PPO
     generator (32x32 actor and critic, 512 steps a round) on the environment
     (:func:`scaled_env`, SUMO seed ``env_seed`` for its first run) for ``steps`` environment
     steps, the discriminator :class:`imitation.rewards.reward_nets.BasicRewardNet` on (observation,
     action) with a running input normalisation; returns ``(generator policy, wall seconds)``
     (SUMO's simulation included)."""
     from imitation.algorithms.adversarial.gail import GAIL
-    from imitation.data.types import Transitions
     from imitation.rewards.reward_nets import BasicRewardNet
     from imitation.util import logger as imit_logger
     from imitation.util.networks import RunningNorm
@@ -236,8 +241,6 @@ def train_gail(obs: np.ndarray, acts: np.ndarray, scaler: ObsScaler, action_acc_
     from stable_baselines3.common.vec_env import DummyVecEnv
 
     seed_torch(seed)
-    demos = Transitions(obs=obs.astype(np.float32), acts=acts.astype(np.int64), infos=np.array([{}] * len(acts)),
-                        next_obs=obs.astype(np.float32), dones=np.zeros(len(acts), bool))
     t0 = time.perf_counter()
     venv = DummyVecEnv([lambda: scaled_env(scaler, action_acc_ft_s2)])
     n_steps = min(512, steps)
@@ -296,9 +299,11 @@ def run(args) -> int:
     from analysis.evaluation.evaluate import evaluate
     from analysis.evaluation.policies import driver_policy, training_action_acc
     from analysis.experiments.dagger import DaggerConfig
+    from irl.domains.merge.car_following import car_following_decisions
     from irl.domains.merge.cf_logit import CarFollowingLogit
     from irl.domains.merge.mdp import read_encounters
     from sim.callable_policy import CallablePolicy
+    from sim.transitions import from_encounters
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -308,18 +313,20 @@ def run(args) -> int:
     models = folder / "models"
     print(f"demonstrations: {folder} ({time.perf_counter() - t0:.0f} s)")
     step = DEFAULT_DECISION_STEP_S
-    train_dec = car_following_decisions(read_encounters(train_path), decision_step_s=step, where=str(train_path))
-    held_dec = car_following_decisions(read_encounters(held_path), decision_step_s=step, where=str(held_path))
-    print(f"training decisions {train_dec.n}, held-out decisions {held_dec.n} (at {step} s)")
+    train_t = from_encounters(read_encounters(train_path), decision_step_s=step, where=str(train_path))
+    held_t = from_encounters(read_encounters(held_path), decision_step_s=step, where=str(held_path))
+    print(f"training decisions {train_t.n} ({train_t.n_episodes} encounters), held-out decisions {held_t.n} "
+          f"({held_t.n_episodes} encounters), at {step} s")
 
     # cf-logit's fit alone (the demo times it with its DAgger rounds)
     t = time.perf_counter()
-    CarFollowingLogit.fit(train_dec, l2=DaggerConfig().l2)
+    CarFollowingLogit.fit(car_following_decisions(read_encounters(train_path), decision_step_s=step),
+                          l2=DaggerConfig().l2)
     fit_s["cf-logit"] = time.perf_counter() - t
 
-    scaler = ObsScaler.fit(train_dec.obs)
-    x = scaler(train_dec.obs)
-    bc_policy, fit_s["imit-bc"] = train_bc(x, train_dec.actions, seed=args.train_seed, epochs=args.bc_epochs,
+    scaler = ObsScaler.fit(train_t.obs)
+    demos = scaled_trajectories(train_t, scaler)
+    bc_policy, fit_s["imit-bc"] = train_bc(demos, seed=args.train_seed, epochs=args.bc_epochs,
                                            log_dir=out / "bc-log")
     fit_s["imit-bc-sampled"] = fit_s["imit-bc"]
     actors = {"imit-bc": TorchActor(bc_policy, scaler),
@@ -327,14 +334,14 @@ def run(args) -> int:
     print(f"imitation BC: {args.bc_epochs} epochs in {fit_s['imit-bc']:.1f} s")
     acc = training_action_acc(train_path)
     if args.gail_steps:
-        gail_policy, fit_s["imit-gail"] = train_gail(x, train_dec.actions, scaler, acc, seed=args.train_seed,
+        gail_policy, fit_s["imit-gail"] = train_gail(demos, scaler, acc, seed=args.train_seed,
                                                      steps=args.gail_steps, env_seed=args.gail_env_seed,
                                                      log_dir=out / "gail-log")
         fit_s["imit-gail-sampled"] = fit_s["imit-gail"]
         actors["imit-gail"] = TorchActor(gail_policy, scaler)
         actors["imit-gail-sampled"] = TorchActor(gail_policy, scaler, sample=True, seed=args.train_seed)
         print(f"imitation GAIL: {args.gail_steps} environment steps in {fit_s['imit-gail']:.0f} s")
-    ll = {name: heldout_loglik(a, held_dec) for name, a in actors.items() if a.sample}
+    ll = {name: heldout_loglik(a, held_t) for name, a in actors.items() if a.sample}
 
     imit = [CallablePolicy(a, name=name, decision_step_s=step, action_acc_ft_s2=acc) for name, a in actors.items()]
     ours = [driver_policy(models / f"{k}.json", name=k) for k in ("planner", "cf-logit")]

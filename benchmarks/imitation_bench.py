@@ -40,7 +40,9 @@ Stable-Baselines3 seeds from ``--train-seed``.
 
 Run::
 
-    python -m benchmarks.imitation_bench --episodes 5 --gail-steps 4096
+    pip install torch==2.13.0            # its CPU build first (docs/imitation.md)
+    pip install -e ".[imitation-bench]"
+    python -m benchmarks.imitation_bench --episodes 10 --out runs/imitation-bench-full
 """
 
 from __future__ import annotations

@@ -1,0 +1,65 @@
+"""``benchmarks/imitation_bench.py`` without torch: its observation scaling, that it imports (and
+answers ``--help``) without torch, imitation or Stable-Baselines3, and that its extra stays out of
+the default install and the ``test`` extra. The training and the table need the
+``imitation-bench`` extra and run as the benchmark only (docs/imitation.md)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks.imitation_bench import ObsScaler, filled
+from sim.observe import NO_LEAD_GAP_FT
+
+ROOT = Path(__file__).resolve().parents[2]
+HEAVY = ("torch", "imitation", "stable_baselines3")
+
+
+def test_scaler_fills_the_missing_lead_car_and_standardises_on_the_training_rows() -> None:
+    rng = np.random.default_rng(0)
+    obs = np.column_stack([rng.uniform(20, 200, 40), rng.normal(0, 5, 40), rng.uniform(-60, 60, 40),
+                           rng.normal(0, 5, 40), rng.uniform(40, 90, 40), np.full(40, 15.0), np.full(40, 16.0)])
+    obs[:5, [0, 1, 5]] = np.nan  # no lead car C in the first five decisions
+    obs[5, 6] = np.nan  # B's length unknown once
+    sc = ObsScaler.fit(obs)
+    x = sc(obs)
+    assert x.dtype == np.float32 and x.shape == (40, 7) and np.isfinite(x).all()
+    np.testing.assert_allclose(x.mean(axis=0), 0.0, atol=1e-5)
+    varying = np.asarray(sc.std) != 1.0
+    np.testing.assert_allclose(x[:, varying].std(axis=0), 1.0, atol=1e-5)
+    # the no-lead rows read as a car NO_LEAD_GAP_FT ahead at A's speed, as the environment's observation
+    np.testing.assert_allclose(filled(obs)[:5, :2], np.tile([NO_LEAD_GAP_FT, 0.0], (5, 1)))
+    np.testing.assert_allclose(x[:5, 0], (NO_LEAD_GAP_FT - sc.mean[0]) / sc.std[0], rtol=1e-6)
+    # one observation (the callable's [7]) scales like its row
+    np.testing.assert_array_equal(sc(obs[7]), x[7:8])
+
+
+def test_the_bench_imports_and_answers_help_without_torch() -> None:
+    code = ("import sys, runpy\n"
+            "import benchmarks.imitation_bench\n"
+            f"heavy = [m for m in {HEAVY!r} if m in sys.modules]\n"
+            "assert not heavy, heavy\n"
+            "sys.argv = ['imitation_bench', '--help']\n"
+            "runpy.run_module('benchmarks.imitation_bench', run_name='__main__')\n")
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    r = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "--gail-steps" in r.stdout and "--bc-epochs" in r.stdout
+
+
+def test_the_imitation_bench_extra_stays_out_of_the_default_install_and_the_tests() -> None:
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["project"]
+    extra = project["optional-dependencies"]["imitation-bench"]
+    assert "torch==2.13.0" in extra and "imitation==1.0.1" in extra
+
+    def names(reqs: list[str]) -> set[str]:
+        return {r.split("[")[0].split("=")[0].split(">")[0].split("<")[0].strip().lower() for r in reqs}
+
+    for where, reqs in (("dependencies", project["dependencies"]),
+                        ("test", project["optional-dependencies"]["test"])):
+        assert not names(reqs) & {"torch", "imitation", "stable-baselines3"}, where

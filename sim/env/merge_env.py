@@ -180,7 +180,7 @@ class MergeEnv(gym.Env):
             self._start_run(self._draw_seed())
         elif self._control is not None and self._control.active:  # an episode left unfinished
             assert self._ctl is not None
-            self._ctl.release(self._control, self._ctl._last_frame, "end_of_run", present=True)
+            self._ctl.release(self._control, self._ctl.last_frame, "end_of_run", present=True)
         self._control = None
         for _ in range(MAX_EMPTY_RUNS):
             if self._find_take_over():
@@ -224,7 +224,7 @@ class MergeEnv(gym.Env):
         while True:
             st = self._session.step()
             if st is None:
-                ctl.release(c, ctl._last_frame, "end_of_run", present=True)
+                ctl.release(c, ctl.last_frame, "end_of_run", present=True)
                 break
             due = ctl.advance(st.frame, max_take_overs=0)
             self._time_s = st.frame.time_s
@@ -292,7 +292,7 @@ class MergeEnv(gym.Env):
             return
         from sim.observe import lead_of
 
-        ic = lead_of(frame, float(frame.local_y[ia]), lane=ctl._merge_lane, exclude=(ia, ib))
+        ic = lead_of(frame, float(frame.local_y[ia]), lane=ctl.merge_lane, exclude=(ia, ib))
         self._last_obs = _obs_row(ctl.observe(c, frame, ia, ib, ic))
 
     def _info(self, obs: MergeObservation | None) -> dict[str, Any]:

@@ -84,8 +84,6 @@ def parse_action(value: Any, *, where: str = "policy") -> int | float:
             raise PolicyError(f"{where}: returned an array of dtype {a.dtype}; expected an integer action index "
                               "or a float acceleration (m/s^2)")
         x = a.reshape(()).item()
-        if isinstance(x, bool):  # not reached (dtype checked), kept for type narrowing
-            raise PolicyError(f"{where}: returned a bool")
     if isinstance(x, (int, np.integer)):
         i = int(x)
         if not 0 <= i < N_ACTIONS:

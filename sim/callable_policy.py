@@ -126,6 +126,12 @@ def _label(fn: Any) -> str:
     return getattr(fn, "__qualname__", None) or type(fn).__name__
 
 
+def policy_observation(obs: MergeObservation) -> np.ndarray:
+    """``[7]`` float64, what a callable sees of ``obs``: ``obs.continuous()[0]`` (a copy; columns
+    :data:`sim.observe.CONTINUOUS_NAMES`, NaN without a lead car C). The one place that says so."""
+    return obs.continuous()[0].copy()
+
+
 # -- specs ------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class CallableSpec:
@@ -296,7 +302,7 @@ class CallablePolicy(PolicyDefaults):
         """``(bin, acceleration ft/s^2 or NaN for a discrete action)`` of ``obs``, called once per observation."""
         if self._last.get("obs") is obs:
             return self._last["bin"], self._last["acc"]
-        vec = obs.continuous()[0].copy()
+        vec = policy_observation(obs)
         where = f"policy {self.name!r}" + (f" ({self.spec})" if self.spec else "")
         try:
             out = self._act(vec)

@@ -21,9 +21,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from irl.domains.merge.car_following import OBS_COLUMNS
 from sim.hooks import FrameState
 from sim.schema import RIGHTMOST_MAIN_LANE, V_CLASS_TRUCK
 
+#: The columns of :meth:`MergeObservation.continuous` (the observation a policy callable, the
+#: exported transitions and the car-following and planning drivers see), in order: the encounter
+#: table's names (:data:`irl.domains.merge.car_following.OBS_COLUMNS`).
+CONTINUOUS_NAMES: tuple[str, ...] = tuple(OBS_COLUMNS)
+#: The unit of each of :data:`CONTINUOUS_NAMES` (NGSIM's feet; ``d_AC``, ``v_AC`` and ``len_C``
+#: NaN without a lead car C, a length NaN when unknown).
+CONTINUOUS_UNITS: tuple[str, ...] = ("ft", "ft/s", "ft", "ft/s", "ft/s", "ft", "ft")
 #: ``d_AC`` (ft) of the filled continuous observation without a lead car C
 #: (:meth:`MergeObservation.continuous`): farther than any car-following interaction at freeway
 #: speeds (about 10 s at 100 ft/s), shorter than the section.

@@ -30,6 +30,7 @@ from irl.domains.merge.planning.driver import PlanningDriver
 from irl.domains.merge.mdp import action_mean_acc, discretize, read_encounters
 from irl.result import SavedModel
 from sim.errors import SimError
+from sim.callable_policy import PolicyCallable
 from sim.idm_policy import IdmPolicy
 from sim.policy import Policy, PolicyError, SumoPolicy, UniformPolicy
 from sim.learned_policies import BaselineTabularPolicy, CarFollowingLogitPolicy, LearnedPolicy
@@ -279,6 +280,25 @@ def driver_policy(path: str | os.PathLike, name: str = "") -> Policy:
     if isinstance(driver, PlanningDriver):
         return PlanningDriverPolicy(driver, name=name, source=str(path))
     return CarFollowingLogitPolicy(driver, name=name, source=str(path))
+
+
+def policy_callable(path: str | os.PathLike, *, mode: bool = True, seed: int = 0) -> PolicyCallable:
+    """Any learned model file as a policy callable ``obs -> int`` (the action index 0..4) for the
+    Gymnasium environment or any loop of one's own
+    (:class:`sim.callable_policy.PolicyCallable`; ``obs``: the ``[7]`` continuous observation,
+    :data:`sim.observe.CONTINUOUS_NAMES`): a tabular model (``model.json`` of ``merge-irl learn``,
+    :func:`learned_policy`, its state encoded with the model's own bins) or a driver file (a
+    car-following logit or a planning driver, :func:`driver_policy`). ``mode``: the most likely
+    action (default), else sampled with ``numpy.random.default_rng(seed)``; call ``reset()`` at
+    the start of each episode (A's previous action is the callable's last one).
+
+    Raises:
+        ModelFileError: a missing, unreadable or malformed file, or an unknown format.
+        PolicyError: a tabular model that is not a merge model.
+    """
+    fmt = driver_format(path)
+    pol: Policy = learned_policy(path) if fmt.startswith("merge-irl-model/") else driver_policy(path)
+    return PolicyCallable(pol, mode=mode, seed=seed)
 
 
 def baseline_drivers(baselines: Sequence[str], spec, train_demos, bins: MergeBins | None,

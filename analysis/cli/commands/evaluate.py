@@ -14,10 +14,10 @@ from sim.controller_config import HIGH_BRAKE_RULES
 def register(subparsers) -> None:
     p = subparsers.add_parser(
         "evaluate", help="drive merge lag cars with learned models in SUMO and compare with baselines",
-        description="Re-inject learned IRL models as the lag car A of every merge, run N episodes per "
-                    "policy beside the baselines (SUMO's own driver, uniform, marginal, markov, bc; on request "
-                    "idm and sumo-in-lane), and write report.md, "
-                    "metrics.json, PNG plots and rerun recordings.")
+        description="Re-inject learned IRL models (or callables of your own, --policy) as the lag car A of every "
+                    "merge, run N episodes per policy beside the baselines (SUMO's own driver, uniform, marginal, "
+                    "markov, bc; on request idm and sumo-in-lane), and write report.md, metrics.json, PNG plots and "
+                    "rerun recordings.")
     p.add_argument("--model", action="append", default=[], metavar="MODEL.json",
                    help="a saved merge model (repeat for several); none: only the baselines")
     p.add_argument("--cf-model", action="append", default=[], metavar="CF_MODEL.json",
@@ -25,6 +25,12 @@ def register(subparsers) -> None:
     p.add_argument("--driver", action="append", default=[], metavar="DRIVER.json",
                    help="any driver file: a planning driver of 'merge-irl learn-driver' or a car-following logit "
                         "(repeatable; named after the file's stem)")
+    p.add_argument("--policy", action="append", default=[], metavar="MODULE:CALLABLE[:NAME]",
+                   help="a callable obs -> action of your own (repeatable): MODULE a dotted module name or a path to "
+                        "a .py file; obs the [7] continuous observation (d_AC, v_AC, d_AB, v_AB, v_A, len_C, len_B; "
+                        "ft, ft/s); action an index 0..4 (High Brake .. High Accel) or A's acceleration in m/s^2; "
+                        "an object with predict(obs, deterministic=True) (Stable-Baselines3) works too. NAME: its "
+                        "row in the report (default: the callable's name)")
     p.add_argument("--scenario", default="synthetic", help="preset name or scenario TOML (default synthetic)")
     p.add_argument("--episodes", type=int, default=3, help="episodes (seeds) per policy")
     p.add_argument("--seed", type=int, default=0, help="first seed; episode i uses seed + i")
@@ -79,13 +85,20 @@ def run(args: argparse.Namespace) -> int:
 
     baselines = tuple(b.strip() for b in args.baselines.split(",") if b.strip())
     check_baselines(baselines, "--baselines")
-    if not args.model and not args.cf_model and not args.driver and not baselines:
-        raise SimError("nothing to evaluate: give --model, --driver, --cf-model and/or --baselines")
+    if not args.model and not args.cf_model and not args.driver and not args.policy and not baselines:
+        raise SimError("nothing to evaluate: give --model, --driver, --cf-model, --policy and/or --baselines")
     from analysis.evaluation.policies import cf_policy, driver_policy
     from sim.policy import Policy
 
-    # malformed files before any work
+    # malformed files and specs before any work
     cf: list[Policy] = [cf_policy(path) for path in args.cf_model] + [driver_policy(path) for path in args.driver]
+    if args.policy:
+        from analysis.evaluation.policies import training_action_acc
+        from sim.callable_policy import CallablePolicy
+
+        # discrete actions of a callable at the training frames' mean acceleration per bin, as the baselines'
+        acc = training_action_acc(args.train_demos) if args.train_demos else CallablePolicy.action_acc_ft_s2
+        cf += [CallablePolicy.from_spec(spec, action_acc_ft_s2=acc) for spec in args.policy]
     scen = Path(args.scenario).stem if args.scenario.endswith(".toml") else args.scenario
     out = Path(args.out) if args.out else Path("runs") / f"evaluate-{scen}-{args.seed}"
     from merge_irl.run_folder import locked

@@ -1,0 +1,103 @@
+"""``merge-irl export-transitions``: encounters, NGSIM files and closed-loop decision logs as the
+transition arrays of imitation learning (``sim.transitions``)."""
+
+from __future__ import annotations
+
+# API imports sit inside the functions: `merge-irl --help` imports every command module (analysis/cli/commands/__init__.py).
+import argparse
+import sys
+from pathlib import Path
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "export-transitions", help="export demonstrations as transition arrays (obs, acts, next_obs, dones) in .npz",
+        description="Read encounter tables (.parquet/.csv of 'merge-irl generate' or 'merge-irl encounters'), NGSIM "
+                    "trajectory files (.csv/.txt; merges cut by the merge-frame rule) or closed-loop decision logs "
+                    "(.parquet/.csv with the controller's decision columns) and write one .npz of transitions at the "
+                    "decision step: obs and next_obs [N, 7] (d_AC, v_AC, d_AB, v_AB, v_A, len_C, len_B; ft, ft/s), "
+                    "acts [N] (merge actions 0..4), acc_mps2 [N], dones [N], episode [N] (one per encounter or "
+                    "control), read back by sim.transitions.load.")
+    p.add_argument("--demos", nargs="+", required=True, metavar="PATH",
+                   help="encounter tables, NGSIM trajectory files or decision logs (episodes numbered across them)")
+    p.add_argument("--out", required=True, metavar="FILE.npz", help="output file")
+    p.add_argument("--decision-step-s", "--decision-step", dest="decision_step_s", type=float, default=None,
+                   help="seconds per decision (default 0.3; a decision log must have been decided at it)")
+    p.add_argument("--location", default=None, metavar="SITE",
+                   help="NGSIM files with a Location column: keep this site's rows (e.g. i-80)")
+    p.add_argument("--recording", type=int, default=None, metavar="N",
+                   help="NGSIM files holding several recordings: keep recording N")
+    p.add_argument("--smooth", action="store_true",
+                   help="NGSIM files: smooth positions and recompute speeds and accelerations (Savitzky-Golay)")
+    p.set_defaults(func=run)
+
+
+def _kind(columns) -> str:
+    cols = set(columns)
+    if "encounter_id" in cols:
+        return "encounters"
+    if {"a_id", "speed_A", "action"} <= cols:
+        return "decisions"
+    if {"Vehicle_ID", "Frame_ID", "Local_Y", "Lane_ID"} <= cols:
+        return "trajectories"
+    return ""
+
+
+def run(args: argparse.Namespace) -> int:
+    import pandas as pd
+    import pyarrow.parquet as pq
+
+    from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, read_encounters
+    from merge_irl.units import FRAME_S
+    from sim.ngsim.io import read_ngsim, read_trajectories
+    from sim.ngsim.smooth import SmoothingConfig
+    from sim.transitions import (TransitionsError, concatenate, from_decisions, from_encounters, from_trajectories,
+                                 save)
+
+    step = args.decision_step_s if args.decision_step_s is not None else DEFAULT_DECISION_STEP_S
+    if not str(args.out).endswith(".npz"):
+        raise TransitionsError(f"--out {args.out}: the file name must end in .npz")
+    ngsim_options = args.location is not None or args.recording is not None or args.smooth
+    if ngsim_options and not any(Path(d).suffix.lower() in (".csv", ".txt") for d in args.demos):
+        raise TransitionsError("--location, --recording and --smooth apply to NGSIM .csv/.txt files only")
+    parts = []
+    for path in map(Path, args.demos):
+        if not path.is_file():
+            raise TransitionsError(f"{path}: no such file")
+        if path.suffix.lower() not in (".parquet", ".pq", ".csv", ".txt"):
+            raise TransitionsError(f"{path}: expected a .parquet, .csv or .txt file")
+        if path.suffix.lower() == ".txt":
+            kind = "trajectories"
+        else:
+            try:
+                head = (pq.read_schema(path).names if path.suffix.lower() in (".parquet", ".pq")
+                        else list(pd.read_csv(path, nrows=0).columns))
+            except Exception as e:  # pyarrow and pandas raise many types for unreadable files
+                raise TransitionsError(f"{path}: cannot read ({type(e).__name__}: {' '.join(str(e).split())})") from None
+            kind = _kind(head)
+        if not kind:
+            raise TransitionsError(f"{path}: neither an encounter table (encounter_id), a decision log (a_id, speed_A, "
+                                   "action) nor an NGSIM trajectory file (Vehicle_ID, Frame_ID, Local_Y, Lane_ID)")
+        if kind == "encounters":
+            part = from_encounters(read_encounters(path), decision_step_s=step, where=str(path))
+        elif kind == "decisions":
+            log = pd.read_parquet(path) if path.suffix.lower() in (".parquet", ".pq") else pd.read_csv(path)
+            part = from_decisions(log, where=str(path))
+            if abs(part.decision_step_s - step) > FRAME_S / 2:
+                raise TransitionsError(f"{path}: decided every {part.decision_step_s} s, not every {step} s "
+                                       "(give --decision-step-s)")
+            part = from_decisions(log, decision_step_s=step, where=str(path))
+        elif path.suffix.lower() in (".csv", ".txt"):
+            load = read_ngsim(path, location=args.location, recording=args.recording,
+                              smooth=SmoothingConfig() if args.smooth else False)
+            part = from_trajectories(load.table, decision_step_s=step, where=str(path))
+        else:
+            part = from_trajectories(read_trajectories(path), decision_step_s=step, where=str(path))
+        print(f"{path}: {part.n} transitions, {part.n_episodes} episodes ({kind})", file=sys.stderr)
+        parts.append(part)
+    t = concatenate(parts)
+    out = save(t, args.out)
+    print(f"{t.n} transitions, {t.n_episodes} episodes, obs [{t.n}, {len(t.obs_names)}] every {t.decision_step_s} s",
+          file=sys.stderr)
+    print(out)
+    return 0

@@ -44,7 +44,7 @@ import pandas as pd
 
 from irl.domains.merge.actions import ACTION_ACC_FT_S2, N_ACTIONS, ZERO_ACTION, action_of
 from merge_irl.units import FT_PER_M
-from sim.observe import CONTINUOUS_NAMES, MergeObservation
+from sim.observe import CONTINUOUS_NAMES, MergeObservation, policy_observation, unfill_policy_row
 from sim.policy import NO_LIKELIHOOD, Policy, PolicyDefaults, PolicyError, check_policy, choose_action
 
 #: A vehicle at least this long (ft) is taken as a truck when only the continuous observation
@@ -124,12 +124,6 @@ def act_of(fn: Callable[..., Any]) -> Callable[[np.ndarray], Any]:
 
 def _label(fn: Any) -> str:
     return getattr(fn, "__qualname__", None) or type(fn).__name__
-
-
-def policy_observation(obs: MergeObservation) -> np.ndarray:
-    """``[7]`` float64, what a callable sees of ``obs``: ``obs.continuous()[0]`` (a copy; columns
-    :data:`sim.observe.CONTINUOUS_NAMES`, NaN without a lead car C). The one place that says so."""
-    return obs.continuous()[0].copy()
 
 
 # -- specs ------------------------------------------------------------------------------------
@@ -391,7 +385,7 @@ class PolicyCallable:
         """The :class:`~sim.observe.MergeObservation` the policy is asked about (see the class docstring)."""
         if isinstance(obs, MergeObservation):
             return obs
-        x = np.asarray(obs, dtype=np.float64).reshape(-1)
+        x = unfill_policy_row(np.asarray(obs, dtype=np.float64))
         if x.size != len(CONTINUOUS_NAMES):
             raise PolicyError(f"policy callable {self.policy.name!r}: expected an observation of "
                               f"{len(CONTINUOUS_NAMES)} numbers ({', '.join(CONTINUOUS_NAMES)}), got shape "

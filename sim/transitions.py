@@ -56,7 +56,7 @@ from irl.errors import ConfigError
 from merge_irl.atomic import write_atomic
 from merge_irl.units import FRAME_S, M_PER_FT
 from sim.errors import SimError
-from sim.observe import CONTINUOUS_NAMES
+from sim.observe import CONTINUOUS_NAMES, policy_rows
 
 #: The ``format`` entry of a transitions ``.npz`` file.
 TRANSITIONS_FORMAT = "merge-irl-transitions/1"
@@ -148,6 +148,15 @@ class Transitions:
             return []
         starts = np.flatnonzero(np.r_[True, self.episode[1:] != self.episode[:-1]])
         return [np.arange(a, b) for a, b in zip(starts, np.r_[starts[1:], self.n])]
+
+    def policy_obs(self) -> np.ndarray:
+        """``[N, 7]``: ``obs`` as a policy sees it (:func:`sim.observe.policy_rows`: no NaN, the
+        Gymnasium environment's and ``evaluate --policy``'s observation)."""
+        return policy_rows(self.obs)
+
+    def policy_next_obs(self) -> np.ndarray:
+        """``[N, 7]``: ``next_obs`` as a policy sees it (see :meth:`policy_obs`)."""
+        return policy_rows(self.next_obs)
 
 
 def concatenate(parts: Sequence[Transitions]) -> Transitions:
@@ -370,7 +379,9 @@ def to_imitation_trajectories(t: Transitions, *, action: str = "discrete") -> li
     """``imitation.data.types.Trajectory`` objects, one per episode: ``obs`` ``[n_e + 1, D]`` (the
     episode's observations and its last ``next_obs``), ``acts`` ``[n_e]`` (int64 action indices, or
     with ``action="continuous"`` ``[n_e, 1]`` float32 accelerations in m/s^2), ``infos`` None,
-    ``terminal`` True. NaN observations (no lead car C) are passed on as they are.
+    ``terminal`` True. Observations as a policy sees them (:meth:`Transitions.policy_obs`: no NaN,
+    the Gymnasium environment's), so a policy learned from them runs in the environment and in
+    ``evaluate --policy``.
 
     Raises:
         TransitionsError: ``imitation`` is not installed (``pip install imitation``), or an
@@ -384,8 +395,9 @@ def to_imitation_trajectories(t: Transitions, *, action: str = "discrete") -> li
         raise TransitionsError("to_imitation_trajectories needs the 'imitation' library (pip install imitation); "
                                "the arrays themselves are Transitions' obs, acts, next_obs, dones") from None
     out = []
+    pobs, pnext = t.policy_obs(), t.policy_next_obs()
     for rows in t.episodes():
-        obs = np.concatenate([t.obs[rows], t.next_obs[rows[-1:]]])
+        obs = np.concatenate([pobs[rows], pnext[rows[-1:]]])
         acts = t.acts[rows] if action == "discrete" else t.acc_mps2[rows].astype(np.float32)[:, None]
         out.append(Trajectory(obs=obs, acts=acts, infos=None, terminal=True))
     return out

@@ -105,7 +105,8 @@ def test_evaluate_writes_report_metrics_plots(tmp_path):
     from analysis.recording.read import recording_info
 
     ids = {n: recording_info(p)["recording_id"] for n, p in rep.rrd.items()}
-    assert ids == {n: f"merge-irl/synthetic/{n}/seed3" for n in names}
+    assert {n: i[:-15] for n, i in ids.items()} == {n: f"merge-irl/synthetic/{n}/seed3" for n in names}
+    assert len(set(ids.values())) == len(names) and all("/run-" in i for i in ids.values())
     # provenance: the model file of each policy, the scenario simulated, the versions
     import hashlib
 

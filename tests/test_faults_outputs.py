@@ -286,7 +286,7 @@ def test_second_learn_into_the_same_out_fails_at_once(tmp_path):
             "--out", str(out))
     holder = subprocess.Popen([sys.executable, "-c", (  # a first learn holding the lock of --out
         "import time; from merge_irl.run_folder import locked\n"
-        f"with locked({str(out)!r}, what='file'):\n    print('held', flush=True); time.sleep(60)")],
+        f"with locked({str(out)!r}):\n    print('held', flush=True); time.sleep(60)")],
         stdout=subprocess.PIPE, text=True)
     try:
         assert holder.stdout.readline().strip() == "held"

@@ -80,13 +80,16 @@ def test_a_gap_splits_the_encounter_and_no_step_spans_it():
     gap2 = (df.encounter_id == 2) & df.Frame_ID.between(1056, 1057)
     gapped = df[~(gap1 | gap2)].reset_index(drop=True)
     bins = fit_quantile_bins(df)
-    with pytest.warns(m.FrameGapWarning) as rec:
+    with warnings.catch_warnings(record=True) as rec:
+        warnings.simplefilter("always")
         got = m.resample_encounters(gapped, bins, decision_step_s=0.3)
+    # split at the gaps, each part on its own time grid
+    assert got.demos.names == ("encounter 1", "encounter 1 from frame 1034 (after 14 missing frames)", "encounter 2")
+    assert len(rec) == 1 and rec[0].category is m.FrameGapWarning
     msg = str(rec[0].message)
     assert "2 encounter(s) have missing frames (2 gap(s), 16 frames)" in msg
     assert "1 part(s) shorter than one step left out (2 rows)" in msg  # encounter 2's last 2 frames
     assert got.gaps == 2 and got.gap_rows_dropped == 2
-    assert got.demos.names == ("encounter 1", "encounter 1 from frame 1034 (after 14 missing frames)", "encounter 2")
     # every decision's k frames are consecutive: no step spans missing frames
     fr = gapped["Frame_ID"].to_numpy()
     k = 3

@@ -160,8 +160,6 @@ def test_features_on_very_different_scales_reach_the_same_optimum(scales):
     must be the unscaled fit, mapped back, and the optimum checked on the original problem."""
     from dataclasses import replace
 
-    from irl.methods.qavg import OPTIMUM_GTOL, feature_scale
-
     _, demos = random_mdp(6, n_traj=8, length=8)
     cfg = IRLConfig(beta=0.5, gamma=0.9)
     unit = np.array([1.0, *scales])
@@ -171,6 +169,8 @@ def test_features_on_very_different_scales_reach_the_same_optimum(scales):
     assert ref.converged and res.converged and "optimum reached" in res.message
     assert res.loglik == pytest.approx(ref.loglik, abs=1e-8)
     np.testing.assert_allclose(res.theta * unit, ref.theta, rtol=1e-6, atol=1e-9)
+    from irl.methods.qavg import OPTIMUM_GTOL, feature_scale
+
     # the optimum on the original scale: the gradient of the scaled problem at the returned
     # theta, per unit of each feature's spread
     basis, counts = qavg_basis(scaled, cfg.gamma), demo_counts(scaled)

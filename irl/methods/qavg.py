@@ -11,9 +11,10 @@ averaged successors is ``Q = R + gamma P_hat (mean_b Q(s', b))``, linear in thet
   global maximum, stepping in coordinates scaled by each feature's spread
   (:func:`feature_scale`) so that features in very different units are fitted as well as
   features in one unit; an optimum is reported only where the original problem's gradient at
-  the returned theta is small per unit of feature spread (:data:`OPTIMUM_GTOL`). A linear programme (:func:`irl.ascent.recession_direction`) checks first
-  whether the data let the weights grow without bound; then the reported ``loglik`` is the
-  supremum approached and ``unbounded=True`` (use ``l2 > 0`` for a finite answer).
+  the returned theta is small per unit of feature spread (:data:`OPTIMUM_GTOL`). A linear
+  programme (:func:`irl.ascent.recession_direction`) checks first whether the data let the
+  weights grow without bound; then the reported ``loglik`` is the supremum approached and
+  ``unbounded=True`` (use ``l2 > 0`` for a finite answer).
 * ``faithful`` solver: the authors' damped in-place sweeps (:mod:`irl.methods.damped_sweeps`), Q then dQ each
   to ``max change < inner_tol`` or ``max_inner`` sweeps, warm-started across outer steps, and
   fixed-length unit-gradient outer steps (:func:`irl.ascent.unit_step_ascent`). Where a pair has

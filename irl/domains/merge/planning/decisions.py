@@ -125,8 +125,9 @@ def encounter_decisions(df: pd.DataFrame, decision_step_s: float = DEFAULT_DECIS
     With ``k`` frames per decision and row ``r`` a decision: ``acc`` is the mean of ``acc_A``
     over rows ``r .. r+k-1``; ``prev_acc`` over ``r-k .. r-1`` when those rows are the same
     encounter run (:func:`~irl.domains.merge.mdp.encounter_runs`: consecutive frames; else
-    NaN); ``acc_C = (v_C(r) - v_C(r-k)) / (k 0.1 s)``, ``v_C = v_A - v_AC``, when row ``r-k`` is the same run with the same ``C_id`` (a table without ``C_id``: the same
-    run) and both speeds are known, else 0. Groups: the encounter runs.
+    NaN); ``acc_C = (v_C(r) - v_C(r-k)) / (k 0.1 s)``, ``v_C = v_A - v_AC``, when row ``r-k``
+    is the same run with the same ``C_id`` (a table without ``C_id``: the same run) and both
+    speeds are known, else 0. Groups: the encounter runs.
 
     Raises:
         DemonstrationError: what ``car_following_decisions`` raises (``where`` named).

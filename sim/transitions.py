@@ -21,7 +21,8 @@ Sources:
   takes (:func:`irl.domains.merge.mdp.resample_encounters`, paper encoding: decision ``j`` of an
   encounter is its row ``j k`` with ``k`` frames per decision, its action the bin of A's mean
   acceleration over the next ``k`` rows, an incomplete last step dropped). One episode per
-  encounter. The last decision's ``next_obs`` is the row ``k`` frames later when the table has
+  encounter, or per run of consecutive frames where a recording has missing frames (split
+  there, as learning does). The last decision's ``next_obs`` is the row ``k`` frames later when the table has
   it, else the encounter's last row (the latest observation there is, fewer than ``k`` frames
   later).
 * **Closed-loop rollouts** (:func:`from_decisions` of the controller's decision log,
@@ -51,7 +52,7 @@ import pandas as pd
 from irl.domains.merge.actions import N_ACTIONS, actions_of
 from irl.domains.merge.bins import MergeBins
 from irl.domains.merge.car_following import OPTIONAL_OBS_COLUMNS
-from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, frames_per_step, resample_encounters
+from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, encounter_runs, frames_per_step, resample_encounters
 from irl.errors import ConfigError
 from merge_irl.atomic import write_atomic
 from merge_irl.units import FRAME_S, M_PER_FT
@@ -221,14 +222,9 @@ def from_encounters(encounters: pd.DataFrame, *, decision_step_s: float = DEFAUL
     dones = np.zeros(at.size, dtype=bool)
     dones[np.cumsum(lengths) - 1] = True
     # each encounter is a block of consecutive rows (resample_encounters' runs): where it ends
-    ids = encounters["encounter_id"].to_numpy()
-    brk = np.ones(len(ids), dtype=bool)
-    brk[1:] = ids[1:] != ids[:-1]
-    if "Frame_ID" in encounters.columns and len(ids) > 1:
-        fr = encounters["Frame_ID"].to_numpy()
-        brk[1:] |= fr[1:] <= fr[:-1]
-    run = np.cumsum(brk) - 1
-    run_end = np.r_[np.flatnonzero(brk)[1:], len(ids)] - 1  # last row of each run
+    run = encounter_runs(encounters).run - 1  # consecutive frames: a next_obs never lies across a gap
+    brk = np.r_[True, run[1:] != run[:-1]]
+    run_end = np.r_[np.flatnonzero(brk)[1:], len(run)] - 1  # last row of each run
     nxt = np.minimum(at + k, run_end[run[at]])
     obs_all = _obs_columns(encounters)
     acc_ft = encounters["acc_A"].to_numpy(dtype=np.float64)

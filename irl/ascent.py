@@ -195,15 +195,22 @@ def lbfgs_ascent(evaluate: Callable[[np.ndarray], Evaluation], theta0: np.ndarra
 
 def newton_concave(evaluate: Callable[[np.ndarray], Evaluation], theta0: np.ndarray,
                    config: IRLConfig, *, progress: bool = False, desc: str = "",
-                   max_iter: int = 500, theta_cap: float = 1e8, ftol: float = 0.0) -> AscentResult:
+                   max_iter: int = 500, theta_cap: float = 1e8, ftol: float = 0.0,
+                   scale: np.ndarray | None = None) -> AscentResult:
     """Damped Newton for a concave ``f`` whose evaluation carries the Hessian of ``L``.
 
     Step ``p = (-H_f)^+ g`` on the eigenvectors of ``-H_f`` (eigenvalues floored at
     ``1e-12 * max eigenvalue``, so flat directions with a non-zero gradient, the signature of
     unbounded weights, get long steps, capped at ``10 (1 + |theta|)``), then backtracking until
     the Armijo condition holds.
+
+    ``scale``: ``[K]`` positive; the step is taken in the coordinates ``u = scale * theta``
+    (diagonal preconditioning: ``H_u = H / (scale scale^T)``, ``g_u = g / scale``), so that
+    the eigenvalue floor and the step cap do not depend on the units of the features
+    (:func:`irl.methods.qavg.feature_scale`). Evaluations, traces and ``theta`` stay in the
+    original coordinates. None: no scaling.
     Stops when the Newton decrement ``g.p`` is below ``1e-14 max(1, |f|)`` (the global
-    maximum to that precision, or the supremum when weights diverge), ``max|theta|`` exceeds
+    maximum to that precision, or the supremum when weights diverge), ``max|scale theta|`` exceeds
     ``theta_cap``, when an accepted step gains less than ``ftol max(1, |f|)`` (use a positive
     ``ftol`` when the weights are known to diverge, where the gains only shrink geometrically),
     or after ``min(max_iter, config.max_outer)`` iterations.
@@ -217,21 +224,25 @@ def newton_concave(evaluate: Callable[[np.ndarray], Evaluation], theta0: np.ndar
     f, g = penalised(ev, theta, l2)
     lls, thetas = [ev.loglik], [theta.copy()]
     n_iter = min(max_iter, config.max_outer)
+    sc = np.ones(theta.size) if scale is None else np.asarray(scale, dtype=np.float64)
+    if sc.shape != theta.shape or not np.all(np.isfinite(sc) & (sc > 0)):
+        raise ValueError(f"newton_concave: scale must be {theta.size} finite positive numbers, got {sc}")
     converged, message = False, f"Newton: reached {n_iter} iterations"
     with progress_bar(progress, n_iter, desc) as bar:
         for it in range(n_iter):
             if ev.hess is None:
                 raise ValueError("newton_concave: evaluate returned no Hessian (Evaluation.hess is None)")
-            h = -(ev.hess - l2 * np.eye(theta.size))  # PSD
+            h = -(ev.hess - l2 * np.eye(theta.size)) / np.outer(sc, sc)  # PSD, in u = sc * theta
             lam, vec = np.linalg.eigh(0.5 * (h + h.T))
-            radius = 10.0 * (1.0 + float(np.linalg.norm(theta)))  # |theta| grows at most 11x a step
+            radius = 10.0 * (1.0 + float(np.linalg.norm(sc * theta)))  # |u| grows at most 11x a step
             lam_floor = max(float(lam.max(initial=0.0)) * 1e-12, 1e-300)
             with np.errstate(over="ignore"):
-                coef = (vec.T @ g) / np.maximum(lam, lam_floor)
+                coef = (vec.T @ (g / sc)) / np.maximum(lam, lam_floor)
             p = vec @ np.clip(coef, -radius, radius)
             p_norm = float(np.linalg.norm(p))
             if p_norm > radius:
                 p = p * (radius / p_norm)
+            p = p / sc  # back to theta
             decrement = float(g @ p)
             if not np.all(np.isfinite(p)) or decrement <= 1e-14 * max(1.0, abs(f)):
                 converged, message = True, f"Newton: optimum reached after {it} iterations"
@@ -253,7 +264,7 @@ def newton_concave(evaluate: Callable[[np.ndarray], Evaluation], theta0: np.ndar
             lls.append(ev.loglik)
             thetas.append(theta.copy())
             bar.update(1)
-            if float(np.max(np.abs(theta))) > theta_cap:
+            if float(np.max(np.abs(sc * theta))) > theta_cap:
                 converged, message = True, f"Newton: |theta| passed {theta_cap:.0e} (weights diverge)"
                 break
             if gain < ftol * max(1.0, abs(f)):

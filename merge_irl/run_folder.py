@@ -43,8 +43,11 @@ def lock_path(folder: str | os.PathLike) -> Path:
 
 
 @contextlib.contextmanager
-def locked(folder: str | os.PathLike) -> Iterator[Path]:
+def locked(folder: str | os.PathLike, *, what: str = "folder") -> Iterator[Path]:
     """Hold the exclusive lock of ``folder`` (not created) while the block runs.
+
+    ``what``: ``"folder"``, or ``"file"`` for a single output file (``merge-irl learn``'s
+    ``model.json``: its lock is ``.NAME.lock`` beside it); only the message differs.
 
     Raises:
         OutputLockedError: another process holds it (one line naming the folder).
@@ -58,9 +61,10 @@ def locked(folder: str | os.PathLike) -> Iterator[Path]:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
+            target = "into this folder" if what == "folder" else f"this {what}"
             raise OutputLockedError(
-                f"{folder}: another run is writing into this folder (lock {lock.name} is held); "
-                "wait for it to end or choose another output folder") from None
+                f"{folder}: another run is writing {target} (lock {lock.name} is held); "
+                f"wait for it to end or choose another output {what}") from None
         yield folder
     finally:
         os.close(fd)

@@ -18,6 +18,7 @@ from typing import Any
 _EXPORTS = {
     "run_scenario": "sim.run",
     "SimulationResult": "sim.run_result",
+    "SumoSession": "sim.session",
     "generate": "sim.generate",
     "GenerateResult": "sim.generate",
     "encounters_of_run": "sim.demonstrators",

@@ -44,7 +44,7 @@ import pandas as pd
 
 from irl.domains.merge.actions import ACTION_ACC_FT_S2, N_ACTIONS, ZERO_ACTION, action_of
 from merge_irl.units import FT_PER_M
-from sim.observe import CONTINUOUS_NAMES, MergeObservation
+from sim.observe import CONTINUOUS_NAMES, MergeObservation, policy_observation, unfill_policy_row
 from sim.policy import NO_LIKELIHOOD, Policy, PolicyDefaults, PolicyError, check_policy, choose_action
 
 #: A vehicle at least this long (ft) is taken as a truck when only the continuous observation
@@ -84,8 +84,6 @@ def parse_action(value: Any, *, where: str = "policy") -> int | float:
             raise PolicyError(f"{where}: returned an array of dtype {a.dtype}; expected an integer action index "
                               "or a float acceleration (m/s^2)")
         x = a.reshape(()).item()
-        if isinstance(x, bool):  # not reached (dtype checked), kept for type narrowing
-            raise PolicyError(f"{where}: returned a bool")
     if isinstance(x, (int, np.integer)):
         i = int(x)
         if not 0 <= i < N_ACTIONS:
@@ -298,7 +296,7 @@ class CallablePolicy(PolicyDefaults):
         """``(bin, acceleration ft/s^2 or NaN for a discrete action)`` of ``obs``, called once per observation."""
         if self._last.get("obs") is obs:
             return self._last["bin"], self._last["acc"]
-        vec = obs.continuous()[0].copy()
+        vec = policy_observation(obs)
         where = f"policy {self.name!r}" + (f" ({self.spec})" if self.spec else "")
         try:
             out = self._act(vec)
@@ -387,7 +385,7 @@ class PolicyCallable:
         """The :class:`~sim.observe.MergeObservation` the policy is asked about (see the class docstring)."""
         if isinstance(obs, MergeObservation):
             return obs
-        x = np.asarray(obs, dtype=np.float64).reshape(-1)
+        x = unfill_policy_row(np.asarray(obs, dtype=np.float64))
         if x.size != len(CONTINUOUS_NAMES):
             raise PolicyError(f"policy callable {self.policy.name!r}: expected an observation of "
                               f"{len(CONTINUOUS_NAMES)} numbers ({', '.join(CONTINUOUS_NAMES)}), got shape "

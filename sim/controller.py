@@ -193,6 +193,16 @@ class Controller:
             self.release(c, self._last_frame, "end_of_run", present=True)
 
     @property
+    def merge_lane(self) -> int:
+        """The lane code A is controlled in (the run's site profile's merge lane; I-80: 6)."""
+        return self._merge_lane
+
+    @property
+    def last_frame(self) -> int:
+        """Frame_ID of the last frame :meth:`advance` saw (-1: none)."""
+        return self._last_frame
+
+    @property
     def n_collisions(self) -> int:
         """Distinct (collider, victim) pairs that collided in the whole run, all vehicles."""
         return len(self._collision_pairs)

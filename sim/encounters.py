@@ -25,6 +25,14 @@ its ramp lanes for 7, its merge lane for 6; unknown lane codes are an error):
   table (both in the section), or at most ``max_frames_before`` frames before the merge, until
   ``frames_after`` frames after the merge frame (0: the merge frame is the last row). Frames in
   which A or B is missing, or A has no row at t+1, are skipped.
+* **Gaps** (recordings with missing frames): a merge frame is observed when B has a row in
+  the frame before it. When B was last seen (on the ramp) some frames earlier, B changed lane
+  at an unobserved frame in between and the merge frame is only the first frame it is *seen*
+  in lane 6: ``merge_observed`` is False (in the merges summary and every frame row) and
+  ``merge_gap_frames`` says how many frames are missing before it (the merge is at most that
+  much earlier). ``frame_gaps`` counts the jumps in an encounter's kept frames (a frame in
+  which A or B is missing); learning splits encounters there
+  (:func:`irl.domains.merge.mdp.resample_encounters`), so no decision step spans them.
 * **Missing neighbours**: every B gets one row in the merges summary (``merges``), with
   ``A_id = 0`` when no lane-6 vehicle is behind it at the merge frame and ``C_id = 0`` when
   none is ahead. Without A there is no per-frame row (A is the driver being modelled). Without C
@@ -53,6 +61,7 @@ MERGE_COLUMNS: dict[str, str] = {
     "encounter_id": "int64", "B_id": "int64", "A_id": "int64", "C_id": "int64",
     "merge_frame": "int64", "Global_Time": "int64", "B_is_truck": "bool",
     "first_frame": "int64", "n_frames": "int64",
+    "merge_observed": "bool", "merge_gap_frames": "int64", "frame_gaps": "int64",
 }
 
 _NEEDED = ("Vehicle_ID", "Frame_ID", "Global_Time", "Local_Y", "v_Vel", "v_Class", "Lane_ID")
@@ -219,6 +228,8 @@ def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),
     for eid, (b, mf) in enumerate(zip(merges["B_id"].to_numpy(), merges["merge_frame"].to_numpy()), start=1):
         rb = rows(b, np.array([mf]))[0]
         truck = bool(vclass[rb] == V_CLASS_TRUCK)
+        observed = bool(rows(b, np.array([mf - 1]))[0] >= 0)  # B seen in the frame before its merge frame
+        gap_before = 0 if observed else int(mf - 1 - frame[(vid == b) & (frame < mf)].max())
         if controlled is not None:
             to = controlled[eid - 1]
             a, start = to.a_id, to.start
@@ -258,14 +269,15 @@ def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),
                 "d_AC": yc - y[ra], "d_AB": y[rbb] - y[ra],
                 "v_AC": vel[ra] - vc, "v_AB": vel[ra] - vel[rbb],
                 "B_is_truck": truck, "acc_A": forward_acceleration(vel[ra], vel[ra_next], FRAME_S),
-                "v_A": vel[ra], "len_C": lc, "len_B": length[rbb],
+                "v_A": vel[ra], "len_C": lc, "len_B": length[rbb], "merge_observed": observed,
             }))
             n = len(frames)
         else:
             n = 0
             if controlled is not None:
                 c = 0
-        summary.append((eid, b, a, c, mf, gtime[rb], truck, start, n))
+        summary.append((eid, b, a, c, mf, gtime[rb], truck, start, n, observed, gap_before,
+                        int(np.count_nonzero(np.diff(frames) > 1)) if n else 0))
     frames_df = pd.concat(chunks, ignore_index=True) if chunks else _empty(ENCOUNTER_COLUMNS)
     frames_df = frames_df.astype(ENCOUNTER_COLUMNS).loc[:, list(ENCOUNTER_COLUMNS)]
     merges_df = pd.DataFrame(summary, columns=list(MERGE_COLUMNS)).astype(MERGE_COLUMNS)

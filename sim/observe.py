@@ -25,11 +25,6 @@ from irl.domains.merge.car_following import OBS_COLUMNS
 from sim.hooks import FrameState
 from sim.schema import RIGHTMOST_MAIN_LANE, V_CLASS_TRUCK
 
-#: ``d_AC`` (ft) of the filled continuous observation without a lead car C
-#: (:meth:`MergeObservation.continuous`): farther than any car-following interaction at freeway
-#: speeds (about 10 s at 100 ft/s), shorter than the section.
-NO_LEAD_GAP_FT = 1000.0
-
 #: The columns of :meth:`MergeObservation.continuous` (the observation a policy callable, the
 #: exported transitions and the car-following and planning drivers see), in order: the encounter
 #: table's names (:data:`irl.domains.merge.car_following.OBS_COLUMNS`).
@@ -37,6 +32,55 @@ CONTINUOUS_NAMES: tuple[str, ...] = tuple(OBS_COLUMNS)
 #: The unit of each of :data:`CONTINUOUS_NAMES` (NGSIM's feet; ``d_AC``, ``v_AC`` and ``len_C``
 #: NaN without a lead car C, a length NaN when unknown).
 CONTINUOUS_UNITS: tuple[str, ...] = ("ft", "ft/s", "ft", "ft/s", "ft/s", "ft", "ft")
+#: ``d_AC`` (ft) of the filled continuous observation without a lead car C
+#: (:meth:`MergeObservation.continuous`): farther than any car-following interaction at freeway
+#: speeds (about 10 s at 100 ft/s), shorter than the section.
+NO_LEAD_GAP_FT = 1000.0
+#: Bounds of the policy observation (columns of :data:`CONTINUOUS_NAMES`; ft, ft/s): wider than
+#: any section and freeway speed; :func:`policy_rows` clips to them (no test run reached them).
+POLICY_OBS_LOW = np.array([-1e4, -300.0, -1e4, -300.0, 0.0, 0.0, 0.0])
+POLICY_OBS_HIGH = np.array([1e4, 300.0, 1e4, 300.0, 300.0, 200.0, 200.0])
+
+
+def fill_policy_rows(rows: np.ndarray) -> np.ndarray:
+    """``[N, 7] -> [N, 7]``: continuous observation rows (:data:`CONTINUOUS_NAMES`) without NaN.
+
+    No lead car C (``d_AC`` or ``v_AC`` not finite) reads as a car :data:`NO_LEAD_GAP_FT` ahead at
+    A's speed (``v_AC = 0``); an unknown length (``len_C`` without C too) as the planning driver's
+    :data:`irl.domains.merge.planning.features.DEFAULT_LENGTH_FT` (4.5 m); any other NaN as 0.
+    A copy; ``rows`` is not changed.
+    """
+    from irl.domains.merge.planning.features import DEFAULT_LENGTH_FT  # scipy: only when asked
+
+    out = np.array(rows, dtype=np.float64, copy=True).reshape(-1, len(CONTINUOUS_NAMES))
+    no_c = ~(np.isfinite(out[:, 0]) & np.isfinite(out[:, 1]))
+    out[no_c, 0], out[no_c, 1], out[no_c, 5] = NO_LEAD_GAP_FT, 0.0, DEFAULT_LENGTH_FT
+    out[:, 5:7] = np.where(np.isfinite(out[:, 5:7]), out[:, 5:7], DEFAULT_LENGTH_FT)
+    return np.nan_to_num(out, nan=0.0, posinf=0.0, neginf=0.0)
+
+
+def policy_rows(rows: np.ndarray) -> np.ndarray:
+    """``[N, 7] -> [N, 7]`` float64: what a policy sees of continuous observation rows, the one
+    contract of the Gymnasium environment (:mod:`sim.env`), a callable driver
+    (:mod:`sim.callable_policy`) and the exported transitions' ``policy_obs``
+    (:mod:`sim.transitions`): :func:`fill_policy_rows`, clipped to
+    :data:`POLICY_OBS_LOW`..:data:`POLICY_OBS_HIGH`. ft and ft/s, columns :data:`CONTINUOUS_NAMES`.
+    """
+    return np.clip(fill_policy_rows(rows), POLICY_OBS_LOW, POLICY_OBS_HIGH)
+
+
+def policy_observation(obs: MergeObservation) -> np.ndarray:
+    """``[7]`` float64: what a policy sees of ``obs`` (:func:`policy_rows` of its continuous row)."""
+    return policy_rows(obs.continuous())[0]
+
+
+def unfill_policy_row(x: np.ndarray) -> np.ndarray:
+    """``[7] -> [7]``: a policy observation back to a continuous row, ``d_AC``/``v_AC``/``len_C``
+    NaN where it reads as no lead car C (``d_AC >= NO_LEAD_GAP_FT``). A copy."""
+    out = np.array(x, dtype=np.float64, copy=True).reshape(-1)
+    if out.size == len(CONTINUOUS_NAMES) and out[0] >= NO_LEAD_GAP_FT:
+        out[0] = out[1] = out[5] = math.nan
+    return out
 
 
 @dataclass(frozen=True)
@@ -89,22 +133,11 @@ class MergeObservation:
         observation of the car-following and planning drivers
         (:data:`irl.domains.merge.car_following.OBS_COLUMNS`), as one row.
 
-        ``filled=True``: without NaN (what a ``gymnasium`` ``Box`` and a neural network take; the
-        observation of :mod:`sim.env`): no lead car C reads as a car
-        :data:`NO_LEAD_GAP_FT` ahead at A's speed (``d_AC``, ``v_AC = 0``), an unknown length
-        (``len_C`` without C too) as the planning driver's
-        :data:`irl.domains.merge.planning.features.DEFAULT_LENGTH_FT` (4.5 m); any other NaN as 0."""
+        ``filled=True``: without NaN (:func:`fill_policy_rows`); what a policy sees is
+        :func:`policy_observation`."""
         row = np.array([[self.d_AC, self.v_AC, self.d_AB, self.v_AB, self.speed_A, self.len_C, self.len_B]],
                        dtype=np.float64)
-        if filled:
-            from irl.domains.merge.planning.features import DEFAULT_LENGTH_FT  # scipy: only when asked
-
-            if not (math.isfinite(self.d_AC) and math.isfinite(self.v_AC)):
-                row[0, 0:2] = NO_LEAD_GAP_FT, 0.0
-                row[0, 5] = DEFAULT_LENGTH_FT
-            row[0, 5:7] = np.where(np.isfinite(row[0, 5:7]), row[0, 5:7], DEFAULT_LENGTH_FT)
-            row = np.nan_to_num(row, nan=0.0, posinf=0.0, neginf=0.0)
-        return row
+        return fill_policy_rows(row) if filled else row
 
 
 def observe(frame: FrameState, ia: int, ib: int, ic: int | None) -> tuple[float, float, float, float, bool]:

@@ -20,7 +20,6 @@ libsumo allows one simulation per process at a time; ``run_scenario`` always clo
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -53,7 +52,7 @@ def run_scenario(
     t0 = time.perf_counter()
     with SumoSession(spec, seed, duration_s=duration_s, work_dir=work_dir, progress=progress) as session:
         ctx = session.start()
-        ls = session._ls
+        import libsumo as ls  # loaded by start()
         started: list[StepHook] = []
         ok = False  # set once every step ran: hooks then commit their outputs
         try:
@@ -73,7 +72,7 @@ def run_scenario(
                 # an aborted run (error, Ctrl-C) must not publish outputs: on_abort if defined
                 (getattr(h, "on_abort", h.on_end) if not ok else h.on_end)(ctx)
         table = session.table()
-        aux_start = aux_lane_start_ft(ctx) if ctx is not None else math.nan
+        aux_start = aux_lane_start_ft(ctx)
     spec = session.spec
     return SimulationResult(
         table=table, spec=spec, seed=spec.simulation.seed, wall_time_s=time.perf_counter() - t0,

@@ -145,6 +145,7 @@ class SumoSession:
         self._ls = ls
         spec = self.spec
         try:
+            site = site_of(spec)  # an unknown site fails before SUMO starts
             if self._work_dir_arg is None:
                 self._tmp = tempfile.mkdtemp(prefix="merge-irl-run-")
                 wd = Path(self._tmp)
@@ -159,7 +160,6 @@ class SumoSession:
                 raise SimulationError(f"SUMO failed to start scenario {spec.name!r}: {e}") from e
             _OPEN = self
             self._cls_of_type = type_class_map(spec)
-            site = site_of(spec)
             self._lane_of = LaneNumbering(spec.road.main_lanes, spec.road.lane_width_m * FT_PER_M, site)
             _, lane_shapes = lane_tables(ls, spec, site)
             vid_of, sumo_ids = self._vid_of, self._sumo_ids

@@ -81,9 +81,10 @@ SITES: dict[str, SiteProfile] = {s.name: s for s in (I80, US101)}
 
 
 def site_of(spec: object) -> SiteProfile:
-    """The lane coding of a simulated scenario: the profile named by its ``site`` attribute
-    (a :class:`SiteProfile`, or a name / TOML path for :func:`load_site`) when it has one, else
-    I-80's (every preset: main lanes ``7 - n .. 6``, ramp and auxiliary lane 7).
+    """The lane coding of a simulated scenario: the profile its ``site`` names
+    (:attr:`scenarios.spec.model.ScenarioSpec.site`: a name or TOML path for :func:`load_site`,
+    or a :class:`SiteProfile`), I-80's without one (every preset: main lanes ``7 - n .. 6``, ramp
+    and auxiliary lane 7).
 
     A simulated road's lanes take the site's last ``main_lanes`` main lanes from the left and its
     first ramp lane; the controller takes over on the site's ramp lane and controls the lag car in

@@ -7,7 +7,7 @@ keeps it. :class:`TakeOverRule` states that rule and :func:`take_overs` applies 
 table (through its :class:`TableIndex`), so that :func:`sim.encounters.extract` can cut the demonstrations exactly where the
 controller would have observed SUMO's driver:
 
-* **Take-over** (the controller's ``_take_over_new``): at the first frame in which B is on a
+* **Take-over** (the controller's ``take_over``): at the first frame in which B is on a
   ramp lane with ``Local_Y >= zone_start_ft``, before its merge frame, and a lane-6 vehicle is
   strictly behind B within ``max_lag_ft`` that is not already A (or B) of another encounter
   being observed then, that vehicle is A. Otherwise the next frame is tried.

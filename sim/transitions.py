@@ -21,7 +21,8 @@ Sources:
   takes (:func:`irl.domains.merge.mdp.resample_encounters`, paper encoding: decision ``j`` of an
   encounter is its row ``j k`` with ``k`` frames per decision, its action the bin of A's mean
   acceleration over the next ``k`` rows, an incomplete last step dropped). One episode per
-  encounter. The last decision's ``next_obs`` is the row ``k`` frames later when the table has
+  encounter, or per run of consecutive frames where a recording has missing frames (split
+  there, as learning does). The last decision's ``next_obs`` is the row ``k`` frames later when the table has
   it, else the encounter's last row (the latest observation there is, fewer than ``k`` frames
   later).
 * **Closed-loop rollouts** (:func:`from_decisions` of the controller's decision log,
@@ -51,12 +52,12 @@ import pandas as pd
 from irl.domains.merge.actions import N_ACTIONS, actions_of
 from irl.domains.merge.bins import MergeBins
 from irl.domains.merge.car_following import OPTIONAL_OBS_COLUMNS
-from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, frames_per_step, resample_encounters
+from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, encounter_runs, frames_per_step, resample_encounters
 from irl.errors import ConfigError
 from merge_irl.atomic import write_atomic
 from merge_irl.units import FRAME_S, M_PER_FT
 from sim.errors import SimError
-from sim.observe import CONTINUOUS_NAMES
+from sim.observe import CONTINUOUS_NAMES, policy_rows
 
 #: The ``format`` entry of a transitions ``.npz`` file.
 TRANSITIONS_FORMAT = "merge-irl-transitions/1"
@@ -149,6 +150,15 @@ class Transitions:
         starts = np.flatnonzero(np.r_[True, self.episode[1:] != self.episode[:-1]])
         return [np.arange(a, b) for a, b in zip(starts, np.r_[starts[1:], self.n])]
 
+    def policy_obs(self) -> np.ndarray:
+        """``[N, 7]``: ``obs`` as a policy sees it (:func:`sim.observe.policy_rows`: no NaN, the
+        Gymnasium environment's and ``evaluate --policy``'s observation)."""
+        return policy_rows(self.obs)
+
+    def policy_next_obs(self) -> np.ndarray:
+        """``[N, 7]``: ``next_obs`` as a policy sees it (see :meth:`policy_obs`)."""
+        return policy_rows(self.next_obs)
+
 
 def concatenate(parts: Sequence[Transitions]) -> Transitions:
     """The transitions of ``parts`` one after the other, episodes renumbered.
@@ -212,14 +222,9 @@ def from_encounters(encounters: pd.DataFrame, *, decision_step_s: float = DEFAUL
     dones = np.zeros(at.size, dtype=bool)
     dones[np.cumsum(lengths) - 1] = True
     # each encounter is a block of consecutive rows (resample_encounters' runs): where it ends
-    ids = encounters["encounter_id"].to_numpy()
-    brk = np.ones(len(ids), dtype=bool)
-    brk[1:] = ids[1:] != ids[:-1]
-    if "Frame_ID" in encounters.columns and len(ids) > 1:
-        fr = encounters["Frame_ID"].to_numpy()
-        brk[1:] |= fr[1:] <= fr[:-1]
-    run = np.cumsum(brk) - 1
-    run_end = np.r_[np.flatnonzero(brk)[1:], len(ids)] - 1  # last row of each run
+    run = encounter_runs(encounters).run - 1  # consecutive frames: a next_obs never lies across a gap
+    brk = np.r_[True, run[1:] != run[:-1]]
+    run_end = np.r_[np.flatnonzero(brk)[1:], len(run)] - 1  # last row of each run
     nxt = np.minimum(at + k, run_end[run[at]])
     obs_all = _obs_columns(encounters)
     acc_ft = encounters["acc_A"].to_numpy(dtype=np.float64)
@@ -370,7 +375,9 @@ def to_imitation_trajectories(t: Transitions, *, action: str = "discrete") -> li
     """``imitation.data.types.Trajectory`` objects, one per episode: ``obs`` ``[n_e + 1, D]`` (the
     episode's observations and its last ``next_obs``), ``acts`` ``[n_e]`` (int64 action indices, or
     with ``action="continuous"`` ``[n_e, 1]`` float32 accelerations in m/s^2), ``infos`` None,
-    ``terminal`` True. NaN observations (no lead car C) are passed on as they are.
+    ``terminal`` True. Observations as a policy sees them (:meth:`Transitions.policy_obs`: no NaN,
+    the Gymnasium environment's), so a policy learned from them runs in the environment and in
+    ``evaluate --policy``.
 
     Raises:
         TransitionsError: ``imitation`` is not installed (``pip install imitation``), or an
@@ -384,8 +391,9 @@ def to_imitation_trajectories(t: Transitions, *, action: str = "discrete") -> li
         raise TransitionsError("to_imitation_trajectories needs the 'imitation' library (pip install imitation); "
                                "the arrays themselves are Transitions' obs, acts, next_obs, dones") from None
     out = []
+    pobs, pnext = t.policy_obs(), t.policy_next_obs()
     for rows in t.episodes():
-        obs = np.concatenate([t.obs[rows], t.next_obs[rows[-1:]]])
+        obs = np.concatenate([pobs[rows], pnext[rows[-1:]]])
         acts = t.acts[rows] if action == "discrete" else t.acc_mps2[rows].astype(np.float32)[:, None]
         out.append(Trajectory(obs=obs, acts=acts, infos=None, terminal=True))
     return out

@@ -1,4 +1,5 @@
-"""Small IRL test inputs: random MDP demonstrations and gridworld demonstrations.
+"""Small IRL test inputs: random MDP demonstrations, gridworld demonstrations and a merge
+encounter table with frame numbers.
 
 The gridworld demonstrations come from the project's own generator (``irl.domains.gridworld``: the
 paper's 5x5 gridworld, REFERENCE.md layout), with fixed seeds and about the authors' sizes
@@ -8,8 +9,8 @@ The authors' own files (AGPL, not shipped) are tested through the ``railusm`` fi
 
 from __future__ import annotations
 
-
 import numpy as np
+import pandas as pd
 
 from irl.domains import gridworld
 from irl.demonstrations import Demonstrations
@@ -74,3 +75,19 @@ def random_mdp(seed: int, n_states: int = 6, n_actions: int = 3, n_features: int
         states.append(np.array(ss))
         actions.append(np.array(aa))
     return t, Demonstrations(tuple(states), tuple(actions), phi, S, A, source=f"random mdp {seed}")
+
+
+def encounter_table(n: int = 3, rows: int = 60, seed: int = 0, first_frame: int = 1000) -> pd.DataFrame:
+    """An encounter table with Frame_ID (consecutive frames per encounter) and the columns the
+    car-following and planning decisions read."""
+    rng = np.random.default_rng(seed)
+    v_a = rng.uniform(30, 60, n * rows)
+    return pd.DataFrame({
+        "encounter_id": np.repeat(np.arange(n) + 1, rows),
+        "C_id": np.repeat(np.arange(n) + 50, rows),
+        "Frame_ID": np.tile(np.arange(rows) + first_frame, n),
+        "d_AC": rng.uniform(40, 200, n * rows), "d_AB": rng.uniform(-40, 120, n * rows),
+        "v_AC": rng.normal(0, 6, n * rows), "v_AB": rng.normal(0, 6, n * rows),
+        "B_is_truck": np.repeat(np.arange(n) % 2 == 1, rows), "acc_A": rng.uniform(-11, 11, n * rows),
+        "v_A": v_a, "len_C": 15.0, "len_B": 16.0,
+    })

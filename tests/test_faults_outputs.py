@@ -270,3 +270,33 @@ def test_second_evaluate_into_the_same_out_fails_at_once(tmp_path, sim_env):
         holder.kill()
         holder.wait()
     assert not out.exists()
+
+
+# -- learn: one --out, one writer (issue 29, item 4) --------------------------------------------
+
+def test_second_learn_into_the_same_out_fails_at_once(tmp_path):
+    sys.path.insert(0, str(Path(__file__).parent))
+    from irl_testdata import gridworld_demos
+
+    from irl.io import save_npz
+
+    demos = save_npz(gridworld_demos("0.0"), tmp_path / "demos.npz")
+    out = tmp_path / "models" / "model.json"
+    args = ("learn", "--method", "qavg", "--domain", "npz", "--demos", str(demos), "--l2", "0.1", "--no-progress",
+            "--out", str(out))
+    holder = subprocess.Popen([sys.executable, "-c", (  # a first learn holding the lock of --out
+        "import time; from merge_irl.run_folder import locked\n"
+        f"with locked({str(out)!r}):\n    print('held', flush=True); time.sleep(60)")],
+        stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        second = _cli(*args)
+        line = _one_line_exit_2(second, "learn")
+        assert "another run is writing this file" in line and str(out) in line
+        assert "wrote" not in second.stdout and not out.exists()  # nothing written over the first run's result
+    finally:
+        holder.kill()
+        holder.wait()
+    done = _cli(*args)  # the lock went with its holder
+    assert done.returncode == 0 and f"wrote {out}" in done.stdout, done.stderr
+    assert out.is_file()

@@ -172,7 +172,7 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     # rerun takes about 0.8 s to import; the sweep workers that import this module for
     # encounters_task never record
     from analysis.recording.log import RerunLogger, log_training
-    from analysis.recording.files import close_recording, open_recording, recording_identity
+    from analysis.recording.files import close_recording, open_recording, recording_identity, run_token
 
     t0 = time.perf_counter()
     check_dagger_seeds(config)  # before any work
@@ -202,7 +202,7 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     model_prov = provenance({"demos": train_path, "bins": out / "data" / "bins.json"})
 
     _say(f"[3/5] learning {', '.join(config.methods)}", quiet)
-    rid, name = recording_identity(config.scenario, "demo", config.eval_seed)
+    rid, name = recording_identity(config.scenario, "demo", config.eval_seed, run=run_token(out / "demo.rrd"))
     rec, tmp_rrd = open_recording(out / "demo.rrd", recording_id=rid, name=f"{name}: training and one episode")
     models: dict[str, Path] = {}
     messages: dict[str, str] = {}

@@ -167,8 +167,9 @@ def evaluate(
             changes off while observed), and any registered by
             :func:`~analysis.evaluation.policies.register_baseline`.
         train_demos: training encounters (Parquet/CSV/DataFrame) of the fitted baselines.
-        policies: further policies to evaluate (e.g. ``ConstantPolicy(0)``, or a car-following
-            logit driver of :func:`~analysis.evaluation.policies.cf_policy`).
+        policies: further policies to evaluate (e.g. ``ConstantPolicy(0)``, a car-following
+            logit driver of :func:`~analysis.evaluation.policies.cf_policy`, or any callable
+            ``obs -> action`` as a :class:`sim.callable_policy.CallablePolicy`).
         workers: processes (shorthand for ``executor="process:<workers>"``).
         executor: where episodes run (see :func:`run_episodes`); overrides ``workers``.
         rrd: write a rerun recording of each policy's first episode.

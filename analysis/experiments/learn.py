@@ -12,6 +12,7 @@ Example::
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 from collections.abc import Sequence
@@ -22,6 +23,7 @@ import numpy as np
 
 from merge_irl.provenance import provenance as provenance_record
 from merge_irl.provenance import write_timings
+from merge_irl.run_folder import locked
 from irl.config import IRLConfig
 from irl.domains.merge.bins import MergeBins
 from irl.errors import ConvergenceError
@@ -199,23 +201,28 @@ def learn(
         DemonstrationError: ``demos_path`` is missing or not a valid trajectory/encounter file.
         ConvergenceError: the fit failed; no model is written.
         OSError: ``out`` cannot be written (checked before loading and fitting).
+        OutputLockedError: another run is writing ``out`` (it holds ``.NAME.lock`` beside it,
+            :func:`merge_irl.run_folder.locked`, for the whole load, fit and save); nothing is
+            written.
     """
     if out is not None:
         check_writable(out)  # an unwritable --out fails now, not after the fit
-    config = config or IRLConfig.paper()
-    bins_path = None
-    if bins is not None and not isinstance(bins, MergeBins):
-        bins_path, bins = bins, MergeBins.load(bins)
-    problem = load_problem(domain, demos_path, noise=noise, baseline_path=baseline_path, bins=bins, decision_step_s=decision_step_s,
-                           encoding=encoding, features=features)
-    demos_list = [demos_path] if isinstance(demos_path, (str, os.PathLike)) else list(demos_path)
-    inputs = {("demos" if len(demos_list) == 1 else f"demos{i}"): p for i, p in enumerate(demos_list, start=1)}
-    prov = provenance_record({**inputs, "baseline": baseline_path, "bins": bins_path})
-    result = fit_problem(problem, method, config, seed, progress=progress, epsilon=epsilon)
-    if not math.isfinite(result.loglik):
-        raise ConvergenceError(f"{method} on {problem.name}: the fit failed ({result.message}); no model written")
-    model = saved_model(result, problem, seed=seed, source=problem.name, provenance=prov, unvisited=unvisited)
-    if out is not None:
-        model.save(out)
-        write_timings(out, {"fit_wall_time_s": float(result.wall_time_s)})
-    return model
+    # a second run into the same --out fails at once, as generate's does (nothing is lost)
+    with locked(out, what="file") if out is not None else contextlib.nullcontext():
+        config = config or IRLConfig.paper()
+        bins_path = None
+        if bins is not None and not isinstance(bins, MergeBins):
+            bins_path, bins = bins, MergeBins.load(bins)
+        problem = load_problem(domain, demos_path, noise=noise, baseline_path=baseline_path, bins=bins, decision_step_s=decision_step_s,
+                               encoding=encoding, features=features)
+        demos_list = [demos_path] if isinstance(demos_path, (str, os.PathLike)) else list(demos_path)
+        inputs = {("demos" if len(demos_list) == 1 else f"demos{i}"): p for i, p in enumerate(demos_list, start=1)}
+        prov = provenance_record({**inputs, "baseline": baseline_path, "bins": bins_path})
+        result = fit_problem(problem, method, config, seed, progress=progress, epsilon=epsilon)
+        if not math.isfinite(result.loglik):
+            raise ConvergenceError(f"{method} on {problem.name}: the fit failed ({result.message}); no model written")
+        model = saved_model(result, problem, seed=seed, source=problem.name, provenance=prov, unvisited=unvisited)
+        if out is not None:
+            model.save(out)
+            write_timings(out, {"fit_wall_time_s": float(result.wall_time_s)})
+        return model

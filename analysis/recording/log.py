@@ -51,7 +51,7 @@ import rerun as rr
 
 from analysis.recording.blueprint import merge_blueprint
 from analysis.recording.columns import bar_chart_column
-from analysis.recording.files import close_recording, open_recording, recording_identity
+from analysis.recording.files import close_recording, open_recording, policy_digest, recording_identity, run_token
 from irl.domains.merge.actions import ACTION_NAMES
 from irl.domains.merge.features import FEATURE_NAMES, paper_features
 from sim.hooks import FrameState, RunContext
@@ -103,7 +103,8 @@ class RerunLogger:
         log_vehicles: log ``world/vehicles`` (False: only policy/metrics scalars).
         episode: the episode's index, if the file holds one episode of several; it goes into
             the recording id and name (:func:`~analysis.recording.files.recording_identity`) with the scenario, the
-            controller's policy (``sumo`` without a controller) and the seed.
+            controller's policy (``sumo`` without a controller), the seed and the run
+            (:func:`~analysis.recording.files.run_token` of ``path``, the scenario and the policy's content).
         training_methods: methods whose traces (:func:`log_training`) the recording holds,
             for the blueprint's training tab.
     """
@@ -153,8 +154,10 @@ class RerunLogger:
     # -- hook protocol -------------------------------------------------------------------
     def on_start(self, ctx: RunContext) -> None:
         if self._rec is None:
-            policy = self.controller.policy.name if self.controller is not None else "sumo"
-            rid, name = recording_identity(ctx.spec.name, policy, ctx.seed, self.episode)
+            driver = self.controller.policy if self.controller is not None else None
+            policy = driver.name if driver is not None else "sumo"
+            run = run_token(self.path, ctx.spec.to_toml(), policy_digest(driver))  # unique per run, deterministic
+            rid, name = recording_identity(ctx.spec.name, policy, ctx.seed, self.episode, run=run)
             self._rec, self._tmp = open_recording(self.path, application_id=self._app, recording_id=rid, name=name)
         rec = self._rec
         names = sorted(ctx.lane_shapes, key=lambda s: int(s) if s.isdigit() else 99)

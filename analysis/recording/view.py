@@ -32,6 +32,22 @@ def find_recordings(target: str | os.PathLike) -> list[Path]:
     raise SimError(f"{p}: no such file or folder")
 
 
+def check_recordings(files: list[Path]) -> None:
+    """Raise unless every file reads as a rerun recording (:func:`analysis.recording.read.check_rrd`),
+    so that ``merge-irl view`` refuses a corrupt or foreign file before it starts a viewer.
+
+    Raises:
+        SimError: one line naming the first unreadable file and why.
+    """
+    from analysis.recording.read import check_rrd
+
+    for f in files:
+        try:
+            check_rrd(f)
+        except (ValueError, FileNotFoundError) as e:
+            raise SimError(str(e)) from None
+
+
 def has_display() -> bool:
     """Whether a GUI can open here (always assumed on macOS/Windows)."""
     if sys.platform.startswith("linux"):

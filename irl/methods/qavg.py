@@ -8,9 +8,13 @@ averaged successors is ``Q = R + gamma P_hat (mean_b Q(s', b))``, linear in thet
 
 * ``exact`` solver: ``L(theta) = sum counts * log softmax(beta D theta)`` is a concave
   multinomial-logit likelihood; damped Newton with the analytic ``K x K`` Hessian finds its
-  global maximum. A linear programme (:func:`irl.ascent.recession_direction`) checks first
-  whether the data let the weights grow without bound; then the reported ``loglik`` is the
-  supremum approached and ``unbounded=True`` (use ``l2 > 0`` for a finite answer).
+  global maximum, stepping in coordinates scaled by each feature's spread
+  (:func:`feature_scale`) so that features in very different units are fitted as well as
+  features in one unit; an optimum is reported only where the original problem's gradient at
+  the returned theta is small per unit of feature spread (:data:`OPTIMUM_GTOL`). A linear
+  programme (:func:`irl.ascent.recession_direction`) checks first whether the data let the
+  weights grow without bound; then the reported ``loglik`` is the supremum approached and
+  ``unbounded=True`` (use ``l2 > 0`` for a finite answer).
 * ``faithful`` solver: the authors' damped in-place sweeps (:mod:`irl.methods.damped_sweeps`), Q then dQ each
   to ``max change < inner_tol`` or ``max_inner`` sweeps, warm-started across outer steps, and
   fixed-length unit-gradient outer steps (:func:`irl.ascent.unit_step_ascent`). Where a pair has
@@ -21,10 +25,11 @@ averaged successors is ``Q = R + gamma P_hat (mean_b Q(s', b))``, linear in thet
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 import numpy as np
 
-from irl.ascent import Evaluation, newton_concave, recession_direction, unit_step_ascent
+from irl.ascent import Evaluation, newton_concave, penalised, recession_direction, unit_step_ascent
 from irl.bellman.operators import average_basis
 from irl.boltzmann import log_policy, loglik_grad_from_counts, step_counts
 from irl.config import IRLConfig
@@ -79,6 +84,33 @@ def observed_differences(basis: np.ndarray, counts: np.ndarray) -> np.ndarray:
     return rows[keep]
 
 
+def feature_scale(basis: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """``[K]`` the spread of each feature of ``basis [S, A, K]`` across the actions of the
+    visited states (``counts [S, A]`` steps): ``sqrt(sum_s n_s Var_a basis[s, :, k] / sum_s n_s)``,
+    the square root of the diagonal of ``-H / beta^2 N`` at ``theta = 0`` (all actions equally
+    likely). 1 where a feature does not vary (or nothing is visited).
+
+    Q-Avg's Newton steps in ``u = scale * theta`` (Jacobi preconditioning): a feature in feet
+    beside one in miles gives the same fit as both in one unit, up to rounding.
+    """
+    n_s = counts.sum(axis=1)
+    vis = n_s > 0
+    if not vis.any():
+        return np.ones(basis.shape[2])
+    b = basis[vis]
+    var = ((b - b.mean(axis=1, keepdims=True)) ** 2).mean(axis=1)  # [V, K]
+    s = np.sqrt(n_s[vis] @ var / n_s[vis].sum())
+    return np.where(np.isfinite(s) & (s > 0), s, 1.0)
+
+
+#: Q-Avg's exact solver reports an optimum only where the penalised gradient of the original
+#: problem at the returned theta, times each feature's spread (:func:`feature_scale`: the
+#: gradient in the scaled coordinates), is at most this times ``max(1, |f|)``. Per unit of
+#: spread, because the raw ``|dL/dtheta_k|`` of a feature in tiny units is tiny however far
+#: its weight is from the optimum (and that of one in huge units carries its rounding).
+OPTIMUM_GTOL = 1e-6
+
+
 def _fit_exact(demos: Demonstrations, config: IRLConfig, theta: np.ndarray, progress: bool,
                succ: SuccessorModel):
     basis = qavg_basis(demos, config.gamma, succ)
@@ -94,8 +126,19 @@ def _fit_exact(demos: Demonstrations, config: IRLConfig, theta: np.ndarray, prog
     direction = recession_direction(observed_differences(basis, counts))
     separable = direction is not None
     unbounded = separable and config.l2 == 0.0
+    scale = feature_scale(basis, counts)
     asc = newton_concave(evaluate, theta, config, progress=progress, desc="qavg exact",
-                         ftol=1e-12 if unbounded else 0.0)
+                         ftol=1e-12 if unbounded else 0.0, scale=scale)
+    f, g = penalised(asc.evaluation, asc.theta, config.l2)
+    g_orig, g_scaled = float(np.max(np.abs(g), initial=0.0)), float(np.max(np.abs(g / scale), initial=0.0))
+    extra = {"separable": float(separable), "grad_inf": g_orig, "grad_inf_scaled": g_scaled,
+             "feature_scale_ratio": float(scale.max() / scale.min())}
+    tol = OPTIMUM_GTOL * max(1.0, abs(f))
+    if asc.converged and not unbounded and g_scaled > tol:
+        # the stopping rule held but this is no optimum: say so rather than "optimum reached"
+        asc = replace(asc, converged=False, message=(
+            f"{asc.message}, but the gradient there is {g_scaled:.3g} per unit of feature spread "
+            f"(|g|_inf = {g_orig:.3g} on the original scale) > {tol:.3g}: not an optimum"))
     message = asc.message
     if unbounded and direction is not None:
         d = direction / np.linalg.norm(direction)
@@ -105,7 +148,7 @@ def _fit_exact(demos: Demonstrations, config: IRLConfig, theta: np.ndarray, prog
                    f"Set l2 > 0 for finite weights. ({asc.message})")
     elif separable:
         message = f"{asc.message}; finite only thanks to l2 = {config.l2} (data are separable)"
-    return asc, unbounded, message, {"separable": float(separable)}
+    return asc, unbounded, message, extra
 
 
 class FaithfulQAvg(PlannedSweeps):

@@ -4,6 +4,7 @@
 Layout of a scenario TOML file (SI units, as SUMO uses them)::
 
     name = "synthetic"
+    site = "i-80"   (optional: the lane coding, a site profile of sim.sites by name or TOML path)
     [road]          main_lanes, main_length_m, merge_position_m, ramp_length_m, aux_length_m,
                     lane_width_m, speed_limit_mps, ramp_speed_limit_mps, ramp_angle_deg,
                     bottleneck_length_m, bottleneck_speed_mps, bottleneck_lanes (optional, 0 = none),
@@ -129,6 +130,10 @@ class ScenarioSpec:
     demand: DemandSpec = DemandSpec()
     drivers: DriversSpec = DriversSpec()
     simulation: SimulationSpec = SimulationSpec()
+    #: The lane coding of the run's trajectory table and of the controller: a site profile of
+    #: :mod:`sim.sites` by name (``"i-80"``: main lanes ``7 - n .. 6``, ramp and auxiliary lane 7)
+    #: or a TOML path; written to TOML only when it is not the default.
+    site: str = "i-80"
     source: str = field(default="", compare=False)  #: file read from; not saved, not compared
 
     def to_dict(self) -> dict[str, Any]:
@@ -146,6 +151,8 @@ class ScenarioSpec:
 def _to_plain(obj: Any) -> Any:
     if isinstance(obj, ScenarioSpec):
         out: dict[str, Any] = {"name": obj.name}
+        if obj.site != "i-80":  # every spec written before the field keeps its text (and hash)
+            out["site"] = obj.site
         for part in ("road", "demand", "simulation"):
             out[part] = _to_plain(getattr(obj, part))
         out["drivers"] = {c: [_to_plain(v) for v in getattr(obj.drivers, c)] for c in VEHICLE_CLASSES}

@@ -273,7 +273,7 @@ def spec_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> ScenarioS
         SpecError: a missing or invalid field (the message names it and what was expected).
     """
     ctx = FieldContext(source)
-    d = check_keys(ctx, "", data, ["name", "road", "demand", "drivers", "simulation"])
+    d = check_keys(ctx, "", data, ["name", "site", "road", "demand", "drivers", "simulation"])
     if "name" not in d:
         raise ctx.fail("name", "missing (the scenario needs a name)")
     name = string(ctx, "name", d["name"])
@@ -286,6 +286,7 @@ def spec_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> ScenarioS
         demand=_demand(ctx, d.get("demand", {}), road.main_lanes),
         drivers=_drivers(ctx, d.get("drivers", {})),
         simulation=_simulation(ctx, d.get("simulation", {})),
+        site=string(ctx, "site", d.get("site", "i-80")).strip() or "i-80",
         source=source,
     )
 

@@ -11,7 +11,7 @@ including every other merge of the run, is SUMO's.
 Spaces:
 
 * observation: ``Box(OBS_LOW, OBS_HIGH, (7,), float64)``, the driver's continuous observation
-  :meth:`sim.observe.MergeObservation.continuous` (``filled=True``), columns
+  as a policy sees it (:func:`sim.observe.policy_observation`, filled and clipped), columns
   :data:`irl.domains.merge.car_following.OBS_COLUMNS`:
   ``d_AC`` (ft, C's front bumper ahead of A's), ``v_AC`` (ft/s, A's speed minus C's),
   ``d_AB`` (ft), ``v_AB`` (ft/s), ``v_A`` (ft/s, A's speed), ``len_C``, ``len_B`` (ft). No lead
@@ -69,14 +69,12 @@ from sim.controller import Controller
 from sim.controller_config import ControllerConfig
 from sim.env.rewards import RewardFn, TabularReward, load_reward
 from sim.hooks import FrameState
-from sim.observe import MergeObservation
+from sim.observe import POLICY_OBS_HIGH, POLICY_OBS_LOW, MergeObservation, policy_observation
 from sim.policy import NO_LIKELIHOOD, PolicyDefaults
 from sim.session import SumoSession
 
-#: Bounds of the observation ``Box`` (columns of ``OBS_COLUMNS``; ft, ft/s): wider than any
-#: section and freeway speed (observations are clipped to them, which no test run reached).
-OBS_LOW = np.array([-1e4, -300.0, -1e4, -300.0, 0.0, 0.0, 0.0])
-OBS_HIGH = np.array([1e4, 300.0, 1e4, 300.0, 300.0, 200.0, 200.0])
+#: Bounds of the observation ``Box`` (ft, ft/s): the policy observation's (:func:`sim.observe.policy_rows`).
+OBS_LOW, OBS_HIGH = POLICY_OBS_LOW, POLICY_OBS_HIGH
 #: Release reasons that truncate an episode (a time limit); every other one terminates it.
 TRUNCATING_REASONS = frozenset({"timeout", "end_of_run"})
 #: SUMO runs in a row that may end without a take-over before ``reset`` gives up.
@@ -180,13 +178,13 @@ class MergeEnv(gym.Env):
             self._start_run(self._draw_seed())
         elif self._control is not None and self._control.active:  # an episode left unfinished
             assert self._ctl is not None
-            self._ctl.release(self._control, self._ctl._last_frame, "end_of_run", present=True)
+            self._ctl.release(self._control, self._ctl.last_frame, "end_of_run", present=True)
         self._control = None
         for _ in range(MAX_EMPTY_RUNS):
             if self._find_take_over():
                 assert self._pending is not None
                 obs = self._pending[3]
-                self._last_obs = _obs_row(obs)
+                self._last_obs = policy_observation(obs)
                 return self._last_obs.copy(), self._info(obs)
             self._start_run(self._draw_seed())
         from sim.errors import SimulationError
@@ -224,7 +222,7 @@ class MergeEnv(gym.Env):
         while True:
             st = self._session.step()
             if st is None:
-                ctl.release(c, ctl._last_frame, "end_of_run", present=True)
+                ctl.release(c, ctl.last_frame, "end_of_run", present=True)
                 break
             due = ctl.advance(st.frame, max_take_overs=0)
             self._time_s = st.frame.time_s
@@ -235,7 +233,7 @@ class MergeEnv(gym.Env):
                 if dc is c:
                     o = ctl.observe(c, st.frame, ia2, ib2, ic2)
                     self._pending = (st.frame, ia2, ic2, o)
-                    self._last_obs = _obs_row(o)
+                    self._last_obs = policy_observation(o)
                     return self._last_obs.copy(), reward, False, False, {**self._info(o), **step_info}
         truncated = c.reason in TRUNCATING_REASONS
         info = {**self._info(None), **step_info, "release_reason": c.reason, "collision_kind": c.collision_kind}
@@ -292,8 +290,8 @@ class MergeEnv(gym.Env):
             return
         from sim.observe import lead_of
 
-        ic = lead_of(frame, float(frame.local_y[ia]), lane=ctl._merge_lane, exclude=(ia, ib))
-        self._last_obs = _obs_row(ctl.observe(c, frame, ia, ib, ic))
+        ic = lead_of(frame, float(frame.local_y[ia]), lane=ctl.merge_lane, exclude=(ia, ib))
+        self._last_obs = policy_observation(ctl.observe(c, frame, ia, ib, ic))
 
     def _info(self, obs: MergeObservation | None) -> dict[str, Any]:
         c = self._control
@@ -303,9 +301,6 @@ class MergeEnv(gym.Env):
                 "a_id": c.a_id if c is not None else 0, "b_id": c.b_id if c is not None else 0}
 
 
-def _obs_row(obs: MergeObservation) -> np.ndarray:
-    """``[7]`` the filled continuous observation, clipped to the observation space's bounds."""
-    return np.clip(obs.continuous(filled=True)[0], OBS_LOW, OBS_HIGH)
 
 
 def make_env(**kwargs: Any) -> Callable[[], MergeEnv]:

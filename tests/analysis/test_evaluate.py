@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 
@@ -104,7 +105,8 @@ def test_evaluate_writes_report_metrics_plots(tmp_path):
     from analysis.recording.read import recording_info
 
     ids = {n: recording_info(p)["recording_id"] for n, p in rep.rrd.items()}
-    assert ids == {n: f"merge-irl/synthetic/{n}/seed3" for n in names}
+    assert {n: i[:-15] for n, i in ids.items()} == {n: f"merge-irl/synthetic/{n}/seed3" for n in names}
+    assert len(set(ids.values())) == len(names) and all("/run-" in i for i in ids.values())
     # provenance: the model file of each policy, the scenario simulated, the versions
     import hashlib
 
@@ -211,3 +213,35 @@ def test_view_cli_prints_recordings(tmp_path):
     r = subprocess.run([sys.executable, "-m", "analysis", "view", str(tmp_path / "empty")],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and "empty" in r.stderr
+
+
+@pytest.mark.parametrize("damage", ["text", "truncated", "zeroed"])
+def test_view_refuses_a_file_that_is_not_a_readable_recording(tmp_path, damage):
+    """issue 29, item 4: a corrupt or foreign .rrd is one line and exit 2, and no viewer starts."""
+    from analysis.recording.files import close_recording, open_recording
+    from analysis.recording.log import log_training
+
+    good = tmp_path / "run" / "good.rrd"
+    rec, tmp = open_recording(good)
+    log_training(rec, "qavg", np.arange(-300.0, 0.0), np.zeros((300, 3)))
+    close_recording(rec, tmp, good)
+    data = good.read_bytes()
+    bad = tmp_path / "run" / "bad.rrd"
+    if damage == "text":
+        bad.write_text("<html>not a recording</html>\n")
+    elif damage == "truncated":
+        bad.write_bytes(data[: len(data) // 2])
+    else:  # the header kept, the body zeroed
+        bad.write_bytes(data[:8] + bytes(len(data) - 8))
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}  # headless: no GUI
+    if damage == "text":  # a readable recording still opens
+        r = subprocess.run([sys.executable, "-m", "analysis", "view", str(good), "--print-only"], capture_output=True,
+                           text=True, timeout=120, env=env)
+        assert r.returncode == 0 and "good.rrd" in r.stdout, r.stderr
+    for target in (bad, tmp_path / "run") if damage == "truncated" else (bad,):
+        r = subprocess.run([sys.executable, "-m", "analysis", "view", str(target)], capture_output=True, text=True,
+                           timeout=120, env=env)
+        lines = r.stderr.strip().splitlines()
+        assert r.returncode == 2 and len(lines) == 1, (r.returncode, r.stderr)
+        assert lines[0].startswith("merge-irl view: error: ") and "bad.rrd" in lines[0]
+        assert "not a readable rerun recording" in lines[0] and "open with" not in r.stdout

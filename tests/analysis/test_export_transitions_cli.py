@@ -43,7 +43,8 @@ def test_export_transitions_of_every_source(tmp_path, capsys) -> None:
                        (["--demos", str(tmp_path / "none.parquet")], "no such file"),
                        (["--demos", str(out)], "expected a .parquet, .csv or .txt file"),
                        (["--demos", str(tmp_path / "other.csv")], "neither an encounter table"),
-                       (["--demos", str(tmp_path / "enc.parquet"), "--decision-step-s", "0.25"], "multiple of 0.1")):
+                       (["--demos", str(tmp_path / "enc.parquet"), "--decision-step-s", "0.25"], "multiple of 0.1"),
+                       (["--demos", str(tmp_path / "enc.parquet"), "--smooth"], "NGSIM .csv/.txt files only")):
         assert main(["export-transitions", *argv, "--out", str(tmp_path / "bad.npz")]) == 2
         err = capsys.readouterr().err
         assert len(err.strip().splitlines()) == 1 and said in err, (argv, err)

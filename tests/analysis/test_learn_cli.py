@@ -6,7 +6,7 @@ import sys
 import numpy as np
 import pytest
 
-from irl_testdata import gridworld_demos
+from irl_testdata import encounter_table, gridworld_demos
 
 from analysis.cli.main import main
 from irl.boltzmann import log_policy
@@ -102,3 +102,18 @@ def test_merge_defaults_have_one_home(tmp_path):
     assert merge_features([tmp_path / "enc.parquet", tmp_path / "b.csv"]) == "driver"
     assert merge_features(tmp_path / "enc.parquet", "paper") == "paper"
     assert (merge_encoding("driver"), merge_encoding("paper"), merge_encoding(("safe",))) == ("driver", "paper", "paper")
+
+
+def test_learn_says_where_an_encounter_table_has_missing_frames(tmp_path):
+    """issue 29, item 2: the split at a recording's gap is counted in learn's one-line report."""
+    df = encounter_table(n=3, rows=60)
+    df = df[~((df.encounter_id == 2) & df.Frame_ID.between(1020, 1033))]
+    path = tmp_path / "enc.parquet"
+    df.to_parquet(path)
+    r = subprocess.run([sys.executable, "-m", "analysis", "learn", "--method", "qavg", "--domain", "merge",
+                        "--demos", str(path), "--l2", "0.1", "--no-progress", "--out", str(tmp_path / "model.json")],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    said = [ln for ln in r.stderr.splitlines() if "missing frames" in ln]
+    assert len(said) == 1 and said[0].startswith("merge-irl learn: warning: ")
+    assert "1 encounter(s) have missing frames (1 gap(s), 14 frames): each is split at its gaps" in said[0]

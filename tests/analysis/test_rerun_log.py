@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 import rerun as rr
@@ -150,8 +152,31 @@ def test_training_traces_are_logged(tmp_path):
 @pytest.mark.sumo
 def test_recording_is_named_for_its_scenario_policy_and_seed(logged):
     path, _ = logged
-    assert recording_info(path) == {"application_id": "merge-irl", "recording_id": "merge-irl/synthetic/random-q/seed3",
-                                    "name": "random-q on synthetic, seed 3"}
+    info = recording_info(path)
+    assert info["application_id"] == "merge-irl"
+    assert re.fullmatch(r"merge-irl/synthetic/random-q/seed3/run-[0-9a-f]{10}", info["recording_id"])
+    assert info["name"] == f"random-q on synthetic, seed 3 (run {info['recording_id'][-10:]})"
+
+
+@pytest.mark.sumo
+def test_recording_ids_are_unique_per_run_and_deterministic(tmp_path):
+    """issue 29, item 3: the SUMO baseline of two runs, and two different models of one name and
+    seed, got one id, so the viewer merged or dropped them; the same run repeated keeps its id."""
+    from sim.policy import SumoPolicy
+
+    def rid(folder, policy):
+        path = tmp_path / folder / "rerun" / f"{policy.name}.rrd"
+        run_episode(load_scenario("synthetic"), policy, 3, duration_s=70.0, rrd_path=path)
+        return recording_info(path)["recording_id"]
+
+    sumo_a, sumo_b, sumo_a_again = rid("a", SumoPolicy()), rid("b", SumoPolicy()), rid("a", SumoPolicy())
+    assert sumo_a != sumo_b and sumo_a == sumo_a_again
+    rng = np.random.default_rng(0)
+    bins = MergeBins.from_dict(EDGES)
+    one, two = (LearnedPolicy(np.log(np.full((1250, 5), 0.2)), bins, name="model"),
+                LearnedPolicy(np.log(rng.dirichlet(np.ones(5), size=1250)), bins, name="model"))
+    ids = {rid("m", one), rid("m", two), rid("a", one)}  # the same file name, policy name and seed
+    assert len(ids) == 3 and sumo_a not in ids
 
 
 def test_recording_ids_differ_by_policy_seed_and_episode():
@@ -159,6 +184,8 @@ def test_recording_ids_differ_by_policy_seed_and_episode():
            for seed in (1, 2) for ep in (None, 0, 1)}
     assert len(ids) == 2 * 2 * 2 * 3
     assert recording_identity("i80", "qavg", 4, 2) == ("merge-irl/i80/qavg/seed4/episode2", "qavg on i80, seed 4, episode 2")
+    assert recording_identity("i80", "qavg", 4, 2, run="0123456789") == (
+        "merge-irl/i80/qavg/seed4/episode2/run-0123456789", "qavg on i80, seed 4, episode 2 (run 0123456789)")
 
 
 @pytest.mark.sumo
@@ -260,8 +287,8 @@ def test_a_run_with_two_policies_holds_two_named_recordings(tmp_path):
     files = sorted((tmp_path / "eval" / "rerun").glob("*.rrd"))
     assert [f.name for f in files] == ["sumo.rrd", "uniform.rrd"]
     infos = [recording_info(f) for f in files]
-    assert [i["recording_id"] for i in infos] == ["merge-irl/synthetic/sumo/seed5", "merge-irl/synthetic/uniform/seed5"]
-    assert [i["name"] for i in infos] == ["sumo on synthetic, seed 5", "uniform on synthetic, seed 5"]
+    assert [i["recording_id"][:-15] for i in infos] == ["merge-irl/synthetic/sumo/seed5", "merge-irl/synthetic/uniform/seed5"]
+    assert [i["name"].split(" (run ")[0] for i in infos] == ["sumo on synthetic, seed 5", "uniform on synthetic, seed 5"]
     for f in files:
         assert {v["name"] for v in read_blueprint(f)} >= {"merge (follows car A)", "section", "speed of A (ft/s)"}
     # the SUMO baseline's As are observed, not driven: their own role and colour

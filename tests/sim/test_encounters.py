@@ -181,3 +181,57 @@ def test_every_ramp_vehicle_reaching_lane_6_yields_one_encounter(tmp_path):
     acc_now = key.loc[list(zip(f.A_id, f.Frame_ID)), "v_Acc"].to_numpy()
     assert np.mean(np.abs(f.acc_A.to_numpy() - acc_next) < 1e-3) > 0.95
     assert np.mean(np.abs(f.acc_A.to_numpy() - acc_now) < 1e-3) < np.mean(np.abs(f.acc_A.to_numpy() - acc_next) < 1e-3)
+
+
+def _gap_tracks(b_missing=(), a_missing=()):
+    fr = range(10, 31)
+    return {
+        1: [p for p in straight(fr, 6, 100.0, 50.0) if p[0] not in a_missing],  # A
+        2: [(f, 7 if f < 22 else 6, 130.0 + 4.0 * (f - 10), 40.0) for f in fr if f not in b_missing],  # B: 22
+        3: straight(fr, 6, 250.0, 45.0),  # C
+    }
+
+
+def test_a_merge_first_seen_after_a_gap_is_flagged_not_dated_silently():
+    """issue 29, item 2: B's rows 18..21 (its last ramp frames) are missing, so B is first seen in
+    lane 6 at frame 22 but may have merged at 18: merge_observed is False, 4 frames missing."""
+    full = extract(make_table(_gap_tracks()))
+    assert full.merges.merge_observed.all() and (full.merges.merge_gap_frames == 0).all()
+    assert full.frames.merge_observed.all() and (full.merges.frame_gaps == 0).all()
+    enc = extract(make_table(_gap_tracks(b_missing=range(18, 22))))
+    m = enc.merges
+    assert (m.merge_frame[0], bool(m.merge_observed[0]), m.merge_gap_frames[0]) == (22, False, 4)
+    assert (~enc.frames.merge_observed).all()
+    assert m.frame_gaps[0] == 1  # the window's frames 18..21 are missing (B is not there)
+    assert list(enc.frames.Frame_ID) == [*range(10, 18), 22]
+    # A missing mid-window: a gap in the frames, the merge itself observed
+    enc = extract(make_table(_gap_tracks(a_missing=(14, 15))))
+    assert bool(enc.merges.merge_observed[0]) and enc.merges.frame_gaps[0] == 1
+    assert 14 not in set(enc.frames.Frame_ID) and 13 not in set(enc.frames.Frame_ID)  # no A at t+1: no action
+
+
+def test_encounters_cli_reports_gaps_in_its_load_report(tmp_path, capsys):
+    """The NGSIM case file with rows cut out: `merge-irl encounters` says what the gaps did."""
+    from pathlib import Path
+
+    from analysis.cli.main import main
+    from sim.encounters import find_merges
+    from sim.ngsim.io import read_ngsim
+
+    src = Path(__file__).resolve().parents[1] / "data" / "cases" / "ngsim-noisy-duplicates" / "clean.csv"
+    table = read_ngsim(src).table
+    merge = find_merges(table).iloc[0]
+    b, mf = int(merge.B_id), int(merge.merge_frame)
+    lines = src.read_text().splitlines()
+    cut = [ln for ln in lines[1:] if not (int(ln.split(",")[0]) == b and mf - 6 <= int(ln.split(",")[1]) < mf)]
+    gappy = tmp_path / "gappy.csv"
+    gappy.write_text("\n".join([lines[0], *cut]) + "\n")
+    assert main(["encounters", str(gappy), "--out", str(tmp_path / "enc.parquet")]) == 0
+    err = capsys.readouterr().err
+    assert "vehicles with frame gaps: 1 (1 gaps, 6 missing frames" in err
+    assert "frame gaps: 1 encounter(s) with 1 gap(s) in their frames" in err
+    assert "merges not observed: 1 B first seen in the merge lane after missing frames (up to 6 frames late" in err
+    report = (tmp_path / "enc.load-report.txt").read_text()
+    assert "merges not observed: 1" in report and "frame gaps: 1 encounter(s)" in report
+    merges = pd.read_parquet(tmp_path / "enc.merges.parquet")
+    assert merges.merge_observed.tolist() == [False] and merges.merge_gap_frames.tolist() == [6]

@@ -79,3 +79,30 @@ def test_importing_sim_loads_neither_libsumo_nor_gymnasium():
             "print(sorted(m for m in ('libsumo', 'gymnasium') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip().splitlines()[-1] == "[]"
+
+
+def test_a_scenario_declares_its_lane_coding_through_its_site_profile(tmp_path):
+    """The synthetic road coded as US-101 (main lanes ..5, ramp 7): the table, the context and the
+    controller follow the profile, with no edit in sim; the default stays I-80's."""
+    from dataclasses import replace
+
+    from scenarios.spec.parse import spec_from_toml
+    from sim.controller import Controller
+    from sim.controller_config import ControllerConfig
+    from sim.policy import ConstantPolicy
+    from sim.run import run_scenario
+
+    base = load_scenario("synthetic")
+    assert base.site == "i-80" and "site" not in base.to_dict()  # presets' text (and hashes) unchanged
+    spec = replace(base, site="us-101")
+    assert spec_from_toml(spec.to_toml()).site == "us-101"
+    ctl = Controller(ConstantPolicy(2), ControllerConfig(decision_step_s=0.3))
+    with cache_env(tmp_path):
+        res = run_scenario(spec, seed=2, duration_s=110.0, hooks=[ctl])
+    assert set(res.table["Lane_ID"].unique()) == {3, 4, 5, 7}
+    table = ctl.control_table()
+    assert len(table) >= 2 and (table["reason"] == "merge_done").any()
+    assert not (table["reason"] == "left_lane").any()  # A is watched in lane 5, the profile's merge lane
+    with pytest.raises(Exception, match="no-such-site"):
+        with cache_env(tmp_path):
+            run_scenario(replace(base, site="no-such-site"), seed=2, duration_s=70.0)

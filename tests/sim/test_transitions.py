@@ -141,8 +141,9 @@ def test_imitation_trajectories_through_a_stand_in_module(monkeypatch) -> None:
     assert len(trajs) == 3 and [len(tr.acts) for tr in trajs] == [3, 2, 2]
     for tr, rows in zip(trajs, t.episodes()):
         assert tr.obs.shape == (len(rows) + 1, 7) and tr.terminal and tr.acts.dtype == np.int64
-        np.testing.assert_array_equal(tr.obs[:-1], t.obs[rows])
-        np.testing.assert_array_equal(tr.obs[-1], t.next_obs[rows[-1]])
+        np.testing.assert_array_equal(tr.obs[:-1], t.policy_obs()[rows])
+        np.testing.assert_array_equal(tr.obs[-1], t.policy_next_obs()[rows[-1]])
+        assert np.isfinite(tr.obs).all()
     cont = to_imitation_trajectories(t, action="continuous")
     assert cont[0].acts.shape == (3, 1) and cont[0].acts.dtype == np.float32
     with pytest.raises(TransitionsError, match="'discrete' or 'continuous'"):
@@ -152,13 +153,6 @@ def test_imitation_trajectories_through_a_stand_in_module(monkeypatch) -> None:
         to_imitation_trajectories(t)
 
 
-def test_imitation_trajectories_with_the_real_library() -> None:
-    types_mod = pytest.importorskip("imitation.data.types")
-    trajs = to_imitation_trajectories(from_encounters(encounter_table()))
-    assert all(isinstance(tr, types_mod.Trajectory) for tr in trajs) and len(trajs) == 3
-
-
-@pytest.mark.sumo
 def test_exported_encounters_are_what_the_controller_observes(tmp_path) -> None:
     ctl = Controller(SumoPolicy(), ControllerConfig())  # observes SUMO's driver every 0.3 s
     res = short_run(tmp_path, seed=2001, duration_s=200.0, hooks=[ctl])
@@ -198,3 +192,27 @@ def test_rollout_of_a_callable_policy(tmp_path) -> None:
     assert (t.acts == 1).all()  # -0.5 m/s^2 is Low Brake
     np.testing.assert_allclose(t.acc_mps2, -0.5)  # applied as returned (A's emergency deceleration is far)
     assert np.isfinite(t.obs[:, 2:5]).all()
+
+
+def test_a_recordings_gap_ends_an_episode_and_no_next_obs_lies_across_it():
+    """issue 29, item 2: exported transitions split where frames are missing, as learning does."""
+    import warnings as _w
+
+    from irl_testdata import encounter_table
+
+    from irl.domains.merge.mdp import FrameGapWarning
+    from sim.transitions import from_encounters
+
+    df = encounter_table(n=1, rows=60)
+    gapped = df[~df.Frame_ID.between(1018, 1031)].reset_index(drop=True)  # 18 rows, then 14 frames missing
+    with _w.catch_warnings(record=True) as said:
+        _w.simplefilter("always")
+        tr = from_encounters(gapped, decision_step_s=0.3)
+    assert [w.category for w in said] == [FrameGapWarning]
+    assert len(set(tr.episode.tolist())) == 2 and int(tr.dones.sum()) == 2
+    last = int(np.flatnonzero(tr.episode == 0)[-1])  # the first part's last decision: frame 1015
+    v_a = list(tr.obs_names).index("v_A")
+    before = gapped[gapped.Frame_ID < 1018]
+    # k = 3 frames later is beyond the part: its next observation is the part's own last row
+    # (frame 1017), not the first row after the gap (frame 1032)
+    assert tr.next_obs[last, v_a] == before["v_A"].iloc[-1]

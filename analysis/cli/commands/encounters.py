@@ -37,6 +37,21 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
+def gap_lines(merges) -> list[str]:
+    """What the recording's missing frames did to the encounters, from the merges summary
+    (:data:`sim.encounters.MERGE_COLUMNS`): none when nothing is missing."""
+    out = []
+    gapped = merges[merges["frame_gaps"] > 0]
+    if len(gapped):
+        out.append(f"frame gaps: {len(gapped)} encounter(s) with {int(gapped['frame_gaps'].sum())} gap(s) in their "
+                   "frames; learning splits them there (no decision step spans missing frames)")
+    late = merges[~merges["merge_observed"]]
+    if len(late):
+        out.append(f"merges not observed: {len(late)} B first seen in the merge lane after missing frames (up to "
+                   f"{int(late['merge_gap_frames'].max())} frames late; merge_observed is false for them)")
+    return out
+
+
 def run(args: argparse.Namespace) -> int:
     from merge_irl.atomic import write_text_atomic
     from sim.encounters import EncounterWindow, extract
@@ -72,8 +87,11 @@ def run(args: argparse.Namespace) -> int:
     out.parent.mkdir(parents=True, exist_ok=True)
     merges = out.with_name(out.stem + ".merges.parquet")
     written = [write_parquet(enc.frames, out), write_parquet(enc.merges, merges)]
+    gaps = gap_lines(enc.merges)
+    for line in gaps:
+        print(line, file=sys.stderr)
     if report is not None:
-        text = report.summary() + f"\n  site lane coding: {site.describe()}\n"
+        text = report.summary() + f"\n  site lane coding: {site.describe()}\n" + "".join(f"  {g}\n" for g in gaps)
         print(text, end="", file=sys.stderr)
         written.append(write_text_atomic(out.with_name(out.stem + ".load-report.txt"), text))
         if report.smoothing == "none" and (report.acc_saturated_rows or report.jerk_rms_ft_s3 > RAW_JERK_FT_S3):

@@ -14,10 +14,10 @@ from sim.controller_config import HIGH_BRAKE_RULES
 def register(subparsers) -> None:
     p = subparsers.add_parser(
         "evaluate", help="drive merge lag cars with learned models in SUMO and compare with baselines",
-        description="Re-inject learned IRL models (or callables of your own, --policy) as the lag car A of every merge, run N episodes per "
-                    "policy beside the baselines (SUMO's own driver, uniform, marginal, markov, bc; on request "
-                    "idm and sumo-in-lane), and write report.md, "
-                    "metrics.json, PNG plots and rerun recordings.")
+        description="Re-inject learned IRL models (or callables of your own, --policy) as the lag car A of every "
+                    "merge, run N episodes per policy beside the baselines (SUMO's own driver, uniform, marginal, "
+                    "markov, bc; on request idm and sumo-in-lane), and write report.md, metrics.json, PNG plots and "
+                    "rerun recordings.")
     p.add_argument("--model", action="append", default=[], metavar="MODEL.json",
                    help="a saved merge model (repeat for several); none: only the baselines")
     p.add_argument("--cf-model", action="append", default=[], metavar="CF_MODEL.json",

@@ -57,6 +57,9 @@ def run(args: argparse.Namespace) -> int:
     step = args.decision_step_s if args.decision_step_s is not None else DEFAULT_DECISION_STEP_S
     if not str(args.out).endswith(".npz"):
         raise TransitionsError(f"--out {args.out}: the file name must end in .npz")
+    ngsim_options = args.location is not None or args.recording is not None or args.smooth
+    if ngsim_options and not any(Path(d).suffix.lower() in (".csv", ".txt") for d in args.demos):
+        raise TransitionsError("--location, --recording and --smooth apply to NGSIM .csv/.txt files only")
     parts = []
     for path in map(Path, args.demos):
         if not path.is_file():

@@ -51,6 +51,9 @@ ENCOUNTER_SCHEMA: tuple[EncounterColumn, ...] = (
     EncounterColumn("len_B", "float64", "ft",
                     "B's length v_Length (the bumper gap to B once B is ahead of A); NaN when unknown (no v_Length "
                     "column, or not > 0); used by the car-following features only"),
+    EncounterColumn("merge_observed", "bool", "",
+                    "B has a row in the frame before merge_frame; False: B is first seen in lane 6 after missing "
+                    "frames, so the merge happened at an unobserved frame before merge_frame (recordings with gaps)"),
 )
 #: Column name -> pandas dtype, in table order.
 ENCOUNTER_COLUMNS: dict[str, str] = {c.name: c.dtype for c in ENCOUNTER_SCHEMA}

@@ -46,11 +46,15 @@ class Discretized:
         rows: ``[N]`` int64, the row position (``iloc``) in the encounter table of each
             decision, in the order of ``demos.flat()``: the frame whose continuous variables
             the decision's state encodes (e.g. for :mod:`irl.domains.merge.car_following`).
+        gaps: gaps (missing frames within an encounter) at which encounters were split.
+        gap_rows_dropped: rows left out in parts between gaps shorter than one decision step.
     """
 
     demos: Demonstrations
     action_acc_ft_s2: tuple[float, ...]
     rows: np.ndarray
+    gaps: int = 0
+    gap_rows_dropped: int = 0
 
 
 def action_mean_acc(acc, actions) -> tuple[float, ...]:
@@ -89,14 +93,20 @@ def resample_encounters(encounters_df, bins: MergeBins, *, where: str = "encount
                         decision_step_s: float = DEFAULT_DECISION_STEP_S, features=None) -> Discretized:
     """Resample each encounter at the decision step and encode it, as the closed-loop controller decides.
 
-    One trajectory per ``encounter_id`` (rows in table order = frame order). With ``k =
-    decision_step_s / 0.1 s`` frames per decision, decision ``j`` of an encounter is its row
-    ``j k`` (the state at that frame); its action is the forward difference of A's speed over
-    the step, ``(v_A(t + k) - v_A(t)) / (k 0.1 s)``, i.e. the mean of ``acc_A`` over rows
-    ``t .. t+k-1`` (each row's ``acc_A`` is a one-frame forward difference). An incomplete
-    last step is dropped. With the ``"driver"`` encoding the first decision is row ``k``
-    so that its previous action (the step over rows ``0 .. k-1``) comes from A's speed history;
-    an encounter shorter than ``2k`` rows keeps row 0 with previous action Zero (unknown).
+    Resampled by time: one trajectory per run of consecutive frames of an ``encounter_id``
+    (:func:`encounter_runs`; rows in table order = frame order). Where frames are missing
+    (a recording's gap: ``Frame_ID`` jumps within an encounter) the encounter is split into
+    trajectories named ``encounter <id> from frame <f> (after <m> missing frames)``, so that
+    no decision step and no transition spans the gap; the splits are counted in
+    :class:`Discretized` and said in one :class:`FrameGapWarning`. A table without gaps gives
+    exactly what row-by-row resampling gives. With ``k = decision_step_s / 0.1 s`` frames per
+    decision, decision ``j`` of a run is its row ``j k`` (the state at that frame); its action
+    is the forward difference of A's speed over the step, ``(v_A(t + k) - v_A(t)) / (k 0.1
+    s)``, i.e. the mean of ``acc_A`` over rows ``t .. t+k-1`` (each row's ``acc_A`` is a
+    one-frame forward difference). An incomplete last step is dropped. With the ``"driver"``
+    encoding the first decision of a run is row ``k`` so that its previous action (the step
+    over rows ``0 .. k-1``) comes from A's speed history; a run shorter than ``2k`` rows keeps
+    row 0 with previous action Zero (unknown).
 
     Args:
         encounters_df: the encounter table of :mod:`irl.domains.merge.encounters`.
@@ -126,26 +136,27 @@ def resample_encounters(encounters_df, bins: MergeBins, *, where: str = "encount
     paper_states = bins.encode(encounters_df)
     acc = encounters_df["acc_A"].to_numpy(dtype=np.float64)
     ids = encounters_df["encounter_id"].to_numpy()
-    # a trajectory is a run of rows with one id (and increasing Frame_ID when present): tables
-    # concatenated from several files or runs may reuse ids, and must not be glued together
-    brk = np.ones(len(ids), dtype=bool)
-    brk[1:] = ids[1:] != ids[:-1]
-    if "Frame_ID" in encounters_df.columns and len(ids) > 1:
-        fr = encounters_df["Frame_ID"].to_numpy()
-        brk[1:] |= fr[1:] <= fr[:-1]
-    run = np.cumsum(brk)
+    runs = encounter_runs(encounters_df)
     order: dict = {}
-    for i, (key, r) in enumerate(zip(ids, run)):
+    for i, (key, r) in enumerate(zip(ids, runs.run)):
         order.setdefault((key, r), []).append(i)
+    gapped = {ids[i] for i in np.flatnonzero(runs.gap_start)}
     states, actions, all_acc, all_act, names, used = [], [], [], [], [], []
     short = []  # encounters shorter than one decision step: no decision to learn from
+    gap_short = [0, 0]  # parts of gapped encounters shorter than one step: parts, rows
     for (key, _), rows in order.items():
         rows = np.asarray(rows)
         n = rows.size // k
         if n == 0:
-            short.append(f"{key} ({rows.size} rows)")
+            if key in gapped:
+                gap_short[0] += 1
+                gap_short[1] += rows.size
+            else:
+                short.append(f"{key} ({rows.size} rows)")
             continue
-        names.append(f"encounter {key}")
+        first = rows[0]
+        names.append(f"encounter {key}" if not runs.gap_start[first] else
+                     f"encounter {key} from frame {runs.frame[first]} (after {runs.missing[first]} missing frames)")
         step_acc = acc[rows[: n * k]].reshape(n, k).mean(axis=1)  # [n]
         step_act = actions_of(step_acc)
         at = rows[: n * k: k]
@@ -162,19 +173,71 @@ def resample_encounters(encounters_df, bins: MergeBins, *, where: str = "encount
         all_acc.append(step_acc)
         all_act.append(step_act)
     if not states:
-        raise DemonstrationError(f"{where}: every encounter is shorter than one decision step of {k} frames "
-                                 f"({decision_step_s} s): {', '.join(short[:5])}")
+        raise DemonstrationError(f"{where}: every encounter (or part between missing frames) is shorter than one "
+                                 f"decision step of {k} frames ({decision_step_s} s): {', '.join(short[:5])}")
     if short:
         warnings.warn(f"{where}: {len(short)} encounter(s) shorter than one decision step of {k} frames "
                       f"({decision_step_s} s) left out: {', '.join(short[:5])}", ShortEncounterWarning, stacklevel=2)
+    n_gaps = int(runs.gap_start.sum())
+    if n_gaps:
+        warnings.warn(
+            f"{where}: {len(gapped)} encounter(s) have missing frames ({n_gaps} gap(s), {int(runs.missing.sum())} "
+            f"frames): each is split at its gaps, so that no {decision_step_s} s decision step spans missing frames"
+            + (f"; {gap_short[0]} part(s) shorter than one step left out ({gap_short[1]} rows)" if gap_short[0] else ""),
+            FrameGapWarning, stacklevel=2)
     demos = Demonstrations(states=tuple(states), actions=tuple(actions), features=fs.array, n_states=S,
                            n_actions=N_ACTIONS, source=where, names=tuple(names))
     return Discretized(demos, action_mean_acc(np.concatenate(all_acc), np.concatenate(all_act)),
-                       np.concatenate(used).astype(np.int64))
+                       np.concatenate(used).astype(np.int64), gaps=n_gaps, gap_rows_dropped=gap_short[1])
 
 
 class ShortEncounterWarning(UserWarning):
     """Encounters left out because they are shorter than one decision step."""
+
+
+class FrameGapWarning(UserWarning):
+    """Encounters split where frames are missing (a recording's gaps), counted."""
+
+
+@dataclass(frozen=True)
+class EncounterRuns:
+    """The runs of an encounter table: rows of one encounter over consecutive frames.
+
+    Attributes:
+        run: ``[N]`` int64, a label per row, increasing; a new run starts where the
+            ``encounter_id`` changes, where ``Frame_ID`` does not increase (tables concatenated
+            from several files or runs that reuse ids) and where it jumps by more than one frame
+            within one encounter (missing frames: a gap).
+        gap_start: ``[N]`` bool, the row starts a run after a gap.
+        missing: ``[N]`` int64, the frames missing before a ``gap_start`` row (0 elsewhere).
+        frame: ``[N]`` int64 ``Frame_ID`` (-1 when the table has none).
+    """
+
+    run: np.ndarray
+    gap_start: np.ndarray
+    missing: np.ndarray
+    frame: np.ndarray
+
+
+def encounter_runs(encounters_df: pd.DataFrame) -> EncounterRuns:
+    """Cut an encounter table into :class:`EncounterRuns` (rows in table order). Without a
+    ``Frame_ID`` column rows are taken as consecutive frames (nothing tells a gap)."""
+    ids = encounters_df["encounter_id"].to_numpy()
+    n = len(ids)
+    brk = np.ones(n, dtype=bool)
+    brk[1:] = ids[1:] != ids[:-1]
+    gap = np.zeros(n, dtype=bool)
+    missing = np.zeros(n, dtype=np.int64)
+    frame = np.full(n, -1, dtype=np.int64)
+    if "Frame_ID" in encounters_df.columns and n > 1:
+        fr = pd.to_numeric(encounters_df["Frame_ID"], errors="coerce").to_numpy(dtype=np.float64)
+        frame = np.where(np.isfinite(fr), fr, -1).astype(np.int64)
+        step = fr[1:] - fr[:-1]
+        brk[1:] |= step <= 0
+        gap[1:] = ~brk[1:] & (step > 1)
+        missing[1:] = np.where(gap[1:], step - 1, 0).astype(np.int64)
+        brk |= gap
+    return EncounterRuns(np.cumsum(brk), gap, missing, frame)
 
 
 def driver_encoded(demos: Demonstrations, features: np.ndarray) -> Demonstrations:

@@ -14,6 +14,7 @@ Two builders, one contract (units ft, ft/s, ft/s^2; observation columns
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Hashable, Sequence
 from dataclasses import dataclass, fields
 
@@ -23,7 +24,14 @@ import pandas as pd
 from irl.domains.merge.actions import N_ACTIONS, actions_of
 from irl.domains.merge.car_following import OBS_COLUMNS, car_following_decisions
 from irl.domains.merge.bins import MergeBins
-from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, frames_per_step, resample_encounters
+from irl.domains.merge.mdp import (
+    DEFAULT_DECISION_STEP_S,
+    FrameGapWarning,
+    ShortEncounterWarning,
+    encounter_runs,
+    frames_per_step,
+    resample_encounters,
+)
 from irl.errors import DemonstrationError
 from merge_irl.units import FRAME_S
 
@@ -116,26 +124,24 @@ def encounter_decisions(df: pd.DataFrame, decision_step_s: float = DEFAULT_DECIS
 
     With ``k`` frames per decision and row ``r`` a decision: ``acc`` is the mean of ``acc_A``
     over rows ``r .. r+k-1``; ``prev_acc`` over ``r-k .. r-1`` when those rows are the same
-    encounter run (else NaN); ``acc_C = (v_C(r) - v_C(r-k)) / (k 0.1 s)``, ``v_C = v_A - v_AC``,
-    when row ``r-k`` is the same run with the same ``C_id`` (a table without ``C_id``: the same
-    run) and both speeds are known, else 0. Groups: the encounter runs.
+    encounter run (:func:`~irl.domains.merge.mdp.encounter_runs`: consecutive frames; else
+    NaN); ``acc_C = (v_C(r) - v_C(r-k)) / (k 0.1 s)``, ``v_C = v_A - v_AC``, when row ``r-k``
+    is the same run with the same ``C_id`` (a table without ``C_id``: the same run) and both
+    speeds are known, else 0. Groups: the encounter runs.
 
     Raises:
         DemonstrationError: what ``car_following_decisions`` raises (``where`` named).
         ConfigError: a bad decision step.
     """
     cf = car_following_decisions(df, decision_step_s=decision_step_s, where=where)
-    rows = resample_encounters(df, MergeBins.assumed_authors(), where=where, encoding="driver",
-                               decision_step_s=decision_step_s).rows
+    with warnings.catch_warnings():  # car_following_decisions said it already (the same rows)
+        warnings.simplefilter("ignore", FrameGapWarning)
+        warnings.simplefilter("ignore", ShortEncounterWarning)
+        rows = resample_encounters(df, MergeBins.assumed_authors(), where=where, encoding="driver",
+                                   decision_step_s=decision_step_s).rows
     k = frames_per_step(decision_step_s)
     acc_A = df["acc_A"].to_numpy(np.float64)
-    ids = df["encounter_id"].to_numpy()
-    brk = np.ones(len(ids), dtype=bool)
-    brk[1:] = ids[1:] != ids[:-1]
-    if "Frame_ID" in df.columns and len(ids) > 1:
-        fr = df["Frame_ID"].to_numpy()
-        brk[1:] |= fr[1:] <= fr[:-1]
-    run = np.cumsum(brk)
+    run = encounter_runs(df).run  # consecutive frames of one encounter: a step never spans a gap
     csum = np.concatenate([[0.0], np.cumsum(acc_A)])
     acc = (csum[rows + k] - csum[rows]) / k
     back = np.maximum(rows - k, 0)

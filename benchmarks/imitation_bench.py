@@ -53,7 +53,7 @@ import math
 import shlex
 import sys
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -61,7 +61,7 @@ import numpy as np
 
 from irl.domains.merge.actions import N_ACTIONS
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S
-from sim.observe import MergeObservation
+from sim.observe import policy_rows
 from sim.transitions import Transitions, to_imitation_trajectories
 
 #: The evaluation's trivial baselines, in the table's order.
@@ -73,26 +73,16 @@ def _f(x: float | None, nd: int = 3) -> str:
 
 
 # -- observations ------------------------------------------------------------------------------
-def filled(obs: np.ndarray) -> np.ndarray:
-    """``[N, 7]`` continuous observations (:meth:`MergeObservation.continuous` rows, NaN without
-    C) -> ``[N, 7]`` float64 without NaN, filled by the rule of
-    ``MergeObservation.continuous(filled=True)`` (the environment's observation), row by row."""
-    x = np.atleast_2d(np.asarray(obs, dtype=np.float64))
-    out = np.empty_like(x)
-    for i, (d_ac, v_ac, d_ab, v_ab, v_a, len_c, len_b) in enumerate(x):
-        o = MergeObservation(float(d_ac), float(d_ab), float(v_ac), float(v_ab), False, speed_A=float(v_a),
-                             len_C=float(len_c), len_B=float(len_b))
-        out[i] = o.continuous(filled=True)[0]
-    return out
-
-
 @dataclass(frozen=True)
 class ObsScaler:
-    """The network input of an observation: filled (:func:`filled`), minus the training mean,
-    over the training standard deviation (per column; a constant column divided by 1).
+    """Per-column mean and standard deviation of training policy observations
+    (:func:`sim.observe.policy_rows`: filled and clipped, ft and ft/s), which the networks'
+    first layer (:class:`benchmarks.imitation_nets.Standardize`) subtracts and divides by, so
+    the trained policies take the policy observation itself, as the environment and
+    :class:`~sim.callable_policy.CallablePolicy` give it.
 
     Attributes:
-        mean, std: ``[7]`` per column of the filled training observations (ft, ft/s).
+        mean, std: ``[7]`` (a constant column's std is 1).
     """
 
     mean: tuple[float, ...]
@@ -100,43 +90,46 @@ class ObsScaler:
 
     @classmethod
     def fit(cls, obs: np.ndarray) -> ObsScaler:
-        """The scaler of ``[N, 7]`` training observations (NaN allowed: filled first)."""
-        x = filled(obs)
+        """The scaler of ``[N, 7]`` training observations (continuous rows, NaN allowed: made
+        policy observations first)."""
+        x = policy_rows(obs)
         sd = x.std(axis=0)
         return cls(tuple(float(v) for v in x.mean(axis=0)), tuple(float(v) if v > 0 else 1.0 for v in sd))
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
-        """``[N, 7]`` (or ``[7]``) observations -> ``[N, 7]`` float32 network inputs."""
-        return ((filled(obs) - np.asarray(self.mean)) / np.asarray(self.std)).astype(np.float32)
+        """``[N, 7]`` (or ``[7]``) observations -> ``[N, 7]`` float32, standardised (numpy; the
+        networks do the same in torch)."""
+        return ((policy_rows(obs) - np.asarray(self.mean)) / np.asarray(self.std)).astype(np.float32)
 
 
 # -- the imitation policies as callables -------------------------------------------------------
 class TorchActor:
     """A Stable-Baselines3 actor-critic policy (BC's, PPO's) as a callable ``obs [7] -> action``
-    for :class:`sim.callable_policy.CallablePolicy`: the observation scaled by ``scaler``, then
-    the most likely action, or (``sample``) one drawn from the actor's probabilities with a
-    ``numpy`` Generator seeded ``seed`` (each evaluation episode unpickles a fresh copy, so every
-    episode starts the same stream). Picklable (the evaluation's worker processes); one torch
-    thread per process.
+    for :class:`sim.callable_policy.CallablePolicy`, sampling the action from the actor's
+    probabilities with a ``numpy`` Generator seeded ``seed`` (each evaluation episode unpickles
+    a fresh copy, so every episode starts the same stream); ``sample=False``: the most likely
+    action, as the policy's own ``predict(obs, deterministic=True)``. ``obs``: the policy
+    observation (:func:`sim.observe.policy_rows`). Picklable (the evaluation's worker
+    processes); one torch thread per process.
     """
 
-    def __init__(self, policy: Any, scaler: ObsScaler, *, sample: bool = False, seed: int = 0):
-        self.policy, self.scaler, self.sample, self.seed = policy, scaler, sample, seed
+    def __init__(self, policy: Any, *, sample: bool = True, seed: int = 0):
+        self.policy, self.sample, self.seed = policy, sample, seed
         self._rng = np.random.default_rng(seed)
 
     def __getstate__(self) -> dict:
-        return {"policy": self.policy, "scaler": self.scaler, "sample": self.sample, "seed": self.seed}
+        return {"policy": self.policy, "sample": self.sample, "seed": self.seed}
 
     def __setstate__(self, state: dict) -> None:
-        self.__init__(state["policy"], state["scaler"], sample=state["sample"], seed=state["seed"])  # type: ignore[misc]
+        self.__init__(state["policy"], sample=state["sample"], seed=state["seed"])  # type: ignore[misc]
 
     def probs(self, obs: np.ndarray) -> np.ndarray:
-        """``[N, 5]`` action probabilities of ``[N, 7]`` observations."""
+        """``[N, 5]`` action probabilities of ``[N, 7]`` policy observations."""
         import torch
 
         if torch.get_num_threads() != 1:
             torch.set_num_threads(1)
-        x = torch.as_tensor(self.scaler(obs))
+        x = torch.as_tensor(np.atleast_2d(np.asarray(obs, dtype=np.float32)))
         with torch.no_grad():
             p = self.policy.get_distribution(x).distribution.probs
         return p.numpy().astype(np.float64)
@@ -150,8 +143,8 @@ class TorchActor:
 
 def heldout_loglik(actor: TorchActor, held: Transitions) -> tuple[float, float]:
     """``(sum, per decision)`` log-likelihood (nats) of the held-out decisions ``held`` (their
-    ``[N, 7]`` observations and ``[N]`` actions) under ``actor``'s probabilities."""
-    p = actor.probs(held.obs)[np.arange(held.n), held.acts]
+    ``[N, 7]`` policy observations and ``[N]`` actions) under ``actor``'s probabilities."""
+    p = actor.probs(held.policy_obs())[np.arange(held.n), held.acts]
     with np.errstate(divide="ignore"):
         lp = np.log(p)
     return float(lp.sum()), float(lp.mean())
@@ -167,30 +160,41 @@ def seed_torch(seed: int) -> None:
     torch.use_deterministic_algorithms(True, warn_only=True)
 
 
-def observation_space(dim: int) -> Any:
+def observation_space() -> Any:
+    """The environment's observation space (:class:`sim.env.merge_env.MergeEnv`'s ``Box``)."""
     import gymnasium as gym
 
-    return gym.spaces.Box(-np.inf, np.inf, (dim,), np.float32)
+    from sim.observe import POLICY_OBS_HIGH, POLICY_OBS_LOW
+
+    return gym.spaces.Box(POLICY_OBS_LOW, POLICY_OBS_HIGH, dtype=np.float64)
 
 
-def scaled_trajectories(t: Transitions, scaler: ObsScaler) -> list[Any]:
-    """``imitation`` Trajectory objects of ``t`` (:func:`sim.transitions.to_imitation_trajectories`)
-    with its observations scaled by ``scaler``."""
-    x = replace(t, obs=scaler(t.obs).astype(np.float64), next_obs=scaler(t.next_obs).astype(np.float64))
-    return to_imitation_trajectories(x)
+def extractor_kwargs(scaler: ObsScaler) -> dict[str, Any]:
+    """Stable-Baselines3 policy keywords: the :class:`~benchmarks.imitation_nets.Standardize` first layer."""
+    from benchmarks.imitation_nets import Standardize
+
+    return {"features_extractor_class": Standardize,
+            "features_extractor_kwargs": {"mean": scaler.mean, "std": scaler.std}}
 
 
-def train_bc(demos: list[Any], *, seed: int, epochs: int, log_dir: Path, batch_size: int = 64) -> tuple[Any, float]:
-    """imitation's behaviour cloning on ``demos`` (:func:`scaled_trajectories`; its log as CSV
-    in ``log_dir``); returns ``(policy, wall seconds)``."""
+def train_bc(demos: list[Any], scaler: ObsScaler, *, seed: int, epochs: int, log_dir: Path,
+             batch_size: int = 64) -> tuple[Any, float]:
+    """imitation's behaviour cloning on ``demos`` (:func:`sim.transitions.to_imitation_trajectories`):
+    its default 32x32 actor (``FeedForward32Policy``) behind a standardising first layer, its
+    log as CSV in ``log_dir``; returns ``(policy, wall seconds)``."""
     import gymnasium as gym
+    import torch
     from imitation.algorithms import bc
+    from imitation.policies.base import FeedForward32Policy
     from imitation.util import logger as imit_logger
 
     seed_torch(seed)
     t0 = time.perf_counter()
-    trainer = bc.BC(observation_space=observation_space(demos[0].obs.shape[1]), action_space=gym.spaces.Discrete(N_ACTIONS),
-                    demonstrations=demos, rng=np.random.default_rng(seed), batch_size=batch_size, device="cpu",
+    space, actions = observation_space(), gym.spaces.Discrete(N_ACTIONS)
+    policy = FeedForward32Policy(observation_space=space, action_space=actions,
+                                 lr_schedule=lambda _: torch.finfo(torch.float32).max, **extractor_kwargs(scaler))
+    trainer = bc.BC(observation_space=space, action_space=actions, policy=policy, demonstrations=demos,
+                    rng=np.random.default_rng(seed), batch_size=batch_size, device="cpu",
                     custom_logger=imit_logger.configure(log_dir, ["csv"]))
     trainer.train(n_epochs=epochs, progress_bar=False, log_interval=10**9)
     return trainer.policy, time.perf_counter() - t0
@@ -209,32 +213,15 @@ class ZeroReward:
         return 0.0
 
 
-def scaled_env(scaler: ObsScaler, action_acc_ft_s2: tuple[float, ...], scenario: str = "synthetic") -> Any:
-    """``MergeIRL/OnRampMerge-v0`` (discrete actions, reward 0) with observations scaled by
-    ``scaler`` (``Box(-inf, inf, (7,), float32)``)."""
-    import gymnasium as gym
-
-    from sim.env import ENV_ID
-
-    class Scaled(gym.ObservationWrapper):
-        def __init__(self, env: Any):
-            super().__init__(env)
-            self.observation_space = observation_space(len(scaler.mean))
-
-        def observation(self, observation: Any) -> np.ndarray:
-            return scaler(observation)[0]
-
-    return Scaled(gym.make(ENV_ID, scenario=scenario, reward=ZeroReward(action_acc_ft_s2)))
-
-
 def train_gail(demos: list[Any], scaler: ObsScaler, action_acc_ft_s2: tuple[float, ...], *,
-               seed: int, steps: int, env_seed: int, log_dir: Path) -> tuple[Any, float]:
-    """imitation's GAIL on ``demos`` (:func:`scaled_trajectories`, scaled by ``scaler``): a PPO
-    generator (32x32 actor and critic, 512 steps a round) on the environment
-    (:func:`scaled_env`, SUMO seed ``env_seed`` for its first run) for ``steps`` environment
-    steps, the discriminator :class:`imitation.rewards.reward_nets.BasicRewardNet` on (observation,
-    action) with a running input normalisation; returns ``(generator policy, wall seconds)``
-    (SUMO's simulation included)."""
+               seed: int, steps: int, env_seed: int, log_dir: Path, scenario: str = "synthetic") -> tuple[Any, float]:
+    """imitation's GAIL on ``demos`` (:func:`sim.transitions.to_imitation_trajectories`): a PPO
+    generator (32x32 actor and critic behind a standardising first layer, 512 steps a round) on
+    ``MergeIRL/OnRampMerge-v0`` (discrete actions at ``action_acc_ft_s2``, reward 0, SUMO seed
+    ``env_seed`` for its first run) for ``steps`` environment steps; the discriminator
+    :class:`imitation.rewards.reward_nets.BasicRewardNet` on (observation, action) with a running
+    input normalisation; returns ``(generator policy, wall seconds)`` (SUMO's simulation included)."""
+    import gymnasium as gym
     from imitation.algorithms.adversarial.gail import GAIL
     from imitation.rewards.reward_nets import BasicRewardNet
     from imitation.util import logger as imit_logger
@@ -242,12 +229,14 @@ def train_gail(demos: list[Any], scaler: ObsScaler, action_acc_ft_s2: tuple[floa
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import DummyVecEnv
 
+    from sim.env import ENV_ID
+
     seed_torch(seed)
     t0 = time.perf_counter()
-    venv = DummyVecEnv([lambda: scaled_env(scaler, action_acc_ft_s2)])
+    venv = DummyVecEnv([lambda: gym.make(ENV_ID, scenario=scenario, reward=ZeroReward(action_acc_ft_s2))])
     n_steps = min(512, steps)
     learner = PPO("MlpPolicy", venv, n_steps=n_steps, batch_size=64, n_epochs=4, seed=seed, device="cpu",
-                  policy_kwargs={"net_arch": [32, 32]})
+                  policy_kwargs={"net_arch": [32, 32], **extractor_kwargs(scaler)})
     venv.seed(env_seed)  # after PPO's own seeding, which seeds the environment with the PPO seed
     reward_net = BasicRewardNet(venv.observation_space, venv.action_space, normalize_input_layer=RunningNorm)
     log_dir.mkdir(parents=True, exist_ok=True)
@@ -327,12 +316,12 @@ def run(args) -> int:
     fit_s["cf-logit"] = time.perf_counter() - t
 
     scaler = ObsScaler.fit(train_t.obs)
-    demos = scaled_trajectories(train_t, scaler)
-    bc_policy, fit_s["imit-bc"] = train_bc(demos, seed=args.train_seed, epochs=args.bc_epochs,
+    demos = to_imitation_trajectories(train_t)
+    bc_policy, fit_s["imit-bc"] = train_bc(demos, scaler, seed=args.train_seed, epochs=args.bc_epochs,
                                            log_dir=out / "bc-log")
     fit_s["imit-bc-sampled"] = fit_s["imit-bc"]
-    actors = {"imit-bc": TorchActor(bc_policy, scaler),
-              "imit-bc-sampled": TorchActor(bc_policy, scaler, sample=True, seed=args.train_seed)}
+    # the most likely action: the SB3 policy itself (CallablePolicy calls its predict(obs, deterministic=True))
+    drivers: dict[str, Any] = {"imit-bc": bc_policy, "imit-bc-sampled": TorchActor(bc_policy, seed=args.train_seed)}
     print(f"imitation BC: {args.bc_epochs} epochs in {fit_s['imit-bc']:.1f} s")
     acc = training_action_acc(train_path)
     if args.gail_steps:
@@ -340,12 +329,12 @@ def run(args) -> int:
                                                      steps=args.gail_steps, env_seed=args.gail_env_seed,
                                                      log_dir=out / "gail-log")
         fit_s["imit-gail-sampled"] = fit_s["imit-gail"]
-        actors["imit-gail"] = TorchActor(gail_policy, scaler)
-        actors["imit-gail-sampled"] = TorchActor(gail_policy, scaler, sample=True, seed=args.train_seed)
+        drivers["imit-gail"] = gail_policy
+        drivers["imit-gail-sampled"] = TorchActor(gail_policy, seed=args.train_seed)
         print(f"imitation GAIL: {args.gail_steps} environment steps in {fit_s['imit-gail']:.0f} s")
-    ll = {name: heldout_loglik(a, held_t) for name, a in actors.items() if a.sample}
+    ll = {name: heldout_loglik(a, held_t) for name, a in drivers.items() if isinstance(a, TorchActor)}
 
-    imit = [CallablePolicy(a, name=name, decision_step_s=step, action_acc_ft_s2=acc) for name, a in actors.items()]
+    imit = [CallablePolicy(a, name=name, decision_step_s=step, action_acc_ft_s2=acc) for name, a in drivers.items()]
     ours = [driver_policy(models / f"{k}.json", name=k) for k in ("planner", "cf-logit")]
     rep = evaluate([models / "qavg.json"], "synthetic", args.episodes, args.seed, out / "evaluation",
                    duration_s=args.eval_duration, demos=held_path, train_demos=train_path, baselines=BASELINES,

@@ -5,19 +5,19 @@ training runs ``--train-seeds``, ``--heldout-runs`` held-out runs from seed 201;
 folder an earlier run left):
 
 * **ours**: Q-Avg (tabular IRL), the car-following logit ``cf-logit`` (the demonstrations alone)
-  and the planning driver ``planner`` (the default learned driver), as the demo learns them;
+  and the planning driver ``planner``, as the demo learns them;
 * **imitation 1.0.1**: behaviour cloning (``imitation.algorithms.bc.BC``, its default
   32x32 actor, ``--bc-epochs`` epochs) and GAIL (``imitation.algorithms.adversarial.gail.GAIL``,
   a small Stable-Baselines3 PPO generator, ``--gail-steps`` environment steps on
   ``MergeIRL/OnRampMerge-v0``), both on the same training encounters as ours, as transitions
   (:func:`sim.transitions.from_encounters`, the decisions Q-Avg learns from, made
-  ``imitation`` Trajectories by :func:`sim.transitions.to_imitation_trajectories`): the
-  continuous observation (:meth:`sim.observe.MergeObservation.continuous`, NaN filled as the
-  environment fills it, then standardised on the training decisions) and the discrete merge
-  action 0..4. Unlike Q-Avg's and cf-logit's, their observation holds no previous action. BC's actor drives twice: its most likely action (``imit-bc``,
-  Stable-Baselines3's ``predict(deterministic=True)``) and an action sampled from its
-  probabilities (``imit-bc-sampled``, as the controller samples our drivers'); GAIL's generator
-  by its most likely action (``imit-gail``);
+  ``imitation`` Trajectories by :func:`sim.transitions.to_imitation_trajectories`): the policy
+  observation (:func:`sim.observe.policy_rows`, ft and ft/s; the networks standardise it in
+  their first layer, :class:`benchmarks.imitation_nets.Standardize`) and the discrete merge
+  action 0..4. Unlike Q-Avg's and cf-logit's, their observation holds no previous action. Each
+  drives twice: the Stable-Baselines3 policy itself by its most likely action (``imit-bc``,
+  ``imit-gail``; ``predict(deterministic=True)``) and an action sampled from its probabilities
+  (``imit-bc-sampled``, ``imit-gail-sampled``, as the controller samples our drivers');
 * **trivial baselines**: uniform, marginal, markov, bc (tabular, the paper state) and SUMO's
   own driver (``sumo``; ``sumo-in-lane``: A's lane changes off while observed, the
   demonstrators' driver).

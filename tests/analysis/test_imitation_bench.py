@@ -1,4 +1,4 @@
-"""``benchmarks/imitation_bench.py`` without torch: its observation scaling, that it imports (and
+"""``benchmarks/imitation_bench.py`` without torch: its observation statistics, that it imports (and
 answers ``--help``) without torch, imitation or Stable-Baselines3, and that its extra stays out of
 the default install and the ``test`` extra. The training and the table need the
 ``imitation-bench`` extra and run as the benchmark only (docs/imitation.md)."""
@@ -13,11 +13,11 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.imitation_bench import ObsScaler, filled
-from sim.observe import NO_LEAD_GAP_FT
+from benchmarks.imitation_bench import ObsScaler
+from sim.observe import NO_LEAD_GAP_FT, policy_rows
 
 ROOT = Path(__file__).resolve().parents[2]
-HEAVY = ("torch", "imitation", "stable_baselines3")
+HEAVY = ("torch", "imitation", "stable_baselines3", "benchmarks.imitation_nets")
 
 
 def test_scaler_fills_the_missing_lead_car_and_standardises_on_the_training_rows() -> None:
@@ -33,10 +33,12 @@ def test_scaler_fills_the_missing_lead_car_and_standardises_on_the_training_rows
     varying = np.asarray(sc.std) != 1.0
     np.testing.assert_allclose(x[:, varying].std(axis=0), 1.0, atol=1e-5)
     # the no-lead rows read as a car NO_LEAD_GAP_FT ahead at A's speed, as the environment's observation
-    np.testing.assert_allclose(filled(obs)[:5, :2], np.tile([NO_LEAD_GAP_FT, 0.0], (5, 1)))
+    np.testing.assert_allclose(policy_rows(obs)[:5, :2], np.tile([NO_LEAD_GAP_FT, 0.0], (5, 1)))
     np.testing.assert_allclose(x[:5, 0], (NO_LEAD_GAP_FT - sc.mean[0]) / sc.std[0], rtol=1e-6)
-    # one observation (the callable's [7]) scales like its row
+    # one observation (the callable's [7]) scales like its row; a policy observation (already
+    # filled) scales like the continuous row it came from
     np.testing.assert_array_equal(sc(obs[7]), x[7:8])
+    np.testing.assert_array_equal(sc(policy_rows(obs)), x)
 
 
 def test_the_bench_imports_and_answers_help_without_torch() -> None:

@@ -102,7 +102,7 @@ def remove_stale_locks(folder: str | os.PathLike) -> list[Path]:
     holders that were killed. Returns what was removed."""
     removed: list[Path] = []
     try:
-        entries = list(os.scandir(folder))
+        entries = list(os.scandir(os.fspath(folder)))
     except (FileNotFoundError, NotADirectoryError):
         return removed
     for entry in entries:

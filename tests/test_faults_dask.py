@@ -196,7 +196,7 @@ def test_ctrl_c_while_connecting_exits_130_and_cleans(tmp_path, listener):
         _stop(proc)
     assert proc.returncode == 130, err
     assert err.strip().splitlines() == ["merge-irl generate: interrupted"], err
-    assert stopped_after < 10
+    assert stopped_after < 20
     _assert_cleaned(out)
 
 
@@ -219,7 +219,7 @@ def test_ctrl_c_while_waiting_for_workers_exits_130_and_cleans(tmp_path):
             _stop(proc)
     assert proc.returncode == 130, err
     assert err.strip().splitlines() == ["merge-irl generate: interrupted"], err
-    assert stopped_after < 10
+    assert stopped_after < 20
     _assert_cleaned(out)
 
 
@@ -242,7 +242,7 @@ def test_only_worker_killed_without_nanny_stops_after_the_stall_timeout(tmp_path
             _stop(proc)
     line = _one_line_exit_2(proc, err)
     assert address in line and "--dask-stall-timeout" in line
-    assert stopped_after < 30
+    assert stopped_after < 50  # the stall timeout (3 s) and a bounded shutdown, on a loaded machine
     _assert_cleaned(out)
 
 

@@ -246,6 +246,15 @@ def test_only_worker_killed_without_nanny_stops_after_the_stall_timeout(tmp_path
     _assert_cleaned(out)
 
 
+def test_a_task_running_longer_than_the_stall_timeout_is_not_stopped(tmp_path):
+    """A task that runs on a live worker is progress, however long it takes."""
+    with _dask(tmp_path, workers=1) as (address, _):
+        spec = replace(parse_executor(address.replace("tcp://", "dask://")),
+                       dask=DaskSettings(connect_timeout_s=20, stall_timeout_s=1.5))
+        report = run_sweep([Task("long", draw, DrawConfig(n=2, sleep_s=5.0))], seed=2, executor=spec, progress=False)
+    assert report.ok and list(report.results) == ["long"]
+
+
 # -- item 16: TLS -----------------------------------------------------------------------------------------
 
 def _self_signed(tmp_path: Path) -> tuple[Path, Path]:

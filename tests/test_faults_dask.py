@@ -170,6 +170,23 @@ def test_a_port_that_is_not_a_dask_scheduler_fails_in_one_line(tmp_path, listene
     _assert_cleaned(out)
 
 
+@pytest.mark.parametrize("listener", ["silent"], indirect=True)
+def test_connect_timeout_inside_a_running_event_loop(listener):
+    """As from a notebook, whose thread runs an event loop: the same one error, not asyncio's."""
+    import asyncio
+
+    from analysis.sweep.dask_executor import check_scheduler, security_for
+
+    address = f"tcp://127.0.0.1:{listener.port}"
+    settings = DaskSettings(connect_timeout_s=1.0)
+
+    async def in_a_loop() -> None:
+        check_scheduler(address, settings, security_for(address, settings))
+
+    with pytest.raises(DaskUnavailable, match=r"no answer within 1 s"):
+        asyncio.run(in_a_loop())
+
+
 def test_nothing_listening_fails_in_one_line(tmp_path):
     out = tmp_path / "sweep"
     port = _free_port()

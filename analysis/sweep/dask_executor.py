@@ -17,6 +17,7 @@ certificates ``distributed.comm.tls.ca-file``, ``distributed.comm.tls.client.cer
 from __future__ import annotations
 
 import asyncio
+import threading
 import time
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -82,7 +83,7 @@ def check_scheduler(address: str, settings: DaskSettings, security) -> None:
 
     where = f"Dask scheduler {address}"
     try:
-        info = asyncio.run(asyncio.wait_for(identity(), settings.connect_timeout_s))
+        info = _run(lambda: asyncio.wait_for(identity(), settings.connect_timeout_s))
     except TimeoutError:
         raise DaskUnavailable(f"{where}: no answer within {settings.connect_timeout_s:g} s "
                               "(--dask-connect-timeout); is a Dask scheduler listening there?") from None
@@ -93,6 +94,29 @@ def check_scheduler(address: str, settings: DaskSettings, security) -> None:
                               f"service on that port?): {_one_line(e)}") from None
     if not isinstance(info, dict) or info.get("type") != "Scheduler":
         raise DaskUnavailable(f"{where}: what answers is not a Dask scheduler ({str(info)[:100]})")
+
+
+def _run(make: Callable[[], Any]) -> Any:
+    """Run the coroutine ``make()`` to its end; in a thread of its own when this thread already
+    runs an event loop (a notebook), where :func:`asyncio.run` is refused."""
+    try:
+        asyncio.get_running_loop()
+    except RuntimeError:
+        return asyncio.run(make())
+    box: dict[str, Any] = {}
+
+    def target() -> None:
+        try:
+            box["value"] = asyncio.run(make())
+        except BaseException as e:  # noqa: BLE001 - handed to the caller
+            box["error"] = e
+
+    thread = threading.Thread(target=target, name="dask-scheduler-check", daemon=True)
+    thread.start()
+    thread.join()
+    if "error" in box:
+        raise box["error"]
+    return box.get("value")
 
 
 def _one_line(e: BaseException) -> str:
@@ -161,10 +185,11 @@ def run_dask(todo: Sequence[Any], finish: Callable[[Any, dict], bool], spec: Exe
                 if _any_running(client, pending):
                     last_progress = now
                 elif now - last_progress > settings.stall_timeout_s:
+                    where = spec.address or getattr(cluster, "scheduler_address", "dask-local")
                     raise DaskUnavailable(
-                        f"Dask scheduler {spec.address or getattr(cluster, 'scheduler_address', '')}: none of this sweep's {len(pending)} unfinished task(s) "
-                        f"has run on a worker for {settings.stall_timeout_s:g} s (--dask-stall-timeout); "
-                        "are its workers alive? Finished tasks are stored: a rerun resumes")
+                        f"Dask scheduler {where}: none of this sweep's {len(pending)} unfinished task(s) has "
+                        f"run on a worker for {settings.stall_timeout_s:g} s (--dask-stall-timeout); "
+                        "are its workers alive?")
             time.sleep(POLL_S)
     except BaseException:
         if pending:

@@ -48,8 +48,8 @@ def register(subparsers) -> None:
                         "observes SUMO's drivers, A's lane held; see merge-irl generate --help)")
     p.add_argument("--workers", type=positive_int, default=None, metavar="N", help="processes (default 2)")
     p.add_argument("--executor", default=None,
-                   help="where data runs and episodes run: serial, process[:N], dask-local[:N], dask://HOST:PORT, tls://HOST:PORT "
-                        "(default: process:<workers>)")
+                   help="where data runs and episodes run: serial, process[:N], dask-local[:N], dask://HOST:PORT, "
+                        "tls://HOST:PORT (default: process:<workers>)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     add_dask_options(p)
     p.set_defaults(func=run)

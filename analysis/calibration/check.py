@@ -35,7 +35,7 @@ import pandas as pd
 from merge_irl.atomic import write_text_atomic
 from merge_irl.units import FT_PER_M, M_PER_FT
 from analysis.calibration import CarFollowingPair, evaluate, load_pairs, load_result
-from analysis.calibration.vtypes import driver_members, resample_members, to_vtype_specs
+from analysis.calibration.vtypes import driver_members, resample_members, scenario_car_model, to_vtype_specs
 from scenarios.loader import load_scenario
 from sim.run import run_scenario
 from sim.schema import RAMP_LANE, RIGHTMOST_MAIN_LANE
@@ -241,12 +241,17 @@ def compare_distributions(sim: dict[str, np.ndarray], real: dict[str, np.ndarray
     return tuple(out)
 
 
-def calibrated_spec(spec, result, *, n_members: int = N_MEMBERS, seed: int = 0):
+def calibrated_spec(spec, result, *, n_members: int = N_MEMBERS, seed: int = 0, car_follow_model: str | None = None):
     """``spec`` with its car vTypes replaced by the calibrated driver distribution: a resample
     of the per-pair parameter vectors (:func:`resample_members`) when ``result`` has them, else
-    the population alone."""
+    the population alone, driven by SUMO model ``car_follow_model`` (None:
+    :func:`~analysis.calibration.vtypes.scenario_car_model`, the scenario's own when it takes the
+    fitted parameters, e.g. the ``i80`` preset's EIDM for IDM fits) with the scenario's driver
+    noise (:func:`~analysis.calibration.vtypes.to_vtype_specs`)."""
     members = resample_members(result, n_members, seed=seed) if result.per_pair else driver_members(result, 1)
-    cars = to_vtype_specs(members, spec.drivers.car[0], result.model)
+    if car_follow_model is None:
+        car_follow_model = scenario_car_model(result.model, [c.car_follow_model for c in spec.drivers.car])
+    cars = to_vtype_specs(members, spec.drivers.car[0], result.model, car_follow_model=car_follow_model)
     return replace(spec, drivers=replace(spec.drivers, car=cars))
 
 

@@ -55,17 +55,23 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--fit-args", default="", help="extra 'calibrate fit' options, one string")
     ap.add_argument("--preset-args", default="", help="extra 'calibrate preset' options, one string")
     ap.add_argument("--shipped", action="store_true", help="also simulate the shipped scenario itself")
+    ap.add_argument("--keep", type=Path, default=None, metavar="DIR",
+                    help="keep the params files and presets here; a params file already there (P<split>.toml) is "
+                         "reused instead of fitted again")
     args = ap.parse_args(argv)
     pairs = load_pairs(args.pairs)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
+        folder = args.keep or Path(tmp)
+        folder.mkdir(parents=True, exist_ok=True)
         for split in args.seeds:
             held = split_by_follower(pairs, args.holdout, split)[1]
             real = pair_states(list(held))
-            params, preset = Path(tmp) / f"P{split}.toml", Path(tmp) / f"my_{args.scenario}_{split}.toml"
+            params, preset = folder / f"P{split}.toml", folder / f"my_{Path(args.scenario).stem}_{split}.toml"
             t0 = time.perf_counter()
-            _cli("calibrate", "fit", "--pairs", str(args.pairs), "--out", str(params), "--holdout", str(args.holdout),
-                 "--seed", str(split), "--no-progress", *args.fit_args.split())
+            if not (args.keep and params.is_file()):
+                _cli("calibrate", "fit", "--pairs", str(args.pairs), "--out", str(params), "--holdout",
+                     str(args.holdout), "--seed", str(split), "--no-progress", *args.fit_args.split())
             _cli("calibrate", "preset", "--params", str(params), "--out", str(preset), "--scenario", args.scenario,
                  *args.preset_args.split())
             print(f"split {split}: {len(held)} held-out pairs; fit + preset {time.perf_counter() - t0:.0f} s wall",

@@ -35,7 +35,9 @@ import pandas as pd
 from merge_irl.atomic import write_text_atomic
 from merge_irl.units import FT_PER_M, M_PER_FT
 from analysis.calibration import CarFollowingPair, evaluate, load_pairs, load_result
-from analysis.calibration.vtypes import driver_members, resample_members, scenario_car_model, to_vtype_specs
+from analysis.calibration.vtypes import (
+    driver_members, every_member, resample_members, scenario_car_model, to_vtype_specs,
+)
 from scenarios.loader import load_scenario
 from sim.run import run_scenario
 from sim.schema import RAMP_LANE, RIGHTMOST_MAIN_LANE
@@ -47,7 +49,8 @@ HIST_BINS = 40
 VARIABLES = ("speed_ft_s", "spacing_ft", "time_headway_s")
 #: I-80 lanes the real pairs were recorded on (ngsim_i80_car_following: lanes 2-6).
 REAL_LANES = (2, 3, 4, 5, 6)
-#: Driver types drawn for the check from a params file with per-pair fits.
+#: Driver types of a resample (``n_members``) from a params file with per-pair fits; the ``i80``
+#: preset has 32. The default is every per-pair fit once (:func:`~.vtypes.every_member`).
 N_MEMBERS = 32
 #: Issue 14's target: KS distance at most this for each variable.
 KS_TARGET = 0.15
@@ -336,14 +339,21 @@ def compare_distributions(sim: dict[str, np.ndarray], real: dict[str, np.ndarray
     return tuple(out)
 
 
-def calibrated_spec(spec, result, *, n_members: int = N_MEMBERS, seed: int = 0, car_follow_model: str | None = None):
-    """``spec`` with its car vTypes replaced by the calibrated driver distribution: a resample
-    of the per-pair parameter vectors (:func:`resample_members`) when ``result`` has them, else
-    the population alone, driven by SUMO model ``car_follow_model`` (None:
+def calibrated_spec(spec, result, *, n_members: int | None = None, seed: int = 0,
+                    car_follow_model: str | None = None):
+    """``spec`` with its car vTypes replaced by the calibrated driver distribution: when
+    ``result`` has per-pair fits, every one of them once (``n_members`` None,
+    :func:`every_member`) or ``n_members`` resampled with ``seed`` (:func:`resample_members`),
+    else the population alone; driven by SUMO model ``car_follow_model`` (None:
     :func:`~analysis.calibration.vtypes.scenario_car_model`, the scenario's own when it takes the
     fitted parameters, e.g. the ``i80`` preset's EIDM for IDM fits) with the scenario's driver
     noise (:func:`~analysis.calibration.vtypes.to_vtype_specs`)."""
-    members = resample_members(result, n_members, seed=seed) if result.per_pair else driver_members(result, 1)
+    if not result.per_pair:
+        members = driver_members(result, 1)
+    elif n_members is None:
+        members = every_member(result)
+    else:
+        members = resample_members(result, n_members, seed=seed)
     if car_follow_model is None:
         car_follow_model = scenario_car_model(result.model, [c.car_follow_model for c in spec.drivers.car])
     cars = to_vtype_specs(members, spec.drivers.car[0], result.model, car_follow_model=car_follow_model)
@@ -353,10 +363,11 @@ def calibrated_spec(spec, result, *, n_members: int = N_MEMBERS, seed: int = 0, 
 def run_calibration_check(
     *, params_path: str | os.PathLike, pairs_dir: str | os.PathLike, scenario: str = "i80",
     duration_s: float | None = None, seed: int = 0, table: pd.DataFrame | None = None,
-    keep_drivers: bool = False,
+    keep_drivers: bool = False, n_drivers: int | None = None,
 ) -> CalibrationCheck:
-    """Simulate ``scenario`` with the calibrated drivers (the scenario's own with
-    ``keep_drivers``; nothing is simulated when ``table`` is given) and compare.
+    """Simulate ``scenario`` with the calibrated drivers (:func:`calibrated_spec`: every per-pair
+    fit once, or ``n_drivers`` resampled with ``seed``; the scenario's own with ``keep_drivers``;
+    nothing is simulated when ``table`` is given) and compare.
     ``duration_s`` None = the scenario's own duration.
 
     Raises:
@@ -369,7 +380,7 @@ def run_calibration_check(
     pairs = list(load_pairs(Path(pairs_dir)))
     spec = load_scenario(scenario)
     if not keep_drivers:
-        spec = calibrated_spec(spec, result, seed=seed)
+        spec = calibrated_spec(spec, result, n_members=n_drivers, seed=seed)
     if table is None:
         table = run_scenario(spec, seed=seed, duration_s=duration_s).table
     if duration_s is None:

@@ -18,7 +18,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from analysis.calibration import load_result
-from analysis.calibration.check import N_MEMBERS, calibrated_spec
+from analysis.calibration.check import calibrated_spec
 from analysis.calibration.models import CALIBRATION_MODELS
 from analysis.calibration.vtypes import IDM_FAMILY, scenario_car_model
 from merge_irl.atomic import write_text_atomic
@@ -29,14 +29,15 @@ from scenarios.loader import load_scenario
 COMPATIBLE_MODELS: dict[str, tuple[str, ...]] = {"idm": IDM_FAMILY, "eidm": IDM_FAMILY, "krauss": ("Krauss",)}
 
 
-def preset_with_drivers(scenario: str | os.PathLike, params_path: str | os.PathLike, *, n: int = N_MEMBERS,
+def preset_with_drivers(scenario: str | os.PathLike, params_path: str | os.PathLike, *, n: int | None = None,
                         seed: int | None = None, header: str = "", car_follow_model: str | None = None,
                         name: str | None = None) -> str:
     """TOML text of ``scenario`` with its car drivers resampled from ``params_path``.
 
-    ``n`` driver types (whole per-pair parameter vectors drawn with replacement; one type, the
-    population, when the params file has no per-pair fits). ``seed`` None = the scenario's own
-    seed. ``header`` (several lines allowed) goes first as ``#`` comments. ``car_follow_model``
+    ``n`` None: one driver type per per-pair fit, equally likely (the fitted distribution
+    itself); else ``n`` types, whole per-pair parameter vectors drawn with replacement with
+    ``seed`` (None = the scenario's own seed; the ``i80`` preset: 32, seed 80). One type, the
+    population, when the params file has no per-pair fits. ``header`` (several lines allowed) goes first as ``#`` comments. ``car_follow_model``
     None = :func:`~analysis.calibration.vtypes.scenario_car_model` (the scenario's own model when
     it takes the fitted parameters: ``"EIDM"`` for IDM fits in the ``i80`` preset, with SUMO's
     default driver noise since no noise key is written; else the fitted model's); otherwise a
@@ -50,7 +51,7 @@ def preset_with_drivers(scenario: str | os.PathLike, params_path: str | os.PathL
     """
     spec = load_scenario(str(scenario))
     result = load_result(params_path)
-    if n < 1:
+    if n is not None and n < 1:
         raise SpecError(f"driver types: expected at least 1, got {n}")
     allowed = COMPATIBLE_MODELS[result.model]
     if car_follow_model is not None and car_follow_model not in allowed:
@@ -67,12 +68,14 @@ def preset_with_drivers(scenario: str | os.PathLike, params_path: str | os.PathL
     return "\n".join(lines + [text]) + ("" if text.endswith("\n") else "\n")
 
 
-def default_header(scenario: str | os.PathLike, params_path: str | os.PathLike, *, n: int, seed: int,
+def default_header(scenario: str | os.PathLike, params_path: str | os.PathLike, *, n: int | None, seed: int,
                    car_follow_model: str) -> str:
-    """The header :func:`write_preset` writes when given none: source, drivers and how to check."""
+    """The header ``calibrate preset`` writes: source, drivers and how to check."""
     result = load_result(params_path)
-    drivers = (f"{n} car driver types resampled (seed {seed}) from the {len(result.per_pair)} per-pair "
-               f"{result.model} fits" if result.per_pair else
+    k = len(result.per_pair)
+    drivers = (f"{k} car driver types, one per per-pair {result.model} fit (equally likely)" if result.per_pair and n is None
+               else f"{n} car driver types resampled (seed {seed}) from the {k} per-pair {result.model} fits"
+               if result.per_pair else
                f"one car driver type, the {result.model} population (no per-pair fits: no driver spread)")
     return (f"Scenario {scenario} with calibrated car drivers, written by merge-irl calibrate preset from "
             f"{params_path}:\n{drivers} of {result.n_pairs} real pairs, driven by SUMO's {car_follow_model} "

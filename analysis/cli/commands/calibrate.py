@@ -92,7 +92,10 @@ def register(subparsers) -> None:
                         "(default: the scenario's own; i80: 600 s with 240 s of warm-up)")
     c.add_argument("--seed", type=int, default=0, help="seed of the SUMO run and the driver sample (default 0)")
     c.add_argument("--keep-drivers", action="store_true",
-                   help="simulate the scenario's own drivers (default: the params file's driver distribution)")
+                   help="simulate the scenario's own drivers (default: the params file's driver distribution, as "
+                        "'calibrate preset' writes it)")
+    c.add_argument("--drivers", type=positive_int, default=None, metavar="N",
+                   help="resample N driver types from the per-pair fits with --seed (default: one per per-pair fit)")
     c.add_argument("--out", default=None, metavar="FILE", help="write the markdown report here")
     c.add_argument("--json", action="store_true", help="print the report as one JSON object")
     c.set_defaults(func=run_check)
@@ -109,9 +112,10 @@ def register(subparsers) -> None:
     w.add_argument("--scenario", default="i80", metavar="NAME|FILE",
                    help="scenario preset or TOML whose road, demand and lane changing are kept (default i80)")
     w.add_argument("--drivers", type=positive_int, default=None, metavar="N",
-                   help="car driver types resampled from the per-pair fits (default 32)")
+                   help="resample N car driver types from the per-pair fits (default: one type per per-pair fit, "
+                        "the fitted distribution itself; the shipped i80 preset: 32)")
     w.add_argument("--seed", type=int, default=None,
-                   help="seed of the driver resample (default: the scenario's seed; i80: 80)")
+                   help="seed of a --drivers resample (default: the scenario's seed; i80: 80)")
     w.add_argument("--car-follow-model", default=None, metavar="MODEL",
                    help="SUMO carFollowModel of the written cars (default: the scenario's own when it takes the "
                         "fitted parameters, else the fitted model's; IDM fits: IDM, IIDM or EIDM; Krauss: Krauss)")
@@ -296,7 +300,7 @@ def run_check(args: argparse.Namespace) -> int:
             raise SpecError(f"--out {args.out}: cannot write a file there ({e.strerror or e})") from None
     report = run_calibration_check(
         params_path=args.params, pairs_dir=args.pairs, scenario=args.scenario,
-        duration_s=args.duration, seed=args.seed, keep_drivers=args.keep_drivers,
+        duration_s=args.duration, seed=args.seed, keep_drivers=args.keep_drivers, n_drivers=args.drivers,
     )
     if args.out:
         report.write_markdown(args.out)
@@ -311,7 +315,6 @@ def run_preset(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from analysis.calibration import load_result
-    from analysis.calibration.check import N_MEMBERS
     from analysis.calibration.preset import default_header, preset_with_drivers
     from analysis.calibration.vtypes import scenario_car_model
     from merge_irl.atomic import write_text_atomic
@@ -331,7 +334,7 @@ def run_preset(args: argparse.Namespace) -> int:
     if not Path(args.params).is_file():
         raise SpecError(f"--params {args.params}: no such file (write one with 'merge-irl calibrate fit')")
     result = load_result(args.params)
-    n = args.drivers or N_MEMBERS
+    n = args.drivers
     seed = spec.simulation.seed if args.seed is None else args.seed
     model = args.car_follow_model or scenario_car_model(result.model, [c.car_follow_model for c in spec.drivers.car])
     header = default_header(args.scenario, args.params, n=n, seed=seed, car_follow_model=model)

@@ -82,6 +82,9 @@ def main(argv: list[str] | None = None) -> int:
                     rows.append((split, what, seed, comps))
                     print(f"  {what} seed {seed}: " + " / ".join(f"{c.ks:.3f}" for c in comps) + f" ({cpu:.0f} s CPU)",
                           file=sys.stderr, flush=True)
+                    for d in diagnose(comps):
+                        if d.kind != "ok":
+                            print(f"    {d.text}", file=sys.stderr, flush=True)
     print(f"KS on held-out pairs (holdout {args.holdout}; target <= {KS_TARGET:g}); "
           f"fit args {args.fit_args or '(defaults)'}, preset args {args.preset_args or '(defaults)'}")
     print("| split | drivers | SUMO seed | " + " | ".join(VARIABLES) + " | all <= target | diagnosis of a miss |")

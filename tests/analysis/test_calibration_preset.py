@@ -17,7 +17,7 @@ from analysis.calibration.check import (
     KS_TARGET, CalibrationCheck, compare_distributions, diagnose, pair_states, run_calibration_check,
 )
 from analysis.calibration.models import EIDM_NOISE_OFF
-from analysis.calibration.vtypes import resample_members, scenario_car_model
+from analysis.calibration.vtypes import SIM_RANGE, every_member, resample_members, scenario_car_model
 from analysis.calibration import load_pairs
 from analysis.calibration.pairs import pair_files
 from scenarios.loader import load_scenario
@@ -49,18 +49,22 @@ def test_preset_command_writes_the_fitted_drivers_under_the_scenarios_eidm(param
     assert spec.road == shipped.road and spec.demand == shipped.demand  # the scenario is kept, drivers replaced
     cars = spec.drivers.car
     # the shipped i80 preset drives its cars with EIDM: so does the written one, SUMO's driver noise on
-    assert {c.car_follow_model for c in cars} == {"EIDM"} and len(cars) == 32
+    assert {c.car_follow_model for c in cars} == {"EIDM"}
     assert not any(k in EIDM_NOISE_OFF for c in cars for k, _ in c.cf_params)
-    members = resample_members(res, 32, seed=shipped.simulation.seed)
+    # one driver type per per-pair fit, equally likely, clipped to the simulation range
+    assert len(cars) == len(res.per_pair) == 6 and {c.probability for c in cars} == {1 / 6}
     assert [(c.tau, c.accel, c.min_gap_m) for c in cars] == [
-        (m.params.tau, m.params.accel, m.params.minGap) for m in members]
+        (m.params.tau, m.params.accel, m.params.minGap) for m in every_member(res)]
+    assert [c.tau for c in cars] == [min(max(f.params.tau, SIM_RANGE["tau"][0]), SIM_RANGE["tau"][1]) for f in res.per_pair]
     assert all(dict(c.lc_params) == dict(shipped.drivers.car[0].lc_params) for c in cars)
     assert spec.drivers.truck == shipped.drivers.truck
-    # an explicit model of the same family, and the synthetic scenario's own IDM
+    # an explicit model of the same family, and a resample of N driver types
     r = _cli("calibrate", "preset", "--params", str(params), "--out", str(tmp_path / "idm.toml"),
              "--car-follow-model", "IDM", "--drivers", "4", "--seed", "3")
     assert r.returncode == 0, r.stderr
-    assert {c.car_follow_model for c in load_scenario(tmp_path / "idm.toml").drivers.car} == {"IDM"}
+    idm = load_scenario(tmp_path / "idm.toml").drivers.car
+    assert {c.car_follow_model for c in idm} == {"IDM"}
+    assert [c.tau for c in idm] == [m.params.tau for m in resample_members(res, 4, seed=3)]
     assert scenario_car_model("idm", ["IDM"]) == "IDM" and scenario_car_model("krauss", ["EIDM"]) == "Krauss"
 
 
@@ -176,3 +180,24 @@ def _hand_params(tmp_path: Path) -> Path:
     p.write_text('model = "idm"\n[population]\naccel = 1.2\ndecel = 1.5\ntau = 1.2\nminGap = 2.0\nmaxSpeed = 18.0\n'
                  'emergencyDecel = 9.0\ndelta = 4.0\n')
     return p
+
+
+def test_scenario_drivers_keep_the_scenarios_eidm_noise_not_the_fits() -> None:
+    """As a scenario's drivers (car_follow_model given) EIDM keeps the template's noise keys (none:
+    SUMO's default noise) even for an EIDM fit, whose own vTypes have the noise off; IDM drops them."""
+    from analysis.calibration import CalibrationResult, CFParams, driver_members
+    from analysis.calibration.vtypes import to_vtype_specs
+    from scenarios.spec.model import VTypeSpec
+
+    res = CalibrationResult(model="eidm", fitted=(), population=CFParams(tau=1.3), population_median_rmse_m=1.0,
+                            per_pair=(), spread=(), n_pairs=1, seconds_population=0.0, seconds_per_pair=0.0)
+    noisy = VTypeSpec(id="car", car_follow_model="EIDM", cf_params=(("delta", 4.0), ("sigmagap", 0.2)))
+    quiet = VTypeSpec(id="car", car_follow_model="EIDM", cf_params=(("delta", 4.0),))
+    (own,) = to_vtype_specs(driver_members(res, 1), quiet, "eidm")
+    assert dict(own.cf_params)["sigmagap"] == 0.0  # as fitted
+    (scen,) = to_vtype_specs(driver_members(res, 1), quiet, "eidm", car_follow_model="EIDM")
+    assert dict(scen.cf_params) == {"delta": 4.0} and scen.tau == 1.3
+    (kept,) = to_vtype_specs(driver_members(res, 1), noisy, "eidm", car_follow_model="EIDM")
+    assert dict(kept.cf_params) == {"delta": 4.0, "sigmagap": 0.2}
+    (idm,) = to_vtype_specs(driver_members(res, 1), noisy, "eidm", car_follow_model="IDM")
+    assert idm.car_follow_model == "IDM" and dict(idm.cf_params) == {"delta": 4.0}

@@ -1,14 +1,15 @@
 """Write a scenario preset whose car drivers are a calibrated driver distribution.
 
-:func:`preset_with_drivers` replaces a scenario's car vTypes by ``n`` members resampled from
-the per-pair fits of a params file (:func:`analysis.calibration.vtypes.resample_members`,
-deterministic per seed; the population alone when the file holds no per-pair fits) and returns
+:func:`preset_with_drivers` replaces a scenario's car vTypes by the per-pair fits of a params
+file, one equally likely type per fit (:func:`analysis.calibration.vtypes.every_member`), or
+``n`` resampled (:func:`analysis.calibration.vtypes.resample_members`, deterministic per seed;
+the population alone when the file holds no per-pair fits), and returns
 the scenario TOML text with a header comment naming the source. The cars are driven by the
 scenario's own car-following model when it takes the fitted parameters
 (:func:`analysis.calibration.vtypes.scenario_car_model`: IDM fits in the ``i80`` preset run
 under its EIDM, with SUMO's default driver noise). ``merge-irl calibrate preset --params P.toml
 --out my_i80.toml`` writes one; the ``i80`` preset's ``[[drivers.car]]`` tables were written
-this way.
+this way (32 resampled with seed 80: ``--drivers 32``).
 """
 
 from __future__ import annotations
@@ -37,8 +38,8 @@ def preset_with_drivers(scenario: str | os.PathLike, params_path: str | os.PathL
     ``n`` None: one driver type per per-pair fit, equally likely (the fitted distribution
     itself); else ``n`` types, whole per-pair parameter vectors drawn with replacement with
     ``seed`` (None = the scenario's own seed; the ``i80`` preset: 32, seed 80). One type, the
-    population, when the params file has no per-pair fits. ``header`` (several lines allowed) goes first as ``#`` comments. ``car_follow_model``
-    None = :func:`~analysis.calibration.vtypes.scenario_car_model` (the scenario's own model when
+    population, when the params file has no per-pair fits. ``header`` (several lines allowed)
+    goes first as ``#`` comments. ``car_follow_model`` None = :func:`~analysis.calibration.vtypes.scenario_car_model` (the scenario's own model when
     it takes the fitted parameters: ``"EIDM"`` for IDM fits in the ``i80`` preset, with SUMO's
     default driver noise since no noise key is written; else the fitted model's); otherwise a
     SUMO ``carFollowModel`` of :data:`COMPATIBLE_MODELS` for the fitted model. ``name`` None =

@@ -92,6 +92,7 @@ def test_preset_bad_input_is_one_line_exit_2(params: Path, tmp_path: Path) -> No
         ("--params", str(params), "--out", str(tmp_path / "dir.toml")),  # a folder
         ("--params", str(params), "--out", str(tmp_path / "a.toml"), "--car-follow-model", "Krauss"),
         ("--params", str(params), "--out", str(tmp_path / "a.toml"), "--scenario", "no_such_preset"),
+        ("--params", str(params), "--out", str(tmp_path / "a.toml"), "--seed", "3"),  # a seed with nothing to draw
     ]
     for args in cases:
         r = _cli("calibrate", "preset", *args)

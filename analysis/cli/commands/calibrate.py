@@ -102,7 +102,7 @@ def register(subparsers) -> None:
 
     w = sub.add_parser("preset", help="write a scenario preset whose car drivers are the calibrated ones",
                        description="Write a scenario TOML: the scenario (default i80) with its car drivers replaced "
-                                   "by driver types resampled from the per-pair fits of --params, under the "
+                                   "by the per-pair fits of --params (one equally likely type per fit, or --drivers N resampled), under the "
                                    "scenario's own car-following model when it takes the fitted parameters (i80: "
                                    "EIDM for IDM fits, SUMO's default driver noise), as the shipped i80 preset was "
                                    "made. Use it with 'merge-irl generate --scenario FILE' or 'calibrate check "
@@ -324,6 +324,8 @@ def run_preset(args: argparse.Namespace) -> int:
     from scenarios.spec.parse import spec_from_toml
 
     out = Path(args.out)
+    if args.seed is not None and args.drivers is None:
+        raise SpecError("--seed: seeds a --drivers N resample; without --drivers every per-pair fit is written, no draw")
     if out.suffix != ".toml":
         raise SpecError(f"--out {args.out}: a scenario file must end in .toml (generate --scenario reads it by that)")
     try:

@@ -77,15 +77,28 @@ def write_atomic(path: str | os.PathLike, write: Callable[[Path], object]) -> Pa
         ``path`` as a :class:`~pathlib.Path`.
 
     Raises:
-        OSError: if the folder or file cannot be written; whatever ``write`` raises.
+        OSError: if the folder or file cannot be written (naming ``path`` when the error named
+            no file, e.g. a full disk); whatever else ``write`` raises.
     """
     tmp = temporary_path(path)
     try:
         write(tmp)
+    except OSError as e:
+        tmp.unlink(missing_ok=True)
+        if e.filename is None:  # a write() or a library's writer (pyarrow) names no file: name it
+            raise with_path(e, path) from e
+        raise
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
     return move_into_place(tmp, path)
+
+
+def with_path(e: OSError, path: str | os.PathLike) -> OSError:
+    """``e`` as an :class:`OSError` of the same errno naming ``path`` (e.g. ``No space left on
+    device: /runs/x/trajectories.parquet`` for a full disk)."""
+    message = os.strerror(e.errno) if isinstance(e.errno, int) else (str(e) or type(e).__name__)
+    return OSError(e.errno, message, str(path))
 
 
 def write_text_atomic(path: str | os.PathLike, text: str) -> Path:

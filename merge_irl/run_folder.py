@@ -8,7 +8,8 @@ leftover that the next run into the same folder removes).
 
 A lock file beside the folder (``.NAME.lock``, ``fcntl.flock``) keeps two runs from writing
 into one folder at once: the second fails at once with :class:`OutputLockedError`. The lock is
-released by the kernel when its holder exits, however it ends.
+released by the kernel when its holder exits, however it ends; its file is removed by a holder
+that ends normally (or by Ctrl-C), else by :func:`remove_stale_locks`.
 
 Hidden temporaries of :mod:`merge_irl.atomic` (``.NAME.<8 hex>.tmp<suffix>``) and staging folders
 (``.NAME.<8 hex>.tmpdir``) share one naming pattern, :data:`TEMPORARY_NAME`, so that a later
@@ -44,7 +45,9 @@ def lock_path(folder: str | os.PathLike) -> Path:
 
 @contextlib.contextmanager
 def locked(folder: str | os.PathLike, *, what: str = "folder") -> Iterator[Path]:
-    """Hold the exclusive lock of ``folder`` (not created) while the block runs.
+    """Hold the exclusive lock of ``folder`` (not created) while the block runs; the lock file
+    is removed when the block ends (a holder killed leaves it, free: the kernel releases the
+    lock, and :func:`remove_stale_locks` or the next holder removes the file).
 
     ``what``: ``"folder"``, or ``"file"`` for a single output file (``merge-irl learn``'s
     ``model.json``: its lock is ``.NAME.lock`` beside it); only the message differs.
@@ -56,18 +59,66 @@ def locked(folder: str | os.PathLike, *, what: str = "folder") -> Iterator[Path]
     folder = Path(folder)
     lock = lock_path(folder)
     lock.parent.mkdir(parents=True, exist_ok=True)
-    fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666)
+    fd = _acquire(lock)
+    if fd is None:
+        target = "into this folder" if what == "folder" else f"this {what}"
+        raise OutputLockedError(
+            f"{folder}: another run is writing {target} (lock {lock.name} is held); "
+            f"wait for it to end or choose another output {what}")
     try:
+        yield folder
+    finally:
+        with contextlib.suppress(OSError):
+            lock.unlink()  # while still held: a process waiting on this file sees it gone, retries
+        os.close(fd)
+
+
+def _acquire(lock: Path) -> int | None:
+    """Open and ``flock`` ``lock`` without waiting; the descriptor, or None if another process
+    holds it. A file removed by its previous holder between our open and our lock is not the
+    lock any more: open the path again."""
+    while True:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
-            target = "into this folder" if what == "folder" else f"this {what}"
-            raise OutputLockedError(
-                f"{folder}: another run is writing {target} (lock {lock.name} is held); "
-                f"wait for it to end or choose another output {what}") from None
-        yield folder
-    finally:
+            os.close(fd)
+            return None
+        except BaseException:
+            os.close(fd)
+            raise
+        try:
+            here = os.stat(lock)
+        except FileNotFoundError:
+            here = None
+        mine = os.fstat(fd)
+        if here is not None and (here.st_ino, here.st_dev) == (mine.st_ino, mine.st_dev):
+            return fd
         os.close(fd)
+
+
+def remove_stale_locks(folder: str | os.PathLike) -> list[Path]:
+    """Remove the lock files (``.NAME.lock``) in ``folder`` that no process holds, left by
+    holders that were killed. Returns what was removed."""
+    removed: list[Path] = []
+    try:
+        entries = list(os.scandir(os.fspath(folder)))
+    except (FileNotFoundError, NotADirectoryError):
+        return removed
+    for entry in entries:
+        name = str(entry.name)
+        if not (name.startswith(".") and name.endswith(".lock") and entry.is_file(follow_symlinks=False)):
+            continue
+        path = Path(entry.path)
+        fd = _acquire(path)
+        if fd is None:
+            continue  # held: a run in progress
+        try:
+            path.unlink(missing_ok=True)
+            removed.append(path)
+        finally:
+            os.close(fd)
+    return removed
 
 
 def remove_temporaries(folder: str | os.PathLike, name: str | None = None) -> list[Path]:

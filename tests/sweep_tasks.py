@@ -46,3 +46,16 @@ def flaky(config: FlakyConfig, seed: int) -> dict:
             raise RuntimeError("first attempt fails")
         return {"attempt": 2}
     raise ValueError(config.mode)
+
+
+@dataclass(frozen=True)
+class SleepConfig:
+    sleep_s: float
+    marker_dir: str
+
+
+def mark_then_sleep(config: SleepConfig, seed: int) -> dict:
+    """Leave ``started-<pid>`` in ``marker_dir`` (so a test can kill this very process), then sleep."""
+    Path(config.marker_dir, f"started-{os.getpid()}").touch()
+    time.sleep(config.sleep_s)
+    return {"pid": os.getpid()}

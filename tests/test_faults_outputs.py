@@ -153,7 +153,7 @@ def test_second_generate_into_the_same_out_fails_at_once(tmp_path, sim_env):
     rerun = _cli("generate", "--scenario", "synthetic", "--duration", "90", "--no-progress", "--out", str(out),
                  env=sim_env)
     assert rerun.returncode == 0, rerun.stderr
-    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".run.")) == [".run.lock"]
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".run.")) == []  # lock removed on release
     assert not stale_tmp.exists()
     assert sorted(p.name for p in out.iterdir()) == sorted(
         ["trajectories.parquet", "encounters.parquet", "merges.parquet", "scenario.toml", "run.toml"])
@@ -174,8 +174,22 @@ def test_generate_on_a_full_disk_fails_in_one_line_and_publishes_nothing(full_fs
     line = _one_line_exit_2(_cli("generate", "--scenario", "synthetic", "--duration", "90", "--no-progress",
                                  "--out", str(out), env=sim_env), "generate")
     assert "No space left on device" in line
+    assert f": {full_fs}/" in line and line.endswith(".parquet")  # names the file it could not write
     assert not out.exists() or not any(out.iterdir())
-    assert [p.name for p in full_fs.iterdir() if p.name != ".run.lock" and p.name != "run"] == []
+    assert [p.name for p in full_fs.iterdir() if p.name != "run"] == []  # the lock file too
+
+
+def test_generate_sweep_on_a_full_disk_names_the_path_and_prints_no_traceback(full_fs, sim_env):
+    """Issue 29, item 6: the FAILED line names the file the full disk refused; no traceback."""
+    out = full_fs / "sweep"
+    proc = _cli("generate", "--scenario", "synthetic", "--seeds", "1", "--duration", "90", "--executor", "serial",
+                "--no-progress", "--out", str(out), env=sim_env)
+    assert proc.returncode in (1, 2), proc.stderr
+    assert "Traceback" not in proc.stderr and 'File "' not in proc.stderr, proc.stderr
+    failed = [line for line in proc.stderr.splitlines() if "No space left on device" in line]
+    assert failed and all(f"{out}/" in line for line in failed), proc.stderr
+    assert not [p for p in out.iterdir() if p.name.endswith(".tmpdir") or p.name.endswith(".lock")]
+    assert [p.name for p in full_fs.iterdir()] == ["sweep"]
 
 
 def test_generate_into_a_read_only_file_system_fails_before_simulating(readonly_fs, sim_env):

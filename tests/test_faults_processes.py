@@ -129,3 +129,58 @@ def test_generate_sweep_sigterm_stops_workers_and_publishes_nothing_half_done(tm
     assert err.strip().splitlines()[-1] == "merge-irl generate: interrupted"
     assert not _gone_within(kids, 5.0)
     assert list(out.glob("i80-seed*")) == []  # no run folder published half-done
+
+
+def test_pool_worker_killed_like_the_oom_killer_is_retried_and_said(tmp_path, capsys):
+    """SIGKILL of a process-pool worker (what the out-of-memory killer sends) mid-task: the task
+    runs again and succeeds, and a line on stderr names it, the signal and the rerun (issue 29,
+    item 6)."""
+    from sweep_tasks import SleepConfig, mark_then_sleep
+
+    markers = tmp_path / "markers"
+    markers.mkdir()
+    killed: list[int] = []
+
+    def kill_first_worker() -> None:
+        deadline = time.time() + 60
+        while time.time() < deadline:
+            started = list(markers.glob("started-*"))
+            if started:
+                pid = int(started[0].name.split("-")[1])
+                os.kill(pid, signal.SIGKILL)
+                killed.append(pid)
+                return
+            time.sleep(0.02)
+
+    import threading
+
+    killer = threading.Thread(target=kill_first_worker, daemon=True)
+    killer.start()
+    report = run_sweep([Task("big", mark_then_sleep, SleepConfig(sleep_s=1.0, marker_dir=str(markers)))],
+                       executor="process:1", progress=False, desc="oom")
+    killer.join(5)
+    err = capsys.readouterr().err
+    assert killed, "the task never started"
+    assert report.ok and report.results["big"]["pid"] != killed[0]
+    said = [line for line in err.splitlines() if "big" in line]
+    assert said and "killed by SIGKILL" in said[0] and "again" in said[0], err
+    assert "Traceback" not in err
+
+
+def test_failed_sweep_prints_no_traceback_after_its_lines(tmp_path):
+    """``generate`` with a run that fails on every attempt (its run folder's path is a file): the
+    FAILED line, the retry said, the tracebacks in a file, none on stderr (issue 29, item 6)."""
+    out = tmp_path / "sweep"
+    out.mkdir()
+    (out / "synthetic-seed1").write_text("a file where the run's folder goes")
+    env = dict(os.environ, MERGE_IRL_CACHE=str(tmp_path / "cache"))
+    proc = subprocess.run([sys.executable, "-m", "analysis", "generate", "--seeds", "1", "--duration", "70",
+                           "--executor", "serial", "--no-progress", "--out", str(out)],
+                          env=env, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 1, proc.stderr
+    assert "Traceback" not in proc.stderr and 'File "' not in proc.stderr, proc.stderr
+    assert "FAILED synthetic-seed1 after 2 attempt(s)" in proc.stderr
+    assert "running it again (attempt 2 of 2)" in proc.stderr
+    log = out / "sweep.failures.log"
+    assert f"tracebacks: {log}" in proc.stderr
+    assert "Traceback" in log.read_text()

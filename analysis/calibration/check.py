@@ -35,7 +35,9 @@ import pandas as pd
 from merge_irl.atomic import write_text_atomic
 from merge_irl.units import FT_PER_M, M_PER_FT
 from analysis.calibration import CarFollowingPair, evaluate, load_pairs, load_result
-from analysis.calibration.vtypes import driver_members, resample_members, to_vtype_specs
+from analysis.calibration.vtypes import (
+    driver_members, every_member, resample_members, scenario_car_model, to_vtype_specs,
+)
 from scenarios.loader import load_scenario
 from sim.run import run_scenario
 from sim.schema import RAMP_LANE, RIGHTMOST_MAIN_LANE
@@ -47,7 +49,8 @@ HIST_BINS = 40
 VARIABLES = ("speed_ft_s", "spacing_ft", "time_headway_s")
 #: I-80 lanes the real pairs were recorded on (ngsim_i80_car_following: lanes 2-6).
 REAL_LANES = (2, 3, 4, 5, 6)
-#: Driver types drawn for the check from a params file with per-pair fits.
+#: Driver types of a resample (``n_members``) from a params file with per-pair fits; the ``i80``
+#: preset has 32. The default is every per-pair fit once (:func:`~.vtypes.every_member`).
 N_MEMBERS = 32
 #: Issue 14's target: KS distance at most this for each variable.
 KS_TARGET = 0.15
@@ -111,7 +114,10 @@ def accepted_gaps(table: pd.DataFrame) -> AcceptedGaps:
 
 @dataclass(frozen=True)
 class VariableComparison:
-    """One variable: sample sizes, medians, KS statistic and Jensen-Shannon divergence."""
+    """One variable: sample sizes, medians, KS statistic and Jensen-Shannon divergence; the
+    interquartile ranges and the KS statistics that remain once the simulated sample is moved to
+    the real median (``ks_shifted``) and also scaled to the real interquartile range
+    (``ks_rescaled``), which :func:`diagnose` reads."""
 
     name: str
     n_sim: int
@@ -120,6 +126,75 @@ class VariableComparison:
     median_real: float
     ks: float
     js: float
+    iqr_sim: float = float("nan")
+    iqr_real: float = float("nan")
+    ks_shifted: float = float("nan")
+    ks_rescaled: float = float("nan")
+
+
+#: What a miss of each kind points to (docs/calibration.md, *Which variable misses and why*).
+CAUSES = {"ok": "-", "location": "demand", "spread": "driver spread", "shape": "model"}
+_LOCATION_HINT = {
+    "speed_ft_s": "the traffic state: demand per lane, the bottleneck, the drivers' desired speed (maxSpeed)",
+    "spacing_ft": "the density: demand per lane and the bottleneck, or the drivers' minGap / tau",
+    "time_headway_s": "the density: demand per lane and the bottleneck, or the drivers' tau",
+}
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    """Why one variable misses the KS target (:func:`diagnose`).
+
+    ``kind``: ``"ok"`` (KS within the target), ``"location"`` (moving the simulated sample to the
+    real median brings it within), ``"spread"`` (moving it and scaling it to the real
+    interquartile range brings it within), ``"shape"`` (neither); ``cause`` the likely why,
+    :data:`CAUSES` of the kind; ``text`` one sentence with the measured signals.
+    """
+
+    variable: str
+    kind: str
+    cause: str
+    text: str
+
+
+def diagnose(variables, target: float | None = None) -> tuple[Diagnosis, ...]:
+    """A :class:`Diagnosis` per :class:`VariableComparison`, from measured signals only.
+
+    Rule (applied in this order to a variable whose KS exceeds ``target``, default
+    :data:`KS_TARGET`): if ``ks_shifted <= target`` the two distributions differ mainly by a
+    location shift, which points to the demand (the traffic state the drivers are in: flow per
+    lane, bottleneck, desired speed); else if ``ks_rescaled <= target`` they differ in width
+    (interquartile range), which points to the driver spread (how much the simulated drivers
+    differ from one another, or oscillate); else the shape differs (e.g. two modes where the
+    real has one), which points to the car-following model. NaN comparisons (an empty sample)
+    give kind ``"shape"`` with the cause ``"no data"``.
+    """
+    target = KS_TARGET if target is None else target
+    out = []
+    for v in variables:
+        if not np.isfinite(v.ks):
+            out.append(Diagnosis(v.name, "shape", "no data", f"{v.name}: no simulated or real states to compare"))
+            continue
+        if v.ks <= target:
+            out.append(Diagnosis(v.name, "ok", CAUSES["ok"], f"{v.name}: KS {v.ks:.3f} <= {target:g}"))
+            continue
+        offset = (f"median {v.median_sim:.2f} vs {v.median_real:.2f} real "
+                  f"({'higher' if v.median_sim > v.median_real else 'lower'})")
+        ratio = v.iqr_sim / v.iqr_real if v.iqr_real > 0 else float("nan")
+        width = f"interquartile range {v.iqr_sim:.2f} vs {v.iqr_real:.2f} real (x{ratio:.2f}, " + (
+            "narrower)" if ratio < 1 else "wider)")
+        signals = (f"KS {v.ks:.3f}; at the real median {v.ks_shifted:.3f}, also at the real width "
+                   f"{v.ks_rescaled:.3f}")
+        if v.ks_shifted <= target:
+            kind, why = "location", f"a location shift, {offset}: check {_LOCATION_HINT.get(v.name, 'the demand')}"
+        elif v.ks_rescaled <= target:
+            kind, why = "spread", (f"a width mismatch, {width}: the simulated drivers differ "
+                                   f"{'too little' if ratio < 1 else 'too much'} (driver spread)")
+        else:
+            kind, why = "shape", (f"a shape the median and width do not explain ({offset}; {width}): "
+                                  "the car-following model (e.g. two modes where the real has one)")
+        out.append(Diagnosis(v.name, kind, CAUSES[kind], f"{v.name} misses: {why} [{signals}]"))
+    return tuple(out)
 
 
 @dataclass(frozen=True)
@@ -141,29 +216,47 @@ class CalibrationCheck:
     n_merges: int = 0
     #: True: the scenario's own car drivers were simulated (``--keep-drivers``), not the params file's.
     keep_drivers: bool = False
+    #: SUMO car-following model(s) of the simulated car drivers ("EIDM", or "EIDM, IDM" for a mix).
+    car_follow_model: str = ""
+
+    def diagnoses(self) -> tuple[Diagnosis, ...]:
+        """:func:`diagnose` of the variables."""
+        return diagnose(self.variables)
 
     def to_json_dict(self) -> dict:
         d = asdict(self)
-        d["variables"] = {v.name: {k: x for k, x in asdict(v).items() if k != "name"} | {"ks_target_met": v.ks <= KS_TARGET}
+        why = {g.variable: g for g in self.diagnoses()}
+        d["variables"] = {v.name: {k: x for k, x in asdict(v).items() if k != "name"}
+                          | {"ks_target_met": v.ks <= KS_TARGET,
+                             "diagnosis": {"kind": why[v.name].kind, "cause": why[v.name].cause, "text": why[v.name].text}}
                           for v in self.variables}
+        d["misses"] = [g.variable for g in self.diagnoses() if g.kind != "ok"]
         return d
 
     def to_markdown(self) -> str:
         lines = [
             f"# Calibration check: scenario `{self.scenario}` (seed {self.seed}, {self.duration_s:g} s) vs real NGSIM I-80 pairs",
             "",
-            "Simulated car drivers: " + ("the scenario's own (--keep-drivers)." if self.keep_drivers else
-                                         f"resampled from the params file ({self.model})."),
+            "Simulated car drivers: " + ("the scenario's own (--keep-drivers)" if self.keep_drivers else
+                                         f"resampled from the params file ({self.model})")
+            + (f", SUMO's {self.car_follow_model}." if self.car_follow_model else "."),
             "",
             "Congested car following (I-80 lanes 2-6 of the study area, leader within 300 ft, 1-45 ft/s); "
             "spacing bumper to bumper, time headway front to front / speed.",
             "",
-            f"| variable | n sim | n real | median sim | median real | KS | KS <= {KS_TARGET:g} | Jensen-Shannon |",
-            "|---|---:|---:|---:|---:|---:|---|---:|",
+            f"| variable | n sim | n real | median sim | median real | KS | KS <= {KS_TARGET:g} | Jensen-Shannon | likely why |",
+            "|---|---:|---:|---:|---:|---:|---|---:|---|",
         ]
+        why = {g.variable: g for g in self.diagnoses()}
         for v in self.variables:
             lines.append(f"| {v.name} | {v.n_sim} | {v.n_real} | {v.median_sim:.2f} | {v.median_real:.2f} | "
-                         f"{v.ks:.3f} | {'yes' if v.ks <= KS_TARGET else 'no'} | {v.js:.3f} |")
+                         f"{v.ks:.3f} | {'yes' if v.ks <= KS_TARGET else 'no'} | {v.js:.3f} | {why[v.name].cause} |")
+        misses = [g for g in self.diagnoses() if g.kind != "ok"]
+        if misses:
+            lines += ["", f"Misses of the KS target ({len(misses)}; rule in docs/calibration.md, *Which variable misses "
+                          "and why*):", ""] + [f"- {g.text}" for g in misses]
+        elif self.variables:
+            lines += ["", "Every variable meets the KS target."]
         if self.accepted_gap_quantiles:
             qs = " / ".join(f"{int(100 * q)} %" for q in GAP_QUANTILES)
             lines += ["", f"Gaps accepted by the {self.n_merges} simulated ramp merges, bumper to bumper in lane 6 "
@@ -234,29 +327,47 @@ def compare_distributions(sim: dict[str, np.ndarray], real: dict[str, np.ndarray
         if len(a) == 0 or len(b) == 0:
             out.append(VariableComparison(name, len(a), len(b), float("nan"), float("nan"), float("nan"), float("nan")))
             continue
+        med_a, med_b = float(np.median(a)), float(np.median(b))
+        iqr_a, iqr_b = (float(np.subtract(*np.quantile(x, [0.75, 0.25]))) for x in (a, b))
+        shifted = a - med_a + med_b
+        rescaled = (a - med_a) * (iqr_b / iqr_a) + med_b if iqr_a > 0 else shifted
         out.append(VariableComparison(
-            name=name, n_sim=len(a), n_real=len(b), median_sim=float(np.median(a)), median_real=float(np.median(b)),
-            ks=float(ks_2samp(a, b).statistic), js=_js(a, b),
+            name=name, n_sim=len(a), n_real=len(b), median_sim=med_a, median_real=med_b,
+            ks=float(ks_2samp(a, b).statistic), js=_js(a, b), iqr_sim=iqr_a, iqr_real=iqr_b,
+            ks_shifted=float(ks_2samp(shifted, b).statistic), ks_rescaled=float(ks_2samp(rescaled, b).statistic),
         ))
     return tuple(out)
 
 
-def calibrated_spec(spec, result, *, n_members: int = N_MEMBERS, seed: int = 0):
-    """``spec`` with its car vTypes replaced by the calibrated driver distribution: a resample
-    of the per-pair parameter vectors (:func:`resample_members`) when ``result`` has them, else
-    the population alone."""
-    members = resample_members(result, n_members, seed=seed) if result.per_pair else driver_members(result, 1)
-    cars = to_vtype_specs(members, spec.drivers.car[0], result.model)
+def calibrated_spec(spec, result, *, n_members: int | None = None, seed: int = 0,
+                    car_follow_model: str | None = None):
+    """``spec`` with its car vTypes replaced by the calibrated driver distribution: when
+    ``result`` has per-pair fits, every one of them once (``n_members`` None,
+    :func:`every_member`) or ``n_members`` resampled with ``seed`` (:func:`resample_members`),
+    else the population alone; driven by SUMO model ``car_follow_model`` (None:
+    :func:`~analysis.calibration.vtypes.scenario_car_model`, the scenario's own when it takes the
+    fitted parameters, e.g. the ``i80`` preset's EIDM for IDM fits) with the scenario's driver
+    noise (:func:`~analysis.calibration.vtypes.to_vtype_specs`)."""
+    if not result.per_pair:
+        members = driver_members(result, 1)
+    elif n_members is None:
+        members = every_member(result)
+    else:
+        members = resample_members(result, n_members, seed=seed)
+    if car_follow_model is None:
+        car_follow_model = scenario_car_model(result.model, [c.car_follow_model for c in spec.drivers.car])
+    cars = to_vtype_specs(members, spec.drivers.car[0], result.model, car_follow_model=car_follow_model)
     return replace(spec, drivers=replace(spec.drivers, car=cars))
 
 
 def run_calibration_check(
     *, params_path: str | os.PathLike, pairs_dir: str | os.PathLike, scenario: str = "i80",
     duration_s: float | None = None, seed: int = 0, table: pd.DataFrame | None = None,
-    keep_drivers: bool = False,
+    keep_drivers: bool = False, n_drivers: int | None = None,
 ) -> CalibrationCheck:
-    """Simulate ``scenario`` with the calibrated drivers (the scenario's own with
-    ``keep_drivers``; nothing is simulated when ``table`` is given) and compare.
+    """Simulate ``scenario`` with the calibrated drivers (:func:`calibrated_spec`: every per-pair
+    fit once, or ``n_drivers`` resampled with ``seed``; the scenario's own with ``keep_drivers``;
+    nothing is simulated when ``table`` is given) and compare.
     ``duration_s`` None = the scenario's own duration.
 
     Raises:
@@ -268,9 +379,9 @@ def run_calibration_check(
     result = load_result(params_path)
     pairs = list(load_pairs(Path(pairs_dir)))
     spec = load_scenario(scenario)
+    if not keep_drivers:
+        spec = calibrated_spec(spec, result, n_members=n_drivers, seed=seed)
     if table is None:
-        if not keep_drivers:
-            spec = calibrated_spec(spec, result, seed=seed)
         table = run_scenario(spec, seed=seed, duration_s=duration_s).table
     if duration_s is None:
         duration_s = spec.simulation.duration_s
@@ -283,4 +394,5 @@ def run_calibration_check(
         median_rmse_m=ev.median_rmse_m, default_median_rmse_m=ev.default_median_rmse_m,
         mean_rmse_m=ev.mean_rmse_m, default_mean_rmse_m=ev.default_mean_rmse_m, n_pairs=len(pairs),
         accepted_gap_quantiles=gaps.quantiles(), n_merges=gaps.n, keep_drivers=keep_drivers,
+        car_follow_model=", ".join(sorted({c.car_follow_model for c in spec.drivers.car})),
     )

@@ -4,7 +4,12 @@
 - ``process`` / ``process:N``: a local process pool with N workers (default: every core),
   fresh ``spawn`` processes, so each task can own a libsumo simulation.
 - ``dask-local`` / ``dask-local:N``: a Dask ``LocalCluster`` on the loopback interface.
-- ``dask://HOST:PORT``: an existing Dask distributed scheduler (more than one machine).
+- ``dask://HOST:PORT``: an existing Dask distributed scheduler (more than one machine), plain TCP.
+- ``tls://HOST:PORT``: the same over TLS, with Dask's security settings (certificates named by
+  :class:`DaskSettings` or Dask's configuration ``distributed.comm.tls.*``).
+
+A Dask scheduler is sent pickled tasks and its results are unpickled here: whoever answers on the
+address can run code on this machine and on the workers (docs/sweeps.md, "Security").
 """
 
 from __future__ import annotations
@@ -12,7 +17,46 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 
-EXECUTORS = ("serial", "process", "dask-local", "dask://HOST:PORT")
+EXECUTORS = ("serial", "process", "dask-local", "dask://HOST:PORT", "tls://HOST:PORT")
+
+#: Seconds to wait for a Dask scheduler to answer (TCP connect and Dask's handshake).
+DEFAULT_CONNECT_TIMEOUT_S = 30.0
+#: Seconds a sweep on a Dask scheduler may go with none of its tasks running on a worker and none
+#: finishing (every worker gone, or none ever came) before it stops with an error.
+DEFAULT_STALL_TIMEOUT_S = 120.0
+
+
+@dataclass(frozen=True)
+class DaskSettings:
+    """How a sweep talks to an existing Dask scheduler (``dask://`` or ``tls://``).
+
+    Attributes:
+        connect_timeout_s: seconds to wait for the scheduler's answer (connect and handshake).
+        stall_timeout_s: seconds with no task of the sweep running on a worker and none
+            finishing, after which the sweep stops with :class:`DaskUnavailable`.
+        tls_ca_file: CA certificate(s) (PEM) that the scheduler's certificate must be signed by;
+            None: Dask's configuration ``distributed.comm.tls.ca-file``.
+        tls_cert: this client's certificate (PEM); None: ``distributed.comm.tls.client.cert``.
+        tls_key: this client's private key (PEM); None: ``distributed.comm.tls.client.key`` (or
+            the key appended to the certificate file).
+    """
+
+    connect_timeout_s: float = DEFAULT_CONNECT_TIMEOUT_S
+    stall_timeout_s: float = DEFAULT_STALL_TIMEOUT_S
+    tls_ca_file: str | None = None
+    tls_cert: str | None = None
+    tls_key: str | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("connect_timeout_s", "stall_timeout_s"):
+            v = getattr(self, name)
+            if not (v > 0 and v != float("inf")):
+                raise ValueError(f"{name} = {v!r}: must be a positive finite number of seconds")
+
+
+class DaskUnavailable(ConnectionError):
+    """The Dask scheduler did not answer, is not a Dask scheduler, or ran none of the sweep's
+    tasks for too long (one line naming its address)."""
 
 
 @dataclass(frozen=True)
@@ -22,12 +66,16 @@ class ExecutorSpec:
     Attributes:
         kind: ``"serial" | "process" | "dask-local" | "dask"``.
         workers: number of local workers (process pool or LocalCluster).
-        address: scheduler address for ``kind == "dask"`` (``tcp://HOST:PORT``).
+        address: scheduler address for ``kind == "dask"`` (``tcp://HOST:PORT`` or
+            ``tls://HOST:PORT``).
+        dask: timeouts and certificates for ``kind == "dask"``; None: :class:`DaskSettings`
+            defaults, certificates from Dask's configuration.
     """
 
     kind: str
     workers: int = 1
     address: str = ""
+    dask: DaskSettings | None = None
 
 
 def default_workers() -> int:
@@ -38,19 +86,21 @@ def default_workers() -> int:
 
 
 def parse_executor(text: str) -> ExecutorSpec:
-    """Parse ``serial``, ``process[:N]``, ``dask-local[:N]`` or ``dask://HOST:PORT``.
+    """Parse ``serial``, ``process[:N]``, ``dask-local[:N]``, ``dask://HOST:PORT`` or
+    ``tls://HOST:PORT``.
 
     Raises:
-        ValueError: ``text`` names no known executor, a ``dask://`` address without ``HOST:PORT``, a worker
-            count for ``serial`` or a worker count that is not a positive integer.
+        ValueError: ``text`` names no known executor, a ``dask://`` or ``tls://`` address
+            without ``HOST:PORT``, a worker count for ``serial`` or a worker count that is not a
+            positive integer.
     """
     text = text.strip()
-    if text.startswith("dask://"):
-        rest = text[len("dask://"):]
-        host, sep, port = rest.rpartition(":")
-        if not sep or not host or not port.isdigit():
-            raise ValueError(f"--executor {text!r}: expected dask://HOST:PORT")
-        return ExecutorSpec("dask", address=f"tcp://{host}:{port}")
+    for scheme, protocol in (("dask://", "tcp"), ("tls://", "tls")):
+        if text.startswith(scheme):
+            host, sep, port = text[len(scheme):].rpartition(":")
+            if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
+                raise ValueError(f"--executor {text!r}: expected {scheme}HOST:PORT")
+            return ExecutorSpec("dask", address=f"{protocol}://{host}:{port}")
     name, sep, count = text.partition(":")
     if name not in ("serial", "process", "dask-local"):
         raise ValueError(f"--executor {text!r}: expected one of {', '.join(EXECUTORS)}")

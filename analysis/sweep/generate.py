@@ -10,6 +10,7 @@ pool on every core, one libsumo simulation per worker process at a time) and wri
     OUT/sweep.csv                         one line per finished run (counts, table and scenario
                                           checksums, package/SUMO versions, git commit)
     OUT/sweep.timings.json                each run's wall time (kept out of sweep.csv)
+    OUT/sweep.failures.log                the failed runs' tracebacks (``merge-irl generate``, if any)
 
 The ``-demand<X>`` suffix is present when demand scales were given. Each run's SUMO seed is the
 one asked for (``seeds``), not the sweep-derived seed, so ``OUT/<scenario>-seed7`` is the same
@@ -32,7 +33,7 @@ from merge_irl.provenance import provenance, text_digest, write_timings
 from analysis.sweep import ResultStore, SweepReport, Task, derive_seed, run_sweep, task_digest
 from analysis.sweep.store import NOT_IN_DIGEST
 from merge_irl.atomic import write_atomic
-from merge_irl.run_folder import locked, remove_temporaries
+from merge_irl.run_folder import locked, remove_stale_locks, remove_temporaries
 from scenarios.spec.model import ScenarioSpec
 from scenarios.spec.parse import spec_from_toml, with_overrides
 from sim.encounter_rules import ENCOUNTER_RULES, check_rule
@@ -40,6 +41,7 @@ from sim.generate import RUN_REPORT, SCENARIO, generate
 
 STORE_DIR = ".sweep-store"
 SUMMARY = "sweep.csv"
+FAILURES = "sweep.failures.log"  #: the tracebacks of the runs that failed (merge-irl generate)
 SWEEP_SEED = 0  #: the runs use their own SUMO seeds; the sweep seed only feeds task digests
 
 
@@ -245,9 +247,12 @@ def generate_many(
         try:
             report = run_sweep(tasks, seed=SWEEP_SEED, executor=executor, store=store, retries=retries,
                                progress=progress, desc=f"generate {spec.name}")
-        except KeyboardInterrupt:  # what finished is in the store: summarise it, then stop
+        except (KeyboardInterrupt, ConnectionError):  # what finished is in the store: summarise it, then stop
             write_summary(_stored(tasks, store), out / SUMMARY)
             raise
+        finally:  # staging folders and locks of runs whose worker died (killed, out of memory)
+            remove_temporaries(out)
+            remove_stale_locks(out)
         write_summary(_here(report, tasks), out / SUMMARY)
     return report
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import os
+import signal
 import sys
 import time
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -149,6 +150,10 @@ def run_sweep(
     bar = tqdm(total=len(task_list), initial=n_cached, desc=desc, unit="task",
                disable=not progress, file=sys.stderr)
 
+    def say(line: str) -> None:
+        """A line on stderr that the progress bar does not overwrite (said with or without it)."""
+        tqdm.write(line, file=sys.stderr)
+
     def finish(p: _Pending, record: dict) -> bool:
         """Record an attempt's outcome; return True if the task should be retried."""
         p.attempts += 1
@@ -162,6 +167,8 @@ def run_sweep(
             bar.update(1)
             return False
         if p.attempts <= retries:
+            say(f"{desc}: {p.task.key} failed ({record.get('error', 'unknown error')}); "
+                f"running it again (attempt {p.attempts + 1} of {retries + 1})")
             return True
         failures.append(TaskFailure(p.task.key, record.get("error", "unknown error"), p.attempts,
                                     record.get("traceback", "")))
@@ -172,7 +179,7 @@ def run_sweep(
         if spec.kind == "serial":
             _run_serial(todo, finish)
         elif spec.kind == "process":
-            _run_process_pool(todo, finish, spec.workers)
+            _run_process_pool(todo, finish, spec.workers, say=lambda line: say(f"{desc}: {line}"))
         else:
             _run_dask(todo, finish, spec)
     finally:
@@ -263,12 +270,28 @@ def _run_isolated(p: _Pending, finish) -> None:
             return
 
 
-def _run_process_pool(todo: Sequence[_Pending], finish, workers: int) -> None:
+def _death_cause(pool: ProcessPoolExecutor) -> str:
+    """How a broken pool's worker ended: ``killed by SIGKILL``, ``exit status 13`` or ``""``
+    (the pool stops the other workers with SIGTERM; a signal other than that is the cause)."""
+    codes = [p.exitcode for p in (getattr(pool, "_processes", None) or {}).values()
+             if p.exitcode not in (None, 0)]
+    for code in sorted(codes, key=lambda c: c == -signal.SIGTERM):
+        if code < 0:
+            name = signal.Signals(-code).name
+            hint = " (the out-of-memory killer sends it)" if code == -signal.SIGKILL else ""
+            return f"killed by {name}{hint}"
+        return f"exit status {code}"
+    return ""
+
+
+def _run_process_pool(todo: Sequence[_Pending], finish, workers: int,
+                      say: Callable[[str], None] = lambda line: None) -> None:
     """At most ``workers`` tasks in flight; a worker crash only affects those in flight.
 
     When a worker dies the pool is broken and we cannot tell which in-flight task killed it,
     so each in-flight task is re-run alone in its own process (the culprit crashes again and
     uses up its retry; the others just finish), then a fresh pool continues with the rest.
+    ``say`` is told of each such crash (one line naming the tasks run again).
     """
     ctx = multiprocessing.get_context("spawn")
     queue = list(todo)
@@ -294,6 +317,10 @@ def _run_process_pool(todo: Sequence[_Pending], finish, workers: int) -> None:
                     if crashed:
                         crashed.extend(in_flight.values())
                         in_flight.clear()
+                        cause = _death_cause(pool)
+                        say(f"a worker process died{' (' + cause + ')' if cause else ''} with "
+                            f"{', '.join(p.task.key for p in crashed)} in flight; running "
+                            f"{'it' if len(crashed) == 1 else 'each'} again in a process of its own")
                         break
             except BaseException:  # Ctrl-C, SIGTERM (see analysis.cli.main), or an error storing a result
                 _store_finished(in_flight, finish)
@@ -304,40 +331,6 @@ def _run_process_pool(todo: Sequence[_Pending], finish, workers: int) -> None:
 
 
 def _run_dask(todo: Sequence[_Pending], finish, spec: ExecutorSpec) -> None:
-    try:
-        from distributed import Client, LocalCluster, as_completed
-    except ImportError as e:  # pragma: no cover - depends on the install
-        raise RuntimeError(
-            "the dask executors need Dask distributed: pip install 'merge-irl[dask]'"
-        ) from e
-    cluster = None
-    if spec.kind == "dask-local":
-        cluster = LocalCluster(n_workers=spec.workers, threads_per_worker=1, processes=True,
-                               host="127.0.0.1", dashboard_address=None)
-        client = Client(cluster)
-    else:
-        client = Client(spec.address)
-    futures: dict[str, _Pending] = {}
+    from analysis.sweep.dask_executor import run_dask
 
-    def submit(p: _Pending):
-        # Dask itself reschedules a task whose worker died (up to its allowed-failures);
-        # an exception or KilledWorker comes back here and is retried once like elsewhere.
-        key = f"{p.task.key}-{p.digest[:12]}-{p.attempts}"
-        fut = client.submit(call_task, p.task.func, p.task.config, p.seed, key=key, pure=False)
-        futures[key] = p
-        return fut
-
-    try:
-        ac = as_completed([submit(p) for p in todo])
-        for fut in ac:
-            p = futures[fut.key]
-            try:
-                record = fut.result()
-            except Exception as e:  # noqa: BLE001 - KilledWorker and friends
-                record = _crash_record(e)
-            if finish(p, record):
-                ac.add(submit(p))
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+    run_dask(todo, finish, spec, call_task, _crash_record)

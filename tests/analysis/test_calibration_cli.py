@@ -129,7 +129,8 @@ def test_check_runs_i80_with_calibrated_drivers(params: Path, tmp_path: Path) ->
     for v in d["variables"].values():
         assert v["n_sim"] > 100 and 0 <= v["ks"] <= 1 and 0 <= v["js"] <= 1
     assert "Jensen-Shannon" in out.read_text()
-    assert d["keep_drivers"] is False and "Simulated car drivers: resampled from the params file (idm)." in out.read_text()
+    assert d["keep_drivers"] is False and d["car_follow_model"] == "EIDM"  # the i80 preset's model (IDM fits)
+    assert "Simulated car drivers: resampled from the params file (idm), SUMO's EIDM." in out.read_text()
 
 
 def test_check_report_says_which_drivers_were_simulated() -> None:

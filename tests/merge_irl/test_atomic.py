@@ -121,3 +121,23 @@ def test_network_cache_folder_is_readable_like_the_files(tmp_path):
         os.umask(old)
     assert _mode(net.parent) == 0o755
     assert _mode(net) == 0o644
+
+
+def test_a_failed_write_that_names_no_file_is_reported_with_the_path(tmp_path):
+    """A full disk seen by a library's writer (pyarrow, a plain write()) names no file: the error
+    that reaches the user names the file being written (issue 29, item 6)."""
+    import errno
+
+    from analysis.cli.main import os_error_line
+
+    target = tmp_path / "out" / "table.parquet"
+
+    def disk_full(p: Path) -> None:
+        p.write_bytes(b"partial")
+        raise OSError(errno.ENOSPC, "Error writing bytes to file. Detail: [errno 28] No space left on device")
+
+    with pytest.raises(OSError) as caught:
+        write_atomic(target, disk_full)
+    assert caught.value.errno == errno.ENOSPC
+    assert os_error_line(caught.value) == f"No space left on device: {target}"
+    assert list(target.parent.iterdir()) == []  # the temporary is gone

@@ -3,6 +3,8 @@
 * ``calibrate fit --pairs DIR --out params.toml [--model idm|krauss|eidm] [--classes C]``
 * ``calibrate evaluate --params FILE --pairs DIR [--json]``
 * ``calibrate check --params FILE --pairs DIR [--out report.md] [--json]``
+* ``calibrate preset --params FILE --out my_i80.toml [--scenario i80]``: a scenario preset with
+  the calibrated drivers (``generate --scenario my_i80.toml``)
 
 Thin layer over :mod:`analysis.calibration`, :mod:`analysis.calibration.sweep` (per-pair fits
 on every core through the sweep runner) and :mod:`analysis.calibration.check`. ``evaluate``
@@ -90,10 +92,35 @@ def register(subparsers) -> None:
                         "(default: the scenario's own; i80: 600 s with 240 s of warm-up)")
     c.add_argument("--seed", type=int, default=0, help="seed of the SUMO run and the driver sample (default 0)")
     c.add_argument("--keep-drivers", action="store_true",
-                   help="simulate the scenario's own drivers (default: the params file's driver distribution)")
+                   help="simulate the scenario's own drivers (default: the params file's driver distribution, as "
+                        "'calibrate preset' writes it)")
+    c.add_argument("--drivers", type=positive_int, default=None, metavar="N",
+                   help="resample N driver types from the per-pair fits with --seed (default: one per per-pair fit)")
     c.add_argument("--out", default=None, metavar="FILE", help="write the markdown report here")
     c.add_argument("--json", action="store_true", help="print the report as one JSON object")
     c.set_defaults(func=run_check)
+
+    w = sub.add_parser("preset", help="write a scenario preset whose car drivers are the calibrated ones",
+                       description="Write a scenario TOML: the scenario (default i80) with its car drivers replaced "
+                                   "by the per-pair fits of --params (one equally likely type per fit, or --drivers N resampled), under the "
+                                   "scenario's own car-following model when it takes the fitted parameters (i80: "
+                                   "EIDM for IDM fits, SUMO's default driver noise), as the shipped i80 preset was "
+                                   "made. Use it with 'merge-irl generate --scenario FILE' or 'calibrate check "
+                                   "--scenario FILE --keep-drivers'.")
+    w.add_argument("--params", required=True, metavar="FILE", help="params TOML from 'calibrate fit'")
+    w.add_argument("--out", required=True, metavar="FILE.toml", help="scenario TOML to write")
+    w.add_argument("--scenario", default="i80", metavar="NAME|FILE",
+                   help="scenario preset or TOML whose road, demand and lane changing are kept (default i80)")
+    w.add_argument("--drivers", type=positive_int, default=None, metavar="N",
+                   help="resample N car driver types from the per-pair fits (default: one type per per-pair fit, "
+                        "the fitted distribution itself; the shipped i80 preset: 32)")
+    w.add_argument("--seed", type=int, default=None,
+                   help="seed of a --drivers resample (default: the scenario's seed; i80: 80)")
+    w.add_argument("--car-follow-model", default=None, metavar="MODEL",
+                   help="SUMO carFollowModel of the written cars (default: the scenario's own when it takes the "
+                        "fitted parameters, else the fitted model's; IDM fits: IDM, IIDM or EIDM; Krauss: Krauss)")
+    w.add_argument("--name", default=None, help="scenario name written in the file (default: the file's stem)")
+    w.set_defaults(func=run_preset)
 
 
 def _pairs(args: argparse.Namespace, *, held_out: bool):
@@ -273,7 +300,7 @@ def run_check(args: argparse.Namespace) -> int:
             raise SpecError(f"--out {args.out}: cannot write a file there ({e.strerror or e})") from None
     report = run_calibration_check(
         params_path=args.params, pairs_dir=args.pairs, scenario=args.scenario,
-        duration_s=args.duration, seed=args.seed, keep_drivers=args.keep_drivers,
+        duration_s=args.duration, seed=args.seed, keep_drivers=args.keep_drivers, n_drivers=args.drivers,
     )
     if args.out:
         report.write_markdown(args.out)
@@ -281,4 +308,45 @@ def run_check(args: argparse.Namespace) -> int:
         print(json.dumps(report.to_json_dict()))
     else:
         print(report.to_markdown())
+    return 0
+
+
+def run_preset(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from analysis.calibration import load_result
+    from analysis.calibration.preset import default_header, preset_with_drivers
+    from analysis.calibration.vtypes import scenario_car_model
+    from merge_irl.atomic import write_text_atomic
+    from merge_irl.run_folder import check_writable
+    from scenarios.errors import SpecError
+    from scenarios.loader import load_scenario
+    from scenarios.spec.parse import spec_from_toml
+
+    out = Path(args.out)
+    if args.seed is not None and args.drivers is None:
+        raise SpecError("--seed: seeds a --drivers N resample; without --drivers every per-pair fit is written, no draw")
+    if out.suffix != ".toml":
+        raise SpecError(f"--out {args.out}: a scenario file must end in .toml (generate --scenario reads it by that)")
+    try:
+        check_writable(out)
+    except OSError as e:
+        raise SpecError(f"--out {args.out}: cannot write a file there ({e.strerror or e})") from None
+    spec = load_scenario(args.scenario)
+    if not Path(args.params).is_file():
+        raise SpecError(f"--params {args.params}: no such file (write one with 'merge-irl calibrate fit')")
+    result = load_result(args.params)
+    n = args.drivers
+    seed = spec.simulation.seed if args.seed is None else args.seed
+    model = args.car_follow_model or scenario_car_model(result.model, [c.car_follow_model for c in spec.drivers.car])
+    header = default_header(args.scenario, args.params, n=n, seed=seed, car_follow_model=model)
+    text = preset_with_drivers(args.scenario, args.params, n=n, seed=seed, header=header,
+                               car_follow_model=args.car_follow_model, name=args.name or out.stem)
+    spec_from_toml(text, source=str(out))  # what is written loads as a scenario
+    write_text_atomic(out, text)
+    kinds = len({c.id for c in load_scenario(out).drivers.car})
+    print(f"{args.scenario} with {kinds} calibrated car driver type(s) from {args.params} "
+          f"({result.model} fits, driven by SUMO's {model}); run it: merge-irl generate --scenario {out}",
+          file=sys.stderr)
+    print(out)
     return 0

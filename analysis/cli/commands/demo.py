@@ -13,6 +13,7 @@ import argparse
 from dataclasses import replace
 
 from analysis.cli.commands._arg_types import non_negative_int, positive_int
+from analysis.cli.commands._dask_options import add_dask_options, apply_dask_options
 from sim.encounter_rules import ENCOUNTER_RULES
 
 
@@ -47,9 +48,10 @@ def register(subparsers) -> None:
                         "observes SUMO's drivers, A's lane held; see merge-irl generate --help)")
     p.add_argument("--workers", type=positive_int, default=None, metavar="N", help="processes (default 2)")
     p.add_argument("--executor", default=None,
-                   help="where data runs and episodes run: serial, process[:N], dask-local[:N], dask://HOST:PORT "
-                        "(default: process:<workers>)")
+                   help="where data runs and episodes run: serial, process[:N], dask-local[:N], dask://HOST:PORT, "
+                        "tls://HOST:PORT (default: process:<workers>)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    add_dask_options(p)
     p.set_defaults(func=run)
 
 
@@ -75,6 +77,7 @@ def run(args: argparse.Namespace) -> int:
         if args.workers is not None:
             raise SimError("give --executor or --workers, not both")
         config = replace(config, executor=resolve_executor(args.executor, None))
+    apply_dask_options(args)
     result = run_demo(args.out, config, progress=not args.no_progress)
     print(result.format())
     return 0

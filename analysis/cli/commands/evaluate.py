@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 from analysis.cli.commands._arg_types import positive_int
+from analysis.cli.commands._dask_options import add_dask_options, apply_dask_options
 from sim.controller_config import HIGH_BRAKE_RULES
 
 
@@ -58,7 +59,7 @@ def register(subparsers) -> None:
     p.add_argument("--mode", action="store_true", help="take the most likely action instead of sampling")
     p.add_argument("--executor", default=None,
                    help="where episodes run: serial, process[:N] (default: every core), dask-local[:N], "
-                        "dask://HOST:PORT")
+                        "dask://HOST:PORT, tls://HOST:PORT")
     p.add_argument("--workers", type=positive_int, default=None, help="processes (one SUMO each); same as --executor process:N")
     p.add_argument("--no-rrd", action="store_true", help="do not write rerun recordings")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -66,6 +67,7 @@ def register(subparsers) -> None:
     p.add_argument("--fail-if", action="append", default=[], metavar="EXPR",
                    help="exit 1 if a metric threshold holds, e.g. 'collisions>0' or "
                         "'qavg.min_ttc_s<1.5' (repeat, or separate with commas); checked on metrics.json")
+    add_dask_options(p)
     p.set_defaults(func=run)
 
 
@@ -82,6 +84,7 @@ def run(args: argparse.Namespace) -> int:
     if args.executor is not None and args.workers is not None:
         raise SimError("give --executor or --workers, not both")
     executor = resolve_executor(args.executor, args.workers)
+    apply_dask_options(args)
 
     baselines = tuple(b.strip() for b in args.baselines.split(",") if b.strip())
     check_baselines(baselines, "--baselines")

@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from analysis.cli.commands._dask_options import add_dask_options, apply_dask_options
 from sim.encounter_rules import ENCOUNTER_RULES
 
 
@@ -48,7 +49,7 @@ def register(subparsers) -> None:
                    help="sweep: factors on every demand flow, e.g. 0.5,1,2")
     p.add_argument("--executor", default="process", metavar="EXEC",
                    help="sweep executor: process[:N] (default, every core), serial, dask-local[:N], "
-                        "dask://HOST:PORT")
+                        "dask://HOST:PORT, tls://HOST:PORT")
     p.add_argument("--encounter-rule", choices=ENCOUNTER_RULES, default=ENCOUNTER_RULES[0],
                    help="how the run becomes demonstrations: in-lane (default; SUMO's drivers observed as the "
                         "closed-loop controller observes them, A's lane held while observed), take-over (the "
@@ -58,6 +59,7 @@ def register(subparsers) -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--out", default=None, metavar="DIR",
                    help="output folder (default: ./runs/<scenario>-<seed>, or ./runs/<scenario>-sweep for a sweep)")
+    add_dask_options(p)
     p.set_defaults(func=run)
 
 
@@ -85,7 +87,7 @@ def run(args: argparse.Namespace) -> int:
 def _run_sweep(args: argparse.Namespace, spec) -> int:
     from pathlib import Path
 
-    from analysis.sweep.generate import SUMMARY, generate_many
+    from analysis.sweep.generate import FAILURES, SUMMARY, generate_many
     from analysis.sweep import parse_executor
 
     if args.seed is not None and args.seeds is not None:
@@ -96,6 +98,7 @@ def _run_sweep(args: argparse.Namespace, spec) -> int:
     except ValueError as e:
         print(f"merge-irl generate: error: {e}", file=sys.stderr)
         return 2
+    apply_dask_options(args)
     seeds = args.seeds if args.seeds is not None else (
         (args.seed,) if args.seed is not None else (spec.simulation.seed,))
     out = Path(args.out) if args.out else Path("runs") / f"{spec.name}-sweep"
@@ -108,7 +111,20 @@ def _run_sweep(args: argparse.Namespace, spec) -> int:
             print(f"warning: {r['run']}: {w}", file=sys.stderr)
     print(report.summary(), file=sys.stderr)
     print(f"summary: {out / SUMMARY}", file=sys.stderr)
-    for f in report.failures:
-        if f.traceback:
-            print(f"--- {f.key}:\n{f.traceback}", file=sys.stderr)
+    if report.failures:
+        print(_write_tracebacks(report, out / FAILURES), file=sys.stderr)
     return 0 if report.ok else 1
+
+
+def _write_tracebacks(report, path) -> str:
+    """The failed runs' tracebacks to ``path`` (not the terminal: the summary's FAILED lines say
+    what failed); returns the line that says where they are."""
+    from merge_irl.atomic import write_text_atomic
+    from analysis.cli.main import os_error_line
+
+    text = "".join(f"--- {f.key} ({f.attempts} attempt(s)): {f.error}\n{f.traceback}\n" for f in report.failures)
+    try:
+        write_text_atomic(path, text)
+    except OSError as e:
+        return f"tracebacks not written ({os_error_line(e)})"
+    return f"tracebacks: {path}"

@@ -7,6 +7,7 @@ import argparse
 import sys
 
 from analysis.cli.commands.learn import add_config_arguments, config_from_args
+from analysis.cli.commands._dask_options import add_dask_options, apply_dask_options
 
 #: Said when ``--data`` is missing: the demonstrations are not shipped (AGPL), users fetch them.
 DATA_SOURCE = ("--data DIR is required: the authors' demonstrations are not shipped; get the folder data/ "
@@ -37,11 +38,12 @@ def register(subparsers) -> None:
                                   "(several tables: {\"tables\": [...]})")
     p.add_argument("--executor", default="process",
                    help="where trials run: serial, process[:N] (default: every core), dask-local[:N], "
-                        "dask://HOST:PORT; results do not depend on it")
+                        "dask://HOST:PORT, tls://HOST:PORT; results do not depend on it")
     p.add_argument("--store", default=None, metavar="DIR",
                    help="keep each finished trial in DIR; a re-run skips them (resume)")
     p.add_argument("--retries", type=int, default=1, help="re-runs of a failing trial (default 1)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_dask_options(p)
     p.set_defaults(func=run)
 
 
@@ -59,6 +61,7 @@ def run(args: argparse.Namespace) -> int:
         parse_executor(args.executor)  # a bad --executor is a one-line error before any work
     except ValueError as e:
         raise ConfigError(str(e)) from None
+    apply_dask_options(args)
     run_ = reproduce_tables(
         args.table, args.data, trials=args.trials, config=config_from_args(args), seed=args.seed,
         holdout=not args.no_holdout, epsilon=DEFAULT_EPSILON if args.epsilon is None else args.epsilon,

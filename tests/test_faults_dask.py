@@ -1,0 +1,336 @@
+"""``--executor dask://HOST:PORT`` / ``tls://HOST:PORT`` against real faults on loopback (issue 29,
+items 1 and 16): a real ``dask scheduler`` whose only worker (no nanny) is killed, one with no
+worker, a plain TCP listener that never answers, a port answering HTTP 400, and a TLS scheduler
+with self-signed certificates made here. Every wait is bounded (subprocess timeouts)."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+
+from sim_testutil import default_sigint
+from sweep_tasks import DrawConfig, draw
+
+pytest.importorskip("distributed")
+
+from analysis.sweep import Task, parse_executor, run_sweep  # noqa: E402
+from analysis.sweep.executors import DaskSettings, DaskUnavailable  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+TESTS_DIR = Path(__file__).resolve().parent
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _env(tmp_path: Path) -> dict[str, str]:
+    """The children import this checkout (and the tests' task functions) and cache in tmp_path."""
+    path = os.pathsep.join([str(ROOT), str(TESTS_DIR), os.environ.get("PYTHONPATH", "")])
+    return dict(os.environ, PYTHONPATH=path, MERGE_IRL_CACHE=str(tmp_path / "cache"))
+
+
+def _wait_for(predicate, timeout: float, what: str) -> None:
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        if predicate():
+            return
+        time.sleep(0.05)
+    raise AssertionError(f"{what}: not within {timeout} s")
+
+
+def _stop(proc: subprocess.Popen) -> None:
+    if proc.poll() is None:
+        proc.kill()
+    proc.wait(timeout=10)
+
+
+@contextlib.contextmanager
+def _dask(tmp_path: Path, *, workers: int, tls: list[str] | None = None) -> Iterator[tuple[str, list]]:
+    """A real ``dask scheduler`` on loopback and ``workers`` workers without a nanny; yields the
+    scheduler's address and the worker processes. ``tls``: the ``--tls-*`` options of both."""
+    port = _free_port()
+    protocol = "tls" if tls else "tcp"
+    log = tmp_path / f"scheduler-{port}.log"
+    env = _env(tmp_path)
+    sec = tls or []
+    procs = []
+    with open(log, "w") as log_file:
+        sched = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
+                                  "--port", str(port), "--protocol", protocol, "--no-dashboard", *sec],
+                                 env=env, stdout=log_file, stderr=subprocess.STDOUT, cwd=tmp_path)
+        procs.append(sched)
+        try:
+            _wait_for(lambda: "Scheduler at" in log.read_text() or sched.poll() is not None, 60, "scheduler up")
+            assert sched.poll() is None, log.read_text()
+            address = f"{protocol}://127.0.0.1:{port}"
+            kids = []
+            for _ in range(workers):
+                kids.append(subprocess.Popen(
+                    [sys.executable, "-m", "distributed.cli.dask_worker", address, "--no-nanny", "--nthreads", "1",
+                     "--no-dashboard", *sec], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                    cwd=tmp_path))
+            procs.extend(kids)
+            _wait_for(lambda: log.read_text().count("Register worker") >= workers, 60, "workers registered")
+            yield address, kids
+        finally:
+            for p in reversed(procs):
+                _stop(p)
+
+
+class _Listener:
+    """A loopback TCP server in a thread: ``silent`` accepts and never answers; ``http`` answers
+    whatever it is sent with an HTTP 400 reply and closes, as a web server does."""
+
+    def __init__(self, mode: str) -> None:
+        self.mode = mode
+        self.sock = socket.socket()
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.listen(8)
+        self.port = self.sock.getsockname()[1]
+        self.accepted = threading.Event()
+        self._conns: list[socket.socket] = []
+        threading.Thread(target=self._serve, daemon=True).start()
+
+    def _serve(self) -> None:
+        while True:
+            try:
+                conn, _ = self.sock.accept()
+            except OSError:
+                return
+            self.accepted.set()
+            if self.mode == "http":
+                with contextlib.suppress(OSError):
+                    conn.recv(4096)
+                    conn.sendall(b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\nConnection: close\r\n\r\n")
+                conn.close()
+            else:
+                self._conns.append(conn)
+
+    def close(self) -> None:
+        self.sock.close()
+        for c in self._conns:
+            c.close()
+
+
+@pytest.fixture
+def listener(request):
+    lst = _Listener(request.param)
+    yield lst
+    lst.close()
+
+
+def _generate(out: Path, executor: str, *extra: str) -> list[str]:
+    return [sys.executable, "-m", "analysis", "generate", "--scenario", "synthetic", "--seeds", "1",
+            "--duration", "3000", "--executor", executor, "--no-progress", "--out", str(out), *extra]
+
+
+def _assert_cleaned(out: Path) -> None:
+    """No lock beside ``--out`` and none, nor a staging folder, inside it."""
+    assert not (out.parent / f".{out.name}.lock").exists()
+    if out.exists():
+        left = [p.name for p in out.iterdir() if p.name.endswith(".lock") or p.name.endswith(".tmpdir")]
+        assert left == []
+
+
+def _one_line_exit_2(proc: subprocess.CompletedProcess | subprocess.Popen, err: str) -> str:
+    lines = err.strip().splitlines()
+    assert proc.returncode == 2 and len(lines) == 1, err
+    assert lines[0].startswith("merge-irl generate: error: Dask scheduler "), err
+    return lines[0]
+
+
+# -- item 1: nothing that is a Dask scheduler on the port -----------------------------------------------
+
+@pytest.mark.parametrize("listener", ["silent", "http"], indirect=True)
+def test_a_port_that_is_not_a_dask_scheduler_fails_in_one_line(tmp_path, listener):
+    out = tmp_path / "sweep"
+    address = f"127.0.0.1:{listener.port}"
+    t0 = time.time()
+    proc = subprocess.run(_generate(out, f"dask://{address}", "--dask-connect-timeout", "2"),
+                          env=_env(tmp_path), capture_output=True, text=True, timeout=120)
+    line = _one_line_exit_2(proc, proc.stderr)
+    assert f"tcp://{address}" in line
+    assert ("no answer within 2 s" in line) if listener.mode == "silent" else ("Dask's protocol" in line)
+    assert time.time() - t0 < 60
+    _assert_cleaned(out)
+
+
+@pytest.mark.parametrize("listener", ["silent"], indirect=True)
+def test_connect_timeout_inside_a_running_event_loop(listener):
+    """As from a notebook, whose thread runs an event loop: the same one error, not asyncio's."""
+    import asyncio
+
+    from analysis.sweep.dask_executor import check_scheduler, security_for
+
+    address = f"tcp://127.0.0.1:{listener.port}"
+    settings = DaskSettings(connect_timeout_s=1.0)
+
+    async def in_a_loop() -> None:
+        check_scheduler(address, settings, security_for(address, settings))
+
+    with pytest.raises(DaskUnavailable, match=r"no answer within 1 s"):
+        asyncio.run(in_a_loop())
+
+
+def test_nothing_listening_fails_in_one_line(tmp_path):
+    out = tmp_path / "sweep"
+    port = _free_port()
+    proc = subprocess.run(_generate(out, f"dask://127.0.0.1:{port}", "--dask-connect-timeout", "2"),
+                          env=_env(tmp_path), capture_output=True, text=True, timeout=120)
+    assert f"tcp://127.0.0.1:{port}" in _one_line_exit_2(proc, proc.stderr)
+    _assert_cleaned(out)
+
+
+@pytest.mark.parametrize("listener", ["silent"], indirect=True)
+def test_ctrl_c_while_connecting_exits_130_and_cleans(tmp_path, listener):
+    out = tmp_path / "sweep"
+    proc = subprocess.Popen(_generate(out, f"dask://127.0.0.1:{listener.port}", "--dask-connect-timeout", "300"),
+                            env=_env(tmp_path), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=default_sigint)
+    try:
+        assert listener.accepted.wait(60), "the sweep never connected"
+        time.sleep(0.3)
+        t0 = time.time()
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=30)
+        stopped_after = time.time() - t0
+    finally:
+        _stop(proc)
+    assert proc.returncode == 130, err
+    assert err.strip().splitlines() == ["merge-irl generate: interrupted"], err
+    assert stopped_after < 20
+    _assert_cleaned(out)
+
+
+# -- item 1: a real scheduler whose workers are gone --------------------------------------------------
+
+def test_ctrl_c_while_waiting_for_workers_exits_130_and_cleans(tmp_path):
+    out = tmp_path / "sweep"
+    with _dask(tmp_path, workers=0) as (address, _):
+        log = tmp_path / f"scheduler-{address.rsplit(':', 1)[1]}.log"
+        proc = subprocess.Popen(_generate(out, address.replace("tcp://", "dask://")), env=_env(tmp_path),
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=default_sigint)
+        try:
+            _wait_for(lambda: "Receive client connection" in log.read_text(), 60, "client connected")
+            time.sleep(1.0)  # the task is submitted and waits for a worker
+            t0 = time.time()
+            proc.send_signal(signal.SIGINT)
+            _, err = proc.communicate(timeout=30)
+            stopped_after = time.time() - t0
+        finally:
+            _stop(proc)
+    assert proc.returncode == 130, err
+    assert err.strip().splitlines() == ["merge-irl generate: interrupted"], err
+    assert stopped_after < 20
+    _assert_cleaned(out)
+
+
+@pytest.mark.sumo
+def test_only_worker_killed_without_nanny_stops_after_the_stall_timeout(tmp_path):
+    """The worker (no nanny) dies mid-run, SIGKILL: the sweep stops after --dask-stall-timeout with
+    one line naming the address; its staging folder and locks are removed."""
+    out = tmp_path / "sweep"
+    with _dask(tmp_path, workers=1) as (address, (worker,)):
+        proc = subprocess.Popen(_generate(out, address.replace("tcp://", "dask://"), "--dask-stall-timeout", "3"),
+                                env=_env(tmp_path), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        try:
+            _wait_for(lambda: out.exists() and any(p.name.endswith(".tmpdir") for p in out.iterdir()), 90,
+                      "the worker started the run")
+            worker.kill()
+            t0 = time.time()
+            _, err = proc.communicate(timeout=60)
+            stopped_after = time.time() - t0
+        finally:
+            _stop(proc)
+    line = _one_line_exit_2(proc, err)
+    assert address in line and "--dask-stall-timeout" in line
+    assert stopped_after < 50  # the stall timeout (3 s) and a bounded shutdown, on a loaded machine
+    _assert_cleaned(out)
+
+
+def test_a_task_running_longer_than_the_stall_timeout_is_not_stopped(tmp_path):
+    """A task that runs on a live worker is progress, however long it takes."""
+    with _dask(tmp_path, workers=1) as (address, _):
+        spec = replace(parse_executor(address.replace("tcp://", "dask://")),
+                       dask=DaskSettings(connect_timeout_s=20, stall_timeout_s=1.5))
+        report = run_sweep([Task("long", draw, DrawConfig(n=2, sleep_s=5.0))], seed=2, executor=spec, progress=False)
+    assert report.ok and list(report.results) == ["long"]
+
+
+# -- item 16: TLS -----------------------------------------------------------------------------------------
+
+def _self_signed(tmp_path: Path) -> tuple[Path, Path]:
+    """A self-signed certificate and key for 127.0.0.1 (CA, scheduler, worker and client alike)."""
+    openssl = shutil.which("openssl")
+    if openssl is None:
+        pytest.skip("no openssl command to make a certificate with")
+    cert, key = tmp_path / "cert.pem", tmp_path / "key.pem"
+    subprocess.run([openssl, "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-days", "1", "-subj", "/CN=127.0.0.1",
+                    "-addext", "subjectAltName=IP:127.0.0.1", "-keyout", str(key), "-out", str(cert)],
+                   check=True, capture_output=True, timeout=60)
+    return cert, key
+
+
+def test_tls_scheduler_with_self_signed_certificates(tmp_path):
+    cert, key = _self_signed(tmp_path)
+    tasks = [Task(f"t{i}", draw, DrawConfig(n=3)) for i in range(3)]
+    serial = run_sweep(tasks, seed=4, executor="serial", progress=False)
+    tls = ["--tls-ca-file", str(cert), "--tls-cert", str(cert), "--tls-key", str(key)]
+    with _dask(tmp_path, workers=1, tls=tls) as (address, _):
+        assert address.startswith("tls://")
+        spec = parse_executor(address)
+        assert spec.address == address
+        quick = DaskSettings(connect_timeout_s=10, stall_timeout_s=60)
+        # certificates given as files (the --dask-tls-* options)
+        given = run_sweep(tasks, seed=4, progress=False, executor=replace(
+            spec, dask=replace(quick, tls_ca_file=str(cert), tls_cert=str(cert), tls_key=str(key))))
+        assert given.ok and given.results == serial.results
+        # certificates from Dask's configuration (its files or DASK_DISTRIBUTED__COMM__TLS__* variables)
+        import dask.config
+
+        with dask.config.set({"distributed.comm.tls.ca-file": str(cert), "distributed.comm.tls.client.cert": str(cert),
+                              "distributed.comm.tls.client.key": str(key)}):
+            configured = run_sweep(tasks, seed=4, progress=False, executor=replace(spec, dask=quick))
+        assert configured.ok and configured.results == serial.results
+        # without certificates, and in plain TCP: one line each, naming the address
+        with pytest.raises(DaskUnavailable, match=r"TLS needs --dask-tls-ca-file and --dask-tls-cert"):
+            run_sweep(tasks, progress=False, executor=replace(spec, dask=quick))
+        plain = parse_executor(address.replace("tls://", "dask://"))
+        with pytest.raises(DaskUnavailable, match=address.replace("tls://", "tcp://")):
+            run_sweep(tasks, progress=False, executor=replace(plain, dask=replace(quick, connect_timeout_s=3)))
+        # a certificate the scheduler's is not signed by: refused
+        (tmp_path / "other").mkdir()
+        other, other_key = _self_signed(tmp_path / "other")
+        with pytest.raises(DaskUnavailable, match="not reachable"):
+            run_sweep(tasks, progress=False, executor=replace(spec, dask=replace(
+                quick, connect_timeout_s=5, tls_ca_file=str(other), tls_cert=str(other), tls_key=str(other_key))))
+
+
+def test_tls_from_the_command_line(tmp_path):
+    """``generate --executor tls://... --dask-tls-*``: a bad certificate path is one line, exit 2;
+    tls:// parses."""
+    out = tmp_path / "sweep"
+    proc = subprocess.run(_generate(out, "tls://127.0.0.1:1", "--dask-tls-ca-file", str(tmp_path / "missing.pem")),
+                          env=_env(tmp_path), capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.strip().splitlines() == [
+        f"merge-irl generate: error: --dask-tls-ca-file {tmp_path / 'missing.pem'}: no such file"]
+    assert parse_executor("tls://h:8786").address == "tls://h:8786"
+    for bad in ("tls://nohost", "tls://h:0", "dask://h:99999"):
+        with pytest.raises(ValueError):
+            parse_executor(bad)

@@ -41,6 +41,9 @@ class Control:
             NaN until taken over): no commanded acceleration is harder.
         c_id: Vehicle_ID of C at the latest decision (0: none).
         collision_kind: for ``reason == "collision"``, one of ``COLLISION_KINDS``; else "".
+        collision_pair: for ``reason == "collision"``, the SUMO ids ``"collider>victim"`` of the
+            colliding pair involving A (one of the run's distinct pairs,
+            :attr:`sim.controller.Controller.n_collisions`); else "".
     """
 
     a_id: int
@@ -62,6 +65,7 @@ class Control:
     max_decel_ft_s2: float = float("nan")
     c_id: int = 0
     collision_kind: str = ""
+    collision_pair: str = ""
     speed_mode: int = -1
     lane_change_mode: int = -1
     last_y: float = 0.0

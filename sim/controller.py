@@ -245,7 +245,7 @@ class Controller:
         c.end_frame = frame_no
         c.reason = reason
         if reason == "collision":
-            c.collision_kind = self._collision_kind(c)
+            c.collision_kind, c.collision_pair = self._collision_kind(c)
         self._active.pop(c.a_id, None)
         self.last.pop(c.a_id, None)
         if not present or c.lane_change_mode < 0:  # gone, or never taken over (SUMO's driver, lane free)
@@ -259,17 +259,23 @@ class Controller:
         except self._traci.TraCIException:  # the vehicle is gone after all
             pass
 
-    def _collision_kind(self, c: Control) -> str:
-        """Who hit whom (``COLLISION_KINDS``) in the current frame's collisions involving A."""
+    def _collision_kind(self, c: Control) -> tuple[str, str]:
+        """Who hit whom (``COLLISION_KINDS``) in the current frame's collisions involving A, and
+        that pair as ``"collider>victim"`` (one of the run's distinct pairs, so that the A
+        collisions, counted by distinct pair, never exceed :attr:`n_collisions`)."""
         for collider, victim in self._frame_collisions:
             if c.a_sumo not in (collider, victim):
                 continue
             other = victim if collider == c.a_sumo else collider
             vid = self._vehicle_id_of(other) if self._vehicle_id_of is not None else None
+            pair = f"{collider}>{victim}"
             if collider == c.a_sumo:
-                return "A into B" if vid == c.b_id else "A into C" if vid is not None and vid == c.c_id else "A into other"
-            return "B into A" if vid == c.b_id else "other into A"
-        return "A into other"  # SUMO listed A as colliding without a pair (not seen)
+                kind = "A into B" if vid == c.b_id else "A into C" if vid is not None and vid == c.c_id else "A into other"
+                return kind, pair
+            return ("B into A" if vid == c.b_id else "other into A"), pair
+        # SUMO listed A as colliding without a pair (not seen): a pair of its own, counted in the run's too
+        self._collision_pairs.add((c.a_sumo, "?"))
+        return "A into other", f"{c.a_sumo}>?"
 
     def take_over(self, frame: FrameState, *, limit: int | None = None) -> list[Control]:
         """Hand the lag car A of every B newly in the take-over zone (see the module docstring) to
@@ -441,5 +447,5 @@ class Controller:
 
         cols = ("a_id", "b_id", "a_sumo", "start_frame", "end_frame", "reason", "merge_frame",
                 "b_ahead", "commanded", "gap_AB_start_ft", "n_decisions", "n_interventions", "n_need_brakes",
-                "collision_kind")
+                "collision_kind", "collision_pair")
         return pd.DataFrame([{k: getattr(c, k) for k in cols} for c in self.controls], columns=list(cols))

@@ -49,7 +49,7 @@ from analysis.evaluation.episode import frame_from_dict, frame_to_dict
 from analysis.evaluation.evaluate import EvaluationReport, evaluate, resolve_executor
 from analysis.evaluation.heldout_scoring import prepare_encounters
 from analysis.evaluation.policies import learned_policy
-from analysis.evaluation.report import flag_lines, report_table
+from analysis.evaluation.report import collision_bound_line, flag_lines, report_table
 from analysis.experiments.learn import fit_problem, merge_config, merge_encoding, merge_features, saved_model
 from merge_irl.provenance import provenance, provenance_markdown, text_digest, write_timings
 from analysis.sweep import Task, run_sweep
@@ -104,6 +104,7 @@ class DemoResult:
             "",
             report_table(self.evaluation.aggregates),
             *flag_lines(self.evaluation.aggregates),
+            "  " + collision_bound_line(self.evaluation.aggregates),
             "",
             f"  report:  {self.evaluation.report_md}",
             f"  metrics: {self.evaluation.metrics_json}",

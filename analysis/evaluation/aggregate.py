@@ -3,8 +3,8 @@ of the :class:`~analysis.evaluation.metrics.EpisodeMetrics` of :func:`analysis.e
 
 Definitions beyond the per-episode ones (:mod:`analysis.evaluation.metrics`):
 
-* ``a_collision_rate`` with ``a_collision_ci95``: control episodes ended by A colliding over
-  control episodes, with the Wilson score 95 % interval (``scipy.stats.binomtest``).
+* ``a_collision_rate`` with ``a_collision_ci95``: A's distinct collision pairs (``a_collisions``)
+  over control episodes, with the Wilson score 95 % interval (``scipy.stats.binomtest``).
 * ``safety_interventions`` / ``intervention_rate``: decisions whose action the safety filter
   replaced (0 in the raw default), and their share of the commanded decisions.
 * ``flags``: what the model's fit reported (``not_converged``, ``unbounded``, ``infeasible``,

@@ -8,8 +8,11 @@ An episode is one run of a scenario with a :class:`sim.controller.Controller`; i
 the trajectory table, the controller's control episodes (one per lag car A) and decisions.
 Definitions (NGSIM units in, SI where stated):
 
-* ``collisions``: collision events in the whole run (SUMO's collision detection, pairs), and
-  ``a_collisions``: control episodes that ended because A collided.
+* ``collisions``: distinct colliding pairs (collider, victim) in the whole run (SUMO's collision
+  detection), and ``a_collisions``: the distinct pairs among them that ended a control episode
+  because A collided. A pair is counted once even when it ends several control episodes (with
+  SUMO's ``--collision.action warn`` the cars keep overlapping, and a later take-over of the
+  same A ends at once on the same pair), so ``a_collisions <= collisions``.
 * ``emergency_brakings``: braking events harder than ``emergency_decel_m_s2`` (default
   4.5 m/s^2 = 14.76 ft/s^2, the default ``decel`` of SUMO's passenger car, beyond which SUMO
   itself speaks of emergency braking) by A, B or the car following A while A is controlled;
@@ -172,9 +175,10 @@ def episode_metrics(
         np.add.at(counts, decisions["action"].to_numpy(dtype=np.int64), 1)
     jsd = js_divergence(counts, demo_action_counts) if demo_action_counts is not None else float("nan")
     reasons = controls["reason"].value_counts().to_dict() if len(controls) else {}
+    a_coll = _a_collisions(controls)
     return EpisodeMetrics(
         policy=policy, seed=int(seed), n_controls=int(len(controls)), n_merges=int(len(merged)),
-        collisions=int(collisions), a_collisions=int(reasons.get("collision", 0)), teleports=int(teleports),
+        collisions=int(collisions), a_collisions=a_coll, teleports=int(teleports),
         emergency_brakings=int(eb_near), emergency_brakings_all=int(eb_all), min_ttc_s=float(ttc),
         b_ahead_rate=b_ahead, travel_time_s=float(np.nanmean(tt)) if np.isfinite(tt).any() else float("nan"),
         mean_speed_A_ft_s=mean_speed, action_counts=tuple(int(x) for x in counts), js_divergence=jsd,
@@ -183,6 +187,18 @@ def episode_metrics(
         safety_interventions=int(decisions["filtered"].astype(bool).sum()) if "filtered" in decisions else 0,
         need_brakes=int(decisions["need_brake"].astype(bool).sum()) if "need_brake" in decisions else 0,
     )
+
+
+def _a_collisions(controls: pd.DataFrame) -> int:
+    """Distinct collision pairs that ended a control episode (control episodes ended by a
+    collision, when the table has no ``collision_pair`` column)."""
+    if not len(controls):
+        return 0
+    ended = controls[controls["reason"] == "collision"]
+    if "collision_pair" not in ended:
+        return int(len(ended))
+    pairs = ended["collision_pair"].astype(str)
+    return int(pairs[pairs != ""].nunique() + (pairs == "").sum())
 
 
 def _min_ttc(table: pd.DataFrame, rows: pd.DataFrame) -> float:

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import asdict
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 
-from analysis.evaluation.aggregate import AggregateMetrics
+from analysis.evaluation.aggregate import AggregateMetrics, rate_ci95
 from merge_irl.provenance import provenance_markdown
 from analysis.evaluation.plots import write_plots
 from merge_irl.atomic import write_text_atomic
@@ -41,25 +42,88 @@ def _w1(a: AggregateMetrics) -> str:
     return " / ".join(_fmt(x, 1) for x in xs)
 
 
-def report_table(aggs: dict[str, AggregateMetrics]) -> str:
+def _interventions(a: AggregateMetrics) -> str:
+    inter = f"{a.safety_interventions} ({_fmt(a.intervention_rate, 3)})" if a.safety_interventions else "0"
+    return inter + f" / {a.need_brakes}"
+
+
+@dataclass(frozen=True)
+class Column:
+    """One column of :func:`report_table`: its header, its legend (``{decel}``: the emergency
+    deceleration threshold, m/s^2) and its cell for one policy."""
+
+    header: str
+    legend: str
+    cell: Callable[[str, AggregateMetrics], str]
+
+
+#: The columns of the report table, in order; the legend under the table is generated from
+#: them (:func:`column_legend`), so it describes exactly the columns shown.
+COLUMNS: tuple[Column, ...] = (
+    Column("policy", "the driver of A", lambda name, a: name),
+    Column("episodes", "episodes (seeds) run", lambda name, a: str(a.n_episodes)),
+    Column("As controlled", "control episodes: lag cars A taken over", lambda name, a: str(a.n_controls)),
+    Column("merges", "merges of B completed while its A was controlled", lambda name, a: str(a.n_merges)),
+    Column("collisions (all / A)",
+           "distinct colliding pairs (collider, victim) in the whole run, every vehicle / those of them that "
+           "ended a control episode of A (a pair seen again in a later take-over of the same A counts once, "
+           "so A <= all)",
+           lambda name, a: f"{a.collisions} / {a.a_collisions}"),
+    Column("A collisions / As [95 % CI]",
+           "A's collision pairs over the As controlled, with the Wilson 95 % interval", lambda name, a: _ci(a)),
+    Column("emergency brakings (near / all)",
+           "braking harder than {decel} m/s^2 by A, B and A's follower while A is controlled / by every vehicle",
+           lambda name, a: f"{a.emergency_brakings} / {a.emergency_brakings_all}"),
+    Column("min TTC (s)", "smallest time-to-collision over A->leader and follower->A while controlled",
+           lambda name, a: _fmt(a.min_ttc_s)),
+    Column("B merged ahead of A", "share of the merges (mean ± std over episodes)",
+           lambda name, a: _pm(a.b_ahead_rate)),
+    Column("A travel time (s)", "time A takes to cross the section (mean ± std over episodes)",
+           lambda name, a: _pm(a.travel_time_s, 1)),
+    Column("A mean speed (ft/s)", "A's mean speed while controlled (mean ± std over episodes)",
+           lambda name, a: _pm(a.mean_speed_A_ft_s, 1)),
+    Column("W1 speed / acc / d_AC / TTC",
+           "Wasserstein-1 distances of A's speed (ft/s), acceleration (ft/s^2), d_AC (ft) and TTC to C (s) at "
+           "the decisions to the held-out demonstrations, `sumo`'s row the floor (`sumo-in-lane`'s the "
+           "floor of drivers that act on acceleration alone)", lambda name, a: _w1(a)),
+    Column("held-out LL / step",
+           "mean log pi(a|s) per held-out demonstration step (state-conditional, markov given the previous "
+           "action)", lambda name, a: _fmt(a.heldout_loglik_per_step, 3)),
+    Column("interventions (filter / need)",
+           "actions replaced by the safety filter (0 unless it is on) / High Brakes the `need` actuation made "
+           "harder than the driver's own (0 under the physical actuation)", lambda name, a: _interventions(a)),
+    Column("flags", "what the model's fit reported (FLAGGED: do not rank or deploy it without checking)",
+           lambda name, a: ("FLAGGED: " + ", ".join(a.flags)) if a.flags else ""),
+)
+
+
+def report_table(aggs: dict[str, AggregateMetrics], columns: tuple[Column, ...] = COLUMNS) -> str:
     """The markdown table, one row per policy (flagged models marked ``FLAGGED``)."""
-    head = ("| policy | episodes | As controlled | merges | collisions (all / A) | A collisions / As [95 % CI] "
-            "| emergency brakings (near / all) | min TTC (s) | B merged ahead of A | A travel time (s) "
-            "| A mean speed (ft/s) | W1 speed / acc / d_AC / TTC | held-out LL / step | interventions (filter / need) "
-            "| flags |")
-    sep = "|" + "---|" * 15
-    rows = [head, sep]
+    rows = ["| " + " | ".join(c.header for c in columns) + " |", "|" + "---|" * len(columns)]
     for name, a in aggs.items():
-        inter = f"{a.safety_interventions} ({_fmt(a.intervention_rate, 3)})" if a.safety_interventions else "0"
-        inter += f" / {a.need_brakes}"
-        flags = ("FLAGGED: " + ", ".join(a.flags)) if a.flags else ""
-        rows.append(
-            f"| {name} | {a.n_episodes} | {a.n_controls} | {a.n_merges} | {a.collisions} / {a.a_collisions} "
-            f"| {_ci(a)} | {a.emergency_brakings} / {a.emergency_brakings_all} | {_fmt(a.min_ttc_s)} "
-            f"| {_pm(a.b_ahead_rate)} | {_pm(a.travel_time_s, 1)} | {_pm(a.mean_speed_A_ft_s, 1)} "
-            f"| {_w1(a)} | {_fmt(a.heldout_loglik_per_step, 3)} | {inter} | {flags} |"
-        )
+        rows.append("| " + " | ".join(c.cell(name, a) for c in columns) + " |")
     return "\n".join(rows)
+
+
+def column_legend(columns: tuple[Column, ...] = COLUMNS, *, emergency_decel_m_s2: float = 4.5) -> str:
+    """The legend of :func:`report_table` with the same ``columns``: one entry per column, in order."""
+    return "Columns: " + "; ".join(f"{c.header} = {c.legend.format(decel=f'{emergency_decel_m_s2:g}')}"
+                                   for c in columns) + "."
+
+
+def collision_bound_line(aggs: dict[str, AggregateMetrics]) -> str:
+    """How little the episodes can bound: the Wilson 95 % upper bound of the A collision rate of
+    a driver with 0 A collisions in the fewest As any policy had (and the rule of three, 3 / n,
+    Hanley & Lippman-Hand 1983); "" when no A was controlled."""
+    ns = [a.n_controls for a in aggs.values() if a.n_controls > 0]
+    if not ns:
+        return ""
+    n = min(ns)
+    episodes = max(a.n_episodes for a in aggs.values())
+    _, _, high = rate_ci95(0, n)
+    return (f"What {episodes} episode(s) can show: 0 A collisions in {n} As (the fewest of any policy here) bounds "
+            f"the A collision rate only below {high:.1%} (Wilson 95 % upper bound; rule of three 3/{n} = "
+            f"{3 / n:.1%}); more episodes (--episodes) bound it tighter.")
 
 
 def flag_lines(aggs: dict[str, AggregateMetrics]) -> list[str]:
@@ -125,19 +189,12 @@ def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes,
         "",
         report_table(aggs),
         "",
-        "Columns: collisions in the whole run / control episodes ended by A colliding; emergency brakings "
-        f"(decel > {metrics.emergency_decel_m_s2} m/s^2) by A, B and A's follower while A is controlled / by "
-        "every vehicle; min TTC over A->leader and follower->A while controlled; B merged ahead of A = share "
-        "of merges (mean ± std over episodes); JS divergence (base 2) between A's action distribution and the "
-        "demonstrations'; held-out LL = mean log pi(a|s) per held-out demonstration step (state-conditional; "
-        "markov given the previous action). A collisions / As: control episodes ended by A colliding, with the "
-        "Wilson 95 % interval. W1: Wasserstein-1 distances of A's speed (ft/s), acceleration (ft/s^2), d_AC "
-        "(ft) and TTC to C (s) at the decisions to the held-out demonstrations; `sumo`'s row is the floor "
-        "(`sumo-in-lane`'s the floor of drivers that act on acceleration alone). "
+        collision_bound_line(aggs),
+        "",
+        column_legend(emergency_decel_m_s2=metrics.emergency_decel_m_s2),
         "Baselines `marginal`, `markov`, `bc` (when run) are fitted on the training demonstrations (add-one "
-        "smoothed). "
-        "Interventions: actions replaced by the safety filter (0 unless it is on) / High Brakes the `need` "
-        "actuation made harder than the driver's own (0 under the physical actuation).",
+        "smoothed). The JS divergence of A's action distribution to the demonstrations' is in metrics.json "
+        "(`js_divergence`); the distributions themselves are below.",
         "",
         *flag_lines(aggs),
         *([f"Left out: {', '.join(left_out)} (no training demonstrations given)."] if left_out else []),

@@ -147,6 +147,32 @@ def check_thresholds(thresholds: Iterable[Threshold],
     return breaches
 
 
+def not_triggered(thresholds: Iterable[Threshold], metrics: Mapping[str, Mapping[str, Any]]) -> list[str]:
+    """One line per threshold that holds for no policy, with the values found, e.g.
+    ``"ok: teleports = 0 (every policy); gate teleports>0 not triggered"`` (the values, then the gate,
+    so that the line does not read as if the condition had occurred).
+
+    Raises:
+        ThresholdError: as :func:`check_thresholds`.
+    """
+    thresholds = tuple(thresholds)
+    breached = {b.threshold for b in check_thresholds(thresholds, metrics)}
+    lines = []
+    for t in thresholds:
+        if t in breached:
+            continue
+        found = [(p, x) for p, m in metrics.items() if (not t.policy or p == t.policy)
+                 and (x := _scalar(m.get(t.metric))) is not None]
+        values = {f"{x:g}" for _, x in found}
+        if len(values) == 1:
+            shown = values.pop() + ("" if t.policy else f" ({'every policy' if len(found) > 1 else found[0][0]})")
+        else:
+            shown = ", ".join(f"{x:g} ({p})" for p, x in found)
+        who = f"{t.policy}." if t.policy else ""
+        lines.append(f"ok: {who}{t.metric} = {shown}; gate {t} not triggered")
+    return lines
+
+
 def metrics_from_file(path: str | Path) -> dict[str, dict[str, Any]]:
     """``policy -> aggregate metrics`` of an evaluation's ``metrics.json``.
 

@@ -135,7 +135,7 @@ def test_evaluate_cli(tmp_path):
                         "--out", str(out), "--fail-if", "sumo.n_episodes<1"],
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
-    assert "ok: 1 threshold(s) pass" in r.stderr
+    assert "ok: sumo.n_episodes = 1; gate sumo.n_episodes<1 not triggered" in r.stderr
     assert "| model | 1 |" in r.stdout and "| sumo | 1 |" in r.stdout
     assert (out / "report.md").exists() and (out / "metrics.json").exists()
     assert not (out / "rerun").exists()

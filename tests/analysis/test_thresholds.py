@@ -88,3 +88,24 @@ def test_teleports_threshold_sums_the_episodes(tmp_path, capsys):
     assert [(b.policy, b.value) for b in check_file(p, "teleports>0")] == [(names[1], 3.0)]
     assert main(["check-metrics", str(p), "--fail-if", "teleports>0"]) == 1
     assert f"FAIL {names[1]}: teleports = 3 (fail if teleports>0)" in capsys.readouterr().err
+
+
+def test_a_gate_not_triggered_says_the_value_then_that_the_gate_held_off(tmp_path, capsys):
+    """``ok ... (teleports>0)`` read as if teleports had occurred: the line now gives the value found
+    and says the gate was not triggered (issue 29, item 13)."""
+    p = tmp_path / "metrics.json"
+    p.write_text(json.dumps({"format": "merge-irl-evaluation/1", "policies": {
+        k: {"aggregate": v, "episodes": [{"teleports": 0}]} for k, v in METRICS.items()}}))
+    assert main(["check-metrics", str(p), "--fail-if", "teleports>0"]) == 0
+    err = capsys.readouterr().err
+    assert err.strip() == "ok: teleports = 0 (every policy); gate teleports>0 not triggered"
+    assert "(teleports>0)" not in err
+    # one policy named; several values; a breach beside a gate that held off
+    assert main(["check-metrics", str(p), "--fail-if", "qavg.min_ttc_s<1", "--fail-if", "min_ttc_s<0.5"]) == 0
+    assert capsys.readouterr().err.splitlines() == [
+        "ok: qavg.min_ttc_s = 2.5; gate qavg.min_ttc_s<1 not triggered",
+        "ok: min_ttc_s = 2.5 (qavg), 0.8 (sumo); gate min_ttc_s<0.5 not triggered"]
+    assert main(["check-metrics", str(p), "--fail-if", "collisions>1", "--fail-if", "qavg.collisions>0"]) == 1
+    assert capsys.readouterr().err.splitlines() == [
+        "FAIL sumo: collisions = 2 (fail if collisions>1)",
+        "ok: qavg.collisions = 0; gate qavg.collisions>0 not triggered"]

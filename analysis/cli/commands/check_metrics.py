@@ -21,12 +21,13 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from analysis.evaluation.thresholds import check_file, parse_thresholds
+    from analysis.evaluation.thresholds import check_thresholds, metrics_from_file, not_triggered, parse_thresholds
 
     thresholds = parse_thresholds(args.fail_if)
-    breaches = check_file(args.metrics, args.fail_if)
+    metrics = metrics_from_file(args.metrics)
+    breaches = check_thresholds(thresholds, metrics)
     for b in breaches:
         print(f"FAIL {b}", file=sys.stderr)
-    if not breaches:
-        print(f"ok: {len(thresholds)} threshold(s) pass ({', '.join(map(str, thresholds))})", file=sys.stderr)
+    for line in not_triggered(thresholds, metrics):
+        print(line, file=sys.stderr)
     return 1 if breaches else 0

@@ -74,7 +74,7 @@ def register(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from analysis.evaluation.evaluate import evaluate
     from analysis.evaluation.policies import check_baselines, left_out_baselines
-    from analysis.evaluation.thresholds import check_file, parse_thresholds
+    from analysis.evaluation.thresholds import check_thresholds, metrics_from_file, not_triggered, parse_thresholds
     from sim.controller_config import ControllerConfig
     from sim.errors import SimError
 
@@ -128,10 +128,12 @@ def run(args: argparse.Namespace) -> int:
     for name, path in report.rrd.items():
         print(f"rerun:   {path}  ({name}; open with: merge-irl view {path})")
     if thresholds:
-        breaches = check_file(report.metrics_json, args.fail_if)
+        metrics = metrics_from_file(report.metrics_json)
+        breaches = check_thresholds(thresholds, metrics)
         for b in breaches:
             print(f"FAIL {b}", file=sys.stderr)
+        for line in not_triggered(thresholds, metrics):
+            print(line, file=sys.stderr)
         if breaches:
             return 1
-        print(f"ok: {len(thresholds)} threshold(s) pass", file=sys.stderr)
     return 0

@@ -9,12 +9,13 @@ import sys
 import textwrap
 import time
 
+import numpy as np
 import pytest
 from ngsim_testdata import synthetic_table
 
 from scenarios.errors import SpecError
 from scenarios.spec.parse import spec_from_toml
-from sim.errors import TrajectoryFormatError
+from sim.errors import SimError, TrajectoryFormatError
 from sim.ngsim.io import read_ngsim, write_ngsim_csv
 
 
@@ -62,7 +63,7 @@ def test_huge_sparse_file_is_refused_with_bounded_memory(tmp_path, table):
     os.truncate(path, 2 * 1024**3)
     script = textwrap.dedent(f"""
         import resource, sys
-        from sim.errors import TrajectoryFormatError
+        from sim.errors import SimError, TrajectoryFormatError
         from sim.ngsim.io import read_ngsim
         try:
             read_ngsim({str(path)!r})
@@ -80,3 +81,73 @@ def test_huge_sparse_file_is_refused_with_bounded_memory(tmp_path, table):
     # under heavy load while pyarrow still read ahead on its own threads)
     assert int(peak_mb) < 1024, f"peak memory {peak_mb} MB for a 2 GB file"
     print(f"2 GB sparse file refused in {elapsed:.1f} s, peak {peak_mb} MB")
+
+
+@pytest.mark.parametrize("text,field", [
+    ("[road]\nspeed_limit_mps = 65\n", r"road\.speed_limit_mps: 65 m/s is implausible \(234 km/h; 65 mph would be 29\.1 m/s\)"),
+    ("[demand]\nramp_veh_h = 1e12\n", r"demand\.ramp_veh_h: 1e\+12 veh/h is implausible"),
+    ("[demand]\nmain_veh_h = [1200, 1e12, 1000]\n", r"demand\.main_veh_h\[1\]: 1e\+12 veh/h is implausible"),
+    ("[simulation]\nduration_s = 1e9\n", r"simulation\.duration_s: 1e\+09 s is implausible; expected 0 to 21600 s"),
+])
+def test_absurd_but_parseable_settings_are_refused_unless_meant(text, field):
+    """Issue 29, item 5: bounds with the field named, and a way past them for those who mean it."""
+    with pytest.raises(SpecError, match=r"^x\.toml: " + field) as e:
+        spec_from_toml(f'name = "x"\n{text}', source="x.toml")
+    assert "\n" not in str(e.value) and "allow_implausible = true" in str(e.value)
+    meant = spec_from_toml(f'name = "x"\nallow_implausible = true\n{text}', source="x.toml")
+    assert meant.allow_implausible and spec_from_toml(meant.to_toml()) == meant  # kept in the written spec
+    assert spec_from_toml(meant.to_toml()).allow_implausible
+    # the same through the loader's switch (--allow-implausible), and a plausible spec writes no key
+    assert spec_from_toml(f'name = "x"\n{text}', allow_implausible=True).allow_implausible
+    assert "allow_implausible" not in spec_from_toml('name = "x"\n').to_toml()
+    with pytest.raises(SpecError, match="allow_implausible: must be true or false"):
+        spec_from_toml('name = "x"\nallow_implausible = "yes"\n')
+
+
+def test_overrides_are_bounded_and_named_and_the_switch_lets_them_through():
+    from scenarios.loader import load_scenario
+    from scenarios.spec.parse import with_overrides
+
+    i80 = load_scenario("i80")
+    with pytest.raises(SpecError, match=r"simulation\.duration_s: overridden \(e\.g\. --duration\) with 1e\+09 s "
+                                        r"is implausible"):
+        with_overrides(i80, duration_s=1e9)
+    with pytest.raises(SpecError, match=r"demand\.main_veh_h\[0\]: .* is implausible.*\(after demand_scale 1e\+09\)$"):
+        with_overrides(i80, demand_scale=1e9)
+    assert with_overrides(i80, duration_s=1e9, allow_implausible=True).simulation.duration_s == 1e9
+    assert with_overrides(load_scenario("i80", allow_implausible=True), duration_s=1e9).simulation.duration_s == 1e9
+    # oversaturating on purpose stays possible: 3x the synthetic demand, 3900 veh/h in a lane
+    assert with_overrides(load_scenario("synthetic"), demand_scale=3.0).demand.main_veh_h[0] == 3900.0
+
+
+def test_cli_refuses_an_implausible_duration_in_one_line_and_allow_implausible_passes_it(tmp_path, capsys,
+                                                                                          monkeypatch):
+    from analysis.cli.main import main
+    from analysis.experiments import dagger
+
+    assert main(["generate", "--duration", "1e9", "--out", str(tmp_path / "g")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "simulation.duration_s: overridden (e.g. --duration) with 1e+09 s is implausible" in err
+    assert "--allow-implausible" in err and not (tmp_path / "g").exists()
+    # with the switch the duration reaches the runs (stopped by the test before SUMO starts)
+    seen = {}
+
+    def stop(model, spec, seeds, config, executor, duration_s):
+        seen.update(duration_s=duration_s, allow=spec.allow_implausible)
+        raise SimError("stopped by the test")
+
+    monkeypatch.setattr(dagger, "label_runs", stop)
+    import pandas as pd
+
+    rng = np.random.default_rng(0)
+    n = 120
+    pd.DataFrame({"encounter_id": np.repeat([1, 2], n // 2), "d_AC": rng.uniform(40, 300, n),
+                  "v_AC": rng.normal(0, 5, n), "d_AB": rng.uniform(-50, 100, n), "v_AB": rng.normal(0, 5, n),
+                  "B_is_truck": False, "acc_A": 9.0, "v_A": rng.uniform(20, 80, n)}).to_parquet(tmp_path / "t.parquet")
+    args = ["dagger", "--train", str(tmp_path / "t.parquet"), "--rounds", "1", "--episodes-per-round", "1",
+            "--duration", "1e9", "--no-progress", "--out", str(tmp_path / "d")]
+    assert main(args) == 2
+    assert "simulation.duration_s: overridden (e.g. --duration) with 1e+09 s is implausible" in capsys.readouterr().err
+    assert main([*args, "--allow-implausible"]) == 2
+    assert "stopped by the test" in capsys.readouterr().err
+    assert seen == {"duration_s": 1e9, "allow": True}

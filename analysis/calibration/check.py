@@ -39,6 +39,7 @@ from analysis.calibration.vtypes import (
     driver_members, every_member, resample_members, scenario_car_model, to_vtype_specs,
 )
 from scenarios.loader import load_scenario
+from scenarios.spec.parse import with_overrides
 from sim.run import run_scenario
 from sim.schema import RAMP_LANE, RIGHTMOST_MAIN_LANE
 
@@ -363,12 +364,13 @@ def calibrated_spec(spec, result, *, n_members: int | None = None, seed: int = 0
 def run_calibration_check(
     *, params_path: str | os.PathLike, pairs_dir: str | os.PathLike, scenario: str = "i80",
     duration_s: float | None = None, seed: int = 0, table: pd.DataFrame | None = None,
-    keep_drivers: bool = False, n_drivers: int | None = None,
+    keep_drivers: bool = False, n_drivers: int | None = None, allow_implausible: bool = False,
 ) -> CalibrationCheck:
     """Simulate ``scenario`` with the calibrated drivers (:func:`calibrated_spec`: every per-pair
     fit once, or ``n_drivers`` resampled with ``seed``; the scenario's own with ``keep_drivers``;
     nothing is simulated when ``table`` is given) and compare.
-    ``duration_s`` None = the scenario's own duration.
+    ``duration_s`` None = the scenario's own duration; ``allow_implausible``: run values outside
+    the plausibility bounds (:mod:`scenarios.spec.bounds`).
 
     Raises:
         FileNotFoundError: ``params_path`` or ``pairs_dir`` does not exist.
@@ -378,7 +380,9 @@ def run_calibration_check(
     """
     result = load_result(params_path)
     pairs = list(load_pairs(Path(pairs_dir)))
-    spec = load_scenario(scenario)
+    spec = load_scenario(scenario, allow_implausible=allow_implausible)
+    if duration_s is not None:
+        with_overrides(spec, duration_s=duration_s)  # a duration the scenario rejects: before the SUMO run
     if not keep_drivers:
         spec = calibrated_spec(spec, result, n_members=n_drivers, seed=seed)
     if table is None:

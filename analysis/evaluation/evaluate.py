@@ -48,6 +48,7 @@ from irl.result import SavedModel
 from merge_irl.run_folder import check_writable
 from merge_irl.units import FRAME_S, FT_PER_M
 from scenarios.loader import load_scenario
+from scenarios.spec.parse import with_overrides
 from sim.controller_config import ControllerConfig
 from sim.errors import SimError
 from sim.policy import Policy, check_policy
@@ -146,6 +147,7 @@ def evaluate(
     executor: str | None = None,
     rrd: bool = True,
     progress: bool = True,
+    allow_implausible: bool = False,
 ) -> EvaluationReport:
     """Closed-loop evaluation of each model (and the baselines) over ``episodes`` seeds.
 
@@ -173,6 +175,8 @@ def evaluate(
         workers: processes (shorthand for ``executor="process:<workers>"``).
         executor: where episodes run (see :func:`run_episodes`); overrides ``workers``.
         rrd: write a rerun recording of each policy's first episode.
+        allow_implausible: run a scenario (and ``duration_s``) outside the plausibility bounds
+            (:mod:`scenarios.spec.bounds`).
         controller: ``decision_step_s`` None: the first model's ``decision_step_s`` (else the first
             of ``policies`` whose ``decision_step_s`` is not None, else
             :data:`~irl.domains.merge.mdp.DEFAULT_DECISION_STEP_S`) for every policy, so all decide
@@ -182,6 +186,7 @@ def evaluate(
     made and any episode runs.
 
     Raises:
+        SpecError: the scenario cannot be loaded, or ``duration_s`` is invalid or implausible for it.
         SimError: ``episodes`` < 1, an unknown baseline name, or a decision step that is not a
             positive multiple of the 0.1 s simulation step.
         PolicyError: a model is not a merge model, a policy lacks a member of
@@ -194,7 +199,10 @@ def evaluate(
     """
     if episodes < 1:
         raise SimError(f"evaluate: episodes must be >= 1, got {episodes}")
-    spec = load_scenario(scenario) if isinstance(scenario, (str, Path)) else scenario  # validate before SUMO
+    spec = (load_scenario(scenario, allow_implausible=allow_implausible) if isinstance(scenario, (str, Path))
+            else replace(scenario, allow_implausible=True) if allow_implausible else scenario)  # validate before SUMO
+    if duration_s is not None:
+        with_overrides(spec, duration_s=duration_s)  # a duration the scenario rejects: now, not in every episode
     baselines = default_baselines() if baselines is None else tuple(baselines)
     check_baselines(baselines)
     for p in policies:

@@ -36,6 +36,7 @@ from irl.domains.merge.car_following import OBS_COLUMNS, CFDecisions, car_follow
 from irl.domains.merge.cf_logit import CarFollowingLogit
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S
 from irl.errors import ConfigError
+from scenarios.errors import SpecError
 from scenarios.loader import load_scenario
 from scenarios.spec.parse import with_overrides
 from scenarios.spec.model import ScenarioSpec
@@ -55,7 +56,8 @@ class DaggerConfig:
         rounds: DAgger rounds (0: the logit on the demonstrations alone).
         episodes_per_round: SUMO runs the driver drives per round.
         label_seed: SUMO seed of round ``r``'s episode ``e``: ``label_seed + r x episodes_per_round + e``.
-        duration_s: seconds per labelling run.
+        duration_s: seconds per labelling run, warm-up included (None: from the scenario,
+            :func:`labelling_duration_s`).
         l2: L2 penalty of every fit.
         critical_actions: expert actions whose labels are kept (0 = High Brake ... 4 = High Accel).
         decision_step_s: seconds per decision (demonstrations resampled so; the controller decides so).
@@ -64,7 +66,7 @@ class DaggerConfig:
     rounds: int = 4
     episodes_per_round: int = 15
     label_seed: int = 500
-    duration_s: float = 240.0
+    duration_s: float | None = None
     l2: float = 0.1
     critical_actions: tuple[int, ...] = (0,)
     decision_step_s: float = DEFAULT_DECISION_STEP_S
@@ -80,6 +82,8 @@ class DaggerConfig:
         whole("label_seed", 0)
         for name in ("duration_s", "decision_step_s"):
             v = getattr(self, name)
+            if name == "duration_s" and v is None:
+                continue
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
                 raise ConfigError(f"DaggerConfig.{name} must be a positive finite number of seconds, got {v!r}")
         if isinstance(self.l2, bool) or not isinstance(self.l2, (int, float)) or not (math.isfinite(self.l2) and self.l2 >= 0):
@@ -93,6 +97,30 @@ class DaggerConfig:
     def label_seeds(self) -> range:
         """Every labelling run's seed (to keep them apart from evaluation seeds)."""
         return range(self.label_seed, self.label_seed + self.rounds * self.episodes_per_round)
+
+
+#: Seconds recorded past the scenario's warm-up in a labelling run by default: the synthetic
+#: scenario's 240 s (60 s warm-up) as before, for any scenario.
+LABEL_RECORDED_S = 180.0
+
+
+def labelling_duration_s(spec: ScenarioSpec, config: DaggerConfig) -> float:
+    """Seconds per labelling run: ``config.duration_s`` when given, else the scenario's warm-up
+    plus :data:`LABEL_RECORDED_S`, at most the scenario's own duration (synthetic: 240 s; i80,
+    240 s of warm-up: 420 s).
+
+    Raises:
+        SpecError: a given ``duration_s`` not longer than the scenario's warm-up (naming it as the
+            user gave it, ``--duration`` / ``DaggerConfig.duration_s``).
+    """
+    sim = spec.simulation
+    if config.duration_s is None:
+        return min(sim.duration_s, sim.warmup_s + LABEL_RECORDED_S)
+    if config.duration_s <= sim.warmup_s:
+        raise SpecError(f"dagger --duration (DaggerConfig.duration_s) {config.duration_s:g} s: the labelling runs must "
+                        f"be longer than scenario {spec.name}'s warm-up, simulation.warmup_s = {sim.warmup_s:g} s "
+                        f"(leave it out for the scenario's: {sim.warmup_s + LABEL_RECORDED_S:g} s)")
+    return float(config.duration_s)
 
 
 @dataclass(frozen=True)
@@ -118,14 +146,14 @@ def label_run_task(run: LabelRun, seed: int) -> dict:
 
 
 def label_runs(model: CarFollowingLogit, spec: ScenarioSpec, seeds: list[int], config: DaggerConfig,
-               executor: str) -> pd.DataFrame:
+               executor: str, duration_s: float) -> pd.DataFrame:
     """The expert records (columns of :class:`~sim.expert_labels.ExpertLabel`) of one labelling
-    run per seed, in seed order, run by ``executor`` (``analysis.sweep``).
+    run per seed of ``duration_s`` seconds, in seed order, run by ``executor`` (``analysis.sweep``).
 
     Raises:
         SimError: a run failed twice.
     """
-    tasks = [Task(f"label/seed{s}", label_run_task, LabelRun(spec, model, int(s), config.duration_s,
+    tasks = [Task(f"label/seed{s}", label_run_task, LabelRun(spec, model, int(s), duration_s,
                                                               config.decision_step_s)) for s in seeds]
     report = run_sweep(tasks, seed=0, executor=executor, progress=False, desc="labelling runs")
     if not report.ok:
@@ -173,8 +201,9 @@ def train_cf_driver(train_encounters: pd.DataFrame, scenario, config: DaggerConf
     spec = scenario if isinstance(scenario, ScenarioSpec) else load_scenario(scenario)
     executor = resolve_executor(executor, workers)
     seeds = config.label_seeds()
+    duration_s = labelling_duration_s(spec, config)
     for seed in {seeds[0], seeds[-1]} if len(seeds) else ():  # the labelling runs' overrides, before any work
-        with_overrides(spec, seed=seed, duration_s=config.duration_s)
+        with_overrides(spec, seed=seed, duration_s=duration_s)
     demos = car_following_decisions(train_encounters, decision_step_s=config.decision_step_s, where=where)
     models = [CarFollowingLogit.fit(demos, l2=config.l2, info={"dagger_round": 0, "labels_per_round": []})]
     if not models[0].converged:
@@ -185,7 +214,7 @@ def train_cf_driver(train_encounters: pd.DataFrame, scenario, config: DaggerConf
     k = config.episodes_per_round
     for r in range(config.rounds):
         t0 = time.perf_counter()
-        table = label_runs(models[-1], spec, list(seeds[r * k:(r + 1) * k]), config, executor)
+        table = label_runs(models[-1], spec, list(seeds[r * k:(r + 1) * k]), config, executor, duration_s)
         critical = table[table["action"].isin(config.critical_actions)]
         kept.append(critical)
         per_round.append(len(critical))

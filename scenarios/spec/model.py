@@ -5,6 +5,7 @@ Layout of a scenario TOML file (SI units, as SUMO uses them)::
 
     name = "synthetic"
     site = "i-80"   (optional: the lane coding, a site profile of sim.sites by name or TOML path)
+    allow_implausible = false   (optional: true runs values outside scenarios.spec.bounds)
     [road]          main_lanes, main_length_m, merge_position_m, ramp_length_m, aux_length_m,
                     lane_width_m, speed_limit_mps, ramp_speed_limit_mps, ramp_angle_deg,
                     bottleneck_length_m, bottleneck_speed_mps, bottleneck_lanes (optional, 0 = none),
@@ -135,6 +136,9 @@ class ScenarioSpec:
     #: or a TOML path; written to TOML only when it is not the default.
     site: str = "i-80"
     source: str = field(default="", compare=False)  #: file read from; not saved, not compared
+    #: Values outside the plausibility bounds (:mod:`scenarios.spec.bounds`) are meant: saved
+    #: (when true), not compared (the simulation is the same).
+    allow_implausible: bool = field(default=False, compare=False)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain TOML-ready mapping (tuples become lists, param tuples become tables)."""
@@ -153,6 +157,8 @@ def _to_plain(obj: Any) -> Any:
         out: dict[str, Any] = {"name": obj.name}
         if obj.site != "i-80":  # every spec written before the field keeps its text (and hash)
             out["site"] = obj.site
+        if obj.allow_implausible:
+            out["allow_implausible"] = True
         for part in ("road", "demand", "simulation"):
             out[part] = _to_plain(getattr(obj, part))
         out["drivers"] = {c: [_to_plain(v) for v in getattr(obj.drivers, c)] for c in VEHICLE_CLASSES}

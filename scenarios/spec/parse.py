@@ -23,6 +23,7 @@ from scenarios.spec.model import (
     SimulationSpec,
     VTypeSpec,
 )
+from scenarios.spec.bounds import ALLOW_KEY, BOUNDS, allow_flag, check_bound
 from scenarios.spec.fields import (
     FieldContext,
     check_keys,
@@ -39,23 +40,7 @@ CAR_FOLLOW_MODELS = (
 )
 LANE_CHANGE_MODELS = ("LC2013", "SL2015", "DK2008")
 _PARAM_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
-#: Plausible ranges of the road's sizes and speeds (inclusive): outside them a value is a typo
-#: or a unit mix-up (a 0.1 m lane, a 1 m road), not a road SUMO should build. Lengths hold a
-#: few cars (5 m each); lanes are 2.5-5 m wide in practice; speeds up to 250 km/h.
-ROAD_RANGES: dict[str, tuple[float, float, str]] = {
-    "main_length_m": (50.0, 20_000.0, "m"),
-    "merge_position_m": (10.0, 20_000.0, "m"),
-    "ramp_length_m": (20.0, 5_000.0, "m"),
-    "aux_length_m": (10.0, 5_000.0, "m"),
-    "lane_width_m": (2.5, 5.0, "m"),
-    "speed_limit_mps": (1.0, 70.0, "m/s"),
-    "ramp_speed_limit_mps": (1.0, 70.0, "m/s"),
-    "bottleneck_length_m": (0.0, 20_000.0, "m"),
-    "bottleneck_speed_mps": (0.0, 70.0, "m/s"),
-}
-
-
-def _road(ctx: FieldContext, data: Any) -> RoadSpec:
+def _road(ctx: FieldContext, data: Any, allow: bool) -> RoadSpec:
     names = [f.name for f in fields(RoadSpec)]
     d = check_keys(ctx, "road", data, names)
     kw: dict[str, Any] = {}
@@ -79,14 +64,13 @@ def _road(ctx: FieldContext, data: Any) -> RoadSpec:
                 raise ctx.fail(p, f"must be 0 (as the main road) to 6, got {d[n]}")
         elif n.startswith("bottleneck_"):  # 0 = no bottleneck
             kw[n] = number(ctx, p, d[n])
-            lo, hi, unit = ROAD_RANGES[n]
-            if not lo <= kw[n] <= hi:
-                raise ctx.fail(p, f"{kw[n]:g} {unit} is implausible; expected {lo:g} to {hi:g} {unit}")
+            if kw[n] < 0:
+                raise ctx.fail(p, f"must be >= 0, got {d[n]!r}")
+            check_bound(ctx, p, kw[n], allow=allow)
         else:
             kw[n] = positive(ctx, p, d[n])
-            lo, hi, unit = ROAD_RANGES.get(n, (0.0, math.inf, ""))
-            if not lo <= kw[n] <= hi:
-                raise ctx.fail(p, f"{kw[n]:g} {unit} is implausible; expected {lo:g} to {hi:g} {unit}")
+            if p in BOUNDS:
+                check_bound(ctx, p, kw[n], allow=allow)
     r = RoadSpec(**kw)
     if r.merge_position_m + r.aux_length_m >= r.main_length_m:
         raise ctx.fail(
@@ -129,7 +113,7 @@ def _road(ctx: FieldContext, data: Any) -> RoadSpec:
     return r
 
 
-def _demand(ctx: FieldContext, data: Any, main_lanes: int) -> DemandSpec:
+def _demand(ctx: FieldContext, data: Any, main_lanes: int, allow: bool) -> DemandSpec:
     names = [f.name for f in fields(DemandSpec)]
     d = check_keys(ctx, "demand", data, names)
     kw: dict[str, Any] = {}
@@ -146,6 +130,11 @@ def _demand(ctx: FieldContext, data: Any, main_lanes: int) -> DemandSpec:
         kw["main_veh_h"] = tuple(base[min(i, len(base) - 1)] for i in range(main_lanes))
     if "ramp_veh_h" in d:
         kw["ramp_veh_h"] = non_negative(ctx, "demand.ramp_veh_h", d["ramp_veh_h"])
+    for i, x in enumerate(kw["main_veh_h"]):
+        where = f"demand.main_veh_h[{i}]" if isinstance(d.get("main_veh_h"), list) else "demand.main_veh_h"
+        check_bound(ctx, where, x, allow=allow, key="demand.main_veh_h")
+    if "ramp_veh_h" in kw:
+        check_bound(ctx, "demand.ramp_veh_h", kw["ramp_veh_h"], allow=allow)
     if "truck_share" in d:
         kw["truck_share"] = non_negative(ctx, "demand.truck_share", d["truck_share"])
         if kw["truck_share"] > 1:
@@ -241,7 +230,7 @@ def _drivers(ctx: FieldContext, data: Any) -> DriversSpec:
     return DriversSpec(**kw)
 
 
-def _simulation(ctx: FieldContext, data: Any) -> SimulationSpec:
+def _simulation(ctx: FieldContext, data: Any, allow: bool) -> SimulationSpec:
     names = [f.name for f in fields(SimulationSpec)]
     d = check_keys(ctx, "simulation", data, names)
     kw: dict[str, Any] = {}
@@ -252,6 +241,7 @@ def _simulation(ctx: FieldContext, data: Any) -> SimulationSpec:
             raise ctx.fail("simulation.step_s", f"must divide the 0.1 s NGSIM frame (0.1, 0.05, 0.02, ...), got {d['step_s']!r}")
     if "duration_s" in d:
         kw["duration_s"] = positive(ctx, "simulation.duration_s", d["duration_s"])
+        check_bound(ctx, "simulation.duration_s", kw["duration_s"], allow=allow)
     if "warmup_s" in d:
         kw["warmup_s"] = non_negative(ctx, "simulation.warmup_s", d["warmup_s"])
     if "seed" in d:
@@ -266,33 +256,42 @@ def _simulation(ctx: FieldContext, data: Any) -> SimulationSpec:
     return sim
 
 
-def spec_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> ScenarioSpec:
+def spec_from_dict(data: dict[str, Any], *, source: str = "<dict>", allow_implausible: bool = False) -> ScenarioSpec:
     """Validate a parsed TOML mapping and build the spec; raises ``SpecError`` naming the field.
 
+    Args:
+        data: the mapping (the TOML file's layout, :mod:`scenarios.spec.model`).
+        source: how messages name it (the file).
+        allow_implausible: accept values outside :data:`scenarios.spec.bounds.BOUNDS` (as the
+            mapping's own ``allow_implausible = true`` does); the spec keeps it.
+
     Raises:
-        SpecError: a missing or invalid field (the message names it and what was expected).
+        SpecError: a missing or invalid field, or an implausible one (the message names it and
+            what was expected).
     """
     ctx = FieldContext(source)
-    d = check_keys(ctx, "", data, ["name", "site", "road", "demand", "drivers", "simulation"])
+    d = check_keys(ctx, "", data, ["name", "site", ALLOW_KEY, "road", "demand", "drivers", "simulation"])
+    allow = allow_flag(ctx, d) or bool(allow_implausible)
     if "name" not in d:
         raise ctx.fail("name", "missing (the scenario needs a name)")
     name = string(ctx, "name", d["name"])
     if not _PARAM_NAME.match(name.replace("-", "_")):
         raise ctx.fail("name", f"must be letters, digits, - and _, got {name!r}")
-    road = _road(ctx, d.get("road", {}))
+    road = _road(ctx, d.get("road", {}), allow)
     return ScenarioSpec(
         name=name,
         road=road,
-        demand=_demand(ctx, d.get("demand", {}), road.main_lanes),
+        demand=_demand(ctx, d.get("demand", {}), road.main_lanes, allow),
         drivers=_drivers(ctx, d.get("drivers", {})),
-        simulation=_simulation(ctx, d.get("simulation", {})),
+        simulation=_simulation(ctx, d.get("simulation", {}), allow),
         site=string(ctx, "site", d.get("site", "i-80")).strip() or "i-80",
         source=source,
+        allow_implausible=allow,
     )
 
 
-def spec_from_toml(text: str, *, source: str = "<toml>") -> ScenarioSpec:
-    """Parse TOML text and validate it.
+def spec_from_toml(text: str, *, source: str = "<toml>", allow_implausible: bool = False) -> ScenarioSpec:
+    """Parse TOML text and validate it (``allow_implausible``: as :func:`spec_from_dict`'s).
 
     Raises:
         SpecError: invalid TOML, or a missing or invalid field (see :func:`spec_from_dict`).
@@ -301,11 +300,11 @@ def spec_from_toml(text: str, *, source: str = "<toml>") -> ScenarioSpec:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise SpecError(f"{source}: invalid TOML: {e}") from e
-    return spec_from_dict(data, source=source)
+    return spec_from_dict(data, source=source, allow_implausible=allow_implausible)
 
 
-def spec_from_file(path: str | Path) -> ScenarioSpec:
-    """The scenario in the UTF-8 TOML file ``path``.
+def spec_from_file(path: str | Path, *, allow_implausible: bool = False) -> ScenarioSpec:
+    """The scenario in the UTF-8 TOML file ``path`` (``allow_implausible``: as :func:`spec_from_dict`'s).
 
     Raises:
         SpecError: the file cannot be read, is not UTF-8 text, or does not hold a valid scenario (see
@@ -318,14 +317,15 @@ def spec_from_file(path: str | Path) -> ScenarioSpec:
         raise SpecError(f"{p}: cannot read scenario file: {e.strerror}") from e
     except UnicodeDecodeError as e:
         raise SpecError(f"{p}: not a UTF-8 text file (byte {e.start}); expected scenario TOML") from None
-    return spec_from_toml(text, source=p.name)
+    return spec_from_toml(text, source=p.name, allow_implausible=allow_implausible)
 
 
 def with_overrides(
     spec: ScenarioSpec, *, seed: int | None = None, duration_s: float | None = None,
-    demand_scale: float | None = None,
+    demand_scale: float | None = None, allow_implausible: bool | None = None,
 ) -> ScenarioSpec:
-    """A copy of ``spec`` with another seed, duration and/or demand, validated again.
+    """A copy of ``spec`` with another seed, duration and/or demand, validated again (the
+    plausibility bounds included, :mod:`scenarios.spec.bounds`).
 
     Args:
         spec: the scenario.
@@ -333,12 +333,18 @@ def with_overrides(
         duration_s: simulated seconds, warm-up included.
         demand_scale: multiplies every demand flow (each ``main_veh_h`` entry and
             ``ramp_veh_h``); a positive finite number.
+        allow_implausible: set (True) or clear (False) the spec's ``allow_implausible``
+            (None: keep it).
 
     Raises:
-        SpecError: if an override is invalid (naming the field).
+        SpecError: if an override is invalid or implausible (naming the field).
     """
     source = spec.source or "<overrides>"
     data = spec.to_dict()
+    allow = spec.allow_implausible if allow_implausible is None else bool(allow_implausible)
+    data.pop(ALLOW_KEY, None)
+    if allow:
+        data[ALLOW_KEY] = True
     if seed is not None:
         data["simulation"]["seed"] = seed
     if duration_s is not None:
@@ -347,9 +353,16 @@ def with_overrides(
             # name the override, not the scenario file's warmup_s, which is fine as it is
             raise SpecError(f"{source}: simulation.duration_s: overridden (e.g. --duration) with {duration_s:g} s; "
                             f"must be longer than the scenario's simulation.warmup_s = {warmup:g} s")
+        if isinstance(duration_s, (int, float)) and not isinstance(duration_s, bool) and math.isfinite(duration_s):
+            check_bound(FieldContext(source), "simulation.duration_s", float(duration_s), allow=allow,
+                        given_as="overridden (e.g. --duration) with")
         data["simulation"]["duration_s"] = duration_s
     if demand_scale is not None:
         k = positive(FieldContext(source), "demand_scale", demand_scale)
         data["demand"]["main_veh_h"] = [x * k for x in data["demand"]["main_veh_h"]]
         data["demand"]["ramp_veh_h"] = data["demand"]["ramp_veh_h"] * k
+        try:
+            return spec_from_dict(data, source=source)
+        except SpecError as e:
+            raise SpecError(f"{e} (after demand_scale {k:g})") from None
     return spec_from_dict(data, source=source)

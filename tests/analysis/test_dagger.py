@@ -11,13 +11,16 @@ import pandas as pd
 import pytest
 
 from analysis.cli.main import main
-from analysis.experiments.dagger import DaggerConfig, labels_as_decisions, train_cf_driver
+from analysis.experiments import dagger as dagger_module
+from analysis.experiments.dagger import DaggerConfig, labelling_duration_s, labels_as_decisions, train_cf_driver
 from irl.domains.merge.car_following import CF_FEATURES, car_following_decisions
 from irl.domains.merge.cf_logit import CarFollowingLogit
 from irl.errors import ConfigError, DemonstrationError
+from scenarios.errors import SpecError
 from scenarios.loader import load_scenario
 from sim.controller import Controller
 from sim.controller_config import ControllerConfig
+from sim.errors import SimError
 from sim.expert_labels import ExpertLabels
 from sim.learned_policies import CarFollowingLogitPolicy
 from sim.run import run_scenario
@@ -173,3 +176,38 @@ def test_cli_trains_and_evaluate_drives_the_result(tmp_path, capsys):
     assert agg["n_controls"] > 0 and agg["n_decisions"] > 0
     dec = car_following_decisions(_accelerating_demos())
     assert agg["heldout_loglik"] == pytest.approx(m.loglik_of(dec))
+
+
+def test_labelling_runs_take_their_duration_from_the_scenario():
+    """A fixed 240 s equalled i80's warm-up (issue 29, item 9): the default comes from the scenario."""
+    i80, synthetic = load_scenario("i80"), load_scenario("synthetic")
+    d = labelling_duration_s(i80, DaggerConfig())
+    assert i80.simulation.warmup_s < d <= i80.simulation.duration_s
+    assert labelling_duration_s(synthetic, DaggerConfig()) == 240.0  # the synthetic scenario's, as before
+    assert labelling_duration_s(i80, DaggerConfig(duration_s=300.0)) == 300.0
+    with pytest.raises(SpecError, match=r"dagger --duration .* 240 s: .* i80's warm-up, simulation.warmup_s = 240 s"):
+        labelling_duration_s(i80, DaggerConfig(duration_s=240.0))
+
+
+def test_dagger_on_i80_with_its_own_defaults_and_errors_blaming_only_what_was_given(tmp_path, capsys, monkeypatch):
+    """``merge-irl dagger --scenario i80`` passes its checks with its defaults (the labelling runs are
+    stopped by the test, not run: an i80 run takes minutes); a --duration the scenario rejects is named."""
+    table = tmp_path / "train.parquet"
+    _accelerating_demos().to_parquet(table)
+    seen = {}
+
+    def stop(model, spec, seeds, config, executor, duration_s):
+        seen.update(scenario=spec.name, seeds=seeds, duration_s=duration_s)
+        raise SimError("labelling stopped by the test")
+
+    monkeypatch.setattr(dagger_module, "label_runs", stop)
+    args = ["dagger", "--scenario", "i80", "--train", str(table), "--rounds", "1", "--episodes-per-round", "1",
+            "--no-progress", "--out", str(tmp_path / "o")]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "labelling stopped by the test" in err and "overrid" not in err and "--duration" not in err, err
+    assert seen["scenario"] == "i80" and seen["duration_s"] > load_scenario("i80").simulation.warmup_s
+    assert main([*args, "--duration", "200"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "dagger --duration (DaggerConfig.duration_s) 200 s" in err, err
+    assert "stopped by the test" not in err

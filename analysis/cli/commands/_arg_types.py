@@ -31,3 +31,12 @@ def non_negative_int(text: str) -> int:
         argparse.ArgumentTypeError: not a whole number, or below 0.
     """
     return _whole_number_at_least(text, 0, "a whole number >= 0")
+
+
+def add_allow_implausible(p: argparse.ArgumentParser) -> None:
+    """``--allow-implausible``: run a scenario or ``--duration`` outside the plausibility bounds
+    (``scenarios.spec.bounds``), as the scenario file's own ``allow_implausible = true`` does."""
+    p.add_argument("--allow-implausible", action="store_true",
+                   help="run values outside the plausibility bounds (e.g. --duration above 6 h, a demand above "
+                        "3600 veh/h per lane, a speed limit above 45 m/s) instead of refusing them "
+                        "(docs: scenarios, 'Plausibility bounds')")

@@ -22,7 +22,7 @@ import sys
 import time
 from dataclasses import replace
 
-from analysis.cli.commands._arg_types import positive_int
+from analysis.cli.commands._arg_types import add_allow_implausible, positive_int
 
 
 def register(subparsers) -> None:
@@ -91,6 +91,7 @@ def register(subparsers) -> None:
                    help="simulated seconds, warm-up included, longer than the scenario's warm-up "
                         "(default: the scenario's own; i80: 600 s with 240 s of warm-up)")
     c.add_argument("--seed", type=int, default=0, help="seed of the SUMO run and the driver sample (default 0)")
+    add_allow_implausible(c)
     c.add_argument("--keep-drivers", action="store_true",
                    help="simulate the scenario's own drivers (default: the params file's driver distribution, as "
                         "'calibrate preset' writes it)")
@@ -301,6 +302,7 @@ def run_check(args: argparse.Namespace) -> int:
     report = run_calibration_check(
         params_path=args.params, pairs_dir=args.pairs, scenario=args.scenario,
         duration_s=args.duration, seed=args.seed, keep_drivers=args.keep_drivers, n_drivers=args.drivers,
+        allow_implausible=args.allow_implausible,
     )
     if args.out:
         report.write_markdown(args.out)

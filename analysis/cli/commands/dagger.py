@@ -7,7 +7,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from analysis.cli.commands._arg_types import non_negative_int, positive_int
+from analysis.cli.commands._arg_types import add_allow_implausible, non_negative_int, positive_int
 
 from irl.domains.merge.actions import ACTION_NAMES
 
@@ -43,7 +43,10 @@ def register(subparsers) -> None:
     p.add_argument("--label-seed", type=int, default=500,
                    help="seed of the first labelling run (default 500; round r, run e: seed + r x episodes + e); "
                         "keep the evaluation seeds apart")
-    p.add_argument("--duration", type=float, default=240.0, help="simulated seconds per labelling run (default 240)")
+    p.add_argument("--duration", type=float, default=None, metavar="S",
+                   help="simulated seconds per labelling run, warm-up included (default: the scenario's warm-up + "
+                        "180 s, at most its duration: synthetic 240 s, i80 420 s)")
+    add_allow_implausible(p)
     p.add_argument("--l2", type=float, default=0.1, help="L2 penalty of the fits (default 0.1)")
     p.add_argument("--critical", type=_actions, default=(0,), metavar="ACTIONS",
                    help=f"expert actions whose labels are kept, comma-separated among {', '.join(ACTION_KEYS)} "
@@ -67,7 +70,7 @@ def run(args: argparse.Namespace) -> int:
     config = DaggerConfig(rounds=args.rounds, episodes_per_round=args.episodes_per_round,
                           label_seed=args.label_seed, duration_s=args.duration, l2=args.l2,
                           critical_actions=args.critical, decision_step_s=DEFAULT_DECISION_STEP_S if args.decision_step_s is None else args.decision_step_s)
-    spec = load_scenario(args.scenario)  # errors before any work
+    spec = load_scenario(args.scenario, allow_implausible=args.allow_implausible)  # errors before any work
     train = read_encounters(args.train)
     car_following_decisions(train, decision_step_s=config.decision_step_s, where=str(args.train))  # before --out is made
     out = Path(args.out)

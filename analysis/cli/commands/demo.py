@@ -61,6 +61,10 @@ def run(args: argparse.Namespace) -> int:
 
     config = DemoConfig(scenario=args.scenario, encounter_rule=args.encounter_rule, heldout_runs=args.heldout_runs)
     if args.duration is not None:
+        from scenarios.loader import load_scenario
+        from scenarios.spec.parse import with_overrides
+
+        with_overrides(load_scenario(args.scenario), duration_s=args.duration)  # one line, exit 2, before any run
         config = replace(config, data_duration_s=args.duration)
     if args.episodes is not None:
         config = replace(config, eval_episodes=args.episodes)

@@ -7,7 +7,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from analysis.cli.commands._arg_types import positive_int
+from analysis.cli.commands._arg_types import add_allow_implausible, positive_int
 from analysis.cli.commands._dask_options import add_dask_options, apply_dask_options
 from sim.controller_config import HIGH_BRAKE_RULES
 
@@ -36,6 +36,7 @@ def register(subparsers) -> None:
     p.add_argument("--episodes", type=int, default=3, help="episodes (seeds) per policy")
     p.add_argument("--seed", type=int, default=0, help="first seed; episode i uses seed + i")
     p.add_argument("--duration", type=float, default=None, help="simulated seconds per episode (default: the scenario's)")
+    add_allow_implausible(p)
     p.add_argument("--demos", default=None,
                    help="held-out encounter table (.parquet/.csv) for the action divergence and held-out LL")
     p.add_argument("--train-demos", default=None,
@@ -113,6 +114,7 @@ def run(args: argparse.Namespace) -> int:
             controller=ControllerConfig(decision_step_s=args.decision_step_s, mode=args.mode, safety_ttc_s=args.safety_ttc,
                                         high_brake=args.high_brake),
             executor=executor, rrd=not args.no_rrd, progress=not args.no_progress,
+            allow_implausible=args.allow_implausible,
         )
     from analysis.evaluation.report import flag_lines, report_table
 

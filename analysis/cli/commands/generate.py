@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from analysis.cli.commands._arg_types import add_allow_implausible
 from analysis.cli.commands._dask_options import add_dask_options, apply_dask_options
 from sim.encounter_rules import ENCOUNTER_RULES
 
@@ -56,6 +57,7 @@ def register(subparsers) -> None:
                         "controller's cut, lanes free: other traffic, and each encounter ends where A leaves lane 6), "
                         "merge-frame (A = B's lag car at B's merge frame); run.toml records it; docs/encounters.md")
     p.add_argument("--csv", action="store_true", help="also write trajectories.csv in NGSIM's text format")
+    add_allow_implausible(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--out", default=None, metavar="DIR",
                    help="output folder (default: ./runs/<scenario>-<seed>, or ./runs/<scenario>-sweep for a sweep)")
@@ -65,8 +67,11 @@ def register(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from scenarios.loader import load_scenario
+    from scenarios.spec.parse import with_overrides
 
-    spec = load_scenario(args.scenario)
+    spec = load_scenario(args.scenario, allow_implausible=args.allow_implausible)
+    if args.duration is not None:
+        with_overrides(spec, duration_s=args.duration)  # an implausible --duration: one line, exit 2, now
     if args.seeds is not None or args.demand_scale is not None:
         return _run_sweep(args, spec)
     from sim.generate import generate

@@ -7,15 +7,15 @@ returns an :class:`Evaluation` (L, its gradient and the Q table at theta). Trace
 
 from __future__ import annotations
 
-import sys
 from dataclasses import dataclass, field
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import scipy.optimize as so
-from tqdm import tqdm
 
 from irl.config import IRLConfig
+from merge_irl.progress import progress_bar as _progress_bar
 
 
 @dataclass(frozen=True)
@@ -51,10 +51,10 @@ class AscentResult:
     extra: dict[str, float] = field(default_factory=dict)
 
 
-def progress_bar(enabled: bool, total: int, desc: str) -> tqdm:
-    """tqdm on stderr, shown only when asked for and stderr is a terminal."""
-    return tqdm(total=total, desc=desc, file=sys.stderr, leave=False,
-                disable=not (enabled and sys.stderr.isatty()))
+def progress_bar(enabled: bool, total: int, desc: str) -> Any:
+    """One fit's iterations: a bar on a terminal when asked for, nothing elsewhere (the work
+    around a fit reports its own progress lines; :mod:`merge_irl.progress`)."""
+    return _progress_bar(total, desc=desc, enabled=enabled, leave=False, lines=False)
 
 
 def penalised(ev: Evaluation, theta: np.ndarray, l2: float) -> tuple[float, np.ndarray]:

@@ -44,7 +44,7 @@ def run_scenario(
     """Simulate ``spec`` and record every vehicle at every 0.1 s frame after the warm-up.
 
     ``seed`` / ``duration_s`` override the spec's. ``hooks`` are called at every recorded
-    frame (see :mod:`sim.hooks`). ``progress`` shows a tqdm bar of simulated time on stderr.
+    frame (see :mod:`sim.hooks`). ``progress`` shows the progress of simulated time on stderr (a bar on a terminal, lines elsewhere).
 
     Raises:
         SimulationError: SUMO fails to start or to step.

@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import math
 import shutil
-import sys
 import tempfile
 import time
 from dataclasses import dataclass
@@ -86,7 +85,8 @@ class SumoSession:
         spec: the scenario.
         seed, duration_s: override the spec's (None: the spec's).
         work_dir: folder for the network and route files (None: a temporary folder, removed on close).
-        progress: a tqdm bar of simulated time on stderr (only on a terminal).
+        progress: the progress of simulated time on stderr (:func:`merge_irl.progress.progress_bar`:
+            a bar on a terminal, lines elsewhere).
         record: keep every frame for :meth:`table` (the trajectory table); off for an environment.
 
     Raises (from ``start`` / ``step``):
@@ -173,10 +173,9 @@ class SumoSession:
                 work_dir=str(wd), site=site,
             )
             if self.progress:
-                from tqdm import tqdm
+                from merge_irl.progress import progress_bar
 
-                self._bar = tqdm(total=round(spec.simulation.duration_s), unit="sim s", file=sys.stderr,
-                                 disable=not sys.stderr.isatty(), desc=f"simulating {spec.name}")
+                self._bar = progress_bar(round(spec.simulation.duration_s), unit="sim s", desc=f"simulating {spec.name}")
         except BaseException as e:
             self.close()
             if isinstance(e, ls.TraCIException | ls.FatalTraCIError):

@@ -264,14 +264,11 @@ def calibrate(
     whichever of the two has the lower median spacing RMSE over the training pairs (the
     median driver usually wins on the median, the least-squares fit on the mean).
     """
-    import sys
-
-    from tqdm import tqdm
+    from merge_irl.progress import progress_bar
 
     # upper bound on batch simulations: 2 starts x one per evaluation, one per per-pair iteration
     total = 2 * max_nfev_population + (max_nfev_per_pair if per_pair else 0)
-    bar = tqdm(total=total, desc=f"calibrate {model}", unit="sim", file=sys.stderr,
-               disable=not (progress and sys.stderr.isatty()))
+    bar = progress_bar(total, desc=f"calibrate {model}", unit="sim", enabled=progress)
     tick = lambda: bar.update(1)  # noqa: E731
     try:
         t0 = time.perf_counter()

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import math
 import os
-import sys
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
@@ -106,7 +105,7 @@ def run_episodes(tasks: Sequence[tuple], *, workers: int | None = None, executor
         spec = EpisodeSpec(scenario, policy, int(seed), **kw,
                            demo_action_counts=None if counts is None else tuple(int(c) for c in counts))
         sweep_tasks.append(Task(f"{i:04d}/{policy.name}/seed{int(seed)}", run_episode_task, spec))
-    report = run_sweep(sweep_tasks, seed=0, executor=executor, store=store, progress=progress and sys.stderr.isatty(),
+    report = run_sweep(sweep_tasks, seed=0, executor=executor, store=store, progress=progress,
                        desc="episodes")
     if not report.ok:
         raise SimError("episodes failed: " + "; ".join(f"{f.key}: {f.error}" for f in report.failures))

@@ -16,7 +16,6 @@ from __future__ import annotations
 import functools
 import math
 import os
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 from collections.abc import Callable, Iterable, Sequence
@@ -211,14 +210,15 @@ def run_trials(
     """Run ``tasks`` with ``map_fn(run_trial, tasks)`` (default: serial ``map``), in task order.
 
     Args:
-        progress: show a tqdm bar on stderr (only when stderr is a terminal).
+        progress: show the progress on stderr (:func:`merge_irl.progress.progress_bar`: a bar on a
+            terminal, lines elsewhere).
         map_fn: any order-preserving map, e.g. ``concurrent.futures.Executor.map``.
     """
     results = map_fn(run_trial, tasks)
-    if progress and sys.stderr.isatty():
-        from tqdm import tqdm
+    if progress:
+        from merge_irl.progress import progress_bar
 
-        results = tqdm(results, total=len(tasks), desc=description, file=sys.stderr)
+        results = progress_bar(len(tasks), desc=description, unit="trial", iterable=results)
     return list(results)
 
 

@@ -6,7 +6,6 @@ import contextlib
 import multiprocessing
 import os
 import signal
-import sys
 import time
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
@@ -14,7 +13,7 @@ from dataclasses import dataclass, field
 from typing import Any
 from collections.abc import Callable, Iterable, Sequence
 
-from tqdm import tqdm
+from merge_irl.progress import progress_bar, progress_write
 
 from analysis.sweep.executors import ExecutorSpec, parse_executor
 from analysis.sweep.seeds import derive_seed
@@ -147,12 +146,11 @@ def run_sweep(
     n_cached = len(done)
     failures: list[TaskFailure] = []
     times: dict[str, float] = {}
-    bar = tqdm(total=len(task_list), initial=n_cached, desc=desc, unit="task",
-               disable=not progress, file=sys.stderr)
+    bar = progress_bar(len(task_list), initial=n_cached, desc=desc, unit="task", enabled=progress)
 
     def say(line: str) -> None:
         """A line on stderr that the progress bar does not overwrite (said with or without it)."""
-        tqdm.write(line, file=sys.stderr)
+        progress_write(line)
 
     def finish(p: _Pending, record: dict) -> bool:
         """Record an attempt's outcome; return True if the task should be retried."""

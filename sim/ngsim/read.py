@@ -204,11 +204,9 @@ def _read_pass(path, layout, location, recording, lanes, frames, vehicles, chunk
     chunks = rows_read = 0
     bar = None
     if progress:
-        import sys
+        from merge_irl.progress import progress_bar
 
-        from tqdm import tqdm
-        bar = tqdm(total=path.stat().st_size, unit="B", unit_scale=True, desc=path.name,
-                   disable=not sys.stderr.isatty())
+        bar = progress_bar(path.stat().st_size, unit="B", desc=path.name)
 
     def filters(data: np.ndarray, keep: np.ndarray) -> np.ndarray:
         if lane_set is not None:

@@ -141,9 +141,8 @@ def _pairs(args: argparse.Namespace, *, held_out: bool):
 
 
 def run_fit(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
     from analysis.calibration.sweep import calibrate_parallel
+    from merge_irl.progress import progress_bar
     from merge_irl.run_folder import check_writable
     from analysis.calibration import save_result
     from analysis.calibration.class_fit import class_edges, fit_classes
@@ -178,11 +177,11 @@ def run_fit(args: argparse.Namespace) -> int:
         if not args.no_per_pair:
             print(f"{args.model}: no numpy replica; population fit through SUMO only, no per-pair fits",
                   file=sys.stderr)
-        bar = tqdm(total=args.max_evals or DEFAULT_MAX_EVALS, desc=f"calibrate {args.model} (SUMO runs)",
-                   unit="run", file=sys.stderr, disable=args.no_progress or not sys.stderr.isatty())
+        bar = progress_bar(args.max_evals or DEFAULT_MAX_EVALS, desc=f"calibrate {args.model} (SUMO runs)",
+                           unit="run", enabled=not args.no_progress)
     else:  # the population fit's simulations (two starts, up to 40 each), then the per-pair fits' own bar
-        bar = tqdm(desc=f"population {args.model}", unit="sim", file=sys.stderr, leave=False,
-                   disable=args.no_progress or not sys.stderr.isatty())
+        bar = progress_bar(None, desc=f"population {args.model}", unit="sim", leave=False,
+                           enabled=not args.no_progress)
     try:
         result = calibrate_parallel(pairs, [file_of[p.name] for p in pairs], model=args.model,
                                     per_pair=not args.no_per_pair, workers=args.workers,
@@ -193,8 +192,8 @@ def run_fit(args: argparse.Namespace) -> int:
         bar.close()
     if args.classes > 1:
         t0 = time.perf_counter()
-        with tqdm(desc=f"{args.classes} class fits", unit="sim", file=sys.stderr, leave=False,
-                  disable=args.no_progress or not sys.stderr.isatty()) as class_bar:
+        with progress_bar(None, desc=f"{args.classes} class fits", unit="sim", leave=False,
+                          enabled=not args.no_progress) as class_bar:
             classes = fit_classes(pairs, args.classes, model=args.model, objective=result.objective,
                                   tick=lambda: class_bar.update(1))
         result = replace(result, classes=classes)

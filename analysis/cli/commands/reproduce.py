@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
         args.table, args.data, trials=args.trials, config=config_from_args(args), seed=args.seed,
         holdout=not args.no_holdout, epsilon=DEFAULT_EPSILON if args.epsilon is None else args.epsilon,
         executor=args.executor, store=args.store, retries=args.retries,
-        progress=not args.no_progress and sys.stderr.isatty(),
+        progress=not args.no_progress,
     )
     print("\n\n".join(format_report(r) for r in run_.reports))
     print(run_.sweep.summary().splitlines()[0], file=sys.stderr)

@@ -152,7 +152,7 @@ def generate_encounters(scenario, seeds: Sequence[int], duration_s: float | None
     tasks = [Task(f"{i:03d}/seed{int(s)}", encounters_task, EncounterRun(scenario, int(s), duration_s, encounter_rule))
              for i, s in enumerate(seeds)]
     report = run_sweep(tasks, seed=0, executor=resolve_executor(executor, workers),
-                       progress=progress and sys.stderr.isatty(), desc="data runs")
+                       progress=progress, desc="data runs")
     if not report.ok:
         raise SimError("data runs failed: " + "; ".join(f"{f.key}: {f.error}" for f in report.failures))
     return [frame_from_dict(report.results[t.key]) for t in tasks]

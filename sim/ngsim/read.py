@@ -136,7 +136,7 @@ def read_ngsim(
         chunksize: rows parsed per chunk (memory bound; validation is streaming).
         smooth: True (default filter) or a :class:`~sim.ngsim.smooth.SmoothingConfig`: recompute ``Local_Y``,
             ``v_Vel`` and ``v_Acc`` from smoothed positions (see :mod:`sim.ngsim.smooth`).
-        progress: show a tqdm bar on stderr.
+        progress: show the progress on stderr (a bar on a terminal, lines elsewhere).
 
     Returns:
         :class:`NgsimLoad`: ``.table`` in the schema dtypes, sorted by (Vehicle_ID, Frame_ID),

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 # API imports sit inside the functions: `merge-irl --help` imports every command module (analysis/cli/commands/__init__.py).
 import argparse
-import sys
 from dataclasses import replace
 
 from irl.config import SOLVERS, UNOBSERVED_RULES, IRLConfig
@@ -83,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
         args.method, args.domain, args.demos, config=config, seed=args.seed,
         noise=args.noise, baseline_path=args.baseline, bins=args.bins or None, decision_step_s=args.decision_step_s,
         epsilon=DEFAULT_EPSILON if args.epsilon is None else args.epsilon,
-        out=args.out, progress=not args.no_progress and sys.stderr.isatty(),
+        out=args.out, progress=not args.no_progress,
         encoding=merge_encoding(features), features=features, unvisited=args.unvisited,
     )
     theta = ", ".join(f"{n or k}={t:.4g}" for k, (n, t) in enumerate(

@@ -125,8 +125,11 @@ def test_cli_refuses_an_implausible_duration_in_one_line_and_allow_implausible_p
     from analysis.cli.main import main
     from analysis.experiments import dagger
 
-    assert main(["generate", "--duration", "1e9", "--out", str(tmp_path / "g")]) == 2
-    err = capsys.readouterr().err
+    # a subprocess with a timeout: before the bound, this started a run of 1e9 simulated seconds
+    r = subprocess.run([sys.executable, "-m", "analysis", "generate", "--duration", "1e9", "--out", str(tmp_path / "g")],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2, r.stderr
+    err = r.stderr
     assert err.count("\n") == 1 and "simulation.duration_s: overridden (e.g. --duration) with 1e+09 s is implausible" in err
     assert "--allow-implausible" in err and not (tmp_path / "g").exists()
     # with the switch the duration reaches the runs (stopped by the test before SUMO starts)

@@ -164,7 +164,9 @@ def not_triggered(thresholds: Iterable[Threshold], metrics: Mapping[str, Mapping
         found = [(p, x) for p, m in metrics.items() if (not t.policy or p == t.policy)
                  and (x := _scalar(m.get(t.metric))) is not None]
         values = {f"{x:g}" for _, x in found}
-        if len(values) == 1:
+        if not values:
+            shown = "no numeric value"
+        elif len(values) == 1:
             shown = values.pop() + ("" if t.policy else f" ({'every policy' if len(found) > 1 else found[0][0]})")
         else:
             shown = ", ".join(f"{x:g} ({p})" for p, x in found)

@@ -114,12 +114,13 @@ def labelling_duration_s(spec: ScenarioSpec, config: DaggerConfig) -> float:
             user gave it, ``--duration`` / ``DaggerConfig.duration_s``).
     """
     sim = spec.simulation
+    default = min(sim.duration_s, sim.warmup_s + LABEL_RECORDED_S)
     if config.duration_s is None:
-        return min(sim.duration_s, sim.warmup_s + LABEL_RECORDED_S)
+        return default
     if config.duration_s <= sim.warmup_s:
         raise SpecError(f"dagger --duration (DaggerConfig.duration_s) {config.duration_s:g} s: the labelling runs must "
                         f"be longer than scenario {spec.name}'s warm-up, simulation.warmup_s = {sim.warmup_s:g} s "
-                        f"(leave it out for the scenario's: {sim.warmup_s + LABEL_RECORDED_S:g} s)")
+                        f"(leave it out for the scenario's: {default:g} s)")
     return float(config.duration_s)
 
 

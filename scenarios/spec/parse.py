@@ -364,5 +364,7 @@ def with_overrides(
         try:
             return spec_from_dict(data, source=source)
         except SpecError as e:
+            if ": demand." not in str(e):
+                raise
             raise SpecError(f"{e} (after demand_scale {k:g})") from None
     return spec_from_dict(data, source=source)

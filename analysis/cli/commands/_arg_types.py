@@ -38,5 +38,5 @@ def add_allow_implausible(p: argparse.ArgumentParser) -> None:
     (``scenarios.spec.bounds``), as the scenario file's own ``allow_implausible = true`` does."""
     p.add_argument("--allow-implausible", action="store_true",
                    help="run values outside the plausibility bounds (e.g. --duration above 6 h, a demand above "
-                        "3600 veh/h per lane, a speed limit above 45 m/s) instead of refusing them "
+                        "10,000 veh/h per lane, a speed limit above 45 m/s) instead of refusing them "
                         "(docs: scenarios, 'Plausibility bounds')")

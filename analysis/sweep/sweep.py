@@ -268,11 +268,17 @@ def _run_isolated(p: _Pending, finish) -> None:
             return
 
 
-def _death_cause(pool: ProcessPoolExecutor) -> str:
+def _death_cause(procs: Sequence[multiprocessing.process.BaseProcess]) -> str:
     """How a broken pool's worker ended: ``killed by SIGKILL``, ``exit status 13`` or ``""``
-    (the pool stops the other workers with SIGTERM; a signal other than that is the cause)."""
-    codes = [p.exitcode for p in (getattr(pool, "_processes", None) or {}).values()
-             if p.exitcode not in (None, 0)]
+    (the pool stops the other workers with SIGTERM; a signal other than that is the cause).
+
+    ``procs``: the pool's worker processes, taken while it ran (a broken pool forgets them); each
+    is waited for briefly, since the pool may report the breakage before the dead worker is reaped.
+    """
+    for p in procs:
+        if p.exitcode is None:
+            p.join(timeout=2.0)
+    codes = [p.exitcode for p in procs if p.exitcode not in (None, 0)]
     for code in sorted(codes, key=lambda c: c == -signal.SIGTERM):
         if code < 0:
             name = signal.Signals(-code).name
@@ -296,12 +302,14 @@ def _run_process_pool(todo: Sequence[_Pending], finish, workers: int,
     while queue:
         in_flight: dict[Future, _Pending] = {}
         crashed: list[_Pending] = []
+        procs: dict[int, multiprocessing.process.BaseProcess] = {}  # the pool's workers, for _death_cause
         with _single_threaded_workers(), _pool(workers, ctx) as pool:
             try:
                 while queue or in_flight:
                     while queue and len(in_flight) < workers:
                         p = queue.pop(0)
                         in_flight[pool.submit(call_task, p.task.func, p.task.config, p.seed)] = p
+                        procs.update(getattr(pool, "_processes", None) or {})
                     finished, _ = wait(in_flight, return_when=FIRST_COMPLETED)
                     for fut in finished:
                         p = in_flight.pop(fut)
@@ -315,7 +323,7 @@ def _run_process_pool(todo: Sequence[_Pending], finish, workers: int,
                     if crashed:
                         crashed.extend(in_flight.values())
                         in_flight.clear()
-                        cause = _death_cause(pool)
+                        cause = _death_cause(list(procs.values()))
                         say(f"a worker process died{' (' + cause + ')' if cause else ''} with "
                             f"{', '.join(p.task.key for p in crashed)} in flight; running "
                             f"{'it' if len(crashed) == 1 else 'each'} again in a process of its own")

@@ -33,7 +33,7 @@ class DemoConfig:
             ``heldout_seed + heldout_runs - 1`` (:attr:`heldout_seeds`). One run (the default)
             keeps the demo short; the held-out demonstrations of one run are a noisy reference for
             the Wasserstein distances, since gaps vary more between runs than within one (10 runs:
-            docs/closed-loop.md, "Ten held-out runs, and High Brake by need").
+            docs/changelog.md, "Ten held-out runs, and High Brake by need").
         data_duration_s: simulated seconds of each data run (None: the scenario's).
         eval_seed: first seed of the evaluation episodes; eval_episodes: episodes per policy.
         eval_duration_s: simulated seconds per evaluation episode.

@@ -9,13 +9,19 @@ from __future__ import annotations
 
 import ast
 import importlib
+import importlib.util
+import os
 import re
 import shlex
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
 
 from analysis.cli.main import build_parser
+from doc_blocks import NOT_RUN_KINDS, RUNNABLE, blocks, stray_markers
+from shared_data import RAILUSM
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
@@ -103,3 +109,95 @@ def test_shell_examples_are_accepted_by_the_command_line(path: Path):
             pytest.fail(f"{path.name}: `{line}` is rejected by the parser (exit {e.code})")
     if path == README:
         assert len(shell_commands(path)) >= 4
+
+
+# --- every example runs, or says why not -------------------------------------------------------
+
+
+@pytest.mark.parametrize("path", documents(), ids=lambda p: p.name)
+def test_every_example_runs_or_says_why_not(path: Path):
+    """A shell or Python block is run by test_examples_run below unless a marker above it gives a
+    kind from NOT_RUN_KINDS and a reason; a not-run block's commands are still checked."""
+    assert stray_markers(path) == [], f"{path.name}: docs-test markers not right above a fence"
+    for block in blocks(path):
+        if block.marker != "not-run":
+            continue
+        assert block.language in RUNNABLE, f"{block.where()}: a not-run marker on a {block.language!r} block"
+        assert block.kind in NOT_RUN_KINDS, (
+            f"{block.where()}: not-run kind {block.kind!r}, expected one of {sorted(NOT_RUN_KINDS)}")
+        assert len(block.reason.split()) >= 3, f"{block.where()}: say why the block is not run"
+        if block.language == "python":
+            compile(block.body, block.where(), "exec")
+        else:
+            _check_not_run_shell(block)
+
+
+def _check_not_run_shell(block) -> None:
+    """The commands of a shell block no test runs: ``python -m M`` names a module that exists,
+    ``python FILE`` a file of the checkout (``merge-irl`` lines: the parser test above)."""
+    joined = re.sub(r"\\\n\s*", " ", block.body)
+    for line in joined.splitlines():
+        words = shlex.split(line.split(" #", 1)[0]) if line.strip() and not line.lstrip().startswith("#") else []
+        if words[:2] == ["python", "-m"] and words[2] not in ("pytest", "sphinx"):
+            assert importlib.util.find_spec(words[2]) is not None, f"{block.where()}: no module {words[2]}"
+        elif words[:1] == ["python"] and len(words) > 1 and words[1].endswith(".py"):
+            assert (ROOT / words[1]).is_file(), f"{block.where()}: no file {words[1]}"
+
+
+def test_the_readme_tables_have_short_cells():
+    """README cells stay readable: the detail goes to the docs pages."""
+    for line in README.read_text(encoding="utf-8").splitlines():
+        if line.startswith("|") and not line.startswith("|---"):
+            for cell in line.strip("|").split(" | "):
+                assert len(cell.split()) <= 40, f"README.md: a table cell of {len(cell.split())} words: {cell[:80]}..."
+
+
+def test_the_closed_loop_page_leads_with_what_holds_now():
+    """The first section is the current table with its command and its date; history is on the
+    changelog page, which the table of contents lists."""
+    text = (ROOT / "docs" / "closed-loop.md").read_text(encoding="utf-8")
+    first = text.split("\n## ", 2)[1]
+    assert first.startswith("What holds now")
+    assert re.search(r"20\d\d-\d\d-\d\d", first) and "python -m benchmarks." in first
+    assert "| planner, history-free reward" in first and "| `sumo-in-lane`" in first
+    for baseline in ("markov", "marginal", "bc", "uniform", "SUMO's free driver"):
+        assert re.search(rf"^\| {re.escape(baseline)}", first, re.MULTILINE), baseline
+    assert "changelog" in (ROOT / "docs" / "index.md").read_text(encoding="utf-8")
+    assert len(text.splitlines()) < 500
+
+
+@pytest.fixture(scope="session")
+def small_demo(tmp_path_factory) -> Path:
+    """A small demo's output (the layout of ``merge-irl demo``'s ``runs/demo``), made once."""
+    from analysis.demo.config import DemoConfig
+    from analysis.demo.pipeline import run_demo
+
+    out = tmp_path_factory.mktemp("docs-demo") / "demo"
+    cfg = DemoConfig(train_seeds=(11,), heldout_seed=12, data_duration_s=240.0, eval_episodes=1,
+                     eval_duration_s=110.0, methods=("qavg",), dagger_rounds=0)
+    run_demo(out, cfg, quiet=True, progress=False)
+    return out
+
+
+def _pages_with_runnable_blocks() -> list[Path]:
+    return [p for p in documents() if any(b.runs for b in blocks(p))]
+
+
+@pytest.mark.sumo
+@pytest.mark.parametrize("path", _pages_with_runnable_blocks(), ids=lambda p: p.name)
+def test_examples_run(path: Path, small_demo: Path, tmp_path: Path):
+    """Every runnable block of the page, in order, in a fresh folder whose ``runs/demo`` is a
+    small demo's output (``railusm/`` the authors' data where present), as a reader runs them."""
+    (tmp_path / "runs").mkdir()
+    (tmp_path / "runs" / "demo").symlink_to(small_demo, target_is_directory=True)
+    if RAILUSM.is_dir():
+        (tmp_path / "railusm").symlink_to(RAILUSM, target_is_directory=True)
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    env["PATH"] = os.pathsep.join([str(Path(sys.executable).parent), env.get("PATH", "")])
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")])
+    env["MPLBACKEND"] = "Agg"
+    proc = subprocess.run([sys.executable, str(ROOT / "tests" / "doc_blocks.py"), str(path)], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, f"{path.name}: {proc.stderr[-3000:]}\n{proc.stdout[-2000:]}"
+    ran = proc.stdout.count("--- ")
+    assert ran >= 1

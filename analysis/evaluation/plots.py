@@ -4,7 +4,8 @@ Every plot draws the demonstrations (when given) as the black reference, spreads
 quantiles, the sample count of each series in the legend, one colour per policy
 (:func:`analysis.evaluation.palette.policy_color`), and marks implausible values: a speed of A above
 :data:`IMPLAUSIBLE_SPEED_FACTOR` times the speed limit, a braking beyond
-:data:`PHYSICAL_BRAKING_FT_S2` (1 g).
+:data:`PHYSICAL_BRAKING_FT_S2` (1 g). The plots with bands (gap acceptance, speed profiles) are
+small multiples, one panel per policy against the demonstrations, so that no band hides another.
 
 Inputs: ``by_policy`` maps a policy name to its :class:`analysis.evaluation.episode.EpisodeResult` list;
 ``held`` is an :class:`analysis.evaluation.heldout_scoring.HeldOut` or None. Units ft, ft/s, ft/s^2, s.
@@ -58,6 +59,22 @@ def _concat(rs, attr: str) -> pd.DataFrame:
 def _legend(ax, size: int) -> None:
     if ax.get_legend_handles_labels()[0]:
         ax.legend(fontsize=size)
+
+
+def _panels(plt, n: int, *, width: float = 3.6, height: float = 2.9):
+    """A figure of ``n`` panels (at most 4 a row, shared axes; spare cells hidden) and its axes
+    in reading order."""
+    cols = min(4, max(1, n))
+    rows = -(-max(1, n) // cols)
+    fig, grid = plt.subplots(rows, cols, figsize=(width * cols, height * rows + 0.6), sharex=True, sharey=True,
+                             squeeze=False)
+    axes = list(grid.ravel())
+    for ax in axes[n:]:
+        ax.set_visible(False)
+    for i, ax in enumerate(axes[:max(1, n)]):
+        # the x tick labels on every panel with no panel below it (shared axes hide the others)
+        ax.xaxis.set_tick_params(labelbottom=i + cols >= max(1, n))
+    return fig, axes[:max(1, n)]
 
 
 def _no_data(ax, what: str) -> None:
@@ -135,44 +152,56 @@ def _rate_band(k: np.ndarray, y: np.ndarray, n_bins: int) -> tuple[np.ndarray, n
 
 
 def plot_gap_acceptance(path: Path, by_policy, held=None) -> Path:
-    """Share of merges with B ahead of A by the gap d_AB at take-over (ft), with 95 % bands."""
+    """Share of merges with B ahead of A by the gap d_AB at take-over (ft), with 95 % bands: one
+    panel per policy, each with the demonstrations (dashed, black) as the reference."""
     plt = _plt()
-    fig, ax = plt.subplots(figsize=(7, 4))
     edges = np.asarray(GAP_BINS_FT)
     labels = ["<0"] + [f"{int(a)}-{int(b)}" for a, b in pairwise(edges)] + [f">{int(edges[-1])}"]
     x = np.arange(len(labels))
-    series = {}
     dm = demo_merges(held)
-    if len(dm):
-        series["demonstrations"] = dm
+    series = {}
     for name, rs in by_policy.items():
         ct = _concat(rs, "controls")
         if not ct.empty:
             ct = ct[ct["merge_frame"] >= 0]
         if not ct.empty:
             series[name] = ct
-    for i, (name, ct) in enumerate(series.items()):
+    names = list(series) or [None]
+    fig, axes = _panels(plt, len(names))
+
+    def draw(ax, name: str, ct: pd.DataFrame) -> None:
         k = np.digitize(ct["gap_AB_start_ft"].to_numpy(float), edges)
         rate, lo, hi = _rate_band(k, ct["b_ahead"].to_numpy(bool), len(labels))
         demo = name == "demonstrations"
-        dx = (i - (len(series) - 1) / 2) * 0.06  # side by side, so the bands stay readable
         c = policy_color(name)
-        ax.plot(x + dx, rate, marker="o", color=c, lw=2.5 if demo else 1.5, ls="--" if demo else "-",
+        ax.plot(x, rate, marker="o", color=c, lw=2.0 if demo else 1.8, ls="--" if demo else "-",
                 label=f"{name} (n={len(ct)} merges)", zorder=3 if demo else 2)
-        ax.fill_between(x + dx, lo, hi, color=c, alpha=0.12 if not demo else 0.18, lw=0)
-    if not series:
-        _no_data(ax, "merges")
-    ax.set_xticks(x, labels)
-    ax.set_xlabel("gap d_AB from A to B at take-over (ft)")
-    ax.set_ylabel("share of merges with B ahead of A")
-    ax.set_ylim(-0.05, 1.05)
-    ax.set_title("Gap acceptance (bands: 95 % interval)")
-    _legend(ax, 8)
+        ax.fill_between(x, lo, hi, color=c, alpha=0.12 if demo else 0.22, lw=0)
+
+    for ax, name in zip(axes, names):
+        if len(dm):
+            draw(ax, "demonstrations", dm)
+        if name is not None:
+            draw(ax, name, series[name])
+            ax.set_title(name, fontsize=10, color=policy_color(name))
+        elif not len(dm):
+            _no_data(ax, "merges")
+        ax.set_xticks(x, labels, fontsize=7)
+        ax.set_ylim(-0.05, 1.05)
+        _legend(ax, 7)
+    for ax in axes:
+        if ax.xaxis.get_tick_params()["labelbottom"]:
+            ax.set_xlabel("gap d_AB at take-over (ft)", fontsize=8)
+        if ax.get_subplotspec().is_first_col():
+            ax.set_ylabel("share with B ahead of A", fontsize=8)
+    fig.suptitle("Gap acceptance, one panel per policy against the demonstrations (bands: 95 % interval)",
+                 fontsize=10)
     return _save(fig, path)
 
 
 def plot_speed_profiles(path: Path, by_policy, held=None, *, speed_limit_ft_s: float | None = None) -> Path:
-    """Median speed of A against time since take-over, 10-90 % band; implausible speeds marked.
+    """Median speed of A against time since take-over, 10-90 % band, one panel per policy (with
+    the demonstrations where they have speeds); implausible speeds marked and counted.
 
     The encounter table holds no absolute speed, so the demonstrations appear here only when
     their table has a ``v_A`` column (ft/s) and a ``Frame_ID`` from which the time since the
@@ -181,18 +210,20 @@ def plot_speed_profiles(path: Path, by_policy, held=None, *, speed_limit_ft_s: f
     plt = _plt()
     limit = DEFAULT_SPEED_LIMIT_FT_S if speed_limit_ft_s is None else float(speed_limit_ft_s)
     too_fast = IMPLAUSIBLE_SPEED_FACTOR * limit
-    fig, ax = plt.subplots(figsize=(7, 4))
-    series = {}
+    demo = None
     if held is not None and {"v_A", "Frame_ID", "encounter_id"} <= set(held.encounters.columns):
         e = held.encounters
         t = (e["Frame_ID"] - e.groupby("encounter_id")["Frame_ID"].transform("min")) * FRAME_S
-        series["demonstrations"] = (pd.DataFrame({"t_s": t, "v_ft_s": e["v_A"]}), e["encounter_id"].nunique())
+        demo = (pd.DataFrame({"t_s": t, "v_ft_s": e["v_A"]}), e["encounter_id"].nunique())
+    series = {}
     for name, rs in by_policy.items():
         sp = _concat(rs, "speed_profiles")
         if not sp.empty:
             series[name] = (sp, int(sum(len(r.controls) for r in rs)))
-    n_bad = 0
-    for name, (sp, n) in series.items():
+    names = list(series) or [None]
+    fig, axes = _panels(plt, len(names))
+
+    def draw(ax, name: str, sp: pd.DataFrame, n: int) -> None:
         g = sp.assign(t=np.round(sp["t_s"].to_numpy(float), 1)).groupby("t")["v_ft_s"]
         q = g.quantile([0.1, 0.5, 0.9]).unstack()
         size = g.size()
@@ -200,25 +231,36 @@ def plot_speed_profiles(path: Path, by_policy, held=None, *, speed_limit_ft_s: f
         c = policy_color(name)
         bad = sp["v_ft_s"].to_numpy(float) > too_fast
         tag = f", {int(bad.sum())} samples implausible" if bad.any() else ""
-        demo = name == "demonstrations"
-        ax.plot(q.index, q[0.5], color=c, lw=2.5 if demo else 1.5, ls="--" if demo else "-",
-                label=f"{name} (n={n} {'encounters' if demo else 'take-overs'}{tag})")
-        ax.fill_between(q.index, q[0.1], q[0.9], color=c, alpha=0.15, lw=0)
+        is_demo = name == "demonstrations"
+        ax.plot(q.index, q[0.5], color=c, lw=2.0 if is_demo else 1.8, ls="--" if is_demo else "-",
+                label=f"{name} (n={n} {'encounters' if is_demo else 'take-overs'}{tag})")
+        ax.fill_between(q.index, q[0.1], q[0.9], color=c, alpha=0.12 if is_demo else 0.2, lw=0)
         if bad.any():
             ax.scatter(sp["t_s"].to_numpy(float)[bad], sp["v_ft_s"].to_numpy(float)[bad], marker="x", s=14, color=c)
-            n_bad += int(bad.sum())
-    if not series:
-        _no_data(ax, "controlled car")
-    ax.axhline(limit, color="0.5", lw=0.8, ls=":", label=f"speed limit {limit:.0f} ft/s")
-    ax.axhline(too_fast, color="#b00000", lw=1.0, ls="--",
-               label=f"implausible above {too_fast:.0f} ft/s ({IMPLAUSIBLE_SPEED_FACTOR:g} x limit; x = sample)")
-    ax.set_xlabel("time since take-over (s)")
-    ax.set_ylabel("speed of A (ft/s)")
-    title = "Speed of A: median, 10-90 % band"
-    if held is not None and "demonstrations" not in series:
+
+    for i, (ax, name) in enumerate(zip(axes, names)):
+        if demo is not None:
+            draw(ax, "demonstrations", *demo)
+        if name is not None:
+            draw(ax, name, *series[name])
+            ax.set_title(name, fontsize=10, color=policy_color(name))
+        elif demo is None:
+            _no_data(ax, "controlled car")
+        # the two reference lines are named once, in the first panel's legend
+        ax.axhline(limit, color="0.5", lw=0.8, ls=":", label=f"speed limit {limit:.0f} ft/s" if i == 0 else None)
+        ax.axhline(too_fast, color="#b00000", lw=1.0, ls="--",
+                   label=(f"implausible above {too_fast:.0f} ft/s ({IMPLAUSIBLE_SPEED_FACTOR:g} x limit; x = sample)"
+                          if i == 0 else None))
+        _legend(ax, 6)
+    for ax in axes:
+        if ax.xaxis.get_tick_params()["labelbottom"]:
+            ax.set_xlabel("time since take-over (s)", fontsize=8)
+        if ax.get_subplotspec().is_first_col():
+            ax.set_ylabel("speed of A (ft/s)", fontsize=8)
+    title = "Speed of A: median, 10-90 % band, one panel per policy"
+    if held is not None and demo is None:
         title += "\n(demonstrations: the encounter table has no absolute speed)"
-    ax.set_title(title, fontsize=10)
-    _legend(ax, 7)
+    fig.suptitle(title, fontsize=10)
     return _save(fig, path)
 
 

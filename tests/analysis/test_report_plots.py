@@ -56,13 +56,17 @@ def figures(monkeypatch):
     real = rp._save
 
     def capture(fig, path):
-        ax = fig.axes[0]
-        leg = ax.get_legend()
-        texts = [t.get_text() for t in leg.get_texts()] if leg is not None else []
-        colors = {}
-        for h, t in zip(leg.legend_handles if leg is not None else [], texts):
-            colors[t.split(" (")[0]] = _handle_color(h)
-        seen[path.name] = (texts, colors, ax.get_title())
+        texts, colors = [], {}
+        visible = [ax for ax in fig.axes if ax.get_visible()]
+        for ax in visible:
+            leg = ax.get_legend()
+            for h, t in zip(leg.legend_handles if leg is not None else [], leg.get_texts() if leg is not None else []):
+                if t.get_text() not in texts:
+                    texts.append(t.get_text())
+                colors[t.get_text().split(" (")[0]] = _handle_color(h)
+        title = fig.get_suptitle() or visible[0].get_title()
+        panels = {ax.get_title(): ax for ax in visible}
+        seen[path.name] = (texts, colors, title, panels)
         return real(fig, path)
 
     monkeypatch.setattr(rp, "_save", capture)
@@ -96,7 +100,7 @@ def test_plots_with_demonstrations(tmp_path, figures):
     assert "qavg (n=11 merges)" in gap and "reirl (n=4 merges)" in gap
     assert "demonstrations (n=240 decisions)" in figures["action_histograms.png"][0]
     # one colour per policy, the same in every plot
-    for name, (_, colors, _) in figures.items():
+    for name, (_, colors, _, _) in figures.items():
         for pol in ("qavg", "reirl", "sumo", "demonstrations"):
             if pol in colors:
                 np.testing.assert_allclose(colors[pol][:3], to_rgba(policy_color(pol))[:3], err_msg=f"{pol} in {name}")
@@ -112,7 +116,7 @@ def test_plots_without_demonstrations(tmp_path, figures):
     by, aggs = _policies()
     paths = rp.write_plots(tmp_path, aggs, by, None)
     assert all(p.exists() for p in paths)
-    for name, (texts, _, title) in figures.items():
+    for name, (texts, _, title, _) in figures.items():
         assert not any(t.startswith("demonstrations") for t in texts), name
         assert "no absolute speed" not in title
     # default limit: 29 m/s
@@ -151,3 +155,42 @@ def test_demo_merges_without_merge_frame_use_the_last_frame():
     last = bare.encounters.groupby("encounter_id").d_AB.last().to_numpy()
     np.testing.assert_array_equal(m.b_ahead, last > 0)
     assert rp.demo_merges(HeldOut(bare.encounters[["acc_A"]], held.action_counts)).empty
+
+
+def _legend_texts(ax) -> list[str]:
+    leg = ax.get_legend()
+    return [t.get_text() for t in leg.get_texts()] if leg is not None else []
+
+
+def test_band_plots_have_one_panel_per_policy_against_the_demonstrations(tmp_path, figures):
+    """Eight policies on one axis smear the bands: gap acceptance and speed profiles are small
+    multiples, one panel per policy (titled by it, in its colour), each with the demonstrations."""
+    rng = np.random.default_rng(7)
+    names = ["planner", "cf-dagger", "cf-logit", "qavg", "sumo", "uniform", "marginal", "markov", "bc"]
+    by = {n: [_result(rng, 6, 80.0 + i)] for i, n in enumerate(names)}
+    aggs = {k: SimpleNamespace(action_counts=tuple(rng.integers(1, 50, 5))) for k in by}
+    held = _held(np.random.default_rng(4))
+    held.encounters["v_A"] = 80.0
+    rp.write_plots(tmp_path, aggs, by, held)
+    for plot in ("gap_acceptance.png", "speed_profiles.png"):
+        panels = figures[plot][3]
+        assert sorted(panels) == sorted(names), plot
+        for name, ax in panels.items():
+            labels = [t.split(" (")[0] for t in _legend_texts(ax)]
+            assert labels[:2] == ["demonstrations", name], (plot, name, labels)
+            assert to_rgba(ax.title.get_color()) == to_rgba(policy_color(name))
+        assert "one panel per policy" in figures[plot][2]
+
+
+def test_learned_drivers_have_strong_distinct_colours():
+    """The drivers the demo learns and the references have saturated colours of their own (they
+    took pale hash colours before, and planner shared cf-logit's)."""
+    from matplotlib.colors import rgb_to_hsv, to_rgb
+
+    strong = ("planner", "cf-dagger", "cf-logit", "qavg", "sumo", "sumo-in-lane", "idm")
+    colours = [policy_color(n) for n in strong]
+    assert len(set(colours)) == len(strong)
+    for name in strong:
+        _, saturation, value = rgb_to_hsv(to_rgb(policy_color(name)))
+        assert saturation >= 0.5 and value <= 0.85, (name, policy_color(name))
+    assert len(set(POLICY_COLORS.values())) == len(POLICY_COLORS)

@@ -7,8 +7,11 @@ from collections.abc import Sequence
 
 from irl.domains.merge.actions import ACTION_NAMES
 
-#: Half extent (ft) of the merge view around the followed car.
-FOLLOW_HALF_FT = (330.0, 75.0)
+#: Half extent (ft) of the merge view around the followed car: about 350 ft of road, so that
+#: the lanes (12 ft) and the cars (15 ft) are large enough to read in the view.
+FOLLOW_HALF_FT = (175.0, 45.0)
+#: Bounds of the action-bar view: x over the five bars, y from probability 1 (drawn up) to the names.
+ACTION_BARS_BOUNDS = ((-0.6, 4.6), (-1.08, 0.2))
 #: TTC axis of the time series (s): larger values are off the chart.
 TTC_RANGE_S = (0.0, 10.0)
 
@@ -22,7 +25,8 @@ def merge_blueprint(a_ids: Sequence[int], *, training_methods: Sequence[str] = (
     Tab "run": the merge view (2D, origin ``/follow``: follows the current merge), the whole
     section (2D, origin ``/``), and the group "car A": time series of speed, d_AB, d_AC, TTC
     (y axis clipped to :data:`TTC_RANGE_S`) and the action taken of every controlled car, and
-    the bar chart of the current action probabilities. Tab "training" (only when
+    the current action probabilities as five bars named by action (``policy/action_bars``: rerun's
+    bar charts cannot name their bars). Tab "training" (only when
     ``training_methods`` is not empty): log-likelihood and weights against the iteration.
     The time panel shows the ``step`` timeline, paused, with the first take-over selected.
     ``ttc_ids``: the cars with a TTC series (None: all of ``a_ids``).
@@ -65,8 +69,9 @@ def merge_blueprint(a_ids: Sequence[int], *, training_methods: Sequence[str] = (
                axis_y=rrb.ScalarAxis(range=TTC_RANGE_S, zoom_lock=True)),
         series("action of A (0 " + ACTION_NAMES[0].lower() + " .. 4 " + ACTION_NAMES[-1].lower() + ")",
                [f"/policy/A_{a}/action" for a in ids], axis_y=rrb.ScalarAxis(range=(-0.2, 4.2), zoom_lock=True)),
-        rrb.BarChartView(name="action probabilities now (" + ", ".join(n.lower() for n in ACTION_NAMES) + ")",
-                         origin="/policy/action_probs"),
+        rrb.Spatial2DView(name="action probabilities now", origin="/policy/action_bars",
+                          contents=["/policy/action_bars/**"], background=[30, 30, 30],
+                          visual_bounds=rrb.VisualBounds2D(x_range=ACTION_BARS_BOUNDS[0], y_range=ACTION_BARS_BOUNDS[1])),
         name="car A",
     )
     tabs: list[rrb.Container] = [rrb.Horizontal(rrb.Vertical(merge, section, row_shares=[3, 2]), car_a, column_shares=[3, 2], name="run")]

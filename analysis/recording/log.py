@@ -2,8 +2,14 @@
 
 :class:`RerunLogger` is a :class:`sim.hooks.StepHook`. Entities (hierarchical, units ft, ft/s):
 
+* ``world/road`` (static): each lane drawn as a band of its real width (``LineStrips2D`` with
+  radius half the lane width, in ft), so that the road reads as a road at any zoom;
 * ``world/lanes`` (static): one ``LineStrips2D`` strip per lane centre line (I-80 numbering,
-  labelled), from the run's lane shapes; ``world`` (static) carries an ``AnnotationContext``
+  labelled by its role: "lane 6 (right main lane)", "lane 7 (ramp / auxiliary lane)"), from
+  the run's lane shapes;
+* ``world/landmarks`` (static, ``Points2D`` with labels): "on-ramp" where lane 7 begins,
+  "merge zone: auxiliary lane begins" (:func:`sim.lanes.aux_lane_start_ft`) and "auxiliary lane
+  ends" where lane 7 ends; ``world`` (static) carries an ``AnnotationContext``
   naming the vehicle roles and a ``Transform3D`` mirroring y, so that the top-down 2D views
   (whose y axis points down) show the road as SUMO draws it (ramp on the right of travel).
 * ``world/vehicles``: every vehicle of every frame as ONE batched ``Boxes2D`` entity, in the
@@ -18,7 +24,10 @@
   "merge" view has it as origin, so that view follows the merge.
 * ``policy/A_<id>/probs`` (``Scalars``, 5 series named by action), ``policy/A_<id>/action``
   (``Scalars``: action index 0..4), ``policy/action_probs`` (``BarChart``: the 5 probabilities
-  of the latest decision of any controlled car, in ``ACTION_NAMES`` order),
+  of the latest decision of any controlled car, in ``ACTION_NAMES`` order; rerun 0.41's bar
+  charts have no bar names), ``policy/action_bars`` (``Boxes2D``, the same probabilities as
+  five named bars: one box per action of height its probability, labelled with it, and static
+  ``policy/action_bars/names`` labelling each bar with its action's name),
   ``policy/A_<id>/features/<name>`` (``Scalars``: the paper's reward features of the chosen
   action, from the continuous observation) at each decision of controlled car ``<id>``.
 * ``metrics/A_<id>/speed``, ``.../d_AC``, ``.../d_AB``, ``.../ttc`` (``Scalars``) per frame
@@ -55,6 +64,7 @@ from analysis.recording.files import close_recording, open_recording, policy_dig
 from irl.domains.merge.actions import ACTION_NAMES
 from irl.domains.merge.features import FEATURE_NAMES, paper_features
 from sim.hooks import FrameState, RunContext
+from sim.lanes import aux_lane_start_ft
 from sim.observe import lead_of
 from sim.schema import RAMP_LANE
 
@@ -70,6 +80,44 @@ ROLE_COLORS = np.array(
 ROLE_RGBA_U32 = (ROLE_COLORS.astype(np.uint32) @ np.array([1 << 24, 1 << 16, 1 << 8, 1], dtype=np.uint32)).astype(np.uint32)
 #: The ``world`` transform: y mirrored (2D views draw y downwards).
 MIRROR_Y = np.diag([1.0, -1.0, 1.0])
+#: What each lane is, for its label (I-80 numbering; other lanes are "lane <n>").
+LANE_ROLES = {"6": "right main lane", str(RAMP_LANE): "ramp / auxiliary lane"}
+#: RGBA of the road surface and of the lane centre lines.
+ROAD_RGBA = (62, 62, 66, 255)
+LANE_LINE_RGBA = (150, 150, 150, 255)
+#: RGBA of the five action bars (hard braking red .. hard acceleration green).
+ACTION_RGBA = np.array([[200, 40, 40, 255], [235, 140, 60, 255], [170, 170, 170, 255], [120, 190, 90, 255],
+                        [40, 150, 60, 255]], dtype=np.uint8)
+#: Half width of an action bar (bars at x = 0..4).
+BAR_HALF_WIDTH = 0.35
+
+
+def action_bar_columns(probs: np.ndarray) -> list:
+    """``Boxes2D`` columns of ``n`` decisions' action probabilities ``probs [n, 5]`` as bars:
+    bar ``i`` at x = i, from y = 0 up to y = -p (the 2D view draws y downwards), labelled with
+    ``p`` to two decimals."""
+    probs = np.asarray(probs, dtype=np.float64)
+    n, k = probs.shape
+    centers = np.stack([np.tile(np.arange(k, dtype=np.float64), n), -0.5 * probs.reshape(-1)], axis=1)
+    half = np.stack([np.full(n * k, BAR_HALF_WIDTH), 0.5 * probs.reshape(-1)], axis=1)
+    labels = pa.array([f"{v:.2f}" for v in probs.reshape(-1)], type=pa.string())
+    colors = np.tile(ACTION_RGBA.astype(np.uint32) @ np.array([1 << 24, 1 << 16, 1 << 8, 1], dtype=np.uint32), n)
+    return [*rr.Boxes2D.columns(centers=centers.astype(np.float32), half_sizes=half.astype(np.float32),
+                                labels=labels, colors=colors.astype(np.uint32)).partition(np.full(n, k)),
+            *rr.Boxes2D.columns(show_labels=[True] * n)]
+
+
+def road_landmarks(ctx: RunContext) -> tuple[np.ndarray, list[str]]:
+    """``[m, 2]`` positions (ft, SUMO's frame) and labels of the road's landmarks: where lane 7
+    (the ramp) begins, where it first runs beside lane 6 (the auxiliary lane, the merge zone)
+    and where it ends. Empty when the run has no lane 7 or no lane 6."""
+    if str(RAMP_LANE) not in ctx.lane_shapes or "6" not in ctx.lane_shapes:
+        return np.zeros((0, 2)), []
+    l6 = np.asarray(ctx.lane_shapes["6"], dtype=np.float64)[:, :2]
+    l7 = np.asarray(ctx.lane_shapes[str(RAMP_LANE)], dtype=np.float64)[:, :2]
+    x_aux = float(l6[0, 0]) + aux_lane_start_ft(ctx)
+    aux = np.array([x_aux, float(np.interp(x_aux, l7[:, 0], l7[:, 1]))])
+    return np.stack([l7[0], aux, l7[-1]]), ["on-ramp", "merge zone: auxiliary lane begins", "auxiliary lane ends"]
 
 
 def log_training(rec: rr.RecordingStream, method: str, loglik_trace: np.ndarray, theta_trace: np.ndarray,
@@ -162,9 +210,22 @@ class RerunLogger:
         rec = self._rec
         names = sorted(ctx.lane_shapes, key=lambda s: int(s) if s.isdigit() else 99)
         strips = [np.asarray(ctx.lane_shapes[n], float)[:, :2] for n in names]
-        rec.log("world/lanes", rr.LineStrips2D(strips, labels=[f"lane {n}" for n in names], draw_order=10.0,
+        half_lane = 0.5 * float(ctx.lane_width_ft)
+        rec.log("world/road", rr.LineStrips2D(strips, radii=half_lane, draw_order=0.0,
+                                              colors=[ROAD_RGBA] * len(strips)), static=True)
+        labels = [f"lane {n}" + (f" ({LANE_ROLES[n]})" if n in LANE_ROLES else "") for n in names]
+        rec.log("world/lanes", rr.LineStrips2D(strips, labels=labels, draw_order=10.0, show_labels=True,
                                                radii=rr.Radius.ui_points(1.0),
-                                               colors=[[110, 110, 110, 255]] * len(strips)), static=True)
+                                               colors=[LANE_LINE_RGBA] * len(strips)), static=True)
+        marks, mark_labels = road_landmarks(ctx)
+        if mark_labels:
+            rec.log("world/landmarks", rr.Points2D(marks, labels=mark_labels, show_labels=True, radii=4.0,
+                                                   colors=[(255, 220, 80, 255)] * len(mark_labels), draw_order=20.0),
+                    static=True)
+        rec.log("policy/action_bars/names", rr.Points2D(
+            np.stack([np.arange(len(ACTION_NAMES), dtype=np.float64), np.full(len(ACTION_NAMES), 0.08)], axis=1),
+            labels=[n.lower() for n in ACTION_NAMES], show_labels=True, radii=0.001,
+            colors=[(220, 220, 220, 255)] * len(ACTION_NAMES)), static=True)
         rec.log("world", rr.AnnotationContext(
             [(i, name, tuple(int(c) for c in ROLE_COLORS[i][:3])) for name, i in ROLE_IDS.items()]), static=True)
         rec.log("world", rr.Transform3D(mat3x3=MIRROR_Y), static=True)
@@ -330,6 +391,10 @@ class RerunLogger:
                 "policy/action_probs",
                 indexes=[rr.TimeColumn("step", sequence=b[:, 0].astype(np.int64)), rr.TimeColumn("sim_time", duration=b[:, 1])],
                 columns=[bar_chart_column(b[:, 2:7])])
+            self._stream.send_columns(
+                "policy/action_bars",
+                indexes=[rr.TimeColumn("step", sequence=b[:, 0].astype(np.int64)), rr.TimeColumn("sim_time", duration=b[:, 1])],
+                columns=action_bar_columns(b[:, 2:7]))
         self._metric_rows, self._decision_rows = {}, {}
 
     def _send_series(self, entity: str, steps: np.ndarray, times: np.ndarray, values: np.ndarray) -> None:

@@ -243,8 +243,8 @@ def test_blueprint_is_shipped_with_the_recording(logged):
         else:
             assert v["contents"] == [f"/metrics/A_{a}/{q}" for a in a_ids]
     assert any(v["contents"] == [f"/policy/A_{a}/action" for a in a_ids] for v in series.values())
-    (bars,) = [v for v in views.values() if v["kind"] == "BarChart"]
-    assert bars["origin"] == "/policy/action_probs"
+    bars = views["action probabilities now"]
+    assert bars["kind"] == "2D" and bars["origin"] == "/policy/action_bars"
     assert not any(n.startswith(("log-likelihood", "weights")) for n in views)  # no training logged here
     # every entity a view names is in the file; the follow transform has one row per frame
     ents = read_entities(path)
@@ -348,3 +348,34 @@ def test_bar_chart_column_matches_rerun_bar_charts(tmp_path):
     ta, tb = read_rrd_table(a, "/p"), read_rrd_table(b, "/p")
     assert list(ta["BarChart:values"]) == list(tb["BarChart:values"])
     assert len(ta) == 7 and ta["BarChart:values"].iloc[3]["buffer"] == list(vals[3])
+
+
+@pytest.mark.sumo
+def test_the_merge_view_reads_at_a_glance(logged):
+    """The road is drawn at its width with lanes, ramp and merge zone named, the merge view is
+    zoomed to the merge, and the action probabilities are five bars named by action."""
+    from analysis.recording.blueprint import FOLLOW_HALF_FT
+    from irl.domains.merge.actions import ACTION_NAMES
+
+    path, res = logged
+    ents = read_entities(path)
+    road = ents["/world/road"][0]
+    assert len(road.column("LineStrips2D:strips")[0].as_py()) == 4
+    assert road.column("LineStrips2D:radii")[0].as_py() == [6.0] * 4 or min(road.column("LineStrips2D:radii")[0].as_py()) > 5.0
+    lane_labels = ents["/world/lanes"][0].column("LineStrips2D:labels")[0].as_py()
+    assert "lane 7 (ramp / auxiliary lane)" in lane_labels and "lane 6 (right main lane)" in lane_labels
+    marks = ents["/world/landmarks"][0].column("Points2D:labels")[0].as_py()
+    assert marks == ["on-ramp", "merge zone: auxiliary lane begins", "auxiliary lane ends"]
+    pos = np.asarray(ents["/world/landmarks"][0].column("Points2D:positions")[0].as_py())
+    assert pos[0, 0] < pos[1, 0] < pos[2, 0]  # along the direction of travel
+    names = ents["/policy/action_bars/names"][0].column("Points2D:labels")[0].as_py()
+    assert names == [n.lower() for n in ACTION_NAMES]
+    bars = read_rrd_table(path, "/policy/action_bars")
+    bars = bars[bars["entity"] == "/policy/action_bars"]
+    assert len(bars) == len(res.decisions)  # one set of five bars per decision
+    heights = np.stack([2 * np.asarray(h.tolist())[:, 1] for h in bars["Boxes2D:half_sizes"]])  # [n, 5]
+    probs = res.decisions[[f"p{i}" for i in range(5)]].to_numpy(float)
+    np.testing.assert_allclose(np.sort(heights, axis=None), np.sort(probs, axis=None), atol=1e-6)
+    labels = [list(x) for x in bars["Boxes2D:labels"]]
+    assert all(len(x) == 5 for x in labels) and labels[0] == [f"{h:.2f}" for h in heights[0]]
+    assert FOLLOW_HALF_FT[0] <= 200.0  # about 350 ft of road: lanes and cars readable

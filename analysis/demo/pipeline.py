@@ -28,7 +28,10 @@ Everything goes under ``out_dir`` (default ``./runs/demo``)::
     evaluation/report.md, metrics.json, *.png, rerun/<policy>.rrd
     demo.rrd
     summary.md      (with the provenance: versions, git commit, scenario and model hashes)
-    timings.json    (wall times: kept out of the results so reruns can be compared by hash)
+    timings.json    (wall times, also per part: kept out of the results so reruns can be compared by hash)
+
+Before any work it prints one line saying how long it expects to take here
+(:mod:`analysis.demo.estimate`: the cores, the load average and the demo's measured CPU time).
 """
 
 from __future__ import annotations
@@ -45,6 +48,7 @@ import pandas as pd
 
 from analysis.experiments.dagger import DaggerConfig, train_cf_driver
 from analysis.demo.config import CF_DRIVER, PLANNER_DRIVER, DemoConfig, check_dagger_seeds
+from analysis.demo.estimate import estimate
 from analysis.evaluation.episode import frame_from_dict, frame_to_dict
 from analysis.evaluation.evaluate import EvaluationReport, evaluate, resolve_executor
 from analysis.evaluation.heldout_scoring import prepare_encounters
@@ -178,7 +182,17 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     t0 = time.perf_counter()
     check_dagger_seeds(config)  # before any work
     out = Path(out_dir) if out_dir is not None else Path("runs") / "demo"
+    spec0 = load_scenario(config.scenario)
+    _say(estimate(config, scenario_duration_s=spec0.simulation.duration_s).line(), quiet)
     (out / "data").mkdir(parents=True, exist_ok=True)
+    phases: dict[str, float] = {}
+    t_phase = time.perf_counter()
+
+    def phase(name: str) -> None:  # wall seconds per part, into timings.json
+        nonlocal t_phase
+        now = time.perf_counter()
+        phases[name] = now - t_phase
+        t_phase = now
 
     n_held = config.heldout_runs
     _say(f"[1/5] simulating {len(config.train_seeds)} training runs + {n_held} held-out run{'s' * (n_held > 1)} "
@@ -194,6 +208,7 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     for df, path in ((train, train_path), (heldout, held_path)):
         write_parquet(df, path)
 
+    phase("data_runs")
     _say("[2/5] discretizing (quantile bins fitted on the training encounters)", quiet)
     bins = fit_quantile_bins(train, where=str(train_path))
     bins.save(out / "data" / "bins.json")
@@ -224,6 +239,7 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
             models[method] = model.save(out / "models" / f"{method}.json")
     if not models:
         raise IRLError("demo: no IRL method produced a usable model: " + "; ".join(f"{k}: {v}" for k, v in messages.items()))
+    phase("irl_fits")
     drivers: list[Policy] = []
     if config.dagger_rounds > 0:
         t_cf = time.perf_counter()
@@ -238,6 +254,7 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
              f"{cf[-1].info['labels_per_round']} ({fit_times[CF_DRIVER]:.0f} s)"
              f"{'' if cf[-1].converged else ' FLAGGED not_converged'}", quiet)
 
+    phase("cf_dagger")
     # the planning driver, from the demonstrations alone, at the settings the held-out selection of
     # `merge-irl learn-driver` chose on this scenario's data (PlannerConfig's defaults; docs/closed-loop.md)
     t_pl = time.perf_counter()
@@ -250,6 +267,7 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
          f"{planner.loglik / planner.info['n_decisions']:.3f} per decision ({fit_times[PLANNER_DRIVER]:.1f} s)"
          f"{'' if planner.converged else ' FLAGGED not_converged'}", quiet)
 
+    phase("planner")
     _say("[4/5] one closed-loop episode with Q-Avg, logged to demo.rrd", quiet)
     first = "qavg" if "qavg" in models else next(iter(models))
     pol = learned_policy(models[first])
@@ -257,6 +275,7 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     # the logger needs the episode's controller: run_episode builds it, so attach via extra hook
     _run_logged_episode(config, pol, logger)
     close_recording(rec, tmp_rrd, out / "demo.rrd")
+    phase("logged_episode")
 
     _say(f"[5/5] evaluating {len(models)} model{'s' * (len(models) > 1)} + sumo, uniform, marginal, markov, bc, "
          f"{config.eval_episodes} episodes each", quiet)
@@ -264,6 +283,7 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     report = evaluate(irl_models, config.scenario, config.eval_episodes, config.eval_seed,
                       out / "evaluation", duration_s=config.eval_duration_s, demos=held_path, train_demos=train_path,
                       policies=drivers, workers=config.workers, executor=config.executor, progress=progress)
+    phase("evaluation")
     wall = time.perf_counter() - t0
     result = DemoResult(out, models, report, out / "demo.rrd", out / "summary.md", int(train["encounter_id"].nunique()),
                         problem.demos.n_steps, wall, messages, config.encounter_rule,
@@ -273,7 +293,7 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
                               extra={"scenario_sha256": text_digest(load_scenario(config.scenario).to_toml())})
     write_text_atomic(out / "summary.md", "# merge-irl demo\n\n```\n" + result.format(timings=False) + "\n```\n\n"
                       + provenance_markdown(summary_prov) + "\n")
-    write_timings(out, {"wall_time_s": wall, "fit_wall_time_s": fit_times})
+    write_timings(out, {"wall_time_s": wall, "fit_wall_time_s": fit_times, "phase_wall_s": phases})
     _remove_stale_models(out / "models", written=set(models.values()))
     return result
 

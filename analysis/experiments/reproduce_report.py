@@ -68,6 +68,8 @@ class MethodSummary:
         Baseline rows (``uniform``, ``marginal``, ``markov``, ``bc``) have no weights and one
         deterministic fit on all trajectories.
         n_converged, n_unbounded: trial counts.
+        n_uninformative, n_infeasible: trials REIRL judged uninformative (every weight 0) or
+            infeasible (its dual unbounded); see :attr:`verdict`.
         time_mean_s: mean wall time per trial.
     """
 
@@ -84,6 +86,17 @@ class MethodSummary:
     time_mean_s: float
     heldout_folds: tuple[float, ...] = ()
     p_vs_marginal: float = float("nan")
+    n_uninformative: int = 0
+    n_infeasible: int = 0
+
+    @property
+    def verdict(self) -> str:
+        """REIRL's verdicts over the trials, as printed: ``"uninformative 10/10"`` (every weight 0:
+        the experts cannot be told from the baseline at this confidence), ``"infeasible 4/10"``
+        (the dual is unbounded: no reweighting matches the experts); "" when none."""
+        parts = [f"{name} {n}/{self.n_trials}" for name, n in (("uninformative", self.n_uninformative),
+                                                               ("infeasible", self.n_infeasible)) if n]
+        return ", ".join(parts)
 
 
 @dataclass(frozen=True)
@@ -181,6 +194,8 @@ def summarize(method: str, outcomes: list[TrialOutcome], mlirl_folds: np.ndarray
         n_unbounded=sum(o.unbounded for o in outcomes),
         time_mean_s=float(np.mean([o.wall_time_s for o in outcomes])),
         heldout_folds=tuple(float(x) for x in folds), p_vs_marginal=_p_against(folds, marginal_folds),
+        n_uninformative=sum("uninformative" in o.flags for o in outcomes),
+        n_infeasible=sum("infeasible" in o.flags for o in outcomes),
     )
 
 
@@ -232,15 +247,15 @@ def format_report(report: ReproductionReport) -> str:
     """The paper's table layout plus p-values and held-out log-likelihood, and the paper's means."""
     k = len(report.feature_names)
     head = ["Method"] + [f"θ_{i + 1} ({n})" for i, n in enumerate(report.feature_names)] + \
-        ["Final log-likelihood", "LOO held-out LL", "p vs MLIRL", "p vs marginal", "conv/unb", "s/trial"]
+        ["Final log-likelihood", "LOO held-out LL", "p vs MLIRL", "p vs marginal", "conv/unb", "verdict", "s/trial"]
     lines = [[row_label(r.method)] + ([_pm(m, s) for m, s in zip(r.theta_mean, r.theta_std)] or ["-"] * k)
              + [_pm(r.loglik_mean, r.loglik_std),
                 f"{r.heldout_loglik:.2f}" if math.isfinite(r.heldout_loglik) else "-",
                 _p(r.p_vs_mlirl), _p(r.p_vs_marginal),
-                f"{r.n_converged}/{r.n_unbounded}", f"{r.time_mean_s:.3f}"] for r in report.rows]
+                f"{r.n_converged}/{r.n_unbounded}", r.verdict or "-", f"{r.time_mean_s:.3f}"] for r in report.rows]
     paper = PAPER.get(report.table, {})
     paper_lines = [[f"paper {row_label(m)}"] + [f"{v:.2f}" for v in paper[m][:k]] + [f"{paper[m][k]:.2f}", "", "",
-                                                                                        "", "", ""]
+                                                                                        "", "", "", ""]
                    for m in REGISTRY if m in paper and len(paper[m]) == k + 1]
     table = [head] + lines + paper_lines
     widths = [max(len(row[c]) for row in table) for c in range(len(head))]
@@ -255,7 +270,11 @@ def format_report(report: ReproductionReport) -> str:
                "others (first trial seed). p: two-sided Wilcoxon signed-rank test of the paired held-out "
                "trajectories (per-fold LOO LL) vs MLIRL / the marginal. Baselines (add-one smoothed): uniform; "
                "marginal = action frequencies; markov = next action given the previous one (first step: "
-               "marginal); bc = tabular behaviour cloning. conv/unb: trials converged / with unbounded weights.")
+               "marginal); bc = tabular behaviour cloning. conv/unb: trials converged / with unbounded weights. "
+               "verdict (REIRL): uninformative = every weight 0, the experts cannot be told from the baseline "
+               "trajectories at this confidence (the weights are no result); infeasible = its dual is unbounded "
+               "(the weights sit at their cap). The policy depends on the weights only through beta x theta: "
+               "compare beta x theta with the paper's beta x theta, not theta alone.")
     for f in report.failures:
         out.append(f"FAILED {f.key} after {f.attempts} attempt(s): {f.error}")
     return "\n".join(out)

@@ -53,6 +53,16 @@ class TrialTask:
     epsilon: float | None = DEFAULT_EPSILON
 
 
+def _flags_of_message(d: dict) -> tuple[str, ...]:
+    """The verdicts of an outcome stored before outcomes had ``flags``, from its converged and
+    unbounded fields and the fit message (REIRL writes "INFEASIBLE" / "UNINFORMATIVE" into it)."""
+    out = [] if d["converged"] else ["not_converged"]
+    if d["unbounded"]:
+        out.append("unbounded")
+    out += [k for k in ("infeasible", "uninformative") if k.upper() in str(d["message"])]
+    return tuple(out)
+
+
 @dataclass(frozen=True)
 class TrialOutcome:
     """What one trial produced (plain values: picklable and JSON-friendly)."""
@@ -68,10 +78,14 @@ class TrialOutcome:
     unbounded: bool
     n_iterations: int
     message: str
+    #: the fit's verdicts (:attr:`irl.result.FitResult.flags`: ``not_converged``, ``unbounded``,
+    #: ``infeasible``, ``uninformative``)
+    flags: tuple[str, ...] = ()
 
     def to_dict(self) -> dict:
         d = dict(self.__dict__)
         d["theta"] = list(self.theta)
+        d["flags"] = list(self.flags)
         for key in ("loglik", "heldout_loglik"):
             if not math.isfinite(d[key]):
                 d[key] = None
@@ -90,6 +104,7 @@ class TrialOutcome:
             heldout_loglik=num(d["heldout_loglik"]), wall_time_s=float(d["wall_time_s"]),
             converged=bool(d["converged"]), unbounded=bool(d["unbounded"]),
             n_iterations=int(d["n_iterations"]), message=str(d["message"]),
+            flags=tuple(str(f) for f in d["flags"]) if "flags" in d else _flags_of_message(d),
         )
 
 
@@ -197,6 +212,7 @@ def run_trial(task: TrialTask) -> TrialOutcome:
         theta=tuple(float(x) for x in np.asarray(fit.theta)), loglik=float(fit.loglik),
         heldout_loglik=float(heldout), wall_time_s=float(fit.wall_time_s), converged=bool(fit.converged),
         unbounded=bool(fit.unbounded), n_iterations=int(fit.n_iterations), message=fit.message,
+        flags=tuple(fit.flags),
     )
 
 

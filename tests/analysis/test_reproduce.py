@@ -198,3 +198,41 @@ def test_heldout_script_prints_the_baseline_table(railusm, capsys):
 
     for name in ("uniform", "marginal", "markov", "bc"):
         assert f"{name:10s} {baseline_leave_one_out(name, demos).sum():10.1f}" in text
+
+
+def _outcome(method: str, seed: int, flags: tuple[str, ...], message: str = "ok") -> TrialOutcome:
+    return TrialOutcome(method=method, seed=seed, holdout=None, theta=(0.0, 0.0), loglik=-10.0, heldout_loglik=float("nan"),
+                        wall_time_s=0.1, converged=not flags, unbounded="infeasible" in flags, n_iterations=3,
+                        message=message, flags=flags)
+
+
+def test_reirl_verdict_is_in_the_printed_table():
+    """REIRL's "uninformative" (every weight 0) and "infeasible" verdicts are a column of the
+    printed table, not only in the JSON, and the footnote says what they and beta x theta mean."""
+    from dataclasses import replace
+
+    from analysis.experiments.reproduce_report import ReproductionReport, format_report, summarize
+
+    reirl = summarize("reirl", [_outcome("reirl", s, ("not_converged", "uninformative")) for s in range(3)]
+                      + [_outcome("reirl", 3, ())], None, [])
+    qavg = summarize("qavg", [_outcome("qavg", s, ()) for s in range(4)], None, [])
+    assert (reirl.n_uninformative, reirl.verdict, qavg.verdict) == (3, "uninformative 3/4", "")
+    report = ReproductionReport(table=3, title="Table 3: toy", config=IRLConfig.paper(), feature_names=("a", "b"),
+                                rows=(qavg, reirl), trials=(), holdout=(), seed=0)
+    text = format_report(report)
+    header = next(line for line in text.splitlines() if line.startswith("Method"))
+    reirl_line = next(line for line in text.splitlines() if line.startswith("REIRL"))
+    assert "verdict" in header and "uninformative 3/4" in reirl_line
+    assert "beta x theta" in text and "uninformative = every weight 0" in text
+    inf = replace(reirl, n_uninformative=0, n_infeasible=2)
+    assert inf.verdict == "infeasible 2/4"
+
+
+def test_outcomes_stored_before_flags_get_their_verdict_from_the_message():
+    """A result store written before outcomes had flags still prints REIRL's verdict."""
+    old = _outcome("reirl", 0, ("not_converged", "uninformative"),
+                   message="dual solved; UNINFORMATIVE: every weight is 0").to_dict()
+    del old["flags"]
+    assert TrialOutcome.from_dict(old).flags == ("not_converged", "uninformative")
+    new = _outcome("reirl", 0, ("not_converged", "uninformative")).to_dict()
+    assert TrialOutcome.from_dict(new).flags == ("not_converged", "uninformative")

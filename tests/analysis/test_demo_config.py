@@ -55,3 +55,26 @@ def test_cli_rejects_a_bad_heldout_count_before_any_run(tmp_path, capsys):
         main(["demo", "--heldout-runs", "0", "--out", str(tmp_path / "d")])
     assert e.value.code == 2 and "--heldout-runs" in capsys.readouterr().err
     assert not (tmp_path / "d").exists()
+
+
+def test_the_demo_says_how_long_it_will_take():
+    """One line before any work: longer on a busy machine, shorter without DAgger, in a range."""
+    from analysis.demo.estimate import CPU_PER_SIM_S, MEASURED, estimate, simulated_seconds
+
+    cfg = DemoConfig()
+    # the model's simulated seconds are those of the measured runs, and reproduce their CPU time
+    assert simulated_seconds(cfg, scenario_duration_s=360.0) == MEASURED[0][1]
+    assert simulated_seconds(DemoConfig(dagger_rounds=0), scenario_duration_s=360.0) == MEASURED[1][1]
+    for _, sim_s, cpu_s, _, _ in MEASURED:
+        assert abs(CPU_PER_SIM_S * sim_s - cpu_s) / cpu_s < 0.1
+    idle = estimate(cfg, scenario_duration_s=360.0, cores=2, load=0.0)
+    busy = estimate(cfg, scenario_duration_s=360.0, cores=2, load=11.4)
+    short = estimate(DemoConfig(dagger_rounds=0), scenario_duration_s=360.0, cores=2, load=0.0)
+    assert idle.wall_s == idle.cpu_s / 2 and busy.wall_s > 5 * idle.wall_s and short.wall_s < idle.wall_s / 3
+    # the measured demo whose load held (about 11 throughout) falls in the printed range of its estimate
+    _, _, _, wall, load = MEASURED[1]
+    e = estimate(DemoConfig(dagger_rounds=0), scenario_duration_s=360.0, cores=2, load=load)
+    assert 0.75 * e.wall_s <= wall <= 2.0 * e.wall_s
+    line = busy.line()
+    assert "\n" not in line and line.startswith("merge-irl demo: expect about") and "load average now 11.4" in line
+    assert "cores idle" in idle.line()

@@ -202,3 +202,33 @@ def test_examples_run(path: Path, small_demo: Path, tmp_path: Path):
     assert proc.returncode == 0, f"{path.name}: {proc.stderr[-3000:]}\n{proc.stdout[-2000:]}"
     ran = proc.stdout.count("--- ")
     assert ran >= 1
+
+
+def _cells(line: str) -> list[str]:
+    return re.split(r"\s{2,}", line.strip())
+
+
+def test_docs_table_3_is_what_reproduce_prints(railusm):
+    """The Table 3 printed in docs/learn.md has the layout ``merge-irl reproduce`` prints today, and
+    its Q-Avg row is what reproduce prints on the authors' data (the cheap method: the others take
+    minutes per trial; the page says when and how the whole table was made)."""
+    from analysis.experiments.reproduce import reproduce
+    from analysis.experiments.reproduce_report import format_report
+
+    (block,) = [b for b in code_blocks(ROOT / "docs" / "learn.md", ("",)) if b.startswith("Table 3:")]
+    doc = block.splitlines()
+    report = reproduce(3, railusm, methods=("qavg",), executor="serial")
+    printed = format_report(report).splitlines()
+    assert printed[0] == doc[0]  # title: data, trial count, settings, seed
+    assert _cells(printed[1]) == _cells(doc[1])  # the columns
+    head = _cells(doc[1])
+    skip = {head.index("p vs MLIRL"), head.index("s/trial")}  # MLIRL not run here; times vary
+
+    def row(lines: list[str], label: str) -> list[str]:
+        (line,) = [x for x in lines if x.startswith(label + " ")]
+        return [c for i, c in enumerate(_cells(line)) if i not in skip]
+
+    for label in ("Q-Avg", "uniform", "marginal", "markov", "bc"):
+        if any(x.startswith(label + " ") for x in doc):
+            assert row(printed, label) == row(doc, label), label
+    assert "REIRL" in block and "verdict" in doc[1]

@@ -24,7 +24,7 @@ PLANNER_DRIVER = "planner"
 
 @dataclass(frozen=True)
 class DemoConfig:
-    """Sizes of the demo (defaults: about half a minute on 2 idle cores).
+    """Sizes of the demo (its time: :mod:`analysis.demo.estimate`, which the demo prints before it starts).
 
     Attributes:
         scenario: preset name or TOML path.

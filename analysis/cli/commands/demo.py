@@ -40,9 +40,9 @@ def register(subparsers) -> None:
                         "distances, 10 rank the drivers, see docs/closed-loop.md)")
     p.add_argument("--dagger-rounds", type=non_negative_int, default=None, metavar="N",
                    help="DAgger rounds of the car-following logit driver cf-dagger, the default learned driver "
-                        "(SUMO's High Brake labels in the states it reaches; about 5 s per round on 2 idle cores), "
-                        "evaluated beside the others (default 4; 0: not trained, the demo then takes about a "
-                        "third of the time)")
+                        "(SUMO's High Brake labels in the states it reaches: 15 SUMO runs of 240 s per round, most of "
+                        "the demo's CPU time), evaluated beside the others (default 4; 0: not trained, the demo then "
+                        "needs about a quarter of the CPU time)")
     p.add_argument("--encounter-rule", choices=ENCOUNTER_RULES, default=ENCOUNTER_RULES[0],
                    help="how the data runs become demonstrations (default in-lane: as the closed-loop controller "
                         "observes SUMO's drivers, A's lane held; see merge-irl generate --help)")

@@ -11,7 +11,9 @@ Python compiled and its imports checked. ``<!-- docs-test: after-demo -->`` docu
 reads ``runs/demo`` (the tests run every block in a folder where ``runs/demo`` is a small demo's
 output); ``<!-- docs-test: authors-data -->`` one that reads the authors' demonstrations from
 ``railusm/``: it runs only where that folder is present (the tests link it there when
-``tests/shared_data.RAILUSM`` exists) and is otherwise only parsed.
+``tests/shared_data.RAILUSM`` exists) and is otherwise only parsed; ``<!-- docs-test: file NAME -->``
+a block that is the contents of a file the page's later blocks use (``rules.py``): it is written to
+``NAME`` instead of being run.
 
 Run as a script (``python tests/doc_blocks.py PAGE``) it executes the page's runnable blocks in
 order in the current folder, the Python blocks in one namespace (a later block may use an earlier
@@ -36,7 +38,7 @@ NOT_RUN_KINDS = {
 }
 SHELL = ("bash", "sh", "shell")
 RUNNABLE = (*SHELL, "python")
-MARKER = re.compile(r"^<!-- docs-test: (?P<what>not-run|after-demo|authors-data)(?: (?P<kind>[a-z-]+):)?(?P<reason>[^>]*)-->\s*$")
+MARKER = re.compile(r"^<!-- docs-test: (?P<what>not-run|after-demo|authors-data|file)(?: (?P<kind>[a-z-]+):)?(?P<reason>[^>]*)-->\s*$")
 FENCE = re.compile(r"^```(\w*)[^\n]*\n(.*?)^```", re.DOTALL | re.MULTILINE)
 
 
@@ -98,6 +100,10 @@ def run_page(path: Path) -> None:
     namespace: dict = {"__name__": "__main__"}
     for block in blocks(path):
         if not block.runs:
+            continue
+        if block.marker == "file":
+            Path(block.reason).write_text(block.body, encoding="utf-8")
+            print(f"--- {block.where()}: written to {block.reason}", flush=True)
             continue
         if block.marker == "authors-data" and not Path("railusm").is_dir():
             print(f"--- {block.where()}: not run (no railusm/ here: the authors' data)", flush=True)

@@ -66,7 +66,7 @@ from irl.domains.merge.features import FEATURE_NAMES, paper_features
 from sim.hooks import FrameState, RunContext
 from sim.lanes import aux_lane_start_ft
 from sim.observe import lead_of
-from sim.schema import RAMP_LANE
+from sim.schema import RAMP_LANE, RIGHTMOST_MAIN_LANE
 
 #: ``class_ids`` of the vehicle boxes, by role.
 ROLE_IDS = {"other": 0, "A": 1, "B": 2, "C": 3, "A observed": 4}
@@ -81,7 +81,7 @@ ROLE_RGBA_U32 = (ROLE_COLORS.astype(np.uint32) @ np.array([1 << 24, 1 << 16, 1 <
 #: The ``world`` transform: y mirrored (2D views draw y downwards).
 MIRROR_Y = np.diag([1.0, -1.0, 1.0])
 #: What each lane is, for its label (I-80 numbering; other lanes are "lane <n>").
-LANE_ROLES = {"6": "right main lane", str(RAMP_LANE): "ramp / auxiliary lane"}
+LANE_ROLES = {str(RIGHTMOST_MAIN_LANE): "right main lane", str(RAMP_LANE): "ramp / auxiliary lane"}
 #: RGBA of the road surface and of the lane centre lines.
 ROAD_RGBA = (62, 62, 66, 255)
 LANE_LINE_RGBA = (150, 150, 150, 255)
@@ -111,9 +111,9 @@ def road_landmarks(ctx: RunContext) -> tuple[np.ndarray, list[str]]:
     """``[m, 2]`` positions (ft, SUMO's frame) and labels of the road's landmarks: where lane 7
     (the ramp) begins, where it first runs beside lane 6 (the auxiliary lane, the merge zone)
     and where it ends. Empty when the run has no lane 7 or no lane 6."""
-    if str(RAMP_LANE) not in ctx.lane_shapes or "6" not in ctx.lane_shapes:
+    if str(RAMP_LANE) not in ctx.lane_shapes or str(RIGHTMOST_MAIN_LANE) not in ctx.lane_shapes:
         return np.zeros((0, 2)), []
-    l6 = np.asarray(ctx.lane_shapes["6"], dtype=np.float64)[:, :2]
+    l6 = np.asarray(ctx.lane_shapes[str(RIGHTMOST_MAIN_LANE)], dtype=np.float64)[:, :2]
     l7 = np.asarray(ctx.lane_shapes[str(RAMP_LANE)], dtype=np.float64)[:, :2]
     x_aux = float(l6[0, 0]) + aux_lane_start_ft(ctx)
     aux = np.array([x_aux, float(np.interp(x_aux, l7[:, 0], l7[:, 1]))])

@@ -1,9 +1,9 @@
 """How long ``merge-irl demo`` will take on this machine, said before it starts (one line).
 
 The demo's work is almost all SUMO runs (data runs, DAgger's labelling runs, evaluation
-episodes), so its CPU time is modelled as a fixed part (imports, worker start-up, the fits)
-plus a cost per simulated second; both constants were fitted to two measured demos (the default
-and ``--dagger-rounds 0``, :data:`MEASURED`). The wall time is that CPU time divided by the share
+episodes), so its CPU time is modelled as a cost per simulated second, which grows with the
+load average (CPU time runs longer on a busy machine), fitted to three measured demos
+(:data:`MEASURED`). The wall time is that CPU time divided by the share
 of the cores the demo's worker processes get next to the other runnable jobs (the 1-minute load
 average), so a busy machine gets a longer, and said, estimate.
 """
@@ -18,19 +18,21 @@ from analysis.demo.config import DemoConfig
 from analysis.experiments.dagger import DaggerConfig
 
 #: The measurements the constants come from: (what, simulated seconds, CPU seconds user + system of
-#: every process, wall seconds, 1-minute load average at the end), on the 2-core development machine,
+#: every process, wall seconds, 1-minute load average), on the 2-core development machine,
 #: 2026-12-03, fresh network cache (``MERGE_IRL_CACHE`` an empty folder), other people's jobs running.
 MEASURED = (
-    ("merge-irl demo", 20880.0, 165.5, 331.5, 11.4),
-    ("merge-irl demo --dagger-rounds 0", 5400.0, 41.5, 201.5, 11.4),
+    ("merge-irl demo", 20880.0, 165.5, 331.5, 11.4),  # the load rose from 0.5 to 11.4 during the run
+    ("merge-irl demo --dagger-rounds 0", 5400.0, 41.5, 201.5, 11.4),  # about 11 throughout
+    ("merge-irl demo", 20880.0, 104.2, 99.9, 2.9),  # 2.5 at the start, 3.3 at the end
 )
-#: CPU seconds of the demo's fixed part (imports, worker start-up, IRL and planner fits): the two
-#: measurements put it at about 0 (a fit gives -1.8 s), so the simulated seconds carry it all.
+#: CPU seconds of the demo's fixed part (imports, worker start-up, IRL and planner fits): the
+#: measurements put it at about 0, so the simulated seconds carry it all.
 FIXED_CPU_S = 0.0
-#: CPU seconds per simulated second of a SUMO run with the closed loop (165.5 s / 20880 s; the
-#: other measurement, 41.5 s / 5400 s, gives 0.0077). CPU time on a loaded machine runs higher
-#: than on an idle one, so on idle cores the estimate errs long.
-CPU_PER_SIM_S = 0.0079
+#: CPU seconds per simulated second of a SUMO run with the closed loop, at load average 0, and
+#: its growth per unit of load average: CPU time itself grows on a busy machine (0.0050 at load
+#: about 3, 0.0077-0.0079 at about 11 in :data:`MEASURED`). At load 0 the line is an extrapolation.
+CPU_PER_SIM_S = 0.0040
+CPU_PER_SIM_S_PER_LOAD = 0.00035
 
 
 @dataclass(frozen=True)
@@ -45,9 +47,8 @@ class DemoEstimate:
 
     def line(self) -> str:
         """One line for the user: 0.75 to 2 times the estimate. The load average of the moment
-        says nothing of the load to come: the measured demo whose load held (about 11) took
-        201 s against an estimate of 143 s; the one during which the load rose from 0.5 to 11
-        took 331 s, three times its estimate of 103 s."""
+        says nothing of the load to come: the demo during which the load rose from 0.5 to 11
+        took 331 s (:data:`MEASURED`), three times what its starting load predicts."""
         lo, hi = 0.75 * self.wall_s, 2.0 * self.wall_s
 
         def fmt(s: float) -> str:
@@ -85,7 +86,8 @@ def estimate(config: DemoConfig, *, scenario_duration_s: float, cores: int | Non
         except OSError:  # not available on this platform
             load = 0.0
     load = max(0.0, float(load))
-    cpu = FIXED_CPU_S + CPU_PER_SIM_S * simulated_seconds(config, scenario_duration_s=scenario_duration_s)
+    rate = CPU_PER_SIM_S + CPU_PER_SIM_S_PER_LOAD * load
+    cpu = FIXED_CPU_S + rate * simulated_seconds(config, scenario_duration_s=scenario_duration_s)
     w = max(1, int(config.workers))
     share = min(w, cores, cores * w / (load + w))  # cores the demo's processes get beside the others
     return DemoEstimate(cpu_s=cpu, wall_s=cpu / max(share, 1e-3) if math.isfinite(cpu) else math.inf,

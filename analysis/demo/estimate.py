@@ -15,7 +15,8 @@ import os
 from dataclasses import dataclass
 
 from analysis.demo.config import DemoConfig
-from analysis.experiments.dagger import DaggerConfig
+from analysis.experiments.dagger import DaggerConfig, labelling_duration_s
+from scenarios.spec.model import ScenarioSpec
 
 #: The measurements the constants come from: (what, simulated seconds, CPU seconds user + system of
 #: every process, wall seconds, 1-minute load average), on the 2-core development machine,
@@ -59,23 +60,23 @@ class DemoEstimate:
                 f"{'s' * (self.cores != 1)}{busy}; about {self.cpu_s:.0f} s of CPU time)")
 
 
-def simulated_seconds(config: DemoConfig, *, scenario_duration_s: float) -> float:
-    """Simulated seconds of every SUMO run of ``config``: the data runs, DAgger's labelling runs,
-    the logged episode and the evaluation episodes of every policy."""
-    data = (len(config.train_seeds) + config.heldout_runs) * (config.data_duration_s or scenario_duration_s)
+def simulated_seconds(config: DemoConfig, spec: ScenarioSpec) -> float:
+    """Simulated seconds of every SUMO run of ``config`` on scenario ``spec``: the data runs,
+    DAgger's labelling runs (:func:`analysis.experiments.dagger.labelling_duration_s`), the logged
+    episode and the evaluation episodes of every policy."""
+    own = spec.simulation.duration_s
+    data = (len(config.train_seeds) + config.heldout_runs) * (config.data_duration_s or own)
     dag = DaggerConfig()
-    dagger = config.dagger_rounds * dag.episodes_per_round * dag.duration_s
-    eval_s = config.eval_duration_s or scenario_duration_s
+    dagger = config.dagger_rounds * dag.episodes_per_round * labelling_duration_s(spec, dag) if config.dagger_rounds else 0.0
+    eval_s = config.eval_duration_s or own
     n_policies = len(config.methods) + 5 + (2 if config.dagger_rounds else 0) + 1  # baselines, cf drivers, planner
     return data + dagger + eval_s * (1 + n_policies * config.eval_episodes)
 
 
-def estimate(config: DemoConfig, *, scenario_duration_s: float, cores: int | None = None,
-             load: float | None = None) -> DemoEstimate:
-    """The expected CPU and wall seconds of ``run_demo(config)`` here.
+def estimate(config: DemoConfig, spec: ScenarioSpec, *, cores: int | None = None, load: float | None = None) -> DemoEstimate:
+    """The expected CPU and wall seconds of ``run_demo(config)`` on scenario ``spec`` here.
 
     Args:
-        scenario_duration_s: the scenario's own duration (s), for the runs ``config`` leaves at it.
         cores: CPU cores (default ``os.cpu_count()``).
         load: runnable jobs of others (default the 1-minute load average, 0 where the platform has none).
     """
@@ -87,7 +88,7 @@ def estimate(config: DemoConfig, *, scenario_duration_s: float, cores: int | Non
             load = 0.0
     load = max(0.0, float(load))
     rate = CPU_PER_SIM_S + CPU_PER_SIM_S_PER_LOAD * load
-    cpu = FIXED_CPU_S + rate * simulated_seconds(config, scenario_duration_s=scenario_duration_s)
+    cpu = FIXED_CPU_S + rate * simulated_seconds(config, spec)
     w = max(1, int(config.workers))
     share = min(w, cores, cores * w / (load + w))  # cores the demo's processes get beside the others
     return DemoEstimate(cpu_s=cpu, wall_s=cpu / max(share, 1e-3) if math.isfinite(cpu) else math.inf,

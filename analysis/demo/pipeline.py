@@ -183,7 +183,7 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     check_dagger_seeds(config)  # before any work
     out = Path(out_dir) if out_dir is not None else Path("runs") / "demo"
     spec0 = load_scenario(config.scenario)
-    _say(estimate(config, scenario_duration_s=spec0.simulation.duration_s).line(), quiet)
+    _say(estimate(config, spec0).line(), quiet)
     (out / "data").mkdir(parents=True, exist_ok=True)
     phases: dict[str, float] = {}
     t_phase = time.perf_counter()

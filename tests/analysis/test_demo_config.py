@@ -62,19 +62,22 @@ def test_the_demo_says_how_long_it_will_take():
     that holds the measured demos whose load held during the run."""
     from analysis.demo.estimate import CPU_PER_SIM_S, CPU_PER_SIM_S_PER_LOAD, MEASURED, estimate, simulated_seconds
 
+    from scenarios.loader import load_scenario
+
+    spec = load_scenario("synthetic")
     cfg = DemoConfig()
     # the model's simulated seconds are those of the measured runs, and its CPU time theirs within 10 %
-    assert simulated_seconds(cfg, scenario_duration_s=360.0) == MEASURED[0][1] == MEASURED[2][1]
-    assert simulated_seconds(DemoConfig(dagger_rounds=0), scenario_duration_s=360.0) == MEASURED[1][1]
+    assert simulated_seconds(cfg, spec) == MEASURED[0][1] == MEASURED[2][1]
+    assert simulated_seconds(DemoConfig(dagger_rounds=0), spec) == MEASURED[1][1]
     for _, sim_s, cpu_s, _, load in MEASURED:
         assert abs((CPU_PER_SIM_S + CPU_PER_SIM_S_PER_LOAD * load) * sim_s - cpu_s) / cpu_s < 0.1
-    idle = estimate(cfg, scenario_duration_s=360.0, cores=2, load=0.0)
-    busy = estimate(cfg, scenario_duration_s=360.0, cores=2, load=11.4)
-    short = estimate(DemoConfig(dagger_rounds=0), scenario_duration_s=360.0, cores=2, load=0.0)
+    idle = estimate(cfg, spec, cores=2, load=0.0)
+    busy = estimate(cfg, spec, cores=2, load=11.4)
+    short = estimate(DemoConfig(dagger_rounds=0), spec, cores=2, load=0.0)
     assert idle.wall_s == idle.cpu_s / 2 and busy.wall_s > 5 * idle.wall_s and short.wall_s < idle.wall_s / 3
     for i, load in ((1, 11.4), (2, 2.5)):  # the two whose load held; their load at the start
         _, _, _, wall, _ = MEASURED[i]
-        e = estimate(DemoConfig(dagger_rounds=0) if i == 1 else cfg, scenario_duration_s=360.0, cores=2, load=load)
+        e = estimate(DemoConfig(dagger_rounds=0) if i == 1 else cfg, spec, cores=2, load=load)
         assert 0.75 * e.wall_s <= wall <= 2.0 * e.wall_s, (i, e)
     line = busy.line()
     assert "\n" not in line and line.startswith("merge-irl demo: expect about") and "load average now 11.4" in line

@@ -1,6 +1,6 @@
 """The fingerprint of a short closed-loop run: sha256 of every output of ``run_scenario`` and of
 the controller's records, recorded before the session refactor (``tests/data/run_fingerprints.json``)
-and checked against it by ``test_session.py::test_run_scenario_outputs_are_byte_identical``.
+and checked against it by ``test_run_fingerprint.py::test_run_scenario_outputs_are_byte_identical``.
 
 Regenerate (only when a change of outputs is intended)::
 

@@ -189,11 +189,7 @@ def plot_gap_acceptance(path: Path, by_policy, held=None) -> Path:
         ax.set_xticks(x, labels, fontsize=7)
         ax.set_ylim(-0.05, 1.05)
         _legend(ax, 7)
-    for ax in axes:
-        if ax.xaxis.get_tick_params()["labelbottom"]:
-            ax.set_xlabel("gap d_AB at take-over (ft)", fontsize=8)
-        if ax.get_subplotspec().is_first_col():
-            ax.set_ylabel("share with B ahead of A", fontsize=8)
+    _label_outer(axes, "gap d_AB at take-over (ft)", "share with B ahead of A")
     fig.suptitle("Gap acceptance, one panel per policy against the demonstrations (bands: 95 % interval)",
                  fontsize=10)
     return _save(fig, path)
@@ -252,11 +248,7 @@ def plot_speed_profiles(path: Path, by_policy, held=None, *, speed_limit_ft_s: f
                    label=(f"implausible above {too_fast:.0f} ft/s ({IMPLAUSIBLE_SPEED_FACTOR:g} x limit; x = sample)"
                           if i == 0 else None))
         _legend(ax, 6)
-    for ax in axes:
-        if ax.xaxis.get_tick_params()["labelbottom"]:
-            ax.set_xlabel("time since take-over (s)", fontsize=8)
-        if ax.get_subplotspec().is_first_col():
-            ax.set_ylabel("speed of A (ft/s)", fontsize=8)
+    _label_outer(axes, "time since take-over (s)", "speed of A (ft/s)")
     title = "Speed of A: median, 10-90 % band, one panel per policy"
     if held is not None and demo is None:
         title += "\n(demonstrations: the encounter table has no absolute speed)"
@@ -344,3 +336,12 @@ def write_plots(out: Path, aggs, by_policy, held, *, speed_limit_ft_s: float | N
         plot_acceleration(out / "acceleration.png", by_policy, held),
         plot_headway(out / "headway.png", by_policy, held),
     )
+
+
+def _label_outer(axes, xlabel: str, ylabel: str) -> None:
+    """Axis labels of small multiples: x on the panels with tick labels at the bottom, y on the first column."""
+    for ax in axes:
+        if ax.xaxis.get_tick_params()["labelbottom"]:
+            ax.set_xlabel(xlabel, fontsize=8)
+        if ax.get_subplotspec().is_first_col():
+            ax.set_ylabel(ylabel, fontsize=8)

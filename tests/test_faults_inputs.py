@@ -154,3 +154,16 @@ def test_cli_refuses_an_implausible_duration_in_one_line_and_allow_implausible_p
     assert main([*args, "--allow-implausible"]) == 2
     assert "stopped by the test" in capsys.readouterr().err
     assert seen == {"duration_s": 1e9, "allow": True}
+
+
+@pytest.mark.parametrize("duration", [-5.0, -1e9])
+def test_a_negative_duration_override_is_refused_as_impossible_not_as_implausible(duration):
+    """A negative --duration cannot be run at all: the message must not offer --allow-implausible
+    (which then only led to 'must be positive')."""
+    from scenarios.loader import load_scenario
+    from scenarios.spec.parse import with_overrides
+
+    for allow in (False, True):
+        with pytest.raises(SpecError, match=r"simulation\.duration_s: must be positive") as e:
+            with_overrides(load_scenario("synthetic"), duration_s=duration, allow_implausible=allow)
+        assert "allow" not in str(e.value)

@@ -353,7 +353,8 @@ def with_overrides(
             # name the override, not the scenario file's warmup_s, which is fine as it is
             raise SpecError(f"{source}: simulation.duration_s: overridden (e.g. --duration) with {duration_s:g} s; "
                             f"must be longer than the scenario's simulation.warmup_s = {warmup:g} s")
-        if isinstance(duration_s, (int, float)) and not isinstance(duration_s, bool) and math.isfinite(duration_s):
+        if isinstance(duration_s, (int, float)) and not isinstance(duration_s, bool) and math.isfinite(duration_s) \
+                and duration_s > 0:  # a non-positive one is impossible, not implausible: the spec's check names it
             check_bound(FieldContext(source), "simulation.duration_s", float(duration_s), allow=allow,
                         given_as="overridden (e.g. --duration) with")
         data["simulation"]["duration_s"] = duration_s

@@ -24,10 +24,10 @@ Spaces:
   acceleration in m/s^2 (``acc_bounds_mps2``, default -9 .. 4), applied as it is (capped too).
 
 ``info`` of ``reset`` and ``step``: ``state`` (the discrete state index of the reward's encoder,
-or the authors' bins without a tabular reward; -1 never), ``action_bin`` (the applied
-acceleration's merge action, step only), ``acc_ft_s2`` (applied), ``release_reason`` (one of
-:data:`sim.control_records.RELEASE_REASONS`, at the episode's end), ``collision_kind``,
-``seed`` (the SUMO run's), ``time_s``, ``a_id`` / ``b_id`` (Vehicle_IDs).
+or the authors' bins without a tabular reward; -1 on the step that ends the episode),
+``action_bin`` (the applied acceleration's merge action, step only), ``acc_ft_s2`` (applied),
+``release_reason`` (one of :data:`sim.control_records.RELEASE_REASONS`, at the episode's end),
+``collision_kind``, ``seed`` (the SUMO run's), ``time_s``, ``a_id`` / ``b_id`` (Vehicle_IDs).
 
 Termination (Gymnasium's terms): ``terminated`` when the controller releases A for a reason of the
 merge itself (``merge_done``, ``collision``, ``left_section``, ``left_lane``, ``b_lost``,
@@ -118,6 +118,11 @@ class MergeEnv(gym.Env):
 
     Raises:
         ValueError: an unknown ``action_type`` or bad bounds.
+        TypeError: ``reward`` neither a path, a callable nor None; ``controller`` not a
+            :class:`~sim.controller_config.ControllerConfig`.
+        scenarios.errors.SpecError: an unknown scenario, or ``run_s`` not a possible and plausible
+            duration for it (positive, longer than its warm-up, at most 6 h unless the spec allows
+            implausible values).
     """
 
     metadata: dict[str, Any] = {"render_modes": []}
@@ -134,12 +139,21 @@ class MergeEnv(gym.Env):
             raise ValueError(f"acc_bounds_mps2 must be (negative, positive) m/s^2, got {acc_bounds_mps2!r}")
         if render_mode is not None:
             raise ValueError(f"render_mode: this environment renders nothing, got {render_mode!r}")
+        if not (reward is None or isinstance(reward, str | os.PathLike) or callable(reward)):
+            raise TypeError(f"reward must be a model file path, a callable (obs, action_bin, acc_ft_s2) -> float "
+                            f"or None, got {type(reward).__name__} {reward!r}")
+        if not isinstance(controller, ControllerConfig):
+            raise TypeError(f"controller must be a sim.controller_config.ControllerConfig, got "
+                            f"{type(controller).__name__}")
         if isinstance(scenario, ScenarioSpec):
             self.spec_ = scenario
         else:
             from scenarios.loader import load_scenario
 
             self.spec_ = load_scenario(scenario if isinstance(scenario, str) else Path(scenario))
+        from scenarios.spec.parse import with_overrides
+
+        with_overrides(self.spec_, duration_s=run_s)  # refuse a bad run_s now, not at the first reset
         self.action_type = action_type
         self.run_s = float(run_s)
         self.controller_config = controller
@@ -197,22 +211,28 @@ class MergeEnv(gym.Env):
 
         Raises:
             RuntimeError: no episode is running (call ``reset``).
-            ValueError: an action outside the action space.
+            ValueError: an action outside the action space (discrete: not one integer 0..4, a bool
+                or a fractional number included; continuous: not one finite number).
         """
         if self._pending is None or self._control is None or self._ctl is None or self._session is None:
             raise RuntimeError("MergeEnv.step: no episode is running; call reset() first")
         c, ctl = self._control, self._ctl
         frame, ia, ic, obs = self._pending
         if self.action_type == "discrete":
-            a = int(np.asarray(action).item())
+            arr = np.asarray(action)
+            if (arr.size != 1 or arr.dtype.kind not in "iuf"
+                    or (arr.dtype.kind == "f" and not float(arr.item()).is_integer())):
+                raise ValueError(f"action must be an integer in 0..{N_ACTIONS - 1}, got {action!r}")
+            a = int(arr.item())
             if not 0 <= a < N_ACTIONS:
                 raise ValueError(f"action must be in 0..{N_ACTIONS - 1}, got {action!r}")
             acc = ctl.apply(c, frame, ia, ic, obs, np.eye(N_ACTIONS)[a], a)
         else:
-            acc_mps2 = float(np.clip(np.asarray(action, dtype=np.float64).reshape(-1)[0],
+            arr = np.asarray(action)
+            if arr.size != 1 or arr.dtype.kind not in "iuf" or not np.isfinite(arr).all():
+                raise ValueError(f"action must be one finite acceleration (m/s^2), got {action!r}")
+            acc_mps2 = float(np.clip(arr.astype(np.float64).reshape(-1)[0],
                                      self.action_space.low[0], self.action_space.high[0]))  # type: ignore[attr-defined]
-            if not math.isfinite(acc_mps2):
-                raise ValueError(f"action must be a finite acceleration (m/s^2), got {action!r}")
             a = action_of(acc_mps2 * FT_PER_M)
             acc = ctl.apply(c, frame, ia, ic, obs, np.eye(N_ACTIONS)[a], a, acc_ft_s2=acc_mps2 * FT_PER_M)
         applied_bin = action_of(acc)

@@ -18,6 +18,7 @@ from irl.domains.merge.actions import HIGH_BRAKE  # noqa: E402
 from sim.control_records import RELEASE_REASONS  # noqa: E402
 from sim.controller_config import ControllerConfig  # noqa: E402
 from sim.env import ENV_ID, MergeEnv  # noqa: E402
+from scenarios.errors import SpecError  # noqa: E402
 
 pytestmark = pytest.mark.sumo
 
@@ -171,3 +172,40 @@ def test_planning_driver_reward_from_its_file_depends_on_the_action(tmp_path):
         assert np.isfinite(r)
         first[a] = r
     assert first[0] != first[4]
+
+
+@pytest.mark.parametrize("kwargs,error,match", [
+    ({"reward": 3}, TypeError, "reward must be a model file path, a callable"),
+    ({"controller": {"decision_step_s": 0.3}}, TypeError, "controller must be a sim.controller_config"),
+    ({"run_s": -5.0}, SpecError, r"simulation\.duration_s: must be positive"),
+    ({"run_s": float("nan")}, SpecError, r"simulation\.duration_s: must be finite"),
+    ({"run_s": 30.0}, SpecError, "must be longer than the scenario's simulation.warmup_s"),
+    ({"run_s": 1e9}, SpecError, "is implausible"),
+])
+def test_bad_constructor_arguments_are_refused_at_construction_not_at_the_first_reset(kwargs, error, match):
+    """Before, each of these made an environment and failed later: at reset (a SUMO run then left
+    open) or at the first step (``'int' object is not callable``)."""
+    with pytest.raises(error, match=match):
+        MergeEnv(**kwargs)
+
+
+def test_actions_outside_the_space_are_refused_not_truncated():
+    """Discrete: 2.7 was applied as 2 and True as 1; continuous: [0.3, 5] as 0.3 and inf as the bound."""
+    env = MergeEnv(**SHORT)
+    cont = MergeEnv(action_type="continuous", **SHORT)
+    try:
+        env.reset(seed=1)
+        for bad in (2.7, True, np.array([1, 2]), "2", None):
+            with pytest.raises(ValueError, match=r"action must be an integer in 0\.\.4"):
+                env.step(bad)
+        assert env.step(np.int64(2))[4]["action_bin"] == 2  # an integer of any dtype, or 2.0, is fine
+        env.step(2.0)
+        env.close()
+        cont.reset(seed=1)
+        for bad in ([0.3, 5.0], np.inf, np.array([np.nan]), "x", True):
+            with pytest.raises(ValueError, match=r"action must be one finite acceleration"):
+                cont.step(bad)
+        cont.step(np.array([0.5], dtype=np.float32))
+    finally:
+        env.close()
+        cont.close()

@@ -33,6 +33,7 @@ import hashlib
 import importlib
 import importlib.util
 import math
+import re
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -149,13 +150,17 @@ class CallableSpec:
         return f"{self.module}:{self.attr}:{self.name}"
 
 
+#: What a spec's name may hold: a file name (``rerun/<name>.rrd``), a report row and a ``--fail-if`` prefix.
+_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.\-]*")
+
+
 def parse_spec(spec: str) -> CallableSpec:
     """Parse ``module:callable[:name]`` (module: a dotted name, or a path ending in ``.py`` or
     containing a path separator, e.g. ``./rules.py:cth`` or ``mypkg.rules:cth:cth-1.5s``).
 
     Raises:
-        PolicyError: not two or three non-empty parts, a bad dotted name, or a file path that is
-            no file.
+        PolicyError: not two or three non-empty parts, a bad dotted name, a name with other
+            characters than letters, digits, ``_``, ``-`` and ``.``, or a file path that is no file.
     """
     parts = str(spec).split(":")
     if len(parts) not in (2, 3) or not all(p.strip() for p in parts):
@@ -165,6 +170,9 @@ def parse_spec(spec: str) -> CallableSpec:
     name = parts[2].strip() if len(parts) == 3 else attr.rsplit(".", 1)[-1]
     if not all(s.isidentifier() for s in attr.split(".")):
         raise PolicyError(f"--policy {spec!r}: {attr!r} is not a Python name")
+    if not _NAME.fullmatch(name) or name.endswith("."):
+        raise PolicyError(f"--policy {spec!r}: the name {name!r} must be letters, digits, '_', '-' and '.' "
+                          "(it names the report's row, the recording's file and --fail-if's POLICY.)")
     is_file = module.endswith(".py") or "/" in module or "\\" in module
     if is_file:
         path = Path(module).expanduser()

@@ -28,7 +28,7 @@ from sim.errors import SimError
 OPERATORS = {">=": operator.ge, "<=": operator.le, "==": operator.eq, "!=": operator.ne,
              ">": operator.gt, "<": operator.lt}
 _PATTERN = re.compile(
-    r"^\s*(?:(?P<policy>[A-Za-z0-9_\-]+)\.)?(?P<metric>[A-Za-z_][A-Za-z0-9_]*)\s*"
+    r"^\s*(?:(?P<policy>[A-Za-z0-9_][A-Za-z0-9_.\-]*)\.)?(?P<metric>[A-Za-z_][A-Za-z0-9_]*)\s*"
     r"(?P<op>>=|<=|==|!=|>|<)\s*(?P<number>[^\s]+)\s*$"
 )
 

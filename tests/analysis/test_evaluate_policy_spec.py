@@ -78,6 +78,9 @@ def test_bad_policy_specs_exit_2_with_one_line(tmp_path, capsys):
         "no_such_module_xyz:f": "no module 'no_such_module_xyz'",
         "justonepart": "expected module:callable[:name]",
         f"{rule}:cth:name:extra": "expected module:callable[:name]",
+        f"{rule}:cth:a/b": "the name 'a/b' must be letters",  # was rerun/a/b.rrd, a folder made
+        f"{rule}:cth:x|y": "the name 'x|y' must be letters",  # was a broken report table row
+        f"{rule}:cth:.hidden": "the name '.hidden' must be letters",
     }
     for spec, said in cases.items():
         assert main(["evaluate", "--policy", spec, "--baselines", "", "--out", str(tmp_path / "x")]) == 2, spec

@@ -30,10 +30,21 @@ def test_parse_every_operator_and_spacing():
 
 
 @pytest.mark.parametrize("bad", ["", "collisions", "collisions>", ">0", "collisions=>0", "collisions>abc",
-                                 "collisions>0 1", "collisions=0", "collisions>nan", "1x>0", "a.b.c>0"])
+                                 "collisions>0 1", "collisions=0", "collisions>nan", "1x>0", ".x>0", "a..x>0x"])
 def test_parse_errors_explain_the_syntax(bad):
     with pytest.raises(ThresholdError, match="threshold"):
         parse_threshold(bad)
+
+
+def test_a_dotted_policy_name_can_be_gated():
+    """Policy names may hold dots (``--policy rules.py:cth:cth-1.5s``, ``--driver planner.v2.json``);
+    before, ``cth-1.5s.a_collisions>0`` was refused as malformed, so such a policy could not be gated."""
+    assert parse_threshold("cth-1.5s.a_collisions>0") == Threshold("a_collisions", ">", 0.0, "cth-1.5s")
+    metrics = {"cth-1.5s": dict(METRICS["qavg"], policy="cth-1.5s", collisions=1)}
+    assert [(b.policy, b.value) for b in check_thresholds(parse_thresholds("cth-1.5s.collisions>0"), metrics)] == [
+        ("cth-1.5s", 1.0)]
+    with pytest.raises(ThresholdError, match="unknown policy 'a.b'"):
+        check_thresholds(parse_thresholds("a.b.collisions>0"), METRICS)
 
 
 def test_check_semantics():

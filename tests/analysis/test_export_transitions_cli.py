@@ -51,3 +51,14 @@ def test_export_transitions_of_every_source(tmp_path, capsys) -> None:
         assert not (tmp_path / "bad.npz").exists()
     assert main(["export-transitions", "--demos", str(tmp_path / "enc.parquet"), "--out", str(tmp_path / "x.txt")]) == 2
     assert ".npz" in capsys.readouterr().err
+
+
+def test_a_run_folder_is_named_as_a_folder_not_as_missing(tmp_path, capsys) -> None:
+    """``--demos runs/gen`` (a generate run's folder) said 'no such file' of a folder that exists."""
+    run = tmp_path / "gen"
+    run.mkdir()
+    (run / "encounters.parquet").write_bytes(b"")
+    assert main(["export-transitions", "--demos", str(run), "--out", str(tmp_path / "t.npz")]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "a folder, not a file" in err, err
+    assert str(run / "encounters.parquet") in err and not (tmp_path / "t.npz").exists()

@@ -62,6 +62,9 @@ def run(args: argparse.Namespace) -> int:
         raise TransitionsError("--location, --recording and --smooth apply to NGSIM .csv/.txt files only")
     parts = []
     for path in map(Path, args.demos):
+        if path.is_dir():
+            hint = f" (e.g. {path / 'encounters.parquet'})" if (path / "encounters.parquet").is_file() else ""
+            raise TransitionsError(f"{path}: a folder, not a file; give its tables{hint}")
         if not path.is_file():
             raise TransitionsError(f"{path}: no such file")
         if path.suffix.lower() not in (".parquet", ".pq", ".csv", ".txt"):

@@ -171,6 +171,18 @@ def test_a_port_that_is_not_a_dask_scheduler_fails_in_one_line(tmp_path, listene
 
 
 @pytest.mark.parametrize("listener", ["silent"], indirect=True)
+def test_with_progress_lines_an_unusable_scheduler_is_still_one_line(tmp_path, listener):
+    """Progress on (the default) and stderr not a terminal, as in CI: before, a '(started)' and a
+    '(stopped)' progress line came before the error; now the scheduler is asked before the bar."""
+    out = tmp_path / "sweep"
+    argv = [a for a in _generate(out, f"dask://127.0.0.1:{listener.port}", "--dask-connect-timeout", "2")
+            if a != "--no-progress"]
+    proc = subprocess.run(argv, env=_env(tmp_path), capture_output=True, text=True, timeout=120)
+    assert "no answer within 2 s" in _one_line_exit_2(proc, proc.stderr)
+    _assert_cleaned(out)
+
+
+@pytest.mark.parametrize("listener", ["silent"], indirect=True)
 def test_connect_timeout_inside_a_running_event_loop(listener):
     """As from a notebook, whose thread runs an event loop: the same one error, not asyncio's."""
     import asyncio

@@ -144,6 +144,8 @@ def run_sweep(
         else:
             todo.append(_Pending(t, s, digest))
     n_cached = len(done)
+    if todo and spec.kind == "dask":  # an unusable scheduler is one line, before any progress line
+        _check_dask_scheduler(spec)
     failures: list[TaskFailure] = []
     times: dict[str, float] = {}
     bar = progress_bar(len(task_list), initial=n_cached, desc=desc, unit="task", enabled=progress)
@@ -334,6 +336,18 @@ def _run_process_pool(todo: Sequence[_Pending], finish, workers: int,
                 raise
         for p in crashed:  # the pool-wide crash is not counted: it cannot be attributed
             _run_isolated(p, finish)
+
+
+def _check_dask_scheduler(spec: ExecutorSpec) -> None:
+    """Ask the scheduler of ``dask://``/``tls://`` who it is (``DaskUnavailable`` otherwise)."""
+    from analysis.sweep.dask_executor import check_scheduler, security_for, settings_from_config
+
+    try:
+        import distributed  # noqa: F401 - loads Dask's distributed configuration (timeouts, TLS)
+    except ImportError:  # pragma: no cover - without Dask, run_dask says how to install it
+        return
+    settings = spec.dask or settings_from_config()
+    check_scheduler(spec.address, settings, security_for(spec.address, settings))
 
 
 def _run_dask(todo: Sequence[_Pending], finish, spec: ExecutorSpec) -> None:

@@ -7,6 +7,7 @@ import json
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 #: A constant-time-headway rule (gap to C towards 2 m + 1.5 s x v_A), returning m/s^2 from the
@@ -19,7 +20,7 @@ FT = 0.3048
 
 def cth(obs):
     d_ac, v_ac, d_ab, v_ab, v_a, len_c, len_b = (float(x) for x in obs)
-    if math.isnan(d_ac):  # no lead car: towards 28 m/s
+    if d_ac >= 1000.0:  # no lead car (it reads as 1000 ft ahead): towards 28 m/s
         return max(-3.0, min(1.5, 0.3 * (28.0 - v_a * FT)))
     gap = (d_ac - (len_c if math.isfinite(len_c) else 15.0)) * FT
     acc = 0.25 * (gap - (2.0 + 1.5 * v_a * FT)) - 0.6 * v_ac * FT
@@ -87,3 +88,20 @@ def test_bad_policy_specs_exit_2_with_one_line(tmp_path, capsys):
         err = capsys.readouterr().err
         assert len(err.strip().splitlines()) == 1 and said in err, (spec, err)
         assert not (tmp_path / "x").exists()
+
+
+def test_the_documented_rule_reaches_its_free_road_branch_on_a_policy_observation():
+    """policies.md's rule tested ``math.isnan(d_ac)`` for 'no lead car', but a policy never sees
+    NaN (no C reads as 1000 ft ahead): it accelerated at 1.5 m/s^2 without a speed target."""
+    import re
+    from pathlib import Path
+
+    from sim.observe import policy_rows
+
+    text = (Path(__file__).parents[2] / "docs" / "policies.md").read_text()
+    block = re.search(r"<!-- docs-test: file rules.py -->\n```python\n(.*?)```", text, re.S).group(1)
+    for source in (block, CTH_RULE):  # the docs' own example and this file's copy
+        ns: dict = {}
+        exec(source, ns)  # noqa: S102
+        fast = policy_rows(np.array([[np.nan, np.nan, -30.0, 0.0, 110.0, np.nan, 15.0]]))[0]  # 33.5 m/s
+        assert ns["cth"](fast) < 0  # towards 28 m/s: slower, not the 1.5 m/s^2 of a 300 m gap

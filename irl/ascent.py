@@ -52,9 +52,10 @@ class AscentResult:
 
 
 def progress_bar(enabled: bool, total: int, desc: str) -> Any:
-    """One fit's iterations: a bar on a terminal when asked for, nothing elsewhere (the work
-    around a fit reports its own progress lines; :mod:`merge_irl.progress`)."""
-    return _progress_bar(total, desc=desc, enabled=enabled, leave=False, lines=False)
+    """One fit's iterations when asked for (``merge-irl learn``): a bar on a terminal, progress
+    lines on a log file or pipe (:mod:`merge_irl.progress`). Fits inside sweeps, trials and the
+    demo are not asked: the work around them reports its own progress."""
+    return _progress_bar(total, desc=desc, enabled=enabled, leave=False)
 
 
 def penalised(ev: Evaluation, theta: np.ndarray, l2: float) -> tuple[float, np.ndarray]:

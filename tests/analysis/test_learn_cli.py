@@ -37,6 +37,25 @@ def test_learn_gridworld_qavg_round_trip(tmp_path, capsys):
     assert m.loglik == pytest.approx(sum(lp[s, a].sum() for s, a in zip(d.states, d.actions)), rel=1e-9)
 
 
+def test_learn_shows_progress_lines_when_stderr_is_a_log_file(tmp_path):
+    """A fit run from a batch job (stderr a file, not a terminal) says how far it is (issue 29,
+    item 8), and --no-progress silences it."""
+    demos_dir = tmp_path / "noise_0.1_expert_trajs"
+    save_text_trajectories(gridworld_demos("0.1"), demos_dir)
+    cmd = [sys.executable, "-m", "analysis", "learn", "--method", "qavg", "--domain", "gridworld", "--noise", "0.1",
+           "--demos", str(demos_dir), "--seed", "3"]
+    log = tmp_path / "stderr.log"
+    with open(log, "w") as err:
+        r = subprocess.run([*cmd, "--out", str(tmp_path / "a.json")], stderr=err, stdout=subprocess.PIPE,
+                           text=True, timeout=300)
+    assert r.returncode == 0, log.read_text()
+    lines = [ln for ln in log.read_text().splitlines() if "qavg exact" in ln]
+    assert lines and "\r" not in log.read_text(), log.read_text()
+    r = subprocess.run([*cmd, "--out", str(tmp_path / "b.json"), "--no-progress"], capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 0 and "qavg exact" not in r.stderr, r.stderr
+
+
 def test_learn_merge_encounter_table_saves_fitted_bins(tmp_path):
     rng = np.random.default_rng(0)
     import pandas as pd

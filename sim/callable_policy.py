@@ -54,6 +54,12 @@ from sim.policy import NO_LIKELIHOOD, Policy, PolicyDefaults, PolicyError, check
 TRUCK_MIN_LENGTH_FT = 8.0 * FT_PER_M
 
 
+#: Accelerations (m/s^2) a continuous action may ask for: about 2 g of braking to 1 g of
+#: acceleration, beyond any road vehicle; outside it is a bug (units), refused. Within it a
+#: deceleration is still capped at A's emergency deceleration, as for every driver.
+PLAUSIBLE_ACC_MPS2 = (-20.0, 10.0)
+
+
 def parse_action(value: Any, *, where: str = "policy") -> int | float:
     """The action a callable returned: an ``int`` action index or a ``float`` acceleration (m/s^2).
 
@@ -63,7 +69,8 @@ def parse_action(value: Any, *, where: str = "policy") -> int | float:
 
     Raises:
         PolicyError: a bool, a tuple, an array of more than one element, another type, an index
-            outside ``0..4`` or an acceleration that is not finite (``where`` names the policy).
+            outside ``0..4``, or an acceleration that is not finite or outside
+            :data:`PLAUSIBLE_ACC_MPS2` (``where`` names the policy).
     """
     x = value
     if isinstance(x, (bool, np.bool_)):
@@ -94,6 +101,10 @@ def parse_action(value: Any, *, where: str = "policy") -> int | float:
     f = float(x)
     if not math.isfinite(f):
         raise PolicyError(f"{where}: returned acceleration {f}; expected a finite number (m/s^2)")
+    lo, hi = PLAUSIBLE_ACC_MPS2
+    if not lo <= f <= hi:
+        raise PolicyError(f"{where}: returned acceleration {f:g} m/s^2, beyond any road vehicle's "
+                          f"({lo:g} .. {hi:g} m/s^2; a unit mix-up, ft/s^2 or km/h/s?)")
     return f
 
 

@@ -36,7 +36,8 @@ def test_actions_accepted_and_refused() -> None:
     assert isinstance(parse_action(np.array([2.0])), float)  # a float is an acceleration, never an index
     for bad, said in ((5, "returned action 5"), (-1, "returned action -1"), (True, "bool"),
                       ((1, None), r"predict\(\) result"), (np.array([1, 2]), r"shape \(2,\)"),
-                      (math.nan, "finite"), (np.array(["a"]), "dtype"), ("2", "str"), (None, "NoneType"),
+                      (math.nan, "finite"), (1e6, "beyond any road vehicle"), (-25.0, "beyond any road vehicle"),
+                      (np.array(["a"]), "dtype"), ("2", "str"), (None, "NoneType"),
                       (object(), "object")):
         with pytest.raises(PolicyError, match=said):
             parse_action(bad, where="policy 'x'")

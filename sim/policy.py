@@ -46,7 +46,14 @@ NO_LIKELIHOOD = (float("nan"), float("nan"))
 
 
 class PolicyError(SimError, ValueError):
-    """A policy cannot be built from its inputs (e.g. a model that is not a merge model)."""
+    """A policy cannot be built from its inputs (e.g. a model that is not a merge model), or
+    answered what no driver can (a callable's bad return).
+
+    ``retry = False``: the same inputs fail the same way, so a sweep does not run the task again
+    (:func:`analysis.sweep.worker.call_task`).
+    """
+
+    retry = False
 
 
 @runtime_checkable

@@ -29,7 +29,7 @@ def draw(config: DrawConfig, seed: int) -> dict:
 
 @dataclass(frozen=True)
 class FlakyConfig:
-    mode: str  # "raise" | "crash" | "raise-once"
+    mode: str  # "raise" | "crash" | "raise-once" | "policy-error"
     marker_dir: str = ""
 
 
@@ -39,6 +39,10 @@ def flaky(config: FlakyConfig, seed: int) -> dict:
         raise RuntimeError("task failed on purpose")
     if config.mode == "crash":
         os._exit(13)
+    if config.mode == "policy-error":  # deterministic: the same inputs fail the same way
+        from sim.policy import PolicyError
+
+        raise PolicyError("policy 'x': returned action 7")
     if config.mode == "raise-once":
         marker = Path(config.marker_dir, "attempted")
         if not marker.exists():

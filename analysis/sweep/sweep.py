@@ -166,7 +166,7 @@ def run_sweep(
                                      "seed": p.seed, "result": record["result"]})
             bar.update(1)
             return False
-        if p.attempts <= retries:
+        if p.attempts <= retries and record.get("retry", True):
             say(f"{desc}: {p.task.key} failed ({record.get('error', 'unknown error')}); "
                 f"running it again (attempt {p.attempts + 1} of {retries + 1})")
             return True

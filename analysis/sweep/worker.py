@@ -45,7 +45,8 @@ def _watch_parent(parent_pid: int) -> None:
 
 
 def call_task(func: Callable[[Any, int], dict], config: Any, seed: int) -> dict[str, Any]:
-    """Run ``func(config, seed)``; return ``{"ok", "result" | "error", "wall_time_s"}``.
+    """Run ``func(config, seed)``; return ``{"ok", "result" | "error", "wall_time_s"}`` (and on an
+    error ``"retry"``: False when the exception's class says ``retry = False``).
 
     The result must be a JSON-serialisable dict (it is stored as JSON); anything else is
     reported as the task's error.
@@ -66,4 +67,7 @@ def call_task(func: Callable[[Any, int], dict], config: Any, seed: int) -> dict[
             "error": f"{type(e).__name__}: {e}",
             "traceback": traceback.format_exc(limit=20),
             "wall_time_s": time.perf_counter() - t0,
+            # an error class that says the same inputs fail the same way (``retry = False``,
+            # e.g. sim.policy.PolicyError) is not run again
+            "retry": bool(getattr(e, "retry", True)),
         }

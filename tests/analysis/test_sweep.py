@@ -85,6 +85,18 @@ def test_errors_and_crashes_are_retried_and_reported(tmp_path):
     assert all(f"draw-{i}" in report.results for i in range(3))
 
 
+def test_an_error_that_says_retry_false_is_not_run_again(capsys):
+    """A PolicyError (retry = False: a callable's bad return fails the same way every time) fails
+    after one attempt, with no 'running it again' line; other errors keep their retry."""
+    tasks = [Task("bad-policy", flaky, FlakyConfig("policy-error")), Task("raises", flaky, FlakyConfig("raise"))]
+    report = run_sweep(tasks, seed=0, executor="serial", progress=False, desc="t")
+    failed = {f.key: f for f in report.failures}
+    assert failed["bad-policy"].attempts == 1 and "returned action 7" in failed["bad-policy"].error
+    assert failed["raises"].attempts == 2
+    err = capsys.readouterr().err
+    assert "bad-policy failed" not in err and "raises failed" in err, err
+
+
 def test_unguarded_script_reports_the_main_guard(tmp_path):
     """A script that runs a process sweep at module level: each worker re-imports it and stops at
     run_sweep (instead of starting a sweep of its own); the failures name the missing guard."""

@@ -13,7 +13,11 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.imitation_bench import ObsScaler
+import math
+
+import pytest
+
+from benchmarks.imitation_bench import GAIL_LOG_COLUMNS, ObsScaler, gail_log_summary
 from sim.observe import NO_LEAD_GAP_FT, policy_rows
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -65,3 +69,25 @@ def test_the_imitation_bench_extra_stays_out_of_the_default_install_and_the_test
     for where, reqs in (("dependencies", project["dependencies"]),
                         ("test", project["optional-dependencies"]["test"])):
         assert not names(reqs) & {"torch", "imitation", "stable-baselines3"}, where
+
+
+def test_gail_log_summary_reads_first_and_last_round_and_negates_the_entropy_loss(tmp_path: Path) -> None:
+    cols = list(GAIL_LOG_COLUMNS.values())
+    rows = [{"mean/gen/time/total_timesteps": "512", "mean/gen/train/entropy_loss": "-1.609",
+             "mean/gen/train/approx_kl": "0.0001", "mean/disc/disc_loss": "0.70", "mean/disc/disc_acc": "0.5",
+             "mean/gen/rollout/ep_len_mean": ""},
+            {"mean/gen/time/total_timesteps": "1024", "mean/gen/train/entropy_loss": "-1.2",
+             "mean/gen/train/approx_kl": "0.01", "mean/disc/disc_loss": "0.55", "mean/disc/disc_acc": "0.7",
+             "mean/gen/rollout/ep_len_mean": "24.5"}]
+    log = tmp_path / "progress.csv"
+    log.write_text(",".join(["other", *cols]) + "\n"
+                   + "\n".join(",".join(["9", *(r[c] for c in cols)]) for r in rows) + "\n", encoding="utf-8")
+    s = gail_log_summary(log)
+    assert set(s) == set(GAIL_LOG_COLUMNS)
+    assert s["steps"] == (512.0, 1024.0)
+    assert s["entropy"] == (1.609, 1.2)
+    assert s["disc_loss"] == (0.70, 0.55)
+    assert math.isnan(s["ep_len"][0]) and s["ep_len"][1] == 24.5
+    (tmp_path / "empty.csv").write_text(",".join(cols) + "\n", encoding="utf-8")
+    with pytest.raises(ValueError, match="no rounds"):
+        gail_log_summary(tmp_path / "empty.csv")

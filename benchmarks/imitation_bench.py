@@ -269,7 +269,7 @@ class GailConfig:
         demo_batch_size: demonstration transitions per discriminator update.
     """
 
-    steps: int = 4096
+    steps: int = 32768
     n_steps: int = 512
     batch_size: int = 64
     n_epochs: int = 4
@@ -281,17 +281,16 @@ class GailConfig:
     demo_batch_size: int = 256
 
 
-def train_gail(demos: list[Any], scaler: ObsScaler, action_acc_ft_s2: tuple[float, ...], *,
-               seed: int, config: GailConfig, env_seed: int, log_dir: Path,
-               scenario: str = "synthetic") -> tuple[Any, float]:
-    """imitation's GAIL on ``demos`` (:func:`sim.transitions.to_imitation_trajectories`): a PPO
-    generator (32x32 actor and critic behind a standardising first layer) on
+def make_gail(demos: list[Any], scaler: ObsScaler, action_acc_ft_s2: tuple[float, ...], *,
+              seed: int, config: GailConfig, env_seed: int, log_dir: Path, scenario: str = "synthetic") -> Any:
+    """imitation's GAIL trainer on ``demos`` (:func:`sim.transitions.to_imitation_trajectories`),
+    untrained: a PPO generator (32x32 actor and critic behind a standardising first layer) on
     ``MergeIRL/OnRampMerge-v0`` (discrete actions at ``action_acc_ft_s2``, reward 0, SUMO seed
     ``env_seed`` for its first run; a Stable-Baselines3 ``Monitor``, so its log has the episode
-    lengths) for ``config.steps`` environment steps; the discriminator
-    :class:`imitation.rewards.reward_nets.BasicRewardNet` on (observation, action) with a running
-    input normalisation; both as ``config`` sets them. Logs as CSV in ``log_dir``. Returns
-    ``(generator policy, wall seconds)`` (SUMO's simulation included)."""
+    lengths); the discriminator :class:`imitation.rewards.reward_nets.BasicRewardNet` on
+    (observation, action) with a running input normalisation; both as ``config`` sets them
+    (``config.steps`` unused here). Logs as CSV in ``log_dir``. Torch seeded ``seed``; the caller
+    trains it (``.train(steps)``) and closes ``.venv_train``."""
     import gymnasium as gym
     from imitation.algorithms.adversarial.gail import GAIL
     from imitation.rewards.reward_nets import BasicRewardNet
@@ -304,7 +303,6 @@ def train_gail(demos: list[Any], scaler: ObsScaler, action_acc_ft_s2: tuple[floa
     from sim.env import ENV_ID
 
     seed_torch(seed)
-    t0 = time.perf_counter()
     venv = DummyVecEnv([lambda: Monitor(gym.make(ENV_ID, scenario=scenario, reward=ZeroReward(action_acc_ft_s2)))])
     n_steps = min(config.n_steps, config.steps)
     learner = PPO("MlpPolicy", venv, n_steps=n_steps, batch_size=min(config.batch_size, n_steps),
@@ -314,13 +312,23 @@ def train_gail(demos: list[Any], scaler: ObsScaler, action_acc_ft_s2: tuple[floa
     venv.seed(env_seed)  # after PPO's own seeding, which seeds the environment with the PPO seed
     reward_net = BasicRewardNet(venv.observation_space, venv.action_space, normalize_input_layer=RunningNorm)
     log_dir.mkdir(parents=True, exist_ok=True)
-    gail = GAIL(demonstrations=demos, demo_batch_size=config.demo_batch_size, venv=venv, gen_algo=learner,
+    return GAIL(demonstrations=demos, demo_batch_size=config.demo_batch_size, venv=venv, gen_algo=learner,
                 reward_net=reward_net, n_disc_updates_per_round=config.disc_updates,
                 disc_opt_kwargs={"lr": config.disc_lr}, gen_replay_buffer_capacity=n_steps,
                 allow_variable_horizon=True, log_dir=log_dir, custom_logger=imit_logger.configure(log_dir, ["csv"]))
+
+
+def train_gail(demos: list[Any], scaler: ObsScaler, action_acc_ft_s2: tuple[float, ...], *,
+               seed: int, config: GailConfig, env_seed: int, log_dir: Path,
+               scenario: str = "synthetic") -> tuple[Any, float]:
+    """:func:`make_gail`'s trainer trained ``config.steps`` environment steps; returns
+    ``(generator policy, wall seconds)`` (SUMO's simulation included)."""
+    t0 = time.perf_counter()
+    gail = make_gail(demos, scaler, action_acc_ft_s2, seed=seed, config=config, env_seed=env_seed,
+                     log_dir=log_dir, scenario=scenario)
     gail.train(config.steps)
-    venv.close()
-    return learner.policy, time.perf_counter() - t0
+    gail.venv_train.close()
+    return gail.gen_algo.policy, time.perf_counter() - t0
 
 
 # -- the benchmark -----------------------------------------------------------------------------

@@ -31,7 +31,11 @@ evaluation's own for ours and the baselines; for BC and GAIL the actor's probabi
 held-out transitions at 0.3 s, the decisions the tabular drivers are scored on; shown on the
 sampled rows, whose driving those probabilities are), and the Wasserstein-1
 distances of the evaluation (TTC to C, A's speed, A's acceleration, d_AC) to the held-out
-demonstrations.
+demonstrations. Before the table: GAIL's log, first round and last (:func:`gail_log_summary`:
+PPO's entropy and approximate KL, the discriminator's loss and accuracy, the episode length),
+and each sampled actor's mean entropy on the held-out decisions (uniform: log 5 = 1.609 nats).
+GAIL's settings are :class:`GailConfig`'s (32,768 steps: docs/imitation.md, "GAIL's budget",
+and :mod:`benchmarks.gail_diagnosis`).
 
 Torch and imitation are imported inside the functions that use them (the ``imitation-bench``
 extra); ``--help`` and the helpers without torch run in the default install. Deterministic where
@@ -427,7 +431,7 @@ def run(args) -> int:
         print(f"imitation GAIL: {gcfg} in {fit_s['imit-gail']:.0f} s")
         log = gail_log_summary(out / "gail-log" / "progress.csv")
         print("  GAIL's log, first round -> last: "
-              + ", ".join(f"{k} {_f(a)} -> {_f(b)}" for k, (a, b) in log.items() if k != "steps"))
+              + ", ".join(f"{k} {a:.3g} -> {b:.3g}" for k, (a, b) in log.items() if k != "steps"))
     for name, a in drivers.items():
         if isinstance(a, TorchActor):
             print(f"  {name}: mean entropy on the held-out decisions {mean_entropy(a, held_t.policy_obs()):.3f} nats "

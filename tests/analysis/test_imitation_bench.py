@@ -1,6 +1,7 @@
-"""``benchmarks/imitation_bench.py`` without torch: its observation statistics, that it imports (and
-answers ``--help``) without torch, imitation or Stable-Baselines3, and that its extra stays out of
-the default install and the ``test`` extra. The training and the table need the
+"""``benchmarks/imitation_bench.py`` without torch: its observation statistics, its reading of
+GAIL's CSV log, that it (and ``benchmarks/gail_diagnosis.py``) imports and answers ``--help``
+without torch, imitation or Stable-Baselines3, and that its extra stays out of the default
+install and the ``test`` extra. The training and the table need the
 ``imitation-bench`` extra and run as the benchmark only (docs/imitation.md)."""
 
 from __future__ import annotations
@@ -91,3 +92,20 @@ def test_gail_log_summary_reads_first_and_last_round_and_negates_the_entropy_los
     (tmp_path / "empty.csv").write_text(",".join(cols) + "\n", encoding="utf-8")
     with pytest.raises(ValueError, match="no rounds"):
         gail_log_summary(tmp_path / "empty.csv")
+
+
+def test_the_gail_diagnosis_answers_help_and_refuses_a_missing_demo_without_torch(tmp_path: Path) -> None:
+    code = ("import sys, runpy\n"
+            "import benchmarks.gail_diagnosis\n"
+            f"heavy = [m for m in {HEAVY!r} if m in sys.modules]\n"
+            "assert not heavy, heavy\n"
+            "sys.argv = ['gail_diagnosis', *sys.argv[1:]]\n"
+            "runpy.run_module('benchmarks.gail_diagnosis', run_name='__main__')\n")
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    r = subprocess.run([sys.executable, "-c", code, "--help"], cwd=ROOT, env=env, capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "--config" in r.stdout and "--demo" in r.stdout
+    r = subprocess.run([sys.executable, "-c", code, "--demo", str(tmp_path), "--config", "{}"], cwd=ROOT, env=env,
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and "no data/train_encounters.parquet" in r.stderr

@@ -34,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks.imitation_bench import GailConfig
 from irl.domains.merge.actions import N_ACTIONS
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S
 
@@ -43,19 +44,31 @@ def _row(r: dict[str, str], key: str) -> float:
     return float(v) if v.strip() else math.nan
 
 
-def diagnose(demo: Path, config_json: str, *, train_seed: int, env_seed: int, out: Path, every: int) -> None:
-    """Train one GAIL setting and print its diagnosis (module docstring).
+def parse_config(text: str) -> GailConfig:
+    """A :class:`~benchmarks.imitation_bench.GailConfig` from a JSON object of its fields.
 
     Raises:
-        TypeError: ``config_json`` names a field :class:`~benchmarks.imitation_bench.GailConfig` lacks.
-        json.JSONDecodeError: ``config_json`` is not JSON.
+        ValueError: not a JSON object, an unknown field, or a value the config refuses.
     """
+    try:
+        fields = json.loads(text)
+    except json.JSONDecodeError as e:
+        raise ValueError(f"--config {text!r}: not JSON ({e})") from None
+    if not isinstance(fields, dict):
+        raise ValueError(f"--config {text!r}: a JSON object of GailConfig's fields expected")
+    try:
+        return GailConfig(**fields)
+    except TypeError as e:
+        raise ValueError(f"--config {text!r}: {e}") from None
+
+
+def diagnose(demo: Path, cfg: GailConfig, *, train_seed: int, env_seed: int, out: Path, every: int) -> None:
+    """Train one GAIL setting and print its diagnosis (module docstring)."""
     from analysis.evaluation.policies import training_action_acc
-    from benchmarks.imitation_bench import GailConfig, ObsScaler, TorchActor, heldout_loglik, make_gail, mean_entropy
+    from benchmarks.imitation_bench import ObsScaler, TorchActor, heldout_loglik, make_gail, mean_entropy
     from irl.domains.merge.mdp import read_encounters
     from sim.transitions import from_encounters, to_imitation_trajectories
 
-    cfg = GailConfig(**json.loads(config_json))
     tp, hp = demo / "data" / "train_encounters.parquet", demo / "data" / "heldout_encounters.parquet"
     step = DEFAULT_DECISION_STEP_S
     train = from_encounters(read_encounters(tp), decision_step_s=step, where=str(tp))
@@ -102,7 +115,11 @@ def main(argv: list[str] | None = None) -> int:
     demo = Path(args.demo)
     if not (demo / "data" / "train_encounters.parquet").is_file():
         ap.error(f"--demo {demo}: no data/train_encounters.parquet")
-    for i, c in enumerate(args.config):
+    try:
+        configs = [parse_config(c) for c in args.config]
+    except ValueError as e:
+        ap.error(str(e))
+    for i, c in enumerate(configs):
         diagnose(demo, c, train_seed=args.train_seed, env_seed=args.gail_env_seed, out=Path(args.out) / str(i),
                  every=args.every)
     return 0

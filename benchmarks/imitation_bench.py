@@ -271,6 +271,10 @@ class GailConfig:
             and as many generated transitions).
         disc_lr: the discriminator's Adam step size.
         demo_batch_size: demonstration transitions per discriminator update.
+
+    Raises:
+        ValueError: a count below 1, ``steps`` below ``n_steps`` (not one round), a learning rate
+            not above 0, ``gamma`` outside (0, 1] or a negative ``ent_coef``.
     """
 
     steps: int = 32768
@@ -283,6 +287,16 @@ class GailConfig:
     disc_updates: int = 4
     disc_lr: float = 1e-3
     demo_batch_size: int = 256
+
+    def __post_init__(self) -> None:
+        counts = ("steps", "n_steps", "batch_size", "n_epochs", "disc_updates", "demo_batch_size")
+        for name in counts:
+            if getattr(self, name) < 1:
+                raise ValueError(f"GAIL's {name} must be at least 1, got {getattr(self, name)}")
+        if self.steps < self.n_steps:
+            raise ValueError(f"GAIL's steps ({self.steps}) must be at least one round of n_steps ({self.n_steps})")
+        if not (self.learning_rate > 0 and self.disc_lr > 0 and 0 < self.gamma <= 1 and self.ent_coef >= 0):
+            raise ValueError(f"GAIL's learning rates must be > 0, gamma in (0, 1] and ent_coef >= 0, got {self}")
 
 
 def make_gail(demos: list[Any], scaler: ObsScaler, action_acc_ft_s2: tuple[float, ...], *,
@@ -308,7 +322,7 @@ def make_gail(demos: list[Any], scaler: ObsScaler, action_acc_ft_s2: tuple[float
 
     seed_torch(seed)
     venv = DummyVecEnv([lambda: Monitor(gym.make(ENV_ID, scenario=scenario, reward=ZeroReward(action_acc_ft_s2)))])
-    n_steps = min(config.n_steps, config.steps)
+    n_steps = config.n_steps
     learner = PPO("MlpPolicy", venv, n_steps=n_steps, batch_size=min(config.batch_size, n_steps),
                   n_epochs=config.n_epochs, learning_rate=config.learning_rate, ent_coef=config.ent_coef,
                   gamma=config.gamma, seed=seed, device="cpu",
@@ -378,6 +392,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", default="runs/imitation-bench")
     args = ap.parse_args(argv)
+    if args.gail_steps < 0:
+        ap.error(f"--gail-steps must be 0 (no GAIL) or positive, got {args.gail_steps}")
+    if args.gail_steps:
+        try:
+            args.gail = GailConfig(steps=args.gail_steps, n_steps=args.gail_n_steps, n_epochs=args.gail_epochs,
+                                   learning_rate=args.gail_lr, disc_updates=args.gail_disc_updates)
+        except ValueError as e:
+            ap.error(str(e))
     print("command: python -m benchmarks.imitation_bench " + shlex.join(sys.argv[1:] if argv is None else argv))
     return run(args)
 
@@ -421,8 +443,7 @@ def run(args) -> int:
     print(f"imitation BC: {args.bc_epochs} epochs in {fit_s['imit-bc']:.1f} s")
     acc = training_action_acc(train_path)
     if args.gail_steps:
-        gcfg = GailConfig(steps=args.gail_steps, n_steps=args.gail_n_steps, n_epochs=args.gail_epochs,
-                          learning_rate=args.gail_lr, disc_updates=args.gail_disc_updates)
+        gcfg = args.gail
         gail_policy, fit_s["imit-gail"] = train_gail(demos, scaler, acc, seed=args.train_seed, config=gcfg,
                                                      env_seed=args.gail_env_seed, log_dir=out / "gail-log")
         fit_s["imit-gail-sampled"] = fit_s["imit-gail"]

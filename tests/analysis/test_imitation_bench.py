@@ -18,7 +18,8 @@ import math
 
 import pytest
 
-from benchmarks.imitation_bench import GAIL_LOG_COLUMNS, ObsScaler, gail_log_summary
+from benchmarks.gail_diagnosis import parse_config
+from benchmarks.imitation_bench import GAIL_LOG_COLUMNS, GailConfig, ObsScaler, gail_log_summary
 from sim.observe import NO_LEAD_GAP_FT, policy_rows
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -109,3 +110,22 @@ def test_the_gail_diagnosis_answers_help_and_refuses_a_missing_demo_without_torc
     r = subprocess.run([sys.executable, "-c", code, "--demo", str(tmp_path), "--config", "{}"], cwd=ROOT, env=env,
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and "no data/train_encounters.parquet" in r.stderr
+
+
+def test_gail_config_refuses_what_imitation_would_fail_on_late() -> None:
+    assert GailConfig().steps == 32768 and GailConfig().steps % GailConfig().n_steps == 0
+    for bad in ({"steps": 100}, {"n_steps": 0}, {"disc_updates": 0}, {"learning_rate": 0.0}, {"gamma": 1.5},
+                {"ent_coef": -0.1}):
+        with pytest.raises(ValueError, match="GAIL's"):
+            GailConfig(**bad)
+    assert parse_config('{"steps": 1024, "disc_updates": 16}') == GailConfig(steps=1024, disc_updates=16)
+    for bad_text in ("{steps: 1}", "[1]", '{"stepz": 1}', '{"steps": 0}'):
+        with pytest.raises(ValueError):
+            parse_config(bad_text)
+
+
+def test_the_bench_refuses_a_gail_budget_below_one_round_in_one_line() -> None:
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    r = subprocess.run([sys.executable, "-m", "benchmarks.imitation_bench", "--gail-steps", "100"], cwd=ROOT, env=env,
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and "at least one round" in r.stderr, r.stderr[-2000:]

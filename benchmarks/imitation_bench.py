@@ -31,7 +31,11 @@ evaluation's own for ours and the baselines; for BC and GAIL the actor's probabi
 held-out transitions at 0.3 s, the decisions the tabular drivers are scored on; shown on the
 sampled rows, whose driving those probabilities are), and the Wasserstein-1
 distances of the evaluation (TTC to C, A's speed, A's acceleration, d_AC) to the held-out
-demonstrations.
+demonstrations. Before the table: GAIL's log, first round and last (:func:`gail_log_summary`:
+PPO's entropy and approximate KL, the discriminator's loss and accuracy, the episode length),
+and each sampled actor's mean entropy on the held-out decisions (uniform: log 5 = 1.609 nats).
+GAIL's settings are :class:`GailConfig`'s (32,768 steps: docs/imitation.md, "GAIL's budget",
+and :mod:`benchmarks.gail_diagnosis`).
 
 Torch and imitation are imported inside the functions that use them (the ``imitation-bench``
 extra); ``--help`` and the helpers without torch run in the default install. Deterministic where
@@ -150,6 +154,46 @@ def heldout_loglik(actor: TorchActor, held: Transitions) -> tuple[float, float]:
     return float(lp.sum()), float(lp.mean())
 
 
+def mean_entropy(actor: TorchActor, obs: np.ndarray) -> float:
+    """Mean entropy (nats) of ``actor``'s action probabilities over ``[N, 7]`` policy
+    observations (uniform over the 5 actions: log 5 = 1.609)."""
+    p = actor.probs(obs)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        h = -np.where(p > 0, p * np.log(p), 0.0).sum(axis=1)
+    return float(h.mean())
+
+
+#: The columns of GAIL's CSV log (``gail-log/progress.csv``) :func:`gail_log_summary` reads, by short name.
+GAIL_LOG_COLUMNS = {"steps": "mean/gen/time/total_timesteps", "entropy": "mean/gen/train/entropy_loss",
+                    "approx_kl": "mean/gen/train/approx_kl", "disc_loss": "mean/disc/disc_loss",
+                    "disc_acc": "mean/disc/disc_acc", "ep_len": "mean/gen/rollout/ep_len_mean"}
+
+
+def gail_log_summary(progress_csv: Path) -> dict[str, tuple[float, float]]:
+    """``{name: (first round, last round)}`` of GAIL's CSV log (:data:`GAIL_LOG_COLUMNS`; the
+    entropy as PPO's policy entropy, nats, the negated ``entropy_loss``); NaN where a round
+    lacks the column.
+
+    Raises:
+        FileNotFoundError: no log at ``progress_csv``.
+        ValueError: the log has no rounds.
+    """
+    import csv
+
+    with open(progress_csv, encoding="utf-8", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    if not rows:
+        raise ValueError(f"{progress_csv}: GAIL's log has no rounds")
+
+    def val(row: dict[str, str], col: str) -> float:
+        v = row.get(col) or ""
+        return float(v) if v.strip() else math.nan
+
+    out = {k: (val(rows[0], c), val(rows[-1], c)) for k, c in GAIL_LOG_COLUMNS.items()}
+    out["entropy"] = (-out["entropy"][0], -out["entropy"][1])
+    return out
+
+
 # -- training ----------------------------------------------------------------------------------
 def seed_torch(seed: int) -> None:
     """Seed torch, one thread, deterministic algorithms where torch has them."""
@@ -213,39 +257,96 @@ class ZeroReward:
         return 0.0
 
 
-def train_gail(demos: list[Any], scaler: ObsScaler, action_acc_ft_s2: tuple[float, ...], *,
-               seed: int, steps: int, env_seed: int, log_dir: Path, scenario: str = "synthetic") -> tuple[Any, float]:
-    """imitation's GAIL on ``demos`` (:func:`sim.transitions.to_imitation_trajectories`): a PPO
-    generator (32x32 actor and critic behind a standardising first layer, 512 steps a round) on
+@dataclass(frozen=True)
+class GailConfig:
+    """GAIL's budget and its learners' settings (:func:`train_gail`).
+
+    Attributes:
+        steps: the generator's (PPO's) environment steps in all.
+        n_steps: PPO's rollout per round (environment steps; GAIL's round: one rollout, then
+            ``disc_updates`` discriminator updates).
+        batch_size, n_epochs, learning_rate, ent_coef, gamma: PPO's minibatch, epochs per rollout,
+            Adam step size, entropy bonus and discount.
+        disc_updates: discriminator updates per round (each on ``demo_batch_size`` demonstration
+            and as many generated transitions).
+        disc_lr: the discriminator's Adam step size.
+        demo_batch_size: demonstration transitions per discriminator update.
+
+    Raises:
+        ValueError: a count below 1, ``steps`` below ``n_steps`` (not one round), a learning rate
+            not above 0, ``gamma`` outside (0, 1] or a negative ``ent_coef``.
+    """
+
+    steps: int = 32768
+    n_steps: int = 512
+    batch_size: int = 64
+    n_epochs: int = 4
+    learning_rate: float = 3e-4
+    ent_coef: float = 0.0
+    gamma: float = 0.99
+    disc_updates: int = 4
+    disc_lr: float = 1e-3
+    demo_batch_size: int = 256
+
+    def __post_init__(self) -> None:
+        counts = ("steps", "n_steps", "batch_size", "n_epochs", "disc_updates", "demo_batch_size")
+        for name in counts:
+            if getattr(self, name) < 1:
+                raise ValueError(f"GAIL's {name} must be at least 1, got {getattr(self, name)}")
+        if self.steps < self.n_steps:
+            raise ValueError(f"GAIL's steps ({self.steps}) must be at least one round of n_steps ({self.n_steps})")
+        if not (self.learning_rate > 0 and self.disc_lr > 0 and 0 < self.gamma <= 1 and self.ent_coef >= 0):
+            raise ValueError(f"GAIL's learning rates must be > 0, gamma in (0, 1] and ent_coef >= 0, got {self}")
+
+
+def make_gail(demos: list[Any], scaler: ObsScaler, action_acc_ft_s2: tuple[float, ...], *,
+              seed: int, config: GailConfig, env_seed: int, log_dir: Path, scenario: str = "synthetic") -> Any:
+    """imitation's GAIL trainer on ``demos`` (:func:`sim.transitions.to_imitation_trajectories`),
+    untrained: a PPO generator (32x32 actor and critic behind a standardising first layer) on
     ``MergeIRL/OnRampMerge-v0`` (discrete actions at ``action_acc_ft_s2``, reward 0, SUMO seed
-    ``env_seed`` for its first run) for ``steps`` environment steps; the discriminator
-    :class:`imitation.rewards.reward_nets.BasicRewardNet` on (observation, action) with a running
-    input normalisation; returns ``(generator policy, wall seconds)`` (SUMO's simulation included)."""
+    ``env_seed`` for its first run; a Stable-Baselines3 ``Monitor``, so its log has the episode
+    lengths); the discriminator :class:`imitation.rewards.reward_nets.BasicRewardNet` on
+    (observation, action) with a running input normalisation; both as ``config`` sets them
+    (``config.steps`` unused here). Logs as CSV in ``log_dir``. Torch seeded ``seed``; the caller
+    trains it (``.train(steps)``) and closes ``.venv_train``."""
     import gymnasium as gym
     from imitation.algorithms.adversarial.gail import GAIL
     from imitation.rewards.reward_nets import BasicRewardNet
     from imitation.util import logger as imit_logger
     from imitation.util.networks import RunningNorm
     from stable_baselines3 import PPO
+    from stable_baselines3.common.monitor import Monitor
     from stable_baselines3.common.vec_env import DummyVecEnv
 
     from sim.env import ENV_ID
 
     seed_torch(seed)
-    t0 = time.perf_counter()
-    venv = DummyVecEnv([lambda: gym.make(ENV_ID, scenario=scenario, reward=ZeroReward(action_acc_ft_s2))])
-    n_steps = min(512, steps)
-    learner = PPO("MlpPolicy", venv, n_steps=n_steps, batch_size=64, n_epochs=4, seed=seed, device="cpu",
+    venv = DummyVecEnv([lambda: Monitor(gym.make(ENV_ID, scenario=scenario, reward=ZeroReward(action_acc_ft_s2)))])
+    n_steps = config.n_steps
+    learner = PPO("MlpPolicy", venv, n_steps=n_steps, batch_size=min(config.batch_size, n_steps),
+                  n_epochs=config.n_epochs, learning_rate=config.learning_rate, ent_coef=config.ent_coef,
+                  gamma=config.gamma, seed=seed, device="cpu",
                   policy_kwargs={"net_arch": [32, 32], **extractor_kwargs(scaler)})
     venv.seed(env_seed)  # after PPO's own seeding, which seeds the environment with the PPO seed
     reward_net = BasicRewardNet(venv.observation_space, venv.action_space, normalize_input_layer=RunningNorm)
     log_dir.mkdir(parents=True, exist_ok=True)
-    gail = GAIL(demonstrations=demos, demo_batch_size=256, venv=venv, gen_algo=learner, reward_net=reward_net,
-                n_disc_updates_per_round=4, gen_replay_buffer_capacity=n_steps, allow_variable_horizon=True,
-                log_dir=log_dir, custom_logger=imit_logger.configure(log_dir, ["csv"]))
-    gail.train(steps)
-    venv.close()
-    return learner.policy, time.perf_counter() - t0
+    return GAIL(demonstrations=demos, demo_batch_size=config.demo_batch_size, venv=venv, gen_algo=learner,
+                reward_net=reward_net, n_disc_updates_per_round=config.disc_updates,
+                disc_opt_kwargs={"lr": config.disc_lr}, gen_replay_buffer_capacity=n_steps,
+                allow_variable_horizon=True, log_dir=log_dir, custom_logger=imit_logger.configure(log_dir, ["csv"]))
+
+
+def train_gail(demos: list[Any], scaler: ObsScaler, action_acc_ft_s2: tuple[float, ...], *,
+               seed: int, config: GailConfig, env_seed: int, log_dir: Path,
+               scenario: str = "synthetic") -> tuple[Any, float]:
+    """:func:`make_gail`'s trainer trained ``config.steps`` environment steps; returns
+    ``(generator policy, wall seconds)`` (SUMO's simulation included)."""
+    t0 = time.perf_counter()
+    gail = make_gail(demos, scaler, action_acc_ft_s2, seed=seed, config=config, env_seed=env_seed,
+                     log_dir=log_dir, scenario=scenario)
+    gail.train(config.steps)
+    gail.venv_train.close()
+    return gail.gen_algo.policy, time.perf_counter() - t0
 
 
 # -- the benchmark -----------------------------------------------------------------------------
@@ -275,13 +376,30 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--demo", default=None, help="reuse this demo folder (its data/ and models/) instead of running it")
     ap.add_argument("--train-seed", type=int, default=0, help="seed of torch, BC's batches and PPO (default 0)")
     ap.add_argument("--bc-epochs", type=int, default=20)
-    ap.add_argument("--gail-steps", type=int, default=4096, help="GAIL's generator (PPO) environment steps; 0: no GAIL")
+    gd = GailConfig()
+    ap.add_argument("--gail-steps", type=int, default=gd.steps,
+                    help=f"GAIL's generator (PPO) environment steps; 0: no GAIL (default {gd.steps})")
+    ap.add_argument("--gail-n-steps", type=int, default=gd.n_steps,
+                    help=f"PPO's rollout per GAIL round (default {gd.n_steps})")
+    ap.add_argument("--gail-epochs", type=int, default=gd.n_epochs, help=f"PPO's epochs per rollout (default {gd.n_epochs})")
+    ap.add_argument("--gail-lr", type=float, default=gd.learning_rate,
+                    help=f"PPO's learning rate (default {gd.learning_rate:g})")
+    ap.add_argument("--gail-disc-updates", type=int, default=gd.disc_updates,
+                    help=f"discriminator updates per GAIL round (default {gd.disc_updates})")
     ap.add_argument("--gail-env-seed", type=int, default=3001,
                     help="SUMO seed of the environment's first run while GAIL trains (default 3001; later runs "
                          "draw theirs from it)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", default="runs/imitation-bench")
     args = ap.parse_args(argv)
+    if args.gail_steps < 0:
+        ap.error(f"--gail-steps must be 0 (no GAIL) or positive, got {args.gail_steps}")
+    if args.gail_steps:
+        try:
+            args.gail = GailConfig(steps=args.gail_steps, n_steps=args.gail_n_steps, n_epochs=args.gail_epochs,
+                                   learning_rate=args.gail_lr, disc_updates=args.gail_disc_updates)
+        except ValueError as e:
+            ap.error(str(e))
     print("command: python -m benchmarks.imitation_bench " + shlex.join(sys.argv[1:] if argv is None else argv))
     return run(args)
 
@@ -325,13 +443,20 @@ def run(args) -> int:
     print(f"imitation BC: {args.bc_epochs} epochs in {fit_s['imit-bc']:.1f} s")
     acc = training_action_acc(train_path)
     if args.gail_steps:
-        gail_policy, fit_s["imit-gail"] = train_gail(demos, scaler, acc, seed=args.train_seed,
-                                                     steps=args.gail_steps, env_seed=args.gail_env_seed,
-                                                     log_dir=out / "gail-log")
+        gcfg = args.gail
+        gail_policy, fit_s["imit-gail"] = train_gail(demos, scaler, acc, seed=args.train_seed, config=gcfg,
+                                                     env_seed=args.gail_env_seed, log_dir=out / "gail-log")
         fit_s["imit-gail-sampled"] = fit_s["imit-gail"]
         drivers["imit-gail"] = gail_policy
         drivers["imit-gail-sampled"] = TorchActor(gail_policy, seed=args.train_seed)
-        print(f"imitation GAIL: {args.gail_steps} environment steps in {fit_s['imit-gail']:.0f} s")
+        print(f"imitation GAIL: {gcfg} in {fit_s['imit-gail']:.0f} s")
+        log = gail_log_summary(out / "gail-log" / "progress.csv")
+        print("  GAIL's log, first round -> last: "
+              + ", ".join(f"{k} {a:.3g} -> {b:.3g}" for k, (a, b) in log.items() if k != "steps"))
+    for name, a in drivers.items():
+        if isinstance(a, TorchActor):
+            print(f"  {name}: mean entropy on the held-out decisions {mean_entropy(a, held_t.policy_obs()):.3f} nats "
+                  f"(uniform {math.log(N_ACTIONS):.3f})")
     ll = {name: heldout_loglik(a, held_t) for name, a in drivers.items() if isinstance(a, TorchActor)}
 
     imit = [CallablePolicy(a, name=name, decision_step_s=step, action_acc_ft_s2=acc) for name, a in drivers.items()]

@@ -309,9 +309,14 @@ def _run_process_pool(todo: Sequence[_Pending], finish, workers: int,
             try:
                 while queue or in_flight:
                     while queue and len(in_flight) < workers:
-                        p = queue.pop(0)
-                        in_flight[pool.submit(call_task, p.task.func, p.task.config, p.seed)] = p
+                        try:
+                            fut = pool.submit(call_task, queue[0].task.func, queue[0].task.config, queue[0].seed)
+                        except BrokenProcessPool:  # a worker died since the last wait: its future says so
+                            break
+                        in_flight[fut] = queue.pop(0)
                         procs.update(getattr(pool, "_processes", None) or {})
+                    if not in_flight:  # broken with nothing in flight: a fresh pool for the rest
+                        break
                     finished, _ = wait(in_flight, return_when=FIRST_COMPLETED)
                     for fut in finished:
                         p = in_flight.pop(fut)

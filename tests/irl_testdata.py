@@ -91,3 +91,16 @@ def encounter_table(n: int = 3, rows: int = 60, seed: int = 0, first_frame: int 
         "B_is_truck": np.repeat(np.arange(n) % 2 == 1, rows), "acc_A": rng.uniform(-11, 11, n * rows),
         "v_A": v_a, "len_C": 15.0, "len_B": 16.0,
     })
+
+
+def planning_encounters(n: int = 4, rows: int = 31, seed: int = 0) -> pd.DataFrame:
+    """``n`` encounters of ``rows`` frames for the planning driver: random gaps and speeds (ft,
+    ft/s), A braking hard (-12 ft/s^2) where ``d_AC < 60`` ft, else -3/0/3; two lead cars C."""
+    rng = np.random.default_rng(seed)
+    d_ac = rng.uniform(20, 250, n * rows)
+    return pd.DataFrame({
+        "encounter_id": np.repeat(np.arange(n) + 7, rows), "d_AC": d_ac, "v_AC": rng.normal(5, 5, n * rows),
+        "d_AB": rng.uniform(-50, 120, n * rows), "v_AB": rng.normal(0, 5, n * rows), "B_is_truck": False,
+        "acc_A": np.where(d_ac < 60, -12.0, rng.choice([-3.0, 0.0, 3.0], n * rows)),
+        "v_A": rng.uniform(20, 80, n * rows), "C_id": np.repeat([1, 2], n * rows // 2 + 1)[: n * rows],
+    })

@@ -9,6 +9,7 @@ import warnings
 import numpy as np
 import pandas as pd
 import pytest
+from irl_testdata import planning_encounters
 
 from irl.domains.merge.actions import actions_of
 from irl.domains.merge.car_following import car_following_decisions
@@ -19,15 +20,6 @@ from irl.domains.merge.planning.replay import ReplayPair, replay
 from irl.errors import ConfigError, DemonstrationError, ModelFileError
 
 
-def encounters(n: int = 4, rows: int = 31, seed: int = 0) -> pd.DataFrame:
-    rng = np.random.default_rng(seed)
-    d_ac = rng.uniform(20, 250, n * rows)
-    return pd.DataFrame({
-        "encounter_id": np.repeat(np.arange(n) + 7, rows), "d_AC": d_ac, "v_AC": rng.normal(5, 5, n * rows),
-        "d_AB": rng.uniform(-50, 120, n * rows), "v_AB": rng.normal(0, 5, n * rows), "B_is_truck": False,
-        "acc_A": np.where(d_ac < 60, -12.0, rng.choice([-3.0, 0.0, 3.0], n * rows)),
-        "v_A": rng.uniform(20, 80, n * rows), "C_id": np.repeat([1, 2], n * rows // 2 + 1)[: n * rows],
-    })
 
 
 def pair_frame(T: int = 40, v_f: float = 50.0, gap: float = 100.0, acc: float = 0.0) -> pd.DataFrame:
@@ -38,7 +30,7 @@ def pair_frame(T: int = 40, v_f: float = 50.0, gap: float = 100.0, acc: float = 
 
 
 def test_encounter_decisions_are_the_rows_learning_uses() -> None:
-    df = encounters()
+    df = planning_encounters()
     d = encounter_decisions(df)
     cf = car_following_decisions(df)
     np.testing.assert_array_equal(d.obs, cf.obs)
@@ -55,7 +47,7 @@ def test_encounter_decisions_are_the_rows_learning_uses() -> None:
 
 
 def test_encounter_decisions_zero_acc_C_when_C_changes() -> None:
-    df = encounters(n=1, rows=31)
+    df = planning_encounters(n=1, rows=31)
     df["C_id"] = np.where(np.arange(31) < 15, 1, 2)
     d = encounter_decisions(df)
     rows = 3 * np.arange(1, d.n + 1)
@@ -88,7 +80,7 @@ def test_pair_decisions_and_bad_input() -> None:
 
 
 def small_driver() -> tuple[PlanningDriver, PlanningDecisions]:
-    d = encounter_decisions(encounters(n=6))
+    d = encounter_decisions(planning_encounters(n=6))
     return learn_planning_driver(d, selection=PlannerConfig(grid="g13", horizon_s=0.9)), d
 
 
@@ -119,7 +111,7 @@ def test_learn_save_load_round_trip(tmp_path) -> None:
 
 
 def test_learn_with_heldout_selection_is_deterministic() -> None:
-    d = encounter_decisions(encounters(n=8))
+    d = encounter_decisions(planning_encounters(n=8))
     opts = {"grids": ("g13",), "horizons": (0.9,), "gammas": (1.0,)}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -150,7 +142,7 @@ def test_replay_on_a_tiny_pair() -> None:
 
 
 def test_lagged_driver_acts_with_its_lag_and_old_files_load(tmp_path) -> None:
-    d = encounter_decisions(encounters())
+    d = encounter_decisions(planning_encounters())
     cfg = PlannerConfig(horizon_s=0.9, grid="g13", jerk=False, free_road=True, lag=0.5, v0_ft_s=90.0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

@@ -9,6 +9,7 @@ import sys
 
 import numpy as np
 import pytest
+from irl_testdata import planning_encounters
 
 from analysis.evaluation.policies import learned_policy, policy_callable
 from irl.config import IRLConfig
@@ -125,19 +126,6 @@ def _tabular(tmp_path):
     return m.save(tmp_path / "qavg.json")
 
 
-def _planning_encounters(n: int = 6, rows: int = 31):
-    import pandas as pd
-
-    rng = np.random.default_rng(0)
-    d_ac = rng.uniform(20, 250, n * rows)
-    return pd.DataFrame({
-        "encounter_id": np.repeat(np.arange(n) + 7, rows), "d_AC": d_ac, "v_AC": rng.normal(5, 5, n * rows),
-        "d_AB": rng.uniform(-50, 120, n * rows), "v_AB": rng.normal(0, 5, n * rows), "B_is_truck": False,
-        "acc_A": np.where(d_ac < 60, -12.0, rng.choice([-3.0, 0.0, 3.0], n * rows)),
-        "v_A": rng.uniform(20, 80, n * rows), "C_id": np.repeat([1, 2], n * rows // 2 + 1)[: n * rows],
-    })
-
-
 def test_every_learned_model_file_is_a_policy_callable(tmp_path) -> None:
     from irl.domains.merge.planning.decisions import encounter_decisions
     from irl.domains.merge.planning.driver import learn_planning_driver
@@ -171,7 +159,7 @@ def test_every_learned_model_file_is_a_policy_callable(tmp_path) -> None:
     want = np.exp(cf.log_policy(obs[20:21], np.array([-1])))[0]
     assert first == int(np.argmax(want))
     # planning driver: prev acceleration unknown (0) and C's acceleration 0 at the first decision
-    d = encounter_decisions(_planning_encounters())
+    d = encounter_decisions(planning_encounters(n=6))
     drv = learn_planning_driver(d, selection=PlannerConfig(grid="g13", horizon_s=0.9))
     pl_fn = policy_callable(drv.save(tmp_path / "planner.json"))
     x = obs[30]

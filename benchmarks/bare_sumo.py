@@ -8,7 +8,7 @@ import time
 from pathlib import Path
 
 from scenarios.spec.model import ScenarioSpec
-from sim.sumo_inputs import prepare_inputs, sumo_args, sumo_binary
+from sim.runtime.sumo_inputs import prepare_inputs, sumo_args, sumo_binary
 
 
 def children_cpu_s() -> float:

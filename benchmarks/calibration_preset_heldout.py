@@ -28,7 +28,7 @@ from analysis.calibration.check import KS_TARGET, VARIABLES, compare_distributio
 from benchmarks.heldout_args import add_split_arguments
 from merge_irl.units import FT_PER_M
 from scenarios.loader import load_scenario
-from sim.run import run_scenario
+from sim.runtime.run import run_scenario
 
 
 def _cli(*args: str) -> None:

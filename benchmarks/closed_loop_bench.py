@@ -4,7 +4,7 @@ Side by side on the same scenario, network, routes and seed:
 
 * ``bare``: the ``sumo`` binary, no output (pure simulation), and ``bare+fcd``: with
   ``--fcd-output`` from the warm-up on (what a user would run to get trajectories);
-* ``closed loop``: ``sim.run.run_scenario`` with the :class:`sim.controller.Controller`
+* ``closed loop``: ``sim.runtime.run.run_scenario`` with the :class:`sim.closed_loop.controller.Controller`
   driving every merge's lag car with a learned-policy table (a random ``[1250, 5]`` Q table,
   sampled actions) and the :class:`analysis.recording.log.RerunLogger` writing an ``.rrd``;
 * ``rerun logging alone``: the wall time spent inside the logger's hook calls, per
@@ -27,11 +27,11 @@ from analysis.recording.log import RerunLogger
 from benchmarks.bare_sumo import time_bare
 from scenarios.loader import load_scenario
 from scenarios.spec.parse import with_overrides
-from sim.controller import Controller
+from sim.closed_loop.controller import Controller
 from irl.domains.merge.bins import MergeBins
-from sim.learned_policies import LearnedPolicy
-from sim.policy import Policy
-from sim.run import run_scenario
+from sim.drivers.learned import LearnedPolicy
+from sim.drivers.policy import Policy
+from sim.runtime.run import run_scenario
 
 
 class _Timed:

@@ -17,7 +17,7 @@ learn; every learned driver and every baseline (``sumo``, ``uniform``, ``margina
   W1 of acceleration and TTC, held-out log-likelihood per step, travel time, flags;
 * the floor checked: the floor driver and ``sumo`` on the held-out runs' own seeds, W1 to
   those runs' demonstrations (the floor driver near 0: it drove them);
-* per policy: the A collisions by kind (who hit whom, ``sim.control_records.COLLISION_KINDS``),
+* per policy: the A collisions by kind (who hit whom, ``sim.closed_loop.records.COLLISION_KINDS``),
   and how many of its High Brake decisions the controller applied harder than the action's
   mean (``ControllerConfig.high_brake``, default ``"need"``);
 * the safety-filter variant of the default learned driver (``--safety-ttc``, same episodes):
@@ -27,7 +27,7 @@ learn; every learned driver and every baseline (``sumo``, ``uniform``, ``margina
   0: not run) as the row ``cf-dagger``, and its round 0 (the demonstrations alone) as
   ``cf-logit``, evaluated on the same episodes with the same held-out demonstrations;
   ``cf-dagger`` is the demo's default learned driver;
-* the reference driver ``idm`` (:class:`sim.idm_policy.IdmPolicy`: the Intelligent Driver Model
+* the reference driver ``idm`` (:class:`sim.drivers.idm.IdmPolicy`: the Intelligent Driver Model
   with the scenario's car parameters, the demonstrators' car-following model, acting through the
   controller; it does not yield to B) and ``sumo-in-lane`` (SUMO's driver with A's lane changes
   off while observed, as for every commanded driver), on the same episodes;
@@ -67,11 +67,11 @@ from analysis.demo.config import CF_DRIVER, DemoConfig, check_dagger_seeds
 from analysis.demo.pipeline import run_demo
 from irl.domains.merge.cf_logit import CarFollowingLogit
 from irl.errors import ConfigError
-from sim.control_records import COLLISION_KINDS
-from sim.controller_config import ControllerConfig
-from sim.encounter_rules import ENCOUNTER_RULES
+from sim.closed_loop.records import COLLISION_KINDS
+from sim.closed_loop.config import ControllerConfig
+from sim.merges.rules import ENCOUNTER_RULES
 from sim.errors import SimError
-from sim.learned_policies import CarFollowingLogitPolicy
+from sim.drivers.learned import CarFollowingLogitPolicy
 
 
 def _seeds(text: str) -> tuple[int, ...]:
@@ -143,7 +143,7 @@ def main(argv=None) -> int:
                     help="DAgger rounds of the car-following logit driver cf-dagger, trained by the demo "
                          "pipeline (0: neither cf row is run)")
     ap.add_argument("--encounter-rule", choices=ENCOUNTER_RULES, default=ENCOUNTER_RULES[0],
-                    help="how the data runs become demonstrations (sim.demonstrators)")
+                    help="how the data runs become demonstrations (sim.merges.demonstrators)")
     ap.add_argument("--out", default="runs/closed-loop-target", help="output folder (default runs/closed-loop-target)")
     args = ap.parse_args(argv)
     methods = tuple(m for m in args.methods.split(",") if m)

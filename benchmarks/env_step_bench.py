@@ -2,7 +2,7 @@
 
 Same scenario, seed and simulated time, Zero (action 2) at every decision:
 
-* ``closed loop``: :func:`sim.run.run_scenario` with the :class:`sim.controller.Controller` driving
+* ``closed loop``: :func:`sim.runtime.run.run_scenario` with the :class:`sim.closed_loop.controller.Controller` driving
   every merge's lag car (a constant policy);
 * ``env``: :class:`sim.env.MergeEnv` stepped by a Python loop (``reset(seed)`` once, then ``reset()``
   continues the same SUMO run to its next take-over), one controlled car at a time;
@@ -26,10 +26,10 @@ import time
 import numpy as np
 
 from scenarios.loader import load_scenario
-from sim.controller import Controller
-from sim.controller_config import ControllerConfig
-from sim.policy import ConstantPolicy
-from sim.run import run_scenario
+from sim.closed_loop.controller import Controller
+from sim.closed_loop.config import ControllerConfig
+from sim.drivers.policy import ConstantPolicy
+from sim.runtime.run import run_scenario
 
 ZERO = 2
 

@@ -48,12 +48,12 @@ from irl.domains.merge.mdp import resample_encounters
 from irl.result import SavedModel
 from scenarios.errors import ScenarioError
 from scenarios.loader import load_scenario
-from sim.controller import Controller
-from sim.controller_config import ControllerConfig
-from sim.expert_labels import ExpertLabels
+from sim.closed_loop.controller import Controller
+from sim.closed_loop.config import ControllerConfig
+from sim.merges.expert_labels import ExpertLabels
 from sim.errors import SimError
-from sim.learned_policies import LearnedPolicy
-from sim.run import run_scenario
+from sim.drivers.learned import LearnedPolicy
+from sim.runtime.run import run_scenario
 
 
 def fit_logit(F: np.ndarray, s: np.ndarray, a: np.ndarray, l2: float, x0: np.ndarray | None = None) -> np.ndarray:

@@ -67,7 +67,7 @@ def diagnose(demo: Path, cfg: GailConfig, *, train_seed: int, env_seed: int, out
     from analysis.evaluation.policies import training_action_acc
     from benchmarks.imitation_bench import ObsScaler, TorchActor, heldout_loglik, make_gail, mean_entropy
     from irl.domains.merge.mdp import read_encounters
-    from sim.transitions import from_encounters, to_imitation_trajectories
+    from sim.merges.transitions import from_encounters, to_imitation_trajectories
 
     tp, hp = demo / "data" / "train_encounters.parquet", demo / "data" / "heldout_encounters.parquet"
     step = DEFAULT_DECISION_STEP_S

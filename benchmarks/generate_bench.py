@@ -6,7 +6,7 @@ second, and the scaling when the demand or the duration is doubled::
     python -m benchmarks.generate_bench [--scenario i80] [--duration 300] [--repeat 3]
 
 The bare binary writes FCD (position, speed, lane, acceleration) for the recorded period
-(``--device.fcd.begin`` = warm-up); ours is timed in-process (``sim.generate.generate``) and
+(``--device.fcd.begin`` = warm-up); ours is timed in-process (``sim.merges.generate.generate``) and
 as the ``merge-irl generate`` command (which adds Python start-up and imports). The last
 column compares ours with the bare binary writing nothing (DESIGN.md section 7: at most 2x).
 """
@@ -25,7 +25,7 @@ from benchmarks.bare_sumo import time_bare
 from scenarios.loader import load_scenario
 from scenarios.spec.model import ScenarioSpec
 from scenarios.spec.parse import with_overrides
-from sim.generate import generate
+from sim.merges.generate import generate
 
 
 def time_ours(spec: ScenarioSpec, work: Path) -> tuple[float, float, int]:

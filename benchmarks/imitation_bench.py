@@ -10,9 +10,9 @@ folder an earlier run left):
   32x32 actor, ``--bc-epochs`` epochs) and GAIL (``imitation.algorithms.adversarial.gail.GAIL``,
   a small Stable-Baselines3 PPO generator, ``--gail-steps`` environment steps on
   ``MergeIRL/OnRampMerge-v0``), both on the same training encounters as ours, as transitions
-  (:func:`sim.transitions.from_encounters`, the decisions Q-Avg learns from, made
-  ``imitation`` Trajectories by :func:`sim.transitions.to_imitation_trajectories`): the policy
-  observation (:func:`sim.observe.policy_rows`, ft and ft/s; the networks standardise it in
+  (:func:`sim.merges.transitions.from_encounters`, the decisions Q-Avg learns from, made
+  ``imitation`` Trajectories by :func:`sim.merges.transitions.to_imitation_trajectories`): the policy
+  observation (:func:`sim.drivers.observe.policy_rows`, ft and ft/s; the networks standardise it in
   their first layer, :class:`benchmarks.imitation_nets.Standardize`) and the discrete merge
   action 0..4. Unlike Q-Avg's and cf-logit's, their observation holds no previous action. Each
   drives twice: the Stable-Baselines3 policy itself by its most likely action (``imit-bc``,
@@ -24,7 +24,7 @@ folder an earlier run left):
 
 Every policy drives car A of every merge in seeds ``--seed .. --seed + --episodes - 1`` through
 :func:`analysis.evaluation.evaluate.evaluate` (the imitation policies through
-:class:`sim.callable_policy.CallablePolicy`; every action applied at the training data's mean
+:class:`sim.drivers.callables.CallablePolicy`; every action applied at the training data's mean
 acceleration of its bin, as the fitted baselines'). Printed: the training wall time, A
 collisions with the Wilson 95 % interval, the held-out log-likelihood per decision (the
 evaluation's own for ours and the baselines; for BC and GAIL the actor's probabilities of the
@@ -65,8 +65,8 @@ import numpy as np
 
 from irl.domains.merge.actions import N_ACTIONS
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S
-from sim.observe import policy_rows
-from sim.transitions import Transitions, to_imitation_trajectories
+from sim.drivers.observe import policy_rows
+from sim.merges.transitions import Transitions, to_imitation_trajectories
 
 #: The evaluation's trivial baselines, in the table's order.
 BASELINES = ("uniform", "marginal", "markov", "bc", "sumo", "sumo-in-lane")
@@ -80,10 +80,10 @@ def _f(x: float | None, nd: int = 3) -> str:
 @dataclass(frozen=True)
 class ObsScaler:
     """Per-column mean and standard deviation of training policy observations
-    (:func:`sim.observe.policy_rows`: filled and clipped, ft and ft/s), which the networks'
+    (:func:`sim.drivers.observe.policy_rows`: filled and clipped, ft and ft/s), which the networks'
     first layer (:class:`benchmarks.imitation_nets.Standardize`) subtracts and divides by, so
     the trained policies take the policy observation itself, as the environment and
-    :class:`~sim.callable_policy.CallablePolicy` give it.
+    :class:`~sim.drivers.callables.CallablePolicy` give it.
 
     Attributes:
         mean, std: ``[7]`` (a constant column's std is 1).
@@ -109,11 +109,11 @@ class ObsScaler:
 # -- the imitation policies as callables -------------------------------------------------------
 class TorchActor:
     """A Stable-Baselines3 actor-critic policy (BC's, PPO's) as a callable ``obs [7] -> action``
-    for :class:`sim.callable_policy.CallablePolicy`, sampling the action from the actor's
+    for :class:`sim.drivers.callables.CallablePolicy`, sampling the action from the actor's
     probabilities with a ``numpy`` Generator seeded ``seed`` (each evaluation episode unpickles
     a fresh copy, so every episode starts the same stream); ``sample=False``: the most likely
     action, as the policy's own ``predict(obs, deterministic=True)``. ``obs``: the policy
-    observation (:func:`sim.observe.policy_rows`). Picklable (the evaluation's worker
+    observation (:func:`sim.drivers.observe.policy_rows`). Picklable (the evaluation's worker
     processes); one torch thread per process.
     """
 
@@ -208,7 +208,7 @@ def observation_space() -> Any:
     """The environment's observation space (:class:`sim.env.merge_env.MergeEnv`'s ``Box``)."""
     import gymnasium as gym
 
-    from sim.observe import POLICY_OBS_HIGH, POLICY_OBS_LOW
+    from sim.drivers.observe import POLICY_OBS_HIGH, POLICY_OBS_LOW
 
     return gym.spaces.Box(POLICY_OBS_LOW, POLICY_OBS_HIGH, dtype=np.float64)
 
@@ -223,7 +223,7 @@ def extractor_kwargs(scaler: ObsScaler) -> dict[str, Any]:
 
 def train_bc(demos: list[Any], scaler: ObsScaler, *, seed: int, epochs: int, log_dir: Path,
              batch_size: int = 64) -> tuple[Any, float]:
-    """imitation's behaviour cloning on ``demos`` (:func:`sim.transitions.to_imitation_trajectories`):
+    """imitation's behaviour cloning on ``demos`` (:func:`sim.merges.transitions.to_imitation_trajectories`):
     its default 32x32 actor (``FeedForward32Policy``) behind a standardising first layer, its
     log as CSV in ``log_dir``; returns ``(policy, wall seconds)``."""
     import gymnasium as gym
@@ -301,7 +301,7 @@ class GailConfig:
 
 def make_gail(demos: list[Any], scaler: ObsScaler, action_acc_ft_s2: tuple[float, ...], *,
               seed: int, config: GailConfig, env_seed: int, log_dir: Path, scenario: str = "synthetic") -> Any:
-    """imitation's GAIL trainer on ``demos`` (:func:`sim.transitions.to_imitation_trajectories`),
+    """imitation's GAIL trainer on ``demos`` (:func:`sim.merges.transitions.to_imitation_trajectories`),
     untrained: a PPO generator (32x32 actor and critic behind a standardising first layer) on
     ``MergeIRL/OnRampMerge-v0`` (discrete actions at ``action_acc_ft_s2``, reward 0, SUMO seed
     ``env_seed`` for its first run; a Stable-Baselines3 ``Monitor``, so its log has the episode
@@ -411,8 +411,8 @@ def run(args) -> int:
     from irl.domains.merge.car_following import car_following_decisions
     from irl.domains.merge.cf_logit import CarFollowingLogit
     from irl.domains.merge.mdp import read_encounters
-    from sim.callable_policy import CallablePolicy
-    from sim.transitions import from_encounters
+    from sim.drivers.callables import CallablePolicy
+    from sim.merges.transitions import from_encounters
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

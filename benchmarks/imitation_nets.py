@@ -3,7 +3,7 @@
 
 :class:`Standardize` is the first layer of the benchmark's BC and PPO policies: it subtracts the
 training mean and divides by the training standard deviation of each observation column, so the
-trained policy takes the policy observation itself (ft, ft/s; :func:`sim.observe.policy_rows`)
+trained policy takes the policy observation itself (ft, ft/s; :func:`sim.drivers.observe.policy_rows`)
 and is a driver as it is (``CallablePolicy(policy)``). A module of its own so pickled policies
 find the class by name in the evaluation's worker processes.
 """

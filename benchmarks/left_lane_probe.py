@@ -31,7 +31,7 @@ from analysis.cli.commands._arg_types import positive_int
 from scenarios.errors import ScenarioError
 from scenarios.loader import load_scenario
 from scenarios.spec.parse import with_overrides
-from sim.run import run_scenario
+from sim.runtime.run import run_scenario
 
 #: The rightmost main lane before the merge and along the auxiliary lane (scenarios.network).
 RIGHT_MAIN_LANES = ("main_in_0", "aux_1")

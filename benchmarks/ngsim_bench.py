@@ -32,7 +32,7 @@ import pandas as pd
 
 from analysis.calibration import fit_population, load_pairs
 from sim.ngsim.io import write_ngsim_csv_blocks
-from sim.schema import COLUMNS
+from sim.runtime.schema import COLUMNS
 
 _CHILD = textwrap.dedent("""
     import json, sys, time

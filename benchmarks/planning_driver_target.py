@@ -45,7 +45,7 @@ from irl.domains.merge.mdp import read_encounters
 from irl.domains.merge.planning.decisions import encounter_decisions, pair_decisions
 from irl.domains.merge.planning.driver import learn_planning_driver
 from irl.domains.merge.planning.model import PlannerConfig
-from sim.control_records import COLLISION_KINDS
+from sim.closed_loop.records import COLLISION_KINDS
 
 SAFETY = ("gap_need_C", "inv_ttc_C", "headway_C")
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from sim.schema import COLUMNS
+from sim.runtime.schema import COLUMNS
 
 
 def synthetic_table(n_vehicles: int = 20, n_frames: int = 60, seed: int = 0) -> pd.DataFrame:

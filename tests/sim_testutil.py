@@ -6,8 +6,8 @@ import os
 from contextlib import contextmanager
 
 from scenarios.loader import load_scenario
-from sim.run import run_scenario
-from sim.run_result import SimulationResult
+from sim.runtime.run import run_scenario
+from sim.runtime.run_result import SimulationResult
 
 
 @contextmanager

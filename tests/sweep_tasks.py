@@ -40,7 +40,7 @@ def flaky(config: FlakyConfig, seed: int) -> dict:
     if config.mode == "crash":
         os._exit(13)
     if config.mode == "policy-error":  # deterministic: the same inputs fail the same way
-        from sim.policy import PolicyError
+        from sim.drivers.policy import PolicyError
 
         raise PolicyError("policy 'x': returned action 7")
     if config.mode == "raise-once":

@@ -22,12 +22,12 @@ from irl.errors import DemonstrationError
 from irl.problems import RawAccelerationWarning, load_merge_demos
 from scenarios.loader import load_scenario
 from scenarios.spec.parse import with_overrides
-from sim.encounters import extract
+from sim.merges.encounters import extract
 from sim.errors import TrajectoryFormatError
-from sim.generate import RUN_REPORT, generate
+from sim.merges.generate import RUN_REPORT, generate
 from sim.ngsim.io import read_ngsim, write_ngsim_csv
-from sim.run import run_scenario
-from sim.sites import I80, US101, SiteProfile, load_site
+from sim.runtime.run import run_scenario
+from sim.runtime.sites import I80, US101, SiteProfile, load_site
 
 CASES = Path(__file__).parent / "data" / "cases"
 MIXED = CASES / "ngsim-mixed-locations"

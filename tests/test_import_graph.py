@@ -170,3 +170,47 @@ def test_the_floor_is_really_used():
 def test_the_check_catches_a_circle():
     assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
     assert _cycles({"a": {"b"}, "b": set()}) == []
+
+
+#: The floors inside ``sim`` (docs/architecture.md): the sub-packages of ``sim`` each may import.
+SIM_FLOORS = {
+    "errors": set(),
+    "runtime": {"errors"},
+    "ngsim": {"errors", "runtime"},
+    "drivers": {"errors", "runtime"},
+    "closed_loop": {"errors", "runtime", "drivers"},
+    "merges": {"errors", "runtime", "ngsim", "drivers", "closed_loop"},
+    "env": {"errors", "runtime", "drivers", "closed_loop"},
+}
+
+
+def _sim_room(module: str) -> str | None:
+    parts = module.split(".")
+    return parts[1] if parts[0] == "sim" and len(parts) > 1 else None
+
+
+def test_sim_sub_floors():
+    rooms = {_sim_room(m) for m in MODULES} - {None}
+    assert rooms == set(SIM_FLOORS), "a sim sub-package without a floor (or a floor without a package)"
+    bad = {}
+    for m, targets in EDGES.items():
+        room = _sim_room(m)
+        if room is None:
+            continue
+        wrong = {t for t in targets if t == "sim" or (_sim_room(t) not in (None, room) and _sim_room(t) not in SIM_FLOORS[room])}
+        if wrong:
+            bad[m] = sorted(f"{t} (line {WHERE[(m, t)]})" for t in wrong)
+    assert bad == {}
+
+
+def test_sim_top_level_is_small():
+    """At most 10 rooms (sub-packages and modules) at sim's top level, over at most 6 floors."""
+    assert len(SIM_FLOORS) <= 10
+    depth: dict[str, int] = {}
+
+    def floor(room: str) -> int:
+        if room not in depth:
+            depth[room] = 1 + max((floor(r) for r in SIM_FLOORS[room]), default=0)
+        return depth[room]
+
+    assert max(floor(r) for r in SIM_FLOORS) <= 6

@@ -40,8 +40,8 @@ from analysis.calibration.vtypes import (
 )
 from scenarios.loader import load_scenario
 from scenarios.spec.parse import with_overrides
-from sim.run import run_scenario
-from sim.schema import RAMP_LANE, RIGHTMOST_MAIN_LANE
+from sim.runtime.run import run_scenario
+from sim.runtime.schema import RAMP_LANE, RIGHTMOST_MAIN_LANE
 
 #: Congested car following: speed range (ft/s) and largest spacing (ft) kept.
 SPEED_RANGE_FT_S = (1.0, 45.0)

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from scenarios.loader import DEFAULT_SCENARIO, load_scenario
-from sim.generate import GenerateResult, generate
+from sim.merges.generate import GenerateResult, generate
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 from analysis.experiments.dagger import DaggerConfig
 from irl.errors import ConfigError
-from sim.encounter_rules import ENCOUNTER_RULES, check_rule
+from sim.merges.rules import ENCOUNTER_RULES, check_rule
 from sim.errors import SimError
 
 #: The demo's name (and policy name) of the car-following logit driver trained with DAgger.
@@ -68,7 +68,7 @@ class DemoConfig:
             learned driver, the one that meets the closed-loop targets (no collision by its As in
             30 episodes on two seed sets; docs/closed-loop.md). The 4 rounds took 19-21 s of a
             29-31 s demo on 2 idle cores (2026-12-02; 54 s at load average 2).
-        encounter_rule: how the data runs become demonstrations (:mod:`sim.demonstrators`;
+        encounter_rule: how the data runs become demonstrations (:mod:`sim.merges.demonstrators`;
             default ``in-lane``: SUMO's drivers observed as the controller observes them, A's lane
             held while observed, so that they are what the commanded drivers can do).
         workers: processes (``process:<workers>``).

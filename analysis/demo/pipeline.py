@@ -4,7 +4,7 @@
 
 1. **generate** merges: simulate the scenario with SUMO's own drivers for the training seeds and
    the held-out seeds (one run by default; in worker processes), extract the merge encounters
-   (``sim.demonstrators``);
+   (``sim.merges.demonstrators``);
 2. **discretize**: quantile bin edges fitted on the training encounters (``irl.domains.merge.bins``);
    encounter frames without a lead car C get the closed loop's open-road values;
 3. **learn** Q-Avg by default (MLIRL, Q-SM and REIRL on request; ``analysis.experiments.learn``) with the
@@ -67,15 +67,15 @@ from irl.domains.merge.planning.model import PlannerConfig
 from irl.problems import load_problem
 from scenarios.loader import load_scenario
 from scenarios.spec.model import ScenarioSpec
-from sim.controller import Controller
-from sim.demonstrators import simulate_demonstrations
-from sim.encounter_rules import ENCOUNTER_RULES
+from sim.closed_loop.controller import Controller
+from sim.merges.demonstrators import simulate_demonstrations
+from sim.merges.rules import ENCOUNTER_RULES
 from sim.errors import SimError
-from sim.outputs import write_parquet
-from sim.learned_policies import CarFollowingLogitPolicy
-from sim.planning_policy import PlanningDriverPolicy
-from sim.policy import Policy
-from sim.run import run_scenario
+from sim.runtime.outputs import write_parquet
+from sim.drivers.learned import CarFollowingLogitPolicy
+from sim.drivers.planning import PlanningDriverPolicy
+from sim.drivers.policy import Policy
+from sim.runtime.run import run_scenario
 
 @dataclass(frozen=True)
 class DemoResult:
@@ -122,7 +122,7 @@ class DemoResult:
 class EncounterRun:
     """One data run as a sweep task config: ``scenario`` (name, TOML path or ScenarioSpec)
     simulated with SUMO ``seed`` for ``duration_s`` (None: the scenario's), its encounters cut by
-    ``encounter_rule`` (:mod:`sim.demonstrators`)."""
+    ``encounter_rule`` (:mod:`sim.merges.demonstrators`)."""
 
     scenario: str | Path | ScenarioSpec
     seed: int
@@ -145,7 +145,7 @@ def generate_encounters(scenario, seeds: Sequence[int], duration_s: float | None
                         executor: str | None = None, progress: bool = False,
                         encounter_rule: str = ENCOUNTER_RULES[0]) -> list[pd.DataFrame]:
     """Encounter frames of one SUMO run per seed, ids made unique per seed, in seed order,
-    cut by ``encounter_rule`` (:mod:`sim.demonstrators`).
+    cut by ``encounter_rule`` (:mod:`sim.merges.demonstrators`).
 
     Runs through :func:`analysis.sweep.run_sweep` (``executor``, default ``process:<workers>``;
     one simulation per worker process at a time). Raises SimError if a run failed twice.

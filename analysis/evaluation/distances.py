@@ -1,6 +1,6 @@
 """How far closed-loop behaviour is from the demonstrations: the Jensen-Shannon divergence of
 action distributions and Wasserstein-1 distances (a policy's held-out log-likelihood is its own
-:meth:`sim.policy.Policy.heldout_loglik`).
+:meth:`sim.drivers.policy.Policy.heldout_loglik`).
 
 * ``js_divergence``: Jensen-Shannon divergence (base 2, in [0, 1]) between A's action
   distribution at the decisions (``action_counts``, :mod:`analysis.evaluation.metrics`) and the

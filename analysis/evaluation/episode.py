@@ -18,11 +18,11 @@ import pandas as pd
 from analysis.evaluation.metrics import EpisodeMetrics, MetricsConfig, episode_metrics
 from merge_irl.units import FT_PER_M
 from scenarios.loader import load_scenario
-from sim.controller import Controller
-from sim.controller_config import ControllerConfig
-from sim.hooks import StepHook
-from sim.policy import Policy
-from sim.run import run_scenario
+from sim.closed_loop.controller import Controller
+from sim.closed_loop.config import ControllerConfig
+from sim.runtime.hooks import StepHook
+from sim.drivers.policy import Policy
+from sim.runtime.run import run_scenario
 
 
 @dataclass(frozen=True)

@@ -48,10 +48,10 @@ from merge_irl.run_folder import check_writable
 from merge_irl.units import FRAME_S, FT_PER_M
 from scenarios.loader import load_scenario
 from scenarios.spec.parse import with_overrides
-from sim.controller_config import ControllerConfig
+from sim.closed_loop.config import ControllerConfig
 from sim.errors import SimError
-from sim.policy import Policy, check_policy
-from sim.learned_policies import CarFollowingLogitPolicy, LearnedPolicy
+from sim.drivers.policy import Policy, check_policy
+from sim.drivers.learned import CarFollowingLogitPolicy, LearnedPolicy
 
 
 
@@ -162,7 +162,7 @@ def evaluate(
             set, :func:`~analysis.evaluation.policies.default_baselines`): ``"sumo"`` (not taken over),
             ``"uniform"`` (random actions), ``"marginal"``, ``"markov"``, ``"bc"`` (fitted on
             ``train_demos`` in the first model's state bins; left out, and said so in report.md,
-            without them), ``"idm"`` (:class:`sim.idm_policy.IdmPolicy` of the scenario's car type;
+            without them), ``"idm"`` (:class:`sim.drivers.idm.IdmPolicy` of the scenario's car type;
             its actions applied at ``train_demos``' mean acceleration per action bin, as the fitted
             baselines', else at the bin midpoints), ``"sumo-in-lane"`` (SUMO's driver, A's lane
             changes off while observed), and any registered by
@@ -170,7 +170,7 @@ def evaluate(
         train_demos: training encounters (Parquet/CSV/DataFrame) of the fitted baselines.
         policies: further policies to evaluate (e.g. ``ConstantPolicy(0)``, a car-following
             logit driver of :func:`~analysis.evaluation.policies.cf_policy`, or any callable
-            ``obs -> action`` as a :class:`sim.callable_policy.CallablePolicy`).
+            ``obs -> action`` as a :class:`sim.drivers.callables.CallablePolicy`).
         workers: processes (shorthand for ``executor="process:<workers>"``).
         executor: where episodes run (see :func:`run_episodes`); overrides ``workers``.
         rrd: write a rerun recording of each policy's first episode.
@@ -189,7 +189,7 @@ def evaluate(
         SimError: ``episodes`` < 1, an unknown baseline name, or a decision step that is not a
             positive multiple of the 0.1 s simulation step.
         PolicyError: a model is not a merge model, a policy lacks a member of
-            :class:`sim.policy.Policy`, or two policies share a name and one of them is not a
+            :class:`sim.drivers.policy.Policy`, or two policies share a name and one of them is not a
             dataclass that can be renamed.
         ModelFileError: a model file is missing or malformed.
         DemonstrationError: the held-out or training encounters cannot be read, lack columns, or

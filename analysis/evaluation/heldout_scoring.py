@@ -2,7 +2,7 @@
 
 :func:`load_heldout` reads an encounter table (:data:`irl.domains.merge.encounters.ENCOUNTER_SCHEMA`)
 as :class:`HeldOut`; :func:`policy_heldout_loglik` scores a policy on it by the policy's own
-:meth:`~sim.policy.Policy.heldout_loglik` (as learning sees the demonstrations: resampled at the
+:meth:`~sim.drivers.policy.Policy.heldout_loglik` (as learning sees the demonstrations: resampled at the
 decision step). Used by :func:`analysis.evaluation.evaluate.evaluate`.
 """
 
@@ -19,8 +19,8 @@ from irl.domains.merge.car_following import CFDecisions
 from irl.domains.merge.encounters import REQUIRED_COLUMNS
 from irl.errors import DemonstrationError
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, read_encounters
-from sim.policy import Policy, check_policy
-from sim.learned_policies import CarFollowingLogitPolicy
+from sim.drivers.policy import Policy, check_policy
+from sim.drivers.learned import CarFollowingLogitPolicy
 
 
 @dataclass(frozen=True)
@@ -70,7 +70,7 @@ def load_heldout(demos: str | os.PathLike | pd.DataFrame) -> HeldOut:
 def policy_heldout_loglik(policy: Policy, heldout: HeldOut, decision_step_s: float = DEFAULT_DECISION_STEP_S, *,
                           cf_decisions: CFDecisions | None = None) -> tuple[float, float]:
     """``(sum, per step)`` log-likelihood of the held-out demonstrations under ``policy``: the
-    policy's own :meth:`~sim.policy.Policy.heldout_loglik` at the evaluation's
+    policy's own :meth:`~sim.drivers.policy.Policy.heldout_loglik` at the evaluation's
     ``decision_step_s`` (NaN, NaN where it has no likelihood, as SUMO's driver and the IDM
     reference). ``cf_decisions``: the held-out decisions of a car-following driver when already
     taken (:func:`~irl.domains.merge.car_following.car_following_decisions` at its step).

@@ -4,7 +4,7 @@ Aggregated over seeds they are :mod:`analysis.evaluation.aggregate`'s; the dista
 demonstrations (Jensen-Shannon divergence, held-out log-likelihood, Wasserstein-1) are
 :mod:`analysis.evaluation.distances`'.
 
-An episode is one run of a scenario with a :class:`sim.controller.Controller`; its inputs are
+An episode is one run of a scenario with a :class:`sim.closed_loop.controller.Controller`; its inputs are
 the trajectory table, the controller's control episodes (one per lag car A) and decisions.
 Definitions (NGSIM units in, SI where stated):
 

@@ -30,10 +30,10 @@ from irl.domains.merge.planning.driver import PlanningDriver
 from irl.domains.merge.mdp import action_mean_acc, discretize, read_encounters
 from irl.result import SavedModel
 from sim.errors import SimError
-from sim.callable_policy import PolicyCallable
-from sim.idm_policy import IdmPolicy
-from sim.policy import Policy, PolicyError, SumoPolicy, UniformPolicy
-from sim.learned_policies import BaselineTabularPolicy, CarFollowingLogitPolicy, LearnedPolicy
+from sim.drivers.callables import PolicyCallable
+from sim.drivers.idm import IdmPolicy
+from sim.drivers.policy import Policy, PolicyError, SumoPolicy, UniformPolicy
+from sim.drivers.learned import BaselineTabularPolicy, CarFollowingLogitPolicy, LearnedPolicy
 
 @dataclass(frozen=True, eq=False)
 class BaselineContext:
@@ -173,7 +173,7 @@ register_baseline(Baseline("bc", _tabular("bc"), fitted=True, default=True,
                            help="behaviour cloning: the training demonstrations' action given the paper state"))
 register_baseline(Baseline("idm", _idm,
                            help="the Intelligent Driver Model with the scenario's car parameters, driven through "
-                                "the controller (sim.idm_policy.IdmPolicy)"))
+                                "the controller (sim.drivers.idm.IdmPolicy)"))
 register_baseline(Baseline("sumo-in-lane", lambda ctx: SumoPolicy("sumo-in-lane", keep_lane=True),
                            help="SUMO's driver with A's lane changes off while observed, as for every commanded "
                                 "driver"))
@@ -215,7 +215,7 @@ def learned_policy(model: SavedModel | str | os.PathLike, name: str = "") -> Lea
 
 
 def cf_policy(path: str | os.PathLike, name: str = "") -> CarFollowingLogitPolicy:
-    """A :class:`~sim.learned_policies.CarFollowingLogitPolicy` from a car-following logit file
+    """A :class:`~sim.drivers.learned.CarFollowingLogitPolicy` from a car-following logit file
     (``cf-dagger.json`` or ``cf-logit.json`` of ``merge-irl dagger``), named ``name`` or the
     file's stem (as :func:`learned_policy` names a model file; the demo's ``cf-dagger`` is
     ``models/cf-dagger.json``). A fit that did not converge is flagged (``not_converged``).
@@ -267,13 +267,13 @@ def load_driver(path: str | os.PathLike) -> PlanningDriver | CarFollowingLogit:
 
 def driver_policy(path: str | os.PathLike, name: str = "") -> Policy:
     """The closed-loop policy of any driver file (:func:`load_driver`), named ``name`` or the
-    file's stem: :class:`sim.planning_policy.PlanningDriverPolicy` or
-    :class:`~sim.learned_policies.CarFollowingLogitPolicy`.
+    file's stem: :class:`sim.drivers.planning.PlanningDriverPolicy` or
+    :class:`~sim.drivers.learned.CarFollowingLogitPolicy`.
 
     Raises:
         ModelFileError: see :func:`load_driver`.
     """
-    from sim.planning_policy import PlanningDriverPolicy
+    from sim.drivers.planning import PlanningDriverPolicy
 
     driver = load_driver(path)
     name = name or Path(path).stem
@@ -285,8 +285,8 @@ def driver_policy(path: str | os.PathLike, name: str = "") -> Policy:
 def policy_callable(path: str | os.PathLike, *, mode: bool = True, seed: int = 0) -> PolicyCallable:
     """Any learned model file as a policy callable ``obs -> int`` (the action index 0..4) for the
     Gymnasium environment or any loop of one's own
-    (:class:`sim.callable_policy.PolicyCallable`; ``obs``: the ``[7]`` continuous observation,
-    :data:`sim.observe.CONTINUOUS_NAMES`): a tabular model (``model.json`` of ``merge-irl learn``,
+    (:class:`sim.drivers.callables.PolicyCallable`; ``obs``: the ``[7]`` continuous observation,
+    :data:`sim.drivers.observe.CONTINUOUS_NAMES`): a tabular model (``model.json`` of ``merge-irl learn``,
     :func:`learned_policy`, its state encoded with the model's own bins) or a driver file (a
     car-following logit or a planning driver, :func:`driver_policy`). ``mode``: the most likely
     action (default), else sampled with ``numpy.random.default_rng(seed)``; call ``reset()`` at

@@ -5,7 +5,7 @@ Round 0 fits :class:`irl.domains.merge.cf_logit.CarFollowingLogit` on the traini
 encounters. Each round then lets the latest driver drive the lag cars A of
 ``episodes_per_round`` SUMO runs of the scenario (seeds disjoint from any evaluation), asks
 SUMO's car-following model of A's type for its action at every decision
-(:class:`sim.expert_labels.ExpertLabels`) and keeps the labels whose expert action is in
+(:class:`sim.merges.expert_labels.ExpertLabels`) and keeps the labels whose expert action is in
 ``critical_actions`` (default High Brake only): the states the demonstrations never cover,
 where the driver closes in on a stopping lead car. The logit is refitted on the
 demonstrations plus every kept label so far. Keeping only critical labels leaves the
@@ -40,12 +40,12 @@ from scenarios.errors import SpecError
 from scenarios.loader import load_scenario
 from scenarios.spec.parse import with_overrides
 from scenarios.spec.model import ScenarioSpec
-from sim.controller import Controller
-from sim.controller_config import ControllerConfig
+from sim.closed_loop.controller import Controller
+from sim.closed_loop.config import ControllerConfig
 from sim.errors import SimError
-from sim.expert_labels import ExpertLabel, ExpertLabels
-from sim.learned_policies import CarFollowingLogitPolicy
-from sim.run import run_scenario
+from sim.merges.expert_labels import ExpertLabel, ExpertLabels
+from sim.drivers.learned import CarFollowingLogitPolicy
+from sim.runtime.run import run_scenario
 
 
 @dataclass(frozen=True)
@@ -137,7 +137,7 @@ class LabelRun:
 
 
 def label_run_task(run: LabelRun, seed: int) -> dict:
-    """Sweep task: one SUMO run of :class:`LabelRun` with :class:`~sim.expert_labels.ExpertLabels`;
+    """Sweep task: one SUMO run of :class:`LabelRun` with :class:`~sim.merges.expert_labels.ExpertLabels`;
     returns ``{"records": [[state, d_AC, v_AC, d_AB, v_AB, v_A, len_C, len_B, prev, action], ...]}``."""
     del seed  # the run's own SUMO seed, as every evaluation episode
     ctl = Controller(CarFollowingLogitPolicy(run.model), ControllerConfig(decision_step_s=run.decision_step_s))
@@ -148,7 +148,7 @@ def label_run_task(run: LabelRun, seed: int) -> dict:
 
 def label_runs(model: CarFollowingLogit, spec: ScenarioSpec, seeds: list[int], config: DaggerConfig,
                executor: str, duration_s: float) -> pd.DataFrame:
-    """The expert records (columns of :class:`~sim.expert_labels.ExpertLabel`) of one labelling
+    """The expert records (columns of :class:`~sim.merges.expert_labels.ExpertLabel`) of one labelling
     run per seed of ``duration_s`` seconds, in seed order, run by ``executor`` (``analysis.sweep``).
 
     Raises:
@@ -164,7 +164,7 @@ def label_runs(model: CarFollowingLogit, spec: ScenarioSpec, seeds: list[int], c
 
 
 def labels_as_decisions(table: pd.DataFrame, demos: CFDecisions) -> CFDecisions:
-    """Expert label records (:meth:`sim.expert_labels.ExpertLabels.table`) as decisions with
+    """Expert label records (:meth:`sim.merges.expert_labels.ExpertLabels.table`) as decisions with
     the demonstrations' action accelerations and step."""
     obs = table[list(OBS_COLUMNS)].to_numpy(dtype=np.float64).reshape(-1, len(OBS_COLUMNS))
     return CFDecisions(obs, table["prev"].to_numpy(dtype=np.int64), table["action"].to_numpy(dtype=np.int64),

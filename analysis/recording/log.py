@@ -1,6 +1,6 @@
 """Write a run to a rerun ``.rrd`` file, headless (no viewer, no display needed).
 
-:class:`RerunLogger` is a :class:`sim.hooks.StepHook`. Entities (hierarchical, units ft, ft/s):
+:class:`RerunLogger` is a :class:`sim.runtime.hooks.StepHook`. Entities (hierarchical, units ft, ft/s):
 
 * ``world/road`` (static): each lane drawn as a band of its real width (``LineStrips2D`` with
   radius half the lane width, in ft), so that the road reads as a road at any zoom;
@@ -8,7 +8,7 @@
   labelled by its role: "lane 6 (right main lane)", "lane 7 (ramp / auxiliary lane)"), from
   the run's lane shapes;
 * ``world/landmarks`` (static, ``Points2D`` with labels): "on-ramp" where lane 7 begins,
-  "merge zone: auxiliary lane begins" (:func:`sim.lanes.aux_lane_start_ft`) and "auxiliary lane
+  "merge zone: auxiliary lane begins" (:func:`sim.runtime.lanes.aux_lane_start_ft`) and "auxiliary lane
   ends" where lane 7 ends; ``world`` (static) carries an ``AnnotationContext``
   naming the vehicle roles and a ``Transform3D`` mirroring y, so that the top-down 2D views
   (whose y axis points down) show the road as SUMO draws it (ramp on the right of travel).
@@ -63,10 +63,10 @@ from analysis.recording.columns import bar_chart_column
 from analysis.recording.files import close_recording, open_recording, policy_digest, recording_identity, run_token
 from irl.domains.merge.actions import ACTION_NAMES
 from irl.domains.merge.features import FEATURE_NAMES, paper_features
-from sim.hooks import FrameState, RunContext
-from sim.lanes import aux_lane_start_ft
-from sim.observe import lead_of
-from sim.schema import RAMP_LANE, RIGHTMOST_MAIN_LANE
+from sim.runtime.hooks import FrameState, RunContext
+from sim.runtime.lanes import aux_lane_start_ft
+from sim.drivers.observe import lead_of
+from sim.runtime.schema import RAMP_LANE, RIGHTMOST_MAIN_LANE
 
 #: ``class_ids`` of the vehicle boxes, by role.
 ROLE_IDS = {"other": 0, "A": 1, "B": 2, "C": 3, "A observed": 4}
@@ -143,7 +143,7 @@ class RerunLogger:
 
     Args:
         path: output file.
-        controller: the run's :class:`sim.controller.Controller` (must run *before* this hook);
+        controller: the run's :class:`sim.closed_loop.controller.Controller` (must run *before* this hook);
             gives roles, decisions and controlled cars. Without it, lane-7 vehicles are shown as B.
         recording: an open stream (from :func:`~analysis.recording.files.open_recording`) to add to instead of opening
             one; then the caller closes it.

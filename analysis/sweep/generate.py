@@ -1,6 +1,6 @@
 """Scenario generation over many seeds and demand levels, as one resumable sweep.
 
-``generate_many(spec, seeds, demand_scales, out_dir)`` runs :func:`sim.generate.generate` once
+``generate_many(spec, seeds, demand_scales, out_dir)`` runs :func:`sim.merges.generate.generate` once
 per (seed, demand scale) through :func:`analysis.sweep.run_sweep` (default: a local process
 pool on every core, one libsumo simulation per worker process at a time) and writes::
 
@@ -36,8 +36,8 @@ from merge_irl.atomic import write_atomic
 from merge_irl.run_folder import locked, remove_stale_locks, remove_temporaries
 from scenarios.spec.model import ScenarioSpec
 from scenarios.spec.parse import spec_from_toml, with_overrides
-from sim.encounter_rules import ENCOUNTER_RULES, check_rule
-from sim.generate import RUN_REPORT, SCENARIO, generate
+from sim.merges.rules import ENCOUNTER_RULES, check_rule
+from sim.merges.generate import RUN_REPORT, SCENARIO, generate
 
 STORE_DIR = ".sweep-store"
 SUMMARY = "sweep.csv"
@@ -56,7 +56,7 @@ class GenerateRun:
         duration_s: simulated seconds, or None for the spec's.
         csv: also write ``trajectories.csv``.
         run: the run's folder name inside the sweep folder.
-        encounter_rule: how the run becomes demonstrations (:mod:`sim.demonstrators`).
+        encounter_rule: how the run becomes demonstrations (:mod:`sim.merges.demonstrators`).
         run_dir: absolute output folder of this run (not part of the digest: a sweep folder
             moved elsewhere still finds its finished runs).
     """
@@ -225,7 +225,7 @@ def generate_many(
             or ``"dask://HOST:PORT"`` (see :mod:`analysis.sweep.executors`).
         retries: extra attempts of a failed run.
         progress: one progress bar (runs done / total) on stderr.
-        encounter_rule: how each run becomes demonstrations (:mod:`sim.demonstrators`).
+        encounter_rule: how each run becomes demonstrations (:mod:`sim.merges.demonstrators`).
 
     Returns:
         The :class:`SweepReport`: ``results[run_name]`` is :func:`generate_one`'s summary;

@@ -68,6 +68,6 @@ def call_task(func: Callable[[Any, int], dict], config: Any, seed: int) -> dict[
             "traceback": traceback.format_exc(limit=20),
             "wall_time_s": time.perf_counter() - t0,
             # an error class that says the same inputs fail the same way (``retry = False``,
-            # e.g. sim.policy.PolicyError) is not run again
+            # e.g. sim.drivers.policy.PolicyError) is not run again
             "retry": bool(getattr(e, "retry", True)),
         }

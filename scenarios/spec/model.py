@@ -4,7 +4,7 @@
 Layout of a scenario TOML file (SI units, as SUMO uses them)::
 
     name = "synthetic"
-    site = "i-80"   (optional: the lane coding, a site profile of sim.sites by name or TOML path)
+    site = "i-80"   (optional: the lane coding, a site profile of sim.runtime.sites by name or TOML path)
     allow_implausible = false   (optional: true runs values outside scenarios.spec.bounds)
     [road]          main_lanes, main_length_m, merge_position_m, ramp_length_m, aux_length_m,
                     lane_width_m, speed_limit_mps, ramp_speed_limit_mps, ramp_angle_deg,
@@ -132,7 +132,7 @@ class ScenarioSpec:
     drivers: DriversSpec = DriversSpec()
     simulation: SimulationSpec = SimulationSpec()
     #: The lane coding of the run's trajectory table and of the controller: a site profile of
-    #: :mod:`sim.sites` by name (``"i-80"``: main lanes ``7 - n .. 6``, ramp and auxiliary lane 7)
+    #: :mod:`sim.runtime.sites` by name (``"i-80"``: main lanes ``7 - n .. 6``, ramp and auxiliary lane 7)
     #: or a TOML path; written to TOML only when it is not the default.
     site: str = "i-80"
     source: str = field(default="", compare=False)  #: file read from; not saved, not compared

@@ -1,21 +1,21 @@
 """The on-ramp merge as a Gymnasium environment: the lag car A is the agent, SUMO drives the rest.
 
-One episode is one take-over of the closed-loop controller (:mod:`sim.controller`): it starts
+One episode is one take-over of the closed-loop controller (:mod:`sim.closed_loop.controller`): it starts
 when a merging car B on the ramp reaches the take-over zone and its lag car A in the merge lane
 is handed to the agent, and it ends when the controller releases A (B merged and the hold
 passed, a collision, A left the section or its lane, B vanished, ``max_control_s``). Every
 ``decision_step_s`` (0.3 s by default) the agent chooses A's action; the controller applies it
-exactly as it applies a driver's (:meth:`sim.controller.Controller.apply`). Everything else,
+exactly as it applies a driver's (:meth:`sim.closed_loop.controller.Controller.apply`). Everything else,
 including every other merge of the run, is SUMO's.
 
 Spaces:
 
 * observation: ``Box(OBS_LOW, OBS_HIGH, (7,), float64)``, the driver's continuous observation
-  as a policy sees it (:func:`sim.observe.policy_observation`, filled and clipped), columns
+  as a policy sees it (:func:`sim.drivers.observe.policy_observation`, filled and clipped), columns
   :data:`irl.domains.merge.car_following.OBS_COLUMNS`:
   ``d_AC`` (ft, C's front bumper ahead of A's), ``v_AC`` (ft/s, A's speed minus C's),
   ``d_AB`` (ft), ``v_AB`` (ft/s), ``v_A`` (ft/s, A's speed), ``len_C``, ``len_B`` (ft). No lead
-  car C reads as one :data:`sim.observe.NO_LEAD_GAP_FT` ahead at A's speed.
+  car C reads as one :data:`sim.drivers.observe.NO_LEAD_GAP_FT` ahead at A's speed.
 * action, ``action_type="discrete"``: ``Discrete(5)``, the merge actions in the controller's
   order (:data:`irl.domains.merge.actions.ACTION_NAMES`: 0 High Brake, 1 Low Brake, 2 Zero,
   3 Low Accel, 4 High Accel), each applied at its acceleration (the reward model's per-action
@@ -26,13 +26,13 @@ Spaces:
 ``info`` of ``reset`` and ``step``: ``state`` (the discrete state index of the reward's encoder,
 or the authors' bins without a tabular reward; -1 on the step that ends the episode),
 ``action_bin`` (the applied acceleration's merge action, step only), ``acc_ft_s2`` (applied),
-``release_reason`` (one of :data:`sim.control_records.RELEASE_REASONS`, at the episode's end),
+``release_reason`` (one of :data:`sim.closed_loop.records.RELEASE_REASONS`, at the episode's end),
 ``collision_kind``, ``seed`` (the SUMO run's), ``time_s``, ``a_id`` / ``b_id`` (Vehicle_IDs).
 
 Termination (Gymnasium's terms): ``terminated`` when the controller releases A for a reason of the
 merge itself (``merge_done``, ``collision``, ``left_section``, ``left_lane``, ``b_lost``,
 ``arrived``, ``removed``, ``teleported``); ``truncated`` at a time limit (``timeout``:
-``max_control_s`` of :class:`~sim.controller_config.ControllerConfig`; ``end_of_run``: the SUMO
+``max_control_s`` of :class:`~sim.closed_loop.config.ControllerConfig`; ``end_of_run``: the SUMO
 run reached ``run_s``). The last observation is A's at the release frame when A and B are still
 in the network, else the previous one.
 
@@ -64,16 +64,16 @@ from irl.domains.merge.bins import MergeBins
 from irl.domains.merge.car_following import OBS_COLUMNS
 from merge_irl.units import FT_PER_M
 from scenarios.spec.model import ScenarioSpec
-from sim.control_records import Control
-from sim.controller import Controller
-from sim.controller_config import ControllerConfig
+from sim.closed_loop.records import Control
+from sim.closed_loop.controller import Controller
+from sim.closed_loop.config import ControllerConfig
 from sim.env.rewards import RewardFn, TabularReward, load_reward
-from sim.hooks import FrameState
-from sim.observe import POLICY_OBS_HIGH, POLICY_OBS_LOW, MergeObservation, policy_observation
-from sim.policy import NO_LIKELIHOOD, PolicyDefaults
-from sim.session import SumoSession
+from sim.runtime.hooks import FrameState
+from sim.drivers.observe import POLICY_OBS_HIGH, POLICY_OBS_LOW, MergeObservation, policy_observation
+from sim.drivers.policy import NO_LIKELIHOOD, PolicyDefaults
+from sim.runtime.session import SumoSession
 
-#: Bounds of the observation ``Box`` (ft, ft/s): the policy observation's (:func:`sim.observe.policy_rows`).
+#: Bounds of the observation ``Box`` (ft, ft/s): the policy observation's (:func:`sim.drivers.observe.policy_rows`).
 OBS_LOW, OBS_HIGH = POLICY_OBS_LOW, POLICY_OBS_HIGH
 #: Release reasons that truncate an episode (a time limit); every other one terminates it.
 TRUNCATING_REASONS = frozenset({"timeout", "end_of_run"})
@@ -119,7 +119,7 @@ class MergeEnv(gym.Env):
     Raises:
         ValueError: an unknown ``action_type`` or bad bounds.
         TypeError: ``reward`` neither a path, a callable nor None; ``controller`` not a
-            :class:`~sim.controller_config.ControllerConfig`.
+            :class:`~sim.closed_loop.config.ControllerConfig`.
         scenarios.errors.SpecError: an unknown scenario, or ``run_s`` not a possible and plausible
             duration for it (positive, longer than its warm-up, at most 6 h unless the spec allows
             implausible values).
@@ -143,7 +143,7 @@ class MergeEnv(gym.Env):
             raise TypeError(f"reward must be a model file path, a callable (obs, action_bin, acc_ft_s2) -> float "
                             f"or None, got {type(reward).__name__} {reward!r}")
         if not isinstance(controller, ControllerConfig):
-            raise TypeError(f"controller must be a sim.controller_config.ControllerConfig, got "
+            raise TypeError(f"controller must be a sim.closed_loop.config.ControllerConfig, got "
                             f"{type(controller).__name__}")
         if isinstance(scenario, ScenarioSpec):
             self.spec_ = scenario
@@ -308,7 +308,7 @@ class MergeEnv(gym.Env):
         ia, ib = rows.get(c.a_id), rows.get(c.b_id)
         if ia is None or ib is None:
             return
-        from sim.observe import lead_of
+        from sim.drivers.observe import lead_of
 
         ic = lead_of(frame, float(frame.local_y[ia]), lane=ctl.merge_lane, exclude=(ia, ib))
         self._last_obs = policy_observation(ctl.observe(c, frame, ia, ib, ic))

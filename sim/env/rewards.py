@@ -1,7 +1,7 @@
 """Rewards of the merge environment (:mod:`sim.env`): a learned model's, or any function.
 
 A reward is a callable ``reward(obs, action, acc_ft_s2) -> float`` of one decision: the
-:class:`~sim.observe.MergeObservation` at the decision (its ``state`` is the discrete state
+:class:`~sim.drivers.observe.MergeObservation` at the decision (its ``state`` is the discrete state
 index of the reward's encoder), the action's bin (0..4, :data:`irl.domains.merge.actions.ACTION_NAMES`)
 and the acceleration applied to A (ft/s^2). The environment returns it with the step that
 applies the action.
@@ -28,8 +28,8 @@ from irl.domains.merge.bins import MergeBins
 from irl.domains.merge.features import feature_set
 from irl.domains.merge.planning.driver import PLANNER_FORMAT, PlanningDriver
 from irl.result import SavedModel
-from sim.observe import MergeObservation
-from sim.policy import PolicyError
+from sim.drivers.observe import MergeObservation
+from sim.drivers.policy import PolicyError
 
 #: ``reward(obs, action, acc_ft_s2) -> float``.
 RewardFn = Callable[[MergeObservation, int, float], float]

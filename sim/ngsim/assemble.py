@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 
 from sim.ngsim.format import NGSIM_COLUMNS
-from sim.schema import COLUMNS
+from sim.runtime.schema import COLUMNS
 
 _FLOAT_POS = np.array([j for j, c in enumerate(NGSIM_COLUMNS) if COLUMNS[c] == "float64"])
 _INT_POS = np.array([j for j, c in enumerate(NGSIM_COLUMNS) if COLUMNS[c] == "int64"])

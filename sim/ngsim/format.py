@@ -7,7 +7,7 @@ The public NGSIM files come in two layouts:
   and add ``O_Zone, D_Zone, Int_ID, Section_ID, Direction, Movement, Location``, which are
   accepted and dropped.
 * the older ``trajectories-0400-0415.txt``: whitespace-separated, no header, the 18 columns of
-  :data:`sim.schema.COLUMNS` in that order.
+  :data:`sim.runtime.schema.COLUMNS` in that order.
 
 Number formatting of the original text release (used by the writer): positions with 3
 decimals, vehicle length / width with 1, speed, acceleration and headways with 2, everything
@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import unicodedata
 
-from sim.schema import COLUMNS
+from sim.runtime.schema import COLUMNS
 
 #: The 18 NGSIM columns in file order (the schema's order).
 NGSIM_COLUMNS: tuple[str, ...] = tuple(COLUMNS)

@@ -41,7 +41,7 @@ from sim.ngsim.parse import iter_chunks, locate_bad_line, location_column, sniff
 from sim.ngsim.recordings import RecordingTally, choose_location, choose_recording, normalise_location
 from sim.ngsim.smooth import SmoothingConfig, jerk_rms, smooth_table
 from sim.ngsim.validate import ChunkValidator, check_kinematic_units
-from sim.schema import COLUMNS
+from sim.runtime.schema import COLUMNS
 
 _COL = {c: i for i, c in enumerate(NGSIM_COLUMNS)}
 DEFAULT_CHUNKSIZE = 100_000  #: rows per chunk
@@ -303,7 +303,7 @@ def read_trajectories(path: str | os.PathLike, **kwargs) -> pd.DataFrame:
         TrajectoryFormatError: an unknown suffix, or a file that is not a valid trajectory table
             (the message names the file, and for NGSIM files the line and column).
     """
-    from sim.schema import conform
+    from sim.runtime.schema import conform
 
     path = Path(path)
     suffix = path.suffix.lower()

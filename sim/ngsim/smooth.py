@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from sim.schema import FRAME_S
+from sim.runtime.schema import FRAME_S
 
 
 @dataclass(frozen=True)

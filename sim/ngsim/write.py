@@ -26,7 +26,7 @@ import pyarrow.csv as pacsv
 from merge_irl.atomic import write_atomic
 from sim.errors import TrajectoryFormatError
 from sim.ngsim.format import DECIMALS, NGSIM_COLUMNS, NGSIM_HEADER
-from sim.schema import COLUMNS, conform, sort_table
+from sim.runtime.schema import COLUMNS, conform, sort_table
 
 Precision = Literal["ngsim", "exact"]
 
@@ -88,7 +88,7 @@ def write_ngsim_csv(
     """Write ``table`` (trajectory schema) to ``path`` in NGSIM's CSV format; returns the path.
 
     Args:
-        table: a trajectory table (``sim.schema.COLUMNS``; extra columns are ignored).
+        table: a trajectory table (``sim.runtime.schema.COLUMNS``; extra columns are ignored).
         path: output file; its directory must exist. Written atomically.
         precision: ``"ngsim"`` (NGSIM's decimals, see :func:`quantize_ngsim`) or ``"exact"``
             (shortest round-trip float text).

@@ -8,7 +8,7 @@ from types import SimpleNamespace
 import pytest
 
 from benchmarks.closed_loop_target import floor_driver, target_checks
-from sim.encounter_rules import ENCOUNTER_RULES
+from sim.merges.rules import ENCOUNTER_RULES
 
 
 def _agg(collisions=0, ll=float("nan"), speed=1.0, d_ac=10.0):

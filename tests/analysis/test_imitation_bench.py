@@ -20,7 +20,7 @@ import pytest
 
 from benchmarks.gail_diagnosis import parse_config
 from benchmarks.imitation_bench import GAIL_LOG_COLUMNS, GailConfig, ObsScaler, gail_log_summary
-from sim.observe import NO_LEAD_GAP_FT, policy_rows
+from sim.drivers.observe import NO_LEAD_GAP_FT, policy_rows
 
 ROOT = Path(__file__).resolve().parents[2]
 HEAVY = ("torch", "imitation", "stable_baselines3", "benchmarks.imitation_nets")

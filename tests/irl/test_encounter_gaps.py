@@ -47,7 +47,7 @@ def row_by_row(df, bins, k, encoding):
 
 
 def ngsim_case_encounters():
-    from sim.encounters import extract
+    from sim.merges.encounters import extract
     from sim.ngsim.io import read_ngsim
 
     return extract(read_ngsim(CASES / "ngsim-noisy-duplicates" / "clean.csv").table).frames

@@ -23,8 +23,8 @@ from irl.domains.merge.car_following import (
 from irl.domains.merge.cf_logit import CarFollowingLogit
 from irl.errors import ConfigError, DemonstrationError, ModelFileError
 from irl.domains.merge.mdp import resample_encounters
-from sim.observe import MergeObservation
-from sim.learned_policies import CarFollowingLogitPolicy
+from sim.drivers.observe import MergeObservation
+from sim.drivers.learned import CarFollowingLogitPolicy
 
 ACC = (-12.0, -3.0, 0.0, 3.0, 9.0)
 COL = {n: i for i, n in enumerate(CF_FEATURES)}

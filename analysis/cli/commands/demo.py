@@ -14,7 +14,7 @@ from dataclasses import replace
 
 from analysis.cli.commands._arg_types import non_negative_int, positive_int
 from analysis.cli.commands._dask_options import add_dask_options, apply_dask_options
-from sim.encounter_rules import ENCOUNTER_RULES
+from sim.merges.rules import ENCOUNTER_RULES
 
 
 def register(subparsers) -> None:

@@ -30,7 +30,7 @@ def register(subparsers) -> None:
     p.add_argument("--recording", type=int, default=None, metavar="N",
                    help="NGSIM files holding several recordings (Global_Time jumps): keep recording N")
     p.add_argument("--site", default=None, metavar="NAME|FILE.toml",
-                   help="lane coding: i-80, us-101 (built in, sim.sites) or a TOML lane mapping (default: the "
+                   help="lane coding: i-80, us-101 (built in, sim.runtime.sites) or a TOML lane mapping (default: the "
                         "--location site if built in, else i-80)")
     p.add_argument("--smooth", action="store_true",
                    help="NGSIM files: smooth positions and recompute speeds and accelerations (Savitzky-Golay)")
@@ -39,7 +39,7 @@ def register(subparsers) -> None:
 
 def gap_lines(merges) -> list[str]:
     """What the recording's missing frames did to the encounters, from the merges summary
-    (:data:`sim.encounters.MERGE_COLUMNS`): none when nothing is missing."""
+    (:data:`sim.merges.encounters.MERGE_COLUMNS`): none when nothing is missing."""
     out = []
     gapped = merges[merges["frame_gaps"] > 0]
     if len(gapped):
@@ -54,12 +54,12 @@ def gap_lines(merges) -> list[str]:
 
 def run(args: argparse.Namespace) -> int:
     from merge_irl.atomic import write_text_atomic
-    from sim.encounters import EncounterWindow, extract
+    from sim.merges.encounters import EncounterWindow, extract
     from sim.errors import TrajectoryFormatError
     from sim.ngsim.io import read_ngsim, read_trajectories
     from sim.ngsim.smooth import SmoothingConfig
-    from sim.outputs import write_parquet
-    from sim.sites import I80, SITES, load_site
+    from sim.runtime.outputs import write_parquet
+    from sim.runtime.sites import I80, SITES, load_site
 
     if args.max_frames_before is not None and args.max_frames_before < 0:
         raise TrajectoryFormatError(f"--max-frames-before: must be >= 0, got {args.max_frames_before}")

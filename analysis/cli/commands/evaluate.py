@@ -9,7 +9,7 @@ from pathlib import Path
 
 from analysis.cli.commands._arg_types import add_allow_implausible, positive_int
 from analysis.cli.commands._dask_options import add_dask_options, apply_dask_options
-from sim.controller_config import HIGH_BRAKE_RULES
+from sim.closed_loop.config import HIGH_BRAKE_RULES
 
 
 def register(subparsers) -> None:
@@ -76,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
     from analysis.evaluation.evaluate import evaluate
     from analysis.evaluation.policies import check_baselines, left_out_baselines
     from analysis.evaluation.thresholds import check_thresholds, metrics_from_file, not_triggered, parse_thresholds
-    from sim.controller_config import ControllerConfig
+    from sim.closed_loop.config import ControllerConfig
     from sim.errors import SimError
 
     thresholds = parse_thresholds(args.fail_if) if args.fail_if else ()  # syntax errors before any work
@@ -92,13 +92,13 @@ def run(args: argparse.Namespace) -> int:
     if not args.model and not args.cf_model and not args.driver and not args.policy and not baselines:
         raise SimError("nothing to evaluate: give --model, --driver, --cf-model, --policy and/or --baselines")
     from analysis.evaluation.policies import cf_policy, driver_policy
-    from sim.policy import Policy
+    from sim.drivers.policy import Policy
 
     # malformed files and specs before any work
     cf: list[Policy] = [cf_policy(path) for path in args.cf_model] + [driver_policy(path) for path in args.driver]
     if args.policy:
         from analysis.evaluation.policies import training_action_acc
-        from sim.callable_policy import CallablePolicy
+        from sim.drivers.callables import CallablePolicy
 
         # discrete actions of a callable at the training frames' mean acceleration per bin, as the baselines'
         acc = training_action_acc(args.train_demos) if args.train_demos else CallablePolicy.action_acc_ft_s2

@@ -1,5 +1,5 @@
 """``merge-irl export-transitions``: encounters, NGSIM files and closed-loop decision logs as the
-transition arrays of imitation learning (``sim.transitions``)."""
+transition arrays of imitation learning (``sim.merges.transitions``)."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ def register(subparsers) -> None:
                     "(.parquet/.csv with the controller's decision columns) and write one .npz of transitions at the "
                     "decision step: obs and next_obs [N, 7] (d_AC, v_AC, d_AB, v_AB, v_A, len_C, len_B; ft, ft/s), "
                     "acts [N] (merge actions 0..4), acc_mps2 [N], dones [N], episode [N] (one per encounter or "
-                    "control), read back by sim.transitions.load.")
+                    "control), read back by sim.merges.transitions.load.")
     p.add_argument("--demos", nargs="+", required=True, metavar="PATH",
                    help="encounter tables, NGSIM trajectory files or decision logs (episodes numbered across them)")
     p.add_argument("--out", required=True, metavar="FILE.npz", help="output file")
@@ -51,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
     from merge_irl.units import FRAME_S
     from sim.ngsim.io import read_ngsim, read_trajectories
     from sim.ngsim.smooth import SmoothingConfig
-    from sim.transitions import (TransitionsError, concatenate, from_decisions, from_encounters, from_trajectories,
+    from sim.merges.transitions import (TransitionsError, concatenate, from_decisions, from_encounters, from_trajectories,
                                  save)
 
     step = args.decision_step_s if args.decision_step_s is not None else DEFAULT_DECISION_STEP_S

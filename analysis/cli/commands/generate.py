@@ -11,7 +11,7 @@ import sys
 
 from analysis.cli.commands._arg_types import add_allow_implausible
 from analysis.cli.commands._dask_options import add_dask_options, apply_dask_options
-from sim.encounter_rules import ENCOUNTER_RULES
+from sim.merges.rules import ENCOUNTER_RULES
 
 
 def _seeds(text: str):
@@ -74,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
         with_overrides(spec, duration_s=args.duration)  # an implausible --duration: one line, exit 2, now
     if args.seeds is not None or args.demand_scale is not None:
         return _run_sweep(args, spec)
-    from sim.generate import generate
+    from sim.merges.generate import generate
 
     res = generate(spec, args.out, seed=args.seed, duration_s=args.duration, csv=args.csv,
                    progress=not args.no_progress, encounter_rule=args.encounter_rule)

@@ -24,7 +24,7 @@ class EncounterColumn:
 
 
 #: The per-frame encounter table (DESIGN.md section 2), one row per frame t of an encounter
-#: in which A, B and A's speed at t + 0.1 s are known. ``sim.encounters`` writes it from any
+#: in which A, B and A's speed at t + 0.1 s are known. ``sim.merges.encounters`` writes it from any
 #: NGSIM-schema trajectory table (simulated or real); ``irl.domains.merge.mdp`` learns from it.
 ENCOUNTER_SCHEMA: tuple[EncounterColumn, ...] = (
     EncounterColumn("encounter_id", "int64", "", "one id per merge (per car B), from 1"),

@@ -1,0 +1,43 @@
+"""How the controller's actuation reads the road ahead of A: the ``need`` variant of High Brake
+(:attr:`ControllerConfig.high_brake <sim.closed_loop.config.ControllerConfig>`), which reads the
+simulator's ground truth (A's true leader and its true acceleration), and A's leader gap that it
+and the safety filter act on. The default, physical actuation reads neither."""
+
+from __future__ import annotations
+
+from sim.runtime.hooks import FrameState
+from sim.drivers.observe import lead_of
+
+
+def high_brake_need(v_a: float, v_lead: float, acc_lead: float, gap: float) -> float:
+    """Constant deceleration (ft/s^2, >= 0) that keeps A behind its leader, the leader holding
+    its own deceleration ``-acc_lead`` until it stops (A's speed ``v_a``, the leader's ``v_lead``,
+    ft/s; ``gap`` ft, the bumper gap less A's minimum gap, > 0; the controller passes at least
+    1 ft). With ``closing = v_a - v_lead``:
+
+    * leader not braking (``acc_lead >= 0``): ``closing^2 / (2 gap)`` when closing (A reaches the
+      leader's speed at the gap), else 0;
+    * leader braking at ``d = -acc_lead``, A reaching its speed before it stops
+      (``2 gap / closing <= v_lead / d``): ``d + closing^2 / (2 gap)``;
+    * leader braking and stopping first: ``v_a^2 / (2 (gap + v_lead^2 / (2 d)))`` (A stops
+      behind the leader's stopping point).
+
+    Used by :attr:`ControllerConfig.high_brake <sim.closed_loop.config.ControllerConfig>` ``"need"``.
+    """
+    closing = v_a - v_lead
+    if not acc_lead < 0.0:
+        return closing * closing / (2.0 * gap) if closing > 0.0 else 0.0
+    d = -acc_lead
+    if closing > 0.0 and 2.0 * gap / closing <= v_lead / d:
+        return d + closing * closing / (2.0 * gap)
+    return max(v_a, 0.0) ** 2 / (2.0 * (gap + v_lead * v_lead / (2.0 * d)))
+
+
+def leader_gap(frame: FrameState, ia: int) -> tuple[int, float] | None:
+    """A's leader in lane 6 (row) and the bumper gap to it (ft), or None without a leader: what
+    the safety filter and High Brake by need act on."""
+    ya = float(frame.local_y[ia])
+    il = lead_of(frame, ya, exclude=(ia,))
+    if il is None:
+        return None
+    return il, float(frame.local_y[il]) - ya - float(frame.length[il])

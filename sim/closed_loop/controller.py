@@ -1,0 +1,451 @@
+"""The closed-loop controller: a step hook that hands merge lag cars A to a policy.
+
+Lanes are those of the run's site profile (:attr:`sim.runtime.hooks.RunContext.site`); I-80's numbers below.
+Selection (default): every vehicle B on the ramp / auxiliary lane (lane 7) that reaches the
+take-over zone (``Local_Y >= zone_start_ft``) gets, once, a lag car A: the nearest lane-6
+vehicle strictly behind B's ``Local_Y`` within ``max_lag_ft`` that is not already controlled
+(the rule :mod:`sim.merges.take_over` applies to recorded tables).
+From then on, every ``decision_step_s`` seconds the controller observes A, B and C (C = A's lead
+car: the nearest lane-6 vehicle ahead of A, other than B), encodes the state, asks the policy for its action
+distribution, samples an action (or takes its mode, ``mode=True``) and applies the action's
+acceleration (High Brake harder when A needs it to stop behind its leader, up to A's ``decel``:
+``ControllerConfig.high_brake``) with ``vehicle.setSpeedMode(A, 0)`` + ``setLaneChangeMode(A, 0)`` +
+``setAcceleration``: SUMO neither changes A's lane nor its speed on its own. A policy with
+``controls = False`` (the SUMO baseline) is observed and logged the same way but never
+commanded.
+
+Release: the controller restores A's speed mode and lane-change mode (and hands the speed
+back to SUMO) and records why, in :attr:`Control.reason <sim.closed_loop.records.Control.reason>`:
+
+``merge_done``  B merged (first lane-6 frame) and ``hold_after_merge_s`` has passed;
+``left_section`` A's ``Local_Y`` passed the end of the section (or A's route ended there);
+``left_lane``   A left lane 6 (only SUMO's driver with lane changes on can; demonstrations end there too);
+``collision``   A was in a collision (``simulation.getCollidingVehiclesIDList``);
+``teleported``  SUMO teleported A;
+``arrived``     A reached the end of its route elsewhere;
+``removed``     A vanished from the network for any other reason;
+``b_lost``      B vanished before merging;
+``timeout``     A was controlled for ``max_control_s``;
+``end_of_run``  the run ended first.
+
+Who hit whom in a collision is in :attr:`Control.collision_kind <sim.closed_loop.records.Control.collision_kind>`
+(one of ``COLLISION_KINDS``). Settings: :mod:`sim.closed_loop.config`; records: :mod:`sim.closed_loop.records`.
+The run continues after every release. Decisions are kept in :attr:`Controller.decisions`
+(one row per decision) and control episodes in :attr:`Controller.controls`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from irl.domains.merge.actions import HIGH_BRAKE, ZERO_ACTION, action_of
+from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S
+from merge_irl.units import FT_PER_M, M_PER_FT
+from sim.closed_loop.records import Control, DecisionLog
+from sim.closed_loop.config import ControllerConfig
+from sim.runtime.hooks import FrameState, RunContext
+from sim.runtime.lanes import aux_lane_start_ft
+from sim.closed_loop.actuation import high_brake_need, leader_gap
+from sim.drivers.observe import MergeObservation, lag_of, lead_of, observe
+from sim.drivers.policy import Policy, check_policy, choose_action
+from sim.runtime.schema import RAMP_LANE, RIGHTMOST_MAIN_LANE
+
+#: A that reaches the end of its route within this of the section end has left the section (ft).
+EXIT_MARGIN_FT = 150.0
+
+
+class Controller:
+    """A :class:`sim.runtime.hooks.StepHook` that drives merge lag cars with ``policy``.
+
+    After the run, :attr:`controls` lists every control episode and :meth:`decision_table`
+    gives the decisions. :attr:`last` maps A's Vehicle_ID to its latest
+    ``(observation, probs [5], action)`` for loggers that run after this hook in the same
+    frame; :attr:`decided` holds the As that decided in the current frame; :attr:`roles` maps Vehicle_ID -> role char ("A", "B", "C") for the current frame.
+    """
+
+    def __init__(self, policy: Policy, config: ControllerConfig = ControllerConfig()):
+        check_policy(policy, scoring=False, where="controller")
+        self.policy = policy
+        self.config = config
+        self.controls: list[Control] = []
+        self.decisions = DecisionLog()
+        self.last: dict[int, tuple[MergeObservation, np.ndarray, int]] = {}
+        self.roles: dict[int, str] = {}
+        self.decided: set[int] = set()  # As that took a decision in the current frame
+        self.rows: dict[int, int] = {}  # Vehicle_ID -> row of the current frame
+        self.role_rows: dict[int, str] = {}  # row of the current frame -> role
+        self._active: dict[int, Control] = {}  # a_id -> control
+        self._handled_b: set[int] = set()
+        self._b_seen_ramp: set[int] = set()
+        self._rng: np.random.Generator | None = None
+        self._every = 1
+        self._zone_start = 0.0
+        self._section_end = math.inf
+        self._traci: Any = None  # the libsumo module (untyped), set by on_start
+        self._collision_pairs: set[tuple[str, str]] = set()
+        self._frame_collisions: list[tuple[str, str]] = []  # (collider, victim) SUMO ids of the current frame
+        self._vehicle_id_of: Any = None
+        self._merge_lane = RIGHTMOST_MAIN_LANE  # the run's site profile's, set by on_start
+        self._ramp_lane = RAMP_LANE
+        self.n_teleports = 0  # teleports in the whole run, all vehicles
+
+    @property
+    def decision_step_s(self) -> float:
+        """Seconds between two decisions: the config's, else the policy's ``decision_step_s``,
+        else (a policy for any step) :data:`irl.domains.merge.mdp.DEFAULT_DECISION_STEP_S`."""
+        if self.config.decision_step_s is not None:
+            return float(self.config.decision_step_s)
+        step = self.policy.decision_step_s
+        return float(step) if step is not None else DEFAULT_DECISION_STEP_S
+
+    # -- hook protocol -------------------------------------------------------------------
+    def on_start(self, ctx: RunContext) -> None:
+        import libsumo
+
+        self._traci = libsumo
+        cfg = self.config
+        self._every = max(1, int(round(self.decision_step_s / ctx.frame_s)))
+        self._hold_frames = cfg.hold_frames(ctx.frame_s)
+        self._max_frames = cfg.max_frames(ctx.frame_s)
+        self._frame_s = ctx.frame_s
+        self._section_end = float(ctx.section_length_ft)
+        self._zone_start = cfg.zone_start(aux_lane_start_ft(ctx))
+        seed = cfg.seed if cfg.seed is not None else int(ctx.seed)
+        self._rng = np.random.default_rng(seed)
+        self._vehicle_id_of = ctx.vehicle_id_of
+        self._merge_lane = int(ctx.site.merge_lane)
+        self._ramp_lane = int(ctx.site.ramp_lanes[0])
+
+    def on_step(self, ctx: RunContext, frame: FrameState) -> None:
+        for c, ia, ib, ic in self.advance(frame):
+            obs = self.observe(c, frame, ia, ib, ic)
+            probs, action = self.decide(c, obs)
+            self.apply(c, frame, ia, ic, obs, probs, action)
+
+    def advance(self, frame: FrameState, *, max_take_overs: int | None = None) -> list[tuple[Control, int, int, int | None]]:
+        """Everything of one frame but the decisions: SUMO's collisions and teleports, the
+        releases due (:meth:`release`), the take-overs (:meth:`take_over`, at most
+        ``max_take_overs``; None: every one due) and the roles of the frame.
+
+        Returns the control episodes due for a decision in this frame, with the rows of A, B
+        and C (None without C) in ``frame``, in the order :meth:`on_step` decides them.
+        """
+        sim = self._traci.simulation
+        self._last_frame = frame.frame
+        # short tuples (usually empty): membership tests need no set
+        colliding = sim.getCollidingVehiclesIDList()
+        teleported = sim.getStartingTeleportIDList()
+        arrived = sim.getArrivedIDList() if self._active else ()
+        self._frame_collisions = []
+        if colliding:
+            for col in sim.getCollisions():
+                self._collision_pairs.add((col.collider, col.victim))
+                self._frame_collisions.append((col.collider, col.victim))
+        self.n_teleports += len(teleported)
+        rows = self._rows_of(frame) if self._active else {}
+        self.rows = rows
+        self.roles = {}
+        self.role_rows = {}
+        self.decided = set()
+        # 1. track B's merge, release what must be released
+        for a_id, c in list(self._active.items()):
+            ib = rows.get(c.b_id)
+            ia = rows.get(a_id)
+            if c.merge_frame < 0 and ib is not None and frame.lane_id[ib] == self._merge_lane:
+                c.merge_frame = frame.frame
+                c.b_ahead = bool(ia is not None and frame.local_y[ib] > frame.local_y[ia])
+            reason = self._release_reason(c, frame, ia, ib, colliding, teleported, arrived)
+            if reason:
+                # a teleported car is still known to SUMO (off the road for a while): it gets its
+                # own speed and lane-change modes back like any other released car
+                self.release(c, frame.frame, reason, present=ia is not None or reason == "teleported")
+        # 2. new take-overs
+        if max_take_overs is None or max_take_overs > 0:
+            self.take_over(frame, limit=max_take_overs)
+        if self._active and not rows:
+            rows = self.rows = self._rows_of(frame)
+        # 3. roles, and the decisions due
+        due: list[tuple[Control, int, int, int | None]] = []
+        for a_id, c in self._active.items():
+            ia, ib = rows[a_id], rows[c.b_id]
+            c.last_y = float(frame.local_y[ia])
+            # C is A's lead car in lane 6 other than B: in every demonstration (sim.merges.encounters) C is
+            # the lead of the gap A-C that B merges into, so it is ahead of A and nothing is between
+            # them; B's lead would be a car behind A while B is behind A, and would hide A's real
+            # lead car while B drives ahead of it on the ramp (collisions "A into other")
+            ic = lead_of(frame, float(frame.local_y[ia]), lane=self._merge_lane, exclude=(ia, ib))
+            self.roles[a_id] = "A"
+            self.roles[c.b_id] = "B"
+            self.role_rows[ia] = "A"
+            self.role_rows[ib] = "B"
+            if ic is not None:
+                self.roles.setdefault(int(frame.vehicle_id[ic]), "C")
+                self.role_rows.setdefault(ic, "C")
+            if (frame.frame - c.start_frame) % self._every == 0:
+                due.append((c, ia, ib, ic))
+        return due
+
+    def on_end(self, ctx: RunContext) -> None:
+        for c in list(self._active.values()):
+            self.release(c, self._last_frame, "end_of_run", present=True)
+
+    @property
+    def merge_lane(self) -> int:
+        """The lane code A is controlled in (the run's site profile's merge lane; I-80: 6)."""
+        return self._merge_lane
+
+    @property
+    def last_frame(self) -> int:
+        """Frame_ID of the last frame :meth:`advance` saw (-1: none)."""
+        return self._last_frame
+
+    @property
+    def n_collisions(self) -> int:
+        """Distinct (collider, victim) pairs that collided in the whole run, all vehicles."""
+        return len(self._collision_pairs)
+
+    # -- internals ----------------------------------------------------------------------
+    _last_frame = -1
+
+    @staticmethod
+    def _rows_of(frame: FrameState) -> dict[int, int]:
+        return dict(zip(frame.vehicle_id.tolist(), range(len(frame.sumo_ids))))
+
+    def _release_reason(self, c, frame, ia, ib, colliding, teleported, arrived) -> str:
+        sid = c.a_sumo
+        if sid in colliding:
+            return "collision"
+        if sid in teleported:
+            return "teleported"
+        if ia is None:
+            if sid in arrived:  # the route ends where the section ends: a normal exit
+                return "left_section" if c.last_y >= self._section_end - EXIT_MARGIN_FT else "arrived"
+            return "removed"
+        if frame.local_y[ia] > self._section_end:
+            return "left_section"
+        if frame.lane_id[ia] != self._merge_lane:
+            return "left_lane"
+        if c.merge_frame < 0 and ib is None:
+            return "b_lost"
+        if c.merge_frame >= 0 and frame.frame - c.merge_frame >= self._hold_frames:
+            return "merge_done"
+        if ib is None:  # B left after merging, before the hold ended
+            return "merge_done"
+        if frame.frame - c.start_frame >= self._max_frames:
+            return "timeout"
+        return ""
+
+    def release(self, c: Control, frame_no: int, reason: str, *, present: bool) -> None:
+        """End control episode ``c`` at ``frame_no`` for ``reason`` (one of
+        :data:`~sim.closed_loop.records.RELEASE_REASONS`): A gets its own speed and lane-change
+        modes back (when ``present``: still known to SUMO) and SUMO drives it again."""
+        c.end_frame = frame_no
+        c.reason = reason
+        if reason == "collision":
+            c.collision_kind, c.collision_pair = self._collision_kind(c)
+        self._active.pop(c.a_id, None)
+        self.last.pop(c.a_id, None)
+        if not present or c.lane_change_mode < 0:  # gone, or never taken over (SUMO's driver, lane free)
+            return
+        v = self._traci.vehicle
+        try:
+            if c.commanded:
+                v.setSpeed(c.a_sumo, -1.0)
+                v.setSpeedMode(c.a_sumo, c.speed_mode)
+            v.setLaneChangeMode(c.a_sumo, c.lane_change_mode)
+        except self._traci.TraCIException:  # the vehicle is gone after all
+            pass
+
+    def _collision_kind(self, c: Control) -> tuple[str, str]:
+        """Who hit whom (``COLLISION_KINDS``) in the current frame's collisions involving A, and
+        that pair as ``"collider>victim"`` (one of the run's distinct pairs, so that the A
+        collisions, counted by distinct pair, never exceed :attr:`n_collisions`)."""
+        for collider, victim in self._frame_collisions:
+            if c.a_sumo not in (collider, victim):
+                continue
+            other = victim if collider == c.a_sumo else collider
+            vid = self._vehicle_id_of(other) if self._vehicle_id_of is not None else None
+            pair = f"{collider}>{victim}"
+            if collider == c.a_sumo:
+                kind = "A into B" if vid == c.b_id else "A into C" if vid is not None and vid == c.c_id else "A into other"
+                return kind, pair
+            return ("B into A" if vid == c.b_id else "other into A"), pair
+        # SUMO listed A as colliding without a pair (not seen): a pair of its own, counted in the run's too
+        self._collision_pairs.add((c.a_sumo, "?"))
+        return "A into other", f"{c.a_sumo}>?"
+
+    def take_over(self, frame: FrameState, *, limit: int | None = None) -> list[Control]:
+        """Hand the lag car A of every B newly in the take-over zone (see the module docstring) to
+        the policy (at most ``limit`` of them; None: all): A's lane-change mode (and, when
+        commanded, its speed mode) off. Returns the new control episodes (also appended to
+        :attr:`controls`)."""
+        ramp = np.flatnonzero((frame.lane_id == self._ramp_lane) & (frame.local_y >= self._zone_start))
+        new: list[Control] = []
+        for ib in ramp:
+            if limit is not None and len(new) >= limit:
+                break
+            b_id = int(frame.vehicle_id[ib])
+            if b_id in self._handled_b:
+                continue
+            yb = float(frame.local_y[ib])
+            ia = lag_of(frame, yb, lane=self._merge_lane, max_gap_ft=self.config.max_lag_ft)
+            if ia is None:
+                continue
+            a_id = int(frame.vehicle_id[ia])
+            if a_id in self._active or any(c.b_id == a_id for c in self._active.values()):
+                continue
+            self._handled_b.add(b_id)
+            c = Control(
+                a_id=a_id, b_id=b_id, a_sumo=frame.sumo_ids[ia], start_frame=frame.frame,
+                commanded=bool(self.policy.controls), gap_AB_start_ft=yb - float(frame.local_y[ia]),
+            )
+            if c.commanded or self.policy.keep_lane:
+                v = self._traci.vehicle
+                c.lane_change_mode = v.getLaneChangeMode(c.a_sumo)
+                v.setLaneChangeMode(c.a_sumo, 0)
+                if c.commanded:
+                    c.speed_mode = v.getSpeedMode(c.a_sumo)
+                    v.setSpeedMode(c.a_sumo, 0)
+                    c.max_decel_ft_s2 = float(v.getEmergencyDecel(c.a_sumo)) * FT_PER_M
+            self.controls.append(c)
+            self._active[a_id] = c
+            new.append(c)
+        return new
+
+    def observe(self, c: Control, frame: FrameState, ia: int, ib: int, ic: int | None) -> MergeObservation:
+        """What A (row ``ia``) sees of B (``ib``) and C (``ic``, None without C) at ``frame``, with the
+        state encoded by the policy's encoder (-1 without one). Reads, changes nothing."""
+        d_ac, d_ab, v_ac, v_ab, truck = observe(frame, ia, ib, ic)
+        encoder = self.policy.encoder
+        encoding = self.policy.state_encoding
+        # before the first decision: the bin of A's acceleration in the last frame (SUMO's, over 0.1 s)
+        acc_now = float(frame.acc[ia])
+        initial = action_of(acc_now) if c.prev_action < 0 and math.isfinite(acc_now) else -1
+        # C's acceleration as A sees it: its speed change since the previous decision (same C only)
+        c_id = int(frame.vehicle_id[ic]) if ic is not None else 0
+        v_c = float(frame.speed[ic]) if ic is not None else math.nan
+        step_s = self._every * self._frame_s
+        acc_c = (v_c - c.prev_v_c) / step_s if c_id and c_id == c.c_id and math.isfinite(c.prev_v_c) else 0.0
+        acc_prev = c.prev_acc if c.prev_action >= 0 else acc_now
+        if encoder is None:
+            state = -1
+        elif encoding == "paper":
+            state = encoder.state(d_ac, d_ab, v_ac, v_ab, truck)
+        else:  # paper state x A's previous action (the initial one before the first decision, else Zero)
+            prev = c.prev_action if c.prev_action >= 0 else (initial if initial >= 0 else ZERO_ACTION)
+            state = encoder.state(d_ac, d_ab, v_ac, v_ab, truck, prev_action=prev, encoding=encoding)
+        return MergeObservation(d_ac, d_ab, v_ac, v_ab, truck, state, float(frame.speed[ia]), c.prev_action, initial,
+                                c.merge_frame >= 0, float(frame.length[ic]) if ic is not None else math.nan,
+                                float(frame.length[ib]), acc_prev, acc_c)
+
+    def decide(self, c: Control, obs: MergeObservation) -> tuple[np.ndarray, int]:
+        """The policy's decision: ``(probs [5], action)``, the action sampled from ``probs`` with
+        the controller's generator (its mode with ``mode=True``); for a policy that does not
+        command A (``controls = False``), -1: :meth:`apply` then logs what SUMO did."""
+        probs = np.asarray(self.policy.probs(obs), dtype=np.float64)
+        if not c.commanded:
+            return probs, -1
+        assert self._rng is not None, "on_start seeds the generator before any step"
+        return probs, choose_action(probs, self._rng, mode=self.config.mode)
+
+    def apply(self, c: Control, frame: FrameState, ia: int, ic: int | None, obs: MergeObservation, probs: np.ndarray,
+              action: int, *, acc_ft_s2: float | None = None) -> float:
+        """Apply ``action`` to A (row ``ia``; C at row ``ic``, None without C) as the controller applies every decision, and log it:
+        the safety filter (``safety_ttc_s``), the action's acceleration (``policy.acceleration``;
+        ``high_brake="need"``), capped at A's emergency deceleration, held for one decision step
+        with ``vehicle.setAcceleration``. ``acc_ft_s2`` (ft/s^2) replaces the action's acceleration
+        (a continuous action; the logged action is then its bin, :func:`irl.domains.merge.actions.action_of`).
+        Not commanded (``c.commanded`` False): nothing is applied; the action logged is the bin of
+        A's acceleration in the frame. Returns the acceleration applied (ft/s^2).
+        """
+        c_id = int(frame.vehicle_id[ic]) if ic is not None else 0
+        v_c = float(frame.speed[ic]) if ic is not None else math.nan
+        step_s = self._every * self._frame_s
+        state = obs.state
+        d_ac, d_ab, v_ac, v_ab, truck = obs.d_AC, obs.d_AB, obs.v_AC, obs.v_AB, obs.b_is_truck
+        filtered = need = False
+        if c.commanded and acc_ft_s2 is not None:
+            acc = float(acc_ft_s2)
+            action = action_of(acc)
+            acc = max(acc, -c.max_decel_ft_s2) if math.isfinite(c.max_decel_ft_s2) else acc  # A's physical limit
+            self._traci.vehicle.setAcceleration(c.a_sumo, acc * M_PER_FT, step_s)
+        elif c.commanded:
+            if self.config.safety_ttc_s is not None:
+                acc_table = [self.policy.acceleration(obs, a) for a in range(len(probs))]
+                safe = self._safe_action(frame, ia, action, acc_table)
+                filtered = safe != action
+                action = safe
+                c.n_interventions += int(filtered)
+            acc = float(self.policy.acceleration(obs, action))
+            if action == HIGH_BRAKE and self.config.high_brake == "need":
+                own = acc
+                acc = self._brake_to_need(frame, ia, acc, c.a_sumo)
+                need = acc < own
+                c.n_need_brakes += int(need)
+            acc = max(acc, -c.max_decel_ft_s2) if math.isfinite(c.max_decel_ft_s2) else acc  # A's physical limit
+            self._traci.vehicle.setAcceleration(c.a_sumo, acc * M_PER_FT, step_s)
+        else:
+            acc = float(frame.acc[ia])
+            action = action_of(acc)
+        c.prev_action = action
+        c.prev_acc = acc
+        c.prev_v_c = v_c
+        c.n_decisions += 1
+        c.c_id = c_id
+        self.decided.add(c.a_id)
+        self.last[c.a_id] = (obs, probs, action)
+        self.decisions.append((
+            frame.frame, frame.time_s, c.a_id, c.b_id, c_id, state, action, acc, obs.speed_A,
+            d_ac, d_ab, v_ac, v_ab, truck, obs.len_C, obs.len_B, *probs.tolist(), filtered, need,
+        ))
+        return acc
+
+    def _safe_action(self, frame: FrameState, ia: int, action: int, acc_table) -> int:
+        """``action``, or the nearest harder-braking one whose predicted gap to A's leader in
+        lane 6 stays positive with a closing TTC of at least ``safety_ttc_s`` after one decision
+        step (see :class:`~sim.closed_loop.config.ControllerConfig`); High Brake (0) if none does."""
+        leader = leader_gap(frame, ia)
+        if leader is None:
+            return action
+        il, gap = leader
+        h = self._every * self._frame_s
+        ttc_min = float(self.config.safety_ttc_s or 0.0)
+        va, vl = float(frame.speed[ia]), float(frame.speed[il])
+        for a in range(action, -1, -1):
+            v1 = max(0.0, va + float(acc_table[a]) * h)
+            g1 = gap - 0.5 * (va + v1) * h + vl * h
+            closing = v1 - vl
+            if g1 > 0 and (closing <= 1e-9 or g1 / closing >= ttc_min):
+                return a
+        return 0
+
+    def _brake_to_need(self, frame: FrameState, ia: int, acc: float, a_sumo: str) -> float:
+        """The High Brake acceleration (ft/s^2) of ``ControllerConfig.high_brake == "need"``:
+        ``acc`` (the action's), or harder when A closes in on its leader in lane 6 faster than
+        ``acc`` stops it, by need at most A's ``decel`` (see :class:`~sim.closed_loop.config.ControllerConfig`)."""
+        leader = leader_gap(frame, ia)
+        if leader is None:
+            return acc
+        il, bumper_gap = leader
+        veh = self._traci.vehicle
+        gap = max(bumper_gap - veh.getMinGap(a_sumo) * FT_PER_M, 1.0)
+        need = high_brake_need(float(frame.speed[ia]), float(frame.speed[il]), float(frame.acc[il]), gap)
+        return min(acc, max(-need, -veh.getDecel(a_sumo) * FT_PER_M))  # never softer than the action's own
+
+    # -- results ------------------------------------------------------------------------
+    def decision_table(self):
+        """Decisions as a DataFrame (columns ``frame, time_s, a_id, b_id, c_id, state, action,
+        acc_cmd, speed_A, d_AC, d_AB, v_AC, v_AB, b_is_truck, len_C, len_B, p0..p4``)."""
+        return self.decisions.to_frame()
+
+    def control_table(self):
+        """Control episodes as a DataFrame, one row per A (fields of :class:`~sim.closed_loop.records.Control`)."""
+        import pandas as pd
+
+        cols = ("a_id", "b_id", "a_sumo", "start_frame", "end_frame", "reason", "merge_frame",
+                "b_ahead", "commanded", "gap_AB_start_ft", "n_decisions", "n_interventions", "n_need_brakes",
+                "collision_kind", "collision_pair")
+        return pd.DataFrame([{k: getattr(c, k) for k in cols} for c in self.controls], columns=list(cols))

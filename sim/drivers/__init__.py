@@ -1,0 +1,1 @@
+"""The drivers: the Policy protocol, the policy observation, and the learned, planning, IDM and callable drivers."""

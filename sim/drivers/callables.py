@@ -1,0 +1,431 @@
+"""Any callable ``obs -> action`` as a closed-loop driver, and any driver as such a callable.
+
+The observation a callable sees is the continuous merge observation of car A,
+``MergeObservation.continuous()[0]``: ``[7]`` float64, columns
+:data:`sim.drivers.observe.CONTINUOUS_NAMES` (``d_AC, v_AC, d_AB, v_AB, v_A, len_C, len_B``; ft and ft/s,
+:data:`sim.drivers.observe.CONTINUOUS_UNITS`; ``d_AC``, ``v_AC`` and ``len_C`` NaN without a lead car C).
+What it returns is one of:
+
+* a **discrete action**: an integer ``0..4``, the merge action in the controller's order (High
+  Brake, Low Brake, Zero, Low Accel, High Accel; :mod:`irl.domains.merge.actions`), applied at
+  the policy's ``action_acc_ft_s2`` (by default the bins' midpoints) as every tabular driver's;
+* a **continuous action**: a float, A's acceleration in m/s^2, applied as it is (a deceleration
+  capped at A's emergency deceleration by the controller, as for every driver).
+
+Numpy scalars and one-element arrays count as their element (Stable-Baselines3's ``predict``
+returns a ``()`` or ``(1,)`` array): integer dtypes are discrete actions, float dtypes
+continuous ones. An object with a ``predict(obs, deterministic=True)`` method returning
+``(action, state)`` (Stable-Baselines3's and imitation's policies) is called through it.
+
+* :class:`CallablePolicy` wraps such a callable into :class:`sim.drivers.policy.Policy`, so the controller
+  (and ``merge-irl evaluate --policy module:callable[:name]``) drives with it.
+* :func:`load_callable` resolves a ``module:callable[:name]`` spec (a dotted module or a path to a
+  ``.py`` file); a :class:`CallablePolicy` built from a spec pickles as its spec, so evaluation
+  workers (fresh processes) import the callable again instead of pickling it.
+* :class:`PolicyCallable` goes the other way: any :class:`sim.drivers.policy.Policy` (a learned model, a
+  driver file's policy) as a callable ``obs [7] -> int`` (the action index), e.g. for the
+  Gymnasium environment; ``analysis.evaluation.policies.policy_callable`` builds one from a file.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import importlib.util
+import math
+import re
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from irl.domains.merge.actions import ACTION_ACC_FT_S2, N_ACTIONS, ZERO_ACTION, action_of
+from merge_irl.units import FT_PER_M
+from sim.drivers.observe import CONTINUOUS_NAMES, MergeObservation, policy_observation, unfill_policy_row
+from sim.drivers.policy import NO_LIKELIHOOD, Policy, PolicyDefaults, PolicyError, check_policy, choose_action
+
+#: A vehicle at least this long (ft) is taken as a truck when only the continuous observation
+#: is known (:class:`PolicyCallable` encoding a tabular state): 8 m, between the presets' cars
+#: (4.5-5 m) and trucks (12 m). A heuristic: the controller itself reads B's vehicle class.
+TRUCK_MIN_LENGTH_FT = 8.0 * FT_PER_M
+
+
+#: Accelerations (m/s^2) a continuous action may ask for: about 2 g of braking to 1 g of
+#: acceleration, beyond any road vehicle; outside it is a bug (units), refused. Within it a
+#: deceleration is still capped at A's emergency deceleration, as for every driver.
+PLAUSIBLE_ACC_MPS2 = (-20.0, 10.0)
+
+
+def parse_action(value: Any, *, where: str = "policy") -> int | float:
+    """The action a callable returned: an ``int`` action index or a ``float`` acceleration (m/s^2).
+
+    Accepts Python ints and floats, numpy scalars and one-element arrays (and anything
+    ``numpy.asarray`` turns into one, e.g. a CPU tensor); integer dtypes are action indices, float
+    dtypes accelerations.
+
+    Raises:
+        PolicyError: a bool, a tuple, an array of more than one element, another type, an index
+            outside ``0..4``, or an acceleration that is not finite or outside
+            :data:`PLAUSIBLE_ACC_MPS2` (``where`` names the policy).
+    """
+    x = value
+    if isinstance(x, (bool, np.bool_)):
+        raise PolicyError(f"{where}: returned a bool ({x!r}); expected an action index 0..{N_ACTIONS - 1} (int) "
+                          "or A's acceleration in m/s^2 (float)")
+    if isinstance(x, (tuple, list, dict, str, bytes)) or x is None:
+        raise PolicyError(f"{where}: returned {type(x).__name__} {_short(x)}; expected an action index "
+                          f"0..{N_ACTIONS - 1} (int) or A's acceleration in m/s^2 (float)"
+                          + (" (a predict() result? give the object, whose predict is called)"
+                             if isinstance(x, tuple) else ""))
+    if not isinstance(x, (int, float, np.integer, np.floating)):
+        if not (isinstance(x, np.ndarray) or hasattr(x, "__array__")):
+            raise PolicyError(f"{where}: returned {type(x).__name__}; expected an action index 0..{N_ACTIONS - 1} "
+                              "(int) or A's acceleration in m/s^2 (float)")
+        a = np.asarray(x)
+        if a.size != 1:
+            raise PolicyError(f"{where}: returned an array of shape {a.shape}; expected one action")
+        if a.dtype.kind not in "iuf":
+            raise PolicyError(f"{where}: returned an array of dtype {a.dtype}; expected an integer action index "
+                              "or a float acceleration (m/s^2)")
+        x = a.reshape(()).item()
+    if isinstance(x, (int, np.integer)):
+        i = int(x)
+        if not 0 <= i < N_ACTIONS:
+            raise PolicyError(f"{where}: returned action {i}; an action index is 0..{N_ACTIONS - 1} "
+                              "(High Brake, Low Brake, Zero, Low Accel, High Accel)")
+        return i
+    f = float(x)
+    if not math.isfinite(f):
+        raise PolicyError(f"{where}: returned acceleration {f}; expected a finite number (m/s^2)")
+    lo, hi = PLAUSIBLE_ACC_MPS2
+    if not lo <= f <= hi:
+        raise PolicyError(f"{where}: returned acceleration {f:g} m/s^2, beyond any road vehicle's "
+                          f"({lo:g} .. {hi:g} m/s^2; a unit mix-up, ft/s^2 or km/h/s?)")
+    return f
+
+
+def _short(x: Any) -> str:
+    r = repr(x)
+    return r if len(r) <= 60 else r[:57] + "..."
+
+
+def act_of(fn: Callable[..., Any]) -> Callable[[np.ndarray], Any]:
+    """The function that asks ``fn`` for an action on an observation: ``fn.predict(obs,
+    deterministic=True)[0]`` when ``fn`` has a ``predict`` method (Stable-Baselines3, imitation),
+    else ``fn(obs)``.
+
+    Raises:
+        PolicyError: ``fn`` is neither callable nor has a ``predict`` method.
+    """
+    predict = getattr(fn, "predict", None)
+    if callable(predict):
+        def via_predict(obs: np.ndarray) -> Any:
+            out = predict(obs, deterministic=True)
+            if not (isinstance(out, tuple) and len(out) == 2):
+                raise PolicyError(f"{_label(fn)}.predict returned {type(out).__name__}; expected (action, state)")
+            return out[0]
+        return via_predict
+    if not callable(fn):
+        raise PolicyError(f"{_label(fn)} is not callable and has no predict() method")
+    return fn
+
+
+def _label(fn: Any) -> str:
+    return getattr(fn, "__qualname__", None) or type(fn).__name__
+
+
+# -- specs ------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class CallableSpec:
+    """A parsed ``module:callable[:name]`` spec.
+
+    Attributes:
+        module: a dotted module name, or a path to a ``.py`` file (made absolute).
+        attr: the callable's name in the module (dotted for an attribute of an attribute).
+        name: the policy's name (default: the callable's last name).
+        is_file: ``module`` is a file path.
+    """
+
+    module: str
+    attr: str
+    name: str
+    is_file: bool
+
+    @property
+    def text(self) -> str:
+        """The spec again (``module:attr:name``; the file path absolute)."""
+        return f"{self.module}:{self.attr}:{self.name}"
+
+
+#: What a spec's name may hold: a file name (``rerun/<name>.rrd``), a report row and a ``--fail-if`` prefix.
+_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.\-]*")
+
+
+def parse_spec(spec: str) -> CallableSpec:
+    """Parse ``module:callable[:name]`` (module: a dotted name, or a path ending in ``.py`` or
+    containing a path separator, e.g. ``./rules.py:cth`` or ``mypkg.rules:cth:cth-1.5s``).
+
+    Raises:
+        PolicyError: not two or three non-empty parts, a bad dotted name, a name with other
+            characters than letters, digits, ``_``, ``-`` and ``.``, or a file path that is no file.
+    """
+    parts = str(spec).split(":")
+    if len(parts) not in (2, 3) or not all(p.strip() for p in parts):
+        raise PolicyError(f"--policy {spec!r}: expected module:callable[:name] (module: a dotted module name or a "
+                          "path to a .py file)")
+    module, attr = parts[0].strip(), parts[1].strip()
+    name = parts[2].strip() if len(parts) == 3 else attr.rsplit(".", 1)[-1]
+    if not all(s.isidentifier() for s in attr.split(".")):
+        raise PolicyError(f"--policy {spec!r}: {attr!r} is not a Python name")
+    if not _NAME.fullmatch(name) or name.endswith("."):
+        raise PolicyError(f"--policy {spec!r}: the name {name!r} must be letters, digits, '_', '-' and '.' "
+                          "(it names the report's row, the recording's file and --fail-if's POLICY.)")
+    is_file = module.endswith(".py") or "/" in module or "\\" in module
+    if is_file:
+        path = Path(module).expanduser()
+        if not path.is_file():
+            raise PolicyError(f"--policy {spec!r}: no such file {module}")
+        module = str(path.resolve())
+    elif not all(s.isidentifier() for s in module.split(".")):
+        raise PolicyError(f"--policy {spec!r}: {module!r} is neither a dotted module name nor a .py file")
+    return CallableSpec(module, attr, name, is_file)
+
+
+def _import(spec: CallableSpec, where: str) -> Any:
+    if spec.is_file:
+        path = Path(spec.module)
+        digest = hashlib.sha256(str(path).encode()).hexdigest()[:10]
+        mod_name = f"_merge_irl_policy_{path.stem if path.stem.isidentifier() else 'file'}_{digest}"
+        if mod_name in sys.modules:
+            return sys.modules[mod_name]
+        ispec = importlib.util.spec_from_file_location(mod_name, path)
+        if ispec is None or ispec.loader is None:
+            raise PolicyError(f"{where}: cannot import {path} as a Python module")
+        module = importlib.util.module_from_spec(ispec)
+        sys.modules[mod_name] = module  # before running it: dataclasses and pickle look it up
+        try:
+            ispec.loader.exec_module(module)
+        except Exception as e:  # the user's module may raise anything
+            sys.modules.pop(mod_name, None)
+            raise PolicyError(f"{where}: importing {path} failed ({type(e).__name__}: {_one_line(e)})") from None
+        return module
+    try:
+        return importlib.import_module(spec.module)
+    except ModuleNotFoundError as e:
+        raise PolicyError(f"{where}: no module {e.name!r} (a dotted module must be importable: installed or on "
+                          "PYTHONPATH; or give a path to a .py file)") from None
+    except Exception as e:
+        raise PolicyError(f"{where}: importing {spec.module} failed ({type(e).__name__}: {_one_line(e)})") from None
+
+
+def _one_line(e: BaseException) -> str:
+    return " ".join(str(e).split())
+
+
+def load_callable(spec: str | CallableSpec) -> tuple[Callable[[np.ndarray], Any], CallableSpec]:
+    """The callable of a ``module:callable[:name]`` spec (:func:`parse_spec`) and the parsed spec.
+
+    A ``.py`` file is imported under a name of its own (the same file: the same module, once per
+    process).
+
+    Raises:
+        PolicyError: a bad spec, a missing file or module, an import that fails, a missing
+            attribute, or an attribute that is neither callable nor has a ``predict`` method.
+    """
+    s = parse_spec(spec) if isinstance(spec, str) else spec
+    where = f"--policy {s.module}:{s.attr}"
+    obj: Any = _import(s, where)
+    for part in s.attr.split("."):
+        if not hasattr(obj, part):
+            raise PolicyError(f"{where}: {s.module} has no attribute {s.attr!r}")
+        obj = getattr(obj, part)
+    if not callable(obj) and not callable(getattr(obj, "predict", None)):
+        raise PolicyError(f"{where}: {s.attr} is a {type(obj).__name__}, not callable (give a function "
+                          "obs -> action, or an object with predict(obs, deterministic=True))")
+    return obj, s
+
+
+# -- callable -> Policy -----------------------------------------------------------------------
+@dataclass(frozen=True)
+class CallablePolicy(PolicyDefaults):
+    """A callable ``obs [7] -> action`` (see the module docstring) as a :class:`sim.drivers.policy.Policy`.
+
+    At each decision the controller asks :meth:`probs` (one-hot on the returned action, or on the
+    bin of the returned acceleration) and then :meth:`acceleration` of the same observation: the
+    callable is called once per decision. A deterministic rule has no likelihood:
+    :meth:`heldout_loglik` is ``(NaN, NaN)``.
+
+    Attributes:
+        fn: the callable (or an object with ``predict(obs, deterministic=True)``).
+        name: label in reports.
+        spec: the ``module:callable:name`` spec it was loaded from ("" when built from an object);
+            with a spec, the policy pickles as :meth:`from_spec` of it (fresh worker processes
+            import the callable again).
+        source: the file it came from ("" when unknown).
+        decision_step_s: seconds between decisions (None: any; the evaluation's).
+        action_acc_ft_s2: ``[5]`` acceleration applied for each discrete action (ft/s^2).
+
+    Raises:
+        PolicyError (at a decision): see :func:`parse_action`; an exception of the callable is
+        re-raised as one, naming the policy.
+    """
+
+    fn: Callable[..., Any] = field(compare=False)
+    name: str = ""
+    spec: str = ""
+    source: str = ""
+    controls: bool = True
+    decision_step_s: float | None = None
+    action_acc_ft_s2: tuple[float, ...] = tuple(float(x) for x in ACTION_ACC_FT_S2)
+    _act: Callable[[np.ndarray], Any] = field(init=False, repr=False, compare=False)
+    _last: dict[str, Any] = field(default_factory=dict, init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "_act", act_of(self.fn))
+        if not self.name:
+            object.__setattr__(self, "name", getattr(self.fn, "__name__", "") or type(self.fn).__name__)
+        acc = tuple(float(x) for x in self.action_acc_ft_s2)
+        if len(acc) != N_ACTIONS or not all(math.isfinite(a) for a in acc):
+            raise PolicyError(f"policy {self.name!r}: action_acc_ft_s2 must be {N_ACTIONS} finite numbers, got {acc}")
+        object.__setattr__(self, "action_acc_ft_s2", acc)
+
+    @classmethod
+    def from_spec(cls, spec: str | CallableSpec, *, name: str = "", **kw: Any) -> CallablePolicy:
+        """The policy of a ``module:callable[:name]`` spec (:func:`load_callable`), named ``name``
+        or the spec's name; ``kw``: the other fields.
+
+        Raises:
+            PolicyError: see :func:`load_callable`.
+        """
+        fn, s = load_callable(spec)
+        source = s.module if s.is_file else str(getattr(sys.modules.get(s.module), "__file__", "") or "")
+        return cls(fn, name=name or s.name, spec=s.text, source=source, **kw)
+
+    def __reduce__(self):
+        if not self.spec:  # the callable itself is pickled (a module-level function, a picklable object)
+            return (_rebuild, (self.fn, self.name, "", self.source, self.controls, self.decision_step_s,
+                               self.action_acc_ft_s2))
+        return (_from_spec, (self.spec, self.name, self.controls, self.decision_step_s, self.action_acc_ft_s2))
+
+    def _decide(self, obs: MergeObservation) -> tuple[int, float]:
+        """``(bin, acceleration ft/s^2 or NaN for a discrete action)`` of ``obs``, called once per observation."""
+        if self._last.get("obs") is obs:
+            return self._last["bin"], self._last["acc"]
+        vec = policy_observation(obs)
+        where = f"policy {self.name!r}" + (f" ({self.spec})" if self.spec else "")
+        try:
+            out = self._act(vec)
+        except PolicyError:
+            raise
+        except Exception as e:  # the user's callable may raise anything: named, with its message
+            raise PolicyError(f"{where}: the callable raised {type(e).__name__}: {_one_line(e)}") from e
+        a = parse_action(out, where=where)
+        if isinstance(a, int):
+            b, acc = a, math.nan
+        else:
+            acc = a * FT_PER_M
+            b = action_of(acc)
+        self._last.update(obs=obs, bin=b, acc=acc)
+        return b, acc
+
+    def probs(self, obs: MergeObservation) -> np.ndarray:
+        """``[5]`` one-hot on the returned action (or on the bin of the returned acceleration)."""
+        p = np.zeros(N_ACTIONS)
+        p[self._decide(obs)[0]] = 1.0
+        return p
+
+    def acceleration(self, obs: MergeObservation, action: int) -> float:
+        """The returned acceleration (ft/s^2) for its own bin; ``action_acc_ft_s2[action]`` for a
+        discrete action and for another bin (a safety filter's replacement)."""
+        b, acc = self._decide(obs)
+        return acc if action == b and math.isfinite(acc) else float(self.action_acc_ft_s2[action])
+
+    def heldout_loglik(self, encounters: pd.DataFrame, *, decision_step_s: float,
+                       where: str) -> tuple[float, float]:
+        """NaN, NaN: a callable gives an action, not a likelihood."""
+        return NO_LIKELIHOOD
+
+
+def _from_spec(spec: str, name: str, controls: bool, decision_step_s: float | None,
+               action_acc_ft_s2: tuple[float, ...]) -> CallablePolicy:
+    return CallablePolicy.from_spec(spec, name=name, controls=controls, decision_step_s=decision_step_s,
+                                    action_acc_ft_s2=action_acc_ft_s2)
+
+
+def _rebuild(fn: Callable[..., Any], name: str, spec: str, source: str, controls: bool,
+             decision_step_s: float | None, action_acc_ft_s2: tuple[float, ...]) -> CallablePolicy:
+    return CallablePolicy(fn, name=name, spec=spec, source=source, controls=controls,
+                          decision_step_s=decision_step_s, action_acc_ft_s2=action_acc_ft_s2)
+
+
+# -- Policy -> callable -----------------------------------------------------------------------
+class PolicyCallable:
+    """A :class:`sim.drivers.policy.Policy` as a callable ``obs -> int`` (the action index 0..4).
+
+    ``obs``: the ``[7]`` (or ``[1, 7]``) continuous observation (:data:`sim.drivers.observe.CONTINUOUS_NAMES`),
+    or a whole :class:`sim.drivers.observe.MergeObservation` (then used as it is). From the vector
+    alone, what the policy reads beyond it is rebuilt as the controller would have it: A's previous
+    action is the last one this callable returned in the episode (:meth:`reset` starts a new
+    episode; unknown before the first decision), the acceleration over the previous decision is the
+    one the policy applies for that action (:meth:`sim.drivers.policy.Policy.acceleration`), C's acceleration 0 (unknown), B a truck when ``len_B`` is at least
+    :data:`TRUCK_MIN_LENGTH_FT`, and the discrete state encoded with the policy's bins
+    (``encoder``, ``state_encoding``) when it has them.
+
+    Args:
+        policy: the driver (its members checked as the controller checks them).
+        mode: take the most likely action (default) instead of sampling one.
+        seed: the sampling generator's seed (``numpy.random.default_rng``).
+
+    Raises:
+        PolicyError: ``policy`` is not a :class:`sim.drivers.policy.Policy`; at a call, an observation
+            that is not ``[7]`` numbers.
+    """
+
+    def __init__(self, policy: Policy, *, mode: bool = True, seed: int = 0):
+        check_policy(policy, scoring=False, where="policy callable")
+        self.policy = policy
+        self.mode = mode
+        self.seed = seed
+        self._rng = np.random.default_rng(seed)
+        self._prev = -1
+        self._prev_acc = math.nan
+
+    def reset(self, seed: int | None = None) -> None:
+        """Start a new episode (no previous action); ``seed``: reseed the sampling."""
+        self._prev, self._prev_acc = -1, math.nan
+        if seed is not None:
+            self._rng = np.random.default_rng(seed)
+
+    def observation(self, obs: np.ndarray | MergeObservation) -> MergeObservation:
+        """The :class:`~sim.drivers.observe.MergeObservation` the policy is asked about (see the class docstring)."""
+        if isinstance(obs, MergeObservation):
+            return obs
+        x = unfill_policy_row(np.asarray(obs, dtype=np.float64))
+        if x.size != len(CONTINUOUS_NAMES):
+            raise PolicyError(f"policy callable {self.policy.name!r}: expected an observation of "
+                              f"{len(CONTINUOUS_NAMES)} numbers ({', '.join(CONTINUOUS_NAMES)}), got shape "
+                              f"{np.shape(obs)}")
+        d_ac, v_ac, d_ab, v_ab, v_a, len_c, len_b = (float(v) for v in x)
+        truck = bool(math.isfinite(len_b) and len_b >= TRUCK_MIN_LENGTH_FT)
+        prev = self._prev
+        encoder = self.policy.encoder
+        if encoder is None:
+            state = -1
+        elif self.policy.state_encoding == "paper":
+            state = encoder.state(d_ac, d_ab, v_ac, v_ab, truck)
+        else:
+            state = encoder.state(d_ac, d_ab, v_ac, v_ab, truck, prev_action=prev if prev >= 0 else ZERO_ACTION,
+                                  encoding=self.policy.state_encoding)
+        return MergeObservation(d_ac, d_ab, v_ac, v_ab, truck, state, v_a, prev, -1, False, len_c, len_b,
+                                self._prev_acc, 0.0)
+
+    def __call__(self, obs: np.ndarray | MergeObservation) -> int:
+        """The action index ``0..4`` the policy takes at ``obs``."""
+        o = self.observation(obs)
+        a = choose_action(np.asarray(self.policy.probs(o), dtype=np.float64), self._rng, mode=self.mode)
+        self._prev, self._prev_acc = a, float(self.policy.acceleration(o, a))
+        return a

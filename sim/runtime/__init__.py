@@ -1,0 +1,1 @@
+"""The libsumo run: the stepped session, run_scenario, step hooks, the recorder, the trajectory table's schema and derived columns, lanes and site profiles, SUMO's inputs, run results and their files."""

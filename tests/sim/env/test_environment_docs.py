@@ -1,0 +1,41 @@
+"""docs/environment.md's Python examples run as written (each as a script in its own process,
+as a reader would run it: libsumo allows one SUMO per process, the vector example spawns workers)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from tests.test_docs import code_blocks
+
+pytest.importorskip("gymnasium")  # the [gym] extra; CI installs it with [test]
+
+pytestmark = pytest.mark.sumo
+
+ROOT = Path(__file__).resolve().parents[3]
+PAGE = ROOT / "docs" / "environment.md"
+BLOCKS = code_blocks(PAGE, ("python",))
+
+
+def test_the_page_has_its_examples():
+    assert len(BLOCKS) == 3
+
+
+@pytest.mark.parametrize("index", range(len(BLOCKS)))
+def test_example_runs(index, tmp_path):
+    script = tmp_path / f"example_{index}.py"
+    script.write_text(BLOCKS[index], encoding="utf-8")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]),
+           "MERGE_IRL_CACHE": str(tmp_path / "cache")}
+    out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=300, env=env,
+                         cwd=tmp_path)
+    assert out.returncode == 0, out.stderr[-3000:]
+    if index == 0:  # the episode ended with a release reason and a time
+        reason, time_s = out.stdout.split()[-2:]
+        assert reason in ("merge_done", "collision", "left_section", "left_lane", "b_lost", "timeout") and float(time_s) > 60
+    if index == 2:
+        assert "vehicles at 70.0 s;" in out.stdout

@@ -59,7 +59,7 @@ class _Timed:
 def time_closed_loop(spec, work: Path, driver: str | None = None) -> dict[str, float]:
     """One closed-loop run with rerun logging: a random tabular policy, or the driver file ``driver``."""
     if driver is not None:
-        from analysis.evaluation.policies import driver_policy
+        from sim.drivers.formats import driver_policy
 
         policy: Policy = driver_policy(driver)
     else:

@@ -64,7 +64,7 @@ def parse_config(text: str) -> GailConfig:
 
 def diagnose(demo: Path, cfg: GailConfig, *, train_seed: int, env_seed: int, out: Path, every: int) -> None:
     """Train one GAIL setting and print its diagnosis (module docstring)."""
-    from analysis.evaluation.policies import training_action_acc
+    from sim.drivers.baselines import training_action_acc
     from benchmarks.imitation_bench import ObsScaler, TorchActor, heldout_loglik, make_gail, mean_entropy
     from irl.domains.merge.mdp import read_encounters
     from sim.merges.transitions import from_encounters, to_imitation_trajectories

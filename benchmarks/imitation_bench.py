@@ -406,7 +406,8 @@ def main(argv: list[str] | None = None) -> int:
 
 def run(args) -> int:
     from analysis.evaluation.evaluate import evaluate
-    from analysis.evaluation.policies import driver_policy, training_action_acc
+    from sim.drivers.baselines import training_action_acc
+    from sim.drivers.formats import driver_policy
     from analysis.experiments.dagger import DaggerConfig
     from irl.domains.merge.car_following import car_following_decisions
     from irl.domains.merge.cf_logit import CarFollowingLogit

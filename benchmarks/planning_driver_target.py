@@ -39,7 +39,7 @@ from analysis.demo.config import DemoConfig
 from analysis.demo.pipeline import run_demo
 from analysis.evaluation.aggregate import rate_ci95
 from analysis.evaluation.evaluate import evaluate
-from analysis.evaluation.policies import driver_policy
+from sim.drivers.formats import driver_policy
 from analysis.experiments.learn_driver import pair_frames
 from irl.domains.merge.mdp import read_encounters
 from irl.domains.merge.planning.decisions import encounter_decisions, pair_decisions

@@ -33,7 +33,7 @@ from irl.demonstrations import Demonstrations
 from irl.errors import ConfigError, DemonstrationError
 
 #: The tabular baselines of the paper tables, scored by leave-one-trajectory-out (not the closed-loop
-#: drivers of an evaluation: those are :data:`analysis.evaluation.policies.BASELINES`).
+#: drivers of an evaluation: those are :data:`sim.drivers.baselines.BASELINES`).
 TABULAR_BASELINES = ("uniform", "marginal", "markov", "bc")
 
 

@@ -16,12 +16,14 @@ from merge_irl.units import FRAME_S
 from irl.boltzmann import log_policy
 from irl.config import IRLConfig
 from irl.domains.merge.actions import ACTION_ACC_FT_S2
-from irl.domains.merge.cf_logit import CF_FORMAT, OLD_CF_FORMATS
 from irl.domains.merge.states import STATE_ENCODINGS
 from irl.errors import ModelFileError
 from irl.methods.registry import method_names
 
 #: ``action_acc_ft_s2`` of files written before the field existed: the bin midpoints.
+#: The ``format`` field of a tabular model file (``model.json`` of ``merge-irl learn``).
+MODEL_FORMAT = "merge-irl-model/1"
+
 DEFAULT_ACTION_ACC: tuple[float, ...] = tuple(float(x) for x in ACTION_ACC_FT_S2)
 
 
@@ -138,7 +140,7 @@ class SavedModel:
 
     def to_json_dict(self) -> dict[str, Any]:
         return {
-            "format": "merge-irl-model/1",
+            "format": MODEL_FORMAT,
             "method": self.method,
             "theta": [float(x) for x in self.theta],
             "loglik": float(self.loglik),
@@ -180,9 +182,9 @@ class SavedModel:
         if not isinstance(data, dict):
             raise ModelFileError(f"{path}: expected a JSON object at top level, got {_json_type(data)}")
         fmt = data.get("format")
-        if isinstance(fmt, str) and (fmt == CF_FORMAT or fmt in OLD_CF_FORMATS):
-            raise ModelFileError(f"{path}: a car-following logit driver of 'merge-irl dagger' ({fmt}), not an IRL "
-                                 "model.json: drive it with 'merge-irl evaluate --cf-model'")
+        if isinstance(fmt, str) and fmt.partition("/")[0] != MODEL_FORMAT.partition("/")[0]:
+            raise ModelFileError(f"{path}: format {fmt!r} is not a tabular IRL model's ({MODEL_FORMAT!r}, "
+                                 "'merge-irl learn')")
         for key in ("method", "theta", "loglik", "settings", "q"):
             if key not in data:
                 raise ModelFileError(f"{path}: missing field {key!r}")

@@ -1,7 +1,8 @@
 """A learned driver on real car-following pairs, beside SUMO's defaults and a calibration.
 
 Each pair's recorded leader is replayed; the learned driver follows from the recorded initial
-state, taking its most likely action every decision (deterministic), integrated exactly at
+state, taking its most likely action every decision (deterministic; the driver's format says how:
+:func:`sim.drivers.formats.replay_act`), integrated exactly at
 0.1 s (:func:`irl.domains.merge.planning.replay.replay`). Scored per pair: the spacing RMSE
 (bumper gap, m) and a collision (bumper gap <= 0). Beside it on the same pairs: IDM with SUMO's
 default parameters (:data:`analysis.calibration.models.SUMO_DEFAULTS`, the numpy replica) and,
@@ -24,11 +25,10 @@ from analysis.calibration.models import SUMO_DEFAULTS
 from analysis.calibration.objective import spacing_rmse
 from analysis.calibration.pairs import CarFollowingPair, PairBatch
 from analysis.calibration.result import CalibrationResult
-from irl.domains.merge.actions import actions_of
-from irl.domains.merge.planning.driver import PlanningDriver
-from irl.domains.merge.planning.replay import ActFn, ReplayPair, replay
+from irl.domains.merge.planning.replay import ReplayPair, replay
 from merge_irl.units import FT_PER_M
 from scenarios.errors import SpecError
+from sim.drivers.formats import replay_act
 
 
 @dataclass(frozen=True)
@@ -77,30 +77,6 @@ def replay_pairs(pairs: Sequence[CarFollowingPair]) -> list[ReplayPair]:
                        p.v_leader * FT_PER_M, p.leader_length * FT_PER_M) for p in pairs]
 
 
-def driver_act(path: str | os.PathLike) -> tuple[ActFn, float]:
-    """``(act, decision_step_s)`` of a driver file: a planning driver's most likely fine
-    acceleration, or a car-following logit's most likely action at its per-action acceleration
-    (A's previous action taken as the bin of the acceleration it applied).
-
-    Raises:
-        ModelFileError: a missing, unreadable or malformed file, or not a driver's format.
-    """
-    from analysis.evaluation.policies import load_driver
-
-    driver = load_driver(path)
-    if isinstance(driver, PlanningDriver):
-        return driver.act, driver.decision_step_s
-    cf = driver
-    acc = np.asarray(cf.action_acc_ft_s2, dtype=np.float64)
-
-    def act(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray) -> np.ndarray:
-        known = np.isfinite(prev_acc)
-        prev = np.where(known, actions_of(np.where(known, prev_acc, 0.0)), -1)
-        return acc[np.argmax(cf.log_policy(obs, prev), axis=1)]
-
-    return act, cf.decision_step_s
-
-
 def evaluate_driver(path: str | os.PathLike, pairs: Sequence[CarFollowingPair], *,
                     calibration: CalibrationResult | None = None, seed: int = 0) -> DriverEvaluation:
     """Replay ``pairs`` with the driver of ``path`` and score it beside SUMO's IDM defaults and
@@ -112,7 +88,7 @@ def evaluate_driver(path: str | os.PathLike, pairs: Sequence[CarFollowingPair], 
     """
     if not pairs:
         raise SpecError("evaluate --driver: no pairs to score")
-    act, step = driver_act(path)
+    act, step = replay_act(path)
     res = replay(replay_pairs(pairs), act, step)
     batch = PairBatch.from_pairs(pairs)
     d = batch.unsort(spacing_rmse("idm", batch, SUMO_DEFAULTS.as_dict()))

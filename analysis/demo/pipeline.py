@@ -51,7 +51,7 @@ from analysis.demo.config import CF_DRIVER, PLANNER_DRIVER, DemoConfig, check_da
 from analysis.demo.estimate import estimate
 from analysis.evaluation.episode import frame_from_dict, frame_to_dict
 from analysis.evaluation.evaluate import EvaluationReport, evaluate, resolve_executor
-from analysis.evaluation.heldout_scoring import prepare_encounters
+from irl.domains.merge.encounters import prepare_encounters
 from analysis.evaluation.policies import learned_policy
 from analysis.evaluation.report import collision_bound_line, flag_lines, report_table
 from analysis.experiments.learn import fit_problem, merge_config, merge_encoding, merge_features, saved_model

@@ -32,15 +32,13 @@ import pandas as pd
 
 from analysis.evaluation.episode import EpisodeResult, EpisodeSpec, run_episode_task
 from analysis.evaluation.heldout_scoring import load_heldout, policy_heldout_loglik
-from analysis.evaluation.policies import (baseline_drivers, check_baselines, default_baselines, learned_policy,
-                                         left_out_baselines, with_distinct_names)
+from analysis.evaluation.policies import learned_policy, with_distinct_names
 from analysis.evaluation.report import write_outputs
 from analysis.evaluation.metrics import MetricsConfig
 from analysis.evaluation.aggregate import AggregateMetrics, aggregate
 from analysis.evaluation.distances import w1_to_demos
 from merge_irl.provenance import provenance, text_digest, write_timings
 from analysis.sweep import Task, parse_executor, run_sweep
-from irl.domains.merge.car_following import CFDecisions, car_following_decisions
 from irl.errors import ConfigError
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, frames_per_step
 from irl.result import SavedModel
@@ -51,7 +49,8 @@ from scenarios.spec.parse import with_overrides
 from sim.closed_loop.config import ControllerConfig
 from sim.errors import SimError
 from sim.drivers.policy import Policy, check_policy
-from sim.drivers.learned import CarFollowingLogitPolicy, LearnedPolicy
+from sim.drivers.baselines import baseline_drivers, check_baselines, default_baselines, left_out_baselines
+from sim.drivers.learned import LearnedPolicy
 
 
 
@@ -158,15 +157,15 @@ def evaluate(
         duration_s: override the scenario's duration.
         demos: held-out encounters (Parquet/CSV/DataFrame) for the action divergence and the
             held-out log-likelihood; None: both are NaN.
-        baselines: names of :data:`analysis.evaluation.policies.BASELINES` (None: its default
-            set, :func:`~analysis.evaluation.policies.default_baselines`): ``"sumo"`` (not taken over),
+        baselines: names of :data:`sim.drivers.baselines.BASELINES` (None: its default
+            set, :func:`~sim.drivers.baselines.default_baselines`): ``"sumo"`` (not taken over),
             ``"uniform"`` (random actions), ``"marginal"``, ``"markov"``, ``"bc"`` (fitted on
             ``train_demos`` in the first model's state bins; left out, and said so in report.md,
             without them), ``"idm"`` (:class:`sim.drivers.idm.IdmPolicy` of the scenario's car type;
             its actions applied at ``train_demos``' mean acceleration per action bin, as the fitted
             baselines', else at the bin midpoints), ``"sumo-in-lane"`` (SUMO's driver, A's lane
             changes off while observed), and any registered by
-            :func:`~analysis.evaluation.policies.register_baseline`.
+            :func:`~sim.drivers.baselines.register_baseline`.
         train_demos: training encounters (Parquet/CSV/DataFrame) of the fitted baselines.
         policies: further policies to evaluate (e.g. ``ConstantPolicy(0)``, a car-following
             logit driver of :func:`~analysis.evaluation.policies.cf_policy`, or any callable
@@ -229,15 +228,9 @@ def evaluate(
     # the held-out scores do not depend on the episodes: taken first, so a held-out table that a
     # policy's scoring rejects fails before any SUMO run
     scores: dict[str, tuple[float, float] | None] = {}
-    cf_decisions: dict[float, CFDecisions] = {}  # by decision step
+    shared: dict = {}  # what several policies' held-out scoring shares (Policy.heldout_inputs)
     for p in pols:
-        cf_dec = None
-        if held is not None and isinstance(p, CarFollowingLogitPolicy):
-            if p.decision_step_s not in cf_decisions:
-                cf_decisions[p.decision_step_s] = car_following_decisions(
-                    held.encounters, decision_step_s=p.decision_step_s, where=held.source)
-            cf_dec = cf_decisions[p.decision_step_s]
-        scores[p.name] = policy_heldout_loglik(p, held, step, cf_decisions=cf_dec) if held is not None else None
+        scores[p.name] = policy_heldout_loglik(p, held, step, cache=shared) if held is not None else None
     out = Path(out_dir)  # made once every input has been read and checked, so a bad input leaves no folder
     out.mkdir(parents=True, exist_ok=True)
     check_writable(out / "report.md")  # before the episodes, not after

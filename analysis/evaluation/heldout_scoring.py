@@ -15,12 +15,9 @@ import numpy as np
 import pandas as pd
 
 from irl.domains.merge.actions import N_ACTIONS, actions_of
-from irl.domains.merge.car_following import CFDecisions
-from irl.domains.merge.encounters import REQUIRED_COLUMNS
-from irl.errors import DemonstrationError
+from irl.domains.merge.encounters import prepare_encounters
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, read_encounters
 from sim.drivers.policy import Policy, check_policy
-from sim.drivers.learned import CarFollowingLogitPolicy
 
 
 @dataclass(frozen=True)
@@ -39,23 +36,6 @@ class HeldOut:
     source: str = ""
 
 
-def prepare_encounters(frames: pd.DataFrame, where: str = "encounters") -> pd.DataFrame:
-    """Encounter frames ready to discretize: rows with A, B and an action only (frames without
-    car C stay, with d_AC and v_AC NaN: the domain's no-lead-car rule encodes them).
-
-    Raises:
-        DemonstrationError: a column of :data:`irl.domains.merge.encounters.REQUIRED_COLUMNS` is
-            missing (``where`` names the table).
-    """
-    missing = [c for c in REQUIRED_COLUMNS if c not in frames.columns]
-    if missing:
-        raise DemonstrationError(f"{where}: encounter table lacks column(s) {missing}; expected {list(REQUIRED_COLUMNS)} "
-                                 "(an encounters.parquet of 'merge-irl generate' or 'merge-irl encounters')")
-    df = frames.copy()
-    df = df[np.isfinite(df["d_AB"]) & np.isfinite(df["v_AB"]) & np.isfinite(df["acc_A"])]
-    return df.reset_index(drop=True)
-
-
 def load_heldout(demos: str | os.PathLike | pd.DataFrame) -> HeldOut:
     """Held-out demonstrations from an encounter table (Parquet/CSV path or DataFrame)."""
     if isinstance(demos, pd.DataFrame):
@@ -68,12 +48,12 @@ def load_heldout(demos: str | os.PathLike | pd.DataFrame) -> HeldOut:
 
 
 def policy_heldout_loglik(policy: Policy, heldout: HeldOut, decision_step_s: float = DEFAULT_DECISION_STEP_S, *,
-                          cf_decisions: CFDecisions | None = None) -> tuple[float, float]:
+                          cache: dict | None = None) -> tuple[float, float]:
     """``(sum, per step)`` log-likelihood of the held-out demonstrations under ``policy``: the
     policy's own :meth:`~sim.drivers.policy.Policy.heldout_loglik` at the evaluation's
     ``decision_step_s`` (NaN, NaN where it has no likelihood, as SUMO's driver and the IDM
-    reference). ``cf_decisions``: the held-out decisions of a car-following driver when already
-    taken (:func:`~irl.domains.merge.car_following.car_following_decisions` at its step).
+    reference), with the extra inputs its optional ``heldout_inputs`` prepares (``cache``: one
+    dict shared by the policies scored on ``heldout``, so shared work is done once).
 
     Raises:
         PolicyError: ``policy`` does not implement ``heldout_loglik`` (the class named): a
@@ -81,7 +61,7 @@ def policy_heldout_loglik(policy: Policy, heldout: HeldOut, decision_step_s: flo
         DemonstrationError: the held-out frames cannot be scored.
     """
     check_policy(policy, where="held-out scoring")
-    if cf_decisions is not None and isinstance(policy, CarFollowingLogitPolicy):
-        return policy.heldout_loglik(heldout.encounters, decision_step_s=decision_step_s, where=heldout.source,
-                                     cf_decisions=cf_decisions)
-    return policy.heldout_loglik(heldout.encounters, decision_step_s=decision_step_s, where=heldout.source)
+    prepare = getattr(policy, "heldout_inputs", None)
+    extra = prepare(heldout.encounters, where=heldout.source, cache={} if cache is None else cache) \
+        if prepare is not None else {}
+    return policy.heldout_loglik(heldout.encounters, decision_step_s=decision_step_s, where=heldout.source, **extra)

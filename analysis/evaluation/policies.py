@@ -1,334 +1,49 @@
-"""The drivers of a closed-loop evaluation: the baselines by name, learned IRL models and
-car-following drivers from their files, and distinct names for all.
+"""The drivers of a closed-loop evaluation from their files, and distinct names for all.
 
-Used by :func:`analysis.evaluation.evaluate.evaluate`. The baselines are one registry,
-:data:`BASELINES` (name -> :class:`Baseline`: a factory of a :class:`BaselineContext`, whether it
-needs training encounters, whether it runs by default): issue 11's (uniform, action frequencies,
-markov, behaviour cloning beside SUMO's own driver) by default, plus two references on request
-(``idm``, ``sumo-in-lane``). A new baseline is one :func:`register_baseline` call.
+Used by :func:`analysis.evaluation.evaluate.evaluate`. A learned file becomes a driver through
+the driver-format registry (:mod:`sim.drivers.formats`); the baselines are the registry of
+:mod:`sim.drivers.baselines`.
 """
 
 from __future__ import annotations
 
 import os
-import warnings
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, is_dataclass, replace
-from functools import cached_property
+from dataclasses import is_dataclass, replace
 from pathlib import Path
-from typing import Any
 
-import pandas as pd
-
-from analysis.evaluation.heldout_scoring import prepare_encounters
-from irl.baselines import fit_baseline
-from irl.demonstrations import Demonstrations
-from irl.domains.merge.actions import ACTION_ACC_FT_S2, actions_of
-from irl.domains.merge.bins import MergeBins, fit_quantile_bins
 from irl.domains.merge.cf_logit import CarFollowingLogit
-from irl.domains.merge.planning.driver import PlanningDriver
-from irl.domains.merge.mdp import action_mean_acc, discretize, read_encounters
 from irl.result import SavedModel
-from sim.errors import SimError
-from sim.drivers.callables import PolicyCallable
-from sim.drivers.idm import IdmPolicy
-from sim.drivers.policy import Policy, PolicyError, SumoPolicy, UniformPolicy
-from sim.drivers.learned import BaselineTabularPolicy, CarFollowingLogitPolicy, LearnedPolicy
-
-@dataclass(frozen=True, eq=False)
-class BaselineContext:
-    """What a baseline's factory may need, read lazily (a baseline that needs nothing reads nothing).
-
-    Attributes:
-        spec: the scenario (:class:`scenarios.spec.model.ScenarioSpec`) the drivers run in.
-        decision_step_s: the evaluation's decision step (s).
-        train_demos: the training encounters (Parquet/CSV path or DataFrame); None: none given.
-        bins: the paper state bins of the fitted baselines (the first model's); None: quantile
-            bins fitted on the training encounters.
-    """
-
-    spec: Any
-    decision_step_s: float
-    train_demos: str | os.PathLike | pd.DataFrame | None = None
-    bins: MergeBins | None = None
-
-    @property
-    def where(self) -> str:
-        """The training encounters' name in errors."""
-        return str(self.train_demos) if isinstance(self.train_demos, (str, os.PathLike)) else "training encounters"
-
-    @cached_property
-    def training(self) -> pd.DataFrame:
-        """The training encounter frames, prepared.
-
-        Raises:
-            PolicyError: no training encounters were given.
-            DemonstrationError: they cannot be read.
-        """
-        if self.train_demos is None:
-            raise PolicyError("this baseline needs training encounters (train_demos / --train-demos)")
-        return _training_table(self.train_demos)
-
-    @cached_property
-    def training_bins(self) -> MergeBins:
-        """:attr:`bins`, else quantile bins fitted on the training encounters."""
-        return self.bins if self.bins is not None else fit_quantile_bins(self.training, where=self.where)
-
-    @cached_property
-    def demos(self) -> Demonstrations:
-        """The training encounters discretized in :attr:`training_bins` at :attr:`decision_step_s`.
-
-        Raises:
-            DemonstrationError: they cannot be read or discretized.
-        """
-        return discretize(self.training, self.training_bins, where=self.where, decision_step_s=self.decision_step_s)
-
-    @cached_property
-    def action_acc_ft_s2(self) -> tuple[float, ...]:
-        """``[5]`` acceleration (ft/s^2) a baseline applies per action: the training frames' mean
-        per action bin (as :func:`training_action_acc`), else the bins' midpoints."""
-        if self.train_demos is None:
-            return tuple(float(x) for x in ACTION_ACC_FT_S2)
-        acc = self.training["acc_A"].to_numpy(float)
-        return action_mean_acc(acc, actions_of(acc))
-
-
-@dataclass(frozen=True)
-class Baseline:
-    """A baseline driver of the evaluation, registered by name (:func:`register_baseline`).
-
-    Attributes:
-        name: its name (``--baselines``, reports); the factory's policy is named so.
-        factory: ``context -> Policy`` (:class:`BaselineContext`).
-        fitted: needs training encounters (left out, and said so in report.md, without them).
-        default: in the default set of :func:`analysis.evaluation.evaluate.evaluate`.
-        help: one line for users.
-    """
-
-    name: str
-    factory: Callable[[BaselineContext], Policy]
-    fitted: bool = False
-    default: bool = False
-    help: str = ""
-
-
-#: The baselines, by name, in their order (:func:`register_baseline`): issue 11's (SUMO's own
-#: driver, uniform random, and the tabular baselines of :mod:`irl.baselines` fitted on the
-#: training demonstrations) by default, and two references on request.
-BASELINES: dict[str, Baseline] = {}
-
-
-def register_baseline(baseline: Baseline) -> Baseline:
-    """Add ``baseline`` to :data:`BASELINES` (after the others); returns it.
-
-    Raises:
-        PolicyError: a baseline of that name is registered already.
-    """
-    if baseline.name in BASELINES:
-        raise PolicyError(f"a baseline named {baseline.name!r} is registered already")
-    BASELINES[baseline.name] = baseline
-    return baseline
-
-
-def default_baselines() -> tuple[str, ...]:
-    """The names of the baselines every evaluation runs unless told otherwise, in order."""
-    return tuple(b.name for b in BASELINES.values() if b.default)
-
-
-def check_baselines(names: Sequence[str], where: str = "evaluate") -> None:
-    """Refuse a name that is not a registered baseline.
-
-    Raises:
-        SimError: an unknown name (the known ones listed).
-    """
-    bad = [b for b in names if b not in BASELINES]
-    if bad:
-        raise SimError(f"{where}: unknown baseline(s) {bad}; expected some of {', '.join(BASELINES)}")
-
-
-def _tabular(name: str) -> Callable[[BaselineContext], Policy]:
-    def make(ctx: BaselineContext) -> Policy:
-        return BaselineTabularPolicy(fit_baseline(name, ctx.demos), ctx.training_bins, name,
-                                     action_acc_ft_s2=ctx.action_acc_ft_s2, decision_step_s=ctx.decision_step_s)
-    return make
-
-
-def _idm(ctx: BaselineContext) -> Policy:
-    if ctx.train_demos is None:
-        warnings.warn("evaluate: idm without training encounters applies the action bins' midpoints "
-                      f"{tuple(ACTION_ACC_FT_S2)} ft/s^2 (High Brake too weak to stop behind a braking car; "
-                      "give train_demos / --train-demos)", UserWarning, stacklevel=4)
-    return IdmPolicy.from_scenario(ctx.spec, action_acc_ft_s2=ctx.action_acc_ft_s2)
-
-
-register_baseline(Baseline("sumo", lambda ctx: SumoPolicy(), default=True,
-                           help="SUMO's own car-following model drives A (not taken over)"))
-register_baseline(Baseline("uniform", lambda ctx: UniformPolicy(), default=True,
-                           help="the five actions uniformly at random"))
-register_baseline(Baseline("marginal", _tabular("marginal"), fitted=True, default=True,
-                           help="the training demonstrations' action frequencies"))
-register_baseline(Baseline("markov", _tabular("markov"), fitted=True, default=True,
-                           help="the training demonstrations' action given A's previous action"))
-register_baseline(Baseline("bc", _tabular("bc"), fitted=True, default=True,
-                           help="behaviour cloning: the training demonstrations' action given the paper state"))
-register_baseline(Baseline("idm", _idm,
-                           help="the Intelligent Driver Model with the scenario's car parameters, driven through "
-                                "the controller (sim.drivers.idm.IdmPolicy)"))
-register_baseline(Baseline("sumo-in-lane", lambda ctx: SumoPolicy("sumo-in-lane", keep_lane=True),
-                           help="SUMO's driver with A's lane changes off while observed, as for every commanded "
-                                "driver"))
-
-
-def _training_table(train_demos: str | os.PathLike | pd.DataFrame) -> pd.DataFrame:
-    df = train_demos if isinstance(train_demos, pd.DataFrame) else read_encounters(train_demos)
-    return prepare_encounters(df, "training encounters" if isinstance(train_demos, pd.DataFrame) else str(train_demos))
-
-
-def training_action_acc(train_demos: str | os.PathLike | pd.DataFrame) -> tuple[float, ...]:
-    """``[5]`` the mean acceleration (ft/s^2) of each action bin over the frames of the training
-    encounters (a bin without frames: its midpoint), as the baselines apply their actions.
-
-    Raises:
-        DemonstrationError: the training encounters cannot be read.
-    """
-    acc = _training_table(train_demos)["acc_A"].to_numpy(float)
-    return action_mean_acc(acc, actions_of(acc))
+from sim.drivers.formats import driver_policy
+from sim.drivers.learned import CarFollowingLogitPolicy, LearnedPolicy
+from sim.drivers.policy import Policy, PolicyError
 
 
 def learned_policy(model: SavedModel | str | os.PathLike, name: str = "") -> LearnedPolicy:
-    """A :class:`LearnedPolicy` from a saved model (path or object) with its bin edges.
+    """A :class:`LearnedPolicy` from a saved tabular model (path or object) with its bin edges;
+    a path is read through the driver-format registry as a ``--model`` file.
 
     Raises:
-        ModelFileError: ``model`` is a path to a missing, unreadable or malformed ``model.json``.
+        ModelFileError: ``model`` is a path to a missing, unreadable or malformed ``model.json``,
+            or to a driver's file (which option takes it named).
         PolicyError: the model is not a merge model (message prefixed with the file).
     """
-    where = "model"
-    if not isinstance(model, SavedModel):
-        path = Path(model)
-        model = SavedModel.load(path)
-        name = name or path.stem
-        where = str(path)
-    try:
+    if isinstance(model, SavedModel):
         return LearnedPolicy.from_model(model, name=name or model.method)
-    except PolicyError as e:
-        raise type(e)(f"{where}: {e}") from None
+    pol = driver_policy(model, name, role="model", option="--model")
+    if not isinstance(pol, LearnedPolicy):  # a registered format of role "model" that builds another policy
+        raise PolicyError(f"{model}: a model of role 'model' must build a tabular LearnedPolicy, got {type(pol).__name__}")
+    return pol
 
 
 def cf_policy(path: str | os.PathLike, name: str = "") -> CarFollowingLogitPolicy:
     """A :class:`~sim.drivers.learned.CarFollowingLogitPolicy` from a car-following logit file
-    (``cf-dagger.json`` or ``cf-logit.json`` of ``merge-irl dagger``), named ``name`` or the
-    file's stem (as :func:`learned_policy` names a model file; the demo's ``cf-dagger`` is
-    ``models/cf-dagger.json``). A fit that did not converge is flagged (``not_converged``).
+    (``cf-dagger.json`` or ``cf-logit.json`` of ``merge-irl dagger``; ``evaluate --cf-model``),
+    named ``name`` or the file's stem. A fit that did not converge is flagged (``not_converged``).
 
     Raises:
-        ModelFileError: a missing, unreadable or malformed file.
+        ModelFileError: a missing, unreadable or malformed file, or another format.
     """
     return CarFollowingLogitPolicy(CarFollowingLogit.load(path), name=name or Path(path).stem, source=str(path))
-
-
-def driver_format(path: str | os.PathLike) -> str:
-    """The ``format`` field of a driver file (JSON).
-
-    Raises:
-        ModelFileError: a missing or unreadable file, not a JSON object, or no string ``format``.
-    """
-    import json
-
-    from irl.errors import ModelFileError
-
-    try:
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError) as e:
-        raise ModelFileError(f"{path}: cannot read a driver file ({e.__class__.__name__}: {e})") from None
-    fmt = data.get("format") if isinstance(data, dict) else None
-    if not isinstance(fmt, str):
-        raise ModelFileError(f"{path}: not a driver file (no 'format' field; expected a file of "
-                             "'merge-irl learn-driver' or 'merge-irl dagger')")
-    return fmt
-
-
-def load_driver(path: str | os.PathLike) -> PlanningDriver | CarFollowingLogit:
-    """The driver of any driver file, by its format: a planning driver (``merge-irl-planner/...``)
-    or a car-following logit (``merge-irl-cf-logit/...``). The one place that tells them apart.
-
-    Raises:
-        ModelFileError: a missing, unreadable or malformed file, or another format (named).
-    """
-    from irl.errors import ModelFileError
-
-    fmt = driver_format(path)
-    if fmt.startswith("merge-irl-planner/"):
-        return PlanningDriver.load(path)
-    if fmt.startswith("merge-irl-cf-logit/"):
-        return CarFollowingLogit.load(path)
-    raise ModelFileError(f"{path}: format {fmt!r} is not a driver's (merge-irl-planner/..., merge-irl-cf-logit/...); "
-                         "a tabular model.json goes to --model")
-
-
-def driver_policy(path: str | os.PathLike, name: str = "") -> Policy:
-    """The closed-loop policy of any driver file (:func:`load_driver`), named ``name`` or the
-    file's stem: :class:`sim.drivers.planning.PlanningDriverPolicy` or
-    :class:`~sim.drivers.learned.CarFollowingLogitPolicy`.
-
-    Raises:
-        ModelFileError: see :func:`load_driver`.
-    """
-    from sim.drivers.planning import PlanningDriverPolicy
-
-    driver = load_driver(path)
-    name = name or Path(path).stem
-    if isinstance(driver, PlanningDriver):
-        return PlanningDriverPolicy(driver, name=name, source=str(path))
-    return CarFollowingLogitPolicy(driver, name=name, source=str(path))
-
-
-def policy_callable(path: str | os.PathLike, *, mode: bool = True, seed: int = 0) -> PolicyCallable:
-    """Any learned model file as a policy callable ``obs -> int`` (the action index 0..4) for the
-    Gymnasium environment or any loop of one's own
-    (:class:`sim.drivers.callables.PolicyCallable`; ``obs``: the ``[7]`` continuous observation,
-    :data:`sim.drivers.observe.CONTINUOUS_NAMES`): a tabular model (``model.json`` of ``merge-irl learn``,
-    :func:`learned_policy`, its state encoded with the model's own bins) or a driver file (a
-    car-following logit or a planning driver, :func:`driver_policy`). ``mode``: the most likely
-    action (default), else sampled with ``numpy.random.default_rng(seed)``; call ``reset()`` at
-    the start of each episode (A's previous action is the callable's last one).
-
-    Raises:
-        ModelFileError: a missing, unreadable or malformed file, or an unknown format.
-        PolicyError: a tabular model that is not a merge model.
-    """
-    fmt = driver_format(path)
-    pol: Policy = learned_policy(path) if fmt.startswith("merge-irl-model/") else driver_policy(path)
-    return PolicyCallable(pol, mode=mode, seed=seed)
-
-
-def baseline_drivers(baselines: Sequence[str], spec, train_demos, bins: MergeBins | None,
-                     decision_step_s: float) -> list[Policy]:
-    """The drivers of ``baselines`` (names of :data:`BASELINES`, in the order given), each of
-    its factory with one :class:`BaselineContext`; the fitted ones left out without training
-    encounters.
-
-    Raises:
-        SimError: an unknown name.
-        PolicyError: a factory's policy is not named as its baseline.
-        DemonstrationError: the training encounters cannot be read or discretized.
-    """
-    check_baselines(baselines)
-    ctx = BaselineContext(spec, decision_step_s, train_demos, bins)
-    pols: list[Policy] = []
-    for name in baselines:
-        b = BASELINES[name]
-        if b.fitted and train_demos is None:
-            continue
-        p = b.factory(ctx)
-        if p.name != b.name:
-            raise PolicyError(f"baseline {b.name!r}: its factory made a policy named {p.name!r}")
-        pols.append(p)
-    return pols
-
-
-def left_out_baselines(baselines: Sequence[str], train_demos) -> list[str]:
-    """The fitted ones of ``baselines``, when there are no training encounters (else none)."""
-    return [b for b in baselines if BASELINES[b].fitted and train_demos is None]
 
 
 def with_distinct_names(pols: list[Policy]) -> list[Policy]:

@@ -24,7 +24,7 @@ continuous ones. An object with a ``predict(obs, deterministic=True)`` method re
   workers (fresh processes) import the callable again instead of pickling it.
 * :class:`PolicyCallable` goes the other way: any :class:`sim.drivers.policy.Policy` (a learned model, a
   driver file's policy) as a callable ``obs [7] -> int`` (the action index), e.g. for the
-  Gymnasium environment; ``analysis.evaluation.policies.policy_callable`` builds one from a file.
+  Gymnasium environment; ``sim.drivers.formats.policy_callable`` builds one from a file.
 """
 
 from __future__ import annotations

@@ -8,29 +8,38 @@ fitted tabular baselines (:class:`BaselineTabularPolicy`) and the car-following 
   demonstrations (:mod:`irl.baselines`); ``markov`` conditions on A's previous action.
 * :class:`CarFollowingLogitPolicy`: a :class:`irl.domains.merge.cf_logit.CarFollowingLogit`
   driver on the continuous observation (A's speed, gaps, closing speeds, previous action).
+* :class:`TabularReward`: a tabular model's ``theta . phi(s, a)`` as the environment's reward.
+
+Two formats of the driver-format registry (:mod:`sim.drivers.formats`) are registered here: the
+tabular IRL model (``merge-irl-model/...``, ``merge-irl learn``; given to ``--model``) and the
+car-following logit (``merge-irl-cf-logit/...``, ``merge-irl dagger``; a driver).
 """
 
 from __future__ import annotations
 
+from collections.abc import Hashable, MutableMapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
 
 from irl.boltzmann import heldout_loglik
-from irl.domains.merge.actions import ACTION_ACC_FT_S2, N_ACTIONS
+from irl.domains.merge.actions import ACTION_ACC_FT_S2, N_ACTIONS, actions_of
 from irl.domains.merge.bins import MergeBins
 from irl.domains.merge.car_following import CFDecisions, car_following_decisions
+from irl.domains.merge.cf_logit import CF_FORMAT, CarFollowingLogit
+from irl.domains.merge.features import feature_set
 from irl.domains.merge.mdp import discretize
 from irl.errors import ConfigError
+from irl.result import MODEL_FORMAT, SavedModel
 from merge_irl.units import FRAME_S
+from irl.domains.merge.planning.replay import ActFn
+from sim.drivers.formats import DriverFormat, family_of, register_format
 from sim.drivers.policy import PolicyDefaults, PolicyError
 
 if TYPE_CHECKING:  # pragma: no cover
     from irl.baselines import BaselinePolicy
-    from irl.domains.merge.cf_logit import CarFollowingLogit
-    from irl.result import SavedModel
     from sim.drivers.observe import MergeObservation
 
 @dataclass(frozen=True)
@@ -226,6 +235,15 @@ class CarFollowingLogitPolicy(PolicyDefaults):
         prev = obs.prev_action if obs.prev_action >= 0 else obs.initial_action
         return np.exp(self.model.log_policy(obs.continuous(), np.array([prev]))[0])
 
+    def heldout_inputs(self, encounters: pd.DataFrame, *, where: str,
+                       cache: MutableMapping[Hashable, Any]) -> dict[str, Any]:
+        """The held-out car-following decisions at the model's step, taken once per step for
+        every car-following driver scored on the same table (``cache``)."""
+        key = ("car-following decisions", self.decision_step_s)
+        if key not in cache:
+            cache[key] = car_following_decisions(encounters, decision_step_s=self.decision_step_s, where=where)
+        return {"cf_decisions": cache[key]}
+
     def heldout_loglik(self, encounters: pd.DataFrame, *, decision_step_s: float, where: str,
                        cf_decisions: CFDecisions | None = None) -> tuple[float, float]:
         """The model's log-likelihood of the held-out decisions at its own step
@@ -236,3 +254,81 @@ class CarFollowingLogitPolicy(PolicyDefaults):
             encounters, decision_step_s=self.decision_step_s, where=where)
         total = self.model.loglik_of(dec)
         return total, total / dec.n
+
+
+@dataclass(frozen=True)
+class TabularReward:
+    """``r(s, a) = theta . phi(s, a)`` of a tabular model as the environment's reward;
+    ``phi`` is ``[S, 5, K]`` (the model's feature set on its bins, encoding, decision step and
+    action accelerations).
+
+    Attributes:
+        theta: ``[K]`` weights; phi: ``[S, 5, K]``; encoder: the model's state bins (the
+            environment encodes states with them); state_encoding: ``"paper"`` or ``"driver"``;
+        action_acc_ft_s2: ``[5]`` the model's per-action accelerations (ft/s^2; the discrete
+            actions apply them).
+    """
+
+    theta: np.ndarray
+    phi: np.ndarray
+    encoder: MergeBins
+    state_encoding: str = "paper"
+    action_acc_ft_s2: tuple[float, ...] = ()
+    name: str = "tabular"
+    _r: np.ndarray = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "_r", np.einsum("sak,k->sa", self.phi, self.theta))
+
+    @classmethod
+    def from_model(cls, model: SavedModel) -> TabularReward:
+        """From a saved merge model (its ``bin_edges``, ``feature_set`` or ``feature_names``).
+
+        Raises:
+            PolicyError: the model has no bin edges or its features do not match ``theta``.
+        """
+        if not model.bin_edges:
+            raise PolicyError(f"model {model.method!r} has no 'bin_edges': its reward needs the state bins")
+        bins = MergeBins.from_dict(dict(model.bin_edges), where=f"model {model.method!r} bin_edges")
+        names = model.feature_names or model.feature_set or "paper"
+        # as training built them (irl.problems): the model's step, the actions' nominal accelerations
+        fs = feature_set(names, bins, model.state_encoding, decision_step_s=model.decision_step_s)
+        theta = np.asarray(model.theta, dtype=np.float64)
+        if fs.array.shape[-1] != theta.shape[0]:
+            raise PolicyError(f"model {model.method!r}: theta has {theta.shape[0]} weights, its features "
+                              f"{fs.names} {fs.array.shape[-1]}")
+        return cls(theta, fs.array, bins, model.state_encoding, tuple(model.action_acc_ft_s2), model.method)
+
+    def __call__(self, obs: MergeObservation, action: int, acc_ft_s2: float) -> float:
+        """The reward of ``action`` in ``obs.state``.
+
+        Raises:
+            PolicyError: the observation has no state index.
+        """
+        if obs.state < 0:
+            raise PolicyError("TabularReward: the observation has no state index (the environment encodes "
+                              "states with this reward's encoder)")
+        return float(self._r[obs.state, action])
+
+
+def cf_replay_act(cf: CarFollowingLogit) -> tuple[ActFn, float]:
+    """``(act, decision_step_s)``: the logit's most likely action at its per-action acceleration,
+    A's previous action taken as the bin of the acceleration it applied (unknown: none)."""
+    acc = np.asarray(cf.action_acc_ft_s2, dtype=np.float64)
+
+    def act(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray) -> np.ndarray:
+        known = np.isfinite(prev_acc)
+        prev = np.where(known, actions_of(np.where(known, prev_acc, 0.0)), -1)
+        return acc[np.argmax(cf.log_policy(obs, prev), axis=1)]
+
+    return act, cf.decision_step_s
+
+
+register_format(DriverFormat(
+    family_of(MODEL_FORMAT), "tabular IRL model ('merge-irl learn')", load=SavedModel.load,
+    policy=lambda model, name, source: LearnedPolicy.from_model(model, name=name or model.method),
+    reward=TabularReward.from_model, role="model"))
+register_format(DriverFormat(
+    family_of(CF_FORMAT), "car-following logit ('merge-irl dagger')", load=CarFollowingLogit.load,
+    policy=lambda cf, name, source: CarFollowingLogitPolicy(cf, name=name, source=source),
+    replay_act=cf_replay_act))

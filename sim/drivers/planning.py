@@ -10,6 +10,11 @@ accelerations' probabilities in each bin); the controller draws a bin (or takes 
 one) and applies :meth:`PlanningDriverPolicy.acceleration`, the driver's most likely fine
 acceleration within that bin, under the physical actuation (nothing of the simulator's ground
 truth is read).
+
+The planning driver's format (``merge-irl-planner/...``, ``merge-irl learn-driver``) is
+registered here in the driver-format registry (:mod:`sim.drivers.formats`): its policy, its
+replay of car-following pairs (:meth:`PlanningDriver.act`) and its reward for the environment
+(:class:`PlanningReward`).
 """
 
 from __future__ import annotations
@@ -23,7 +28,8 @@ import pandas as pd
 
 from irl.domains.merge.actions import N_ACTIONS, actions_of
 from irl.domains.merge.planning.decisions import encounter_decisions
-from irl.domains.merge.planning.driver import PlanningDriver
+from irl.domains.merge.planning.driver import PLANNER_FORMAT, PlanningDriver
+from sim.drivers.formats import DriverFormat, family_of, register_format
 from sim.drivers.observe import MergeObservation
 from sim.drivers.policy import PolicyDefaults
 
@@ -34,7 +40,7 @@ class PlanningDriverPolicy(PolicyDefaults):
 
     Attributes:
         driver: the learned driver (``merge-irl learn-driver``'s file, format ``merge-irl-planner/1``;
-            ``analysis.evaluation.policies.driver_policy`` builds the policy of a file).
+            ``sim.drivers.formats.driver_policy`` builds the policy of a file).
         name: label in reports (the file's stem when read from one).
         source: the file it was read from ("" when built in code).
         flags: ``("not_converged",)`` when the driver's fit did not converge.
@@ -98,3 +104,29 @@ class PlanningDriverPolicy(PolicyDefaults):
         lp = self.driver.bin_log_policy(dec.obs, dec.prev_acc, dec.acc_C)[np.arange(dec.n), dec.actions]
         total = float(lp.sum())
         return total, total / dec.n if dec.n else float("nan")
+
+
+@dataclass(frozen=True)
+class PlanningReward:
+    """The planning driver's learned reward of one decision step as the environment's reward,
+    ``theta . phi(x, acc)`` plus its collision penalty
+    (:meth:`~irl.domains.merge.planning.driver.PlanningDriver.step_reward`)."""
+
+    driver: PlanningDriver
+    name: str = "planner"
+
+    @property
+    def action_acc_ft_s2(self) -> tuple[float, ...]:
+        """``[5]`` the training data's mean acceleration per paper action (ft/s^2)."""
+        return self.driver.action_acc_ft_s2
+
+    def __call__(self, obs: MergeObservation, action: int, acc_ft_s2: float) -> float:
+        prev = obs.acc_prev if np.isfinite(obs.acc_prev) else 0.0
+        return float(self.driver.step_reward(obs.continuous(), np.array([prev]), np.array([obs.acc_C]),
+                                             np.array([acc_ft_s2]))[0])
+
+
+register_format(DriverFormat(
+    family_of(PLANNER_FORMAT), "planning driver ('merge-irl learn-driver')", load=PlanningDriver.load,
+    policy=lambda driver, name, source: PlanningDriverPolicy(driver, name=name, source=source),
+    replay_act=lambda driver: (driver.act, driver.decision_step_s), reward=PlanningReward))

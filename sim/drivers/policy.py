@@ -28,7 +28,8 @@ from __future__ import annotations
 from bisect import bisect_right
 from dataclasses import dataclass
 from itertools import accumulate
-from typing import TYPE_CHECKING, Protocol, runtime_checkable
+from collections.abc import Hashable, MutableMapping
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 import pandas as pd
@@ -77,6 +78,12 @@ class Policy(Protocol):
 
     :class:`PolicyDefaults` gives every member but ``name``, ``controls``, ``decision_step_s``,
     ``probs`` and ``heldout_loglik`` a default; the policies here inherit it.
+
+    One optional member, read when present (so a class without it still is a ``Policy``):
+    ``heldout_inputs(encounters, *, where, cache) -> dict``, extra keyword arguments of
+    :meth:`heldout_loglik` prepared from the held-out encounters, so that work several policies
+    need (the car-following decisions at one step) is done once: ``cache`` is one dict shared by
+    every policy scored on the same held-out table (:meth:`PolicyDefaults.heldout_inputs`: none).
     """
 
     # read-only properties, so frozen dataclasses (the policies here) satisfy the protocol
@@ -120,7 +127,7 @@ class Policy(Protocol):
         the policy has its own), so an action is the forward difference of A's speed over one
         decision. ``(NaN, NaN)`` where no likelihood exists (:data:`NO_LIKELIHOOD`).
         ``encounters``: prepared frames
-        (:func:`analysis.evaluation.heldout_scoring.prepare_encounters`); ``where`` names them
+        (:func:`irl.domains.merge.encounters.prepare_encounters`); ``where`` names them
         in errors.
 
         Raises:
@@ -151,6 +158,11 @@ class PolicyDefaults:
     def acceleration(self, obs: MergeObservation, action: int) -> float:
         """``action_acc_ft_s2[action]`` (ft/s^2), whatever the observation."""
         return float(self.action_acc_ft_s2[action])
+
+    def heldout_inputs(self, encounters: pd.DataFrame, *, where: str,
+                       cache: MutableMapping[Hashable, Any]) -> dict[str, Any]:
+        """No extra inputs to :meth:`Policy.heldout_loglik`."""
+        return {}
 
 
 def missing_members(policy: object, *, scoring: bool = True) -> list[str]:

@@ -67,7 +67,7 @@ from scenarios.spec.model import ScenarioSpec
 from sim.closed_loop.records import Control
 from sim.closed_loop.controller import Controller
 from sim.closed_loop.config import ControllerConfig
-from sim.env.rewards import RewardFn, TabularReward, load_reward
+from sim.env.rewards import RewardFn, load_reward
 from sim.runtime.hooks import FrameState
 from sim.drivers.observe import POLICY_OBS_HIGH, POLICY_OBS_LOW, MergeObservation, policy_observation
 from sim.drivers.policy import NO_LIKELIHOOD, PolicyDefaults
@@ -158,10 +158,10 @@ class MergeEnv(gym.Env):
         self.run_s = float(run_s)
         self.controller_config = controller
         self.reward_fn: RewardFn | None = load_reward(reward) if isinstance(reward, str | os.PathLike) else reward
-        tab = self.reward_fn if isinstance(self.reward_fn, TabularReward) else None
-        encoder = tab.encoder if tab is not None else MergeBins.assumed_authors()
+        # a reward over discrete states (a tabular model's) brings the bins to encode them with
+        encoder = getattr(self.reward_fn, "encoder", None) or MergeBins.assumed_authors()
         acc5 = tuple(getattr(self.reward_fn, "action_acc_ft_s2", ()) or ACTION_ACC_FT_S2)
-        self._agent = _AgentPolicy(encoder, tab.state_encoding if tab is not None else "paper",
+        self._agent = _AgentPolicy(encoder, str(getattr(self.reward_fn, "state_encoding", "paper") or "paper"),
                                    tuple(float(x) for x in acc5))
         self.observation_space = spaces.Box(OBS_LOW, OBS_HIGH, dtype=np.float64)
         self.action_space: spaces.Space[Any] = (

@@ -172,7 +172,7 @@ def test_labels_enter_the_fit():
 
 
 @pytest.mark.parametrize("change, match", [
-    (lambda d: d.update(format="merge-irl-model/1"), "expected format.*evaluate --model"),
+    (lambda d: d.update(format="merge-irl-model/1"), "expected format.*got 'merge-irl-model/1'"),
     (lambda d: d.update(format="merge-irl-cf-logit/1"), "took every leader for a car.*train it again"),
     (lambda d: d.update(format=[]), r"expected format .* got \[\]"),  # unhashable: no TypeError
     (lambda d: d.pop("theta"), "missing field 'theta'"),

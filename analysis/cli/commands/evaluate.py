@@ -74,7 +74,7 @@ def register(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from analysis.evaluation.evaluate import evaluate
-    from analysis.evaluation.policies import check_baselines, left_out_baselines
+    from sim.drivers.baselines import check_baselines, left_out_baselines
     from analysis.evaluation.thresholds import check_thresholds, metrics_from_file, not_triggered, parse_thresholds
     from sim.closed_loop.config import ControllerConfig
     from sim.errors import SimError
@@ -91,13 +91,14 @@ def run(args: argparse.Namespace) -> int:
     check_baselines(baselines, "--baselines")
     if not args.model and not args.cf_model and not args.driver and not args.policy and not baselines:
         raise SimError("nothing to evaluate: give --model, --driver, --cf-model, --policy and/or --baselines")
-    from analysis.evaluation.policies import cf_policy, driver_policy
+    from sim.drivers.formats import driver_policy
+    from analysis.evaluation.policies import cf_policy
     from sim.drivers.policy import Policy
 
     # malformed files and specs before any work
-    cf: list[Policy] = [cf_policy(path) for path in args.cf_model] + [driver_policy(path) for path in args.driver]
+    cf: list[Policy] = [cf_policy(path) for path in args.cf_model] + [driver_policy(path, option="--driver") for path in args.driver]
     if args.policy:
-        from analysis.evaluation.policies import training_action_acc
+        from sim.drivers.baselines import training_action_acc
         from sim.drivers.callables import CallablePolicy
 
         # discrete actions of a callable at the training frames' mean acceleration per bin, as the baselines'

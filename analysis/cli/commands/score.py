@@ -80,7 +80,9 @@ def _info_number(model, key: str, default: float) -> float:
 
 def run(args: argparse.Namespace) -> int:
     from irl.result import SavedModel
+    from sim.drivers.formats import check_role
 
+    check_role(args.model, "model", option="--model")  # a driver's file: say which command takes it
     model = SavedModel.load(args.model)
     result = score(model, args.demos, args.domain)
     if args.json:

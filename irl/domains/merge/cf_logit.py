@@ -158,10 +158,8 @@ class CarFollowingLogit:
                                  f"train it again with 'merge-irl dagger' (writes {CF_FORMAT!r})")
         if not isinstance(data, dict) or data.get("format") != CF_FORMAT:
             got = data.get("format") if isinstance(data, dict) else type(data).__name__
-            hint = " (an IRL model.json: drive it with 'merge-irl evaluate --model')" \
-                if isinstance(got, str) and got.startswith("merge-irl-model/") else ""
             raise ModelFileError(f"{path}: expected format {CF_FORMAT!r} (a file of 'merge-irl dagger'), "
-                                 f"got {got!r}{hint}")
+                                 f"got {got!r}")
         for key in ("feature_names", "theta", "action_acc_ft_s2", "decision_step_s", "gap_need"):
             if key not in data:
                 raise ModelFileError(f"{path}: missing field {key!r}")

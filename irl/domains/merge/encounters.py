@@ -96,3 +96,20 @@ def validate_encounters(table, where: str = "encounters") -> None:
             raise DemonstrationError(
                 f"{where}: row {i}, column {c!r}: expected a finite number, got {got!r}{hint}"
             )
+
+
+def prepare_encounters(frames: pd.DataFrame, where: str = "encounters") -> pd.DataFrame:
+    """Encounter frames ready to discretize: rows with A, B and an action only (frames without
+    car C stay, with d_AC and v_AC NaN: the domain's no-lead-car rule encodes them).
+
+    Raises:
+        DemonstrationError: a column of :data:`irl.domains.merge.encounters.REQUIRED_COLUMNS` is
+            missing (``where`` names the table).
+    """
+    missing = [c for c in REQUIRED_COLUMNS if c not in frames.columns]
+    if missing:
+        raise DemonstrationError(f"{where}: encounter table lacks column(s) {missing}; expected {list(REQUIRED_COLUMNS)} "
+                                 "(an encounters.parquet of 'merge-irl generate' or 'merge-irl encounters')")
+    df = frames.copy()
+    df = df[np.isfinite(df["d_AB"]) & np.isfinite(df["v_AB"]) & np.isfinite(df["acc_A"])]
+    return df.reset_index(drop=True)

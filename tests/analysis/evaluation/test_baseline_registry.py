@@ -9,8 +9,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.evaluation.policies import (BASELINES, Baseline, BaselineContext, baseline_drivers, default_baselines,
-                                          register_baseline)
+from sim.drivers.baselines import (BASELINES, Baseline, BaselineContext, baseline_drivers, default_baselines,
+                                   register_baseline)
 from sim.errors import SimError
 from sim.drivers.policy import ConstantPolicy, PolicyError
 

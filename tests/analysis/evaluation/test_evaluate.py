@@ -43,7 +43,7 @@ def _encounters(n=60, seed=1) -> pd.DataFrame:
 @pytest.mark.sumo
 def test_evaluate_writes_report_metrics_plots(tmp_path):
     from analysis.evaluation.evaluate import evaluate
-    from analysis.evaluation.policies import default_baselines, training_action_acc
+    from sim.drivers.baselines import default_baselines, training_action_acc
     from sim.drivers.policy import ConstantPolicy
 
     model_path = _model().save(tmp_path / "m" / "qavg.json")

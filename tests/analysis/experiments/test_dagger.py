@@ -134,7 +134,7 @@ def test_cli_rejects_bad_input_in_one_line_before_sumo(tmp_path, capsys):
     # a driver file where an IRL model.json is expected says which command takes it
     good = CarFollowingLogit.fit(car_following_decisions(_accelerating_demos())).save(tmp_path / "cf.json")
     assert main(["score", "--model", str(good), "--demos", str(table)]) == 2
-    assert "evaluate --cf-model" in capsys.readouterr().err
+    assert "merge-irl evaluate --driver" in capsys.readouterr().err
     # held-out demonstrations without v_A fail before any episode runs
     assert main(["evaluate", "--cf-model", str(good), "--baselines", "", "--demos", str(table), "--episodes", "1",
                  "--no-progress", "--out", str(tmp_path / "e2")]) == 2

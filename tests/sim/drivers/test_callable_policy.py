@@ -11,7 +11,9 @@ import numpy as np
 import pytest
 from irl_testdata import planning_encounters
 
-from analysis.evaluation.policies import learned_policy, policy_callable
+from sim.drivers.formats import policy_callable
+
+from analysis.evaluation.policies import learned_policy
 from irl.config import IRLConfig
 from irl.domains.merge.actions import ACTION_ACC_FT_S2, action_of
 from irl.domains.merge.bins import MergeBins

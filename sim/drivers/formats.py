@@ -1,0 +1,238 @@
+"""The driver-format registry: every learned file a driver can be read from, by its ``format``.
+
+A learned file is JSON with a ``format`` field ``"<family>/<version>"`` (``merge-irl-model/3``,
+``merge-irl-cf-logit/2``, ``merge-irl-planner/1``). Each family registers one
+:class:`DriverFormat` (:func:`register_format`): how to load its file, the closed-loop policy it
+builds, its acceleration for replaying real car-following pairs
+(``merge-irl calibrate evaluate --driver``) and its reward for the environment. Everything that
+reads a learned file asks this registry, and only it reads the ``format`` field:
+``merge-irl evaluate --model/--driver`` (:func:`driver_policy`), ``calibrate evaluate --driver``
+(:func:`replay_act`), the environment's ``reward=`` (:func:`driver_reward`), :func:`load_driver`
+and :func:`policy_callable`.
+
+The built-in formats register themselves in their own modules (:mod:`sim.drivers.learned`: the
+tabular IRL model and the car-following logit; :mod:`sim.drivers.planning`: the planning driver);
+``sim.drivers`` imports every module of its folder, so a new driver type is one module there with
+one :func:`register_format` call (or the call from one's own code), and no edit elsewhere::
+
+    from sim.drivers.formats import DriverFormat, register_format
+    register_format(DriverFormat("my-driver", "my driver (my-learn)", load=MyDriver.load,
+                                 policy=lambda d, name, source: MyPolicy(d, name=name, source=source),
+                                 replay_act=lambda d: (d.act, d.decision_step_s)))
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Literal
+
+from irl.domains.merge.planning.replay import ActFn
+from irl.errors import ModelFileError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from sim.drivers.callables import PolicyCallable
+    from sim.drivers.observe import MergeObservation
+    from sim.drivers.policy import Policy
+
+#: ``reward(obs, action, acc_ft_s2) -> float`` of one decision in the environment.
+RewardFn = Callable[["MergeObservation", int, float], float]
+#: What a learned file is given as: a tabular IRL model (``--model``) or a driver (``--driver``).
+Role = Literal["model", "driver"]
+
+
+@dataclass(frozen=True)
+class DriverFormat:
+    """One family of learned files and what a driver of it does.
+
+    Attributes:
+        family: the ``format`` field's part before ``/`` (``"merge-irl-planner"``); files of any
+            version of the family are this format's (its ``load`` refuses versions it cannot read).
+        label: what the file is, for users (``"planning driver ('merge-irl learn-driver')"``).
+        load: ``path -> the learned object`` (raises ``ModelFileError`` naming the file).
+        policy: ``(learned, name, source) -> Policy`` (:class:`sim.drivers.policy.Policy`): the
+            closed-loop driver, named ``name``, read from ``source`` ("" when built in code).
+        replay_act: ``learned -> (act, decision_step_s)``: its most likely acceleration when
+            replaying real pairs (:data:`irl.domains.merge.planning.replay.ActFn`: ``act(obs [N, 7], prev_acc [N], acc_C [N]) -> [N]`` ft/s^2); None: the format does not replay pairs.
+        reward: ``learned -> reward`` (:data:`RewardFn`) for the environment; None: no reward.
+        role: ``"driver"`` (``evaluate --driver``) or ``"model"`` (``evaluate --model``).
+    """
+
+    family: str
+    label: str
+    load: Callable[[Path], Any]
+    policy: Callable[[Any, str, str], Policy]
+    replay_act: Callable[[Any], tuple[ActFn, float]] | None = None
+    reward: Callable[[Any], RewardFn] | None = None
+    role: Role = "driver"
+
+
+#: The registered formats by family, in registration order (:func:`register_format`).
+FORMATS: dict[str, DriverFormat] = {}
+
+
+def register_format(fmt: DriverFormat) -> DriverFormat:
+    """Add ``fmt`` to :data:`FORMATS`; returns it.
+
+    Raises:
+        ValueError: a family with ``/`` or empty, an unknown role, or a family registered already.
+    """
+    if not fmt.family or "/" in fmt.family:
+        raise ValueError(f"driver format family must be a non-empty name without '/', got {fmt.family!r}")
+    if fmt.role not in ("model", "driver"):
+        raise ValueError(f"driver format {fmt.family!r}: role must be 'model' or 'driver', got {fmt.role!r}")
+    if fmt.family in FORMATS:
+        raise ValueError(f"a driver format {fmt.family!r} is registered already")
+    FORMATS[fmt.family] = fmt
+    return fmt
+
+
+def unregister_format(family: str) -> None:
+    """Remove a registered format (tests and plug-ins that register their own); no error if absent."""
+    FORMATS.pop(family, None)
+
+
+def family_of(format_field: str) -> str:
+    """The family of a ``format`` field: ``"merge-irl-planner/1"`` -> ``"merge-irl-planner"``."""
+    return format_field.partition("/")[0]
+
+
+def _known() -> str:
+    return ", ".join(f"{f.family}/... ({f.label})" for f in FORMATS.values())
+
+
+def format_field(path: str | os.PathLike) -> str:
+    """The ``format`` field of a learned file (JSON).
+
+    Raises:
+        ModelFileError: a missing or unreadable file, not a JSON object, or no string ``format``.
+    """
+    p = Path(path)
+    try:
+        data = json.loads(p.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ModelFileError(f"{p}: no such model or driver file") from None
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as e:
+        raise ModelFileError(f"{p}: cannot read a driver file ({e.__class__.__name__}: {str(e)[:200]})") from None
+    fmt = data.get("format") if isinstance(data, dict) else None
+    if not isinstance(fmt, str):
+        raise ModelFileError(f"{p}: not a model or driver file (no string 'format' field); expected one of: {_known()}")
+    return fmt
+
+
+def format_of(path: str | os.PathLike, role: Role | None = None, *, option: str = "") -> DriverFormat:
+    """The registered format of a learned file, checked against the ``role`` it is given as.
+
+    Args:
+        path: the file.
+        role: ``"driver"`` or ``"model"``: refuse a file of the other role, naming the option it
+            belongs to; None: any role.
+        option: the option the file came with, for the message (``"--driver"``).
+
+    Raises:
+        ModelFileError: unreadable, no ``format``, an unregistered family (the known ones listed),
+            or a file of the other role.
+    """
+    fmt = format_field(path)
+    f = FORMATS.get(family_of(fmt))
+    if f is None:
+        raise ModelFileError(f"{path}: format {fmt!r} is not a registered model or driver format; expected one of: "
+                             f"{_known()}")
+    if role is not None and f.role != role:
+        other = "--model" if f.role == "model" else "--driver"
+        given = f" ({option})" if option else ""
+        raise ModelFileError(f"{path}{given}: format {fmt!r} is not a {role}'s: it is a {f.label}; give it to "
+                             f"'merge-irl evaluate {other}'")
+    return f
+
+
+def check_role(path: str | os.PathLike, role: Role, *, option: str = "") -> None:
+    """Refuse a file of a registered format of the other role (a driver given as a model, or the
+    reverse), naming the option that takes it; anything else (no ``format`` field, an unknown
+    one, an unreadable file) is left to the loader, which names its own fault.
+
+    Raises:
+        ModelFileError: a registered format of the other role.
+    """
+    try:
+        fmt = format_field(path)
+    except ModelFileError:
+        return
+    if family_of(fmt) in FORMATS:
+        format_of(path, role, option=option)
+
+
+def load_driver(path: str | os.PathLike, role: Role | None = "driver") -> Any:
+    """The learned object of a file, by its registered format (a ``PlanningDriver``, a
+    ``CarFollowingLogit``, a ``SavedModel``, or a registered format's own).
+
+    Raises:
+        ModelFileError: see :func:`format_of`, and the format's own loader's errors.
+    """
+    return format_of(path, role).load(Path(path))
+
+
+def driver_policy(path: str | os.PathLike, name: str = "", *, role: Role | None = "driver",
+                  option: str = "") -> Policy:
+    """The closed-loop policy of a learned file, named ``name`` or the file's stem.
+
+    Raises:
+        ModelFileError: see :func:`format_of`.
+        PolicyError: the format's policy refuses the file's content (prefixed with the file).
+    """
+    from sim.drivers.policy import PolicyError
+
+    f = format_of(path, role, option=option)
+    learned = f.load(Path(path))
+    try:
+        return f.policy(learned, name or Path(path).stem, str(path))
+    except PolicyError as e:
+        raise type(e)(f"{path}: {e}") from None
+
+
+def replay_act(path: str | os.PathLike) -> tuple[ActFn, float]:
+    """``(act, decision_step_s)`` of a driver file for replaying real car-following pairs.
+
+    Raises:
+        ModelFileError: see :func:`format_of`, or a format that does not replay pairs.
+    """
+    f = format_of(path, "driver", option="--driver")
+    if f.replay_act is None:
+        raise ModelFileError(f"{path}: a {f.label} does not replay car-following pairs")
+    return f.replay_act(f.load(Path(path)))
+
+
+def driver_reward(path: str | os.PathLike) -> RewardFn:
+    """The environment's reward of a learned file (any role).
+
+    Raises:
+        FileNotFoundError: no such file.
+        ModelFileError: see :func:`format_of`, or a format without a reward (named).
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"reward model file not found: {p}")
+    f = format_of(p)
+    if f.reward is None:
+        with_reward = ", ".join(x.label for x in FORMATS.values() if x.reward is not None)
+        raise ModelFileError(f"{p}: a {f.label} has no reward; the environment's rewards come from: {with_reward}")
+    return f.reward(f.load(p))
+
+
+def policy_callable(path: str | os.PathLike, *, mode: bool = True, seed: int = 0) -> PolicyCallable:
+    """Any learned file as a policy callable ``obs -> int`` (the action index 0..4) for the
+    Gymnasium environment or a loop of one's own (:class:`sim.drivers.callables.PolicyCallable`;
+    ``obs``: the ``[7]`` policy observation, :data:`sim.drivers.observe.CONTINUOUS_NAMES`).
+    ``mode``: the most likely action (default), else sampled with
+    ``numpy.random.default_rng(seed)``; call ``reset()`` at the start of each episode.
+
+    Raises:
+        ModelFileError: see :func:`format_of`.
+        PolicyError: a file whose content its format's policy refuses.
+    """
+    from sim.drivers.callables import PolicyCallable
+
+    return PolicyCallable(driver_policy(path, role=None), mode=mode, seed=seed)

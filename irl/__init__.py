@@ -11,6 +11,10 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
+from merge_irl.moved import install as _install_moved_paths
+
+_install_moved_paths()  # old import paths (irl.merge_mdp, ...) fail naming their new home
+
 if TYPE_CHECKING:
     from irl.config import IRLConfig
     from irl.demonstrations import Demonstrations

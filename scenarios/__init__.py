@@ -5,9 +5,11 @@
     spec = with_overrides(spec, seed=3, duration_s=120)
 
 Layering: ``scenarios`` imports nothing of ours but :mod:`merge_irl.units`, a leaf module of unit
-constants (feet and metres) that itself imports nothing.
+constants (feet and metres) that itself imports nothing, and :mod:`merge_irl.moved`, the table of
+moved import paths (standard library only).
 """
 
+from merge_irl.moved import install as _install_moved_paths
 from scenarios.errors import ScenarioError, SpecError
 from scenarios.loader import DEFAULT_SCENARIO, load_preset, load_scenario, preset_names
 from scenarios.spec.model import (
@@ -19,6 +21,8 @@ from scenarios.spec.model import (
     VTypeSpec,
 )
 from scenarios.spec.parse import spec_from_dict, spec_from_file, spec_from_toml, with_overrides
+
+_install_moved_paths()  # old import paths (scenarios.calibration, ...) fail naming their new home
 
 __all__ = [
     "DEFAULT_SCENARIO",

@@ -15,6 +15,10 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
+from merge_irl.moved import install as _install_moved_paths
+
+_install_moved_paths()  # old import paths (sim.controller, ...) fail naming their new home
+
 _EXPORTS = {
     "run_scenario": "sim.runtime.run",
     "SimulationResult": "sim.runtime.run_result",

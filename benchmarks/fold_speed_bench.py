@@ -10,7 +10,7 @@ temporary folder and each "before" fit runs in a fresh process with that folder 
 ``PYTHONPATH``; each "after" fit runs in a fresh process on this checkout. A fold leaves out
 one trajectory, fits on the other 11 with the driver features and encoding (beta 1, l2 0.01,
 seed 0, Q-SM with the kinematic rule for unobserved pairs) and scores the held-out one (no
-rule for unvisited states), as ``benchmarks/driver_loo.py`` does. ``--paper-check`` adds the
+rule for unvisited states), as ``studies/driver_loo.py`` does. ``--paper-check`` adds the
 paper features' fit on all 12 trajectories at gamma 0.99, whose optimum is well defined: both
 versions must reach the same log-likelihood (the driver folds end where L-BFGS stops on a
 likelihood with jumps between branches of fixed points, so their end points may differ with

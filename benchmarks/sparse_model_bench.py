@@ -10,8 +10,9 @@ traced). A case builds the estimated model (relative counts, kinematic fallback)
 on all 12 trajectories (beta 1, l2 0.01, seed 0).
 
 * ``dense``: the model as the project built it before, ``[S, A, S]`` float64 arrays (counts,
-  the kinematic fallback, the estimate), handed to the fit as an array (the fit converts it to
-  the sparse successor model: the solvers were already sparse).
+  the kinematic fallback, the estimate: :func:`irl.dense_transitions.dense_estimate`), handed to
+  the fit as an array (the fit converts it to the sparse successor model: the solvers were
+  already sparse).
 * ``sparse``: :func:`irl.domains.merge.mdp.estimated_transitions` as it is now, a ``[S*A, S]`` CSR model.
 
 Paper encoding: 1250 states; driver encoding: 6250 (A's previous action in the state). The dense
@@ -32,28 +33,10 @@ import numpy as np
 
 from analysis.experiments.learn import fit_problem
 from irl.config import IRLConfig
-from irl.demonstrations import Demonstrations
+from irl.dense_transitions import dense_estimate
 from irl.domains.merge.mdp import estimated_transitions, kinematic_next_state
 from irl.problems import load_problem
 from irl.transitions import TransitionModel, model_successors
-
-
-def dense_estimate(demos: Demonstrations, fallback: np.ndarray | None) -> np.ndarray:
-    """The former dense estimator (also the reference of tests/test_sparse_models.py): ``[S, A, S]``
-    relative counts, the fallback's rows (None: self-loops) where a pair is unseen."""
-    S, A = demos.n_states, demos.n_actions
-    s, a, s2 = demos.transitions()
-    counts = np.zeros((S, A, S))
-    np.add.at(counts, (s, a, s2), 1.0)
-    totals = counts.sum(axis=2, keepdims=True)
-    seen = totals[..., 0] > 0
-    t = np.divide(counts, totals, out=np.zeros_like(counts), where=totals > 0)
-    if fallback is not None:
-        t[~seen] = fallback[~seen]
-    else:
-        ss, aa = np.nonzero(~seen)
-        t[ss, aa, ss] = 1.0
-    return t
 
 
 def dense_kinematic(problem) -> np.ndarray:

@@ -305,7 +305,7 @@ DOMAINS: dict[str, Domain] = {
         # features the Q-Avg likelihood of simulated encounters is bounded; the fit's unbounded test
         # flags it otherwise), and the kinematic rule for unobserved pairs, chosen by
         # leave-one-trajectory-out likelihood on the authors' NGSIM data (docs/irl.md,
-        # benchmarks/driver_loo.py)
+        # studies/driver_loo.py)
         Domain("merge", _load_merge, _merge_model, _merge_pad, _merge_fallback,
                DomainDefaults(merge_mdp.DEFAULT_DECISION_STEP_S, beta=1.0, l2=0.0, unobserved="kinematic")),
         Domain("npz", _load_npz, _counted_model),

@@ -23,7 +23,7 @@ choices, set by ``IRLConfig.unobserved``:
 Every rule keeps Q-Avg's fixed point linear in theta (``Q = D theta``,
 ``D = (I - gamma M)^-1 Phi`` with ``M`` the successor model averaged over actions), so its
 likelihood stays concave and its recession check valid. Which rule fits held-out data best is
-measured by ``benchmarks/driver_loo.py``.
+measured by ``studies/driver_loo.py``.
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ gives those states a defined value, one of :data:`UNVISITED_RULES`:
   different truck flag or previous action counting 10 bins (so they match first); ties go to
   the lower state index. Deterministic.
 
-Which rule a model uses is chosen by held-out likelihood (``benchmarks/driver_loo.py``) and
+Which rule a model uses is chosen by held-out likelihood (``studies/driver_loo.py``) and
 recorded in ``model.json`` as ``unvisited_rule``.
 """
 

@@ -158,7 +158,7 @@ def test_the_closed_loop_page_leads_with_what_holds_now():
     text = (ROOT / "docs" / "closed-loop.md").read_text(encoding="utf-8")
     first = text.split("\n## ", 2)[1]
     assert first.startswith("What holds now")
-    assert re.search(r"20\d\d-\d\d-\d\d", first) and "python -m benchmarks." in first
+    assert re.search(r"20\d\d-\d\d-\d\d", first) and "python -m studies." in first
     assert "| planner, history-free reward" in first and "| `sumo-in-lane`" in first
     for baseline in ("markov", "marginal", "bc", "uniform", "SUMO's free driver"):
         assert re.search(rf"^\| {re.escape(baseline)}", first, re.MULTILINE), baseline

@@ -161,6 +161,33 @@ def test_irl_never_imports_sumo():
     assert {m: v for m, v in bad.items() if v} == {}
 
 
+#: The script folders at the top of the checkout (not installed): nothing of the packages or the
+#: tests imports them; a test may run a script as a subprocess.
+SCRIPT_FOLDERS = ("benchmarks", "studies")
+
+
+def _script_imports(path: Path) -> list[str]:
+    found = []
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), str(path))):
+        names = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                 else [node.module or ""] if isinstance(node, ast.ImportFrom) and not node.level else [])
+        found += [f"{n} (line {node.lineno})" for n in names if n.split(".")[0] in SCRIPT_FOLDERS]
+    return found
+
+
+def test_no_package_or_test_imports_the_script_folders():
+    paths = [*MODULES.values(), *sorted((ROOT / "tests").rglob("*.py"))]
+    assert len(paths) > 200
+    bad = {p.relative_to(ROOT).as_posix(): hits for p in paths if (hits := _script_imports(p))}
+    assert bad == {}
+
+
+def test_the_script_check_sees_an_import(tmp_path):
+    f = tmp_path / "t.py"
+    f.write_text("import os\ndef g():\n    from studies.x import y\nimport benchmarks.z as z\n", encoding="utf-8")
+    assert sorted(_script_imports(f)) == ["benchmarks.z (line 4)", "studies.x (line 3)"]
+
+
 def test_the_floor_is_really_used():
     """merge_irl is the floor the packages stand on (the check above is not vacuous)."""
     users = {m.split(".")[0] for m, ts in EDGES.items() for t in ts if t.startswith("merge_irl")}

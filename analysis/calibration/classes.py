@@ -6,7 +6,7 @@ filled classes by the follower's time headway at the pair's first step, and the 
 (:func:`~analysis.calibration.fit.fit_population`) is run on each class. A pair is then
 simulated with the vector of its class. The class key uses only what the simulation of a pair is
 given anyway (the recorded initial gap and speed), nothing of the driver's later behaviour, so it
-applies to drivers never seen in the fit (``benchmarks/driver_classes_heldout.py``;
+applies to drivers never seen in the fit (``studies/driver_classes_heldout.py``;
 docs/calibration.md, "Driver classes").
 """
 

@@ -115,7 +115,7 @@ def fit_population(
         tick: called once per simulation of the batch (progress reporting).
         action_steps: the drivers decide every that many 0.1 s steps (SUMO's ``actionStepLength``,
             :func:`~analysis.calibration.models.simulate_follower`); 1, SUMO's default, in the
-            product (a longer one did not generalise better, ``benchmarks/reaction_time_bound.py``).
+            product (a longer one did not generalise better, ``studies/reaction_time_bound.py``).
     Returns:
         (population parameters, median over ``pairs`` of their spacing RMSE in m).
 

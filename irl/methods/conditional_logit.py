@@ -4,8 +4,9 @@
 rows ``F[i] [A, K]`` (McFadden's conditional logit). It is the Boltzmann policy of
 :mod:`irl.boltzmann` with ``Q = F theta`` and beta 1, i.e. Q-Avg / MLIRL at discount 0 (paper
 Eq. 5 with ``Q = R``), written for features of continuous observations, where every decision
-is its own state, instead of a state table ``[S, A, K]``. Beta is not separate from theta
-(the policy depends on ``beta theta`` only), so the scale is learned in theta.
+is its own state, instead of a state table ``[S, A, K]`` (:func:`fit_state_logit` fits the same
+logit over a state table). Beta is not separate from theta (the policy depends on ``beta theta``
+only), so the scale is learned in theta.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
-from irl.boltzmann import log_policy, loglik_grad_from_counts
+from irl.boltzmann import log_policy, loglik_grad_from_counts, step_counts
 from irl.errors import ConfigError, DemonstrationError
 
 
@@ -99,6 +100,47 @@ def fit_conditional_logit(F: np.ndarray, actions: np.ndarray, *, l2: float = 0.1
                    method="L-BFGS-B", options={"maxiter": int(max_iter)})
     theta = np.asarray(res.x, dtype=np.float64)
     return LogitFit(theta, conditional_loglik(F, theta, actions), int(F.shape[0]), bool(res.success), str(res.message))
+
+
+def fit_state_logit(F: np.ndarray, states: np.ndarray, actions: np.ndarray, *, l2: float,
+                    x0: np.ndarray | None = None) -> np.ndarray:
+    """Maximum-likelihood weights of the logit over a state table, ``pi(a | s) = softmax_a(F[s] theta)``:
+    Q-Avg at gamma 0, minimising :func:`penalised_nll` of the decisions' ``[S, A]`` step counts
+    (L-BFGS, scipy's default iteration limit). The penalty is this module's ``l2/2 |theta|^2``,
+    whose convention Q-Avg's own L2 may not share.
+
+    Args:
+        F: ``[S, A, K]`` features of each state and action.
+        states, actions: ``[N]`` the state and the action of each decision.
+        l2: the L2 penalty (finite, >= 0).
+        x0: ``[K]`` start (e.g. the weights of an earlier fit on fewer decisions); None: zeros.
+
+    Returns:
+        ``[K]`` float64 weights; deterministic.
+
+    Raises:
+        ConfigError: ``F`` not a non-empty finite ``[S, A, K]`` array, ``x0`` not ``[K]``, or a
+            negative or non-finite ``l2``.
+        DemonstrationError: ``states`` and ``actions`` not ``[N]`` integers of the same length,
+            or out of range.
+    """
+    if isinstance(l2, bool) or not isinstance(l2, (int, float)) or not (math.isfinite(l2) and l2 >= 0):
+        raise ConfigError(f"l2 must be a finite number >= 0, got {l2!r}")
+    F = np.asarray(F, dtype=np.float64)
+    if F.ndim != 3 or F.size == 0 or not np.all(np.isfinite(F)):
+        raise ConfigError(f"features must be a non-empty finite [S, A, K] array, got shape {F.shape}")
+    s, a = np.asarray(states), np.asarray(actions)
+    if s.ndim != 1 or s.shape != a.shape or not (np.issubdtype(s.dtype, np.integer) and np.issubdtype(a.dtype, np.integer)):
+        raise DemonstrationError(f"states and actions must be [N] integers of one length, got {s.shape} {s.dtype} "
+                                 f"and {a.shape} {a.dtype}")
+    if s.size and (s.min() < 0 or s.max() >= F.shape[0] or a.min() < 0 or a.max() >= F.shape[1]):
+        raise DemonstrationError(f"states must lie in 0..{F.shape[0] - 1} and actions in 0..{F.shape[1] - 1}")
+    theta0 = np.zeros(F.shape[2]) if x0 is None else np.asarray(x0, dtype=np.float64)
+    if theta0.shape != (F.shape[2],):
+        raise ConfigError(f"x0 must be [K] = [{F.shape[2]}], got shape {theta0.shape}")
+    counts = step_counts(s, a, F.shape[0], F.shape[1])
+    res = minimize(penalised_nll, theta0, args=(F, counts, float(l2)), jac=True, method="L-BFGS-B")
+    return np.asarray(res.x, dtype=np.float64)
 
 
 def conditional_log_policy(F: np.ndarray, theta: np.ndarray) -> np.ndarray:

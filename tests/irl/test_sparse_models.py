@@ -1,9 +1,9 @@
 """Sparse transition models: the same numbers as the dense [S, A, S] arrays they replace.
 
 The reference here is the dense construction the project used before (relative counts in an
-[S, A, S] array, fallback rows copied in: ``benchmarks.sparse_model_bench.dense_estimate``, which the
-benchmark times; cumulative sums over full rows for sampling, written out here), so that the sparse
-code is checked against an independent computation.
+[S, A, S] array, fallback rows copied in: ``irl.dense_transitions.dense_estimate``, which
+``benchmarks/sparse_model_bench.py`` times; cumulative sums over full rows for sampling, written
+out here), so that the sparse code is checked against an independent computation.
 """
 
 import numpy as np
@@ -11,11 +11,10 @@ import pytest
 import scipy.sparse as sp
 from irl_testdata import gridworld_demos, random_mdp
 
-from benchmarks.sparse_model_bench import dense_estimate
-
 from irl.domains.merge import mdp as merge_mdp
 from irl.config import IRLConfig
 from irl.demonstrations import Demonstrations
+from irl.dense_transitions import dense_estimate
 from irl.domains import gridworld
 from irl.domains.merge.actions import N_ACTIONS
 from irl.domains.merge.bins import MergeBins
@@ -65,6 +64,23 @@ def merge_demos(seed: int, encoding: str = "paper", n_traj: int = 12, length: in
     if encoding == "driver":
         demos = merge_mdp.driver_encoded(demos, feature_set("driver", bins, "driver", decision_step_s=0.3).array)
     return demos
+
+
+def test_the_dense_reference_counts_loops_unseen_pairs_and_refuses_a_misshapen_fallback():
+    _, d = random_mdp(0, n_states=7)
+    t = dense_estimate(d, None)
+    assert t.shape == (7, d.n_actions, 7)
+    np.testing.assert_allclose(t.sum(axis=2), 1.0)
+    s, a, s2 = d.transitions()
+    seen = np.zeros((7, d.n_actions), dtype=bool)
+    seen[s, a] = True
+    ss, aa = np.nonzero(~seen)
+    assert len(ss) > 0 and np.all(t[ss, aa, ss] == 1.0)  # unseen pairs: self-loops
+    i = 0
+    mask = (s == s[i]) & (a == a[i])
+    assert t[s[i], a[i], s2[i]] == pytest.approx(np.mean(s2[mask] == s2[i]))  # a relative count
+    with pytest.raises(ConfigError, match=r"\[S, A, S\]"):
+        dense_estimate(d, np.ones((7, d.n_actions, 6)))
 
 
 def test_estimated_models_equal_the_dense_construction():

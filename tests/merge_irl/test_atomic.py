@@ -101,7 +101,7 @@ def test_atomic_is_the_only_file_writer_that_renames():
     rename whole directories (the netconvert cache, a run's staging folder), not file writes."""
     allowed = {"merge_irl/atomic.py": None, "scenarios/network.py": ["os.rename"], "merge_irl/run_folder.py": ["os.rename"]}
     offenders = {}
-    for top in ("merge_irl", "sim", "irl", "scenarios", "analysis", "benchmarks", "tools"):
+    for top in ("merge_irl", "sim", "irl", "scenarios", "analysis", "benchmarks", "studies", "tools"):
         for path in sorted((ROOT / top).rglob("*.py")):
             rel = path.relative_to(ROOT).as_posix()
             hits = _renames_or_temp_files(ast.parse(path.read_text(encoding="utf-8")))

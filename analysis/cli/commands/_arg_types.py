@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 
 def _whole_number_at_least(text: str, lowest: int, wanted: str) -> int:
@@ -40,3 +41,22 @@ def add_allow_implausible(p: argparse.ArgumentParser) -> None:
                    help="run values outside the plausibility bounds (e.g. --duration above 6 h, a demand above "
                         "10,000 veh/h per lane, a speed limit above 45 m/s) instead of refusing them "
                         "(docs: scenarios, 'Plausibility bounds')")
+
+
+class DeprecatedFlag(argparse.Action):
+    """A flag kept for one release under an old spelling: it sets ``dest`` to True, as the
+    option that replaces it does, and writes one line on stderr naming that option
+    (``merge-irl learn-driver: warning: --quiet is deprecated ...: use --no-progress``). Hidden
+    from ``--help``; it sets nothing when not given (the new option holds the default).
+
+    ``use``: the spelling to use instead, e.g. ``"--no-progress"``.
+    """
+
+    def __init__(self, option_strings, dest, *, use: str, **kw):
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, help=argparse.SUPPRESS, **kw)
+        self.use = use
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(f"{parser.prog}: warning: {option_string} is deprecated and goes in the next release: use {self.use}",
+              file=sys.stderr, flush=True)
+        setattr(namespace, self.dest, True)

@@ -6,6 +6,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from analysis.cli.commands._arg_types import DeprecatedFlag
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
@@ -25,7 +27,9 @@ def register(subparsers) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the held-out selection split (default 0)")
     p.add_argument("--no-selection", action="store_true",
                    help="skip the held-out selection of the planner's settings: fit the defaults (faster)")
-    p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+    p.add_argument("--no-progress", action="store_true", help="no progress lines on stderr")
+    # the spelling before --no-progress, which every other command uses: one release more, with a note
+    p.add_argument("--quiet", dest="no_progress", action=DeprecatedFlag, use="--no-progress")
     p.set_defaults(func=run)
 
 
@@ -37,7 +41,7 @@ def run(args: argparse.Namespace) -> int:
     check_writable(args.out)  # an unwritable --out fails now, not after the fit
 
     def log(line: str) -> None:
-        if not args.quiet:
+        if not args.no_progress:
             print(line, file=sys.stderr, flush=True)
 
     step = DEFAULT_DECISION_STEP_S if args.decision_step_s is None else args.decision_step_s

@@ -51,9 +51,10 @@ def _following_demos(n=8, rows=90, seed=0) -> pd.DataFrame:
 def test_learn_driver_on_pairs_then_calibrate_evaluate_scores_it(tmp_path, capsys):
     pairs = _pair_folder(tmp_path)
     drv = tmp_path / "driver.json"
-    assert main(["learn-driver", "--demos", str(pairs), "--out", str(drv), "--no-selection", "--quiet"]) == 0
-    out = capsys.readouterr().out
+    assert main(["learn-driver", "--demos", str(pairs), "--out", str(drv), "--no-selection", "--no-progress"]) == 0
+    out, err = capsys.readouterr()
     assert "wrote" in out and "per decision" in out
+    assert err == ""  # --no-progress: no progress lines
     driver = PlanningDriver.load(drv)
     assert json.loads(drv.read_text())["format"] == PLANNER_FORMAT
     assert driver.info["n_decisions"] > 100 and np.isfinite(driver.loglik)
@@ -91,7 +92,7 @@ def test_a_driver_learned_from_encounters_drives_in_evaluate(tmp_path, capsys):
     demos = _following_demos()
     demos.to_parquet(table)
     drv = tmp_path / "follow.json"
-    assert main(["learn-driver", "--demos", str(table), "--out", str(drv), "--no-selection", "--quiet"]) == 0
+    assert main(["learn-driver", "--demos", str(table), "--out", str(drv), "--no-selection", "--no-progress"]) == 0
     ev = tmp_path / "ev"
     assert main(["evaluate", "--driver", str(drv), "--baselines", "uniform", "--episodes", "1", "--seed", "3",
                  "--duration", "150", "--demos", str(table), "--no-rrd", "--no-progress", "--out", str(ev)]) == 0

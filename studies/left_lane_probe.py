@@ -13,7 +13,7 @@ its nearest left leader L (``getLeftLeaders``). Printed: among the frames where 
 speeds against the allowed speed, and the mean acceleration; beside them the frames without
 such an L.
 
-Run: ``python -m benchmarks.left_lane_probe [--scenario synthetic] [--seed 101] [--duration S]``
+Run: ``python -m studies.left_lane_probe [--scenario synthetic] [--seed 101] [--duration S]``
 (default the scenario's duration; the figures in the docs: 240 s); the same
 scenario with ``lc_params = { lcOvertakeRight = 1.0 }`` in its car types is the control.
 docs/closed-loop.md has the figures.

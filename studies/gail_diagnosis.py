@@ -1,9 +1,9 @@
 """GAIL's training on the merge, diagnosed: does the generator leave the uniform policy, and why not.
 
 For each GAIL setting given (``--config`` JSON, the fields of
-:class:`benchmarks.imitation_bench.GailConfig`), on the demo's synthetic demonstrations
+:class:`analysis.experiments.gail_config.GailConfig`), on the demo's synthetic demonstrations
 (``--demo``, a folder :func:`analysis.demo.pipeline.run_demo` left), it trains
-:func:`benchmarks.imitation_bench.make_gail`'s trainer as the benchmark does (``--train-seed``,
+:func:`studies.imitation_bench.make_gail`'s trainer as the comparison does (``--train-seed``,
 ``--gail-env-seed``) and prints:
 
 * PPO's policy entropy (nats; uniform: log 5 = 1.609), approximate KL and clip fraction, the
@@ -16,10 +16,10 @@ For each GAIL setting given (``--config`` JSON, the fields of
   reward: near 0) and across observations, and how often the demonstrated action has the
   highest reward.
 
-No closed-loop evaluation (:mod:`benchmarks.imitation_bench` does that). Needs the
+No closed-loop evaluation (:mod:`studies.imitation_bench` does that). Needs the
 ``imitation-bench`` extra (docs/imitation.md). Run::
 
-    python -m benchmarks.gail_diagnosis --demo runs/demo --config '{"steps": 4096}' \\
+    python -m studies.gail_diagnosis --demo runs/demo --config '{"steps": 4096}' \\
         --config '{"steps": 32768}'
 """
 
@@ -27,14 +27,13 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
 import math
 import time
 from pathlib import Path
 
 import numpy as np
 
-from benchmarks.imitation_bench import GailConfig
+from analysis.experiments.gail_config import GailConfig, parse_gail_config
 from irl.domains.merge.actions import N_ACTIONS
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S
 
@@ -44,28 +43,11 @@ def _row(r: dict[str, str], key: str) -> float:
     return float(v) if v.strip() else math.nan
 
 
-def parse_config(text: str) -> GailConfig:
-    """A :class:`~benchmarks.imitation_bench.GailConfig` from a JSON object of its fields.
-
-    Raises:
-        ValueError: not a JSON object, an unknown field, or a value the config refuses.
-    """
-    try:
-        fields = json.loads(text)
-    except json.JSONDecodeError as e:
-        raise ValueError(f"--config {text!r}: not JSON ({e})") from None
-    if not isinstance(fields, dict):
-        raise ValueError(f"--config {text!r}: a JSON object of GailConfig's fields expected")
-    try:
-        return GailConfig(**fields)
-    except TypeError as e:
-        raise ValueError(f"--config {text!r}: {e}") from None
-
-
 def diagnose(demo: Path, cfg: GailConfig, *, train_seed: int, env_seed: int, out: Path, every: int) -> None:
     """Train one GAIL setting and print its diagnosis (module docstring)."""
     from sim.drivers.baselines import training_action_acc
-    from benchmarks.imitation_bench import ObsScaler, TorchActor, heldout_loglik, make_gail, mean_entropy
+    from analysis.experiments.obs_scaler import ObsScaler
+    from studies.imitation_bench import TorchActor, heldout_loglik, make_gail, mean_entropy
     from irl.domains.merge.mdp import read_encounters
     from sim.merges.transitions import from_encounters, to_imitation_trajectories
 
@@ -116,7 +98,7 @@ def main(argv: list[str] | None = None) -> int:
     if not (demo / "data" / "train_encounters.parquet").is_file():
         ap.error(f"--demo {demo}: no data/train_encounters.parquet")
     try:
-        configs = [parse_config(c) for c in args.config]
+        configs = [parse_gail_config(c) for c in args.config]
     except ValueError as e:
         ap.error(str(e))
     for i, c in enumerate(configs):

@@ -2,7 +2,7 @@
 features, beside the baselines (issue 11 target: the best method beats ``marginal`` by >= 300
 nats with ``--features driver``, at a real discount). Prints a table; not a timed test.
 
-    python benchmarks/driver_loo.py /work/shared/data/railusm/merge_ngsim \\
+    python -m studies.driver_loo /work/shared/data/railusm/merge_ngsim \\
         [--gamma 0,0.5,0.9,0.99] [--l2 0.01] [--methods qavg,qsm,mlirl,reirl] \\
         [--unobserved terminal,self,kinematic] [--unvisited none,nearest] [--nested-gamma]
 

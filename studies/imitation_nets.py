@@ -1,7 +1,7 @@
-"""The torch layer of ``benchmarks/imitation_bench.py`` (imports torch and Stable-Baselines3: the
+"""The torch layer of ``studies/imitation_bench.py`` (imports torch and Stable-Baselines3: the
 ``imitation-bench`` extra; nothing else imports this module).
 
-:class:`Standardize` is the first layer of the benchmark's BC and PPO policies: it subtracts the
+:class:`Standardize` is the first layer of the comparison's BC and PPO policies: it subtracts the
 training mean and divides by the training standard deviation of each observation column, so the
 trained policy takes the policy observation itself (ft, ft/s; :func:`sim.drivers.observe.policy_rows`)
 and is a driver as it is (``CallablePolicy(policy)``). A module of its own so pickled policies

@@ -15,10 +15,10 @@ evaluated on the same episodes as the model it started from.
 The expert is car following only (it does not yield to the merging car B as SUMO's
 lane-change model makes the demonstrators do), so its labels also pull the held-out
 log-likelihood down; the point is the collision count. Run after
-``python -m benchmarks.closed_loop_target --episodes 2 --out runs/clt`` (which writes the
+``python -m studies.closed_loop_target --episodes 2 --out runs/clt`` (which writes the
 model and the encounters)::
 
-    python -m benchmarks.expert_in_learner_states --from runs/clt
+    python -m studies.expert_in_learner_states --from runs/clt
 
 It prints (and writes to ``--out``/results.md) each round's driver: A collisions per evaluation
 seed set, pooled, and its held-out log-likelihood per step. Cost with the defaults: about 20 s per
@@ -36,12 +36,11 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from scipy.optimize import minimize
 
 from analysis.evaluation.evaluate import evaluate
 from analysis.cli.commands._arg_types import non_negative_int, positive_int
-from irl.boltzmann import log_policy, step_counts
-from irl.methods.conditional_logit import penalised_nll
+from irl.boltzmann import log_policy
+from irl.methods.conditional_logit import fit_state_logit
 from irl.errors import IRLError
 from irl.domains.merge.features import feature_array
 from irl.domains.merge.mdp import resample_encounters
@@ -54,15 +53,6 @@ from sim.merges.expert_labels import ExpertLabels
 from sim.errors import SimError
 from sim.drivers.learned import LearnedPolicy
 from sim.runtime.run import run_scenario
-
-
-def fit_logit(F: np.ndarray, s: np.ndarray, a: np.ndarray, l2: float, x0: np.ndarray | None = None) -> np.ndarray:
-    """``[K]`` weights minimising :func:`irl.methods.conditional_logit.penalised_nll` over the state
-    table (L-BFGS): Q-Avg at gamma 0, whose own L2 convention may differ. ``F [S, A, K]``
-    features, ``s, a [N]`` state and action indices."""
-    counts = step_counts(np.asarray(s), np.asarray(a), F.shape[0], F.shape[1])
-    x = np.zeros(F.shape[2]) if x0 is None else x0
-    return minimize(penalised_nll, x, args=(F, counts, l2), jac=True, method="L-BFGS-B").x
 
 
 def policy_of(F: np.ndarray, theta: np.ndarray, base: LearnedPolicy, name: str) -> LearnedPolicy:
@@ -102,7 +92,7 @@ def main(argv=None) -> int:
               src / "data" / "heldout_encounters.parquet"]
     missing = [str(p) for p in needed if not p.is_file()]
     if missing:
-        ap.error(f"--from {src}: missing {', '.join(missing)} (run benchmarks.closed_loop_target --out {src} first)")
+        ap.error(f"--from {src}: missing {', '.join(missing)} (run studies.closed_loop_target --out {src} first)")
     n_label = args.rounds * args.episodes_per_round
     label = range(args.label_seed, args.label_seed + n_label)
     if any(set(label) & set(range(s, s + args.episodes)) for s in args.eval_seeds):
@@ -133,7 +123,7 @@ def run(args, spec, model: SavedModel, base: LearnedPolicy, train_path: Path, he
                                decision_step_s=dt).demos
     s_held, a_held = np.concatenate(held.states), np.concatenate(held.actions)
     S, A = [np.concatenate(train.states)], [np.concatenate(train.actions)]
-    theta = fit_logit(F, S[0], A[0], args.l2)
+    theta = fit_state_logit(F, S[0], A[0], l2=args.l2)
     policies = [policy_of(F, theta, base, "logit-round0")]
     for r in range(args.rounds):
         t0 = time.perf_counter()
@@ -147,7 +137,7 @@ def run(args, spec, model: SavedModel, base: LearnedPolicy, train_path: Path, he
         lab = np.array(labels, dtype=np.int64).reshape(-1, 2)
         S.append(lab[:, 0])
         A.append(lab[:, 1])
-        theta = fit_logit(F, np.concatenate(S), np.concatenate(A), args.l2, theta)
+        theta = fit_state_logit(F, np.concatenate(S), np.concatenate(A), l2=args.l2, x0=theta)
         policies.append(policy_of(F, theta, base, f"logit-round{r + 1}"))
         print(f"round {r + 1}: {len(lab)} expert labels in the learner's states (actions "
               f"{np.bincount(lab[:, 1], minlength=5).tolist()}), {time.perf_counter() - t0:.0f} s", flush=True)

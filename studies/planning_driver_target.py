@@ -1,4 +1,4 @@
-"""Benchmark: the planning driver's targets (issue 27), printed side by side in one run (not timed).
+"""Study: the planning driver's targets (issue 27), printed side by side in one run (not timed).
 
 1. **Synthetic closed loop, demonstrations only.** :func:`analysis.demo.pipeline.run_demo` makes
    the training encounters (seeds ``--train-seeds``) and ``--heldout-runs`` held-out runs and
@@ -19,7 +19,7 @@
    median / mean (m) and collisions beside IDM with SUMO's defaults and, with ``--params``, a
    calibration (e.g. ``calibrate fit --classes 3 --holdout 0.3 --seed 0``).
 
-Run: ``python -m benchmarks.planning_driver_target [--episodes 30] [--extra-episodes 60]``.
+Run: ``python -m studies.planning_driver_target [--episodes 30] [--extra-episodes 60]``.
 """
 
 from __future__ import annotations

@@ -1,8 +1,8 @@
 """Held-out measurements of the planning driver (irl.domains.merge.planning) on synthetic merge
 encounters or real NGSIM I-80 car-following pairs.
 
-    PYTHONPATH=. OMP_NUM_THREADS=1 python benchmarks/planner_heldout.py --data synthetic --out planner-synthetic.json
-    PYTHONPATH=. OMP_NUM_THREADS=1 python benchmarks/planner_heldout.py --data pairs --out planner-pairs.json
+    OMP_NUM_THREADS=1 python -m studies.planner_heldout --data synthetic --out planner-synthetic.json
+    OMP_NUM_THREADS=1 python -m studies.planner_heldout --data pairs --out planner-pairs.json
 
 Split 70/30 by group (encounter run / follower), seed 0. The setting is selected by held-out LL
 on an inner 70/30 split of the training groups (learn_planning_driver, seed 1), refitted on the

@@ -1,7 +1,7 @@
-"""Benchmark: one population vector per driver class, the class read from the pair's initial time
+"""Study: one population vector per driver class, the class read from the pair's initial time
 headway. Does it bring held-out drivers nearer issue 14's 0.8 target than one vector for all?
 
-    python -m benchmarks.driver_classes_heldout [--pairs DIR] [--holdout 0.3] [--seeds 0 1 2]
+    python -m studies.driver_classes_heldout [--pairs DIR] [--holdout 0.3] [--seeds 0 1 2]
         [--classes 1 3 5] [--model idm]
 
 For each split (``split_by_follower(pairs, holdout, seed)``, never the same driver on both sides)
@@ -23,7 +23,7 @@ import time
 
 import numpy as np
 
-from benchmarks.heldout_args import add_split_arguments
+from studies.heldout_args import add_split_arguments
 from analysis.calibration import CarFollowingPair, PairBatch, load_pairs, split_by_follower
 from analysis.calibration.fit import fit_population
 from analysis.calibration.models import SUMO_DEFAULTS, CFParams

@@ -1,4 +1,4 @@
-"""The command-line options the held-out calibration benchmarks share: the pairs folder and the
+"""The command-line options the held-out calibration studies share: the pairs folder and the
 splits by follower (``analysis.calibration.split_by_follower``)."""
 
 from __future__ import annotations

@@ -1,5 +1,6 @@
-"""The closed-loop target checks of ``benchmarks/closed_loop_target.py`` (issue 11), on hand-made
-aggregates: the Wasserstein targets are judged against the demonstrators' own driver."""
+"""analysis/evaluation/closed_loop_targets.py: issue 11's closed-loop target checks (which
+``studies/closed_loop_target.py`` prints), on hand-made aggregates: the Wasserstein targets are
+judged against the demonstrators' own driver, and a figure that could not be measured fails."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ from types import SimpleNamespace
 
 import pytest
 
-from benchmarks.closed_loop_target import floor_driver, target_checks
+from analysis.evaluation.closed_loop_targets import floor_driver, target_checks
 from sim.merges.rules import ENCOUNTER_RULES
 
 
@@ -32,3 +33,11 @@ def test_target_checks_against_the_floor(floor, met):
     assert all(floor in text for text, _ in checks[2:])
     aggs["cf-dagger"] = _agg(collisions=1, ll=-1.3, speed=4.0, d_ac=30.0)  # bc scores better held out
     assert [ok for _, ok in target_checks("cf-dagger", aggs, floor)] == [False, False, False, met[3]]
+
+
+def test_a_figure_not_measured_fails_its_check():
+    aggs = {"cf-dagger": _agg(ll=float("nan"), speed=float("nan"), d_ac=10.0), "sumo": _agg(),
+            "marginal": _agg(ll=-1.4), "bc": _agg(ll=-1.2)}
+    assert [ok for _, ok in target_checks("cf-dagger", aggs)] == [True, False, False, True]
+    with pytest.raises(KeyError):
+        target_checks("cf-dagger", {k: v for k, v in aggs.items() if k != "bc"})

@@ -1,4 +1,4 @@
-"""Benchmark: the synthetic closed-loop target of issue 11, printed side by side (not timed).
+"""Study: the synthetic closed-loop target of issue 11, printed side by side (not timed).
 
 One run of the whole pipeline (:func:`analysis.demo.pipeline.run_demo`): SUMO's drivers of the
 scenario generate the training encounters (``--train-seeds``, at least 3 runs) and
@@ -42,9 +42,10 @@ learn; every learned driver and every baseline (``sumo``, ``uniform``, ``margina
 * the target checks: the protocol (at least 3 training runs, at least 30 episodes), then for
   every learned driver, the default one (``--driver``, default ``cf-dagger``) first: 0
   collisions by controlled cars with the 95 % upper bound, held-out LL per step above
-  ``marginal`` and ``bc``, W1 of speed and of d_AC within 1.5x the SUMO-driver floor.
+  ``marginal`` and ``bc``, W1 of speed and of d_AC within 1.5x the SUMO-driver floor
+  (:mod:`analysis.evaluation.closed_loop_targets`).
 
-Run: ``python -m benchmarks.closed_loop_target [--episodes 30] [--methods qavg]`` (MLIRL took over 5 min
+Run: ``python -m studies.closed_loop_target [--episodes 30] [--methods qavg]`` (MLIRL took over 5 min
 at the driver encoding's 6250 states with the dense transition model: add it once it is sparse).
 """
 
@@ -60,6 +61,7 @@ import pandas as pd
 from analysis.cli.commands._arg_types import non_negative_int, positive_int
 from analysis.experiments.dagger import DaggerConfig
 from analysis.demo.signal import bin_change_rate, braking_cap_share
+from analysis.evaluation.closed_loop_targets import floor_driver, target_checks
 from analysis.evaluation.evaluate import evaluate
 from analysis.evaluation.policies import cf_policy
 from analysis.evaluation.distances import wasserstein
@@ -87,31 +89,6 @@ def _seeds(text: str) -> tuple[int, ...]:
 
 def _f(x: float, nd: int = 3) -> str:
     return "-" if x is None or not math.isfinite(x) else f"{x:.{nd}f}"
-
-
-def floor_driver(encounter_rule: str) -> str:
-    """The SUMO-driver floor of the Wasserstein targets: the demonstrators' own driver in the
-    closed loop, whose distance to the held-out demonstrations on other seeds is sampling noise
-    alone. With ``in-lane`` demonstrations (A's lane held while observed) that is
-    ``sumo-in-lane``; with the ``take-over`` and ``merge-frame`` rules (lanes free) ``sumo``."""
-    return "sumo-in-lane" if encounter_rule == "in-lane" else "sumo"
-
-
-def target_checks(name: str, aggs: dict, floor: str = "sumo") -> list[tuple[str, bool]]:
-    """Issue 11's closed-loop targets for the driver ``name``, the Wasserstein ones against the
-    driver ``floor`` (:func:`floor_driver`): ``(text, met)`` pairs."""
-    d, ref = aggs[name], aggs[floor]
-    marginal, bc = aggs["marginal"].heldout_loglik_per_step, aggs["bc"].heldout_loglik_per_step
-    return [
-        (f"{name}: 0 collisions by controlled cars ({d.a_collisions}/{d.n_controls}, 95 % upper bound "
-         f"{_f(d.a_collision_ci95[1])})", d.a_collisions == 0),
-        (f"{name}: held-out LL/step {_f(d.heldout_loglik_per_step)} > marginal {_f(marginal)} and bc {_f(bc)}",
-         d.heldout_loglik_per_step > max(marginal, bc)),
-        (f"{name}: W1 speed {_f(d.w1_speed_A_ft_s, 2)} <= 1.5 x {floor} {_f(ref.w1_speed_A_ft_s, 2)}",
-         d.w1_speed_A_ft_s <= 1.5 * ref.w1_speed_A_ft_s),
-        (f"{name}: W1 d_AC {_f(d.w1_d_AC_ft, 1)} <= 1.5 x {floor} {_f(ref.w1_d_AC_ft, 1)}",
-         d.w1_d_AC_ft <= 1.5 * ref.w1_d_AC_ft),
-    ]
 
 
 def main(argv=None) -> int:

@@ -1,11 +1,11 @@
-"""benchmarks/expert_in_learner_states.py's fit, and the SUMO expert's labels (sim/merges/expert_labels.py)."""
+"""The SUMO expert's labels (sim/merges/expert_labels.py), which studies/expert_in_learner_states.py and
+analysis/experiments/dagger.py ask in the learner's states."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from benchmarks.expert_in_learner_states import fit_logit
 from irl.domains.merge.actions import N_ACTIONS, action_of
 from irl.domains.merge.bins import MergeBins
 from irl.domains.merge.states import n_states
@@ -16,18 +16,6 @@ from sim.closed_loop.config import ControllerConfig
 from sim.merges.expert_labels import ExpertLabels
 from sim.drivers.learned import LearnedPolicy
 from sim.runtime.run import run_scenario
-
-
-def test_fit_logit_recovers_the_weights_of_its_own_samples():
-    rng = np.random.default_rng(1)
-    F = rng.normal(size=(50, N_ACTIONS, 2))
-    truth = np.array([1.5, -0.8])
-    s = rng.integers(0, 50, 20000)
-    u = F[s] @ truth
-    p = np.exp(u - u.max(1, keepdims=True))
-    p /= p.sum(1, keepdims=True)
-    a = (p.cumsum(1) > rng.random(len(s))[:, None]).argmax(1)
-    np.testing.assert_allclose(fit_logit(F, s, a, 0.0), truth, atol=0.08)
 
 
 @pytest.mark.sumo

@@ -1,4 +1,4 @@
-"""Benchmark: the ``imitation`` library's learners beside ours, in the same closed loop (issue 28, item 5).
+"""Study: the ``imitation`` library's learners beside ours, in the same closed loop (issue 28, item 5).
 
 One run, side by side, on the demo's synthetic demonstrations (:func:`analysis.demo.pipeline.run_demo`:
 training runs ``--train-seeds``, ``--heldout-runs`` held-out runs from seed 201; or ``--demo`` a
@@ -13,7 +13,7 @@ folder an earlier run left):
   (:func:`sim.merges.transitions.from_encounters`, the decisions Q-Avg learns from, made
   ``imitation`` Trajectories by :func:`sim.merges.transitions.to_imitation_trajectories`): the policy
   observation (:func:`sim.drivers.observe.policy_rows`, ft and ft/s; the networks standardise it in
-  their first layer, :class:`benchmarks.imitation_nets.Standardize`) and the discrete merge
+  their first layer, :class:`studies.imitation_nets.Standardize`) and the discrete merge
   action 0..4. Unlike Q-Avg's and cf-logit's, their observation holds no previous action. Each
   drives twice: the Stable-Baselines3 policy itself by its most likely action (``imit-bc``,
   ``imit-gail``; ``predict(deterministic=True)``) and an action sampled from its probabilities
@@ -35,7 +35,7 @@ demonstrations. Before the table: GAIL's log, first round and last (:func:`gail_
 PPO's entropy and approximate KL, the discriminator's loss and accuracy, the episode length),
 and each sampled actor's mean entropy on the held-out decisions (uniform: log 5 = 1.609 nats).
 GAIL's settings are :class:`GailConfig`'s (32,768 steps: docs/imitation.md, "GAIL's budget",
-and :mod:`benchmarks.gail_diagnosis`).
+and :mod:`studies.gail_diagnosis`).
 
 Torch and imitation are imported inside the functions that use them (the ``imitation-bench``
 extra); ``--help`` and the helpers without torch run in the default install. Deterministic where
@@ -46,7 +46,7 @@ Run::
 
     pip install torch==2.13.0            # its CPU build first (docs/imitation.md)
     pip install -e ".[imitation-bench]"
-    python -m benchmarks.imitation_bench --episodes 10 --out runs/imitation-bench-full
+    python -m studies.imitation_bench --episodes 10 --out runs/imitation-bench-full
 """
 
 from __future__ import annotations
@@ -57,15 +57,15 @@ import math
 import shlex
 import sys
 import time
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from analysis.experiments.gail_config import GailConfig, gail_log_summary
+from analysis.experiments.obs_scaler import ObsScaler
 from irl.domains.merge.actions import N_ACTIONS
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S
-from sim.drivers.observe import policy_rows
 from sim.merges.transitions import Transitions, to_imitation_trajectories
 
 #: The evaluation's trivial baselines, in the table's order.
@@ -74,36 +74,6 @@ BASELINES = ("uniform", "marginal", "markov", "bc", "sumo", "sumo-in-lane")
 
 def _f(x: float | None, nd: int = 3) -> str:
     return "-" if x is None or not math.isfinite(x) else f"{x:.{nd}f}"
-
-
-# -- observations ------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class ObsScaler:
-    """Per-column mean and standard deviation of training policy observations
-    (:func:`sim.drivers.observe.policy_rows`: filled and clipped, ft and ft/s), which the networks'
-    first layer (:class:`benchmarks.imitation_nets.Standardize`) subtracts and divides by, so
-    the trained policies take the policy observation itself, as the environment and
-    :class:`~sim.drivers.callables.CallablePolicy` give it.
-
-    Attributes:
-        mean, std: ``[7]`` (a constant column's std is 1).
-    """
-
-    mean: tuple[float, ...]
-    std: tuple[float, ...]
-
-    @classmethod
-    def fit(cls, obs: np.ndarray) -> ObsScaler:
-        """The scaler of ``[N, 7]`` training observations (continuous rows, NaN allowed: made
-        policy observations first)."""
-        x = policy_rows(obs)
-        sd = x.std(axis=0)
-        return cls(tuple(float(v) for v in x.mean(axis=0)), tuple(float(v) if v > 0 else 1.0 for v in sd))
-
-    def __call__(self, obs: np.ndarray) -> np.ndarray:
-        """``[N, 7]`` (or ``[7]``) observations -> ``[N, 7]`` float32, standardised (numpy; the
-        networks do the same in torch)."""
-        return ((policy_rows(obs) - np.asarray(self.mean)) / np.asarray(self.std)).astype(np.float32)
 
 
 # -- the imitation policies as callables -------------------------------------------------------
@@ -163,37 +133,6 @@ def mean_entropy(actor: TorchActor, obs: np.ndarray) -> float:
     return float(h.mean())
 
 
-#: The columns of GAIL's CSV log (``gail-log/progress.csv``) :func:`gail_log_summary` reads, by short name.
-GAIL_LOG_COLUMNS = {"steps": "mean/gen/time/total_timesteps", "entropy": "mean/gen/train/entropy_loss",
-                    "approx_kl": "mean/gen/train/approx_kl", "disc_loss": "mean/disc/disc_loss",
-                    "disc_acc": "mean/disc/disc_acc", "ep_len": "mean/gen/rollout/ep_len_mean"}
-
-
-def gail_log_summary(progress_csv: Path) -> dict[str, tuple[float, float]]:
-    """``{name: (first round, last round)}`` of GAIL's CSV log (:data:`GAIL_LOG_COLUMNS`; the
-    entropy as PPO's policy entropy, nats, the negated ``entropy_loss``); NaN where a round
-    lacks the column.
-
-    Raises:
-        FileNotFoundError: no log at ``progress_csv``.
-        ValueError: the log has no rounds.
-    """
-    import csv
-
-    with open(progress_csv, encoding="utf-8", newline="") as fh:
-        rows = list(csv.DictReader(fh))
-    if not rows:
-        raise ValueError(f"{progress_csv}: GAIL's log has no rounds")
-
-    def val(row: dict[str, str], col: str) -> float:
-        v = row.get(col) or ""
-        return float(v) if v.strip() else math.nan
-
-    out = {k: (val(rows[0], c), val(rows[-1], c)) for k, c in GAIL_LOG_COLUMNS.items()}
-    out["entropy"] = (-out["entropy"][0], -out["entropy"][1])
-    return out
-
-
 # -- training ----------------------------------------------------------------------------------
 def seed_torch(seed: int) -> None:
     """Seed torch, one thread, deterministic algorithms where torch has them."""
@@ -214,8 +153,8 @@ def observation_space() -> Any:
 
 
 def extractor_kwargs(scaler: ObsScaler) -> dict[str, Any]:
-    """Stable-Baselines3 policy keywords: the :class:`~benchmarks.imitation_nets.Standardize` first layer."""
-    from benchmarks.imitation_nets import Standardize
+    """Stable-Baselines3 policy keywords: the :class:`~studies.imitation_nets.Standardize` first layer."""
+    from studies.imitation_nets import Standardize
 
     return {"features_extractor_class": Standardize,
             "features_extractor_kwargs": {"mean": scaler.mean, "std": scaler.std}}
@@ -255,48 +194,6 @@ class ZeroReward:
 
     def __call__(self, obs: Any, action_bin: int, acc_ft_s2: float) -> float:
         return 0.0
-
-
-@dataclass(frozen=True)
-class GailConfig:
-    """GAIL's budget and its learners' settings (:func:`train_gail`).
-
-    Attributes:
-        steps: the generator's (PPO's) environment steps in all.
-        n_steps: PPO's rollout per round (environment steps; GAIL's round: one rollout, then
-            ``disc_updates`` discriminator updates).
-        batch_size, n_epochs, learning_rate, ent_coef, gamma: PPO's minibatch, epochs per rollout,
-            Adam step size, entropy bonus and discount.
-        disc_updates: discriminator updates per round (each on ``demo_batch_size`` demonstration
-            and as many generated transitions).
-        disc_lr: the discriminator's Adam step size.
-        demo_batch_size: demonstration transitions per discriminator update.
-
-    Raises:
-        ValueError: a count below 1, ``steps`` below ``n_steps`` (not one round), a learning rate
-            not above 0, ``gamma`` outside (0, 1] or a negative ``ent_coef``.
-    """
-
-    steps: int = 32768
-    n_steps: int = 512
-    batch_size: int = 64
-    n_epochs: int = 4
-    learning_rate: float = 3e-4
-    ent_coef: float = 0.0
-    gamma: float = 0.99
-    disc_updates: int = 4
-    disc_lr: float = 1e-3
-    demo_batch_size: int = 256
-
-    def __post_init__(self) -> None:
-        counts = ("steps", "n_steps", "batch_size", "n_epochs", "disc_updates", "demo_batch_size")
-        for name in counts:
-            if getattr(self, name) < 1:
-                raise ValueError(f"GAIL's {name} must be at least 1, got {getattr(self, name)}")
-        if self.steps < self.n_steps:
-            raise ValueError(f"GAIL's steps ({self.steps}) must be at least one round of n_steps ({self.n_steps})")
-        if not (self.learning_rate > 0 and self.disc_lr > 0 and 0 < self.gamma <= 1 and self.ent_coef >= 0):
-            raise ValueError(f"GAIL's learning rates must be > 0, gamma in (0, 1] and ent_coef >= 0, got {self}")
 
 
 def make_gail(demos: list[Any], scaler: ObsScaler, action_acc_ft_s2: tuple[float, ...], *,
@@ -349,7 +246,7 @@ def train_gail(demos: list[Any], scaler: ObsScaler, action_acc_ft_s2: tuple[floa
     return gail.gen_algo.policy, time.perf_counter() - t0
 
 
-# -- the benchmark -----------------------------------------------------------------------------
+# -- the comparison ----------------------------------------------------------------------------
 def demo_data(args) -> tuple[Path, dict[str, float]]:
     """The demo folder (run now, or ``--demo``) and the training wall times of its models (s)."""
     from analysis.demo.config import DemoConfig
@@ -400,7 +297,7 @@ def main(argv: list[str] | None = None) -> int:
                                    learning_rate=args.gail_lr, disc_updates=args.gail_disc_updates)
         except ValueError as e:
             ap.error(str(e))
-    print("command: python -m benchmarks.imitation_bench " + shlex.join(sys.argv[1:] if argv is None else argv))
+    print("command: python -m studies.imitation_bench " + shlex.join(sys.argv[1:] if argv is None else argv))
     return run(args)
 
 

@@ -8,7 +8,7 @@ spacing, time headway; the check's diagnosis of a miss). ``--shipped`` also simu
 scenario itself on the same seeds and compares it with the same held-out pairs. Prints a table and
 whether every KS is at most the target (0.15)::
 
-    nice python -m benchmarks.calibration_preset_heldout --seeds 0 --sumo-seeds 0 1 [--shipped]
+    nice python -m studies.calibration_preset_heldout --seeds 0 --sumo-seeds 0 1 [--shipped]
 
 A 600 s i80 run costs about 25-30 s of CPU, a default fit about 40-60 s on 2 cores.
 """
@@ -25,7 +25,7 @@ from pathlib import Path
 
 from analysis.calibration import load_pairs, split_by_follower
 from analysis.calibration.check import KS_TARGET, VARIABLES, compare_distributions, diagnose, pair_states, table_states
-from benchmarks.heldout_args import add_split_arguments
+from studies.heldout_args import add_split_arguments
 from merge_irl.units import FT_PER_M
 from scenarios.loader import load_scenario
 from sim.runtime.run import run_scenario

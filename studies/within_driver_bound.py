@@ -1,7 +1,7 @@
-"""Benchmark: how well does a driver's *own* calibration predict the rest of its trajectory? The
+"""Study: how well does a driver's *own* calibration predict the rest of its trajectory? The
 scale against which issue 14's 0.8 target for unseen drivers can be read.
 
-    python -m benchmarks.within_driver_bound [--pairs DIR] [--holdout 0.3] [--seeds 0 1 2]
+    python -m studies.within_driver_bound [--pairs DIR] [--holdout 0.3] [--seeds 0 1 2]
         [--fraction 0.5] [--classes 3] [--model idm]
 
 For each split (``split_by_follower(pairs, holdout, seed)``) every held-out pair is cut in time
@@ -36,7 +36,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from benchmarks.heldout_args import add_split_arguments
+from studies.heldout_args import add_split_arguments
 from analysis.calibration import (
     SUMO_DEFAULTS, CarFollowingPair, CFParams, PairBatch, fit_classes, fit_per_pair, fit_population, load_pairs,
     split_by_follower, split_in_time,

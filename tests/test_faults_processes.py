@@ -25,7 +25,7 @@ TESTS_DIR = Path(__file__).resolve().parent
 def _sweep_script(store: Path, tasks_src: str, workers: int = 2) -> str:
     return textwrap.dedent(f"""
         import sys
-        sys.path.insert(0, {str(TESTS_DIR)!r})
+        sys.path[:0] = [{str(TESTS_DIR.parent)!r}, {str(TESTS_DIR)!r}]  # the checkout first: tests/analysis/ must not shadow analysis
         from analysis.sweep import Task, run_sweep
         from sweep_tasks import DrawConfig, draw
         tasks = {tasks_src}

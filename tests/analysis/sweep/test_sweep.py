@@ -104,7 +104,7 @@ def test_unguarded_script_reports_the_main_guard(tmp_path):
     script = tmp_path / "unguarded.py"
     script.write_text(textwrap.dedent(f"""
         import sys
-        sys.path.insert(0, {str(TESTS_DIR)!r})
+        sys.path[:0] = [{str(TESTS_DIR.parent)!r}, {str(TESTS_DIR)!r}]  # the checkout first: tests/analysis/ must not shadow analysis
         with open({str(imports)!r}, "a") as f:
             f.write("x")
         from analysis.sweep import Task, run_sweep
@@ -126,7 +126,7 @@ def test_killed_sweep_resumes_to_the_same_results(tmp_path):
     marker.mkdir()
     script = textwrap.dedent(f"""
         import sys
-        sys.path.insert(0, {str(TESTS_DIR)!r})
+        sys.path[:0] = [{str(TESTS_DIR.parent)!r}, {str(TESTS_DIR)!r}]  # the checkout first: tests/analysis/ must not shadow analysis
         from analysis.sweep import Task, run_sweep
         from sweep_tasks import DrawConfig, draw
         tasks = [Task(f"draw-{{i}}", draw, DrawConfig(n=4, sleep_s=0.3, marker_dir={str(marker)!r}))

@@ -1,10 +1,13 @@
 """How the controller's actuation reads the road ahead of A: the ``need`` variant of High Brake
 (:attr:`ControllerConfig.high_brake <sim.closed_loop.config.ControllerConfig>`), which reads the
-simulator's ground truth (A's true leader and its true acceleration), and A's leader gap that it
-and the safety filter act on. The default, physical actuation reads neither."""
+simulator's ground truth (A's true leader and its true acceleration), A's leader gap that it
+and the safety filter act on, and the safety filter itself. The default, physical actuation reads neither."""
 
 from __future__ import annotations
 
+from typing import Any
+
+from merge_irl.units import FT_PER_M
 from sim.runtime.hooks import FrameState
 from sim.drivers.observe import lead_of
 
@@ -41,3 +44,38 @@ def leader_gap(frame: FrameState, ia: int) -> tuple[int, float] | None:
     if il is None:
         return None
     return il, float(frame.local_y[il]) - ya - float(frame.length[il])
+
+
+def safe_action(frame: FrameState, ia: int, action: int, acc_table, step_s: float, ttc_min: float) -> int:
+    """The safety filter (``ControllerConfig.safety_ttc_s``): ``action``, or the nearest
+    harder-braking one whose predicted gap to A's leader in lane 6 stays positive with a closing
+    TTC of at least ``ttc_min`` (s) after one decision step of ``step_s`` (s), A at the actions'
+    accelerations ``acc_table`` (ft/s^2, by action), its leader at constant speed (see
+    :class:`~sim.closed_loop.config.ControllerConfig`); High Brake (0) if none does."""
+    leader = leader_gap(frame, ia)
+    if leader is None:
+        return action
+    il, gap = leader
+    h = step_s
+    va, vl = float(frame.speed[ia]), float(frame.speed[il])
+    for a in range(action, -1, -1):
+        v1 = max(0.0, va + float(acc_table[a]) * h)
+        g1 = gap - 0.5 * (va + v1) * h + vl * h
+        closing = v1 - vl
+        if g1 > 0 and (closing <= 1e-9 or g1 / closing >= ttc_min):
+            return a
+    return 0
+
+
+def brake_to_need(frame: FrameState, ia: int, acc: float, a_sumo: str, vehicle: Any) -> float:
+    """The High Brake acceleration (ft/s^2) of ``ControllerConfig.high_brake == "need"``:
+    ``acc`` (the action's), or harder when A closes in on its leader in lane 6 faster than
+    ``acc`` stops it, by need at most A's ``decel`` (see :class:`~sim.closed_loop.config.ControllerConfig`).
+    ``vehicle`` is libsumo's ``vehicle`` domain (A's minimum gap and ``decel``)."""
+    leader = leader_gap(frame, ia)
+    if leader is None:
+        return acc
+    il, bumper_gap = leader
+    gap = max(bumper_gap - vehicle.getMinGap(a_sumo) * FT_PER_M, 1.0)
+    need = high_brake_need(float(frame.speed[ia]), float(frame.speed[il]), float(frame.acc[il]), gap)
+    return min(acc, max(-need, -vehicle.getDecel(a_sumo) * FT_PER_M))  # never softer than the action's own

@@ -50,13 +50,13 @@ from analysis.experiments.dagger import DaggerConfig, train_cf_driver
 from analysis.demo.config import CF_DRIVER, PLANNER_DRIVER, DemoConfig, check_dagger_seeds
 from analysis.demo.estimate import estimate
 from analysis.evaluation.episode import frame_from_dict, frame_to_dict
-from analysis.evaluation.evaluate import EvaluationReport, evaluate, resolve_executor
+from analysis.evaluation.evaluate import EvaluationReport, evaluate
 from analysis.evaluation.heldout_scoring import prepare_encounters
 from analysis.evaluation.policies import learned_policy
 from analysis.evaluation.report import collision_bound_line, flag_lines, report_table
 from analysis.experiments.learn import fit_problem, merge_config, merge_encoding, merge_features, saved_model
 from merge_irl.provenance import provenance, provenance_markdown, text_digest, write_timings
-from analysis.sweep import Task, run_sweep
+from analysis.sweep import Task, resolve_executor, run_sweep
 from merge_irl.atomic import write_text_atomic
 from irl.errors import IRLError
 from irl.methods.registry import method_names

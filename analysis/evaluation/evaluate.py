@@ -39,7 +39,7 @@ from analysis.evaluation.metrics import MetricsConfig
 from analysis.evaluation.aggregate import AggregateMetrics, aggregate
 from analysis.evaluation.distances import w1_to_demos
 from merge_irl.provenance import provenance, text_digest, write_timings
-from analysis.sweep import Task, parse_executor, run_sweep
+from analysis.sweep import Task, resolve_executor, run_sweep
 from irl.domains.merge.car_following import CFDecisions, car_following_decisions
 from irl.errors import ConfigError
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, frames_per_step
@@ -110,22 +110,6 @@ def run_episodes(tasks: Sequence[tuple], *, workers: int | None = None, executor
     if not report.ok:
         raise SimError("episodes failed: " + "; ".join(f"{f.key}: {f.error}" for f in report.failures))
     return [EpisodeResult.from_dict(report.results[t.key]) for t in sweep_tasks]
-
-
-def resolve_executor(executor: str | None, workers: int | None) -> str:
-    """``executor`` if given, else ``process:<workers>``, else ``process`` (every core);
-    raises SimError on a malformed value.
-
-    Raises:
-        SimError: both ``executor`` and ``workers`` given, or an executor spec that does not parse.
-    """
-    if executor is None:
-        executor = "process" if workers is None else f"process:{max(1, int(workers))}"
-    try:
-        parse_executor(executor)
-    except ValueError as e:
-        raise SimError(str(e)) from None
-    return executor
 
 
 def evaluate(

@@ -29,8 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from analysis.evaluation.evaluate import resolve_executor
-from analysis.sweep import Task, run_sweep
+from analysis.sweep import Task, resolve_executor, run_sweep
 from irl.domains.merge.actions import N_ACTIONS
 from irl.domains.merge.car_following import OBS_COLUMNS, CFDecisions, car_following_decisions
 from irl.domains.merge.cf_logit import CarFollowingLogit

@@ -75,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
     if args.workers is not None:
         config = replace(config, workers=args.workers)
     if args.executor is not None:
-        from analysis.evaluation.evaluate import resolve_executor
+        from analysis.sweep import resolve_executor
         from sim.errors import SimError
 
         if args.workers is not None:

@@ -80,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
     from sim.errors import SimError
 
     thresholds = parse_thresholds(args.fail_if) if args.fail_if else ()  # syntax errors before any work
-    from analysis.evaluation.evaluate import resolve_executor
+    from analysis.sweep import resolve_executor
 
     if args.executor is not None and args.workers is not None:
         raise SimError("give --executor or --workers, not both")

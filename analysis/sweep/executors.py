@@ -17,7 +17,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 
-from sim.errors import SimError
+from analysis.errors import AnalysisError
 
 EXECUTORS = ("serial", "process", "dask-local", "dask://HOST:PORT", "tls://HOST:PORT")
 
@@ -124,12 +124,12 @@ def resolve_executor(executor: str | None, workers: int | None) -> str:
     ``process`` (every core).
 
     Raises:
-        SimError: an executor spec that does not parse (:func:`parse_executor`).
+        AnalysisError: an executor spec that does not parse (:func:`parse_executor`).
     """
     if executor is None:
         executor = "process" if workers is None else f"process:{max(1, int(workers))}"
     try:
         parse_executor(executor)
     except ValueError as e:
-        raise SimError(str(e)) from None
+        raise AnalysisError(str(e)) from None
     return executor

@@ -48,6 +48,7 @@ from analysis.calibration.vtypes import (
 from scenarios.loader import load_scenario
 from scenarios.spec.parse import with_overrides
 from sim.runtime.run import run_scenario
+from sim.runtime.sites import site_of
 
 __all__ = ["CAUSES", "GAP_QUANTILES", "HIST_BINS", "KS_TARGET", "MAX_SPACING_FT", "N_MEMBERS", "REAL_LANES",
            "SPEED_RANGE_FT_S", "VARIABLES", "AcceptedGaps", "CalibrationCheck", "Diagnosis", "VariableComparison",
@@ -188,7 +189,7 @@ def run_calibration_check(
     if duration_s is None:
         duration_s = spec.simulation.duration_s
     ev = evaluate(result.population, pairs, model=result.model)
-    gaps = accepted_gaps(table)
+    gaps = accepted_gaps(table, site=site_of(spec))
     return CalibrationCheck(
         scenario=str(scenario), seed=seed, duration_s=duration_s, model=result.model,
         variables=compare_distributions(table_states(table, study_length_ft=spec.road.main_length_m * FT_PER_M),

@@ -16,7 +16,7 @@ import pandas as pd
 
 from analysis.calibration import CarFollowingPair
 from merge_irl.units import M_PER_FT
-from sim.runtime.schema import RAMP_LANE, RIGHTMOST_MAIN_LANE
+from sim.runtime.sites import I80, SiteProfile
 
 #: Congested car following: speed range (ft/s) and largest spacing (ft) kept.
 SPEED_RANGE_FT_S = (1.0, 45.0)
@@ -60,13 +60,15 @@ def _vehicle_lengths(table: pd.DataFrame) -> pd.Series:
     return table.drop_duplicates("Vehicle_ID").set_index("Vehicle_ID")["v_Length"]
 
 
-def accepted_gaps(table: pd.DataFrame) -> AcceptedGaps:
+def accepted_gaps(table: pd.DataFrame, *, site: SiteProfile = I80) -> AcceptedGaps:
     """The gaps accepted by the ramp cars of a trajectory table (NGSIM schema, ft); see
-    :class:`AcceptedGaps`. Cars never seen on lane 7 before lane 6 are left out."""
+    :class:`AcceptedGaps`. Lanes are ``site``'s (the simulated scenario's,
+    :func:`sim.runtime.sites.site_of`; I-80's by default): cars never seen on a ramp lane (I-80: 7)
+    before the merge lane (I-80: 6) are left out."""
     t = table.sort_values(["Vehicle_ID", "Frame_ID"], kind="stable")
-    on_ramp = t["Lane_ID"] == RAMP_LANE
+    on_ramp = t["Lane_ID"].isin(site.ramp_lanes)
     was_ramp = on_ramp.groupby(t["Vehicle_ID"]).cummax()
-    merged = t[(t["Lane_ID"] == RIGHTMOST_MAIN_LANE) & was_ramp].drop_duplicates("Vehicle_ID")
+    merged = t[(t["Lane_ID"] == site.merge_lane) & was_ramp].drop_duplicates("Vehicle_ID")
     where = table.set_index(["Vehicle_ID", "Frame_ID"])["Local_Y"]
     lengths = _vehicle_lengths(table)
 

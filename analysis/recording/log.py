@@ -68,7 +68,7 @@ from irl.domains.merge.actions import ACTION_NAMES
 from irl.domains.merge.features import FEATURE_NAMES, paper_features
 from sim.runtime.hooks import FrameState, RunContext
 from sim.drivers.observe import lead_of
-from sim.runtime.schema import RAMP_LANE
+from sim.runtime.sites import I80
 
 __all__ = ["ACTION_RGBA", "BAR_HALF_WIDTH", "LANE_LINE_RGBA", "LANE_ROLES", "MIRROR_Y", "ROAD_RGBA", "ROLE_COLORS",
            "ROLE_IDS", "ROLE_LABELS", "ROLE_RGBA_U32", "RerunLogger", "action_bar_columns", "log_training",
@@ -98,7 +98,8 @@ class RerunLogger:
     Args:
         path: output file.
         controller: the run's :class:`sim.closed_loop.controller.Controller` (must run *before* this hook);
-            gives roles, decisions and controlled cars. Without it, lane-7 vehicles are shown as B.
+            gives roles, decisions and controlled cars. Without it, vehicles on the
+            site's ramp lane (I-80: 7) are shown as B.
         recording: an open stream (from :func:`~analysis.recording.files.open_recording`) to add to instead of opening
             one; then the caller closes it.
         flush_every: frames buffered before they are sent.
@@ -118,6 +119,7 @@ class RerunLogger:
         self.training_methods = tuple(training_methods)
         self._section: tuple[float, float, float, float] | None = None
         self._focus = np.zeros(2)
+        self._ramp_lane = I80.ramp_lanes[0]  # the run's site profile's, set by on_start
         self.episode = episode
         self.controller = controller
         self.flush_every = int(flush_every)
@@ -161,6 +163,7 @@ class RerunLogger:
             run = run_token(self.path, ctx.spec.to_toml(), policy_digest(driver))  # unique per run, deterministic
             rid, name = recording_identity(ctx.spec.name, policy, ctx.seed, self.episode, run=run)
             self._rec, self._tmp = open_recording(self.path, application_id=self._app, recording_id=rid, name=name)
+        self._ramp_lane = int(ctx.site.ramp_lanes[0])
         bounds = log_scene(self._stream, ctx)
         if bounds is not None:
             self._section, self._focus = bounds
@@ -212,7 +215,7 @@ class RerunLogger:
     def _roles_of(self, frame: FrameState) -> np.ndarray:
         roles = np.zeros(len(frame.sumo_ids), dtype=np.uint16)
         if self.controller is None:
-            roles[frame.lane_id == RAMP_LANE] = ROLE_IDS["B"]
+            roles[frame.lane_id == self._ramp_lane] = ROLE_IDS["B"]
             return roles
         a_role = ROLE_IDS["A"] if getattr(self.controller.policy, "controls", True) else ROLE_IDS["A observed"]
         for row, role in self.controller.role_rows.items():

@@ -11,7 +11,7 @@ import rerun as rr
 from irl.domains.merge.actions import ACTION_NAMES
 from sim.runtime.hooks import RunContext
 from sim.runtime.lanes import aux_lane_start_ft
-from sim.runtime.schema import RAMP_LANE, RIGHTMOST_MAIN_LANE
+from sim.runtime.sites import I80, SiteProfile
 
 #: ``class_ids`` of the vehicle boxes, by role.
 ROLE_IDS = {"other": 0, "A": 1, "B": 2, "C": 3, "A observed": 4}
@@ -25,19 +25,37 @@ ROLE_COLORS = np.array(
 ROLE_RGBA_U32 = (ROLE_COLORS.astype(np.uint32) @ np.array([1 << 24, 1 << 16, 1 << 8, 1], dtype=np.uint32)).astype(np.uint32)
 #: The ``world`` transform: y mirrored (2D views draw y downwards).
 MIRROR_Y = np.diag([1.0, -1.0, 1.0])
-#: What each lane is, for its label (I-80 numbering; other lanes are "lane <n>").
-LANE_ROLES = {str(RIGHTMOST_MAIN_LANE): "right main lane", str(RAMP_LANE): "ramp / auxiliary lane"}
 #: RGBA of the road surface and of the lane centre lines.
 ROAD_RGBA = (62, 62, 66, 255)
 LANE_LINE_RGBA = (150, 150, 150, 255)
+
+
+def lane_roles(site: SiteProfile) -> dict[str, str]:
+    """What each lane of ``site`` is, for its label, by lane code (other lanes are "lane <n>"):
+    the merge lane "right main lane", a ramp lane "ramp / auxiliary lane" (or "ramp" when the site
+    has auxiliary lanes of their own, each "auxiliary lane")."""
+    roles = {str(site.merge_lane): "right main lane"}
+    for lane in site.ramp_lanes:
+        roles[str(lane)] = "ramp" if site.auxiliary_lanes else "ramp / auxiliary lane"
+    for lane in site.auxiliary_lanes:
+        roles[str(lane)] = "auxiliary lane"
+    return roles
+
+
+#: :func:`lane_roles` of I-80 (and of every preset): lane 6 the right main lane, 7 the ramp.
+LANE_ROLES = lane_roles(I80)
+
+
 def road_landmarks(ctx: RunContext) -> tuple[np.ndarray, list[str]]:
-    """``[m, 2]`` positions (ft, SUMO's frame) and labels of the road's landmarks: where lane 7
-    (the ramp) begins, where it first runs beside lane 6 (the auxiliary lane, the merge zone)
-    and where it ends. Empty when the run has no lane 7 or no lane 6."""
-    if str(RAMP_LANE) not in ctx.lane_shapes or str(RIGHTMOST_MAIN_LANE) not in ctx.lane_shapes:
+    """``[m, 2]`` positions (ft, SUMO's frame) and labels of the road's landmarks: where the
+    ramp lane of the run's site (``ctx.site``; I-80: 7) begins, where it first runs beside the
+    merge lane (I-80: 6; the auxiliary lane, the merge zone) and where it ends. Empty when the
+    run has no ramp lane or no merge lane."""
+    ramp, merge = str(ctx.site.ramp_lanes[0]), str(ctx.site.merge_lane)
+    if ramp not in ctx.lane_shapes or merge not in ctx.lane_shapes:
         return np.zeros((0, 2)), []
-    l6 = np.asarray(ctx.lane_shapes[str(RIGHTMOST_MAIN_LANE)], dtype=np.float64)[:, :2]
-    l7 = np.asarray(ctx.lane_shapes[str(RAMP_LANE)], dtype=np.float64)[:, :2]
+    l6 = np.asarray(ctx.lane_shapes[merge], dtype=np.float64)[:, :2]
+    l7 = np.asarray(ctx.lane_shapes[ramp], dtype=np.float64)[:, :2]
     x_aux = float(l6[0, 0]) + aux_lane_start_ft(ctx)
     aux = np.array([x_aux, float(np.interp(x_aux, l7[:, 0], l7[:, 1]))])
     return np.stack([l7[0], aux, l7[-1]]), ["on-ramp", "merge zone: auxiliary lane begins", "auxiliary lane ends"]
@@ -52,7 +70,8 @@ def log_scene(rec: rr.RecordingStream, ctx: RunContext) -> tuple[tuple[float, fl
     half_lane = 0.5 * float(ctx.lane_width_ft)
     rec.log("world/road", rr.LineStrips2D(strips, radii=half_lane, draw_order=0.0,
                                           colors=[ROAD_RGBA] * len(strips)), static=True)
-    labels = [f"lane {n}" + (f" ({LANE_ROLES[n]})" if n in LANE_ROLES else "") for n in names]
+    roles = lane_roles(ctx.site)
+    labels = [f"lane {n}" + (f" ({roles[n]})" if n in roles else "") for n in names]
     rec.log("world/lanes", rr.LineStrips2D(strips, labels=labels, draw_order=10.0, show_labels=True,
                                            radii=rr.Radius.ui_points(1.0),
                                            colors=[LANE_LINE_RGBA] * len(strips)), static=True)

@@ -36,23 +36,25 @@ def high_brake_need(v_a: float, v_lead: float, acc_lead: float, gap: float) -> f
     return max(v_a, 0.0) ** 2 / (2.0 * (gap + v_lead * v_lead / (2.0 * d)))
 
 
-def leader_gap(frame: FrameState, ia: int) -> tuple[int, float] | None:
-    """A's leader in lane 6 (row) and the bumper gap to it (ft), or None without a leader: what
-    the safety filter and High Brake by need act on."""
+def leader_gap(frame: FrameState, ia: int, *, lane: int) -> tuple[int, float] | None:
+    """A's leader in ``lane`` (the merge lane A is controlled in; I-80: 6), as its row, and the
+    bumper gap to it (ft), or None without a leader: what the safety filter and High Brake by
+    need act on."""
     ya = float(frame.local_y[ia])
-    il = lead_of(frame, ya, exclude=(ia,))
+    il = lead_of(frame, ya, lane=lane, exclude=(ia,))
     if il is None:
         return None
     return il, float(frame.local_y[il]) - ya - float(frame.length[il])
 
 
-def safe_action(frame: FrameState, ia: int, action: int, acc_table, step_s: float, ttc_min: float) -> int:
+def safe_action(frame: FrameState, ia: int, action: int, acc_table, step_s: float, ttc_min: float, *,
+                lane: int) -> int:
     """The safety filter (``ControllerConfig.safety_ttc_s``): ``action``, or the nearest
-    harder-braking one whose predicted gap to A's leader in lane 6 stays positive with a closing
+    harder-braking one whose predicted gap to A's leader in ``lane`` (:func:`leader_gap`) stays positive with a closing
     TTC of at least ``ttc_min`` (s) after one decision step of ``step_s`` (s), A at the actions'
     accelerations ``acc_table`` (ft/s^2, by action), its leader at constant speed (see
     :class:`~sim.closed_loop.config.ControllerConfig`); High Brake (0) if none does."""
-    leader = leader_gap(frame, ia)
+    leader = leader_gap(frame, ia, lane=lane)
     if leader is None:
         return action
     il, gap = leader
@@ -67,12 +69,12 @@ def safe_action(frame: FrameState, ia: int, action: int, acc_table, step_s: floa
     return 0
 
 
-def brake_to_need(frame: FrameState, ia: int, acc: float, a_sumo: str, vehicle: Any) -> float:
+def brake_to_need(frame: FrameState, ia: int, acc: float, a_sumo: str, vehicle: Any, *, lane: int) -> float:
     """The High Brake acceleration (ft/s^2) of ``ControllerConfig.high_brake == "need"``:
-    ``acc`` (the action's), or harder when A closes in on its leader in lane 6 faster than
+    ``acc`` (the action's), or harder when A closes in on its leader in ``lane`` (:func:`leader_gap`) faster than
     ``acc`` stops it, by need at most A's ``decel`` (see :class:`~sim.closed_loop.config.ControllerConfig`).
     ``vehicle`` is libsumo's ``vehicle`` domain (A's minimum gap and ``decel``)."""
-    leader = leader_gap(frame, ia)
+    leader = leader_gap(frame, ia, lane=lane)
     if leader is None:
         return acc
     il, bumper_gap = leader

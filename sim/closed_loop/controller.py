@@ -253,14 +253,14 @@ class Controller(HandOver):
             if self.config.safety_ttc_s is not None:
                 acc_table = [self.policy.acceleration(obs, a) for a in range(len(probs))]
                 safe = safe_action(frame, ia, action, acc_table, self._every * self._frame_s,
-                                   float(self.config.safety_ttc_s or 0.0))
+                                   float(self.config.safety_ttc_s or 0.0), lane=self._merge_lane)
                 filtered = safe != action
                 action = safe
                 c.n_interventions += int(filtered)
             acc = float(self.policy.acceleration(obs, action))
             if action == HIGH_BRAKE and self.config.high_brake == "need":
                 own = acc
-                acc = brake_to_need(frame, ia, acc, c.a_sumo, self._traci.vehicle)
+                acc = brake_to_need(frame, ia, acc, c.a_sumo, self._traci.vehicle, lane=self._merge_lane)
                 need = acc < own
                 c.n_need_brakes += int(need)
             acc = max(acc, -c.max_decel_ft_s2) if math.isfinite(c.max_decel_ft_s2) else acc  # A's physical limit

@@ -19,7 +19,9 @@ averaged successors is ``Q = R + gamma P_hat (mean_b Q(s', b))``, linear in thet
   to ``max change < inner_tol`` or ``max_inner`` sweeps, warm-started across outer steps, and
   fixed-length unit-gradient outer steps (:func:`irl.ascent.unit_step_ascent`). Where a pair has
   several different successors, the in-place sweep's fixed point depends on alpha and the data
-  order (it is not the averaged one) and, per REFERENCE.md, may oscillate.
+  order (it is not the averaged one) and may oscillate: the authors' code, run with 10 % slip
+  and on NGSIM, never reaches ``inner_tol`` = 1e-4, and every outer step runs both inner loops
+  to their 10000-sweep cap.
 """
 
 from __future__ import annotations

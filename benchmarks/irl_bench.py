@@ -10,7 +10,7 @@ solver over ``--trials`` random initialisations (median time, best and worst fin
 sweeps, so the whole benchmark takes minutes, not the hours the uncapped paper-literal loop
 needs. It prints both side by side with the time ratio, the targets (exact Q-Avg < 50 ms per
 trial on each data set; Q-SM and MLIRL < 1 s on gridworld, < 10 s on NGSIM) and the authors'
-measured numbers from REFERENCE.md. REIRL is one convex solve: no faithful/exact distinction.
+measured numbers (their Java code run on 2 cores, OpenJDK 17: :data:`AUTHORS`). REIRL is one convex solve: no faithful/exact distinction.
 """
 
 from __future__ import annotations
@@ -36,7 +36,8 @@ DATASETS = {1: "grid 0%", 2: "grid 10%", 3: "NGSIM"}
 #: Targets for one exact trial (seconds) by (method, is_ngsim).
 TARGETS = {("qavg", False): 0.05, ("qavg", True): 0.05, ("qsm", False): 1.0, ("qsm", True): 10.0,
            ("mlirl", False): 1.0, ("mlirl", True): 10.0}
-#: The authors' Java code measured here (REFERENCE.md; reference settings, gamma 0.9).
+#: The authors' Java code measured here (OpenJDK 17, 2 cores; reference settings, gamma 0.9): time per
+#: trial, outer steps, final LL.
 AUTHORS = {("qavg", 1): "0.8-1.0 s, ~19,330 steps, LL -27.0", ("qsm", 1): "15-17 s, ~7,165 steps, LL -30.2",
            ("qavg", 2): "743 s (20,000-step cap), LL -43.6", ("qsm", 2): "~73 min (projected)",
            ("qavg", 3): "hours (1.7 s per outer step)"}

@@ -18,10 +18,11 @@ import argparse
 import math
 import sys
 import time
+from dataclasses import replace
 from collections import defaultdict
 from pathlib import Path
 
-from analysis.experiments.reproduce import reproduce_tables
+from analysis.experiments.reproduce import ReproduceConfig, reproduce_tables
 from irl.methods.registry import method_names
 
 DEFAULT_DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "railusm"
@@ -49,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
     tables = [int(t) for t in args.tables.split(",") if t.strip()]
     methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
     executors = [e.strip() for e in args.executors.split(",") if e.strip()]
-    kw = dict(trials=args.trials, methods=methods, holdout=not args.no_holdout, progress=False)
+    config = ReproduceConfig(args.data, trials=args.trials, methods=methods, holdout=not args.no_holdout, progress=False)
     counts = "paper counts 30/30/10" if args.trials is None else f"{args.trials} trials per method"
     print(f"sweep_bench: tables {tables}, methods {list(methods)}, {counts}, "
           f"held-out folds {'off' if args.no_holdout else 'on'}")
@@ -57,7 +58,7 @@ def main(argv: list[str] | None = None) -> int:
     runs = {}
     for ex in executors:
         t0 = time.perf_counter()
-        run = reproduce_tables(tables, args.data, executor=ex, **kw)
+        run = reproduce_tables(tables, replace(config, executor=ex))
         walls[ex] = time.perf_counter() - t0
         runs[ex] = run
         print(f"  {ex:<14} {walls[ex]:8.1f} s wall  ({run.sweep.n_run} trials, {len(run.sweep.failures)} failed)",

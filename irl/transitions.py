@@ -6,7 +6,8 @@ Two sources, one representation (:class:`SuccessorModel`):
   but each trajectory's last, ``(s_t, a_t) -> s_{t+1}``; ``P_hat(s'|s,a)`` is the relative count
   over the pair's non-final occurrences. A pair with no observed successor (never seen, or only
   seen as a trajectory's final step) is **terminal**: its Q is its reward, ``Q(s,a) = R(s,a)``
-  (the authors' code pulls every such pair to ``R``; see REFERENCE.md), unless a fallback
+  (the authors' code pulls every such pair, each trajectory's final step included, to ``R``,
+  and ``dQ/dtheta`` to ``phi``, without a bootstrap), unless a fallback
   successor table is given (:mod:`irl.unobserved_successors`).
 * **model-based** (MLIRL, REIRL): a full row-stochastic transition model (the true one, or
   :func:`estimate_transitions` with a domain-supplied fallback). No pair is terminal. Stored

@@ -2,7 +2,7 @@
 encounter table with frame numbers.
 
 The gridworld demonstrations come from the project's own generator (``irl.domains.gridworld``: the
-paper's 5x5 gridworld, REFERENCE.md layout), with fixed seeds and about the authors' sizes
+paper's 5x5 gridworld, laid out as the authors' code does), with fixed seeds and about the authors' sizes
 (12 expert trajectories without noise, 14 with 10% slips), so the tests run on a fresh clone.
 The authors' own files (AGPL, not shipped) are tested through the ``railusm`` fixture.
 """
@@ -44,7 +44,7 @@ def gridworld_demos(noise: str = "0.0", kind: str = "expert") -> Demonstrations:
         demos = gridworld.generate_baseline(n_baseline, length, float(noise), rng)
     else:
         raise ValueError(f"kind must be 'expert' or 'baseline', got {kind!r}")
-    np.testing.assert_array_equal(demos.features, gridworld_features())  # the layout REFERENCE.md gives
+    np.testing.assert_array_equal(demos.features, gridworld_features())  # the authors' layout: yellow 4, green 0, red 20, pink 24, blue 1/8/11/18/21
     return demos
 
 

@@ -212,12 +212,12 @@ def test_docs_table_3_is_what_reproduce_prints(railusm):
     """The Table 3 printed in docs/learn.md has the layout ``merge-irl reproduce`` prints today, and
     its Q-Avg row is what reproduce prints on the authors' data (the cheap method: the others take
     minutes per trial; the page says when and how the whole table was made)."""
-    from analysis.experiments.reproduce import reproduce
+    from analysis.experiments.reproduce import ReproduceConfig, reproduce
     from analysis.experiments.reproduce_report import format_report
 
     (block,) = [b for b in code_blocks(ROOT / "docs" / "learn.md", ("",)) if b.startswith("Table 3:")]
     doc = block.splitlines()
-    report = reproduce(3, railusm, methods=("qavg",), executor="serial")
+    report = reproduce(3, ReproduceConfig(railusm, methods=("qavg",), executor="serial"))
     printed = format_report(report).splitlines()
     assert printed[0] == doc[0]  # title: data, trial count, settings, seed
     assert _cells(printed[1]) == _cells(doc[1])  # the columns

@@ -20,7 +20,8 @@ is not part of the comparison).
 
 plus the spacing RMSE of the calibrated population vs SUMO's defaults on the pairs
 (:func:`analysis.calibration.evaluate`). :func:`compare_distributions` is the comparison alone,
-for any simulated table.
+for any simulated table (:mod:`analysis.calibration.compare`, with :func:`diagnose`); the states
+compared and the accepted gaps: :mod:`analysis.calibration.states`.
 """
 
 from __future__ import annotations
@@ -29,173 +30,34 @@ import os
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 from merge_irl.atomic import write_text_atomic
-from merge_irl.units import FT_PER_M, M_PER_FT
-from analysis.calibration import CarFollowingPair, evaluate, load_pairs, load_result
+from merge_irl.units import FT_PER_M
+from analysis.calibration import evaluate, load_pairs, load_result
+from analysis.calibration.compare import (
+    CAUSES, HIST_BINS, KS_TARGET, Diagnosis, VariableComparison, compare_distributions, diagnose,
+)
+from analysis.calibration.states import (
+    GAP_QUANTILES, MAX_SPACING_FT, REAL_LANES, SPEED_RANGE_FT_S, VARIABLES, AcceptedGaps, accepted_gaps, pair_states,
+    table_states,
+)
 from analysis.calibration.vtypes import (
     driver_members, every_member, resample_members, scenario_car_model, to_vtype_specs,
 )
 from scenarios.loader import load_scenario
 from scenarios.spec.parse import with_overrides
 from sim.runtime.run import run_scenario
-from sim.runtime.schema import RAMP_LANE, RIGHTMOST_MAIN_LANE
+from sim.runtime.sites import site_of
 
-#: Congested car following: speed range (ft/s) and largest spacing (ft) kept.
-SPEED_RANGE_FT_S = (1.0, 45.0)
-MAX_SPACING_FT = 300.0
-HIST_BINS = 40
-VARIABLES = ("speed_ft_s", "spacing_ft", "time_headway_s")
-#: I-80 lanes the real pairs were recorded on (ngsim_i80_car_following: lanes 2-6).
-REAL_LANES = (2, 3, 4, 5, 6)
+__all__ = ["CAUSES", "GAP_QUANTILES", "HIST_BINS", "KS_TARGET", "MAX_SPACING_FT", "N_MEMBERS", "REAL_LANES",
+           "SPEED_RANGE_FT_S", "VARIABLES", "AcceptedGaps", "CalibrationCheck", "Diagnosis", "VariableComparison",
+           "accepted_gaps", "calibrated_spec", "compare_distributions", "diagnose", "pair_states",
+           "run_calibration_check", "table_states"]
+
 #: Driver types of a resample (``n_members``) from a params file with per-pair fits; the ``i80``
 #: preset has 32. The default is every per-pair fit once (:func:`~.vtypes.every_member`).
 N_MEMBERS = 32
-#: Issue 14's target: KS distance at most this for each variable.
-KS_TARGET = 0.15
-#: Quantiles of the accepted-gap summary.
-GAP_QUANTILES = (0.1, 0.25, 0.5, 0.75, 0.9)
-
-
-@dataclass(frozen=True)
-class AcceptedGaps:
-    """Gaps ramp cars accepted: at the first frame a car seen on the ramp / auxiliary lane
-    (lane 7) is in lane 6, bumper-to-bumper distances (ft) to the lag car A behind it
-    (``lag``: B's rear bumper minus A's front bumper), to the lead car C ahead (``lead``: C's
-    rear minus B's front) and between them (``total``: C's rear minus A's front). float64[n]
-    each, NaN where there is no such car in lane 6.
-    """
-
-    lag_ft: np.ndarray
-    lead_ft: np.ndarray
-    total_ft: np.ndarray
-
-    @property
-    def n(self) -> int:
-        return len(self.total_ft)
-
-    def quantiles(self) -> dict[str, list[float]]:
-        """name -> the :data:`GAP_QUANTILES` of the finite values (NaN when there are none)."""
-        out = {}
-        for name in ("lag_ft", "lead_ft", "total_ft"):
-            x = getattr(self, name)
-            x = x[np.isfinite(x)]
-            out[name] = [float(q) for q in np.quantile(x, GAP_QUANTILES)] if len(x) else [float("nan")] * len(GAP_QUANTILES)
-        return out
-
-
-def _vehicle_lengths(table: pd.DataFrame) -> pd.Series:
-    """Vehicle_ID -> v_Length (ft) of a trajectory table (first row of each vehicle)."""
-    return table.drop_duplicates("Vehicle_ID").set_index("Vehicle_ID")["v_Length"]
-
-
-def accepted_gaps(table: pd.DataFrame) -> AcceptedGaps:
-    """The gaps accepted by the ramp cars of a trajectory table (NGSIM schema, ft); see
-    :class:`AcceptedGaps`. Cars never seen on lane 7 before lane 6 are left out."""
-    t = table.sort_values(["Vehicle_ID", "Frame_ID"], kind="stable")
-    on_ramp = t["Lane_ID"] == RAMP_LANE
-    was_ramp = on_ramp.groupby(t["Vehicle_ID"]).cummax()
-    merged = t[(t["Lane_ID"] == RIGHTMOST_MAIN_LANE) & was_ramp].drop_duplicates("Vehicle_ID")
-    where = table.set_index(["Vehicle_ID", "Frame_ID"])["Local_Y"]
-    lengths = _vehicle_lengths(table)
-
-    def y_of(ids: pd.Series) -> np.ndarray:
-        keys = list(zip(ids.to_numpy(), merged["Frame_ID"].to_numpy()))
-        return np.array([where.get(k, np.nan) if k[0] != 0 else np.nan for k in keys], dtype=float)
-
-    y_b = merged["Local_Y"].to_numpy(dtype=float)
-    len_b = merged["v_Length"].to_numpy(dtype=float)
-    y_a = y_of(merged["Following"])
-    y_c = y_of(merged["Preceding"])
-    len_c = merged["Preceding"].map(lengths).to_numpy(dtype=float)
-    return AcceptedGaps(lag_ft=y_b - len_b - y_a, lead_ft=y_c - len_c - y_b, total_ft=y_c - len_c - y_a)
-
-
-@dataclass(frozen=True)
-class VariableComparison:
-    """One variable: sample sizes, medians, KS statistic and Jensen-Shannon divergence; the
-    interquartile ranges and the KS statistics that remain once the simulated sample is moved to
-    the real median (``ks_shifted``) and also scaled to the real interquartile range
-    (``ks_rescaled``), which :func:`diagnose` reads."""
-
-    name: str
-    n_sim: int
-    n_real: int
-    median_sim: float
-    median_real: float
-    ks: float
-    js: float
-    iqr_sim: float = float("nan")
-    iqr_real: float = float("nan")
-    ks_shifted: float = float("nan")
-    ks_rescaled: float = float("nan")
-
-
-#: What a miss of each kind points to (docs/calibration.md, *Which variable misses and why*).
-CAUSES = {"ok": "-", "location": "demand", "spread": "driver spread", "shape": "model"}
-_LOCATION_HINT = {
-    "speed_ft_s": "the traffic state: demand per lane, the bottleneck, the drivers' desired speed (maxSpeed)",
-    "spacing_ft": "the density: demand per lane and the bottleneck, or the drivers' minGap / tau",
-    "time_headway_s": "the density: demand per lane and the bottleneck, or the drivers' tau",
-}
-
-
-@dataclass(frozen=True)
-class Diagnosis:
-    """Why one variable misses the KS target (:func:`diagnose`).
-
-    ``kind``: ``"ok"`` (KS within the target), ``"location"`` (moving the simulated sample to the
-    real median brings it within), ``"spread"`` (moving it and scaling it to the real
-    interquartile range brings it within), ``"shape"`` (neither); ``cause`` the likely why,
-    :data:`CAUSES` of the kind; ``text`` one sentence with the measured signals.
-    """
-
-    variable: str
-    kind: str
-    cause: str
-    text: str
-
-
-def diagnose(variables, target: float | None = None) -> tuple[Diagnosis, ...]:
-    """A :class:`Diagnosis` per :class:`VariableComparison`, from measured signals only.
-
-    Rule (applied in this order to a variable whose KS exceeds ``target``, default
-    :data:`KS_TARGET`): if ``ks_shifted <= target`` the two distributions differ mainly by a
-    location shift, which points to the demand (the traffic state the drivers are in: flow per
-    lane, bottleneck, desired speed); else if ``ks_rescaled <= target`` they differ in width
-    (interquartile range), which points to the driver spread (how much the simulated drivers
-    differ from one another, or oscillate); else the shape differs (e.g. two modes where the
-    real has one), which points to the car-following model. NaN comparisons (an empty sample)
-    give kind ``"shape"`` with the cause ``"no data"``.
-    """
-    target = KS_TARGET if target is None else target
-    out = []
-    for v in variables:
-        if not np.isfinite(v.ks):
-            out.append(Diagnosis(v.name, "shape", "no data", f"{v.name}: no simulated or real states to compare"))
-            continue
-        if v.ks <= target:
-            out.append(Diagnosis(v.name, "ok", CAUSES["ok"], f"{v.name}: KS {v.ks:.3f} <= {target:g}"))
-            continue
-        offset = (f"median {v.median_sim:.2f} vs {v.median_real:.2f} real "
-                  f"({'higher' if v.median_sim > v.median_real else 'lower'})")
-        ratio = v.iqr_sim / v.iqr_real if v.iqr_real > 0 else float("nan")
-        width = f"interquartile range {v.iqr_sim:.2f} vs {v.iqr_real:.2f} real (x{ratio:.2f}, " + (
-            "narrower)" if ratio < 1 else "wider)")
-        signals = (f"KS {v.ks:.3f}; at the real median {v.ks_shifted:.3f}, also at the real width "
-                   f"{v.ks_rescaled:.3f}")
-        if v.ks_shifted <= target:
-            kind, why = "location", f"a location shift, {offset}: check {_LOCATION_HINT.get(v.name, 'the demand')}"
-        elif v.ks_rescaled <= target:
-            kind, why = "spread", (f"a width mismatch, {width}: the simulated drivers differ "
-                                   f"{'too little' if ratio < 1 else 'too much'} (driver spread)")
-        else:
-            kind, why = "shape", (f"a shape the median and width do not explain ({offset}; {width}): "
-                                  "the car-following model (e.g. two modes where the real has one)")
-        out.append(Diagnosis(v.name, kind, CAUSES[kind], f"{v.name} misses: {why} [{signals}]"))
-    return tuple(out)
 
 
 @dataclass(frozen=True)
@@ -277,69 +139,6 @@ class CalibrationCheck:
         return write_text_atomic(path, self.to_markdown())
 
 
-def _congested(speed: np.ndarray, spacing: np.ndarray, headway_front: np.ndarray) -> dict[str, np.ndarray]:
-    ok = (speed >= SPEED_RANGE_FT_S[0]) & (speed <= SPEED_RANGE_FT_S[1]) & (spacing > 0) & (spacing <= MAX_SPACING_FT)
-    return {"speed_ft_s": speed[ok], "spacing_ft": spacing[ok], "time_headway_s": headway_front[ok] / speed[ok]}
-
-
-def table_states(table: pd.DataFrame, *, lanes: tuple[int, ...] = REAL_LANES,
-                 study_length_ft: float = np.inf) -> dict[str, np.ndarray]:
-    """Congested following states of a trajectory table (NGSIM units); float64[n] per variable.
-
-    Spacing = ``Space_Headway`` (front to front, ft) minus the preceding vehicle's ``v_Length``
-    (bumper to bumper); time headway = ``Space_Headway / v_Vel``. Rows on ``lanes`` with
-    ``0 <= Local_Y <= study_length_ft`` and a preceding vehicle are kept.
-    """
-    y = table["Local_Y"]
-    t = table[table["Lane_ID"].isin(lanes) & (table["Preceding"] != 0) & (y >= 0) & (y <= study_length_ft)]
-    lengths = _vehicle_lengths(table)
-    lead_len = t["Preceding"].map(lengths).to_numpy(dtype=float)
-    front = t["Space_Headway"].to_numpy(dtype=float)
-    spacing = front - np.nan_to_num(lead_len, nan=np.inf)
-    return _congested(t["v_Vel"].to_numpy(dtype=float), spacing, front)
-
-
-def pair_states(pairs: list[CarFollowingPair]) -> dict[str, np.ndarray]:
-    """The same variables from the real pairs (converted back to feet): the pairs' ``spacing``
-    is bumper to bumper (``x_leader - x_follower - leader_length``, positions of the front
-    bumpers), front to front adds the leader's length back."""
-    v = np.concatenate([p.v_follower for p in pairs]) / M_PER_FT
-    s = np.concatenate([p.spacing for p in pairs]) / M_PER_FT
-    front = np.concatenate([p.spacing + p.leader_length for p in pairs]) / M_PER_FT
-    return _congested(v, s, front)
-
-
-def _js(a: np.ndarray, b: np.ndarray) -> float:
-    lo, hi = np.quantile(np.concatenate([a, b]), [0.005, 0.995])
-    edges = np.linspace(lo, hi, HIST_BINS + 1)
-    p = np.histogram(np.clip(a, lo, hi), edges)[0].astype(float) + 1e-12
-    q = np.histogram(np.clip(b, lo, hi), edges)[0].astype(float) + 1e-12
-    p, q = p / p.sum(), q / q.sum()
-    m = 0.5 * (p + q)
-    return float(0.5 * np.sum(p * np.log2(p / m)) + 0.5 * np.sum(q * np.log2(q / m)))
-
-
-def compare_distributions(sim: dict[str, np.ndarray], real: dict[str, np.ndarray]) -> tuple[VariableComparison, ...]:
-    from scipy.stats import ks_2samp
-
-    out = []
-    for name in VARIABLES:
-        a, b = sim[name], real[name]
-        if len(a) == 0 or len(b) == 0:
-            out.append(VariableComparison(name, len(a), len(b), float("nan"), float("nan"), float("nan"), float("nan")))
-            continue
-        med_a, med_b = float(np.median(a)), float(np.median(b))
-        iqr_a, iqr_b = (float(np.subtract(*np.quantile(x, [0.75, 0.25]))) for x in (a, b))
-        shifted = a - med_a + med_b
-        rescaled = (a - med_a) * (iqr_b / iqr_a) + med_b if iqr_a > 0 else shifted
-        out.append(VariableComparison(
-            name=name, n_sim=len(a), n_real=len(b), median_sim=med_a, median_real=med_b,
-            ks=float(ks_2samp(a, b).statistic), js=_js(a, b), iqr_sim=iqr_a, iqr_real=iqr_b,
-            ks_shifted=float(ks_2samp(shifted, b).statistic), ks_rescaled=float(ks_2samp(rescaled, b).statistic),
-        ))
-    return tuple(out)
-
-
 def calibrated_spec(spec, result, *, n_members: int | None = None, seed: int = 0,
                     car_follow_model: str | None = None):
     """``spec`` with its car vTypes replaced by the calibrated driver distribution: when
@@ -390,7 +189,7 @@ def run_calibration_check(
     if duration_s is None:
         duration_s = spec.simulation.duration_s
     ev = evaluate(result.population, pairs, model=result.model)
-    gaps = accepted_gaps(table)
+    gaps = accepted_gaps(table, site=site_of(spec))
     return CalibrationCheck(
         scenario=str(scenario), seed=seed, duration_s=duration_s, model=result.model,
         variables=compare_distributions(table_states(table, study_length_ft=spec.road.main_length_m * FT_PER_M),

@@ -23,7 +23,8 @@ from sim.errors import SimError
 import analysis.cli.commands as _commands
 from merge_irl.provenance import version_line
 
-#: Errors that are the user's input at fault: printed as one line, exit status 2.
+#: Errors that are the user's input at fault: printed as one line, exit status 2 (SimError
+#: includes analysis' own, :class:`analysis.errors.AnalysisError`).
 USER_ERRORS: tuple[type[BaseException], ...] = (IRLError, ScenarioError, SimError, FileNotFoundError)
 
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from analysis.experiments.dagger import DaggerConfig
 from irl.errors import ConfigError
 from sim.merges.rules import ENCOUNTER_RULES, check_rule
-from sim.errors import SimError
+from analysis.errors import AnalysisError
 
 #: The demo's name (and policy name) of the car-following logit driver trained with DAgger.
 CF_DRIVER = "cf-dagger"
@@ -132,7 +132,7 @@ def check_dagger_seeds(config: DemoConfig) -> None:
 
     Raises:
         ConfigError: a negative ``dagger_rounds`` (:class:`~analysis.experiments.dagger.DaggerConfig`).
-        SimError: a labelling seed is a training, held-out or evaluation seed.
+        AnalysisError: a labelling seed is a training, held-out or evaluation seed.
     """
     if not config.dagger_rounds:
         return
@@ -140,5 +140,5 @@ def check_dagger_seeds(config: DemoConfig) -> None:
     ev = config.eval_seeds
     if (max(labelling.start, ev.start) < min(labelling.stop, ev.stop)
             or any(s in labelling for s in (*config.train_seeds, *config.heldout_seeds))):
-        raise SimError(f"demo: the DAgger labelling seeds {labelling.start}..{labelling.stop - 1} overlap the data "
+        raise AnalysisError(f"demo: the DAgger labelling seeds {labelling.start}..{labelling.stop - 1} overlap the data "
                        "or evaluation seeds")

@@ -50,13 +50,13 @@ from analysis.experiments.dagger import DaggerConfig, train_cf_driver
 from analysis.demo.config import CF_DRIVER, PLANNER_DRIVER, DemoConfig, check_dagger_seeds
 from analysis.demo.estimate import estimate
 from analysis.evaluation.episode import frame_from_dict, frame_to_dict
-from analysis.evaluation.evaluate import EvaluationReport, evaluate, resolve_executor
+from analysis.evaluation.evaluate import EvaluationReport, evaluate
 from irl.domains.merge.encounters import prepare_encounters
 from analysis.evaluation.policies import learned_policy
 from analysis.evaluation.report import collision_bound_line, flag_lines, report_table
 from analysis.experiments.learn import fit_problem, merge_config, merge_encoding, merge_features, saved_model
 from merge_irl.provenance import provenance, provenance_markdown, text_digest, write_timings
-from analysis.sweep import Task, run_sweep
+from analysis.sweep import Task, resolve_executor, run_sweep
 from merge_irl.atomic import write_text_atomic
 from irl.errors import IRLError
 from irl.methods.registry import method_names
@@ -70,7 +70,7 @@ from scenarios.spec.model import ScenarioSpec
 from sim.closed_loop.controller import Controller
 from sim.merges.demonstrators import simulate_demonstrations
 from sim.merges.rules import ENCOUNTER_RULES
-from sim.errors import SimError
+from analysis.errors import AnalysisError
 from sim.runtime.outputs import write_parquet
 from sim.drivers.learned import CarFollowingLogitPolicy
 from sim.drivers.planning import PlanningDriverPolicy
@@ -148,17 +148,17 @@ def generate_encounters(scenario, seeds: Sequence[int], duration_s: float | None
     cut by ``encounter_rule`` (:mod:`sim.merges.demonstrators`).
 
     Runs through :func:`analysis.sweep.run_sweep` (``executor``, default ``process:<workers>``;
-    one simulation per worker process at a time). Raises SimError if a run failed twice.
+    one simulation per worker process at a time). Raises AnalysisError if a run failed twice.
 
     Raises:
-        SimError: a data run failed (the message lists each failed run and its error).
+        AnalysisError: a data run failed (the message lists each failed run and its error).
     """
     tasks = [Task(f"{i:03d}/seed{int(s)}", encounters_task, EncounterRun(scenario, int(s), duration_s, encounter_rule))
              for i, s in enumerate(seeds)]
     report = run_sweep(tasks, seed=0, executor=resolve_executor(executor, workers),
                        progress=progress, desc="data runs")
     if not report.ok:
-        raise SimError("data runs failed: " + "; ".join(f"{f.key}: {f.error}" for f in report.failures))
+        raise AnalysisError("data runs failed: " + "; ".join(f"{f.key}: {f.error}" for f in report.failures))
     return [frame_from_dict(report.results[t.key]) for t in tasks]
 
 

@@ -38,7 +38,7 @@ from analysis.evaluation.metrics import MetricsConfig
 from analysis.evaluation.aggregate import AggregateMetrics, aggregate
 from analysis.evaluation.distances import w1_to_demos
 from merge_irl.provenance import provenance, text_digest, write_timings
-from analysis.sweep import Task, parse_executor, run_sweep
+from analysis.sweep import Task, resolve_executor, run_sweep
 from irl.errors import ConfigError
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, frames_per_step
 from irl.result import SavedModel
@@ -47,7 +47,7 @@ from merge_irl.units import FRAME_S, FT_PER_M
 from scenarios.loader import load_scenario
 from scenarios.spec.parse import with_overrides
 from sim.closed_loop.config import ControllerConfig
-from sim.errors import SimError
+from analysis.errors import AnalysisError
 from sim.drivers.policy import Policy, check_policy
 from sim.drivers.baselines import baseline_drivers, check_baselines, default_baselines, left_out_baselines
 from sim.drivers.learned import LearnedPolicy
@@ -94,7 +94,7 @@ def run_episodes(tasks: Sequence[tuple], *, workers: int | None = None, executor
         store: optional result directory (finished episodes are skipped on a re-run).
 
     Raises:
-        SimError: if an episode failed twice (every failure listed).
+        AnalysisError: if an episode failed twice (every failure listed).
     """
     executor = resolve_executor(executor, workers)
     sweep_tasks = []
@@ -107,24 +107,8 @@ def run_episodes(tasks: Sequence[tuple], *, workers: int | None = None, executor
     report = run_sweep(sweep_tasks, seed=0, executor=executor, store=store, progress=progress,
                        desc="episodes")
     if not report.ok:
-        raise SimError("episodes failed: " + "; ".join(f"{f.key}: {f.error}" for f in report.failures))
+        raise AnalysisError("episodes failed: " + "; ".join(f"{f.key}: {f.error}" for f in report.failures))
     return [EpisodeResult.from_dict(report.results[t.key]) for t in sweep_tasks]
-
-
-def resolve_executor(executor: str | None, workers: int | None) -> str:
-    """``executor`` if given, else ``process:<workers>``, else ``process`` (every core);
-    raises SimError on a malformed value.
-
-    Raises:
-        SimError: both ``executor`` and ``workers`` given, or an executor spec that does not parse.
-    """
-    if executor is None:
-        executor = "process" if workers is None else f"process:{max(1, int(workers))}"
-    try:
-        parse_executor(executor)
-    except ValueError as e:
-        raise SimError(str(e)) from None
-    return executor
 
 
 def evaluate(
@@ -185,8 +169,9 @@ def evaluate(
 
     Raises:
         SpecError: the scenario cannot be loaded, or ``duration_s`` is invalid or implausible for it.
-        SimError: ``episodes`` < 1, an unknown baseline name, or a decision step that is not a
-            positive multiple of the 0.1 s simulation step.
+        AnalysisError: ``episodes`` < 1, or a decision step that is not a positive multiple of
+            the 0.1 s simulation step.
+        SimError: an unknown baseline name.
         PolicyError: a model is not a merge model, a policy lacks a member of
             :class:`sim.drivers.policy.Policy`, or two policies share a name and one of them is not a
             dataclass that can be renamed.
@@ -196,7 +181,7 @@ def evaluate(
         SimulationError: SUMO fails to start or to step.
     """
     if episodes < 1:
-        raise SimError(f"evaluate: episodes must be >= 1, got {episodes}")
+        raise AnalysisError(f"evaluate: episodes must be >= 1, got {episodes}")
     spec = (load_scenario(scenario, allow_implausible=allow_implausible) if isinstance(scenario, (str, Path))
             else replace(scenario, allow_implausible=True) if allow_implausible else scenario)  # validate before SUMO
     if duration_s is not None:
@@ -215,7 +200,7 @@ def evaluate(
     try:
         frames_per_step(step)
     except ConfigError:
-        raise SimError(f"evaluate: the decision step must be a positive multiple of the {FRAME_S} s simulation "
+        raise AnalysisError(f"evaluate: the decision step must be a positive multiple of the {FRAME_S} s simulation "
                        f"step, got {step}") from None
     other = [(name, s) for name, s in steps if not math.isclose(s, step)]
     if other:

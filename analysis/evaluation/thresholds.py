@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from sim.errors import SimError
+from analysis.errors import AnalysisError
 
 OPERATORS = {">=": operator.ge, "<=": operator.le, "==": operator.eq, "!=": operator.ne,
              ">": operator.gt, "<": operator.lt}
@@ -33,7 +33,7 @@ _PATTERN = re.compile(
 )
 
 
-class ThresholdError(SimError, ValueError):
+class ThresholdError(AnalysisError, ValueError):
     """A threshold is malformed, names an unknown metric/policy, or a metrics file is unreadable."""
 
 

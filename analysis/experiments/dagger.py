@@ -29,8 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from analysis.evaluation.evaluate import resolve_executor
-from analysis.sweep import Task, run_sweep
+from analysis.sweep import Task, resolve_executor, run_sweep
 from irl.domains.merge.actions import N_ACTIONS
 from irl.domains.merge.car_following import OBS_COLUMNS, CFDecisions, car_following_decisions
 from irl.domains.merge.cf_logit import CarFollowingLogit
@@ -42,7 +41,7 @@ from scenarios.spec.parse import with_overrides
 from scenarios.spec.model import ScenarioSpec
 from sim.closed_loop.controller import Controller
 from sim.closed_loop.config import ControllerConfig
-from sim.errors import SimError
+from analysis.errors import AnalysisError
 from sim.merges.expert_labels import ExpertLabel, ExpertLabels
 from sim.drivers.learned import CarFollowingLogitPolicy
 from sim.runtime.run import run_scenario
@@ -152,13 +151,13 @@ def label_runs(model: CarFollowingLogit, spec: ScenarioSpec, seeds: list[int], c
     run per seed of ``duration_s`` seconds, in seed order, run by ``executor`` (``analysis.sweep``).
 
     Raises:
-        SimError: a run failed twice.
+        AnalysisError: a run failed twice.
     """
     tasks = [Task(f"label/seed{s}", label_run_task, LabelRun(spec, model, int(s), duration_s,
                                                               config.decision_step_s)) for s in seeds]
     report = run_sweep(tasks, seed=0, executor=executor, progress=False, desc="labelling runs")
     if not report.ok:
-        raise SimError("labelling runs failed: " + "; ".join(f"{f.key}: {f.error}" for f in report.failures))
+        raise AnalysisError("labelling runs failed: " + "; ".join(f"{f.key}: {f.error}" for f in report.failures))
     rows = [r for t in tasks for r in report.results[t.key]["records"]]
     return pd.DataFrame(rows, columns=list(ExpertLabel._fields))
 
@@ -196,7 +195,7 @@ def train_cf_driver(train_encounters: pd.DataFrame, scenario, config: DaggerConf
 
     Raises:
         DemonstrationError: the encounters cannot be resampled or lack ``v_A``.
-        ScenarioError / SimError: the scenario cannot be loaded, a labelling run's seed or
+        ScenarioError / AnalysisError: the scenario cannot be loaded, a labelling run's seed or
             duration is invalid for it (checked before any work), or a run fails.
     """
     spec = scenario if isinstance(scenario, ScenarioSpec) else load_scenario(scenario)

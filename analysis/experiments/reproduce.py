@@ -11,9 +11,9 @@ with the first trial seed), Wilcoxon signed-rank p-values of the paired held-out
 
 Example::
 
-    from analysis.experiments.reproduce import reproduce
+    from analysis.experiments.reproduce import ReproduceConfig, reproduce
     from analysis.experiments.reproduce_report import format_report
-    report = reproduce(1, "/path/to/railusm", trials=5, executor="process:2")
+    report = reproduce(1, ReproduceConfig("/path/to/railusm", trials=5, executor="process:2"))
     print(format_report(report))
 
 Trials run through :func:`analysis.sweep.run_sweep` (``executor``: serial, process pool, Dask;
@@ -92,30 +92,19 @@ class ReproductionRun:
         return self.sweep.ok
 
 
-def reproduce_tables(
-    tables: Sequence[int],
-    data_dir: str | os.PathLike,
-    *,
-    trials: int | None = None,
-    settings: str = "paper",
-    config: IRLConfig | None = None,
-    seed: int = 0,
-    methods: tuple[str, ...] | None = None,
-    holdout: bool = True,
-    epsilon: float | None = DEFAULT_EPSILON,
-    executor: str = "process",
-    store: ResultStore | str | os.PathLike | None = None,
-    retries: int = 1,
-    progress: bool = False,
-) -> ReproductionRun:
-    """Run every method of each table over ``trials`` initialisations (default 30, 30, 10), as
-    one sweep (:func:`analysis.sweep.run_sweep`), so slow and fast trials of all tables share
-    the workers.
+@dataclass(frozen=True)
+class ReproduceConfig:
+    """How to reproduce the paper's tables: everything :func:`reproduce_tables` and
+    :func:`reproduce` take but the tables.
 
-    Args:
-        settings: ``paper`` or ``reference`` base settings (ignored if ``config`` is given).
+    Attributes:
+        data_dir: the authors' data (``railusm`` or ``Model-free-IRL/data``).
+        trials: initialisations per method (None: 30, 30, 10 for tables 1, 2, 3).
+        settings: ``paper`` or ``reference`` base settings (ignored if ``irl_config`` is given).
+        irl_config: the IRL settings of every trial (None: those of ``settings``).
         seed: master seed; trial ``j`` uses ``trial_seeds(seed, n)[j]`` for every method (the
             same seeds as before the sweep runner: results are unchanged for a given seed).
+        methods: the methods to run (None: every registered method, ``irl.fit.method_names()``).
         holdout: also run the leave-one-trajectory-out evaluation (first trial seed).
         epsilon: REIRL's L1 weight.
         executor: ``serial``, ``process[:N]`` (default: every core), ``dask-local[:N]`` or
@@ -123,70 +112,75 @@ def reproduce_tables(
         store: a result directory: finished trials are stored there and skipped when re-run.
         retries: re-runs of a failing trial before it is reported in ``sweep.failures``; the
             tables are summarised from the trials that succeeded.
+        progress: show a progress bar.
+    """
+
+    data_dir: str | os.PathLike
+    trials: int | None = None
+    settings: str = "paper"
+    irl_config: IRLConfig | None = None
+    seed: int = 0
+    methods: tuple[str, ...] | None = None
+    holdout: bool = True
+    epsilon: float | None = DEFAULT_EPSILON
+    executor: str = "process"
+    store: ResultStore | str | os.PathLike | None = None
+    retries: int = 1
+    progress: bool = False
+
+
+def reproduce_tables(tables: Sequence[int], config: ReproduceConfig) -> ReproductionRun:
+    """Run every method of each table over ``config.trials`` initialisations (default 30, 30, 10), as
+    one sweep (:func:`analysis.sweep.run_sweep`), so slow and fast trials of all tables share
+    the workers; ``config``: see :class:`ReproduceConfig`.
 
     Raises:
         ConfigError: no table, a table other than 1, 2 or 3, unknown ``settings`` or ``methods``, or
             ``trials`` < 1.
         DemonstrationError: ``data_dir`` does not hold the authors' data layout.
     """
+    trials, seed = config.trials, config.seed
     tables = tuple(int(t) for t in tables)
     for table in tables:
         if table not in DEFAULT_TRIALS:
             raise ConfigError(f"table must be 1, 2 or 3, got {table}")
     if not tables:
         raise ConfigError("no table to reproduce")
-    if settings not in ("paper", "reference"):
-        raise ConfigError(f"settings must be 'paper' or 'reference', got {settings!r}")
-    methods = method_names() if methods is None else tuple(methods)
+    if config.settings not in ("paper", "reference"):
+        raise ConfigError(f"settings must be 'paper' or 'reference', got {config.settings!r}")
+    methods = method_names() if config.methods is None else tuple(config.methods)
     bad = [m for m in methods if m not in REGISTRY]
     if bad:
         raise ConfigError(f"methods: unknown {bad}; expected some of {list(method_names())}")
-    if config is None:
-        config = IRLConfig.reference() if settings == "reference" else IRLConfig.paper()
+    irl_config = config.irl_config
+    if irl_config is None:
+        irl_config = IRLConfig.reference() if config.settings == "reference" else IRLConfig.paper()
     if trials is not None and int(trials) < 1:
         raise ConfigError(f"trials must be >= 1, got {trials}")
-    d = str(resolve_data_dir(data_dir).resolve())
+    d = str(resolve_data_dir(config.data_dir).resolve())
     provenances = {table: provenance(table_inputs(table, d)) for table in tables}  # the data as read, before the work
     specs: dict[int, list[TrialSpec]] = {}
     for table in tables:
         n = DEFAULT_TRIALS[table] if trials is None else int(trials)
-        specs[table] = _trial_specs(table, d, config, n, seed, tuple(methods), holdout, epsilon)
+        specs[table] = _trial_specs(table, d, irl_config, n, seed, tuple(methods), config.holdout, config.epsilon)
     # submit the slow trials first (NGSIM before gridworld; Q-SM and MLIRL before Q-Avg and
     # REIRL) so no long trial starts last and leaves the other workers idle; results are
     # keyed, so the order changes nothing else
     ordered = sorted((s for table in tables for s in specs[table]), key=_expected_cost, reverse=True)
     tasks = [Task(s.key, run_trial_spec, s) for s in ordered]
     label = "tables " + ",".join(map(str, tables)) if len(tables) > 1 else f"table {tables[0]}"
-    sweep = run_sweep(tasks, seed=seed, executor=executor, store=store, retries=retries,
-                      progress=progress, desc=label)
+    sweep = run_sweep(tasks, seed=seed, executor=config.executor, store=config.store, retries=config.retries,
+                      progress=config.progress, desc=label)
     reports = []
     for table in tables:
         outcomes = [TrialOutcome.from_dict(sweep.results[s.key]) for s in specs[table] if s.key in sweep.results]
         prefix = f"table{table}/"
         failed = tuple(f for f in sweep.failures if f.key.startswith(prefix))
-        reports.append(_table_report(table, d, config, methods, outcomes, failed, seed, provenances[table]))
+        reports.append(_table_report(table, d, irl_config, methods, outcomes, failed, seed, provenances[table]))
     return ReproductionRun(tuple(reports), sweep)
 
 
-def reproduce(
-    table: int,
-    data_dir: str | os.PathLike,
-    *,
-    trials: int | None = None,
-    settings: str = "paper",
-    config: IRLConfig | None = None,
-    seed: int = 0,
-    methods: tuple[str, ...] | None = None,
-    holdout: bool = True,
-    epsilon: float | None = DEFAULT_EPSILON,
-    executor: str = "process",
-    store: ResultStore | str | os.PathLike | None = None,
-    retries: int = 1,
-    progress: bool = False,
-) -> ReproductionReport:
-    """One table: :func:`reproduce_tables` ``([table], ...)`` (same arguments); trials that
-    failed after their retry are listed in ``report.failures``."""
-    run = reproduce_tables([table], data_dir, trials=trials, settings=settings, config=config, seed=seed,
-                           methods=methods, holdout=holdout, epsilon=epsilon, executor=executor, store=store,
-                           retries=retries, progress=progress)
-    return run.reports[0]
+def reproduce(table: int, config: ReproduceConfig) -> ReproductionReport:
+    """One table: :func:`reproduce_tables` ``([table], config)``; trials that failed after their
+    retry are listed in ``report.failures``."""
+    return reproduce_tables([table], config).reports[0]

@@ -1,5 +1,6 @@
 """rerun component columns built in bulk from arrow arrays, where rerun's Python API would
-build them one row at a time (:func:`~analysis.recording.columns.bar_chart_column`)."""
+build them one row at a time (:func:`~analysis.recording.columns.bar_chart_column`), and the
+action probabilities as five named bars (:func:`action_bar_columns`)."""
 
 from __future__ import annotations
 
@@ -44,3 +45,25 @@ def bar_chart_column(values: np.ndarray) -> rr.ComponentColumn:
     arr = pa.StructArray.from_arrays([shape, pa.nulls(n, st.field("names").type), buf], fields=list(st))
     desc = sample.component_descriptor()
     return rr.ComponentColumn(desc, _ArrowBatch(arr, desc))
+
+
+#: RGBA of the five action bars (hard braking red .. hard acceleration green).
+ACTION_RGBA = np.array([[200, 40, 40, 255], [235, 140, 60, 255], [170, 170, 170, 255], [120, 190, 90, 255],
+                        [40, 150, 60, 255]], dtype=np.uint8)
+#: Half width of an action bar (bars at x = 0..4).
+BAR_HALF_WIDTH = 0.35
+
+
+def action_bar_columns(probs: np.ndarray) -> list:
+    """``Boxes2D`` columns of ``n`` decisions' action probabilities ``probs [n, 5]`` as bars:
+    bar ``i`` at x = i, from y = 0 up to y = -p (the 2D view draws y downwards), labelled with
+    ``p`` to two decimals."""
+    probs = np.asarray(probs, dtype=np.float64)
+    n, k = probs.shape
+    centers = np.stack([np.tile(np.arange(k, dtype=np.float64), n), -0.5 * probs.reshape(-1)], axis=1)
+    half = np.stack([np.full(n * k, BAR_HALF_WIDTH), 0.5 * probs.reshape(-1)], axis=1)
+    labels = pa.array([f"{v:.2f}" for v in probs.reshape(-1)], type=pa.string())
+    colors = np.tile(ACTION_RGBA.astype(np.uint32) @ np.array([1 << 24, 1 << 16, 1 << 8, 1], dtype=np.uint32), n)
+    return [*rr.Boxes2D.columns(centers=centers.astype(np.float32), half_sizes=half.astype(np.float32),
+                                labels=labels, colors=colors.astype(np.uint32)).partition(np.full(n, k)),
+            *rr.Boxes2D.columns(show_labels=[True] * n)]

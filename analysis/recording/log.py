@@ -44,7 +44,8 @@ and sent in columns (``send_columns``) every ``flush_every`` frames, which keeps
 under 10 microseconds per vehicle-frame. The file is written under a temporary name
 (``<name>.partial``) and renamed only when the run succeeds (``on_end``); a run that fails or
 is interrupted (``on_abort``) leaves the ``.partial`` file, never a complete-looking ``.rrd``.
-Naming, opening and closing the file: :mod:`analysis.recording.files`. Reading a recording back:
+The static scene (road, lanes, landmarks, roles): :mod:`analysis.recording.scene`; the columns
+sent in bulk: :mod:`analysis.recording.columns`. Naming, opening and closing the file: :mod:`analysis.recording.files`. Reading a recording back:
 :mod:`analysis.recording.read`.
 """
 
@@ -59,66 +60,19 @@ import pyarrow as pa
 import rerun as rr
 
 from analysis.recording.blueprint import merge_blueprint
-from analysis.recording.columns import bar_chart_column
+from analysis.recording.columns import ACTION_RGBA, BAR_HALF_WIDTH, action_bar_columns, bar_chart_column
 from analysis.recording.files import close_recording, open_recording, policy_digest, recording_identity, run_token
+from analysis.recording.scene import (LANE_LINE_RGBA, LANE_ROLES, MIRROR_Y, ROAD_RGBA, ROLE_COLORS, ROLE_IDS, ROLE_LABELS,
+                                      ROLE_RGBA_U32, log_scene, road_landmarks)
 from irl.domains.merge.actions import ACTION_NAMES
 from irl.domains.merge.features import FEATURE_NAMES, paper_features
 from sim.runtime.hooks import FrameState, RunContext
-from sim.runtime.lanes import aux_lane_start_ft
 from sim.drivers.observe import lead_of
-from sim.runtime.schema import RAMP_LANE, RIGHTMOST_MAIN_LANE
+from sim.runtime.sites import I80
 
-#: ``class_ids`` of the vehicle boxes, by role.
-ROLE_IDS = {"other": 0, "A": 1, "B": 2, "C": 3, "A observed": 4}
-#: Short label drawn on a box, by role id ("" = no label).
-ROLE_LABELS = ("", "A", "B", "C", "A")
-#: RGBA colours of the roles, indexed by role id.
-ROLE_COLORS = np.array(
-    [[150, 150, 150, 255], [230, 40, 40, 255], [40, 110, 230, 255], [40, 180, 70, 255], [240, 150, 30, 255]],
-    dtype=np.uint8,
-)
-ROLE_RGBA_U32 = (ROLE_COLORS.astype(np.uint32) @ np.array([1 << 24, 1 << 16, 1 << 8, 1], dtype=np.uint32)).astype(np.uint32)
-#: The ``world`` transform: y mirrored (2D views draw y downwards).
-MIRROR_Y = np.diag([1.0, -1.0, 1.0])
-#: What each lane is, for its label (I-80 numbering; other lanes are "lane <n>").
-LANE_ROLES = {str(RIGHTMOST_MAIN_LANE): "right main lane", str(RAMP_LANE): "ramp / auxiliary lane"}
-#: RGBA of the road surface and of the lane centre lines.
-ROAD_RGBA = (62, 62, 66, 255)
-LANE_LINE_RGBA = (150, 150, 150, 255)
-#: RGBA of the five action bars (hard braking red .. hard acceleration green).
-ACTION_RGBA = np.array([[200, 40, 40, 255], [235, 140, 60, 255], [170, 170, 170, 255], [120, 190, 90, 255],
-                        [40, 150, 60, 255]], dtype=np.uint8)
-#: Half width of an action bar (bars at x = 0..4).
-BAR_HALF_WIDTH = 0.35
-
-
-def action_bar_columns(probs: np.ndarray) -> list:
-    """``Boxes2D`` columns of ``n`` decisions' action probabilities ``probs [n, 5]`` as bars:
-    bar ``i`` at x = i, from y = 0 up to y = -p (the 2D view draws y downwards), labelled with
-    ``p`` to two decimals."""
-    probs = np.asarray(probs, dtype=np.float64)
-    n, k = probs.shape
-    centers = np.stack([np.tile(np.arange(k, dtype=np.float64), n), -0.5 * probs.reshape(-1)], axis=1)
-    half = np.stack([np.full(n * k, BAR_HALF_WIDTH), 0.5 * probs.reshape(-1)], axis=1)
-    labels = pa.array([f"{v:.2f}" for v in probs.reshape(-1)], type=pa.string())
-    colors = np.tile(ACTION_RGBA.astype(np.uint32) @ np.array([1 << 24, 1 << 16, 1 << 8, 1], dtype=np.uint32), n)
-    return [*rr.Boxes2D.columns(centers=centers.astype(np.float32), half_sizes=half.astype(np.float32),
-                                labels=labels, colors=colors.astype(np.uint32)).partition(np.full(n, k)),
-            *rr.Boxes2D.columns(show_labels=[True] * n)]
-
-
-def road_landmarks(ctx: RunContext) -> tuple[np.ndarray, list[str]]:
-    """``[m, 2]`` positions (ft, SUMO's frame) and labels of the road's landmarks: where lane 7
-    (the ramp) begins, where it first runs beside lane 6 (the auxiliary lane, the merge zone)
-    and where it ends. Empty when the run has no lane 7 or no lane 6."""
-    if str(RAMP_LANE) not in ctx.lane_shapes or str(RIGHTMOST_MAIN_LANE) not in ctx.lane_shapes:
-        return np.zeros((0, 2)), []
-    l6 = np.asarray(ctx.lane_shapes[str(RIGHTMOST_MAIN_LANE)], dtype=np.float64)[:, :2]
-    l7 = np.asarray(ctx.lane_shapes[str(RAMP_LANE)], dtype=np.float64)[:, :2]
-    x_aux = float(l6[0, 0]) + aux_lane_start_ft(ctx)
-    aux = np.array([x_aux, float(np.interp(x_aux, l7[:, 0], l7[:, 1]))])
-    return np.stack([l7[0], aux, l7[-1]]), ["on-ramp", "merge zone: auxiliary lane begins", "auxiliary lane ends"]
-
+__all__ = ["ACTION_RGBA", "BAR_HALF_WIDTH", "LANE_LINE_RGBA", "LANE_ROLES", "MIRROR_Y", "ROAD_RGBA", "ROLE_COLORS",
+           "ROLE_IDS", "ROLE_LABELS", "ROLE_RGBA_U32", "RerunLogger", "action_bar_columns", "log_training",
+           "road_landmarks"]
 
 def log_training(rec: rr.RecordingStream, method: str, loglik_trace: np.ndarray, theta_trace: np.ndarray,
                  feature_names: Sequence[str] = ()) -> None:
@@ -144,7 +98,8 @@ class RerunLogger:
     Args:
         path: output file.
         controller: the run's :class:`sim.closed_loop.controller.Controller` (must run *before* this hook);
-            gives roles, decisions and controlled cars. Without it, lane-7 vehicles are shown as B.
+            gives roles, decisions and controlled cars. Without it, vehicles on the
+            site's ramp lane (I-80: 7) are shown as B.
         recording: an open stream (from :func:`~analysis.recording.files.open_recording`) to add to instead of opening
             one; then the caller closes it.
         flush_every: frames buffered before they are sent.
@@ -164,6 +119,7 @@ class RerunLogger:
         self.training_methods = tuple(training_methods)
         self._section: tuple[float, float, float, float] | None = None
         self._focus = np.zeros(2)
+        self._ramp_lane = I80.ramp_lanes[0]  # the run's site profile's, set by on_start
         self.episode = episode
         self.controller = controller
         self.flush_every = int(flush_every)
@@ -207,33 +163,10 @@ class RerunLogger:
             run = run_token(self.path, ctx.spec.to_toml(), policy_digest(driver))  # unique per run, deterministic
             rid, name = recording_identity(ctx.spec.name, policy, ctx.seed, self.episode, run=run)
             self._rec, self._tmp = open_recording(self.path, application_id=self._app, recording_id=rid, name=name)
-        rec = self._rec
-        names = sorted(ctx.lane_shapes, key=lambda s: int(s) if s.isdigit() else 99)
-        strips = [np.asarray(ctx.lane_shapes[n], float)[:, :2] for n in names]
-        half_lane = 0.5 * float(ctx.lane_width_ft)
-        rec.log("world/road", rr.LineStrips2D(strips, radii=half_lane, draw_order=0.0,
-                                              colors=[ROAD_RGBA] * len(strips)), static=True)
-        labels = [f"lane {n}" + (f" ({LANE_ROLES[n]})" if n in LANE_ROLES else "") for n in names]
-        rec.log("world/lanes", rr.LineStrips2D(strips, labels=labels, draw_order=10.0, show_labels=True,
-                                               radii=rr.Radius.ui_points(1.0),
-                                               colors=[LANE_LINE_RGBA] * len(strips)), static=True)
-        marks, mark_labels = road_landmarks(ctx)
-        if mark_labels:
-            rec.log("world/landmarks", rr.Points2D(marks, labels=mark_labels, show_labels=True, radii=4.0,
-                                                   colors=[(255, 220, 80, 255)] * len(mark_labels), draw_order=20.0),
-                    static=True)
-        rec.log("policy/action_bars/names", rr.Points2D(
-            np.stack([np.arange(len(ACTION_NAMES), dtype=np.float64), np.full(len(ACTION_NAMES), 0.08)], axis=1),
-            labels=[n.lower() for n in ACTION_NAMES], show_labels=True, radii=0.001,
-            colors=[(220, 220, 220, 255)] * len(ACTION_NAMES)), static=True)
-        rec.log("world", rr.AnnotationContext(
-            [(i, name, tuple(int(c) for c in ROLE_COLORS[i][:3])) for name, i in ROLE_IDS.items()]), static=True)
-        rec.log("world", rr.Transform3D(mat3x3=MIRROR_Y), static=True)
-        if strips:
-            pts = np.concatenate(strips) @ MIRROR_Y[:2, :2]
-            lo, hi = pts.min(axis=0) - 30.0, pts.max(axis=0) + 30.0
-            self._section = (float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1]))
-            self._focus = 0.5 * (lo + hi)
+        self._ramp_lane = int(ctx.site.ramp_lanes[0])
+        bounds = log_scene(self._stream, ctx)
+        if bounds is not None:
+            self._section, self._focus = bounds
 
     def on_step(self, ctx: RunContext, frame: FrameState) -> None:
         n = len(frame.sumo_ids)
@@ -282,7 +215,7 @@ class RerunLogger:
     def _roles_of(self, frame: FrameState) -> np.ndarray:
         roles = np.zeros(len(frame.sumo_ids), dtype=np.uint16)
         if self.controller is None:
-            roles[frame.lane_id == RAMP_LANE] = ROLE_IDS["B"]
+            roles[frame.lane_id == self._ramp_lane] = ROLE_IDS["B"]
             return roles
         a_role = ROLE_IDS["A"] if getattr(self.controller.policy, "controls", True) else ROLE_IDS["A observed"]
         for row, role in self.controller.role_rows.items():

@@ -8,28 +8,28 @@ import subprocess
 import sys
 from pathlib import Path
 
-from sim.errors import SimError
+from analysis.errors import AnalysisError
 
 
 def find_recordings(target: str | os.PathLike) -> list[Path]:
     """``target`` itself if it is an ``.rrd`` file, else every ``.rrd`` under the folder, sorted.
 
-    Raises ``SimError`` naming ``target`` if there is nothing to open.
+    Raises ``AnalysisError`` naming ``target`` if there is nothing to open.
 
     Raises:
-        SimError: a path does not exist, is not a ``.rrd`` file, or is a folder without recordings.
+        AnalysisError: a path does not exist, is not a ``.rrd`` file, or is a folder without recordings.
     """
     p = Path(target)
     if p.is_file():
         if p.suffix != ".rrd":
-            raise SimError(f"{p}: not a rerun recording (expected a .rrd file or a run folder)")
+            raise AnalysisError(f"{p}: not a rerun recording (expected a .rrd file or a run folder)")
         return [p]
     if p.is_dir():
         files = sorted(p.rglob("*.rrd"))
         if not files:
-            raise SimError(f"{p}: no .rrd recordings in this folder (run with rerun logging on)")
+            raise AnalysisError(f"{p}: no .rrd recordings in this folder (run with rerun logging on)")
         return files
-    raise SimError(f"{p}: no such file or folder")
+    raise AnalysisError(f"{p}: no such file or folder")
 
 
 def check_recordings(files: list[Path]) -> None:
@@ -37,7 +37,7 @@ def check_recordings(files: list[Path]) -> None:
     so that ``merge-irl view`` refuses a corrupt or foreign file before it starts a viewer.
 
     Raises:
-        SimError: one line naming the first unreadable file and why.
+        AnalysisError: one line naming the first unreadable file and why.
     """
     from analysis.recording.read import check_rrd
 
@@ -45,7 +45,7 @@ def check_recordings(files: list[Path]) -> None:
         try:
             check_rrd(f)
         except (ValueError, FileNotFoundError) as e:
-            raise SimError(str(e)) from None
+            raise AnalysisError(str(e)) from None
 
 
 def has_display() -> bool:

@@ -7,7 +7,7 @@ results do not depend on the executor or the order. Finished results are stored 
 derived from the task's full config, so re-running a sweep skips what is done.
 """
 
-from analysis.sweep.executors import EXECUTORS, parse_executor
+from analysis.sweep.executors import EXECUTORS, parse_executor, resolve_executor
 from analysis.sweep.seeds import derive_seed
 from analysis.sweep.store import ResultStore, task_digest
 from analysis.sweep.sweep import SweepReport, Task, TaskFailure, run_sweep
@@ -20,6 +20,7 @@ __all__ = [
     "TaskFailure",
     "derive_seed",
     "parse_executor",
+    "resolve_executor",
     "run_sweep",
     "task_digest",
 ]

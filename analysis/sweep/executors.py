@@ -17,6 +17,8 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 
+from analysis.errors import AnalysisError
+
 EXECUTORS = ("serial", "process", "dask-local", "dask://HOST:PORT", "tls://HOST:PORT")
 
 #: Seconds to wait for a Dask scheduler to answer (TCP connect and Dask's handshake).
@@ -115,3 +117,19 @@ def parse_executor(text: str) -> ExecutorSpec:
     else:
         workers = default_workers()
     return ExecutorSpec(name, workers=workers)
+
+
+def resolve_executor(executor: str | None, workers: int | None) -> str:
+    """``executor`` if given (``workers`` is then not read), else ``process:<workers>``, else
+    ``process`` (every core).
+
+    Raises:
+        AnalysisError: an executor spec that does not parse (:func:`parse_executor`).
+    """
+    if executor is None:
+        executor = "process" if workers is None else f"process:{max(1, int(workers))}"
+    try:
+        parse_executor(executor)
+    except ValueError as e:
+        raise AnalysisError(str(e)) from None
+    return executor

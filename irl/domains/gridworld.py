@@ -1,4 +1,5 @@
-"""The paper's 5x5 gridworld (section 4.1), laid out as the authors' code does (REFERENCE.md).
+"""The paper's 5x5 gridworld (section 4.1), laid out as the authors' code does (their
+``GWFeatures``: the states, actions and features below).
 
 * state ``s = 5 * row + col`` (row 0 at the top), 25 states;
 * actions ``0 = col-1`` (left), ``1 = row+1`` (down), ``2 = col+1`` (right), ``3 = row-1`` (up);

@@ -1,17 +1,21 @@
-"""Pieces shared by the IRL solvers: theta initialisation and assembling a FitResult."""
+"""Pieces shared by the IRL solvers: theta initialisation, the model-free fits' common start
+(:func:`start_model_free`, Q-Avg and Q-SM), the faithful solvers' ascent and assembling a FitResult."""
 
 from __future__ import annotations
 
 import time
 from dataclasses import replace
+from typing import NamedTuple
 
 import numpy as np
 
-from irl.ascent import AscentResult
+from irl.ascent import AscentResult, unit_step_ascent
 from irl.config import IRLConfig
 from irl.demonstrations import Demonstrations
 from irl.errors import ConfigError
 from irl.result import FitResult
+from irl.transitions import SuccessorModel
+from irl.unobserved_successors import free_successors
 
 
 def initial_theta(demos: Demonstrations, config: IRLConfig, rng: np.random.Generator,
@@ -28,6 +32,43 @@ def initial_theta(demos: Demonstrations, config: IRLConfig, rng: np.random.Gener
     if t.shape != (k,) or not np.all(np.isfinite(t)):
         raise ConfigError(f"theta0 must be {k} finite numbers (one per feature), got shape {t.shape}")
     return t.copy()
+
+
+class ModelFreeStart(NamedTuple):
+    """What a model-free fit (Q-Avg, Q-SM) starts from (:func:`start_model_free`)."""
+
+    #: ``time.perf_counter()`` when the fit started (its wall time is measured from it).
+    start: float
+    #: ``[K]`` initial weights (:func:`initial_theta`).
+    theta: np.ndarray
+    #: the model-free successors of the demonstrations under ``config.unobserved``.
+    successors: SuccessorModel
+
+
+def start_model_free(demos: Demonstrations, config: IRLConfig, rng: np.random.Generator,
+                     theta0: np.ndarray | None, fallback_next: np.ndarray | None) -> ModelFreeStart:
+    """The start of a model-free fit (Q-Avg, Q-SM): the clock, the initial weights
+    (:func:`initial_theta`: ``theta0`` checked, else drawn from ``rng``) and the successors
+    (:func:`irl.unobserved_successors.free_successors`; ``fallback_next``: ``[S, A]`` int next
+    states of a domain model, for ``config.unobserved == "kinematic"``), in that order.
+
+    Raises:
+        ConfigError: ``theta0`` is not ``K`` finite numbers; ``fallback_next`` missing or given
+            against ``config.unobserved``.
+        DemonstrationError: ``fallback_next`` is not ``[S, A]`` valid states.
+    """
+    start = time.perf_counter()
+    theta = initial_theta(demos, config, rng, theta0)
+    return ModelFreeStart(start, theta, free_successors(demos, config, fallback_next))
+
+
+def fit_faithful(method: str, solver, theta: np.ndarray, config: IRLConfig, progress: bool,
+                 start: float) -> FitResult:
+    """A faithful solver's fit (``config.solver == "faithful"``): fixed-length unit steps of
+    ``solver.evaluate`` from ``theta`` (:func:`irl.ascent.unit_step_ascent`), then
+    :func:`finish_faithful`."""
+    asc = unit_step_ascent(solver.evaluate, theta, config, progress=progress, desc=f"{method} faithful")
+    return finish_faithful(method, config, asc, solver, start)
 
 
 def result_from_ascent(method: str, config: IRLConfig, asc: AscentResult, wall_time_s: float, *,

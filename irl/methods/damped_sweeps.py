@@ -1,6 +1,7 @@
 """The paper-faithful damped in-place sweeps (Eq. 12/13 for Q-Avg, Eq. 15/16 for Q-SM).
 
-One sweep, as in the authors' code (REFERENCE.md), with learning rate ``alpha``:
+One sweep, as in the authors' code (which sweeps only the observed transitions, in place, in
+data order, and treats every other pair as terminal), with learning rate ``alpha``:
 
 1. every **terminal** pair (no observed successor: never seen, or only as a trajectory's last
    step) is pulled toward its reward, ``x <- (1-alpha) x + alpha R`` (``dQ`` toward ``phi``);

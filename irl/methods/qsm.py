@@ -18,20 +18,17 @@ non-expansion: the iteration may fail to converge, and both solvers report it.
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 
-from irl.ascent import Evaluation, unit_step_ascent
+from irl.ascent import Evaluation
 from irl.bellman.operators import mean_weights
 from irl.methods.boltzmann_fit import fit_exact
 from irl.config import IRLConfig
 from irl.methods.damped_sweeps import compose_sweep, iterate_affine, softmax_sweep
 from irl.demonstrations import Demonstrations
 from irl.methods.faithful import PlannedSweeps
-from irl.methods.common import finish_faithful, initial_theta
+from irl.methods.common import fit_faithful, start_model_free
 from irl.result import FitResult
-from irl.unobserved_successors import free_successors
 
 
 class FaithfulQSM(PlannedSweeps):
@@ -79,11 +76,7 @@ def fit_qsm(demos: Demonstrations, config: IRLConfig, rng: np.random.Generator, 
     Raises:
         ConfigError: ``fallback_next`` missing or given against ``config.unobserved``.
     """
-    start = time.perf_counter()
-    theta = initial_theta(demos, config, rng, theta0)
-    succ = free_successors(demos, config, fallback_next)
+    start, theta, succ = start_model_free(demos, config, rng, theta0, fallback_next)
     if config.solver == "exact":
         return fit_exact("qsm", demos, succ, config, theta, progress, start, from_zero=True)
-    solver = FaithfulQSM(demos, config)
-    asc = unit_step_ascent(solver.evaluate, theta, config, progress=progress, desc="qsm faithful")
-    return finish_faithful("qsm", config, asc, solver, start)
+    return fit_faithful("qsm", FaithfulQSM(demos, config), theta, config, progress, start)

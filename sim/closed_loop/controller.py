@@ -29,7 +29,9 @@ back to SUMO) and records why, in :attr:`Control.reason <sim.closed_loop.records
 ``end_of_run``  the run ended first.
 
 Who hit whom in a collision is in :attr:`Control.collision_kind <sim.closed_loop.records.Control.collision_kind>`
-(one of ``COLLISION_KINDS``). Settings: :mod:`sim.closed_loop.config`; records: :mod:`sim.closed_loop.records`.
+(one of ``COLLISION_KINDS``). Settings: :mod:`sim.closed_loop.config`; records: :mod:`sim.closed_loop.records`;
+take-overs and releases: :mod:`sim.closed_loop.handover`; the observation:
+:mod:`sim.closed_loop.observation`; the safety filter and High Brake by need: :mod:`sim.closed_loop.actuation`.
 The run continues after every release. Decisions are kept in :attr:`Controller.decisions`
 (one row per decision) and control episodes in :attr:`Controller.controls`.
 """
@@ -41,23 +43,24 @@ from typing import Any
 
 import numpy as np
 
-from irl.domains.merge.actions import HIGH_BRAKE, ZERO_ACTION, action_of
+from irl.domains.merge.actions import HIGH_BRAKE, action_of
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S
-from merge_irl.units import FT_PER_M, M_PER_FT
+from merge_irl.units import M_PER_FT
 from sim.closed_loop.records import Control, DecisionLog
 from sim.closed_loop.config import ControllerConfig
+from sim.closed_loop.handover import EXIT_MARGIN_FT, HandOver
+from sim.closed_loop.observation import control_observation
 from sim.runtime.hooks import FrameState, RunContext
 from sim.runtime.lanes import aux_lane_start_ft
-from sim.closed_loop.actuation import high_brake_need, leader_gap
-from sim.drivers.observe import MergeObservation, lag_of, lead_of, observe
+from sim.closed_loop.actuation import brake_to_need, safe_action
+from sim.drivers.observe import MergeObservation, lead_of
 from sim.drivers.policy import Policy, check_policy, choose_action
 from sim.runtime.schema import RAMP_LANE, RIGHTMOST_MAIN_LANE
 
-#: A that reaches the end of its route within this of the section end has left the section (ft).
-EXIT_MARGIN_FT = 150.0
+__all__ = ["Controller", "EXIT_MARGIN_FT"]
 
 
-class Controller:
+class Controller(HandOver):
     """A :class:`sim.runtime.hooks.StepHook` that drives merge lag cars with ``policy``.
 
     After the run, :attr:`controls` lists every control episode and :meth:`decision_table`
@@ -202,11 +205,6 @@ class Controller:
         """Frame_ID of the last frame :meth:`advance` saw (-1: none)."""
         return self._last_frame
 
-    @property
-    def n_collisions(self) -> int:
-        """Distinct (collider, victim) pairs that collided in the whole run, all vehicles."""
-        return len(self._collision_pairs)
-
     # -- internals ----------------------------------------------------------------------
     _last_frame = -1
 
@@ -214,132 +212,11 @@ class Controller:
     def _rows_of(frame: FrameState) -> dict[int, int]:
         return dict(zip(frame.vehicle_id.tolist(), range(len(frame.sumo_ids))))
 
-    def _release_reason(self, c, frame, ia, ib, colliding, teleported, arrived) -> str:
-        sid = c.a_sumo
-        if sid in colliding:
-            return "collision"
-        if sid in teleported:
-            return "teleported"
-        if ia is None:
-            if sid in arrived:  # the route ends where the section ends: a normal exit
-                return "left_section" if c.last_y >= self._section_end - EXIT_MARGIN_FT else "arrived"
-            return "removed"
-        if frame.local_y[ia] > self._section_end:
-            return "left_section"
-        if frame.lane_id[ia] != self._merge_lane:
-            return "left_lane"
-        if c.merge_frame < 0 and ib is None:
-            return "b_lost"
-        if c.merge_frame >= 0 and frame.frame - c.merge_frame >= self._hold_frames:
-            return "merge_done"
-        if ib is None:  # B left after merging, before the hold ended
-            return "merge_done"
-        if frame.frame - c.start_frame >= self._max_frames:
-            return "timeout"
-        return ""
-
-    def release(self, c: Control, frame_no: int, reason: str, *, present: bool) -> None:
-        """End control episode ``c`` at ``frame_no`` for ``reason`` (one of
-        :data:`~sim.closed_loop.records.RELEASE_REASONS`): A gets its own speed and lane-change
-        modes back (when ``present``: still known to SUMO) and SUMO drives it again."""
-        c.end_frame = frame_no
-        c.reason = reason
-        if reason == "collision":
-            c.collision_kind, c.collision_pair = self._collision_kind(c)
-        self._active.pop(c.a_id, None)
-        self.last.pop(c.a_id, None)
-        if not present or c.lane_change_mode < 0:  # gone, or never taken over (SUMO's driver, lane free)
-            return
-        v = self._traci.vehicle
-        try:
-            if c.commanded:
-                v.setSpeed(c.a_sumo, -1.0)
-                v.setSpeedMode(c.a_sumo, c.speed_mode)
-            v.setLaneChangeMode(c.a_sumo, c.lane_change_mode)
-        except self._traci.TraCIException:  # the vehicle is gone after all
-            pass
-
-    def _collision_kind(self, c: Control) -> tuple[str, str]:
-        """Who hit whom (``COLLISION_KINDS``) in the current frame's collisions involving A, and
-        that pair as ``"collider>victim"`` (one of the run's distinct pairs, so that the A
-        collisions, counted by distinct pair, never exceed :attr:`n_collisions`)."""
-        for collider, victim in self._frame_collisions:
-            if c.a_sumo not in (collider, victim):
-                continue
-            other = victim if collider == c.a_sumo else collider
-            vid = self._vehicle_id_of(other) if self._vehicle_id_of is not None else None
-            pair = f"{collider}>{victim}"
-            if collider == c.a_sumo:
-                kind = "A into B" if vid == c.b_id else "A into C" if vid is not None and vid == c.c_id else "A into other"
-                return kind, pair
-            return ("B into A" if vid == c.b_id else "other into A"), pair
-        # SUMO listed A as colliding without a pair (not seen): a pair of its own, counted in the run's too
-        self._collision_pairs.add((c.a_sumo, "?"))
-        return "A into other", f"{c.a_sumo}>?"
-
-    def take_over(self, frame: FrameState, *, limit: int | None = None) -> list[Control]:
-        """Hand the lag car A of every B newly in the take-over zone (see the module docstring) to
-        the policy (at most ``limit`` of them; None: all): A's lane-change mode (and, when
-        commanded, its speed mode) off. Returns the new control episodes (also appended to
-        :attr:`controls`)."""
-        ramp = np.flatnonzero((frame.lane_id == self._ramp_lane) & (frame.local_y >= self._zone_start))
-        new: list[Control] = []
-        for ib in ramp:
-            if limit is not None and len(new) >= limit:
-                break
-            b_id = int(frame.vehicle_id[ib])
-            if b_id in self._handled_b:
-                continue
-            yb = float(frame.local_y[ib])
-            ia = lag_of(frame, yb, lane=self._merge_lane, max_gap_ft=self.config.max_lag_ft)
-            if ia is None:
-                continue
-            a_id = int(frame.vehicle_id[ia])
-            if a_id in self._active or any(c.b_id == a_id for c in self._active.values()):
-                continue
-            self._handled_b.add(b_id)
-            c = Control(
-                a_id=a_id, b_id=b_id, a_sumo=frame.sumo_ids[ia], start_frame=frame.frame,
-                commanded=bool(self.policy.controls), gap_AB_start_ft=yb - float(frame.local_y[ia]),
-            )
-            if c.commanded or self.policy.keep_lane:
-                v = self._traci.vehicle
-                c.lane_change_mode = v.getLaneChangeMode(c.a_sumo)
-                v.setLaneChangeMode(c.a_sumo, 0)
-                if c.commanded:
-                    c.speed_mode = v.getSpeedMode(c.a_sumo)
-                    v.setSpeedMode(c.a_sumo, 0)
-                    c.max_decel_ft_s2 = float(v.getEmergencyDecel(c.a_sumo)) * FT_PER_M
-            self.controls.append(c)
-            self._active[a_id] = c
-            new.append(c)
-        return new
-
     def observe(self, c: Control, frame: FrameState, ia: int, ib: int, ic: int | None) -> MergeObservation:
         """What A (row ``ia``) sees of B (``ib``) and C (``ic``, None without C) at ``frame``, with the
-        state encoded by the policy's encoder (-1 without one). Reads, changes nothing."""
-        d_ac, d_ab, v_ac, v_ab, truck = observe(frame, ia, ib, ic)
-        encoder = self.policy.encoder
-        encoding = self.policy.state_encoding
-        # before the first decision: the bin of A's acceleration in the last frame (SUMO's, over 0.1 s)
-        acc_now = float(frame.acc[ia])
-        initial = action_of(acc_now) if c.prev_action < 0 and math.isfinite(acc_now) else -1
-        # C's acceleration as A sees it: its speed change since the previous decision (same C only)
-        c_id = int(frame.vehicle_id[ic]) if ic is not None else 0
-        v_c = float(frame.speed[ic]) if ic is not None else math.nan
-        step_s = self._every * self._frame_s
-        acc_c = (v_c - c.prev_v_c) / step_s if c_id and c_id == c.c_id and math.isfinite(c.prev_v_c) else 0.0
-        acc_prev = c.prev_acc if c.prev_action >= 0 else acc_now
-        if encoder is None:
-            state = -1
-        elif encoding == "paper":
-            state = encoder.state(d_ac, d_ab, v_ac, v_ab, truck)
-        else:  # paper state x A's previous action (the initial one before the first decision, else Zero)
-            prev = c.prev_action if c.prev_action >= 0 else (initial if initial >= 0 else ZERO_ACTION)
-            state = encoder.state(d_ac, d_ab, v_ac, v_ab, truck, prev_action=prev, encoding=encoding)
-        return MergeObservation(d_ac, d_ab, v_ac, v_ab, truck, state, float(frame.speed[ia]), c.prev_action, initial,
-                                c.merge_frame >= 0, float(frame.length[ic]) if ic is not None else math.nan,
-                                float(frame.length[ib]), acc_prev, acc_c)
+        state encoded by the policy's encoder (-1 without one). Reads, changes nothing
+        (:func:`sim.closed_loop.observation.control_observation`)."""
+        return control_observation(self.policy, c, frame, ia, ib, ic, self._every * self._frame_s)
 
     def decide(self, c: Control, obs: MergeObservation) -> tuple[np.ndarray, int]:
         """The policy's decision: ``(probs [5], action)``, the action sampled from ``probs`` with
@@ -375,14 +252,15 @@ class Controller:
         elif c.commanded:
             if self.config.safety_ttc_s is not None:
                 acc_table = [self.policy.acceleration(obs, a) for a in range(len(probs))]
-                safe = self._safe_action(frame, ia, action, acc_table)
+                safe = safe_action(frame, ia, action, acc_table, self._every * self._frame_s,
+                                   float(self.config.safety_ttc_s or 0.0), lane=self._merge_lane)
                 filtered = safe != action
                 action = safe
                 c.n_interventions += int(filtered)
             acc = float(self.policy.acceleration(obs, action))
             if action == HIGH_BRAKE and self.config.high_brake == "need":
                 own = acc
-                acc = self._brake_to_need(frame, ia, acc, c.a_sumo)
+                acc = brake_to_need(frame, ia, acc, c.a_sumo, self._traci.vehicle, lane=self._merge_lane)
                 need = acc < own
                 c.n_need_brakes += int(need)
             acc = max(acc, -c.max_decel_ft_s2) if math.isfinite(c.max_decel_ft_s2) else acc  # A's physical limit
@@ -402,38 +280,6 @@ class Controller:
             d_ac, d_ab, v_ac, v_ab, truck, obs.len_C, obs.len_B, *probs.tolist(), filtered, need,
         ))
         return acc
-
-    def _safe_action(self, frame: FrameState, ia: int, action: int, acc_table) -> int:
-        """``action``, or the nearest harder-braking one whose predicted gap to A's leader in
-        lane 6 stays positive with a closing TTC of at least ``safety_ttc_s`` after one decision
-        step (see :class:`~sim.closed_loop.config.ControllerConfig`); High Brake (0) if none does."""
-        leader = leader_gap(frame, ia)
-        if leader is None:
-            return action
-        il, gap = leader
-        h = self._every * self._frame_s
-        ttc_min = float(self.config.safety_ttc_s or 0.0)
-        va, vl = float(frame.speed[ia]), float(frame.speed[il])
-        for a in range(action, -1, -1):
-            v1 = max(0.0, va + float(acc_table[a]) * h)
-            g1 = gap - 0.5 * (va + v1) * h + vl * h
-            closing = v1 - vl
-            if g1 > 0 and (closing <= 1e-9 or g1 / closing >= ttc_min):
-                return a
-        return 0
-
-    def _brake_to_need(self, frame: FrameState, ia: int, acc: float, a_sumo: str) -> float:
-        """The High Brake acceleration (ft/s^2) of ``ControllerConfig.high_brake == "need"``:
-        ``acc`` (the action's), or harder when A closes in on its leader in lane 6 faster than
-        ``acc`` stops it, by need at most A's ``decel`` (see :class:`~sim.closed_loop.config.ControllerConfig`)."""
-        leader = leader_gap(frame, ia)
-        if leader is None:
-            return acc
-        il, bumper_gap = leader
-        veh = self._traci.vehicle
-        gap = max(bumper_gap - veh.getMinGap(a_sumo) * FT_PER_M, 1.0)
-        need = high_brake_need(float(frame.speed[ia]), float(frame.speed[il]), float(frame.acc[il]), gap)
-        return min(acc, max(-need, -veh.getDecel(a_sumo) * FT_PER_M))  # never softer than the action's own
 
     # -- results ------------------------------------------------------------------------
     def decision_table(self):

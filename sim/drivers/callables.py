@@ -20,8 +20,10 @@ continuous ones. An object with a ``predict(obs, deterministic=True)`` method re
 * :class:`CallablePolicy` wraps such a callable into :class:`sim.drivers.policy.Policy`, so the controller
   (and ``merge-irl evaluate --policy module:callable[:name]``) drives with it.
 * :func:`load_callable` resolves a ``module:callable[:name]`` spec (a dotted module or a path to a
-  ``.py`` file); a :class:`CallablePolicy` built from a spec pickles as its spec, so evaluation
-  workers (fresh processes) import the callable again instead of pickling it.
+  ``.py`` file; :mod:`sim.drivers.callable_specs`); a :class:`CallablePolicy` built from a spec
+  pickles as its spec, so evaluation workers (fresh processes) import the callable again instead
+  of pickling it. What a callable returns is checked by :func:`parse_action`
+  (:mod:`sim.drivers.callable_actions`).
 * :class:`PolicyCallable` goes the other way: any :class:`sim.drivers.policy.Policy` (a learned model, a
   driver file's policy) as a callable ``obs [7] -> int`` (the action index), e.g. for the
   Gymnasium environment; ``sim.drivers.formats.policy_callable`` builds one from a file.
@@ -29,15 +31,10 @@ continuous ones. An object with a ``predict(obs, deterministic=True)`` method re
 
 from __future__ import annotations
 
-import hashlib
-import importlib
-import importlib.util
 import math
-import re
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -45,6 +42,8 @@ import pandas as pd
 
 from irl.domains.merge.actions import ACTION_ACC_FT_S2, N_ACTIONS, ZERO_ACTION, action_of
 from merge_irl.units import FT_PER_M
+from sim.drivers.callable_actions import PLAUSIBLE_ACC_MPS2, _one_line, act_of, parse_action
+from sim.drivers.callable_specs import CallableSpec, load_callable, parse_spec
 from sim.drivers.observe import CONTINUOUS_NAMES, MergeObservation, policy_observation, unfill_policy_row
 from sim.drivers.policy import NO_LIKELIHOOD, Policy, PolicyDefaults, PolicyError, check_policy, choose_action
 
@@ -53,200 +52,8 @@ from sim.drivers.policy import NO_LIKELIHOOD, Policy, PolicyDefaults, PolicyErro
 #: (4.5-5 m) and trucks (12 m). A heuristic: the controller itself reads B's vehicle class.
 TRUCK_MIN_LENGTH_FT = 8.0 * FT_PER_M
 
-
-#: Accelerations (m/s^2) a continuous action may ask for: about 2 g of braking to 1 g of
-#: acceleration, beyond any road vehicle; outside it is a bug (units), refused. Within it a
-#: deceleration is still capped at A's emergency deceleration, as for every driver.
-PLAUSIBLE_ACC_MPS2 = (-20.0, 10.0)
-
-
-def parse_action(value: Any, *, where: str = "policy") -> int | float:
-    """The action a callable returned: an ``int`` action index or a ``float`` acceleration (m/s^2).
-
-    Accepts Python ints and floats, numpy scalars and one-element arrays (and anything
-    ``numpy.asarray`` turns into one, e.g. a CPU tensor); integer dtypes are action indices, float
-    dtypes accelerations.
-
-    Raises:
-        PolicyError: a bool, a tuple, an array of more than one element, another type, an index
-            outside ``0..4``, or an acceleration that is not finite or outside
-            :data:`PLAUSIBLE_ACC_MPS2` (``where`` names the policy).
-    """
-    x = value
-    if isinstance(x, (bool, np.bool_)):
-        raise PolicyError(f"{where}: returned a bool ({x!r}); expected an action index 0..{N_ACTIONS - 1} (int) "
-                          "or A's acceleration in m/s^2 (float)")
-    if isinstance(x, (tuple, list, dict, str, bytes)) or x is None:
-        raise PolicyError(f"{where}: returned {type(x).__name__} {_short(x)}; expected an action index "
-                          f"0..{N_ACTIONS - 1} (int) or A's acceleration in m/s^2 (float)"
-                          + (" (a predict() result? give the object, whose predict is called)"
-                             if isinstance(x, tuple) else ""))
-    if not isinstance(x, (int, float, np.integer, np.floating)):
-        if not (isinstance(x, np.ndarray) or hasattr(x, "__array__")):
-            raise PolicyError(f"{where}: returned {type(x).__name__}; expected an action index 0..{N_ACTIONS - 1} "
-                              "(int) or A's acceleration in m/s^2 (float)")
-        a = np.asarray(x)
-        if a.size != 1:
-            raise PolicyError(f"{where}: returned an array of shape {a.shape}; expected one action")
-        if a.dtype.kind not in "iuf":
-            raise PolicyError(f"{where}: returned an array of dtype {a.dtype}; expected an integer action index "
-                              "or a float acceleration (m/s^2)")
-        x = a.reshape(()).item()
-    if isinstance(x, (int, np.integer)):
-        i = int(x)
-        if not 0 <= i < N_ACTIONS:
-            raise PolicyError(f"{where}: returned action {i}; an action index is 0..{N_ACTIONS - 1} "
-                              "(High Brake, Low Brake, Zero, Low Accel, High Accel)")
-        return i
-    f = float(x)
-    if not math.isfinite(f):
-        raise PolicyError(f"{where}: returned acceleration {f}; expected a finite number (m/s^2)")
-    lo, hi = PLAUSIBLE_ACC_MPS2
-    if not lo <= f <= hi:
-        raise PolicyError(f"{where}: returned acceleration {f:g} m/s^2, beyond any road vehicle's "
-                          f"({lo:g} .. {hi:g} m/s^2; a unit mix-up, ft/s^2 or km/h/s?)")
-    return f
-
-
-def _short(x: Any) -> str:
-    r = repr(x)
-    return r if len(r) <= 60 else r[:57] + "..."
-
-
-def act_of(fn: Callable[..., Any]) -> Callable[[np.ndarray], Any]:
-    """The function that asks ``fn`` for an action on an observation: ``fn.predict(obs,
-    deterministic=True)[0]`` when ``fn`` has a ``predict`` method (Stable-Baselines3, imitation),
-    else ``fn(obs)``.
-
-    Raises:
-        PolicyError: ``fn`` is neither callable nor has a ``predict`` method.
-    """
-    predict = getattr(fn, "predict", None)
-    if callable(predict):
-        def via_predict(obs: np.ndarray) -> Any:
-            out = predict(obs, deterministic=True)
-            if not (isinstance(out, tuple) and len(out) == 2):
-                raise PolicyError(f"{_label(fn)}.predict returned {type(out).__name__}; expected (action, state)")
-            return out[0]
-        return via_predict
-    if not callable(fn):
-        raise PolicyError(f"{_label(fn)} is not callable and has no predict() method")
-    return fn
-
-
-def _label(fn: Any) -> str:
-    return getattr(fn, "__qualname__", None) or type(fn).__name__
-
-
-# -- specs ------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class CallableSpec:
-    """A parsed ``module:callable[:name]`` spec.
-
-    Attributes:
-        module: a dotted module name, or a path to a ``.py`` file (made absolute).
-        attr: the callable's name in the module (dotted for an attribute of an attribute).
-        name: the policy's name (default: the callable's last name).
-        is_file: ``module`` is a file path.
-    """
-
-    module: str
-    attr: str
-    name: str
-    is_file: bool
-
-    @property
-    def text(self) -> str:
-        """The spec again (``module:attr:name``; the file path absolute)."""
-        return f"{self.module}:{self.attr}:{self.name}"
-
-
-#: What a spec's name may hold: a file name (``rerun/<name>.rrd``), a report row and a ``--fail-if`` prefix.
-_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.\-]*")
-
-
-def parse_spec(spec: str) -> CallableSpec:
-    """Parse ``module:callable[:name]`` (module: a dotted name, or a path ending in ``.py`` or
-    containing a path separator, e.g. ``./rules.py:cth`` or ``mypkg.rules:cth:cth-1.5s``).
-
-    Raises:
-        PolicyError: not two or three non-empty parts, a bad dotted name, a name with other
-            characters than letters, digits, ``_``, ``-`` and ``.``, or a file path that is no file.
-    """
-    parts = str(spec).split(":")
-    if len(parts) not in (2, 3) or not all(p.strip() for p in parts):
-        raise PolicyError(f"--policy {spec!r}: expected module:callable[:name] (module: a dotted module name or a "
-                          "path to a .py file)")
-    module, attr = parts[0].strip(), parts[1].strip()
-    name = parts[2].strip() if len(parts) == 3 else attr.rsplit(".", 1)[-1]
-    if not all(s.isidentifier() for s in attr.split(".")):
-        raise PolicyError(f"--policy {spec!r}: {attr!r} is not a Python name")
-    if not _NAME.fullmatch(name) or name.endswith("."):
-        raise PolicyError(f"--policy {spec!r}: the name {name!r} must be letters, digits, '_', '-' and '.' "
-                          "(it names the report's row, the recording's file and --fail-if's POLICY.)")
-    is_file = module.endswith(".py") or "/" in module or "\\" in module
-    if is_file:
-        path = Path(module).expanduser()
-        if not path.is_file():
-            raise PolicyError(f"--policy {spec!r}: no such file {module}")
-        module = str(path.resolve())
-    elif not all(s.isidentifier() for s in module.split(".")):
-        raise PolicyError(f"--policy {spec!r}: {module!r} is neither a dotted module name nor a .py file")
-    return CallableSpec(module, attr, name, is_file)
-
-
-def _import(spec: CallableSpec, where: str) -> Any:
-    if spec.is_file:
-        path = Path(spec.module)
-        digest = hashlib.sha256(str(path).encode()).hexdigest()[:10]
-        mod_name = f"_merge_irl_policy_{path.stem if path.stem.isidentifier() else 'file'}_{digest}"
-        if mod_name in sys.modules:
-            return sys.modules[mod_name]
-        ispec = importlib.util.spec_from_file_location(mod_name, path)
-        if ispec is None or ispec.loader is None:
-            raise PolicyError(f"{where}: cannot import {path} as a Python module")
-        module = importlib.util.module_from_spec(ispec)
-        sys.modules[mod_name] = module  # before running it: dataclasses and pickle look it up
-        try:
-            ispec.loader.exec_module(module)
-        except Exception as e:  # the user's module may raise anything
-            sys.modules.pop(mod_name, None)
-            raise PolicyError(f"{where}: importing {path} failed ({type(e).__name__}: {_one_line(e)})") from None
-        return module
-    try:
-        return importlib.import_module(spec.module)
-    except ModuleNotFoundError as e:
-        raise PolicyError(f"{where}: no module {e.name!r} (a dotted module must be importable: installed or on "
-                          "PYTHONPATH; or give a path to a .py file)") from None
-    except Exception as e:
-        raise PolicyError(f"{where}: importing {spec.module} failed ({type(e).__name__}: {_one_line(e)})") from None
-
-
-def _one_line(e: BaseException) -> str:
-    return " ".join(str(e).split())
-
-
-def load_callable(spec: str | CallableSpec) -> tuple[Callable[[np.ndarray], Any], CallableSpec]:
-    """The callable of a ``module:callable[:name]`` spec (:func:`parse_spec`) and the parsed spec.
-
-    A ``.py`` file is imported under a name of its own (the same file: the same module, once per
-    process).
-
-    Raises:
-        PolicyError: a bad spec, a missing file or module, an import that fails, a missing
-            attribute, or an attribute that is neither callable nor has a ``predict`` method.
-    """
-    s = parse_spec(spec) if isinstance(spec, str) else spec
-    where = f"--policy {s.module}:{s.attr}"
-    obj: Any = _import(s, where)
-    for part in s.attr.split("."):
-        if not hasattr(obj, part):
-            raise PolicyError(f"{where}: {s.module} has no attribute {s.attr!r}")
-        obj = getattr(obj, part)
-    if not callable(obj) and not callable(getattr(obj, "predict", None)):
-        raise PolicyError(f"{where}: {s.attr} is a {type(obj).__name__}, not callable (give a function "
-                          "obs -> action, or an object with predict(obs, deterministic=True))")
-    return obj, s
+__all__ = ["CallablePolicy", "CallableSpec", "PLAUSIBLE_ACC_MPS2", "PolicyCallable", "TRUCK_MIN_LENGTH_FT", "act_of",
+           "load_callable", "parse_action", "parse_spec"]
 
 
 # -- callable -> Policy -----------------------------------------------------------------------

@@ -124,10 +124,6 @@ class MergeObservation:
     acc_prev: float = math.nan
     acc_C: float = 0.0
 
-    def as_array(self) -> np.ndarray:
-        """``[5]``: d_AC, d_AB, v_AC, v_AB, B_is_truck."""
-        return np.array([self.d_AC, self.d_AB, self.v_AC, self.v_AB, float(self.b_is_truck)])
-
     def continuous(self, *, filled: bool = False) -> np.ndarray:
         """``[1, 7]``: ``d_AC, v_AC, d_AB, v_AB, v_A, len_C, len_B`` (ft, ft/s), the continuous
         observation of the car-following and planning drivers

@@ -39,7 +39,7 @@ from sim.runtime.hooks import StepHook
 from sim.drivers.policy import SumoPolicy
 from sim.runtime.run import run_scenario
 from sim.runtime.run_result import SimulationResult
-from sim.runtime.schema import RIGHTMOST_MAIN_LANE
+from sim.runtime.sites import site_of
 from sim.merges.take_over import TakeOverRule
 
 
@@ -76,7 +76,8 @@ def encounters_of_run(result: SimulationResult, *, encounter_rule: str = ENCOUNT
                       window: EncounterWindow = EncounterWindow()) -> Encounters:
     """The merge encounters of a simulated run by ``encounter_rule`` (merges of teleported Bs
     left out). A run made for ``in-lane`` must have run with fresh :func:`demonstrator_hooks`;
-    a UserWarning says so when an encounter ends where A left lane 6 (an observed A cannot).
+    a UserWarning says so when an encounter ends where A left the merge lane (lane 6 on I-80; an observed A
+    cannot).
 
     Raises:
         ValueError: see :func:`sim.merges.rules.check_rule`; the run's auxiliary lane is
@@ -85,20 +86,23 @@ def encounters_of_run(result: SimulationResult, *, encounter_rule: str = ENCOUNT
     check_rule(encounter_rule, custom_window=window != EncounterWindow())
     rule = (None if encounter_rule == "merge-frame"
             else TakeOverRule.of_controller(ControllerConfig(), result.aux_lane_start_ft))
-    enc = extract(result.table, window=window, teleported=result.teleported_vehicle_ids, take_over=rule)
+    site = site_of(result.spec)
+    enc = extract(result.table, window=window, site=site, teleported=result.teleported_vehicle_ids, take_over=rule)
     if encounter_rule == "in-lane":
-        left = _left_lane_6(result.table, enc.frames)
+        left = _left_merge_lane(result.table, enc.frames, site.merge_lane)
         if left:
-            warnings.warn(f"encounter rule in-lane: {left} encounter(s) end where A left lane 6, which an observed A "
-                          "cannot do: was the run made with fresh demonstrator_hooks('in-lane')?", stacklevel=2)
+            warnings.warn(f"encounter rule in-lane: {left} encounter(s) end where A left lane {site.merge_lane}, "
+                          "which an observed A cannot do: was the run made with fresh "
+                          "demonstrator_hooks('in-lane')?", stacklevel=2)
     return enc
 
 
-def _left_lane_6(table: pd.DataFrame, frames: pd.DataFrame) -> int:
-    """How many encounters of ``frames`` end with A in another lane than 6 in the next frame."""
+def _left_merge_lane(table: pd.DataFrame, frames: pd.DataFrame, merge_lane: int) -> int:
+    """How many encounters of ``frames`` end with A in another lane than ``merge_lane`` (the
+    site's; I-80: 6) in the next frame."""
     if frames.empty:
         return 0
     last = frames.groupby("encounter_id")[["A_id", "Frame_ID"]].max()
     lane = table.set_index(["Vehicle_ID", "Frame_ID"])["Lane_ID"]
     nxt = lane.reindex(list(zip(last["A_id"], last["Frame_ID"] + 1)))
-    return int((nxt.notna() & (nxt != RIGHTMOST_MAIN_LANE)).sum())
+    return int((nxt.notna() & (nxt != merge_lane)).sum())

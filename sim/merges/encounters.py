@@ -210,7 +210,7 @@ def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),
     merges, excluded = screen_merges(table, find_merges(table, site=site), teleported)
     if merges.empty:
         return Encounters(_empty(ENCOUNTER_COLUMNS), _empty(MERGE_COLUMNS), excluded)
-    index = TableIndex(table, site.merge_lane)  # lane-6 vehicles per frame by Local_Y: A/C look-ups
+    index = TableIndex(table, site.merge_lane)  # merge-lane vehicles per frame by Local_Y: A/C look-ups
     if not index.unique:
         raise TrajectoryFormatError("trajectory table: duplicate (Vehicle_ID, Frame_ID) rows")
     vid, frame, y, rows = index.vid, index.frame, index.y, index.rows
@@ -235,11 +235,11 @@ def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),
             a, start = to.a_id, to.start
             frames = np.arange(to.start, to.end, dtype=np.int64)
         else:
-            ys6, vids6 = index.lane_six(int(mf))
-            ys6, vids6 = [yy for yy, v in zip(ys6, vids6) if v != b], vids6[vids6 != b]
-            ia, ic = lag_lead_positions(ys6, float(y[rb]))  # the controller's rule too
-            a = int(vids6[ia]) if ia >= 0 else 0
-            c = int(vids6[ic]) if ic >= 0 else 0
+            ys_m, vids_m = index.merge_lane_at(int(mf))
+            ys_m, vids_m = [yy for yy, v in zip(ys_m, vids_m) if v != b], vids_m[vids_m != b]
+            ia, ic = lag_lead_positions(ys_m, float(y[rb]))  # the controller's rule too
+            a = int(vids_m[ia]) if ia >= 0 else 0
+            c = int(vids_m[ic]) if ic >= 0 else 0
             start = mf
             if a:
                 start = int(max(first_frame[a], first_frame[b]))

@@ -110,9 +110,9 @@ class TableIndex:
         self.y = table["Local_Y"].to_numpy(np.float64)
         self.merge_lane = int(merge_lane)
         self.row_of = pd.MultiIndex.from_arrays([self.vid, self.frame])
-        six = np.flatnonzero(self.lane == merge_lane)
-        six = six[np.lexsort((self.y[six], self.frame[six]))]
-        self._six_frames, self._six_ys, self._six_vids = self.frame[six], self.y[six], self.vid[six]
+        m = np.flatnonzero(self.lane == merge_lane)
+        m = m[np.lexsort((self.y[m], self.frame[m]))]
+        self._merge_frames, self._merge_ys, self._merge_vids = self.frame[m], self.y[m], self.vid[m]
 
     @property
     def unique(self) -> bool:
@@ -123,15 +123,15 @@ class TableIndex:
         """``[len(frames)]`` rows of vehicle ``v`` at ``frames`` (-1 where it has none)."""
         return self.row_of.get_indexer(pd.MultiIndex.from_arrays([np.full(frames.shape, v, np.int64), frames]))
 
-    def lane_six(self, f: int) -> tuple[list[float], np.ndarray]:
+    def merge_lane_at(self, f: int) -> tuple[list[float], np.ndarray]:
         """``(Local_Y ascending, Vehicle_IDs)`` of the merge-lane vehicles at frame ``f``."""
-        lo, hi = np.searchsorted(self._six_frames, f, "left"), np.searchsorted(self._six_frames, f, "right")
-        return self._six_ys[lo:hi].tolist(), self._six_vids[lo:hi]
+        lo, hi = np.searchsorted(self._merge_frames, f, "left"), np.searchsorted(self._merge_frames, f, "right")
+        return self._merge_ys[lo:hi].tolist(), self._merge_vids[lo:hi]
 
     def lag(self, f: int, y_ref: float, max_gap_ft: float) -> int:
         """Vehicle_ID of the nearest merge-lane vehicle strictly behind ``y_ref`` within
         ``max_gap_ft`` at frame ``f`` (:func:`sim.drivers.observe.lag_lead_positions`); 0 if none."""
-        ys, vids = self.lane_six(f)
+        ys, vids = self.merge_lane_at(f)
         k, _ = lag_lead_positions(ys, y_ref)
         if k < 0 or ys[k] < y_ref - max_gap_ft:
             return 0
@@ -140,7 +140,7 @@ class TableIndex:
     def lead(self, f: int, y_ref: float, exclude: tuple[int, ...]) -> int:
         """Vehicle_ID of the nearest merge-lane vehicle strictly ahead of ``y_ref`` at frame
         ``f`` that is not in ``exclude`` (:func:`sim.drivers.observe.lag_lead_positions`); 0 if none."""
-        ys, vids = self.lane_six(f)
+        ys, vids = self.merge_lane_at(f)
         _, k = lag_lead_positions(ys, y_ref)
         for j in range(k, len(ys)) if k >= 0 else ():
             if int(vids[j]) not in exclude:

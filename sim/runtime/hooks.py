@@ -122,10 +122,6 @@ class FrameState:
     def _lane_orders(self) -> dict[int, tuple[list[float], list[int]]]:
         return {}
 
-    def index_of(self, vehicle_id: int) -> int | None:
-        """Row of ``vehicle_id`` in this frame's arrays, or None if it is not in the network."""
-        hits = np.flatnonzero(self.vehicle_id == vehicle_id)
-        return int(hits[0]) if hits.size else None
 
 
 @runtime_checkable

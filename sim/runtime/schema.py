@@ -10,7 +10,6 @@ is no preceding vehicle, as in NGSIM.
 
 from __future__ import annotations
 
-import numpy as np
 import pandas as pd
 
 from merge_irl.units import FRAME_S, FT_PER_M  # noqa: F401  (re-exported: the table's units)
@@ -70,8 +69,3 @@ def conform(table: pd.DataFrame) -> pd.DataFrame:
 def sort_table(table: pd.DataFrame) -> pd.DataFrame:
     """Sort by (Vehicle_ID, Frame_ID), NGSIM's file order."""
     return table.sort_values(["Vehicle_ID", "Frame_ID"], kind="stable").reset_index(drop=True)
-
-
-def as_numpy(table: pd.DataFrame, column: str) -> np.ndarray:
-    """A column as a contiguous numpy array of the schema dtype."""
-    return np.ascontiguousarray(table[column].to_numpy(dtype=COLUMNS[column]))

@@ -1,4 +1,6 @@
-"""The 5x5 gridworld of the paper, laid out as REFERENCE.md describes."""
+"""The 5x5 gridworld of the paper, laid out as the authors' code does: state ``5 * row + col``,
+actions 0 = col-1, 1 = row+1, 2 = col+1, 3 = row-1 (off the grid: stay), features yellow = state 4,
+green = 0, red = 20, pink = 24, blue = {1, 8, 11, 18, 21} (:mod:`irl.domains.gridworld`)."""
 
 
 import numpy as np

@@ -62,7 +62,7 @@ def apply_dask_options(args: argparse.Namespace) -> None:
 
     Raises:
         FileNotFoundError: a ``--dask-tls-*`` file does not exist.
-        SimError: an option was given and Dask is not installed (one line, exit 2).
+        AnalysisError: an option was given and Dask is not installed (one line, exit 2).
     """
     given = {key: getattr(args, dest) for dest, key in _KEYS.items() if getattr(args, dest, None) is not None}
     if not given:
@@ -74,7 +74,7 @@ def apply_dask_options(args: argparse.Namespace) -> None:
     try:
         import dask.config
     except ImportError:  # pragma: no cover - depends on the install
-        from sim.errors import SimError
+        from analysis.errors import AnalysisError
 
-        raise SimError("the --dask-* options need Dask distributed: pip install 'merge-irl[dask]'") from None
+        raise AnalysisError("the --dask-* options need Dask distributed: pip install 'merge-irl[dask]'") from None
     dask.config.set({k: (f"{v}s" if isinstance(v, float) else str(Path(v).resolve())) for k, v in given.items()})

@@ -75,11 +75,11 @@ def run(args: argparse.Namespace) -> int:
     if args.workers is not None:
         config = replace(config, workers=args.workers)
     if args.executor is not None:
-        from analysis.evaluation.evaluate import resolve_executor
-        from sim.errors import SimError
+        from analysis.sweep import resolve_executor
+        from analysis.errors import AnalysisError
 
         if args.workers is not None:
-            raise SimError("give --executor or --workers, not both")
+            raise AnalysisError("give --executor or --workers, not both")
         config = replace(config, executor=resolve_executor(args.executor, None))
     apply_dask_options(args)
     result = run_demo(args.out, config, progress=not args.no_progress)

@@ -77,20 +77,20 @@ def run(args: argparse.Namespace) -> int:
     from sim.drivers.baselines import check_baselines, left_out_baselines
     from analysis.evaluation.thresholds import check_thresholds, metrics_from_file, not_triggered, parse_thresholds
     from sim.closed_loop.config import ControllerConfig
-    from sim.errors import SimError
+    from analysis.errors import AnalysisError
 
     thresholds = parse_thresholds(args.fail_if) if args.fail_if else ()  # syntax errors before any work
-    from analysis.evaluation.evaluate import resolve_executor
+    from analysis.sweep import resolve_executor
 
     if args.executor is not None and args.workers is not None:
-        raise SimError("give --executor or --workers, not both")
+        raise AnalysisError("give --executor or --workers, not both")
     executor = resolve_executor(args.executor, args.workers)
     apply_dask_options(args)
 
     baselines = tuple(b.strip() for b in args.baselines.split(",") if b.strip())
     check_baselines(baselines, "--baselines")
     if not args.model and not args.cf_model and not args.driver and not args.policy and not baselines:
-        raise SimError("nothing to evaluate: give --model, --driver, --cf-model, --policy and/or --baselines")
+        raise AnalysisError("nothing to evaluate: give --model, --driver, --cf-model, --policy and/or --baselines")
     from sim.drivers.formats import driver_policy
     from analysis.evaluation.policies import cf_policy
     from sim.drivers.policy import Policy

@@ -48,7 +48,7 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from analysis.experiments.reproduce import reproduce_tables
+    from analysis.experiments.reproduce import ReproduceConfig, reproduce_tables
     from analysis.experiments.reproduce_report import format_report, save_reports_json
     from irl.errors import ConfigError
     from irl.methods.reirl import DEFAULT_EPSILON
@@ -62,12 +62,12 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as e:
         raise ConfigError(str(e)) from None
     apply_dask_options(args)
-    run_ = reproduce_tables(
-        args.table, args.data, trials=args.trials, config=config_from_args(args), seed=args.seed,
+    run_ = reproduce_tables(args.table, ReproduceConfig(
+        args.data, trials=args.trials, irl_config=config_from_args(args), seed=args.seed,
         holdout=not args.no_holdout, epsilon=DEFAULT_EPSILON if args.epsilon is None else args.epsilon,
         executor=args.executor, store=args.store, retries=args.retries,
         progress=not args.no_progress,
-    )
+    ))
     print("\n\n".join(format_report(r) for r in run_.reports))
     print(run_.sweep.summary().splitlines()[0], file=sys.stderr)
     if args.json:

@@ -106,10 +106,10 @@ def test_a_registered_method_drives_in_evaluate(toy, tmp_path):
 
 
 def test_a_registered_method_runs_through_reproduce(toy, railusm):
-    from analysis.experiments.reproduce import reproduce
+    from analysis.experiments.reproduce import ReproduceConfig, reproduce
     from analysis.experiments.reproduce_report import format_report
 
-    rep = reproduce(1, railusm, trials=1, methods=("toy",), holdout=False, executor="serial")
+    rep = reproduce(1, ReproduceConfig(railusm, trials=1, methods=("toy",), holdout=False, executor="serial"))
     toy_rows = [r for r in rep.rows if r.method == "toy"]
     assert len(toy_rows) == 1 and np.allclose(toy_rows[0].theta_mean, TOY_THETA)
     assert "Toy" in format_report(rep)

@@ -1,12 +1,13 @@
 """``merge-irl reproduce``: the paper's table layout, Wilcoxon p-values, held-out likelihood."""
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from analysis.cli.main import main
-from analysis.experiments.reproduce import reproduce, reproduce_tables
+from analysis.experiments.reproduce import ReproduceConfig, reproduce, reproduce_tables
 from analysis.experiments.reproduce_report import wilcoxon_p
 from analysis.experiments.trials import TrialOutcome, TrialTask, run_trial, run_trials, table_problem, trial_seeds
 from irl.config import IRLConfig
@@ -82,9 +83,10 @@ def test_holdout_is_the_held_out_trajectory_likelihood(railusm):
 
 
 def test_reproduce_api_is_deterministic_and_pairs_trials(railusm):
-    kw = dict(trials=2, methods=("qavg", "reirl"), holdout=True, config=IRLConfig.paper(l2=0.01))
-    r1 = reproduce(2, railusm, executor="serial", **kw)
-    r2 = reproduce(2, railusm, executor="serial", **kw)
+    config = ReproduceConfig(railusm, trials=2, methods=("qavg", "reirl"), holdout=True,
+                             irl_config=IRLConfig.paper(l2=0.01), executor="serial")
+    r1 = reproduce(2, config)
+    r2 = reproduce(2, config)
     assert len(r1.trials) == 2 * 2 and len(r1.holdout) == 2 * 14 and r1.failures == ()
     assert [t.theta for t in r1.trials] == [t.theta for t in r2.trials]
     assert [row.loglik_mean for row in r1.rows] == [row.loglik_mean for row in r2.rows]
@@ -102,9 +104,9 @@ def _trial_key(o: TrialOutcome):
 
 
 def test_serial_and_process_executors_give_identical_tables(railusm):
-    kw = dict(trials=2, methods=("qavg", "reirl"), holdout=False)
-    serial = reproduce_tables([1, 3], railusm, executor="serial", **kw)
-    pooled = reproduce_tables([1, 3], railusm, executor="process:2", **kw)
+    config = ReproduceConfig(railusm, trials=2, methods=("qavg", "reirl"), holdout=False)
+    serial = reproduce_tables([1, 3], replace(config, executor="serial"))
+    pooled = reproduce_tables([1, 3], replace(config, executor="process:2"))
     assert serial.ok and pooled.ok and pooled.sweep.n_run == serial.sweep.n_run == 2 * 2 * 2
     for a, b in zip(serial.reports, pooled.reports):
         assert [_trial_key(o) for o in a.trials] == [_trial_key(o) for o in b.trials]
@@ -114,17 +116,17 @@ def test_serial_and_process_executors_give_identical_tables(railusm):
 
 def test_resumed_reproduce_skips_finished_trials(railusm, tmp_path):
     store = tmp_path / "store"
-    kw = dict(trials=2, methods=("qavg", "reirl"), holdout=False, executor="serial", store=store)
-    first = reproduce_tables([1], railusm, **kw)
+    config = ReproduceConfig(railusm, trials=2, methods=("qavg", "reirl"), holdout=False, executor="serial", store=store)
+    first = reproduce_tables([1], config)
     assert first.sweep.n_run == 4 and first.sweep.n_cached == 0
     files = sorted(store.glob("*.json"))
     assert len(files) == 4
     files[0].unlink()  # as if the run had been killed before this trial finished
-    again = reproduce_tables([1], railusm, **kw)
+    again = reproduce_tables([1], config)
     assert again.sweep.n_cached == 3 and again.sweep.n_run == 1
     assert [_trial_key(o) for o in again.reports[0].trials] == [_trial_key(o) for o in first.reports[0].trials]
     # another master seed is another set of trials: nothing reused
-    other = reproduce_tables([1], railusm, **{**kw, "trials": 1}, seed=1)
+    other = reproduce_tables([1], replace(config, trials=1, seed=1))
     assert other.sweep.n_cached == 0
 
 
@@ -153,8 +155,8 @@ def test_table_3_problem_is_the_authors_merge_data(railusm):
 def test_baseline_rows_and_paired_held_out_tests(railusm, capsys):
     from irl.baselines import baseline_leave_one_out, fit_baseline, paired_test
 
-    report = reproduce(1, railusm, trials=1, methods=("mlirl", "qavg"), config=IRLConfig.paper(l2=0.01),
-                       executor="serial")
+    report = reproduce(1, ReproduceConfig(railusm, trials=1, methods=("mlirl", "qavg"),
+                                          irl_config=IRLConfig.paper(l2=0.01), executor="serial"))
     rows = {r.method: r for r in report.rows}
     demos = table_problem(1, railusm).demos
     for name in ("uniform", "marginal", "markov", "bc"):

@@ -2,27 +2,47 @@
 
 Demonstrations are merge encounter tables (``merge-irl generate`` / ``merge-irl encounters``
 output, with ``v_A`` and the vehicle lengths) or folders of real car-following pair CSVs (the
-layout of ``analysis.calibration.pairs``: C the recorded leader, no B). Several sources are
-learned from together, their encounters and pairs kept apart as groups. The planner's settings
-are chosen by held-out likelihood on a split of the groups, then its reward weights are fitted
-by maximum likelihood on all of them (:func:`irl.domains.merge.planning.driver.learn_planning_driver`).
+layout of ``analysis.calibration.pairs``: C the recorded leader, no B). Two criteria
+(:data:`FITS`):
+
+* ``replay`` (the default when every source is a pair folder): the reward's weights and gap shape
+  are chosen by what the driver does when it drives, replaying the training pairs from their
+  recorded initial states (:func:`irl.domains.merge.planning.replay_fit.fit_by_replay`), then its
+  temperature by the training likelihood (:func:`~irl.domains.merge.planning.replay_fit.fit_temperature`).
+  With ``holdout``, followers are split as ``merge-irl calibrate fit --holdout`` splits them
+  (:func:`analysis.calibration.pairs.split_by_follower`, same seed: the same followers), and the
+  held-out followers are scored beside IDM with SUMO's defaults (:func:`heldout_report`).
+* ``likelihood`` (the default for encounter tables): the planner's settings chosen by held-out
+  likelihood on a split of the groups, its weights by maximum likelihood on all of them
+  (:func:`irl.domains.merge.planning.driver.learn_planning_driver`). Several sources are learned
+  from together, their encounters and pairs kept apart as groups.
 """
 
 from __future__ import annotations
 
 import os
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, read_encounters
 from irl.domains.merge.planning.decisions import PlanningDecisions, encounter_decisions, pair_decisions
-from irl.domains.merge.planning.driver import PlanningDriver, learn_planning_driver
+from irl.domains.merge.planning.driver import PlanningDriver, learn_planning_driver, shape_of
 from irl.domains.merge.planning.model import PlannerConfig
+from irl.domains.merge.planning.replay import ReplayPair, replay
+from irl.domains.merge.planning.replay_fit import ReplayFitConfig, fit_by_replay, fit_temperature
 from irl.errors import DemonstrationError
 from merge_irl.provenance import provenance
 from merge_irl.units import FT_PER_M
+
+#: The criteria a driver can be fitted by (module docstring); ``auto``: replay when every source
+#: is a folder of pairs, else likelihood.
+FITS = ("auto", "replay", "likelihood")
+#: A bumper gap (m) closer than which a follower counts as close (the share reported).
+CLOSE_GAP_M = 2.0
 
 
 def pair_frames(pairs) -> tuple[list[pd.DataFrame], list[str]]:
@@ -60,6 +80,20 @@ def load_driver_demos(paths: Sequence[str | os.PathLike], *,
     return PlanningDecisions.concat(parts)
 
 
+def resolve_fit(fit: str, paths: Sequence[str | os.PathLike]) -> str:
+    """``"replay"`` or ``"likelihood"``: ``fit``, or for ``"auto"`` replay when every source is a
+    folder of pairs.
+
+    Raises:
+        DemonstrationError: an unknown ``fit``.
+    """
+    if fit not in FITS:
+        raise DemonstrationError(f"learn-driver: --fit must be one of {FITS}, got {fit!r}")
+    if fit != "auto":
+        return fit
+    return "replay" if paths and all(Path(p).is_dir() for p in paths) else "likelihood"
+
+
 def learn_driver(paths: Sequence[str | os.PathLike], out: str | os.PathLike | None = None, *, seed: int = 0,
                  decision_step_s: float = DEFAULT_DECISION_STEP_S, select: bool = True,
                  log: Callable[[str], None] = lambda s: None) -> PlanningDriver:
@@ -80,6 +114,92 @@ def learn_driver(paths: Sequence[str | os.PathLike], out: str | os.PathLike | No
     inputs = {("demos" if len(paths) == 1 else f"demos{i}"): p for i, p in enumerate(paths, start=1)}
     driver.info["provenance"] = provenance(inputs)
     driver.info["demos"] = [str(p) for p in paths]
+    if out is not None:
+        driver.save(out)
+    return driver
+
+
+def replay_pairs_of(pairs) -> list[ReplayPair]:
+    """Car-following pairs (SI) in the replay's units (ft, ft/s)."""
+    return [ReplayPair(p.name, p.x_follower * FT_PER_M, p.v_follower * FT_PER_M, p.x_leader * FT_PER_M,
+                       p.v_leader * FT_PER_M, p.leader_length * FT_PER_M) for p in pairs]
+
+
+def heldout_report(driver: PlanningDriver, pairs, *, decision_step_s: float) -> dict[str, float]:
+    """The driver on held-out ``pairs`` (:class:`analysis.calibration.pairs.CarFollowingPair`)
+    beside IDM with SUMO's default parameters on the same pairs (numpy replica): median and mean
+    spacing RMSE (m), collisions, the share of pairs closer than :data:`CLOSE_GAP_M` (driver,
+    recorded), and the held-out likelihood per decision of the paper actions.
+
+    Raises:
+        DemonstrationError: no pairs.
+    """
+    from analysis.calibration.models import SUMO_DEFAULTS
+    from analysis.calibration.objective import spacing_rmse
+    from analysis.calibration.pairs import PairBatch
+
+    if not pairs:
+        raise DemonstrationError("held-out report: no pairs")
+    res = replay(replay_pairs_of(pairs), driver.act, driver.decision_step_s)
+    batch = PairBatch.from_pairs(pairs)
+    idm = np.asarray(batch.unsort(spacing_rmse("idm", batch, SUMO_DEFAULTS.as_dict())), dtype=np.float64)
+    frames, groups = pair_frames(pairs)
+    dec = pair_decisions(frames, decision_step_s, groups=groups)
+    recorded_close = float(np.mean([float(np.min(p.spacing)) < CLOSE_GAP_M for p in pairs]))
+    return {"pairs": len(pairs), "median_rmse_m": float(np.median(res.rmse_m)), "mean_rmse_m": float(np.mean(res.rmse_m)),
+            "idm_defaults_median_rmse_m": float(np.median(idm)), "idm_defaults_mean_rmse_m": float(np.mean(idm)),
+            "collisions": int(res.collided.sum()), "close_share": float(np.mean(res.min_gap_m < CLOSE_GAP_M)),
+            "recorded_close_share": recorded_close, "ll_per_decision": driver.heldout_ll_per_decision(dec)}
+
+
+def learn_driver_by_replay(pair_dirs: Sequence[str | os.PathLike], out: str | os.PathLike | None = None, *,
+                           holdout: float = 0.0, seed: int = 0, decision_step_s: float = DEFAULT_DECISION_STEP_S,
+                           config: ReplayFitConfig | None = None,
+                           log: Callable[[str], None] = lambda s: None) -> PlanningDriver:
+    """A planning driver fitted by replaying the pairs of ``pair_dirs`` (module docstring) and,
+    with ``out``, written with its provenance. ``holdout``: the fraction of followers held out
+    (0: none), split with ``seed``; their report is in ``info["heldout"]``.
+
+    Raises:
+        DemonstrationError: a source that is not a folder of pairs, or no pairs.
+        SpecError: a malformed pair file, or a bad ``holdout``.
+        OSError: ``out`` cannot be written.
+    """
+    from analysis.calibration.pairs import load_pairs, split_by_follower
+
+    pairs: list = []
+    for p in map(Path, pair_dirs):
+        if not p.is_dir():
+            raise DemonstrationError(f"{p}: --fit replay needs folders of car-following pair CSVs; an encounter "
+                                     "table is fitted with --fit likelihood")
+        pairs.extend(load_pairs(p))
+    train, test = split_by_follower(pairs, holdout, seed) if holdout else (tuple(pairs), ())
+    cfg = config or ReplayFitConfig(planner=replace(ReplayFitConfig().planner, decision_step_s=decision_step_s))
+    frames, groups = pair_frames(train)
+    dec = pair_decisions(frames, decision_step_s, groups=groups)
+    log(f"{len(train)} training pairs of {len({p.group for p in train})} followers ({dec.n} decisions)"
+        + (f", {len(test)} held-out pairs of {len({p.group for p in test})} followers" if test else ""))
+    fit = fit_by_replay(replay_pairs_of(train), shape_of(dec), dec.action_acc_ft_s2(), cfg, log=log)
+    log(f"replay fit: {fit.objective:.3f} m (from {fit.start_objective:.3f} m) after {fit.n_evals} replays, "
+        f"{fit.seconds:.0f} s{'' if fit.converged else ' (stopped at its budget)'}")
+    driver, ll = fit_temperature(fit.driver, dec)
+    log(f"temperature {driver.config.temperature:.3g}: training LL {ll:.4f} per decision")
+    info: dict = {**driver.info, "n_decisions": dec.n, "seed": seed, "holdout": holdout,
+                  "train_pairs": len(train), "replay_params": fit.params,
+                  "train_median_rmse_m": float(np.median(fit.result.rmse_m)),
+                  "train_collisions": int(fit.result.collided.sum())}
+    if test:
+        info["heldout"] = heldout_report(driver, test, decision_step_s=decision_step_s)
+        h = info["heldout"]
+        log(f"held out ({h['pairs']} pairs): median RMSE {h['median_rmse_m']:.2f} m (IDM, SUMO's defaults "
+            f"{h['idm_defaults_median_rmse_m']:.2f} m), mean {h['mean_rmse_m']:.2f} m "
+            f"({h['idm_defaults_mean_rmse_m']:.2f}), collisions {h['collisions']}, closer than {CLOSE_GAP_M:g} m "
+            f"{100 * h['close_share']:.0f} % (recorded {100 * h['recorded_close_share']:.0f} %), LL "
+            f"{h['ll_per_decision']:.3f} per decision")
+    info["provenance"] = provenance({("demos" if len(pair_dirs) == 1 else f"demos{i}"): p
+                                     for i, p in enumerate(pair_dirs, start=1)})
+    info["demos"] = [str(p) for p in pair_dirs]
+    driver = replace(driver, loglik=ll * dec.n, info=info)
     if out is not None:
         driver.save(out)
     return driver

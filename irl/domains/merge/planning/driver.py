@@ -44,7 +44,8 @@ from merge_irl.atomic import write_json_atomic
 PLANNER_FORMAT = "merge-irl-planner/1"
 #: Keys of the file's ``config`` that older files lack, with the values those files meant (a
 #: fitted jerk weight was then always part of the reward; the current default has none).
-LEGACY_CONFIG: dict[str, Any] = {"jerk": True, "free_road": False, "lag": 1.0, "v0_ft_s": 0.0, "jerk_weight": None}
+LEGACY_CONFIG: dict[str, Any] = {"jerk": True, "free_road": False, "lag": 1.0, "v0_ft_s": 0.0, "jerk_weight": None,
+                                 "gap_track": False, "temperature": 1.0}
 OPTIONAL_CONFIG_KEYS = frozenset(LEGACY_CONFIG)
 
 
@@ -102,13 +103,13 @@ class PlanningDriver:
     def fine_log_policy(self, obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray) -> np.ndarray:
         """``[N, G]`` ``log pi(g | x)`` over the fine grid."""
         return fine_log_policy(self.tensors(obs, prev_acc, acc_C), self.theta, self.config.backup,
-                               self.config.collision_penalty)
+                               self.config.collision_penalty, self.config.temperature)
 
     def bin_log_policy(self, obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray) -> np.ndarray:
         """``[N, 5]`` ``log P(b | x)`` over the paper actions (``-inf``: no fine action in the bin)."""
         T = self.tensors(obs, prev_acc, acc_C)
         return bin_log_policy_of_fine(fine_log_policy(T, self.theta, self.config.backup,
-                                                      self.config.collision_penalty), T.bins)
+                                                      self.config.collision_penalty, self.config.temperature), T.bins)
 
     def applied(self, choice: np.ndarray, prev_acc: np.ndarray) -> np.ndarray:
         """``[N]`` the accelerations A applies for fine choices ``choice [N]`` after ``prev_acc

@@ -16,6 +16,10 @@ on ``a`` and the acceleration held before it (``a_prev``, continuous):
                           observation, ``d_AB > 0``, and still predicted ahead), else 0.
 ``inv_ttc_C`` / ``_B``    ``min(max(dv, 0) / s, clip_ittc)`` (1/s); 0 without the leader.
 ``headway_C`` / ``_B``    ``exp(-THW / T)``, ``THW = max(s, 0) / max(v_A, 0.1)`` (s).
+``gap_track_C`` / ``_B``  ``min(((s - s_d) / s_d)^2, CLIP_TRACK)``, ``s_d = s0 + v_A T`` the desired
+                          gap (constant time headway ``T``, standstill gap ``s0``): symmetric, so
+                          falling behind costs as well as closing in (the terms above only
+                          punish closing in); 0 without the leader. Optional (``gap_track``).
 ``speed_gain``            ``v_A / v0``; ``speed_dev``: ``(v_A / v0 - 1)^2``.
 ``free_road``             ``(v_A / v0)^4``, IDM's free-road term (optional, ``free_road``).
 ``comfort``               ``(a / 8)^2``.
@@ -61,15 +65,20 @@ DEFAULT_LENGTH_FT = 4.5 * FT_PER_M
 
 STATE_FEATURES = ("gap_need_C", "gap_need_B", "inv_ttc_C", "inv_ttc_B", "headway_C", "headway_B",
                   "speed_gain", "speed_dev")
+#: The symmetric gap-tracking features (optional, ``gap_track``).
+TRACK_FEATURES = ("gap_track_C", "gap_track_B")
+#: Bound of the gap-tracking features: a gap 3x the desired one (or a collision) costs no more.
+CLIP_TRACK = 4.0
 ACTION_FEATURES = ("comfort", "jerk")
 #: Paper actions of the bias features, in :data:`BIAS_FEATURES` order (Zero has none).
 BIAS_ACTIONS = tuple(a for a in range(N_ACTIONS) if a != ZERO_ACTION)
 
 
-def feature_names(with_bias: bool, jerk: bool = True, free_road: bool = False) -> tuple[str, ...]:
+def feature_names(with_bias: bool, jerk: bool = True, free_road: bool = False,
+                  gap_track: bool = False) -> tuple[str, ...]:
     """The ``K`` learned feature names, in the order of the feature axis."""
-    return (STATE_FEATURES + (("free_road",) if free_road else ()) + ("comfort",) + (("jerk",) if jerk else ())
-            + (BIAS_FEATURES if with_bias else ()))
+    return (STATE_FEATURES + (TRACK_FEATURES if gap_track else ()) + (("free_road",) if free_road else ())
+            + ("comfort",) + (("jerk",) if jerk else ()) + (BIAS_FEATURES if with_bias else ()))
 
 
 @dataclass(frozen=True)
@@ -122,6 +131,14 @@ def leader_features(s: np.ndarray, v_a: np.ndarray, dv: np.ndarray, present: np.
     return np.where(present, need, z), np.where(present, ittc, z), np.where(present, head, z)
 
 
+def gap_track(s: np.ndarray, v_a: np.ndarray, present: np.ndarray, shape: Shape) -> np.ndarray:
+    """``min(((s - s_d) / s_d)^2, CLIP_TRACK)``, ``s_d = s0 + v_A T`` (at least 1 ft); 0 where
+    ``present`` is False (module docstring). ``s`` bumper gap (ft), ``v_a`` A's speed (ft/s)."""
+    s_d = np.maximum(shape.s0_ft + v_a * shape.T_s, 1.0)
+    track = np.minimum(((np.where(present, s, s_d) - s_d) / s_d) ** 2, CLIP_TRACK)
+    return np.where(present, track, 0.0)
+
+
 def fit_shape(gap_C_ft: np.ndarray, v_A: np.ndarray, dv_C: np.ndarray, acc_ft_s2: np.ndarray, *,
               v0_quantile: float = 0.95, max_gap_ft: float = 300.0) -> Shape:
     """Fit the feature shape on demonstrated decisions (deterministic; module docstring).
@@ -165,12 +182,12 @@ def fit_shape(gap_C_ft: np.ndarray, v_A: np.ndarray, dv_C: np.ndarray, acc_ft_s2
 
 def step_features(s_C: np.ndarray, v_C: np.ndarray, has_C: np.ndarray, s_B: np.ndarray, v_B: np.ndarray,
                   B_lead: np.ndarray, v_A: np.ndarray, acc: np.ndarray, acc_prev: np.ndarray, shape: Shape,
-                  with_bias: bool, jerk: bool = True, free_road: bool = False) -> np.ndarray:
+                  with_bias: bool, jerk: bool = True, free_road: bool = False, track: bool = False) -> np.ndarray:
     """``[..., K]`` features of one step (module docstring); the inputs broadcast to ``[...]``:
     the step's end state (bumper gaps ``s_C``, ``s_B`` ft; speeds ft/s; ``has_C``, ``B_lead``
     bool) and the step's and the previous accelerations (ft/s^2)."""
     shp = np.broadcast_shapes(*(np.shape(x) for x in (s_C, v_C, s_B, v_A, acc, acc_prev)))
-    names = feature_names(with_bias, jerk, free_road)
+    names = feature_names(with_bias, jerk, free_road, track)
     col = {n: j for j, n in enumerate(names)}
     out = np.empty(shp + (len(names),))
     out[..., 0], out[..., 2], out[..., 4] = leader_features(s_C, v_A, v_A - v_C, has_C, shape)
@@ -178,6 +195,9 @@ def step_features(s_C: np.ndarray, v_C: np.ndarray, has_C: np.ndarray, s_B: np.n
     vr = v_A / shape.v0_ft_s
     out[..., 6] = vr
     out[..., 7] = (vr - 1.0) ** 2
+    if track:
+        out[..., col["gap_track_C"]] = gap_track(s_C, v_A, has_C, shape)
+        out[..., col["gap_track_B"]] = gap_track(s_B, v_A, B_lead, shape)
     if free_road:
         out[..., col["free_road"]] = vr ** 4
     out[..., col["comfort"]] = (acc / ACC_SCALE_FT_S2) ** 2

@@ -65,7 +65,10 @@ class PlannerConfig:
         fitted one of :func:`~irl.domains.merge.planning.features.fit_shape`); jerk_weight: a
         fixed (not fitted) weight of the jerk feature, ``<= 0``, or None: fitted (a fitted jerk
         weight makes the driver a copycat of its own last acceleration in closed loop; see the
-        docs of the driver).
+        docs of the driver); gap_track: the symmetric gap-tracking features (``gap_track_C``,
+        ``gap_track_B``); temperature: ``tau > 0`` of the policy over the first actions,
+        ``softmax(Q / tau)``: it changes the likelihood, never the most likely action (a driver
+        fitted by replay gets its ``tau`` from the training likelihood).
 
     Raises:
         ConfigError: a value outside the above.
@@ -86,6 +89,8 @@ class PlannerConfig:
     lag: float = 1.0
     v0_ft_s: float = 0.0
     jerk_weight: float | None = None
+    gap_track: bool = False
+    temperature: float = 1.0
 
     def __post_init__(self) -> None:
         frames_per_step(self.decision_step_s)
@@ -110,7 +115,10 @@ class PlannerConfig:
                                                  and not isinstance(self.jerk_weight, bool)
                                                  and math.isfinite(self.jerk_weight) and self.jerk_weight <= 0):
             problems.append(f"jerk_weight must be None or a finite number <= 0, got {self.jerk_weight!r}")
-        for name in ("jerk", "free_road", "with_bias"):
+        if not (isinstance(self.temperature, (int, float)) and not isinstance(self.temperature, bool)
+                and math.isfinite(self.temperature) and self.temperature > 0):
+            problems.append(f"temperature must be a finite number > 0, got {self.temperature!r}")
+        for name in ("jerk", "free_road", "with_bias", "gap_track"):
             if not isinstance(getattr(self, name), bool):
                 problems.append(f"{name} must be true or false, got {getattr(self, name)!r}")
         if problems:
@@ -124,7 +132,7 @@ class PlannerConfig:
     @property
     def feature_names(self) -> tuple[str, ...]:
         """The ``K`` learned feature names."""
-        return feature_names(self.with_bias, self.jerk, self.free_road)
+        return feature_names(self.with_bias, self.jerk, self.free_road, self.gap_track)
 
     def applied(self, first: np.ndarray, prev_acc: np.ndarray) -> np.ndarray:
         """``[N, G]`` the accelerations A applies for the fine choices ``first [G]`` after
@@ -284,6 +292,6 @@ def _paths_chunk(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray, leave
     acc_prev[:, :, 1:] = leaves[:, :, :-1]
     acc_prev[:, :, 0] = prev_acc[:, None]
     f = step_features(s_C, v_C, has_C, d_B - len_B, v_B0, B_ahead, v_A, leaves, acc_prev, shape,
-                      config.with_bias, config.jerk, config.free_road)
+                      config.with_bias, config.jerk, config.free_road, config.gap_track)
     g = config.gamma ** np.arange(n)
     return np.einsum("nlsk,s->nlk", f, g), collision(s_C, has_C) @ g

@@ -99,15 +99,17 @@ def path_returns(T: PathTensors, theta: np.ndarray, penalty: float) -> np.ndarra
     return T.Phi @ np.asarray(theta, dtype=np.float64) + penalty * T.Col
 
 
-def fine_log_policy(T: PathTensors, theta: np.ndarray, kind: str, penalty: float) -> np.ndarray:
-    """``[N, G]`` ``log pi(g | x)`` of precomputed paths."""
+def fine_log_policy(T: PathTensors, theta: np.ndarray, kind: str, penalty: float,
+                    temperature: float = 1.0) -> np.ndarray:
+    """``[N, G]`` ``log pi(g | x) = log softmax(Q / temperature)`` of precomputed paths."""
     Q, _ = q_values(path_returns(T, theta, penalty), kind, need_weights=False)
-    return log_softmax(Q)
+    return log_softmax(Q / temperature)
 
 
-def bin_log_policy(T: PathTensors, theta: np.ndarray, kind: str, penalty: float) -> np.ndarray:
+def bin_log_policy(T: PathTensors, theta: np.ndarray, kind: str, penalty: float,
+                   temperature: float = 1.0) -> np.ndarray:
     """``[N, 5]`` ``log P(b | x)`` of precomputed paths."""
-    return bin_log_policy_of_fine(fine_log_policy(T, theta, kind, penalty), T.bins)
+    return bin_log_policy_of_fine(fine_log_policy(T, theta, kind, penalty, temperature), T.bins)
 
 
 def loglik_grad(theta: np.ndarray, T: PathTensors, actions: np.ndarray, kind: str, penalty: float,

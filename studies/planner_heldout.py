@@ -34,7 +34,7 @@ from irl.domains.merge.cf_logit import CarFollowingLogit
 from irl.domains.merge.planning.decisions import PlanningDecisions, encounter_decisions, pair_decisions, split_groups
 from irl.domains.merge.planning.driver import learn_planning_driver
 from irl.domains.merge.planning.fit import fit_planner
-from irl.domains.merge.planning.model import PlannerConfig
+from irl.domains.merge.planning.model import PlannerConfig, path_tensors
 from irl.domains.merge.planning.replay import ReplayPair, replay
 from merge_irl.units import FT_PER_M
 
@@ -100,7 +100,7 @@ def main() -> None:
     log(f"selected {drv.config}: {out['planner']}")
     drv.save(Path(args.out).with_suffix(".planner.json"))
 
-    T = drv.tensors(train.obs, train.prev_acc, train.acc_C)
+    T = path_tensors(train.obs, train.prev_acc, train.acc_C, drv.action_acc_ft_s2, drv.shape, drv.config)  # every feature: refits
     rng = np.random.default_rng(0)
     groups = np.unique(train.groups)
     gpos = np.searchsorted(groups, train.groups)

@@ -104,3 +104,35 @@ def test_a_driver_learned_from_encounters_drives_in_evaluate(tmp_path, capsys):
     expected = driver.bin_log_policy(dec.obs, dec.prev_acc, dec.acc_C)[np.arange(dec.n), dec.actions].sum()
     assert agg["heldout_loglik"] == pytest.approx(expected)
     assert "actuation physical" in (ev / "report.md").read_text()
+
+
+def test_learn_driver_fits_real_pairs_by_replay_with_a_held_out_split(tmp_path, capsys):
+    out = tmp_path / "replay.json"
+    assert main(["learn-driver", "--demos", str(PAIRS), "--holdout", "0.3", "--seed", "0", "--max-evals", "4",
+                 "--out", str(out)]) == 0
+    captured = capsys.readouterr()
+    assert "replay fit:" in captured.err and "held out (" in captured.err  # progress lines on stderr
+    assert "fitted by replay" in captured.out and "held out (" in captured.out
+    drv = PlanningDriver.load(out)
+    assert drv.info["fit"] == "replay" and drv.config.gap_track and not drv.config.jerk
+    assert 0 < drv.config.temperature and drv.info["temperature"] == drv.config.temperature
+    h = drv.info["heldout"]
+    assert h["pairs"] > 0 and np.isfinite(h["median_rmse_m"]) and np.isfinite(h["idm_defaults_median_rmse_m"])
+    assert 0 <= h["close_share"] <= 1 and h["ll_per_decision"] < 0
+    w = dict(zip(drv.feature_names, drv.theta))
+    assert w["gap_track_C"] < 0 and w["gap_track_B"] == w["gap_track_C"]  # the merging car: the lead car's rule
+    # the held-out followers are the ones calibrate fit --holdout 0.3 --seed 0 holds out
+    from analysis.calibration.pairs import load_pairs, split_by_follower
+    _, test = split_by_follower(load_pairs(PAIRS), 0.3, 0)
+    assert h["pairs"] == len(test)
+
+
+def test_learn_driver_refuses_replay_of_an_encounter_table_and_holdout_without_replay(tmp_path, capsys):
+    table = tmp_path / "enc.parquet"
+    _following_demos().to_parquet(table)
+    assert main(["learn-driver", "--demos", str(table), "--fit", "replay", "--out", str(tmp_path / "d.json")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--fit replay needs folders of car-following pair CSVs" in err[0]
+    assert main(["learn-driver", "--demos", str(table), "--holdout", "0.3", "--out", str(tmp_path / "d.json")]) == 2
+    assert "goes with --fit replay" in capsys.readouterr().err
+    assert not (tmp_path / "d.json").exists()

@@ -97,8 +97,10 @@ class PlanningDriver:
         return self.config.fine_grid(np.asarray(self.action_acc_ft_s2))
 
     def tensors(self, obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray) -> PathTensors:
-        """Path tensors of observations ``obs [N, 7]``, ``prev_acc [N]``, ``acc_C [N]``."""
-        return path_tensors(obs, prev_acc, acc_C, self.action_acc_ft_s2, self.shape, self.config)
+        """Path tensors of observations ``obs [N, 7]``, ``prev_acc [N]``, ``acc_C [N]``: the
+        features of the driver's nonzero weights only (the others are 0 and weigh nothing)."""
+        need = frozenset(n for n, w in zip(self.feature_names, self.theta) if w != 0.0)
+        return path_tensors(obs, prev_acc, acc_C, self.action_acc_ft_s2, self.shape, self.config, need=need)
 
     def fine_log_policy(self, obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray) -> np.ndarray:
         """``[N, G]`` ``log pi(g | x)`` over the fine grid."""

@@ -113,8 +113,9 @@ class Shape:
 
 
 def leader_features(s: np.ndarray, v_a: np.ndarray, dv: np.ndarray, present: np.ndarray,
-                    shape: Shape) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(gap need, inverse TTC, headway) towards one leader; 0 where ``present`` is False.
+                    shape: Shape, kinds: tuple[str, ...] = ("gap_need", "inv_ttc", "headway")) -> tuple[np.ndarray, ...]:
+    """(gap need, inverse TTC, headway) towards one leader, or those of ``kinds`` in that
+    order; 0 where ``present`` is False.
 
     Args:
         s: bumper gap (ft); v_a: A's speed (ft/s); dv: closing speed ``v_A - v_leader`` (ft/s);
@@ -122,13 +123,17 @@ def leader_features(s: np.ndarray, v_a: np.ndarray, dv: np.ndarray, present: np.
     """
     s_safe = np.where(present, s, 1e6)
     dv = np.where(present, dv, 0.0)
-    s_star = shape.s0_ft + np.maximum(v_a * shape.T_s + v_a * dv / (2.0 * math.sqrt(shape.a_ft_s2 * shape.b_ft_s2)),
-                                      0.0)
-    need = np.minimum((s_star / np.maximum(s_safe, 1.0)) ** 2, shape.clip_need)
-    ittc = np.minimum(np.maximum(dv, 0.0) / np.maximum(s_safe, 1.0), shape.clip_ittc)
-    head = np.exp(-np.maximum(s_safe, 0.0) / np.maximum(v_a, 0.1) / shape.T_s)
     z = np.zeros(())
-    return np.where(present, need, z), np.where(present, ittc, z), np.where(present, head, z)
+    out = []
+    if "gap_need" in kinds:
+        s_star = shape.s0_ft + np.maximum(
+            v_a * shape.T_s + v_a * dv / (2.0 * math.sqrt(shape.a_ft_s2 * shape.b_ft_s2)), 0.0)
+        out.append(np.where(present, np.minimum((s_star / np.maximum(s_safe, 1.0)) ** 2, shape.clip_need), z))
+    if "inv_ttc" in kinds:
+        out.append(np.where(present, np.minimum(np.maximum(dv, 0.0) / np.maximum(s_safe, 1.0), shape.clip_ittc), z))
+    if "headway" in kinds:
+        out.append(np.where(present, np.exp(-np.maximum(s_safe, 0.0) / np.maximum(v_a, 0.1) / shape.T_s), z))
+    return tuple(out)
 
 
 def gap_track(s: np.ndarray, v_a: np.ndarray, present: np.ndarray, shape: Shape) -> np.ndarray:
@@ -182,28 +187,37 @@ def fit_shape(gap_C_ft: np.ndarray, v_A: np.ndarray, dv_C: np.ndarray, acc_ft_s2
 
 def step_features(s_C: np.ndarray, v_C: np.ndarray, has_C: np.ndarray, s_B: np.ndarray, v_B: np.ndarray,
                   B_lead: np.ndarray, v_A: np.ndarray, acc: np.ndarray, acc_prev: np.ndarray, shape: Shape,
-                  with_bias: bool, jerk: bool = True, free_road: bool = False, track: bool = False) -> np.ndarray:
+                  with_bias: bool, jerk: bool = True, free_road: bool = False, track: bool = False,
+                  need: frozenset[str] | None = None) -> np.ndarray:
     """``[..., K]`` features of one step (module docstring); the inputs broadcast to ``[...]``:
     the step's end state (bumper gaps ``s_C``, ``s_B`` ft; speeds ft/s; ``has_C``, ``B_lead``
-    bool) and the step's and the previous accelerations (ft/s^2)."""
+    bool) and the step's and the previous accelerations (ft/s^2). ``need``: only these features
+    are computed, the others left 0 (a driver acting needs only its nonzero weights' features;
+    a leader absent everywhere costs nothing); None: all."""
     shp = np.broadcast_shapes(*(np.shape(x) for x in (s_C, v_C, s_B, v_A, acc, acc_prev)))
     names = feature_names(with_bias, jerk, free_road, track)
     col = {n: j for j, n in enumerate(names)}
-    out = np.empty(shp + (len(names),))
-    out[..., 0], out[..., 2], out[..., 4] = leader_features(s_C, v_A, v_A - v_C, has_C, shape)
-    out[..., 1], out[..., 3], out[..., 5] = leader_features(s_B, v_A, v_A - v_B, B_lead, shape)
+    want = set(names) if need is None else set(need) & set(names)
+    out = np.empty(shp + (len(names),)) if need is None else np.zeros(shp + (len(names),))
+    for who, s, v, present in (("C", s_C, v_C, has_C), ("B", s_B, v_B, B_lead)):
+        kinds = [k for k in ("gap_need", "inv_ttc", "headway") if f"{k}_{who}" in want]
+        if kinds and (need is None or np.any(present)):
+            for k, x in zip(kinds, leader_features(s, v_A, v_A - v, present, shape, tuple(kinds))):
+                out[..., col[f"{k}_{who}"]] = x
+        if f"gap_track_{who}" in want and (need is None or np.any(present)):
+            out[..., col[f"gap_track_{who}"]] = gap_track(s, v_A, present, shape)
     vr = v_A / shape.v0_ft_s
-    out[..., 6] = vr
-    out[..., 7] = (vr - 1.0) ** 2
-    if track:
-        out[..., col["gap_track_C"]] = gap_track(s_C, v_A, has_C, shape)
-        out[..., col["gap_track_B"]] = gap_track(s_B, v_A, B_lead, shape)
-    if free_road:
+    if "speed_gain" in want:
+        out[..., col["speed_gain"]] = vr
+    if "speed_dev" in want:
+        out[..., col["speed_dev"]] = (vr - 1.0) ** 2
+    if "free_road" in want:
         out[..., col["free_road"]] = vr ** 4
-    out[..., col["comfort"]] = (acc / ACC_SCALE_FT_S2) ** 2
-    if jerk:
+    if "comfort" in want:
+        out[..., col["comfort"]] = (acc / ACC_SCALE_FT_S2) ** 2
+    if "jerk" in want:
         out[..., col["jerk"]] = ((acc - acc_prev) / ACC_SCALE_FT_S2) ** 2
-    if with_bias:
+    if with_bias and any(b in want for b in BIAS_FEATURES):
         bins = actions_of(acc)
         for j, a in enumerate(BIAS_ACTIONS):
             out[..., col[BIAS_FEATURES[j]]] = bins == a

@@ -198,9 +198,11 @@ class PathTensors:
 
 
 def path_tensors(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray, action_acc, shape: Shape,
-                 config: PlannerConfig, *, chunk: int = 512) -> PathTensors:
+                 config: PlannerConfig, *, chunk: int = 512, need: frozenset[str] | None = None) -> PathTensors:
     """Path tensors (module docstring) of ``obs [N, 7]``, ``prev_acc [N]``, ``acc_C [N]`` with
-    the paper actions' accelerations ``action_acc [5]`` (ft/s^2), in chunks of ``chunk`` decisions.
+    the paper actions' accelerations ``action_acc [5]`` (ft/s^2), in chunks of ``chunk`` decisions;
+    ``need``: the features computed (the others 0: acting needs only those of nonzero weight),
+    None: all (learning).
 
     Raises:
         ConfigError: ``obs`` not ``[N, 7]``, ``prev_acc``/``acc_C`` not ``[N]``, ``action_acc``
@@ -227,7 +229,7 @@ def path_tensors(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray, actio
         hi = min(lo + chunk, N)
         lv = leaf_accelerations(config, acc5, config.applied(fine, prev_acc[lo:hi])).reshape(hi - lo, -1, leaf.shape[-1]) \
             if lagged else leaves[None]
-        Phi[lo:hi], Col[lo:hi] = _paths_chunk(obs[lo:hi], prev_acc[lo:hi], acc_C[lo:hi], lv, shape, config)
+        Phi[lo:hi], Col[lo:hi] = _paths_chunk(obs[lo:hi], prev_acc[lo:hi], acc_C[lo:hi], lv, shape, config, need)
     bins = actions_of(config.applied(fine, prev_acc)) if lagged else actions_of(fine)
     return PathTensors(Phi.reshape((N, *tail, K)), Col.reshape((N, *tail)), bins)
 
@@ -255,7 +257,7 @@ def first_step(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray, acc: np
 
 
 def _paths_chunk(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray, leaves: np.ndarray, shape: Shape,
-                 config: PlannerConfig) -> tuple[np.ndarray, np.ndarray]:
+                 config: PlannerConfig, need: frozenset[str] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """``([N, L, K], [N, L])`` of one chunk: every step of every path at once (``[N, L, n]``);
     ``leaves [1 or N, L, n]`` the paths' accelerations."""
     d_AC, v_AC, d_AB, v_AB, v_A0, len_C, len_B = (obs[:, j:j + 1, None] for j in range(7))
@@ -292,6 +294,6 @@ def _paths_chunk(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray, leave
     acc_prev[:, :, 1:] = leaves[:, :, :-1]
     acc_prev[:, :, 0] = prev_acc[:, None]
     f = step_features(s_C, v_C, has_C, d_B - len_B, v_B0, B_ahead, v_A, leaves, acc_prev, shape,
-                      config.with_bias, config.jerk, config.free_road, config.gap_track)
+                      config.with_bias, config.jerk, config.free_road, config.gap_track, need)
     g = config.gamma ** np.arange(n)
     return np.einsum("nlsk,s->nlk", f, g), collision(s_C, has_C) @ g

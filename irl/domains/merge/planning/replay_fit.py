@@ -14,8 +14,9 @@ decision (:func:`irl.domains.merge.planning.replay.replay`); the objective is th
 of the spacing RMSE (m) plus ``collision_cost_m`` for a pair whose bumper gap reached 0.
 
 **Parameters** (:class:`ReplayFitConfig`): the weights of the cost features in ``free`` (each
-``-exp(u)``: a cost stays a cost, never silently changes sign) and the gap shape's ``T_s`` and
-``s0_ft`` (``exp(u)``, started from :data:`START_SHAPE`), all on a log scale, by scipy's
+``-exp(u)``: a cost stays a cost, never silently changes sign) and the shape's ``T_s``, ``s0_ft``
+(``exp(u)``, started from :data:`START_SHAPE`) and desired speed ``v0_ft_s`` (started from the
+demonstrations' 95 % speed quantile), all on a log scale, clipped to :data:`SHAPE_BOUNDS`, by scipy's
 Nelder-Mead (derivative-free: the replay's argmax is piecewise constant in the weights).
 ``comfort``'s weight is held at -1 (the scale: the most likely action depends only on the
 weights' ratios, and the temperature is fitted after). The merging car's terms (``*_B``) have no
@@ -51,7 +52,8 @@ from irl.errors import ConfigError, DemonstrationError
 from merge_irl.units import FT_PER_M
 
 #: Shape parameters the fit may free, with their bounds (ft, s).
-SHAPE_BOUNDS: dict[str, tuple[float, float]] = {"T_s": (0.3, 3.0), "s0_ft": (1.0, 10.0 * FT_PER_M)}
+SHAPE_BOUNDS: dict[str, tuple[float, float]] = {"T_s": (0.3, 3.0), "s0_ft": (1.0, 10.0 * FT_PER_M),
+                                                "v0_ft_s": (15.0, 45.0 * FT_PER_M)}
 #: The gap shape the fit starts from: SUMO's passenger car (tau 1 s, minGap 2.5 m).
 START_SHAPE = Shape()
 #: The reward's features when fitted by replay: the lead car's symmetric gap tracking and closing
@@ -81,7 +83,7 @@ class ReplayFitConfig:
     planner: PlannerConfig = REPLAY_CONFIG
     free: tuple[str, ...] = ("gap_track_C", "inv_ttc_C", "speed_dev")
     start: tuple[tuple[str, float], ...] = ()
-    shape_free: tuple[str, ...] = ("T_s", "s0_ft")
+    shape_free: tuple[str, ...] = ("T_s", "s0_ft", "v0_ft_s")
     tie_B: bool = True
     collision_cost_m: float = 30.0
     max_evals: int = 120
@@ -179,8 +181,9 @@ def fit_by_replay(pairs: Sequence[ReplayPair], base_shape: Shape, action_acc_ft_
     t0 = time.perf_counter()
     start = dict(config.start)
     if u0 is None:
+        # the desired speed starts from the demonstrations' (base_shape's), the rest from SUMO's car
         u0 = np.array([math.log(max(-start.get(f, -1.0), 1e-6)) for f in config.free]
-                      + [math.log(getattr(START_SHAPE, s)) for s in config.shape_free])
+                      + [math.log(getattr(base_shape if s == "v0_ft_s" else START_SHAPE, s)) for s in config.shape_free])
     u0 = np.asarray(u0, dtype=np.float64)
     if u0.shape != (len(config.free) + len(config.shape_free),):
         raise ConfigError(f"fit_by_replay: u0 must have {len(config.free) + len(config.shape_free)} values")

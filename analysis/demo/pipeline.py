@@ -53,7 +53,7 @@ from analysis.evaluation.episode import frame_from_dict, frame_to_dict
 from analysis.evaluation.evaluate import EvaluationReport, evaluate
 from irl.domains.merge.encounters import prepare_encounters
 from analysis.evaluation.policies import learned_policy
-from analysis.evaluation.report import collision_bound_line, flag_lines, report_table
+from analysis.evaluation.report import collision_bound_line, flag_lines, human_table, report_table
 from analysis.experiments.learn import fit_problem, merge_config, merge_encoding, merge_features, saved_model
 from merge_irl.provenance import provenance, provenance_markdown, text_digest, write_timings
 from analysis.sweep import Task, resolve_executor, run_sweep
@@ -107,6 +107,8 @@ class DemoResult:
             *[f"  left out: {k} ({v})" for k, v in self.fit_messages.items() if k not in self.models],
             "",
             report_table(self.evaluation.aggregates),
+            "  human likeness:",
+            human_table(self.evaluation.aggregates, self.evaluation.demo_closeness),
             *flag_lines(self.evaluation.aggregates),
             "  " + collision_bound_line(self.evaluation.aggregates),
             "",

@@ -7,11 +7,18 @@ Definitions beyond the per-episode ones (:mod:`analysis.evaluation.metrics`):
   over control episodes, with the Wilson score 95 % interval (``scipy.stats.binomtest``).
 * ``safety_interventions`` / ``intervention_rate``: decisions whose action the safety filter
   replaced (0 in the raw default), and their share of the commanded decisions.
+* ``emergency_braking_rate`` with ``emergency_braking_ci95``: ``emergency_brakings`` (near A) per
+  controlled A, with the exact Poisson 95 % interval of the count
+  (:func:`~analysis.evaluation.intervals.poisson_rate_ci95`: an A can cause several events).
+* ``close_to_c`` / ``close_to_c_rate`` with ``close_to_c_ci95``: the controlled As that came
+  closer than 2 m bumper to bumper to their lead car C, their share of the controlled As and its
+  Wilson 95 % interval (:mod:`analysis.evaluation.human_likeness`).
 * ``flags``: what the model's fit reported (``not_converged``, ``unbounded``, ``infeasible``,
   ``uninformative``) and ``flagged`` (1 if any, for ``--fail-if 'flagged>0'``).
 
 and the distances to the demonstrations of :mod:`analysis.evaluation.distances`
-(``js_divergence`` over the summed action counts, ``heldout_loglik``, the ``w1_*`` distances).
+(``js_divergence`` over the summed action counts, ``heldout_loglik``, the ``w1_*`` distances, among
+them :mod:`analysis.evaluation.human_likeness`' per-frame ``w1_acc_A_m_s2`` and ``w1_jerk_A_m_s3``).
 """
 
 from __future__ import annotations
@@ -19,10 +26,10 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
-from scipy.stats import binomtest
 
 from analysis.evaluation.metrics import EpisodeMetrics
 from analysis.evaluation.distances import js_divergence
+from analysis.evaluation.intervals import poisson_rate_ci95, rate_ci95
 
 
 @dataclass(frozen=True)
@@ -61,6 +68,13 @@ class AggregateMetrics:
     w1_ttc_s: float = float("nan")
     flags: tuple[str, ...] = ()
     flagged: int = 0
+    emergency_braking_rate: float = float("nan")
+    emergency_braking_ci95: tuple[float, float] = (float("nan"), float("nan"))
+    close_to_c: int = 0
+    close_to_c_rate: float = float("nan")
+    close_to_c_ci95: tuple[float, float] = (float("nan"), float("nan"))
+    w1_acc_A_m_s2: float = float("nan")
+    w1_jerk_A_m_s3: float = float("nan")
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -78,14 +92,6 @@ def _mean_std(x: list[float]) -> tuple[float, float]:
     return float(a.mean()), float(a.std(ddof=1)) if a.size > 1 else 0.0
 
 
-def rate_ci95(k: int, n: int) -> tuple[float, float, float]:
-    """``(k / n, low, high)``: a rate with its Wilson score 95 % interval (NaN when ``n == 0``)."""
-    if n <= 0:
-        return float("nan"), float("nan"), float("nan")
-    ci = binomtest(int(k), int(n)).proportion_ci(confidence_level=0.95, method="wilson")
-    return k / n, float(ci.low), float(ci.high)
-
-
 def aggregate(
     episodes: list[EpisodeMetrics],
     *,
@@ -95,7 +101,9 @@ def aggregate(
     flags: tuple[str, ...] = (),
 ) -> AggregateMetrics:
     """Aggregate the episodes of one policy (all must share ``policy``); ``w1``: the
-    :func:`~analysis.evaluation.distances.w1_to_demos` distances of its decisions; ``flags``: its model's fit flags.
+    :func:`~analysis.evaluation.distances.w1_to_demos` distances of its decisions and the
+    :func:`~analysis.evaluation.human_likeness.w1_acc_jerk` ones of its frames (keys of
+    :class:`AggregateMetrics` starting ``w1_``; a missing one is NaN); ``flags``: its model's fit flags.
 
     Raises:
         ValueError: no episodes, or episodes of more than one policy.
@@ -114,6 +122,10 @@ def aggregate(
     n_controls = sum(e.n_controls for e in episodes)
     a_coll = sum(e.a_collisions for e in episodes)
     rate, lo, hi = rate_ci95(a_coll, n_controls)
+    n_eb = sum(e.emergency_brakings for e in episodes)
+    eb_rate, eb_lo, eb_hi = poisson_rate_ci95(n_eb, n_controls)
+    n_close = sum(e.close_to_c for e in episodes)
+    close_rate, close_lo, close_hi = rate_ci95(n_close, n_controls)
     n_dec = sum(e.n_decisions for e in episodes)
     n_int = sum(e.safety_interventions for e in episodes)
     w1 = w1 or {}
@@ -122,7 +134,7 @@ def aggregate(
         policy=episodes[0].policy, n_episodes=len(episodes),
         n_controls=sum(e.n_controls for e in episodes), n_merges=merges,
         collisions=sum(e.collisions for e in episodes), a_collisions=sum(e.a_collisions for e in episodes),
-        emergency_brakings=sum(e.emergency_brakings for e in episodes),
+        emergency_brakings=n_eb,
         emergency_brakings_all=sum(e.emergency_brakings_all for e in episodes),
         min_ttc_s=float(min(e.min_ttc_s for e in episodes)),
         b_ahead_rate=(ahead / merges if merges else float("nan"), _mean_std([e.b_ahead_rate for e in episodes])[1]),
@@ -139,4 +151,7 @@ def aggregate(
         w1_speed_A_ft_s=w1.get("w1_speed_A_ft_s", float("nan")), w1_acc_A_ft_s2=w1.get("w1_acc_A_ft_s2", float("nan")),
         w1_d_AC_ft=w1.get("w1_d_AC_ft", float("nan")), w1_ttc_s=w1.get("w1_ttc_s", float("nan")),
         flags=tuple(flags), flagged=int(bool(flags)),
+        emergency_braking_rate=eb_rate, emergency_braking_ci95=(eb_lo, eb_hi),
+        close_to_c=n_close, close_to_c_rate=close_rate, close_to_c_ci95=(close_lo, close_hi),
+        w1_acc_A_m_s2=w1.get("w1_acc_A_m_s2", float("nan")), w1_jerk_A_m_s3=w1.get("w1_jerk_A_m_s3", float("nan")),
     )

@@ -23,6 +23,7 @@ from sim.closed_loop.config import ControllerConfig
 from sim.runtime.hooks import StepHook
 from sim.drivers.policy import Policy
 from sim.runtime.run import run_scenario
+from sim.runtime.sites import site_of
 
 
 @dataclass(frozen=True)
@@ -168,7 +169,7 @@ def run_episode(
     m = episode_metrics(
         res.table, controls, decisions, policy=policy.name, seed=seed, section_length_ft=section,
         collisions=ctl.n_collisions, teleports=ctl.n_teleports, demo_action_counts=demo_action_counts,
-        config=metrics,
+        config=metrics, merge_lane=site_of(res.spec).merge_lane,
     )
     return EpisodeResult(
         metrics=m, controls=controls, decisions=decisions,

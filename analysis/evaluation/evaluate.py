@@ -37,6 +37,7 @@ from analysis.evaluation.report import write_outputs
 from analysis.evaluation.metrics import MetricsConfig
 from analysis.evaluation.aggregate import AggregateMetrics, aggregate
 from analysis.evaluation.distances import w1_to_demos
+from analysis.evaluation.human_likeness import DemoCloseness, demo_close_to_c, w1_acc_jerk
 from merge_irl.provenance import provenance, text_digest, write_timings
 from analysis.sweep import Task, resolve_executor, run_sweep
 from irl.errors import ConfigError
@@ -70,6 +71,8 @@ class EvaluationReport:
         report_md, metrics_json: paths of the written report and metrics.
         plots: paths of the PNG plots.
         rrd: policy name -> rerun recording (first episode), if written.
+        demo_closeness: the share of held-out encounters whose A came within the metrics'
+            ``close_gap_m`` of C (None without ``demos``).
     """
 
     out_dir: Path
@@ -79,6 +82,7 @@ class EvaluationReport:
     metrics_json: Path
     plots: tuple[Path, ...] = ()
     rrd: dict[str, Path] = field(default_factory=dict)
+    demo_closeness: DemoCloseness | None = None
 
 
 def run_episodes(tasks: Sequence[tuple], *, workers: int | None = None, executor: str | None = None,
@@ -235,16 +239,17 @@ def evaluate(
     for p in pols:
         ho = scores[p.name]
         rs = by_policy[p.name]
-        w1 = w1_to_demos(pd.concat([r.decisions for r in rs], ignore_index=True), held.encounters) \
-            if held is not None and rs else None
+        w1 = {**w1_to_demos(pd.concat([r.decisions for r in rs], ignore_index=True), held.encounters),
+              **w1_acc_jerk([r.speed_profiles for r in rs], held.encounters)} if held is not None and rs else None
         aggs[p.name] = aggregate([r.metrics for r in rs], demo_action_counts=counts, heldout=ho, w1=w1,
                                  flags=tuple(p.flags))
+    closeness = demo_close_to_c(held.encounters, metrics.close_gap_m) if held is not None else None
     scen_name = scenario if isinstance(scenario, (str, Path)) else spec.name
     report_md, metrics_json, plots = write_outputs(
         out, aggs, by_policy, held, scenario=str(scen_name), seed=seed, episodes=episodes,
         duration_s=duration_s, controller=controller, metrics=metrics,
         provenance=prov, speed_limit_ft_s=spec.road.speed_limit_mps * FT_PER_M,
-        left_out=left_out_baselines(baselines, train_demos),
+        left_out=left_out_baselines(baselines, train_demos), demo_closeness=closeness,
     )
     write_timings(out, {"episode_wall_time_s": {name: [float(r.wall_time_s) for r in rs]
                                                 for name, rs in by_policy.items()}})
@@ -252,7 +257,7 @@ def evaluate(
     for old in (out / "rerun").glob("*.rrd"):  # every other recording there: an earlier evaluation's
         if old not in rrds.values():
             old.unlink(missing_ok=True)
-    return EvaluationReport(out, aggs, by_policy, report_md, metrics_json, plots, rrds)
+    return EvaluationReport(out, aggs, by_policy, report_md, metrics_json, plots, rrds, closeness)
 
 
 def evaluation_provenance(models: Sequence, pols: Sequence[Policy], scenario, spec, demos, train_demos=None) -> dict:

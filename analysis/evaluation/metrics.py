@@ -18,6 +18,10 @@ Definitions (NGSIM units in, SI where stated):
   itself speaks of emergency braking) by A, B or the car following A while A is controlled;
   an event is a maximal run of consecutive frames of one vehicle below the threshold.
   ``emergency_brakings_all`` counts the same over every vehicle of the run.
+* ``close_to_c``: control episodes whose A came closer than ``close_gap_m`` (default 2 m) bumper
+  to bumper to its lead car C while controlled (C: the nearest merge-lane vehicle ahead of A other
+  than B, in the frames where A is in the merge lane;
+  :func:`analysis.evaluation.human_likeness.min_gaps_to_c`).
 * ``min_ttc_s``: smallest time-to-collision over the controlled windows, for A behind its
   leader and for A's follower behind A: ``gap / (v_follower - v_leader)`` when closing,
   ``gap = Space_Headway - leader length`` (bumper to bumper). ``inf`` if never closing.
@@ -38,8 +42,10 @@ import numpy as np
 import pandas as pd
 
 from analysis.evaluation.distances import js_divergence
+from analysis.evaluation.human_likeness import CLOSE_GAP_M, min_gaps_to_c
 from irl.domains.merge.actions import N_ACTIONS
 from merge_irl.units import FRAME_S, FT_PER_M
+from sim.runtime.schema import RIGHTMOST_MAIN_LANE
 
 
 @dataclass(frozen=True)
@@ -50,10 +56,12 @@ class MetricsConfig:
         emergency_decel_m_s2: deceleration beyond which braking counts as emergency (m/s^2).
         section_margin_ft: a travel time counts when A's record starts within this of the
             section start and ends within this of its end (ft).
+        close_gap_m: bumper gap to C below which an A counts as close to C (m).
     """
 
     emergency_decel_m_s2: float = 4.5
     section_margin_ft: float = 60.0
+    close_gap_m: float = CLOSE_GAP_M
 
 
 @dataclass(frozen=True)
@@ -79,6 +87,7 @@ class EpisodeMetrics:
     n_decisions: int = 0
     safety_interventions: int = 0
     need_brakes: int = 0
+    close_to_c: int = 0
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -129,6 +138,7 @@ def episode_metrics(
     teleports: int = 0,
     demo_action_counts: np.ndarray | None = None,
     config: MetricsConfig = MetricsConfig(),
+    merge_lane: int = RIGHTMOST_MAIN_LANE,
 ) -> EpisodeMetrics:
     """Metrics of one episode (see the module docstring).
 
@@ -139,6 +149,8 @@ def episode_metrics(
         section_length_ft: length of the main road (ft).
         collisions, teleports: whole-run counts (``Controller.n_collisions`` / ``n_teleports``).
         demo_action_counts: ``[5]`` action counts of the demonstrations (for the divergence).
+        merge_lane: the site's merge lane code (where A's lead car C is looked for; lane 6 on
+            I-80, every preset).
     """
     thr = -config.emergency_decel_m_s2 * FT_PER_M
     t = table.sort_values(["Vehicle_ID", "Frame_ID"], kind="stable")
@@ -186,6 +198,7 @@ def episode_metrics(
         n_decisions=int(len(decisions)),
         safety_interventions=int(decisions["filtered"].astype(bool).sum()) if "filtered" in decisions else 0,
         need_brakes=int(decisions["need_brake"].astype(bool).sum()) if "need_brake" in decisions else 0,
+        close_to_c=int(np.sum(min_gaps_to_c(t, wins, merge_lane) < config.close_gap_m * FT_PER_M)),
     )
 
 

@@ -1,4 +1,8 @@
-"""Files of an evaluation: ``report.md``, ``metrics.json`` and the PNG plots (matplotlib Agg)."""
+"""Files of an evaluation: ``report.md``, ``metrics.json`` and the PNG plots (matplotlib Agg).
+
+``report.md`` has two tables per evaluation, one row per policy: :data:`COLUMNS` (safety and
+traffic, :func:`report_table`) and :data:`HUMAN_COLUMNS` (human likeness beside the held-out
+demonstrations, :func:`human_table`), each with a legend generated from its columns."""
 
 from __future__ import annotations
 
@@ -10,7 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.evaluation.aggregate import AggregateMetrics, rate_ci95
+from analysis.evaluation.aggregate import AggregateMetrics
+from analysis.evaluation.human_likeness import CLOSE_GAP_M, DemoCloseness
+from analysis.evaluation.intervals import rate_ci95
 from merge_irl.provenance import provenance_markdown
 from analysis.evaluation.plots import write_plots
 from merge_irl.atomic import write_text_atomic
@@ -97,18 +103,72 @@ COLUMNS: tuple[Column, ...] = (
 )
 
 
-def report_table(aggs: dict[str, AggregateMetrics], columns: tuple[Column, ...] = COLUMNS) -> str:
-    """The markdown table, one row per policy (flagged models marked ``FLAGGED``)."""
-    rows = ["| " + " | ".join(c.header for c in columns) + " |", "|" + "---|" * len(columns)]
+def _per_a(k: int, n: int, rate: float, ci: tuple[float, float]) -> str:
+    """``k/n = rate [low, high]`` ("-" when ``n`` is 0)."""
+    if not math.isfinite(rate):
+        return "-"
+    return f"{k}/{n} = {rate:.3f} [{ci[0]:.3f}, {ci[1]:.3f}]"
+
+
+#: The columns of the human-likeness table (:func:`human_table`); ``{gap}`` in a header or legend
+#: is the close-to-C threshold (m), ``{decel}`` the emergency deceleration (m/s^2).
+HUMAN_COLUMNS: tuple[Column, ...] = (
+    Column("policy", "the driver of A (`demonstrations`: the held-out encounters)", lambda name, a: name),
+    Column("As controlled", "control episodes (`demonstrations`: encounters)", lambda name, a: str(a.n_controls)),
+    Column("emergency brakings near A per A [95 % CI]",
+           "brakings harder than {decel} m/s^2 by A, B and A's follower while A is controlled, per controlled A, "
+           "with the exact Poisson 95 % interval (events, not As: one A can cause several)",
+           lambda name, a: _per_a(a.emergency_brakings, a.n_controls, a.emergency_braking_rate,
+                                  a.emergency_braking_ci95)),
+    Column("As within {gap} m of C [95 % CI]",
+           "share of the controlled As whose bumper gap to their lead car C (the nearest merge-lane car ahead "
+           "other than B) fell below {gap} m while controlled, with the Wilson 95 % interval; "
+           "`demonstrations`: the held-out encounters whose A came that close to C (d_AC - len_C)",
+           lambda name, a: _per_a(a.close_to_c, a.n_controls, a.close_to_c_rate, a.close_to_c_ci95)),
+    Column("W1 acc (m/s^2)",
+           "Wasserstein-1 distance of A's acceleration per 0.1 s frame while controlled (the forward difference "
+           "of its speed over one frame) to the held-out demonstrations' `acc_A`", lambda name, a: _fmt(a.w1_acc_A_m_s2)),
+    Column("W1 jerk (m/s^3)",
+           "Wasserstein-1 distance of A's jerk per 0.1 s frame (the forward difference of that acceleration over "
+           "one frame) to the demonstrations' (of `acc_A` over consecutive frames of an encounter)",
+           lambda name, a: _fmt(a.w1_jerk_A_m_s3)),
+)
+
+
+def report_table(aggs: dict[str, AggregateMetrics], columns: tuple[Column, ...] = COLUMNS, *,
+                 close_gap_m: float = CLOSE_GAP_M) -> str:
+    """The markdown table, one row per policy (flagged models marked ``FLAGGED``); ``{gap}`` in a
+    header is ``close_gap_m``."""
+    rows = ["| " + " | ".join(_header(c, close_gap_m) for c in columns) + " |", "|" + "---|" * len(columns)]
     for name, a in aggs.items():
         rows.append("| " + " | ".join(c.cell(name, a) for c in columns) + " |")
     return "\n".join(rows)
 
 
-def column_legend(columns: tuple[Column, ...] = COLUMNS, *, emergency_decel_m_s2: float = 4.5) -> str:
+def human_table(aggs: dict[str, AggregateMetrics], demos: DemoCloseness | None = None, *,
+                close_gap_m: float = CLOSE_GAP_M) -> str:
+    """The human-likeness table (:data:`HUMAN_COLUMNS`), one row per policy, and a first row
+    ``demonstrations`` with the held-out encounters' share within ``close_gap_m`` of C when
+    ``demos`` is given (its other cells ``-``)."""
+    table = report_table(aggs, HUMAN_COLUMNS, close_gap_m=close_gap_m)
+    if demos is None:
+        return table
+    lines = table.split("\n")
+    cells = ["demonstrations", str(demos.n_encounters), "-",
+             _per_a(demos.n_close, demos.n_encounters, demos.rate, demos.ci95), "-", "-"]
+    return "\n".join([*lines[:2], "| " + " | ".join(cells) + " |", *lines[2:]])
+
+
+def _header(c: Column, close_gap_m: float) -> str:
+    return c.header.format(gap=f"{close_gap_m:g}")
+
+
+def column_legend(columns: tuple[Column, ...] = COLUMNS, *, emergency_decel_m_s2: float = 4.5,
+                  close_gap_m: float = CLOSE_GAP_M) -> str:
     """The legend of :func:`report_table` with the same ``columns``: one entry per column, in order."""
-    return "Columns: " + "; ".join(f"{c.header} = {c.legend.format(decel=f'{emergency_decel_m_s2:g}')}"
-                                   for c in columns) + "."
+    return "Columns: " + "; ".join(
+        f"{_header(c, close_gap_m)} = "
+        f"{c.legend.format(decel=f'{emergency_decel_m_s2:g}', gap=f'{close_gap_m:g}')}" for c in columns) + "."
 
 
 def collision_bound_line(aggs: dict[str, AggregateMetrics]) -> str:
@@ -153,17 +213,21 @@ def metrics_to_json(obj) -> str:
 
 def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes, duration_s, controller, metrics,
                   provenance: dict | None = None, speed_limit_ft_s: float | None = None,
-                  left_out: list[str] | tuple[str, ...] = ()):
+                  left_out: list[str] | tuple[str, ...] = (), demo_closeness: DemoCloseness | None = None):
     """Write report.md, metrics.json and the plots (:mod:`analysis.evaluation.plots`); return their
     paths. ``provenance`` (:func:`merge_irl.provenance.provenance`) goes into both; ``left_out``
-    names the baselines that could not be fitted (no training demonstrations)."""
+    names the baselines that could not be fitted (no training demonstrations); ``demo_closeness``:
+    the held-out encounters' share within ``metrics.close_gap_m`` of C (metrics.json's
+    ``demos.close_to_c`` and the first row of the human-likeness table)."""
     plots = write_plots(out, aggs, by_policy, held, speed_limit_ft_s=speed_limit_ft_s)
     payload = {
         "format": "merge-irl-evaluation/1",
         "scenario": scenario, "seed": seed, "episodes": episodes, "duration_s": duration_s,
         "controller": asdict(controller), "metrics_config": asdict(metrics),
         "demos": {"source": held.source, "action_counts": held.action_counts.tolist(),
-                  "n_steps": int(len(held.encounters))} if held is not None else None,
+                  "n_steps": int(len(held.encounters)),
+                  **({"close_to_c": demo_closeness.to_dict()} if demo_closeness is not None else {})}
+        if held is not None else None,
         "policies": {
             name: {"aggregate": a.to_dict(), "episodes": [r.metrics.to_dict() for r in by_policy[name]]}
             for name, a in aggs.items()
@@ -195,6 +259,13 @@ def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes,
         "Baselines `marginal`, `markov`, `bc` (when run) are fitted on the training demonstrations (add-one "
         "smoothed). The JS divergence of A's action distribution to the demonstrations' is in metrics.json "
         "(`js_divergence`); the distributions themselves are below.",
+        "",
+        "Human likeness beside the held-out demonstrations:",
+        "",
+        human_table(aggs, demo_closeness, close_gap_m=metrics.close_gap_m),
+        "",
+        column_legend(HUMAN_COLUMNS, emergency_decel_m_s2=metrics.emergency_decel_m_s2,
+                      close_gap_m=metrics.close_gap_m),
         "",
         *flag_lines(aggs),
         *([f"Left out: {', '.join(left_out)} (no training demonstrations given)."] if left_out else []),

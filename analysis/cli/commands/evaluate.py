@@ -117,9 +117,11 @@ def run(args: argparse.Namespace) -> int:
             executor=executor, rrd=not args.no_rrd, progress=not args.no_progress,
             allow_implausible=args.allow_implausible,
         )
-    from analysis.evaluation.report import flag_lines, report_table
+    from analysis.evaluation.report import flag_lines, human_table, report_table
 
     print(report_table(report.aggregates))
+    print("human likeness:")
+    print(human_table(report.aggregates, report.demo_closeness))
     for line in flag_lines(report.aggregates):
         print(line, file=sys.stderr)
     left_out = left_out_baselines(baselines, args.train_demos)

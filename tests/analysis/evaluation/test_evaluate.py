@@ -182,7 +182,8 @@ def test_evaluate_cli_baselines_safety_filter_and_flag_gate(tmp_path):
 
     model_path = replace(_model(), converged=False).save(tmp_path / "qavg.json")
     demos = tmp_path / "demos.parquet"
-    _encounters(120, seed=4).to_parquet(demos)
+    held = _encounters(120, seed=4).assign(len_C=15.0)  # C's length: the demonstrations' bumper gaps to C
+    held.to_parquet(demos)
     out = tmp_path / "ev"
     r = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--model", str(model_path), "--episodes", "1",
                         "--duration", "100", "--baselines", "markov,bc,idm", "--train-demos", str(demos),
@@ -198,6 +199,29 @@ def test_evaluate_cli_baselines_safety_filter_and_flag_gate(tmp_path):
     assert data["controller"]["safety_ttc_s"] == 2.5
     md = (out / "report.md").read_text()
     assert "FLAGGED: not_converged" in md and "safety filter on (TTC >= 2.5 s)" in md
+    # human likeness (issue 34, item 4): per policy in metrics.json, report.md and the console
+    for name, p in data["policies"].items():
+        agg = p["aggregate"]
+        n = agg["n_controls"]
+        assert n > 0, name
+        assert agg["emergency_braking_rate"] == pytest.approx(agg["emergency_brakings"] / n)
+        lo, hi = agg["emergency_braking_ci95"]
+        assert 0 <= lo <= agg["emergency_braking_rate"] < hi
+        assert 0 <= agg["close_to_c"] <= n and agg["close_to_c_rate"] == pytest.approx(agg["close_to_c"] / n)
+        lo, hi = agg["close_to_c_ci95"]
+        assert 0 <= lo <= agg["close_to_c_rate"] <= hi <= 1
+        assert agg["close_to_c"] == sum(e["close_to_c"] for e in p["episodes"])
+        # the demonstrations' accelerations are N(0, 4 ft/s^2) per frame, so their jerks are large
+        assert 0 < agg["w1_acc_A_m_s2"] < 3 and 1 < agg["w1_jerk_A_m_s3"] < 60, (name, agg)
+    close = (held["d_AC"] - held["len_C"]) < 2 * 3.28084
+    expected = held.loc[close, "encounter_id"].nunique()
+    assert 0 < expected < 12
+    assert data["demos"]["close_to_c"]["close_to_c"] == expected
+    assert data["demos"]["close_to_c"]["n_encounters"] == 12
+    for text in (md, r.stdout):
+        assert "As within 2 m of C [95 % CI]" in text and "W1 jerk (m/s^3)" in text
+        assert f"| demonstrations | 12 | - | {expected}/12 = " in text
+        assert "| bc | " in text.split("W1 jerk (m/s^3)")[1]  # a row of every policy in the human table
 
 
 def test_view_cli_prints_recordings(tmp_path):

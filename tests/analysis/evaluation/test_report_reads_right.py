@@ -22,7 +22,8 @@ def _controls(rows):
 
 def _table():
     return pd.DataFrame({"Vehicle_ID": [1, 1, 2, 2], "Frame_ID": [10, 11, 10, 11], "v_Acc": 0.0, "v_Vel": 30.0,
-                         "Local_Y": [100.0, 103.0, 50.0, 53.0], "Following": 0, "Preceding": 0, "v_Length": 15.0})
+                         "Local_Y": [100.0, 103.0, 50.0, 53.0], "Following": 0, "Preceding": 0, "v_Length": 15.0,
+                         "Lane_ID": 6})
 
 
 def test_a_pair_that_ends_two_take_overs_of_the_same_a_counts_once():

@@ -10,6 +10,8 @@ Definitions beyond the per-episode ones (:mod:`analysis.evaluation.metrics`):
 * ``emergency_braking_rate`` with ``emergency_braking_ci95``: ``emergency_brakings`` (near A) per
   controlled A, with the exact Poisson 95 % interval of the count
   (:func:`~analysis.evaluation.intervals.poisson_rate_ci95`: an A can cause several events).
+* ``a_into_c`` / ``a_into_b``: of ``a_collisions``, those where A ran into its lead car C / into
+  the merging car B (:data:`sim.closed_loop.records.COLLISION_KINDS`), counted apart.
 * ``close_to_c`` / ``close_to_c_rate`` with ``close_to_c_ci95``: the controlled As that came
   closer than 2 m bumper to bumper to their lead car C, their share of the controlled As and its
   Wilson 95 % interval (:mod:`analysis.evaluation.human_likeness`).
@@ -71,6 +73,8 @@ class AggregateMetrics:
     emergency_braking_rate: float = float("nan")
     emergency_braking_ci95: tuple[float, float] = (float("nan"), float("nan"))
     close_to_c: int = 0
+    a_into_c: int = 0
+    a_into_b: int = 0
     close_to_c_rate: float = float("nan")
     close_to_c_ci95: tuple[float, float] = (float("nan"), float("nan"))
     w1_acc_A_m_s2: float = float("nan")
@@ -134,6 +138,7 @@ def aggregate(
         policy=episodes[0].policy, n_episodes=len(episodes),
         n_controls=sum(e.n_controls for e in episodes), n_merges=merges,
         collisions=sum(e.collisions for e in episodes), a_collisions=sum(e.a_collisions for e in episodes),
+        a_into_c=sum(e.a_into_c for e in episodes), a_into_b=sum(e.a_into_b for e in episodes),
         emergency_brakings=n_eb,
         emergency_brakings_all=sum(e.emergency_brakings_all for e in episodes),
         min_ttc_s=float(min(e.min_ttc_s for e in episodes)),

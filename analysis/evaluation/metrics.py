@@ -88,6 +88,8 @@ class EpisodeMetrics:
     safety_interventions: int = 0
     need_brakes: int = 0
     close_to_c: int = 0
+    a_into_c: int = 0
+    a_into_b: int = 0
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -188,9 +190,12 @@ def episode_metrics(
     jsd = js_divergence(counts, demo_action_counts) if demo_action_counts is not None else float("nan")
     reasons = controls["reason"].value_counts().to_dict() if len(controls) else {}
     a_coll = _a_collisions(controls)
+    a_into_c = _a_collisions(controls, "A into C")
+    a_into_b = _a_collisions(controls, "A into B")
     return EpisodeMetrics(
         policy=policy, seed=int(seed), n_controls=int(len(controls)), n_merges=int(len(merged)),
-        collisions=int(collisions), a_collisions=a_coll, teleports=int(teleports),
+        collisions=int(collisions), a_collisions=a_coll, a_into_c=a_into_c, a_into_b=a_into_b,
+        teleports=int(teleports),
         emergency_brakings=int(eb_near), emergency_brakings_all=int(eb_all), min_ttc_s=float(ttc),
         b_ahead_rate=b_ahead, travel_time_s=float(np.nanmean(tt)) if np.isfinite(tt).any() else float("nan"),
         mean_speed_A_ft_s=mean_speed, action_counts=tuple(int(x) for x in counts), js_divergence=jsd,
@@ -202,12 +207,15 @@ def episode_metrics(
     )
 
 
-def _a_collisions(controls: pd.DataFrame) -> int:
+def _a_collisions(controls: pd.DataFrame, kind: str | None = None) -> int:
     """Distinct collision pairs that ended a control episode (control episodes ended by a
-    collision, when the table has no ``collision_pair`` column)."""
+    collision, when the table has no ``collision_pair`` column); ``kind``: only those of that
+    :data:`~sim.closed_loop.records.COLLISION_KINDS` (``"A into C"``, ``"A into B"``)."""
     if not len(controls):
         return 0
     ended = controls[controls["reason"] == "collision"]
+    if kind is not None:
+        ended = ended[ended["collision_kind"] == kind] if "collision_kind" in ended else ended.iloc[:0]
     if "collision_pair" not in ended:
         return int(len(ended))
     pairs = ended["collision_pair"].astype(str)

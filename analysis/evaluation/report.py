@@ -120,6 +120,9 @@ HUMAN_COLUMNS: tuple[Column, ...] = (
            "with the exact Poisson 95 % interval (events, not As: one A can cause several)",
            lambda name, a: _per_a(a.emergency_brakings, a.n_controls, a.emergency_braking_rate,
                                   a.emergency_braking_ci95)),
+    Column("A into C / A into B",
+           "of A's collision pairs, those where A ran into its lead car C / into the merging car B",
+           lambda name, a: f"{a.a_into_c} / {a.a_into_b}"),
     Column("As within {gap} m of C [95 % CI]",
            "share of the controlled As whose bumper gap to their lead car C (the nearest merge-lane car ahead "
            "other than B) fell below {gap} m while controlled, with the Wilson 95 % interval; "
@@ -154,7 +157,7 @@ def human_table(aggs: dict[str, AggregateMetrics], demos: DemoCloseness | None =
     if demos is None:
         return table
     lines = table.split("\n")
-    cells = ["demonstrations", str(demos.n_encounters), "-",
+    cells = ["demonstrations", str(demos.n_encounters), "-", "-",
              _per_a(demos.n_close, demos.n_encounters, demos.rate, demos.ci95), "-", "-"]
     return "\n".join([*lines[:2], "| " + " | ".join(cells) + " |", *lines[2:]])
 

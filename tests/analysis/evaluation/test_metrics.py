@@ -134,3 +134,18 @@ def test_episode_metrics_round_trip_dict():
     back = EpisodeMetrics.from_dict(m.to_dict())
     assert back.action_counts == m.action_counts and back.release_reasons == m.release_reasons
     assert math.isnan(back.travel_time_s)
+
+
+def test_a_collisions_are_counted_apart_by_who_ran_into_whom():
+    import pandas as pd
+
+    from analysis.evaluation.metrics import _a_collisions
+
+    controls = pd.DataFrame({
+        "reason": ["collision", "collision", "collision", "timeout", "collision"],
+        "collision_kind": ["A into C", "A into B", "A into C", "", "B into A"],
+        "collision_pair": ["1>2", "1>3", "1>2", "", "3>1"],  # the same pair seen again counts once
+    })
+    assert _a_collisions(controls) == 3
+    assert _a_collisions(controls, "A into C") == 1 and _a_collisions(controls, "A into B") == 1
+    assert _a_collisions(controls.drop(columns="collision_kind"), "A into C") == 0

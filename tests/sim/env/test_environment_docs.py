@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.test_docs import code_blocks
+from tests.doc_blocks import blocks
 
 pytest.importorskip("gymnasium")  # the [gym] extra; CI installs it with [test]
 
@@ -18,7 +18,7 @@ pytestmark = pytest.mark.sumo
 
 ROOT = Path(__file__).resolve().parents[3]
 PAGE = ROOT / "docs" / "environment.md"
-BLOCKS = code_blocks(PAGE, ("python",))
+BLOCKS = [b.body for b in blocks(PAGE) if b.language == "python" and b.runs]  # not the not-run ones (SB3)
 
 
 def test_the_page_has_its_examples():

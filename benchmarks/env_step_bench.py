@@ -6,7 +6,11 @@ Same scenario, seed and simulated time, Zero (action 2) at every decision:
   every merge's lag car (a constant policy);
 * ``env``: :class:`sim.env.MergeEnv` stepped by a Python loop (``reset(seed)`` once, then ``reset()``
   continues the same SUMO run to its next take-over), one controlled car at a time;
-* ``env x2 (AsyncVectorEnv)``: two worker processes, one SUMO each, for episodes per second.
+* ``multi-agent (ParallelEnv)``: :class:`sim.env.multi_agent.MergeParallelEnv` over the same run, every
+  controlled lag car an agent, Zero for each (issue 36's target: decisions per second at least 1.3x
+  the single-agent environment's, within 1.1x of the closed loop per decision);
+* ``env x1`` / ``env x2 (AsyncVectorEnv)``: one and two worker processes, one SUMO each (target:
+  two at least 1.6x one's steps per second on 2 idle cores).
 
 Printed per decision: wall time, and the overhead (wall time outside ``simulationStep``, i.e.
 Python: reading frames, the controller, the environment); the time inside ``env.step()`` alone
@@ -46,7 +50,7 @@ def closed_loop(spec, seed: int, sim_s: float) -> dict[str, float]:
 def env_loop(spec, seed: int, sim_s: float) -> dict[str, float]:
     from sim.env import MergeEnv
 
-    env = MergeEnv(spec, run_s=sim_s)
+    env = MergeEnv(spec, run_s=sim_s, reward=None)
     t = time.perf_counter()
     env.reset(seed=seed)
     session = env._session
@@ -70,19 +74,38 @@ def env_loop(spec, seed: int, sim_s: float) -> dict[str, float]:
     return {"wall": wall, "sumo": sumo, "decisions": n, "episodes": episodes, "in_step": in_step}
 
 
-def vector_episodes(spec_name: str, seed: int, steps: int) -> tuple[float, int, float]:
+def multi_agent_loop(spec, seed: int, sim_s: float) -> dict[str, float]:
+    from sim.env.multi_agent import MergeParallelEnv
+
+    env = MergeParallelEnv(scenario=spec, run_s=sim_s, reward=None)
+    t = time.perf_counter()
+    env.reset(seed=seed)
+    session = env._session
+    n = steps = 0
+    while env.agents:
+        n += len(env.agents)
+        steps += 1
+        env.step(dict.fromkeys(env.agents, ZERO))
+    wall = time.perf_counter() - t
+    sumo = session.sumo_time_s if session is not None else float("nan")
+    episodes = len(env.possible_agents)
+    env.close()
+    return {"wall": wall, "sumo": sumo, "decisions": n, "episodes": episodes, "steps": steps}
+
+
+def vector_episodes(spec_name: str, seed: int, steps: int, workers: int = 2) -> tuple[float, int, float]:
     import gymnasium as gym
 
     from sim.env import make_env
 
-    envs = gym.vector.AsyncVectorEnv([make_env(scenario=spec_name, run_s=3600.0)] * 2, context="spawn")
+    envs = gym.vector.AsyncVectorEnv([make_env(scenario=spec_name, run_s=3600.0)] * workers, context="spawn")
     try:
         t0 = time.perf_counter()
-        envs.reset(seed=[seed, seed + 1])
+        envs.reset(seed=[seed + i for i in range(workers)])
         t = time.perf_counter()
         done = 0
         for _ in range(steps):
-            _, _, term, trunc, _ = envs.step(np.array([ZERO, ZERO]))
+            _, _, term, trunc, _ = envs.step(np.full(workers, ZERO))
             done += int(np.sum(term | trunc))
         wall = time.perf_counter() - t
         return wall, done, t - t0
@@ -99,25 +122,30 @@ def main(argv=None) -> None:
     ap.add_argument("--repeat", type=int, default=3, help="runs of each, alternating; the fastest is kept")
     a = ap.parse_args(argv)
     spec = load_scenario(a.scenario)
-    cls, evs = [], []
-    for _ in range(max(1, a.repeat)):  # alternating, so a busy moment of the machine hits both
+    cls, evs, mas = [], [], []
+    for _ in range(max(1, a.repeat)):  # alternating, so a busy moment of the machine hits all
         cls.append(closed_loop(spec, a.seed, a.sim_s))
         evs.append(env_loop(spec, a.seed, a.sim_s))
+        mas.append(multi_agent_loop(spec, a.seed, a.sim_s))
     cl = min(cls, key=lambda r: r["wall"])
     ev = min(evs, key=lambda r: r["wall"])
+    ma = min(mas, key=lambda r: r["wall"])
     print(f"scenario {a.scenario}, seed {a.seed}, {a.sim_s:g} simulated s per run, Zero at every 0.3 s decision, "
           f"fastest of {max(1, a.repeat)} alternating runs each")
     print(f"{'':28s}{'decisions':>10s}{'episodes':>10s}{'wall s':>9s}{'ms/decision':>13s}"
           f"{'overhead ms/dec':>17s}{'ms/sim s':>10s}{'episodes/s':>12s}")
-    for name, r in (("closed loop (run_scenario)", cl), ("env (MergeEnv, 1 process)", ev)):
+    for name, r in (("closed loop (run_scenario)", cl), ("env (MergeEnv, 1 process)", ev),
+                    ("multi-agent (ParallelEnv)", ma)):
         per = 1e3 * r["wall"] / max(r["decisions"], 1)
         over = 1e3 * (r["wall"] - r["sumo"]) / max(r["decisions"], 1)
         print(f"{name:28s}{r['decisions']:>10d}{r['episodes']:>10d}{r['wall']:>9.2f}{per:>13.3f}{over:>17.3f}"
               f"{1e3 * r['wall'] / a.sim_s:>10.2f}{r['episodes'] / r['wall']:>12.2f}")
-    vw, vdone, vstart = vector_episodes(a.scenario, a.seed, a.vector_steps)
-    print(f"{'env x2 (AsyncVectorEnv)':28s}{2 * a.vector_steps:>10d}{vdone:>10d}{vw:>9.2f}"
-          f"{1e3 * vw / (2 * a.vector_steps):>13.3f}{'':>17s}{'':>10s}{vdone / vw:>12.2f}"
-          f"   (+{vstart:.1f} s start and first reset)")
+    vec = {}
+    for workers in (1, 2):
+        vw, vdone, vstart = vec[workers] = vector_episodes(a.scenario, a.seed, a.vector_steps, workers)
+        print(f"{f'env x{workers} (AsyncVectorEnv)':28s}{workers * a.vector_steps:>10d}{vdone:>10d}{vw:>9.2f}"
+              f"{1e3 * vw / (workers * a.vector_steps):>13.3f}{'':>17s}{'':>10s}{vdone / vw:>12.2f}"
+              f"   (+{vstart:.1f} s start and first reset)")
     r_dec = (ev["wall"] / ev["decisions"]) / (cl["wall"] / cl["decisions"])
     r_over = ((ev["wall"] - ev["sumo"]) / ev["decisions"]) / ((cl["wall"] - cl["sumo"]) / cl["decisions"])
     r_step = (ev["in_step"] / ev["decisions"]) / (cl["wall"] / cl["decisions"])
@@ -125,6 +153,13 @@ def main(argv=None) -> None:
           f"included); the rest of the env's wall time is reset() running SUMO between take-overs")
     print(f"env / closed loop per decision: wall {r_dec:.2f}x, overhead {r_over:.2f}x, env.step() alone {r_step:.2f}x; "
           f"per simulated second {ev['wall'] / cl['wall']:.2f}x (target: at most 1.3x)")
+    dps = {k: r["decisions"] / r["wall"] for k, r in (("cl", cl), ("env", ev), ("ma", ma))}
+    print(f"multi-agent: {ma['steps']} steps for {ma['decisions']} decisions of {ma['episodes']} agents; decisions/s "
+          f"{dps['ma']:.0f} vs env {dps['env']:.0f} ({dps['ma'] / dps['env']:.2f}x, target >= 1.3x) and closed loop "
+          f"{dps['cl']:.0f} (per decision {dps['cl'] / dps['ma']:.2f}x the closed loop's time, target <= 1.1x)")
+    sps = {w: w * a.vector_steps / vec[w][0] for w in vec}
+    print(f"AsyncVectorEnv steps/s: 1 worker {sps[1]:.0f}, 2 workers {sps[2]:.0f} ({sps[2] / sps[1]:.2f}x, "
+          f"target >= 1.6x on 2 idle cores)")
 
 
 if __name__ == "__main__":

@@ -63,8 +63,10 @@ class CallablePolicy(PolicyDefaults):
 
     At each decision the controller asks :meth:`probs` (one-hot on the returned action, or on the
     bin of the returned acceleration) and then :meth:`acceleration` of the same observation: the
-    callable is called once per decision. A deterministic rule has no likelihood:
-    :meth:`heldout_loglik` is ``(NaN, NaN)``.
+    callable is called once per decision. :meth:`heldout_loglik` scores the held-out decisions by the
+    callable's action distribution when it exposes one (Stable-Baselines3's ``get_distribution``, a
+    ``probs(obs)`` method: :mod:`sim.drivers.action_distribution`); a rule that returns an action
+    only has no likelihood, ``(NaN, NaN)``.
 
     Attributes:
         fn: the callable (or an object with ``predict(obs, deterministic=True)``).
@@ -75,6 +77,9 @@ class CallablePolicy(PolicyDefaults):
         source: the file it came from ("" when unknown).
         decision_step_s: seconds between decisions (None: any; the evaluation's).
         action_acc_ft_s2: ``[5]`` acceleration applied for each discrete action (ft/s^2).
+        obs_stats: a ``VecNormalize.save`` file whose observation statistics normalise every
+            observation before the callable sees it ("" none;
+            :func:`sim.drivers.action_distribution.with_vecnormalize`).
 
     Raises:
         PolicyError (at a decision): see :func:`parse_action`; an exception of the callable is
@@ -88,10 +93,15 @@ class CallablePolicy(PolicyDefaults):
     controls: bool = True
     decision_step_s: float | None = None
     action_acc_ft_s2: tuple[float, ...] = tuple(float(x) for x in ACTION_ACC_FT_S2)
+    obs_stats: str = ""
     _act: Callable[[np.ndarray], Any] = field(init=False, repr=False, compare=False)
     _last: dict[str, Any] = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
+        if self.obs_stats:
+            from sim.drivers.action_distribution import with_vecnormalize
+
+            object.__setattr__(self, "fn", with_vecnormalize(self.fn, self.obs_stats))
         object.__setattr__(self, "_act", act_of(self.fn))
         if not self.name:
             object.__setattr__(self, "name", getattr(self.fn, "__name__", "") or type(self.fn).__name__)
@@ -114,9 +124,10 @@ class CallablePolicy(PolicyDefaults):
 
     def __reduce__(self):
         if not self.spec:  # the callable itself is pickled (a module-level function, a picklable object)
-            return (_rebuild, (self.fn, self.name, "", self.source, self.controls, self.decision_step_s,
-                               self.action_acc_ft_s2))
-        return (_from_spec, (self.spec, self.name, self.controls, self.decision_step_s, self.action_acc_ft_s2))
+            return (_rebuild, (getattr(self.fn, "fn", self.fn) if self.obs_stats else self.fn, self.name, "",
+                               self.source, self.controls, self.decision_step_s, self.action_acc_ft_s2, self.obs_stats))
+        return (_from_spec, (self.spec, self.name, self.controls, self.decision_step_s, self.action_acc_ft_s2,
+                             self.obs_stats))
 
     def _decide(self, obs: MergeObservation) -> tuple[int, float]:
         """``(bin, acceleration ft/s^2 or NaN for a discrete action)`` of ``obs``, called once per observation."""
@@ -153,20 +164,32 @@ class CallablePolicy(PolicyDefaults):
 
     def heldout_loglik(self, encounters: pd.DataFrame, *, decision_step_s: float,
                        where: str) -> tuple[float, float]:
-        """NaN, NaN: a callable gives an action, not a likelihood."""
-        return NO_LIKELIHOOD
+        """``log pi(a|s)`` of the held-out decisions at ``decision_step_s`` (the car-following
+        decisions, :func:`irl.domains.merge.car_following.car_following_decisions`, their
+        observations as a policy sees them) by the callable's action distribution; NaN, NaN
+        when it exposes none."""
+        from sim.drivers.action_distribution import action_probs_fn, heldout_probs_loglik
+
+        probs = action_probs_fn(self.fn)
+        if probs is None:
+            return NO_LIKELIHOOD
+        from irl.domains.merge.car_following import car_following_decisions
+        from sim.drivers.observe import policy_rows
+
+        dec = car_following_decisions(encounters, decision_step_s=self.decision_step_s or decision_step_s, where=where)
+        return heldout_probs_loglik(probs, policy_rows(dec.obs), dec.actions)
 
 
 def _from_spec(spec: str, name: str, controls: bool, decision_step_s: float | None,
-               action_acc_ft_s2: tuple[float, ...]) -> CallablePolicy:
+               action_acc_ft_s2: tuple[float, ...], obs_stats: str = "") -> CallablePolicy:
     return CallablePolicy.from_spec(spec, name=name, controls=controls, decision_step_s=decision_step_s,
-                                    action_acc_ft_s2=action_acc_ft_s2)
+                                    action_acc_ft_s2=action_acc_ft_s2, obs_stats=obs_stats)
 
 
 def _rebuild(fn: Callable[..., Any], name: str, spec: str, source: str, controls: bool,
-             decision_step_s: float | None, action_acc_ft_s2: tuple[float, ...]) -> CallablePolicy:
+             decision_step_s: float | None, action_acc_ft_s2: tuple[float, ...], obs_stats: str = "") -> CallablePolicy:
     return CallablePolicy(fn, name=name, spec=spec, source=source, controls=controls,
-                          decision_step_s=decision_step_s, action_acc_ft_s2=action_acc_ft_s2)
+                          decision_step_s=decision_step_s, action_acc_ft_s2=action_acc_ft_s2, obs_stats=obs_stats)
 
 
 # -- Policy -> callable -----------------------------------------------------------------------

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.test_docs import code_blocks
+from tests.doc_blocks import blocks
 
 pytest.importorskip("gymnasium")  # the [gym] extra; CI installs it with [test]
 
@@ -18,11 +18,11 @@ pytestmark = pytest.mark.sumo
 
 ROOT = Path(__file__).resolve().parents[3]
 PAGE = ROOT / "docs" / "environment.md"
-BLOCKS = code_blocks(PAGE, ("python",))
+BLOCKS = [b.body for b in blocks(PAGE) if b.language == "python" and b.runs]  # not the not-run ones (SB3)
 
 
 def test_the_page_has_its_examples():
-    assert len(BLOCKS) == 3
+    assert len(BLOCKS) == 4
 
 
 @pytest.mark.parametrize("index", range(len(BLOCKS)))
@@ -37,5 +37,8 @@ def test_example_runs(index, tmp_path):
     if index == 0:  # the episode ended with a release reason and a time
         reason, time_s = out.stdout.split()[-2:]
         assert reason in ("merge_done", "collision", "left_section", "left_lane", "b_lost", "timeout") and float(time_s) > 60
-    if index == 2:
+    if index == 3:
         assert "vehicles at 70.0 s;" in out.stdout
+    if index == 2:  # the multi-agent run released its agents, some after a merge
+        n, reasons = out.stdout.split(" agents released: ")
+        assert int(n.split()[-1]) >= 2 and "merge_done" in reasons

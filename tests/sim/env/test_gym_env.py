@@ -46,7 +46,9 @@ def test_gymnasium_env_checker_passes_without_warnings(action_type):
             # but its advice: the continuous action is in m/s^2 by contract, not normalised
             # (gymnasium.wrappers.RescaleAction normalises it, docs/environment.md)
             warnings.filterwarnings("ignore", message=".*symmetric and normalized space.*")
-            check_env(env.unwrapped)
+            # skip_render_check: the checker makes a second environment (a second SUMO) while the
+            # first is open, which libsumo refuses; rendering has its own test
+            check_env(env.unwrapped, skip_render_check=True)
     finally:
         env.close()
     assert isinstance(env.action_space, gym.spaces.Discrete if action_type == "discrete" else gym.spaces.Box)
@@ -175,7 +177,7 @@ def test_planning_driver_reward_from_its_file_depends_on_the_action(tmp_path):
 
 
 @pytest.mark.parametrize("kwargs,error,match", [
-    ({"reward": 3}, TypeError, "reward must be a model file path, a callable"),
+    ({"reward": 3}, TypeError, "reward must be a reward name, a model file path, a callable"),
     ({"controller": {"decision_step_s": 0.3}}, TypeError, "controller must be a sim.closed_loop.config"),
     ({"run_s": -5.0}, SpecError, r"simulation\.duration_s: must be positive"),
     ({"run_s": float("nan")}, SpecError, r"simulation\.duration_s: must be finite"),

@@ -1,0 +1,166 @@
+"""What the single- and the multi-agent environment share: the spaces, the reward, the actions
+checked and applied through the controller, the SUMO run they step (:class:`EnvCore`).
+
+One :class:`EnvCore` per environment, built from its :class:`~sim.env.config.MergeEnvConfig`;
+the environments hold the episode bookkeeping (one control, or one per agent).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+
+from irl.domains.merge.actions import ACTION_ACC_FT_S2, N_ACTIONS, action_of
+from irl.domains.merge.bins import MergeBins
+from merge_irl.units import FT_PER_M, M_PER_FT
+from sim.closed_loop.controller import Controller
+from sim.closed_loop.records import Control
+from sim.drivers.formats import RewardFn
+from sim.drivers.observe import (POLICY_OBS_HIGH, POLICY_OBS_LOW, MergeObservation, lead_of,
+                                 policy_observation)
+from sim.drivers.policy import NO_LIKELIHOOD, PolicyDefaults
+from sim.env.config import MergeEnvConfig
+from sim.env.rewards import load_reward
+from sim.env.task_reward import TASK_REWARDS
+from sim.runtime.hooks import FrameState
+from sim.runtime.session import SumoSession
+
+#: Release reasons that truncate an episode (a time limit); every other one terminates it.
+TRUNCATING_REASONS = frozenset({"timeout", "end_of_run"})
+_EYE = np.eye(N_ACTIONS)
+
+
+class AgentPolicy(PolicyDefaults):
+    """The controller's driver while the agent drives: its state encoder and action
+    accelerations; it never decides (the environment does)."""
+
+    name = "agent"
+    controls = True
+    decision_step_s = None
+
+    def __init__(self, encoder: MergeBins, state_encoding: str, action_acc_ft_s2: tuple[float, ...]):
+        self.encoder = encoder
+        self.state_encoding = state_encoding
+        self.action_acc_ft_s2 = action_acc_ft_s2
+
+    def probs(self, obs: MergeObservation) -> np.ndarray:
+        return np.full(N_ACTIONS, 1.0 / N_ACTIONS)
+
+    def heldout_loglik(self, encounters: Any, *, decision_step_s: float, where: str) -> tuple[float, float]:
+        return NO_LIKELIHOOD
+
+
+def build_reward(reward: str | os.PathLike | RewardFn | None) -> RewardFn | None:
+    """The reward function of ``MergeEnvConfig.reward``: a name of
+    :data:`~sim.env.task_reward.TASK_REWARDS`, a model file, a callable, or None."""
+    if isinstance(reward, str) and reward in TASK_REWARDS:
+        return TASK_REWARDS[reward]
+    if isinstance(reward, str | os.PathLike):
+        return load_reward(Path(reward))
+    return reward
+
+
+class EnvCore:
+    """Spaces, reward and actions of an environment of ``config`` (the scenario loaded and
+    ``run_s`` checked against it now: :class:`scenarios.errors.SpecError` at construction)."""
+
+    def __init__(self, config: MergeEnvConfig):
+        from scenarios.spec.model import ScenarioSpec
+        from scenarios.spec.parse import with_overrides
+
+        self.config = config
+        if isinstance(config.scenario, ScenarioSpec):
+            self.spec = config.scenario
+        else:
+            from scenarios.loader import load_scenario
+
+            self.spec = load_scenario(config.scenario if isinstance(config.scenario, str) else Path(config.scenario))
+        with_overrides(self.spec, duration_s=config.run_s)  # refuse a bad run_s now, not at the first reset
+        self.reward_fn = build_reward(config.reward)
+        self.outcome_fn = getattr(self.reward_fn, "outcome", None)
+        # a reward over discrete states (a tabular model's) brings the bins to encode them with
+        encoder = getattr(self.reward_fn, "encoder", None) or MergeBins.assumed_authors()
+        acc5 = tuple(getattr(self.reward_fn, "action_acc_ft_s2", ()) or ACTION_ACC_FT_S2)
+        self.agent = AgentPolicy(encoder, str(getattr(self.reward_fn, "state_encoding", "paper") or "paper"),
+                                 tuple(float(x) for x in acc5))
+        self.scale = config.obs_scale
+        self.observation_space = spaces.Box(POLICY_OBS_LOW * self.scale, POLICY_OBS_HIGH * self.scale,
+                                            dtype=np.float64)
+        lo, hi = (float(x) for x in config.acc_bounds_mps2)
+        self.action_space: spaces.Space[Any] = (
+            spaces.Discrete(N_ACTIONS) if config.action_type == "discrete"
+            else spaces.Box(np.float32(lo), np.float32(hi), shape=(1,), dtype=np.float32))
+        self._acc_bounds = (lo, hi)
+
+    def observation(self, obs: MergeObservation) -> np.ndarray:
+        """The policy observation ``[7]`` of ``obs`` in the config's units (a new array)."""
+        o = policy_observation(obs)
+        return o * self.scale if self.scale != 1.0 else o
+
+    def start(self, seed: int) -> tuple[SumoSession, Controller]:
+        """A new SUMO run of ``seed`` started, and its controller (the agent's)."""
+        session = SumoSession(self.spec, seed, duration_s=self.config.run_s, record=False)
+        ctl = Controller(self.agent, self.config.controller)
+        try:
+            ctl.on_start(session.start())
+        except BaseException:
+            session.close()
+            raise
+        return session, ctl
+
+    def parse_action(self, action: Any) -> tuple[int, float | None]:
+        """``(bin, acc_ft_s2)`` of an action of the action space (``acc_ft_s2`` None for a discrete one).
+
+        Raises:
+            ValueError: discrete: not one integer 0..4 (a bool or a fractional number included);
+                continuous: not one finite number.
+        """
+        arr = np.asarray(action)
+        if self.config.action_type == "discrete":
+            if (arr.size != 1 or arr.dtype.kind not in "iuf"
+                    or (arr.dtype.kind == "f" and not float(arr.item()).is_integer())):
+                raise ValueError(f"action must be an integer in 0..{N_ACTIONS - 1}, got {action!r}")
+            a = int(arr.item())
+            if not 0 <= a < N_ACTIONS:
+                raise ValueError(f"action must be in 0..{N_ACTIONS - 1}, got {action!r}")
+            return a, None
+        if arr.size != 1 or arr.dtype.kind not in "iuf" or not np.isfinite(arr).all():
+            raise ValueError(f"action must be one finite acceleration (m/s^2), got {action!r}")
+        lo, hi = self._acc_bounds
+        acc = float(np.clip(float(arr.reshape(-1)[0]), lo, hi)) * FT_PER_M
+        return action_of(acc), acc
+
+    def apply(self, ctl: Controller, c: Control, frame: FrameState, ia: int, ic: int | None, obs: MergeObservation,
+              action: Any) -> tuple[float, dict[str, Any]]:
+        """Apply ``action`` (checked, :meth:`parse_action`) to control ``c`` through the controller;
+        returns the decision's reward and the step's ``info`` entries (``action_bin``,
+        ``acc_ft_s2``, ``acc_mps2``)."""
+        a, acc_cmd = self.parse_action(action)
+        acc = ctl.apply(c, frame, ia, ic, obs, _EYE[a], a, acc_ft_s2=acc_cmd)
+        applied = action_of(acc)
+        reward = float(self.reward_fn(obs, applied, acc)) if self.reward_fn is not None else 0.0
+        return reward, {"action_bin": applied, "acc_ft_s2": acc, "acc_mps2": acc * M_PER_FT}
+
+    def outcome(self, c: Control) -> float:
+        """The reward's term for how ``c`` ended (a task reward's collision penalty), else 0."""
+        return float(self.outcome_fn(c.reason, c.collision_kind)) if self.outcome_fn is not None else 0.0
+
+    @staticmethod
+    def observe_at_release(ctl: Controller, c: Control, frame: FrameState) -> MergeObservation | None:
+        """A's observation at the release frame, None when A or B has left the network."""
+        rows = ctl.rows or dict(zip(frame.vehicle_id.tolist(), range(len(frame.sumo_ids))))
+        ia, ib = rows.get(c.a_id), rows.get(c.b_id)
+        if ia is None or ib is None:
+            return None
+        ic = lead_of(frame, float(frame.local_y[ia]), lane=ctl.merge_lane, exclude=(ia, ib))
+        return ctl.observe(c, frame, ia, ib, ic)
+
+
+def end_flags(c: Control) -> tuple[bool, bool]:
+    """``(terminated, truncated)`` of a released control: truncated at a time limit."""
+    truncated = c.reason in TRUNCATING_REASONS
+    return not truncated, truncated

@@ -123,3 +123,14 @@ def test_bad_settings_are_refused():
         PlannerConfig(temperature=0.0)
     with pytest.raises(DemonstrationError, match="no pairs"):
         fit_by_replay([], Shape(), ACC5)
+    with pytest.raises(ConfigError, match="criterion must be one of"):
+        ReplayFitConfig(criterion="max")
+
+
+def test_the_criteria_are_the_statistics_they_name():
+    from irl.domains.merge.planning.replay import ReplayResult
+
+    r = ReplayResult(("a", "b", "c"), np.array([1.0, 2.0, 6.0]), np.array([False, False, True]), np.ones(3))
+    assert replay_objective(r, 10.0, "mean") == pytest.approx(19.0 / 3)
+    assert replay_objective(r, 10.0, "median") == 2.0
+    assert replay_objective(r, 10.0, "mean+median") == pytest.approx(0.5 * (19.0 / 3 + 2.0))

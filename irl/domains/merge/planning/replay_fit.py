@@ -74,6 +74,7 @@ class ReplayFitConfig:
         shape_free: shape parameters fitted (keys of :data:`SHAPE_BOUNDS`).
         tie_B: the merging car's ``*_B`` weights equal the lead car's ``*_C`` (no B in pairs).
         collision_cost_m: added to a colliding pair's RMSE (m) in the criterion.
+        criterion: the statistic over pairs minimised, one of :data:`CRITERIA`.
         max_evals: replays the optimiser may spend; xatol: its tolerance on the log parameters.
 
     Raises:
@@ -86,6 +87,7 @@ class ReplayFitConfig:
     shape_free: tuple[str, ...] = ("T_s", "s0_ft", "v0_ft_s")
     tie_B: bool = True
     collision_cost_m: float = 30.0
+    criterion: str = "mean"
     max_evals: int = 120
     xatol: float = 0.02
 
@@ -96,6 +98,8 @@ class ReplayFitConfig:
                      if s not in SHAPE_BOUNDS]
         if "comfort" in self.free:
             problems.append("comfort is the scale and cannot be free")
+        if self.criterion not in CRITERIA:
+            problems.append(f"criterion must be one of {CRITERIA}, got {self.criterion!r}")
         if not (isinstance(self.max_evals, int) and self.max_evals >= 1):
             problems.append(f"max_evals must be an integer >= 1, got {self.max_evals!r}")
         if not (math.isfinite(self.collision_cost_m) and self.collision_cost_m >= 0):
@@ -126,9 +130,25 @@ class ReplayFit:
     params: dict[str, Any] = field(default_factory=dict)
 
 
-def replay_objective(result: ReplayResult, collision_cost_m: float) -> float:
-    """The criterion (m): mean over pairs of ``rmse_m + collision_cost_m * collided``."""
-    return float(np.mean(result.rmse_m + collision_cost_m * result.collided))
+#: The statistics over pairs a replay fit can minimise (:attr:`ReplayFitConfig.criterion`).
+CRITERIA = ("mean", "median", "mean+median")
+
+
+def replay_objective(result: ReplayResult, collision_cost_m: float, criterion: str = "mean") -> float:
+    """The criterion (m): the ``criterion`` (mean, median, or the average of both) over pairs of
+    ``rmse_m + collision_cost_m * collided``.
+
+    Raises:
+        ConfigError: an unknown criterion.
+    """
+    x = result.rmse_m + collision_cost_m * result.collided
+    if criterion == "mean":
+        return float(np.mean(x))
+    if criterion == "median":
+        return float(np.median(x))
+    if criterion == "mean+median":
+        return 0.5 * float(np.mean(x) + np.median(x))
+    raise ConfigError(f"criterion must be one of {CRITERIA}, got {criterion!r}")
 
 
 def _theta(config: ReplayFitConfig, free_w: dict[str, float]) -> np.ndarray:
@@ -196,7 +216,7 @@ def fit_by_replay(pairs: Sequence[ReplayPair], base_shape: Shape, action_acc_ft_
             w, s = _unpack(config, u)
             drv = build_driver(config, w, s, base_shape, action_acc_ft_s2)
             res = replay(pairs, drv.act, config.planner.decision_step_s)
-            cache[key] = (replay_objective(res, config.collision_cost_m), res)
+            cache[key] = (replay_objective(res, config.collision_cost_m, config.criterion), res)
             evals["n"] += 1
             evals["best"] = min(evals["best"], cache[key][0])
             if evals["n"] % 10 == 0:
@@ -213,7 +233,8 @@ def fit_by_replay(pairs: Sequence[ReplayPair], base_shape: Shape, action_acc_ft_
     drv = build_driver(config, w, s, base_shape, action_acc_ft_s2,
                        info={"fit": "replay", "replay_objective_m": obj, "replay_start_objective_m": start_obj,
                              "replay_evals": evals["n"], "replay_pairs": len(pairs),
-                             "collision_cost_m": config.collision_cost_m, "tie_B": config.tie_B})
+                             "collision_cost_m": config.collision_cost_m, "criterion": config.criterion,
+                             "tie_B": config.tie_B})
     return ReplayFit(drv, obj, start_obj, rr, evals["n"], bool(res.success), time.perf_counter() - t0,
                      {**w, **s, "u": list(map(float, res.x))})
 

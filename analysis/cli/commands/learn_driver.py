@@ -16,7 +16,7 @@ def register(subparsers) -> None:
                     "planner on a kinematic model) from demonstrations alone (no simulator labels). "
                     "--fit replay (the default for folders of real car-following pair CSVs): the reward's weights "
                     "and gap shape are chosen by replaying the training pairs from their recorded initial "
-                    "states (Nelder-Mead on the mean spacing RMSE, a collision costing 30 m), then its "
+                    "states (Nelder-Mead on the average of the mean and the median spacing RMSE over pairs, a collision costing 30 m), then its "
                     "temperature by the training likelihood; --holdout scores held-out followers beside IDM "
                     "with SUMO's defaults. --fit likelihood (the default for merge encounter tables): the "
                     "weights by maximum likelihood, the settings by held-out likelihood. Writes DRIVER.json "
@@ -35,7 +35,7 @@ def register(subparsers) -> None:
                    help="--fit replay: hold out this fraction of the followers (split as 'calibrate fit --holdout' "
                         "splits them with the same --seed) and score them beside IDM with SUMO's defaults")
     p.add_argument("--max-evals", dest="max_evals", type=int, default=None, metavar="N",
-                   help="--fit replay: replays the optimiser may spend (default 120; each replays every "
+                   help="--fit replay: replays the optimiser may spend (default 100; each replays every "
                         "training pair)")
     p.add_argument("--seed", type=int, default=0, help="seed of the held-out split (default 0)")
     p.add_argument("--no-selection", action="store_true",

@@ -169,3 +169,14 @@ def test_a_registered_format_is_the_environments_reward(toy):
     finally:
         env.close()
     assert np.isfinite(r) and r <= 0.0
+
+
+def test_names_that_moved_out_of_the_evaluations_policies_say_where_they_went():
+    import analysis.evaluation.policies as policies
+
+    with pytest.raises(ImportError, match=r"policies.BASELINES moved to sim.drivers.baselines"):
+        from analysis.evaluation.policies import BASELINES  # noqa: F401
+    with pytest.raises(ImportError, match=r"load_driver moved to sim.drivers.formats"):
+        policies.load_driver  # noqa: B018
+    with pytest.raises(AttributeError):
+        policies.nothing_here  # noqa: B018

@@ -107,7 +107,8 @@ def run_episodes(tasks: Sequence[tuple], *, workers: int | None = None, executor
     report = run_sweep(sweep_tasks, seed=0, executor=executor, store=store, progress=progress,
                        desc="episodes")
     if not report.ok:
-        raise AnalysisError("episodes failed: " + "; ".join(f"{f.key}: {f.error}" for f in report.failures))
+        stopped = " (the evaluation stopped there)" if report.aborted else ""
+        raise AnalysisError("episodes failed: " + "; ".join(f"{f.key}: {f.error}" for f in report.failures) + stopped)
     return [EpisodeResult.from_dict(report.results[t.key]) for t in sweep_tasks]
 
 

@@ -32,6 +32,9 @@ def register(subparsers) -> None:
                         "ft, ft/s); action an index 0..4 (High Brake .. High Accel) or A's acceleration in m/s^2; "
                         "an object with predict(obs, deterministic=True) (Stable-Baselines3) works too. NAME: its "
                         "row in the report (default: the callable's name)")
+    p.add_argument("--policy-timeout", type=float, default=None, metavar="SECONDS",
+                   help="seconds one decision of a --policy callable may take before the evaluation stops with an "
+                        "error naming it (default 60: no honest policy needs that long)")
     p.add_argument("--scenario", default="synthetic", help="preset name or scenario TOML (default synthetic)")
     p.add_argument("--episodes", type=int, default=3, help="episodes (seeds) per policy")
     p.add_argument("--seed", type=int, default=0, help="first seed; episode i uses seed + i")
@@ -103,7 +106,10 @@ def run(args: argparse.Namespace) -> int:
 
         # discrete actions of a callable at the training frames' mean acceleration per bin, as the baselines'
         acc = training_action_acc(args.train_demos) if args.train_demos else CallablePolicy.action_acc_ft_s2
-        cf += [CallablePolicy.from_spec(spec, action_acc_ft_s2=acc) for spec in args.policy]
+        from sim.drivers.callable_limits import DEFAULT_DECISION_LIMIT_S, check_limit
+
+        limit = DEFAULT_DECISION_LIMIT_S if args.policy_timeout is None else check_limit(args.policy_timeout)
+        cf += [CallablePolicy.from_spec(spec, action_acc_ft_s2=acc, timeout_s=limit) for spec in args.policy]
     scen = Path(args.scenario).stem if args.scenario.endswith(".toml") else args.scenario
     out = Path(args.out) if args.out else Path("runs") / f"evaluate-{scen}-{args.seed}"
     from merge_irl.run_folder import locked

@@ -32,7 +32,7 @@ import pandas as pd
 
 from analysis.evaluation.episode import EpisodeResult, EpisodeSpec, run_episode_task
 from analysis.evaluation.heldout_scoring import load_heldout, policy_heldout_loglik
-from analysis.evaluation.policies import learned_policy, with_distinct_names
+from analysis.evaluation.policies import check_picklable, learned_policy, with_distinct_names
 from analysis.evaluation.report import write_outputs
 from analysis.evaluation.metrics import MetricsConfig
 from analysis.evaluation.aggregate import AggregateMetrics, aggregate
@@ -174,8 +174,9 @@ def evaluate(
             the 0.1 s simulation step.
         SimError: an unknown baseline name.
         PolicyError: a model is not a merge model, a policy lacks a member of
-            :class:`sim.drivers.policy.Policy`, or two policies share a name and one of them is not a
-            dataclass that can be renamed.
+            :class:`sim.drivers.policy.Policy`, two policies share a name and one of them is not a
+            dataclass that can be renamed, or a policy cannot be pickled for the executor's worker
+            processes (:func:`~analysis.evaluation.policies.check_picklable`).
         ModelFileError: a model file is missing or malformed.
         DemonstrationError: the held-out or training encounters cannot be read, lack columns, or
             cannot be scored.
@@ -210,6 +211,7 @@ def evaluate(
     pols += baseline_drivers(baselines, spec, train_demos, learned[0].encoder if learned else None, step)
     pols.extend(policies)
     pols = with_distinct_names(pols)
+    check_picklable(pols, resolve_executor(executor, workers))  # a lambda: now, named, not as a raw pickling error
     held = load_heldout(demos) if demos is not None else None
     # the held-out scores do not depend on the episodes: taken first, so a held-out table that a
     # policy's scoring rejects fails before any SUMO run

@@ -8,6 +8,8 @@ the driver-format registry (:mod:`sim.drivers.formats`); the baselines are the r
 from __future__ import annotations
 
 import os
+import pickle
+from collections.abc import Sequence
 from dataclasses import is_dataclass, replace
 from pathlib import Path
 
@@ -70,3 +72,55 @@ def _renamed(p: Policy, name: str) -> Policy:
         raise PolicyError(f"evaluate: two policies are named {p.name!r} and {type(p).__name__} is not a "
                           "dataclass that could be renamed; give each policy a distinct name")
     return replace(p, name=name)
+
+
+def check_picklable(pols: Sequence[Policy], executor: str) -> None:
+    """Refuse, before any work, a policy that the ``executor``'s workers cannot receive.
+
+    Worker processes (``process``, ``dask-local``, ``dask://``) are fresh Python processes: each
+    policy reaches them pickled, and a policy built from a callable object (not from a
+    ``module:callable`` spec) is pickled with its callable. A lambda, a function defined inside
+    another, or an object holding a lock or an open file cannot be (Dask's cloudpickle takes
+    lambdas and closures, not locks or files). ``serial`` needs no pickling.
+
+    Raises:
+        PolicyError: one line naming the policy, the pickling error, why the workers need it and
+            the fixes (a module-level function, ``CallablePolicy.from_spec("file.py:fn")``, or
+            ``executor="serial"`` / ``--executor serial``).
+    """
+    if executor.strip() == "serial":
+        return
+    dask = executor.startswith(("dask", "tls"))
+    for p in pols:
+        err = _pickle_error(p, dask)
+        if err is None:
+            continue
+        fn = getattr(p, "fn", None)
+        what = f"its callable {getattr(fn, '__qualname__', type(fn).__name__)!r}" if fn is not None else \
+            f"the {type(p).__name__} object"
+        raise PolicyError(
+            f"policy {p.name!r} cannot be sent to the worker processes of --executor {executor} ({err}): workers are "
+            f"fresh Python processes that receive each policy pickled, and {what} does not pickle (a lambda, a "
+            "function defined inside another, an object holding a lock or an open file). Fix: define it as a "
+            "module-level function and give it as module:callable (--policy, CallablePolicy.from_spec(\"file.py:fn\")), "
+            "which workers import again, or run in this process with --executor serial (executor=\"serial\")")
+
+
+def _pickle_error(p: Policy, dask: bool) -> str | None:
+    """The pickling error of ``p`` in one line, or None when it pickles (with cloudpickle too under Dask)."""
+    try:
+        pickle.dumps(p)
+        return None
+    except Exception as e:  # noqa: BLE001 - pickle raises PicklingError, TypeError, AttributeError
+        first = f"{type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}"
+    if dask:
+        try:
+            import cloudpickle  # type: ignore[import-untyped]
+
+            cloudpickle.dumps(p)
+            return None
+        except ImportError:  # pragma: no cover - Dask brings cloudpickle
+            pass
+        except Exception as e:  # noqa: BLE001
+            first = f"{type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}"
+    return first

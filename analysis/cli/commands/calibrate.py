@@ -313,6 +313,7 @@ def run_check(args: argparse.Namespace) -> int:
 
 
 def run_preset(args: argparse.Namespace) -> int:
+    from dataclasses import replace
     from pathlib import Path
 
     from analysis.calibration import load_result
@@ -345,9 +346,20 @@ def run_preset(args: argparse.Namespace) -> int:
                                car_follow_model=args.car_follow_model, name=args.name or out.stem)
     spec_from_toml(text, source=str(out))  # what is written loads as a scenario
     write_text_atomic(out, text)
-    kinds = len({c.id for c in load_scenario(out).drivers.car})
-    print(f"{args.scenario} with {kinds} calibrated car driver type(s) from {args.params} "
-          f"({result.model} fits, driven by SUMO's {model}); run it: merge-irl generate --scenario {out}",
-          file=sys.stderr)
+    cars = load_scenario(out).drivers.car
+    kinds = len({c.id for c in cars})
+    distinct = len({replace(c, id="", probability=1.0) for c in cars})  # the same parameters drawn again
+    n_fits = len(result.per_pair)
+    if distinct < kinds:
+        said = (f"{kinds} car driver types drawn with replacement from {n_fits} per-pair fit(s): {distinct} distinct "
+                f"driver(s), {kinds - distinct} repeat(s)")
+    else:
+        said = f"{kinds} calibrated car driver type(s)"
+    print(f"{args.scenario} with {said} from {args.params} ({result.model} fits, driven by SUMO's {model}); "
+          f"run it: merge-irl generate --scenario {out}", file=sys.stderr)
+    if n is not None and n_fits and n > n_fits:
+        print(f"merge-irl calibrate preset: warning: --drivers {n} asks for more driver types than {args.params} has "
+              f"per-pair fits ({n_fits}): a resample repeats fits, it adds no driver the data does not have; "
+              f"fit more pairs (at least {n} followers) or leave out --drivers (one type per fit)", file=sys.stderr)
     print(out)
     return 0

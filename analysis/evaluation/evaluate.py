@@ -32,7 +32,7 @@ import pandas as pd
 
 from analysis.evaluation.episode import EpisodeResult, EpisodeSpec, run_episode_task
 from analysis.evaluation.heldout_scoring import load_heldout, policy_heldout_loglik
-from analysis.evaluation.policies import check_picklable, learned_policy, with_distinct_names
+from analysis.evaluation.policies import check_picklable, check_unambiguous, learned_policy, with_distinct_names
 from analysis.evaluation.report import write_outputs
 from analysis.evaluation.metrics import MetricsConfig
 from analysis.evaluation.aggregate import AggregateMetrics, aggregate
@@ -209,6 +209,7 @@ def evaluate(
         warnings.warn(f"evaluate: every policy decides every {step} s, but " + ", ".join(
             f"{name} was trained at {s} s" for name, s in other), DecisionStepWarning, stacklevel=2)
     pols += baseline_drivers(baselines, spec, train_demos, learned[0].encoder if learned else None, step)
+    check_unambiguous(policies, pols)  # a --policy named 'sumo' beside the baseline: refused, not 'sumo-2'
     pols.extend(policies)
     pols = with_distinct_names(pols)
     check_picklable(pols, resolve_executor(executor, workers))  # a lambda: now, named, not as a raw pickling error
@@ -220,6 +221,7 @@ def evaluate(
     for p in pols:
         scores[p.name] = policy_heldout_loglik(p, held, step, cache=shared) if held is not None else None
     out = Path(out_dir)  # made once every input has been read and checked, so a bad input leaves no folder
+    created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     check_writable(out / "report.md")  # before the episodes, not after
     prov = evaluation_provenance(models, pols, scenario, spec, demos, train_demos)  # the files as read, before the work
@@ -230,7 +232,11 @@ def evaluate(
             kw = dict(duration_s=duration_s, controller=controller, metrics=metrics, demo_action_counts=counts,
                       rrd_path=str(out / "rerun" / f"{p.name}.rrd") if (rrd and i == 0) else None)
             tasks.append((spec, p, seed + i, kw))
-    results = run_episodes(tasks, workers=workers, executor=executor, progress=progress)
+    try:
+        results = run_episodes(tasks, workers=workers, executor=executor, progress=progress)
+    except BaseException:  # a failed or interrupted evaluation leaves no partial recording behind
+        discard_unfinished(out, [p.name for p in pols], created=created)
+        raise
     by_policy: dict[str, list[EpisodeResult]] = {p.name: [] for p in pols}
     for (_, p, _, _), r in zip(tasks, results):
         by_policy[p.name].append(r)
@@ -256,6 +262,25 @@ def evaluate(
         if old not in rrds.values():
             old.unlink(missing_ok=True)
     return EvaluationReport(out, aggs, by_policy, report_md, metrics_json, plots, rrds)
+
+
+def discard_unfinished(out: Path, names: Sequence[str], *, created: bool) -> None:
+    """After a failed or interrupted evaluation: remove the recordings its episodes left half
+    written (``rerun/.<name>.rrd.*.tmp.partial``, their workers having been stopped) and, when this
+    evaluation made ``out``, the recordings it finished and the folders it made, if left empty.
+    A folder that was there before keeps everything else (an earlier evaluation's files)."""
+    rerun = out / "rerun"
+    for name in names:
+        for f in rerun.glob(f".{name}.rrd.*.tmp.partial"):
+            f.unlink(missing_ok=True)
+        if created:
+            (rerun / f"{name}.rrd").unlink(missing_ok=True)
+    if created:
+        for folder in (rerun, out):
+            try:
+                folder.rmdir()
+            except OSError:  # not empty, or gone
+                pass
 
 
 def evaluation_provenance(models: Sequence, pols: Sequence[Policy], scenario, spec, demos, train_demos=None) -> dict:

@@ -48,6 +48,39 @@ def cf_policy(path: str | os.PathLike, name: str = "") -> CarFollowingLogitPolic
     return CarFollowingLogitPolicy(CarFollowingLogit.load(path), name=name or Path(path).stem, source=str(path))
 
 
+def check_unambiguous(own: Sequence[Policy], others: Sequence[Policy]) -> None:
+    """Refuse names that would leave a report's rows, recordings and ``--fail-if`` ambiguous:
+    one of ``own`` (the caller's policies, e.g. ``--policy``/``--driver``/``--cf-model``) named as
+    one of ``others`` (the learned models and baselines of the same evaluation), or two of ``own``
+    of different origin (``spec`` or ``source``) under one name. The same policy given twice is
+    numbered by :func:`with_distinct_names` as before.
+
+    Raises:
+        PolicyError: one line naming both origins and the fix (a NAME of its own).
+    """
+    taken = {p.name: p for p in others}
+    seen: dict[str, Policy] = {}
+    for p in own:
+        origin = _origin(p)
+        if p.name in taken:
+            o = taken[p.name]
+            what = "the baseline" if not _origin(o) else f"the model {_origin(o)}"
+            raise PolicyError(
+                f"{origin or 'a policy'}: its name {p.name!r} is also {what} {p.name!r} of this evaluation; the report, "
+                f"the recordings and --fail-if could not tell them apart: give it a name of its own "
+                f"(--policy MODULE:CALLABLE:NAME, e.g. {p.name}-mine; --driver/--cf-model: rename the file)")
+        first = seen.setdefault(p.name, p)
+        if first is not p and _origin(first) != origin:
+            raise PolicyError(
+                f"two policies are named {p.name!r}: {_origin(first) or 'one'} and {origin or 'another'}; the report "
+                "could not tell which is which: give each a name of its own (--policy MODULE:CALLABLE:NAME)")
+
+
+def _origin(p: Policy) -> str:
+    spec = getattr(p, "spec", "") or ""
+    return spec or str(getattr(p, "source", "") or "")
+
+
 def with_distinct_names(pols: list[Policy]) -> list[Policy]:
     """``pols`` with every repeated name numbered (``qavg-1``, ``qavg-2``).
 

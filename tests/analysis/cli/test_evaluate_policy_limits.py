@@ -126,3 +126,47 @@ def test_blocking_policy_stops_the_evaluation_in_one_line(tmp_path, executor) ->
     assert "(the evaluation stopped there)" in lines[0]
     assert wall < 150, f"{wall:.0f} s: the evaluation waited out more than one time-out"
     assert _gone(marker) == []
+    assert not out.exists(), sorted(str(p) for p in out.rglob("*"))  # no .partial recording, no folder
+
+
+@pytest.mark.sumo
+def test_ctrl_c_ends_a_blocked_evaluation_with_130_and_nothing_left(tmp_path) -> None:
+    rules = tmp_path / "rules.py"
+    rules.write_text(BLOCKING)
+    out = tmp_path / "ev"
+    marker = uuid.uuid4().hex
+    env = dict(os.environ, MERGE_IRL_TEST_MARK=marker)
+    proc = subprocess.Popen([sys.executable, "-m", "analysis", "evaluate", "--policy", f"{rules}:hang", "--baselines",
+                             "sumo", "--episodes", "2", "--duration", "90", "--executor", "process:2", "--no-progress",
+                             "--out", str(out)], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        deadline = time.monotonic() + 120
+        while not list(out.glob("rerun/.hang.rrd.*.tmp.partial")):  # the blocked episode is recording
+            assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
+            time.sleep(0.5)
+        time.sleep(1.0)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, err
+    assert err.strip().splitlines()[-1] == "merge-irl evaluate: interrupted" and "Traceback" not in err
+    assert _gone(marker) == []
+    assert not out.exists(), sorted(str(p) for p in out.rglob("*"))
+
+
+@pytest.mark.parametrize("specs, words", [
+    (["{r}:hang:sumo"], "its name 'sumo' is also the baseline 'sumo' of this evaluation"),
+    (["{r}:hang:x", "{r}:spin:x"], "two policies are named 'x'"),
+])
+def test_a_name_that_would_be_ambiguous_is_refused(tmp_path, specs, words) -> None:
+    rules = tmp_path / "rules.py"
+    rules.write_text(BLOCKING)
+    args = [a for spec in specs for a in ("--policy", spec.format(r=rules))]
+    r = _cli(*args, "--baselines", "sumo", "--episodes", "1", "--duration", "90", "--out", str(tmp_path / "ev"),
+             marker="none", timeout=120)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and words in r.stderr, r.stderr
+    assert "give it a name of its own" in r.stderr or "give each a name of its own" in r.stderr
+    assert not (tmp_path / "ev").exists()

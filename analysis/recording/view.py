@@ -48,6 +48,22 @@ def check_recordings(files: list[Path]) -> None:
             raise AnalysisError(str(e)) from None
 
 
+def readable_recordings(files: list[Path]) -> tuple[list[Path], list[str]]:
+    """``(readable files, one line per unreadable file naming it and why)``: a run folder with one
+    corrupt or foreign ``.rrd`` still opens the others (:func:`analysis.recording.read.check_rrd`)."""
+    from analysis.recording.read import check_rrd
+
+    good, bad = [], []
+    for f in files:
+        try:
+            check_rrd(f)
+        except (ValueError, FileNotFoundError) as e:
+            bad.append(str(e))
+        else:
+            good.append(f)
+    return good, bad
+
+
 def has_display() -> bool:
     """Whether a GUI can open here (always assumed on macOS/Windows)."""
     if sys.platform.startswith("linux"):

@@ -24,8 +24,8 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from analysis.errors import AnalysisError
-    from analysis.recording.view import (check_recordings, find_recordings, open_viewer, readable_recordings,
-                                         viewer_command)
+    from analysis.recording.view import (check_recordings, find_recordings, no_viewer_advice, open_viewer,
+                                         readable_recordings, viewer_command)
 
     files = find_recordings(args.target)
     if len(files) == 1 or not Path(args.target).is_dir():
@@ -42,8 +42,7 @@ def run(args: argparse.Namespace) -> int:
     if args.print_only or cmd is None:
         print("open with:  " + " ".join(cmd or ["rerun", *map(str, files)]))
         if cmd is None:
-            print("(no rerun viewer found here, or no display: install the viewer with "
-                  "`pip install rerun-sdk` on a machine with a display, then run the command above)")
+            print(no_viewer_advice())
         return 0
     open_viewer(cmd)
     print("started: " + " ".join(cmd))

@@ -4,6 +4,7 @@ line and exit 2; the advice without a viewer says what is missing (the viewer or
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
@@ -42,3 +43,16 @@ def test_one_bad_recording_leaves_the_others_viewable(tmp_path) -> None:
     (run / "rerun" / "also-broken.rrd").write_bytes(b"")
     r = _view("--print-only", str(run))
     assert r.returncode == 2 and "none of its 2 .rrd recordings is readable" in r.stderr
+
+
+def test_without_a_display_the_advice_says_so_when_rerun_is_installed(tmp_path) -> None:
+    _rrd(tmp_path / "a.rrd")
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    r = _view(str(tmp_path / "a.rrd"), env=env)  # rerun-sdk is installed here (a dependency)
+    assert r.returncode == 0, r.stderr
+    assert "pip install" not in r.stdout and "is installed" in r.stdout and "no display" in r.stdout
+    env["PATH"] = ""  # no viewer on PATH ...
+    r = subprocess.run([sys.executable, "-c", "import analysis.recording.view as v, sys; "
+                        "v.viewer_executable = lambda: None; print(v.no_viewer_advice())"],
+                       capture_output=True, text=True, env=env, timeout=60)
+    assert "pip install rerun-sdk" in r.stdout  # ... and none beside Python: install it

@@ -22,7 +22,7 @@ import sys
 import time
 from dataclasses import replace
 
-from analysis.cli.commands._arg_types import add_allow_implausible, positive_int
+from analysis.cli.commands._arg_types import Once, add_allow_implausible, positive_int
 
 
 def register(subparsers) -> None:
@@ -35,7 +35,7 @@ def register(subparsers) -> None:
     sub.required = True
 
     f = sub.add_parser("fit", help="population + per-pair fits, written as TOML")
-    f.add_argument("--pairs", required=True, metavar="DIR", help="folder of pair CSVs (or with a train/ subfolder)")
+    f.add_argument("--pairs", required=True, metavar="DIR", action=Once, what="one folder of pairs", help="folder of pair CSVs (or with a train/ subfolder)")
     f.add_argument("--out", required=True, metavar="FILE", help="output params TOML")
     f.add_argument("--model", choices=("idm", "krauss", "eidm"), default="idm",
                    help="idm / krauss: numpy replica of SUMO, population + per-pair fits; eidm: real SUMO "
@@ -70,7 +70,7 @@ def register(subparsers) -> None:
                    help="params TOML from 'calibrate fit' (required without --driver)")
     e.add_argument("--driver", default=None, metavar="DRIVER.json",
                    help="a driver file of 'merge-irl learn-driver' (or a car-following logit) to replay")
-    e.add_argument("--pairs", required=True, metavar="DIR",
+    e.add_argument("--pairs", required=True, metavar="DIR", action=Once, what="one folder of pairs",
                    help="folder of pair CSVs (or with a train/ subfolder) to score; any folder")
     e.add_argument("--holdout", type=float, default=0.0, metavar="FRACTION",
                    help="evaluate only the held-out followers of 'fit --holdout FRACTION --seed S' (give the "
@@ -85,7 +85,7 @@ def register(subparsers) -> None:
 
     c = sub.add_parser("check", help="compare the i80 scenario's simulated traffic with the real pairs")
     c.add_argument("--params", required=True, metavar="FILE", help="params TOML from 'calibrate fit'")
-    c.add_argument("--pairs", required=True, metavar="DIR", help="folder of real pair CSVs to compare with")
+    c.add_argument("--pairs", required=True, metavar="DIR", action=Once, what="one folder of pairs", help="folder of real pair CSVs to compare with")
     c.add_argument("--scenario", default="i80", metavar="NAME|FILE", help="scenario preset or TOML (default i80)")
     c.add_argument("--duration", type=float, default=None, metavar="S",
                    help="simulated seconds, warm-up included, longer than the scenario's warm-up "
@@ -313,7 +313,6 @@ def run_check(args: argparse.Namespace) -> int:
 
 
 def run_preset(args: argparse.Namespace) -> int:
-    from dataclasses import replace
     from pathlib import Path
 
     from analysis.calibration import load_result

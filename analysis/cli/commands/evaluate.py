@@ -7,7 +7,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from analysis.cli.commands._arg_types import add_allow_implausible, positive_int
+from analysis.cli.commands._arg_types import Once, add_allow_implausible, positive_int
 from analysis.cli.commands._dask_options import add_dask_options, apply_dask_options
 from sim.closed_loop.config import HIGH_BRAKE_RULES
 
@@ -40,9 +40,9 @@ def register(subparsers) -> None:
     p.add_argument("--seed", type=int, default=0, help="first seed; episode i uses seed + i")
     p.add_argument("--duration", type=float, default=None, help="simulated seconds per episode (default: the scenario's)")
     add_allow_implausible(p)
-    p.add_argument("--demos", default=None,
+    p.add_argument("--demos", default=None, action=Once, what="one held-out encounter table",
                    help="held-out encounter table (.parquet/.csv) for the action divergence and held-out LL")
-    p.add_argument("--train-demos", default=None,
+    p.add_argument("--train-demos", default=None, action=Once, what="one training encounter table",
                    help="training encounter table (.parquet/.csv) of the marginal, markov and bc baselines")
     p.add_argument("--baselines", default="sumo,uniform,marginal,markov,bc",
                    help="comma-separated baselines among sumo, uniform, marginal, markov, bc, idm, sumo-in-lane "

@@ -40,6 +40,7 @@ from analysis.evaluation.distances import w1_to_demos
 from merge_irl.provenance import provenance, text_digest, write_timings
 from analysis.sweep import Task, resolve_executor, run_sweep
 from irl.errors import ConfigError
+from irl.domains.merge.actions import N_ACTIONS
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, frames_per_step
 from irl.result import SavedModel
 from merge_irl.run_folder import check_writable
@@ -247,7 +248,7 @@ def evaluate(
         w1 = w1_to_demos(pd.concat([r.decisions for r in rs], ignore_index=True), held.encounters) \
             if held is not None and rs else None
         aggs[p.name] = aggregate([r.metrics for r in rs], demo_action_counts=counts, heldout=ho, w1=w1,
-                                 flags=tuple(p.flags))
+                                 flags=tuple(p.flags) + heldout_flags(ho))
     scen_name = scenario if isinstance(scenario, (str, Path)) else spec.name
     report_md, metrics_json, plots = write_outputs(
         out, aggs, by_policy, held, scenario=str(scen_name), seed=seed, episodes=episodes,
@@ -262,6 +263,19 @@ def evaluate(
         if old not in rrds.values():
             old.unlink(missing_ok=True)
     return EvaluationReport(out, aggs, by_policy, report_md, metrics_json, plots, rrds)
+
+
+#: Held-out log-likelihood per step of uniform actions over the merge actions (log 1/5 = -1.609):
+#: a driver scoring below it predicts the held-out demonstrations worse than chance.
+UNIFORM_LL_PER_STEP = -math.log(N_ACTIONS)
+
+
+def heldout_flags(heldout: tuple[float, float] | None) -> tuple[str, ...]:
+    """``("heldout_worse_than_uniform",)`` when a held-out score ``(sum, per step)`` is below
+    :data:`UNIFORM_LL_PER_STEP` per step (beyond rounding), else ``()``."""
+    if heldout is None or not math.isfinite(heldout[1]):
+        return ()
+    return ("heldout_worse_than_uniform",) if heldout[1] < UNIFORM_LL_PER_STEP - 1e-9 else ()
 
 
 def discard_unfinished(out: Path, names: Sequence[str], *, created: bool) -> None:

@@ -97,6 +97,9 @@ def register(subparsers) -> None:
                         "'calibrate preset' writes it)")
     c.add_argument("--drivers", type=positive_int, default=None, metavar="N",
                    help="resample N driver types from the per-pair fits with --seed (default: one per per-pair fit)")
+    c.add_argument("--heldout-only", action="store_true",
+                   help="compare only with the pairs whose follower the fit did not see (the params file's "
+                        "training followers left out; fit with --holdout F to keep some aside)")
     c.add_argument("--out", default=None, metavar="FILE", help="write the markdown report here")
     c.add_argument("--json", action="store_true", help="print the report as one JSON object")
     c.set_defaults(func=run_check)
@@ -212,6 +215,10 @@ def run_fit(args: argparse.Namespace) -> int:
         print(f"spread of the {len(result.per_pair)} per-pair fits (10% / median / 90%):", file=sys.stderr)
         for name, sp in result.spread:
             print(f"  {name:<9} {sp.q10:7.3f} {sp.median:7.3f} {sp.q90:7.3f}", file=sys.stderr)
+    from analysis.calibration.fit import bounds_warning
+
+    if line := bounds_warning(result.per_pair, result.fitted):
+        print(f"merge-irl calibrate fit: warning: {line}", file=sys.stderr)
     print(args.out)
     return 0
 
@@ -301,7 +308,7 @@ def run_check(args: argparse.Namespace) -> int:
     report = run_calibration_check(
         params_path=args.params, pairs_dir=args.pairs, scenario=args.scenario,
         duration_s=args.duration, seed=args.seed, keep_drivers=args.keep_drivers, n_drivers=args.drivers,
-        allow_implausible=args.allow_implausible,
+        allow_implausible=args.allow_implausible, heldout_only=args.heldout_only,
     )
     if args.out:
         report.write_markdown(args.out)

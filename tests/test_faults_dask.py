@@ -323,12 +323,19 @@ def test_tls_scheduler_with_self_signed_certificates(tmp_path):
         plain = parse_executor(address.replace("tls://", "dask://"))
         with pytest.raises(DaskUnavailable, match=address.replace("tls://", "tcp://")):
             run_sweep(tasks, progress=False, executor=replace(plain, dask=replace(quick, connect_timeout_s=3)))
-        # a certificate the scheduler's is not signed by: refused
+        # a certificate from another authority: which side refused which file (issue 35, item 5)
         (tmp_path / "other").mkdir()
         other, other_key = _self_signed(tmp_path / "other")
-        with pytest.raises(DaskUnavailable, match="not reachable"):
+        with pytest.raises(DaskUnavailable, match=r"TLS: this client refused the scheduler's certificate "
+                           r"\(self-signed certificate\): it does not verify against the CA file "
+                           + str(other) + r" \(--dask-tls-ca-file\)"):
             run_sweep(tasks, progress=False, executor=replace(spec, dask=replace(
                 quick, connect_timeout_s=5, tls_ca_file=str(other), tls_cert=str(other), tls_key=str(other_key))))
+        # the right CA, a client certificate the scheduler does not trust: the scheduler refused it
+        with pytest.raises(DaskUnavailable, match=r"TLS: the scheduler ended the handshake .*: it refused this "
+                           r"client's certificate " + str(other) + r" \(--dask-tls-cert\)"):
+            run_sweep(tasks, progress=False, executor=replace(spec, dask=replace(
+                quick, connect_timeout_s=5, tls_ca_file=str(cert), tls_cert=str(other), tls_key=str(other_key))))
 
 
 def test_tls_from_the_command_line(tmp_path):
@@ -344,3 +351,22 @@ def test_tls_from_the_command_line(tmp_path):
     for bad in ("tls://nohost", "tls://h:0", "dask://h:99999"):
         with pytest.raises(ValueError):
             parse_executor(bad)
+
+
+@pytest.mark.parametrize("executor", ["dask://127.0.0.1:1", "process:1", None])
+def test_tls_files_without_a_tls_address_are_refused_at_once(tmp_path, executor):
+    """issue 35, item 5: --dask-tls-* with dask:// waited 121 s despite a 10 s connect timeout."""
+    cert, key = _self_signed(tmp_path)
+    out = tmp_path / "sweep"
+    cmd = _generate(out, executor or "serial", "--dask-tls-cert", str(cert), "--dask-tls-key", str(key))
+    if executor is None:
+        cmd = [c for c in cmd if c not in ("--executor", "serial")]
+    t0 = time.monotonic()
+    proc = subprocess.run(cmd, env=_env(tmp_path), capture_output=True, text=True, timeout=120)
+    assert time.monotonic() - t0 < 30
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 2 and len(lines) == 1, proc.stderr
+    assert "--dask-tls-cert, --dask-tls-key given" in lines[0] and "only over TLS" in lines[0]
+    if executor and executor.startswith("dask://"):
+        assert "use --executor tls://127.0.0.1:1" in lines[0]
+    assert not out.exists()

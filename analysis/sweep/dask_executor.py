@@ -165,7 +165,9 @@ def run_dask(todo: Sequence[Any], finish: Callable[[Any, dict], bool], spec: Exe
 
     Raises:
         RuntimeError: Dask distributed is not installed.
-        DaskUnavailable: see :func:`check_scheduler`, or the sweep stalled (module docstring).
+        DaskUnavailable: see :func:`check_scheduler`, the sweep stalled (module docstring), or
+            the scheduler went away mid-sweep (:func:`scheduler_gone`; the tasks finished until
+            then have been handed to ``finish``, so a store keeps them).
         KeyboardInterrupt: Ctrl-C; the sweep's tasks are cancelled on the scheduler.
     """
     try:
@@ -184,6 +186,7 @@ def run_dask(todo: Sequence[Any], finish: Callable[[Any, dict], bool], spec: Exe
         client = Client(spec.address, security=security, timeout=settings.connect_timeout_s)
     futures: dict[str, Any] = {}
     pending: dict[str, Any] = {}
+    n_done = [0]  # tasks finished in this call
 
     def submit(p):
         # Dask itself reschedules a task whose worker died (up to its allowed-failures);
@@ -208,7 +211,15 @@ def run_dask(todo: Sequence[Any], finish: Callable[[Any, dict], bool], spec: Exe
                 try:
                     record = fut.result()
                 except Exception as e:  # noqa: BLE001 - KilledWorker and friends
+                    if scheduler_gone(e, client):  # not a worker's death: no retry, no __main__ advice
+                        where = spec.address or getattr(cluster, "scheduler_address", "dask-local")
+                        raise DaskUnavailable(
+                            f"Dask scheduler {where} went away (connection lost) with {len(pending) + 1} of the "
+                            f"sweep's {len(todo)} task(s) unfinished; the {n_done[0]} finished here are kept (a "
+                            "store keeps them: the same command runs only the rest once a scheduler is back)") from None
                     record = crash_record(e)
+                if record.get("ok"):
+                    n_done[0] += 1
                 if finish(p, record):
                     ac.add(submit(p))
             if batch:
@@ -236,6 +247,15 @@ def run_dask(todo: Sequence[Any], finish: Callable[[Any, dict], bool], spec: Exe
         client.close(timeout=5)
         if cluster is not None:
             cluster.close()
+
+
+def scheduler_gone(e: BaseException, client) -> bool:
+    """Whether a task's failure ``e`` is the scheduler's connection being lost (Dask cancels every
+    future with the reason ``scheduler-connection-lost``, or the client has closed), rather than a
+    task or worker failure."""
+    if "scheduler-connection-lost" in str(e):
+        return True
+    return type(e).__name__ == "FutureCancelledError" and str(getattr(client, "status", "")) in ("closing", "closed")
 
 
 def _any_running(client, pending: dict[str, Any]) -> bool:

@@ -23,6 +23,9 @@ from sim.env.rewards import PlanningReward, TabularReward, load_reward
 ENV_ID = "MergeIRL/OnRampMerge-v0"
 
 if ENV_ID not in gym.registry:
-    gym.register(id=ENV_ID, entry_point="sim.env.merge_env:MergeEnv")
+    # no passive checker: when an environment's first reset raises (a second SUMO session refused in
+    # one process), Gymnasium's PassiveEnvChecker is left half-set and a later step fails with its own
+    # TypeError; the environment passes gymnasium.utils.env_checker.check_env in its tests
+    gym.register(id=ENV_ID, entry_point="sim.env.merge_env:MergeEnv", disable_env_checker=True)
 
 __all__ = ["ENV_ID", "MergeEnv", "PlanningReward", "TabularReward", "load_reward", "make_env"]

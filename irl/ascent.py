@@ -58,6 +58,39 @@ def progress_bar(enabled: bool, total: int, desc: str) -> Any:
     return _progress_bar(total, desc=desc, enabled=enabled, leave=False)
 
 
+#: Features whose spread (:func:`feature_spread`) lies within these bounds are left unscaled by
+#: :func:`preconditioner`: fits of features in ordinary units run exactly as before; one in units
+#: a million times too small or large is searched, and started, at its own scale.
+ORDINARY_SPREAD = (1e-3, 1e3)
+
+
+def feature_spread(features: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """``[K]`` the spread of each feature of ``features [S, A, K]`` across the actions of the
+    visited states (``counts [S, A]`` steps): ``sqrt(sum_s n_s Var_a features[s, :, k] / sum_s
+    n_s)``; 1 where a feature does not vary (or nothing is visited)."""
+    n_s = counts.sum(axis=1)
+    vis = n_s > 0
+    if not vis.any():
+        return np.ones(features.shape[2])
+    b = features[vis]
+    var = ((b - b.mean(axis=1, keepdims=True)) ** 2).mean(axis=1)  # [V, K]
+    s = np.sqrt(n_s[vis] @ var / n_s[vis].sum())
+    return np.where(np.isfinite(s) & (s > 0), s, 1.0)
+
+
+def preconditioner(spread: np.ndarray) -> np.ndarray:
+    """``[K]``: ``spread`` where it lies outside :data:`ORDINARY_SPREAD`, else 1."""
+    lo, hi = ORDINARY_SPREAD
+    return np.where((spread < lo) | (spread > hi), spread, 1.0)
+
+
+def scaled_start(theta: np.ndarray, spread: np.ndarray) -> np.ndarray:
+    """A random start drawn in ordinary units, moved to each feature's own scale:
+    ``theta / preconditioner(spread)`` (a weight of 0.3 on a feature of spread 1e14 starts the
+    fit 1e13 nats from anything sensible)."""
+    return np.asarray(theta, dtype=np.float64) / preconditioner(spread)
+
+
 def penalised(ev: Evaluation, theta: np.ndarray, l2: float) -> tuple[float, np.ndarray]:
     """``(L - l2/2 |theta|^2, its gradient)``."""
     return ev.loglik - 0.5 * l2 * float(theta @ theta), ev.grad - l2 * theta
@@ -110,12 +143,22 @@ class _InnerFailure(Exception):
 def lbfgs_ascent(evaluate: Callable[[np.ndarray], Evaluation], theta0: np.ndarray,
                  config: IRLConfig, *, progress: bool = False, desc: str = "",
                  gtol: float = 1e-7,
-                 on_accept: Callable[[np.ndarray, Evaluation], None] | None = None) -> AscentResult:
+                 on_accept: Callable[[np.ndarray, Evaluation], None] | None = None,
+                 scale: np.ndarray | None = None, reference: float = 1.0) -> AscentResult:
     """L-BFGS (scipy, ``L-BFGS-B`` without bounds) on ``-f``; stops at ``|grad f|_inf <= gtol``,
     a relative objective change below ``1e-13``, or ``config.max_outer`` iterations. An inner
     failure (``ok=False``) at the start aborts with ``converged=False``; at a line-search trial
     point it is a steep wall around the last accepted iterate. ``on_accept(theta, evaluation)`` is
-    called at the start and after every accepted iterate (used to anchor warm starts)."""
+    called at the start and after every accepted iterate (used to anchor warm starts).
+
+    ``scale``: ``[K]`` positive; the search runs in ``u = scale * theta`` (diagonal
+    preconditioning, as Q-Avg's Newton: :func:`preconditioner`); evaluations, traces and the
+    returned theta stay in the original coordinates. ``converged`` needs the optimality check on
+    the problem as given: the penalised gradient per unit of ``scale``, ``|g / scale|_inf``, at
+    most ``max(100 gtol, 1e-5 max(1, min(|L|, reference)))``; ``reference``: the size of ``L``
+    at a sane point (e.g. ``|L(0)|``), so that an absurd ``L`` does not loosen the check.
+    """
+    sc = np.ones(np.size(theta0)) if scale is None else np.asarray(scale, dtype=np.float64)
     cache: dict[bytes, Evaluation] = {}
     last: list = []
     failures: list[str] = []
@@ -130,7 +173,8 @@ def lbfgs_ascent(evaluate: Callable[[np.ndarray], Evaluation], theta0: np.ndarra
 
     anchor: list = []  # [x, -f, -g] of the last accepted iterate
 
-    def fun(x):
+    def fun(u):
+        x = u / sc  # theta
         ev = ev_at(x)
         last[:] = [x.copy(), ev]
         if not ev.ok:
@@ -140,11 +184,11 @@ def lbfgs_ascent(evaluate: Callable[[np.ndarray], Evaluation], theta0: np.ndarra
             # iterate sends the line search back
             failures.append(ev.message)
             xa, fa, ga = anchor
-            d = x - xa
+            d = u - xa * sc
             wall = 1e3 * (1.0 + abs(fa))
             return fa + wall * (1.0 + float(d @ d)), 2.0 * wall * d
         f, g = penalised(ev, x, config.l2)
-        return -f, -g
+        return -f, -g / sc
 
     lls, thetas = [], []
     theta = np.asarray(theta0, dtype=np.float64).copy()
@@ -157,8 +201,9 @@ def lbfgs_ascent(evaluate: Callable[[np.ndarray], Evaluation], theta0: np.ndarra
         if on_accept is not None:
             on_accept(np.asarray(x), ev)
 
-    def callback(x):
-        ev = ev_at(np.asarray(x))
+    def callback(u):
+        x = np.asarray(u) / sc
+        ev = ev_at(x)
         remember(x, ev)
         lls.append(ev.loglik)
         thetas.append(np.array(x, dtype=float))
@@ -167,7 +212,7 @@ def lbfgs_ascent(evaluate: Callable[[np.ndarray], Evaluation], theta0: np.ndarra
 
     remember(theta, ev_at(theta))
     try:
-        res = so.minimize(fun, theta, jac=True, method="L-BFGS-B", callback=callback,
+        res = so.minimize(fun, theta * sc, jac=True, method="L-BFGS-B", callback=callback,
                           options={"maxiter": config.max_outer, "gtol": gtol, "ftol": 1e-13,
                                    "maxcor": 20, "maxls": 50})
     except _InnerFailure as e:
@@ -178,20 +223,27 @@ def lbfgs_ascent(evaluate: Callable[[np.ndarray], Evaluation], theta0: np.ndarra
         return AscentResult(x, ev, np.array(lls), np.array(thetas), False,
                             f"inner fixed point failed: {e}", {"outer_steps": float(len(lls))})
     bar.close()
-    x = np.asarray(res.x, dtype=float)
+    x = np.asarray(res.x, dtype=float) / sc
     ev = ev_at(x)
     if not thetas or not np.array_equal(thetas[-1], x):
         lls.append(ev.loglik)
         thetas.append(x.copy())
-    gnorm = float(np.max(np.abs(penalised(ev, x, config.l2)[1])))
-    ok = bool(res.success) and gnorm <= max(gtol * 100, 1e-5 * max(1.0, abs(ev.loglik)))
+    g_pen = penalised(ev, x, config.l2)[1]
+    gnorm = float(np.max(np.abs(g_pen)))
+    g_scaled = float(np.max(np.abs(g_pen / sc)))
+    tol = max(gtol * 100, 1e-5 * max(1.0, min(abs(ev.loglik), abs(reference))))
+    ok = bool(res.success) and g_scaled <= tol
     msg = f"L-BFGS: {res.message} after {res.nit} iterations, |grad|_inf = {gnorm:.3g}"
+    if scale is not None:
+        msg += f" ({g_scaled:.3g} per unit of feature spread)"
+    if res.success and not ok:
+        msg += f", above {tol:.3g}: not an optimum"
     if failures:
         msg += (f"; {len(failures)} trial points had no fixed point and were stepped back from "
                 f"(first: {failures[0]})")
     return AscentResult(x, ev, np.array(lls), np.array(thetas).reshape(len(thetas), -1), ok, msg,
                         {"outer_steps": float(res.nit), "evaluations": float(res.nfev),
-                         "grad_inf": gnorm})
+                         "grad_inf": gnorm, "grad_inf_scaled": g_scaled})
 
 
 def newton_concave(evaluate: Callable[[np.ndarray], Evaluation], theta0: np.ndarray,

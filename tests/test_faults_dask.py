@@ -323,12 +323,19 @@ def test_tls_scheduler_with_self_signed_certificates(tmp_path):
         plain = parse_executor(address.replace("tls://", "dask://"))
         with pytest.raises(DaskUnavailable, match=address.replace("tls://", "tcp://")):
             run_sweep(tasks, progress=False, executor=replace(plain, dask=replace(quick, connect_timeout_s=3)))
-        # a certificate the scheduler's is not signed by: refused
+        # a certificate from another authority: which side refused which file (issue 35, item 5)
         (tmp_path / "other").mkdir()
         other, other_key = _self_signed(tmp_path / "other")
-        with pytest.raises(DaskUnavailable, match="not reachable"):
+        with pytest.raises(DaskUnavailable, match=r"TLS: this client refused the scheduler's certificate "
+                           r"\(self-signed certificate\): it does not verify against the CA file "
+                           + str(other) + r" \(--dask-tls-ca-file\)"):
             run_sweep(tasks, progress=False, executor=replace(spec, dask=replace(
-                quick, connect_timeout_s=5, tls_ca_file=str(other), tls_cert=str(other), tls_key=str(other_key))))
+                quick, connect_timeout_s=10, tls_ca_file=str(other), tls_cert=str(other), tls_key=str(other_key))))
+        # the right CA, a client certificate the scheduler does not trust: the scheduler refused it
+        with pytest.raises(DaskUnavailable, match=r"TLS: the scheduler ended the handshake .*: it refused this "
+                           r"client's certificate " + str(other) + r" \(--dask-tls-cert\)"):
+            run_sweep(tasks, progress=False, executor=replace(spec, dask=replace(
+                quick, connect_timeout_s=10, tls_ca_file=str(cert), tls_cert=str(other), tls_key=str(other_key))))
 
 
 def test_tls_from_the_command_line(tmp_path):
@@ -344,3 +351,64 @@ def test_tls_from_the_command_line(tmp_path):
     for bad in ("tls://nohost", "tls://h:0", "dask://h:99999"):
         with pytest.raises(ValueError):
             parse_executor(bad)
+
+
+@pytest.mark.parametrize("executor", ["dask://127.0.0.1:1", "process:1", None])
+def test_tls_files_without_a_tls_address_are_refused_at_once(tmp_path, executor):
+    """issue 35, item 5: --dask-tls-* with dask:// waited 121 s despite a 10 s connect timeout."""
+    cert, key = _self_signed(tmp_path)
+    out = tmp_path / "sweep"
+    cmd = _generate(out, executor or "serial", "--dask-tls-cert", str(cert), "--dask-tls-key", str(key))
+    if executor is None:
+        cmd = [c for c in cmd if c not in ("--executor", "serial")]
+    t0 = time.monotonic()
+    proc = subprocess.run(cmd, env=_env(tmp_path), capture_output=True, text=True, timeout=120)
+    assert time.monotonic() - t0 < 30
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 2 and len(lines) == 1, proc.stderr
+    assert "--dask-tls-cert, --dask-tls-key given" in lines[0] and "only over TLS" in lines[0]
+    if executor and executor.startswith("dask://"):
+        assert "use --executor tls://127.0.0.1:1" in lines[0]
+    assert not out.exists()
+
+
+def test_a_killed_scheduler_is_named_and_what_finished_is_kept(tmp_path):
+    """issue 35, item 5: the scheduler killed mid-sweep was reported as a dead worker with the
+    ``if __name__ == "__main__"`` advice; now: the scheduler went away, finished results stored."""
+    store = tmp_path / "store"
+    tasks = [Task("fast", draw, DrawConfig(n=2)), Task("slow", draw, DrawConfig(n=2, sleep_s=30.0))]
+    with _dask(tmp_path, workers=1) as (address, _):
+        sched = None
+        import psutil
+
+        for p in psutil.process_iter(["cmdline"]):
+            if "distributed.cli.dask_scheduler" in " ".join(p.info["cmdline"] or []) and \
+                    address.rsplit(":", 1)[1] in p.info["cmdline"]:
+                sched = p
+        assert sched is not None
+        spec = replace(parse_executor(address.replace("tcp://", "dask://")),
+                       dask=DaskSettings(connect_timeout_s=10, stall_timeout_s=120))
+        box: dict = {}
+
+        def run() -> None:
+            try:
+                box["report"] = run_sweep(tasks, seed=1, executor=spec, store=store, progress=False)
+            except BaseException as e:  # noqa: BLE001
+                box["error"] = e
+
+        t = threading.Thread(target=run, daemon=True)
+        t.start()
+        _wait_for(lambda: store.exists() and any(store.rglob("*.json")), 60, "the fast task stored")
+        sched.kill()
+        t0 = time.time()
+        t.join(90)
+        assert not t.is_alive(), "the sweep did not notice the scheduler was gone"
+        assert time.time() - t0 < 60
+    err = box.get("error")
+    assert isinstance(err, DaskUnavailable), box
+    msg = str(err)
+    assert "went away" in msg and address in msg and "__main__" not in msg and "\n" not in msg
+    assert "1 of 2" in msg or "finished" in msg
+    # what finished is kept: the same sweep on a serial executor reruns only the slow task
+    again = run_sweep(tasks[:1], seed=1, executor="serial", store=store, progress=False)
+    assert again.n_cached == 1 and again.n_run == 0

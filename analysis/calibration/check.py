@@ -34,6 +34,7 @@ import pandas as pd
 
 from merge_irl.atomic import write_text_atomic
 from merge_irl.units import FT_PER_M
+from scenarios.errors import SpecError
 from analysis.calibration import evaluate, load_pairs, load_result
 from analysis.calibration.compare import (
     CAUSES, HIST_BINS, KS_TARGET, Diagnosis, VariableComparison, compare_distributions, diagnose,
@@ -160,25 +161,48 @@ def calibrated_spec(spec, result, *, n_members: int | None = None, seed: int = 0
     return replace(spec, drivers=replace(spec.drivers, car=cars))
 
 
+def heldout_pairs(pairs, result, params_path, pairs_dir) -> list:
+    """The ``pairs`` whose follower ``result`` was not fitted on (its ``train_followers``).
+
+    Raises:
+        SpecError: the params file records no training followers, or every pair's follower was
+            in the fit (each naming the fix: ``calibrate fit --holdout F``).
+    """
+    trained = set(result.train_followers)
+    if not trained:
+        raise SpecError(f"--heldout-only: {params_path} does not record the followers it was fitted on; refit with "
+                        "'calibrate fit --holdout F --seed S' to keep pairs aside")
+    unseen = [p for p in pairs if p.group not in trained]
+    if not unseen:
+        raise SpecError(f"--heldout-only: every pair of {pairs_dir} has a follower {params_path} was fitted on; "
+                        "fit with 'calibrate fit --holdout F --seed S' on this folder to keep some aside")
+    return unseen
+
+
 def run_calibration_check(
     *, params_path: str | os.PathLike, pairs_dir: str | os.PathLike, scenario: str = "i80",
     duration_s: float | None = None, seed: int = 0, table: pd.DataFrame | None = None,
     keep_drivers: bool = False, n_drivers: int | None = None, allow_implausible: bool = False,
+    heldout_only: bool = False,
 ) -> CalibrationCheck:
     """Simulate ``scenario`` with the calibrated drivers (:func:`calibrated_spec`: every per-pair
     fit once, or ``n_drivers`` resampled with ``seed``; the scenario's own with ``keep_drivers``;
     nothing is simulated when ``table`` is given) and compare.
     ``duration_s`` None = the scenario's own duration; ``allow_implausible``: run values outside
-    the plausibility bounds (:mod:`scenarios.spec.bounds`).
+    the plausibility bounds (:mod:`scenarios.spec.bounds`). ``heldout_only``: compare with the
+    pairs whose follower the params file was not fitted on (its recorded training followers;
+    ``calibrate fit --holdout``), so the check is of drivers against traffic they did not see.
 
     Raises:
         FileNotFoundError: ``params_path`` or ``pairs_dir`` does not exist.
-        SpecError: ``params_path`` is not valid TOML, ``pairs_dir`` holds no pair CSV files, or ``scenario``
-            is no preset nor scenario file.
+        SpecError: ``params_path`` is not valid TOML, ``pairs_dir`` holds no pair CSV files, ``scenario``
+            is no preset nor scenario file, or ``heldout_only`` finds no pair left (:func:`heldout_pairs`).
         SimulationError: SUMO fails to start or to step.
     """
     result = load_result(params_path)
     pairs = list(load_pairs(Path(pairs_dir)))
+    if heldout_only:
+        pairs = heldout_pairs(pairs, result, params_path, pairs_dir)
     spec = load_scenario(scenario, allow_implausible=allow_implausible)
     if duration_s is not None:
         with_overrides(spec, duration_s=duration_s)  # a duration the scenario rejects: before the SUMO run

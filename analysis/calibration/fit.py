@@ -308,3 +308,35 @@ def assemble_result(
         seconds_population=seconds_population, seconds_per_pair=seconds_per_pair, objective=objective,
         train_followers=followers_of(pairs),
     )
+
+
+#: A per-pair parameter within this share of its bound range from a bound sits on it.
+ON_BOUND_FRACTION = 1e-3
+
+
+def fits_on_bounds(per_pair: Sequence[PairFit], fitted: Sequence[str]) -> list[tuple[str, str, int]]:
+    """``(parameter, "lower" | "upper", count)`` of the per-pair fits whose parameter sits on a bound
+    of :data:`BOUNDS` (within :data:`ON_BOUND_FRACTION` of the range): there the bound, not the
+    pair, set the value. Empty when none does (or no per-pair fits)."""
+    out = []
+    for name in fitted:
+        if name not in BOUNDS or not per_pair:
+            continue
+        lo, hi = BOUNDS[name]
+        tol = ON_BOUND_FRACTION * (hi - lo)
+        vals = np.array([getattr(f.params, name) for f in per_pair], dtype=np.float64)
+        for side, n in (("lower", int(np.sum(vals <= lo + tol))), ("upper", int(np.sum(vals >= hi - tol)))):
+            if n:
+                out.append((name, side, n))
+    return out
+
+
+def bounds_warning(per_pair: Sequence[PairFit], fitted: Sequence[str]) -> str:
+    """One line saying which per-pair fits sit on which bound (:func:`fits_on_bounds`), or ``""``."""
+    hits = fits_on_bounds(per_pair, fitted)
+    if not hits:
+        return ""
+    said = ", ".join(f"{name} at its {side} bound {BOUNDS[name][0 if side == 'lower' else 1]:g} in {n}"
+                     for name, side, n in hits)
+    return (f"{len(per_pair)} per-pair fits: {said}: there the bound, not the pair, sets the value (the pair does "
+            "not inform it, or the model cannot follow it); read their spread with that in mind")

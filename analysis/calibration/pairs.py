@@ -28,6 +28,22 @@ _NAME = re.compile(r"^(?:ngsim_)?(?P<period>.+?)_run.*_f(?P<f>\d+)_l(?P<l>\d+)_(
 #: Fewest steps a pair (or a part of one, :func:`split_in_time`) may have.
 MIN_STEPS = 10
 _REQUIRED = ("t", "x_follower", "v_follower", "x_leader", "v_leader", "leader_length")
+#: Shortest plausible leader (ft): below a motorcycle's 7 ft. A car given in metres is 3.5-5.5.
+MIN_LEADER_LENGTH_FT = 7.0
+#: A folder whose median leader is shorter than this (ft) is in metres (cars are about 15 ft).
+MIN_MEDIAN_LEADER_LENGTH_FT = 9.0
+#: Highest plausible speed (ft/s, about 100 mph), as for NGSIM trajectories.
+MAX_SPEED_FT_S = 147.0
+#: Highest plausible 99th percentile of |acceleration| (ft/s^2, about 1 g).
+MAX_P99_ACC_FT_S2 = 33.0
+#: Position advance over what the speeds imply, accepted as consistent (ratio of sums).
+KINEMATIC_TOLERANCE = 0.07
+#: Known unit mix-ups: position advance / distance the speeds imply -> likely cause.
+_RATIO_CAUSES = ((0.3048, "positions in metres with speeds in ft/s"),
+                 (1.0 / 0.3048, "speeds in m/s with positions in feet"),
+                 (1.0 / 1.09728, "speeds in km/h with positions in feet"),
+                 (1.0 / 0.681818, "speeds in mph with positions in feet"))
+_CONVERT = "pair files are in ft, ft/s and ft/s^2 (NGSIM's units): convert the file (metres x 3.2808 = feet)"
 
 
 @dataclass(frozen=True)
@@ -66,8 +82,9 @@ def read_pair(path: str | Path) -> CarFollowingPair:
 
     Raises:
         SpecError: not a pair CSV (or empty), a missing column, fewer than :data:`MIN_STEPS` steps, steps
-            that are not uniform 0.1 s, a value that is not a finite number, a negative speed, or a
-            bumper gap <= 0 (the leader not ahead of the follower) (file, column and line named).
+            that are not uniform 0.1 s, a value that is not a finite number, a negative speed, a
+            bumper gap <= 0 (the leader not ahead of the follower) (file, column and line named),
+            or values implausible in feet (:func:`check_pair_units`: the likely unit named).
     """
     path = Path(path)
     try:
@@ -96,6 +113,8 @@ def read_pair(path: str | Path) -> CarFollowingPair:
         if arr[c].min() < 0:
             i = int(np.argmin(arr[c]))
             raise SpecError(f"{path}: column {c} line {i + 2}: speed {arr[c][i]:g} < 0; speeds are forward, >= 0")
+    check_pair_units(path, arr, {c: pd.to_numeric(df[c], errors="coerce").to_numpy(dtype=np.float64)
+                                 for c in ("a_follower", "a_leader") if c in df.columns})
     m = _NAME.match(path.stem)
     group = f"{m['period']}/{m['f']}" if m else path.stem
     pair = CarFollowingPair(
@@ -112,6 +131,58 @@ def read_pair(path: str | Path) -> CarFollowingPair:
     return pair
 
 
+def check_pair_units(path: Path, arr: dict[str, np.ndarray], acc: dict[str, np.ndarray]) -> None:
+    """Check that one pair file's lengths, speeds and accelerations are plausible in feet, ft/s
+    and ft/s^2 (the NGSIM reader checks trajectories the same way, :mod:`sim.ngsim.validate`).
+
+    Args:
+        arr: the file's :data:`_REQUIRED` columns, ``[T]`` each, as read (ft, ft/s).
+        acc: its ``a_follower``/``a_leader`` columns when present (ft/s^2; NaN skipped).
+
+    Raises:
+        SpecError: one line naming the file, the column and the likely unit: a leader shorter than
+            :data:`MIN_LEADER_LENGTH_FT` (metres), a speed above :data:`MAX_SPEED_FT_S` (km/h,
+            mph), positions that advance by another distance than the speeds imply (mixed units),
+            or accelerations whose 99th percentile exceeds :data:`MAX_P99_ACC_FT_S2`.
+    """
+    for c in ("v_follower", "v_leader"):
+        if arr[c].max() > MAX_SPEED_FT_S:
+            i = int(np.argmax(arr[c]))
+            raise SpecError(f"{path}: column {c} line {i + 2}: speed {arr[c][i]:g}, above {MAX_SPEED_FT_S:g} ft/s "
+                            f"(about 100 mph): km/h or mph?; {_CONVERT}")
+    for x, v in (("x_follower", "v_follower"), ("x_leader", "v_leader")):
+        implied = float(np.sum((arr[v][1:] + arr[v][:-1]) * (STEP_S / 2)))
+        if implied > 50.0:
+            ratio = float(arr[x][-1] - arr[x][0]) / implied
+            if abs(ratio - 1.0) > KINEMATIC_TOLERANCE:
+                cause = next((why for r, why in _RATIO_CAUSES if abs(ratio / r - 1.0) < KINEMATIC_TOLERANCE),
+                             "positions and speeds in different units")
+                raise SpecError(f"{path}: column {x}: advances {ratio:.3f} times the distance {v} implies (expected "
+                                f"1 +- {KINEMATIC_TOLERANCE}): looks like {cause}; {_CONVERT}")
+    length = float(arr["leader_length"][0])
+    if length < MIN_LEADER_LENGTH_FT:
+        raise SpecError(f"{path}: column leader_length: {length:g}, shorter than any vehicle in feet (cars are about "
+                        f"15 ft, 4.5 m): the file looks like metres; {_CONVERT}")
+    for c, a in acc.items():
+        a = np.abs(a[np.isfinite(a)])
+        if a.size and float(np.percentile(a, 99)) > MAX_P99_ACC_FT_S2:
+            raise SpecError(f"{path}: column {c}: 99th percentile |acceleration| {float(np.percentile(a, 99)):.1f}, "
+                            f"above {MAX_P99_ACC_FT_S2:g} ft/s^2 (about 1 g); {_CONVERT}")
+
+
+def _check_folder_units(directory: str | Path, pairs: Sequence[CarFollowingPair]) -> None:
+    """A folder whose median leader is shorter than :data:`MIN_MEDIAN_LEADER_LENGTH_FT` is in
+    metres even where each file's trucks pass :func:`check_pair_units` (raises SpecError)."""
+    if not pairs:
+        return
+    median_ft = float(np.median([p.leader_length for p in pairs])) / M_PER_FT
+    if median_ft < MIN_MEDIAN_LEADER_LENGTH_FT:
+        short = min(pairs, key=lambda p: p.leader_length)
+        raise SpecError(f"{directory}: the median leader is {median_ft:.1f} long (e.g. {short.name}: "
+                        f"{short.leader_length / M_PER_FT:g}); cars are about 15 ft: the files look like metres; "
+                        f"{_CONVERT}")
+
+
 def load_pairs(directory: str | Path, *, limit: int | None = None) -> tuple[CarFollowingPair, ...]:
     """All pairs under ``directory`` (``*.csv`` there, or in its ``train/`` subfolder), sorted by name.
 
@@ -121,7 +192,8 @@ def load_pairs(directory: str | Path, *, limit: int | None = None) -> tuple[CarF
 
     Raises:
         FileNotFoundError: ``directory`` does not exist.
-        SpecError: it holds no pair CSV files, or a file is not a valid pair (see :func:`read_pair`).
+        SpecError: it holds no pair CSV files, a file is not a valid pair (see :func:`read_pair`),
+            or the folder's leaders are too short to be in feet (metres).
     """
     files = pair_files(directory, limit=limit)
     copies = duplicate_files(files)
@@ -131,7 +203,9 @@ def load_pairs(directory: str | Path, *, limit: int | None = None) -> tuple[CarF
             f"{directory}: {len(copies)} of {len(files)} pair files are byte-identical copies of another "
             f"({shown}): each copy counts once more in the fits and held-out statistics; remove the copies "
             "to count every pair once", DuplicatePairWarning, stacklevel=2)
-    return tuple(read_pair(f) for f in files)
+    pairs = tuple(read_pair(f) for f in files)
+    _check_folder_units(directory, pairs)
+    return pairs
 
 
 class DuplicatePairWarning(UserWarning):

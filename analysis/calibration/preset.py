@@ -75,7 +75,8 @@ def default_header(scenario: str | os.PathLike, params_path: str | os.PathLike, 
     result = load_result(params_path)
     k = len(result.per_pair)
     drivers = (f"{k} car driver types, one per per-pair {result.model} fit (equally likely)" if result.per_pair and n is None
-               else f"{n} car driver types resampled (seed {seed}) from the {k} per-pair {result.model} fits"
+               else f"{n} car driver types resampled (seed {seed}) from the {k} per-pair {result.model} fit(s)"
+               + (f" (at most {k} distinct: a resample repeats fits)" if n is not None and n > k else "")
                if result.per_pair else
                f"one car driver type, the {result.model} population (no per-pair fits: no driver spread)")
     return (f"Scenario {scenario} with calibrated car drivers, written by merge-irl calibrate preset from "

@@ -32,7 +32,7 @@ import pandas as pd
 
 from analysis.evaluation.episode import EpisodeResult, EpisodeSpec, run_episode_task
 from analysis.evaluation.heldout_scoring import load_heldout, policy_heldout_loglik
-from analysis.evaluation.policies import learned_policy, with_distinct_names
+from analysis.evaluation.policies import check_picklable, check_unambiguous, learned_policy, with_distinct_names
 from analysis.evaluation.report import write_outputs
 from analysis.evaluation.metrics import MetricsConfig
 from analysis.evaluation.aggregate import AggregateMetrics, aggregate
@@ -41,6 +41,7 @@ from analysis.evaluation.human_likeness import DemoCloseness, demo_close_to_c, w
 from merge_irl.provenance import provenance, text_digest, write_timings
 from analysis.sweep import Task, resolve_executor, run_sweep
 from irl.errors import ConfigError
+from irl.domains.merge.actions import N_ACTIONS
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, frames_per_step
 from irl.result import SavedModel
 from merge_irl.run_folder import check_writable
@@ -111,7 +112,8 @@ def run_episodes(tasks: Sequence[tuple], *, workers: int | None = None, executor
     report = run_sweep(sweep_tasks, seed=0, executor=executor, store=store, progress=progress,
                        desc="episodes")
     if not report.ok:
-        raise AnalysisError("episodes failed: " + "; ".join(f"{f.key}: {f.error}" for f in report.failures))
+        stopped = " (the evaluation stopped there)" if report.aborted else ""
+        raise AnalysisError("episodes failed: " + "; ".join(f"{f.key}: {f.error}" for f in report.failures) + stopped)
     return [EpisodeResult.from_dict(report.results[t.key]) for t in sweep_tasks]
 
 
@@ -177,8 +179,9 @@ def evaluate(
             the 0.1 s simulation step.
         SimError: an unknown baseline name.
         PolicyError: a model is not a merge model, a policy lacks a member of
-            :class:`sim.drivers.policy.Policy`, or two policies share a name and one of them is not a
-            dataclass that can be renamed.
+            :class:`sim.drivers.policy.Policy`, two policies share a name and one of them is not a
+            dataclass that can be renamed, or a policy cannot be pickled for the executor's worker
+            processes (:func:`~analysis.evaluation.policies.check_picklable`).
         ModelFileError: a model file is missing or malformed.
         DemonstrationError: the held-out or training encounters cannot be read, lack columns, or
             cannot be scored.
@@ -211,8 +214,10 @@ def evaluate(
         warnings.warn(f"evaluate: every policy decides every {step} s, but " + ", ".join(
             f"{name} was trained at {s} s" for name, s in other), DecisionStepWarning, stacklevel=2)
     pols += baseline_drivers(baselines, spec, train_demos, learned[0].encoder if learned else None, step)
+    check_unambiguous(policies, pols)  # a --policy named 'sumo' beside the baseline: refused, not 'sumo-2'
     pols.extend(policies)
     pols = with_distinct_names(pols)
+    check_picklable(pols, resolve_executor(executor, workers))  # a lambda: now, named, not as a raw pickling error
     held = load_heldout(demos) if demos is not None else None
     # the held-out scores do not depend on the episodes: taken first, so a held-out table that a
     # policy's scoring rejects fails before any SUMO run
@@ -221,6 +226,7 @@ def evaluate(
     for p in pols:
         scores[p.name] = policy_heldout_loglik(p, held, step, cache=shared) if held is not None else None
     out = Path(out_dir)  # made once every input has been read and checked, so a bad input leaves no folder
+    created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     check_writable(out / "report.md")  # before the episodes, not after
     prov = evaluation_provenance(models, pols, scenario, spec, demos, train_demos)  # the files as read, before the work
@@ -231,7 +237,11 @@ def evaluate(
             kw = dict(duration_s=duration_s, controller=controller, metrics=metrics, demo_action_counts=counts,
                       rrd_path=str(out / "rerun" / f"{p.name}.rrd") if (rrd and i == 0) else None)
             tasks.append((spec, p, seed + i, kw))
-    results = run_episodes(tasks, workers=workers, executor=executor, progress=progress)
+    try:
+        results = run_episodes(tasks, workers=workers, executor=executor, progress=progress)
+    except BaseException:  # a failed or interrupted evaluation leaves no partial recording behind
+        discard_unfinished(out, [p.name for p in pols], created=created)
+        raise
     by_policy: dict[str, list[EpisodeResult]] = {p.name: [] for p in pols}
     for (_, p, _, _), r in zip(tasks, results):
         by_policy[p.name].append(r)
@@ -242,7 +252,7 @@ def evaluate(
         w1 = {**w1_to_demos(pd.concat([r.decisions for r in rs], ignore_index=True), held.encounters),
               **w1_acc_jerk([r.speed_profiles for r in rs], held.encounters)} if held is not None and rs else None
         aggs[p.name] = aggregate([r.metrics for r in rs], demo_action_counts=counts, heldout=ho, w1=w1,
-                                 flags=tuple(p.flags))
+                                 flags=tuple(p.flags) + heldout_flags(ho))
     closeness = demo_close_to_c(held.encounters, metrics.close_gap_m) if held is not None else None
     scen_name = scenario if isinstance(scenario, (str, Path)) else spec.name
     report_md, metrics_json, plots = write_outputs(
@@ -258,6 +268,38 @@ def evaluate(
         if old not in rrds.values():
             old.unlink(missing_ok=True)
     return EvaluationReport(out, aggs, by_policy, report_md, metrics_json, plots, rrds, closeness)
+
+
+#: Held-out log-likelihood per step of uniform actions over the merge actions (log 1/5 = -1.609):
+#: a driver scoring below it predicts the held-out demonstrations worse than chance.
+UNIFORM_LL_PER_STEP = -math.log(N_ACTIONS)
+
+
+def heldout_flags(heldout: tuple[float, float] | None) -> tuple[str, ...]:
+    """``("heldout_worse_than_uniform",)`` when a held-out score ``(sum, per step)`` is below
+    :data:`UNIFORM_LL_PER_STEP` per step (beyond rounding), else ``()``."""
+    if heldout is None or not math.isfinite(heldout[1]):
+        return ()
+    return ("heldout_worse_than_uniform",) if heldout[1] < UNIFORM_LL_PER_STEP - 1e-9 else ()
+
+
+def discard_unfinished(out: Path, names: Sequence[str], *, created: bool) -> None:
+    """After a failed or interrupted evaluation: remove the recordings its episodes left half
+    written (``rerun/.<name>.rrd.*.tmp.partial``, their workers having been stopped) and, when this
+    evaluation made ``out``, the recordings it finished and the folders it made, if left empty.
+    A folder that was there before keeps everything else (an earlier evaluation's files)."""
+    rerun = out / "rerun"
+    for name in names:
+        for f in rerun.glob(f".{name}.rrd.*.tmp.partial"):
+            f.unlink(missing_ok=True)
+        if created:
+            (rerun / f"{name}.rrd").unlink(missing_ok=True)
+    if created:
+        for folder in (rerun, out):
+            try:
+                folder.rmdir()
+            except OSError:  # not empty, or gone
+                pass
 
 
 def evaluation_provenance(models: Sequence, pols: Sequence[Policy], scenario, spec, demos, train_demos=None) -> dict:

@@ -191,8 +191,16 @@ def collision_bound_line(aggs: dict[str, AggregateMetrics]) -> str:
 
 def flag_lines(aggs: dict[str, AggregateMetrics]) -> list[str]:
     """One warning line per flagged model (empty: none)."""
-    return [f"WARNING: model {name} is flagged ({', '.join(a.flags)}): its fit did not reach a usable "
-            "maximum; do not rank or deploy it without checking" for name, a in aggs.items() if a.flags]
+    def why(flags) -> str:
+        said = []
+        if any(f != "heldout_worse_than_uniform" for f in flags):
+            said.append("its fit did not reach a usable maximum")
+        if "heldout_worse_than_uniform" in flags:
+            said.append("its held-out log-likelihood per step is below uniform actions' (log 1/5 = -1.609): it "
+                        "predicts the held-out demonstrations worse than chance")
+        return " and ".join(said)
+    return [f"WARNING: model {name} is flagged ({', '.join(a.flags)}): {why(a.flags)}; do not rank or deploy it "
+            "without checking" for name, a in aggs.items() if a.flags]
 
 
 def metrics_to_json(obj) -> str:

@@ -48,6 +48,22 @@ def check_recordings(files: list[Path]) -> None:
             raise AnalysisError(str(e)) from None
 
 
+def readable_recordings(files: list[Path]) -> tuple[list[Path], list[str]]:
+    """``(readable files, one line per unreadable file naming it and why)``: a run folder with one
+    corrupt or foreign ``.rrd`` still opens the others (:func:`analysis.recording.read.check_rrd`)."""
+    from analysis.recording.read import check_rrd
+
+    good, bad = [], []
+    for f in files:
+        try:
+            check_rrd(f)
+        except (ValueError, FileNotFoundError) as e:
+            bad.append(str(e))
+        else:
+            good.append(f)
+    return good, bad
+
+
 def has_display() -> bool:
     """Whether a GUI can open here (always assumed on macOS/Windows)."""
     if sys.platform.startswith("linux"):
@@ -55,15 +71,32 @@ def has_display() -> bool:
     return True
 
 
-def viewer_command(files: list[Path]) -> list[str] | None:
-    """The command that opens ``files`` in the rerun viewer, or None when none can run here."""
+def viewer_executable() -> str | None:
+    """The rerun viewer's executable (on PATH, or beside this Python: rerun-sdk's), or None."""
     exe = shutil.which("rerun")
     if exe is None:
         cand = Path(sys.executable).parent / "rerun"
         exe = str(cand) if cand.exists() else None
+    return exe
+
+
+def viewer_command(files: list[Path]) -> list[str] | None:
+    """The command that opens ``files`` in the rerun viewer, or None when none can run here."""
+    exe = viewer_executable()
     if exe is None or not has_display():
         return None
     return [exe, *map(str, files)]
+
+
+def no_viewer_advice() -> str:
+    """Why no viewer starts here, and what to do: the viewer is missing (install rerun-sdk), or it
+    is installed and there is no display (copy the files to a machine with one)."""
+    exe = viewer_executable()
+    if exe is not None:
+        return (f"(the rerun viewer is installed ({exe}) but there is no display here (DISPLAY / WAYLAND_DISPLAY "
+                "unset): run the command above on a machine with a display, e.g. after copying the files)")
+    return ("(no rerun viewer found here: install it with `pip install rerun-sdk` on a machine with a display, "
+            "then run the command above)")
 
 
 def open_viewer(cmd: list[str]) -> subprocess.Popen:

@@ -69,7 +69,8 @@ def check_scheduler(address: str, settings: DaskSettings, security) -> None:
 
     Raises:
         DaskUnavailable: nothing answers in time, the connection is refused or broken, the
-            TLS handshake fails, or what answers is not a Dask scheduler.
+            TLS handshake fails (which side refused which file: :func:`tls_problem`), or what
+            answers is not a Dask scheduler.
     """
     from distributed.core import rpc
 
@@ -88,12 +89,45 @@ def check_scheduler(address: str, settings: DaskSettings, security) -> None:
         raise DaskUnavailable(f"{where}: no answer within {settings.connect_timeout_s:g} s "
                               "(--dask-connect-timeout); is a Dask scheduler listening there?") from None
     except OSError as e:  # refused (after retries until the timeout), reset, TLS handshake
-        raise DaskUnavailable(f"{where}: not reachable ({_one_line(e)})") from None
+        tls = tls_problem(e, address, security)
+        raise DaskUnavailable(f"{where}: {tls}" if tls else f"{where}: not reachable ({_one_line(e)})") from None
     except Exception as e:  # noqa: BLE001 - a reply in another protocol (HTTP read as a frame size: MemoryError)
         raise DaskUnavailable(f"{where}: what answers does not speak Dask's protocol (a web server or another "
                               f"service on that port?): {_one_line(e)}") from None
     if not isinstance(info, dict) or info.get("type") != "Scheduler":
         raise DaskUnavailable(f"{where}: what answers is not a Dask scheduler ({str(info)[:100]})")
+
+
+def tls_problem(e: BaseException, address: str, security) -> str:
+    """What a failed TLS handshake with ``address`` says, naming the side that refused and the file
+    at stake, or ``""`` when ``e`` (an exception and its causes) is no TLS failure:
+
+    * this client refused the scheduler's certificate (``ssl.SSLCertVerificationError``: signed by
+      another authority than the CA file's, expired, for another host): the CA file is named;
+    * the scheduler ended the handshake (an EOF or reset during it, a TLS alert): it refused this
+      client's certificate (not signed by the scheduler's CA, or expired): the certificate is named.
+    """
+    import ssl
+
+    if not address.startswith("tls://"):
+        return ""
+    ca = getattr(security, "tls_ca_file", None) or "(Dask's configured CA)"
+    cert = getattr(security, "tls_client_cert", None) or "(Dask's configured client certificate)"
+    seen: set[int] = set()
+    err: BaseException | None = e
+    while err is not None and id(err) not in seen:
+        seen.add(id(err))
+        if isinstance(err, ssl.SSLCertVerificationError):
+            why = err.verify_message or _one_line(err)
+            return (f"TLS: this client refused the scheduler's certificate ({why}): it does not verify against the "
+                    f"CA file {ca} (--dask-tls-ca-file); give the CA that signed the scheduler's certificate, or "
+                    "renew an expired one")
+        if isinstance(err, (ssl.SSLEOFError, ssl.SSLZeroReturnError)) or (
+                isinstance(err, ssl.SSLError) and "alert" in str(err).lower()):
+            return (f"TLS: the scheduler ended the handshake ({_one_line(err)}): it refused this client's certificate "
+                    f"{cert} (--dask-tls-cert): not signed by the scheduler's CA, or expired")
+        err = err.__cause__ or err.__context__
+    return ""
 
 
 def _run(make: Callable[[], Any]) -> Any:
@@ -131,7 +165,9 @@ def run_dask(todo: Sequence[Any], finish: Callable[[Any, dict], bool], spec: Exe
 
     Raises:
         RuntimeError: Dask distributed is not installed.
-        DaskUnavailable: see :func:`check_scheduler`, or the sweep stalled (module docstring).
+        DaskUnavailable: see :func:`check_scheduler`, the sweep stalled (module docstring), or
+            the scheduler went away mid-sweep (:func:`scheduler_gone`; the tasks finished until
+            then have been handed to ``finish``, so a store keeps them).
         KeyboardInterrupt: Ctrl-C; the sweep's tasks are cancelled on the scheduler.
     """
     try:
@@ -150,6 +186,7 @@ def run_dask(todo: Sequence[Any], finish: Callable[[Any, dict], bool], spec: Exe
         client = Client(spec.address, security=security, timeout=settings.connect_timeout_s)
     futures: dict[str, Any] = {}
     pending: dict[str, Any] = {}
+    n_done = [0]  # tasks finished in this call
 
     def submit(p):
         # Dask itself reschedules a task whose worker died (up to its allowed-failures);
@@ -174,7 +211,15 @@ def run_dask(todo: Sequence[Any], finish: Callable[[Any, dict], bool], spec: Exe
                 try:
                     record = fut.result()
                 except Exception as e:  # noqa: BLE001 - KilledWorker and friends
+                    if scheduler_gone(e, client):  # not a worker's death: no retry, no __main__ advice
+                        where = spec.address or getattr(cluster, "scheduler_address", "dask-local")
+                        raise DaskUnavailable(
+                            f"Dask scheduler {where} went away (connection lost) with {len(pending) + 1} of the "
+                            f"sweep's {len(todo)} task(s) unfinished; the {n_done[0]} finished here are kept (a "
+                            "store keeps them: the same command runs only the rest once a scheduler is back)") from None
                     record = crash_record(e)
+                if record.get("ok"):
+                    n_done[0] += 1
                 if finish(p, record):
                     ac.add(submit(p))
             if batch:
@@ -202,6 +247,15 @@ def run_dask(todo: Sequence[Any], finish: Callable[[Any, dict], bool], spec: Exe
         client.close(timeout=5)
         if cluster is not None:
             cluster.close()
+
+
+def scheduler_gone(e: BaseException, client) -> bool:
+    """Whether a task's failure ``e`` is the scheduler's connection being lost (Dask cancels every
+    future with the reason ``scheduler-connection-lost``, or the client has closed), rather than a
+    task or worker failure."""
+    if "scheduler-connection-lost" in str(e):
+        return True
+    return type(e).__name__ == "FutureCancelledError" and str(getattr(client, "status", "")) in ("closing", "closed")
 
 
 def _any_running(client, pending: dict[str, Any]) -> bool:

@@ -63,6 +63,8 @@ class SweepReport:
         n_run: tasks run in this call (successful or not).
         wall_time_s: duration of this call.
         task_times_s: ``key -> wall time`` of each task run in this call.
+        aborted: the sweep stopped at a failure whose error says ``abort = True`` (the tasks
+            not yet finished are neither in ``results`` nor in ``failures``).
     """
 
     results: dict[str, dict]
@@ -72,6 +74,7 @@ class SweepReport:
     n_run: int
     wall_time_s: float
     task_times_s: dict[str, float] = field(default_factory=dict)
+    aborted: bool = False
 
     @property
     def ok(self) -> bool:
@@ -84,7 +87,14 @@ class SweepReport:
         ]
         for f in self.failures:
             lines.append(f"  FAILED {f.key} after {f.attempts} attempt(s): {f.error}")
+        if self.aborted:
+            lines.append("  the sweep stopped at that failure; the unfinished tasks did not run")
         return "\n".join(lines)
+
+
+class _SweepAborted(Exception):
+    """A task failed with an error whose class says ``abort = True``: the sweep stops (its workers
+    stopped as on Ctrl-C) and reports that failure."""
 
 
 @dataclass
@@ -113,7 +123,10 @@ def run_sweep(
     config and seed) is stored is skipped, and each result is stored as soon as it arrives, so
     a sweep killed midway loses only the tasks in flight. A task that raises, or kills its
     worker process, is retried ``retries`` times and then reported in ``failures``; the other
-    tasks go on.
+    tasks go on, except after an error whose class says ``abort = True`` (e.g. a callable
+    driver's time-out, :class:`sim.drivers.callable_limits.DecisionTimeout`): then the sweep stops
+    at once, its workers ended, finished results kept, and that failure is reported
+    (``SweepReport.aborted``).
 
     Raises:
         ValueError: two tasks share a key.
@@ -173,8 +186,11 @@ def run_sweep(
         failures.append(TaskFailure(p.task.key, record.get("error", "unknown error"), p.attempts,
                                     record.get("traceback", "")))
         bar.update(1)
+        if record.get("abort"):
+            raise _SweepAborted(p.task.key)
         return False
 
+    aborted = False
     try:
         if spec.kind == "serial":
             _run_serial(todo, finish)
@@ -182,6 +198,8 @@ def run_sweep(
             _run_process_pool(todo, finish, spec.workers, say=lambda line: say(f"{desc}: {line}"))
         else:
             _run_dask(todo, finish, spec)
+    except _SweepAborted:
+        aborted = True
     finally:
         bar.close()
     ordered = {k: done[k] for k in keys if k in done}
@@ -194,6 +212,7 @@ def run_sweep(
         n_run=len(todo),
         wall_time_s=time.perf_counter() - t0,
         task_times_s=times,
+        aborted=aborted,
     )
 
 

@@ -46,7 +46,8 @@ def _watch_parent(parent_pid: int) -> None:
 
 def call_task(func: Callable[[Any, int], dict], config: Any, seed: int) -> dict[str, Any]:
     """Run ``func(config, seed)``; return ``{"ok", "result" | "error", "wall_time_s"}`` (and on an
-    error ``"retry"``: False when the exception's class says ``retry = False``).
+    error ``"retry"``: False when the exception's class says ``retry = False``; ``"abort"``: True
+    when it says ``abort = True``, the sweep then stops).
 
     The result must be a JSON-serialisable dict (it is stored as JSON); anything else is
     reported as the task's error.
@@ -70,4 +71,7 @@ def call_task(func: Callable[[Any, int], dict], config: Any, seed: int) -> dict[
             # an error class that says the same inputs fail the same way (``retry = False``,
             # e.g. sim.drivers.policy.PolicyError) is not run again
             "retry": bool(getattr(e, "retry", True)),
+            # an error class that says every other task would fail the same way after as long a
+            # wait (``abort = True``, e.g. a callable driver's time-out) stops the whole sweep
+            "abort": bool(getattr(e, "abort", False)),
         }

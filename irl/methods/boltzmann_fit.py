@@ -16,12 +16,13 @@ successors with terminal pairs (Q-SM), or a full transition model without any (M
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import replace
 
 import numpy as np
 
-from irl.ascent import Evaluation, lbfgs_ascent
+from irl.ascent import Evaluation, feature_spread, lbfgs_ascent, preconditioner
 from irl.bellman.operators import backup_operator, boltzmann_dq, mean_weights
 from irl.bellman.fixed_point import FixedPoint, boltzmann_fixed_point, iteration_fixed_point
 from irl.bellman.stability import iteration_stability
@@ -173,8 +174,14 @@ def fit_exact(method: str, demos: Demonstrations, succ: SuccessorModel, config: 
     """L-BFGS over theta with exact Boltzmann fixed points (``from_zero``: see
     :class:`ExactBoltzmann`); checks Eq. 15 stability and unbounded weights at the end."""
     ev = ExactBoltzmann(demos, succ, config, from_zero=from_zero)
+    counts = demo_counts(demos)
+    # searched at each feature's own scale where that is extreme, and "converged" only where the
+    # gradient per unit of feature spread is small (on the problem as given); L's size at theta = 0
+    # (uniform actions) is the reference of that check
+    scale = preconditioner(feature_spread(demos.features, counts))
     asc = lbfgs_ascent(ev.evaluate, theta, config, progress=progress, desc=f"{method} exact",
-                       on_accept=ev.accept)
+                       on_accept=ev.accept, scale=scale,
+                       reference=float(counts.sum()) * math.log(demos.n_actions))
     message, converged = asc.message, asc.converged
     if from_zero:
         asc, message, converged = _follow_from_zero_branch(ev, asc, config, progress, method)

@@ -9,7 +9,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from irl.ascent import AscentResult, unit_step_ascent
+from irl.ascent import AscentResult, feature_spread, scaled_start, unit_step_ascent
+from irl.boltzmann import demo_counts
 from irl.config import IRLConfig
 from irl.demonstrations import Demonstrations
 from irl.errors import ConfigError
@@ -20,14 +21,17 @@ from irl.unobserved_successors import free_successors
 
 def initial_theta(demos: Demonstrations, config: IRLConfig, rng: np.random.Generator,
                   theta0: np.ndarray | None) -> np.ndarray:
-    """``theta0`` (checked to be ``[K]`` finite) or ``rng.uniform(init_low, init_high, K)``.
+    """``theta0`` (checked to be ``[K]`` finite) or ``rng.uniform(init_low, init_high, K)``, divided
+    by each feature's spread where that is outside :data:`irl.ascent.ORDINARY_SPREAD`
+    (:func:`irl.ascent.scaled_start`; features in ordinary units: the draw as it is).
 
     Raises:
         ConfigError: ``theta0`` is not ``K`` finite numbers.
     """
     k = demos.n_features
-    if theta0 is None:
-        return rng.uniform(config.init_low, config.init_high, size=k)
+    if theta0 is None:  # drawn in ordinary units, each at its feature's own scale (irl.ascent.scaled_start)
+        return scaled_start(rng.uniform(config.init_low, config.init_high, size=k),
+                            feature_spread(demos.features, demo_counts(demos)))
     t = np.asarray(theta0, dtype=np.float64)
     if t.shape != (k,) or not np.all(np.isfinite(t)):
         raise ConfigError(f"theta0 must be {k} finite numbers (one per feature), got shape {t.shape}")

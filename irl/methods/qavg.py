@@ -26,6 +26,7 @@ averaged successors is ``Q = R + gamma P_hat (mean_b Q(s', b))``, linear in thet
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import replace
 
@@ -111,6 +112,10 @@ def feature_scale(basis: np.ndarray, counts: np.ndarray) -> np.ndarray:
 #: spread, because the raw ``|dL/dtheta_k|`` of a feature in tiny units is tiny however far
 #: its weight is from the optimum (and that of one in huge units carries its rounding).
 OPTIMUM_GTOL = 1e-6
+#: Newton's stopping gain (relative) and iteration cap when the LP has shown the weights
+#: unbounded: the reported ``loglik`` is the supremum approached, to about this precision.
+UNBOUNDED_FTOL = 1e-9
+UNBOUNDED_MAX_ITER = 60
 
 
 def _fit_exact(demos: Demonstrations, config: IRLConfig, theta: np.ndarray, progress: bool,
@@ -129,14 +134,22 @@ def _fit_exact(demos: Demonstrations, config: IRLConfig, theta: np.ndarray, prog
     separable = direction is not None
     unbounded = separable and config.l2 == 0.0
     scale = feature_scale(basis, counts)
+    # unbounded weights are certain from the LP before any step: no need to follow them for long
     asc = newton_concave(evaluate, theta, config, progress=progress, desc="qavg exact",
-                         ftol=1e-12 if unbounded else 0.0, scale=scale)
+                         ftol=UNBOUNDED_FTOL if unbounded else 0.0, scale=scale,
+                         max_iter=UNBOUNDED_MAX_ITER if unbounded else 500)
     f, g = penalised(asc.evaluation, asc.theta, config.l2)
     g_orig, g_scaled = float(np.max(np.abs(g), initial=0.0)), float(np.max(np.abs(g / scale), initial=0.0))
     extra = {"separable": float(separable), "grad_inf": g_orig, "grad_inf_scaled": g_scaled,
              "feature_scale_ratio": float(scale.max() / scale.min())}
-    tol = OPTIMUM_GTOL * max(1.0, abs(f))
-    if asc.converged and not unbounded and g_scaled > tol:
+    # relative to L's size, but never to an absurd L's: |L(0)| (uniform actions) bounds |L| at the optimum
+    l_zero = float(counts.sum()) * math.log(demos.n_actions)
+    tol = OPTIMUM_GTOL * max(1.0, min(abs(f), l_zero))
+    if asc.converged and not unbounded and "weights diverge" in asc.message:
+        asc = replace(asc, converged=False, message=(
+            f"{asc.message}, but the data are not separable (the LP finds no direction of unbounded "
+            "likelihood): the weights ran away from a bad start or a rounding-dominated problem, not an optimum"))
+    elif asc.converged and not unbounded and g_scaled > tol:
         # the stopping rule held but this is no optimum: say so rather than "optimum reached"
         asc = replace(asc, converged=False, message=(
             f"{asc.message}, but the gradient there is {g_scaled:.3g} per unit of feature spread "

@@ -43,6 +43,7 @@ import pandas as pd
 from irl.domains.merge.actions import ACTION_ACC_FT_S2, N_ACTIONS, ZERO_ACTION, action_of
 from merge_irl.units import FT_PER_M
 from sim.drivers.callable_actions import PLAUSIBLE_ACC_MPS2, _one_line, act_of, parse_action
+from sim.drivers.callable_limits import DEFAULT_DECISION_LIMIT_S, call_with_limit, check_limit
 from sim.drivers.callable_specs import CallableSpec, load_callable, parse_spec
 from sim.drivers.observe import CONTINUOUS_NAMES, MergeObservation, policy_observation, unfill_policy_row
 from sim.drivers.policy import NO_LIKELIHOOD, Policy, PolicyDefaults, PolicyError, check_policy, choose_action
@@ -94,6 +95,7 @@ class CallablePolicy(PolicyDefaults):
     decision_step_s: float | None = None
     action_acc_ft_s2: tuple[float, ...] = tuple(float(x) for x in ACTION_ACC_FT_S2)
     obs_stats: str = ""
+    timeout_s: float = DEFAULT_DECISION_LIMIT_S
     _act: Callable[[np.ndarray], Any] = field(init=False, repr=False, compare=False)
     _last: dict[str, Any] = field(default_factory=dict, init=False, repr=False, compare=False)
 
@@ -109,6 +111,7 @@ class CallablePolicy(PolicyDefaults):
         if len(acc) != N_ACTIONS or not all(math.isfinite(a) for a in acc):
             raise PolicyError(f"policy {self.name!r}: action_acc_ft_s2 must be {N_ACTIONS} finite numbers, got {acc}")
         object.__setattr__(self, "action_acc_ft_s2", acc)
+        object.__setattr__(self, "timeout_s", check_limit(self.timeout_s))
 
     @classmethod
     def from_spec(cls, spec: str | CallableSpec, *, name: str = "", **kw: Any) -> CallablePolicy:
@@ -125,9 +128,10 @@ class CallablePolicy(PolicyDefaults):
     def __reduce__(self):
         if not self.spec:  # the callable itself is pickled (a module-level function, a picklable object)
             return (_rebuild, (getattr(self.fn, "fn", self.fn) if self.obs_stats else self.fn, self.name, "",
-                               self.source, self.controls, self.decision_step_s, self.action_acc_ft_s2, self.obs_stats))
+                               self.source, self.controls, self.decision_step_s, self.action_acc_ft_s2, self.obs_stats,
+                               self.timeout_s))
         return (_from_spec, (self.spec, self.name, self.controls, self.decision_step_s, self.action_acc_ft_s2,
-                             self.obs_stats))
+                             self.obs_stats, self.timeout_s))
 
     def _decide(self, obs: MergeObservation) -> tuple[int, float]:
         """``(bin, acceleration ft/s^2 or NaN for a discrete action)`` of ``obs``, called once per observation."""
@@ -136,7 +140,7 @@ class CallablePolicy(PolicyDefaults):
         vec = policy_observation(obs)
         where = f"policy {self.name!r}" + (f" ({self.spec})" if self.spec else "")
         try:
-            out = self._act(vec)
+            out = call_with_limit(self._act, vec, self.timeout_s, where=where)
         except PolicyError:
             raise
         except Exception as e:  # the user's callable may raise anything: named, with its message
@@ -181,15 +185,18 @@ class CallablePolicy(PolicyDefaults):
 
 
 def _from_spec(spec: str, name: str, controls: bool, decision_step_s: float | None,
-               action_acc_ft_s2: tuple[float, ...], obs_stats: str = "") -> CallablePolicy:
+               action_acc_ft_s2: tuple[float, ...], obs_stats: str = "",
+               timeout_s: float = DEFAULT_DECISION_LIMIT_S) -> CallablePolicy:
     return CallablePolicy.from_spec(spec, name=name, controls=controls, decision_step_s=decision_step_s,
-                                    action_acc_ft_s2=action_acc_ft_s2, obs_stats=obs_stats)
+                                    action_acc_ft_s2=action_acc_ft_s2, obs_stats=obs_stats, timeout_s=timeout_s)
 
 
 def _rebuild(fn: Callable[..., Any], name: str, spec: str, source: str, controls: bool,
-             decision_step_s: float | None, action_acc_ft_s2: tuple[float, ...], obs_stats: str = "") -> CallablePolicy:
+             decision_step_s: float | None, action_acc_ft_s2: tuple[float, ...], obs_stats: str = "",
+             timeout_s: float = DEFAULT_DECISION_LIMIT_S) -> CallablePolicy:
     return CallablePolicy(fn, name=name, spec=spec, source=source, controls=controls,
-                          decision_step_s=decision_step_s, action_acc_ft_s2=action_acc_ft_s2, obs_stats=obs_stats)
+                          decision_step_s=decision_step_s, action_acc_ft_s2=action_acc_ft_s2, obs_stats=obs_stats,
+                          timeout_s=timeout_s)
 
 
 # -- Policy -> callable -----------------------------------------------------------------------

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import json
 import os
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -205,8 +206,19 @@ def replay_act(path: str | os.PathLike) -> tuple[ActFn, float]:
     return f.replay_act(f.load(Path(path)))
 
 
+class UnreliableRewardWarning(UserWarning):
+    """A learned file whose fit did not converge, or whose weights are unbounded, was taken as a
+    reward (:func:`driver_reward`)."""
+
+
 def driver_reward(path: str | os.PathLike) -> RewardFn:
     """The environment's reward of a learned file (any role).
+
+    Warns:
+        UnreliableRewardWarning: the file's fit did not converge (``converged`` false) or its
+            weights are unbounded (``unbounded`` true): its reward is that of a point the
+            optimiser stopped at, not of an optimum (:class:`irl.result.SavedModel`,
+            ``PlanningDriver``).
 
     Raises:
         FileNotFoundError: no such file.
@@ -219,7 +231,15 @@ def driver_reward(path: str | os.PathLike) -> RewardFn:
     if f.reward is None:
         with_reward = ", ".join(x.label for x in FORMATS.values() if x.reward is not None)
         raise ModelFileError(f"{p}: a {f.label} has no reward; the environment's rewards come from: {with_reward}")
-    return f.reward(f.load(p))
+    learned = f.load(p)
+    why = [w for w, bad in (("its fit did not converge", not getattr(learned, "converged", True)),
+                            ("its weights are unbounded (no finite maximiser: they diverged)",
+                             bool(getattr(learned, "unbounded", False)))) if bad]
+    if why:
+        warnings.warn(f"{p}: taken as a reward although {' and '.join(why)}; its reward is that of where the "
+                      "optimiser stopped, not of an optimum (refit, e.g. with l2 > 0)", UnreliableRewardWarning,
+                      stacklevel=2)
+    return f.reward(learned)
 
 
 def policy_callable(path: str | os.PathLike, *, mode: bool = True, seed: int = 0) -> PolicyCallable:

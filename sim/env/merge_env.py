@@ -149,8 +149,15 @@ class MergeEnv(gym.Env):
         take-over (a new run, seeded from the environment's generator, when none is left).
 
         Raises:
+            ValueError: ``options`` holds any key: this environment reads none (issue 35: they
+                were ignored silently); the scenario, reward and driving are set when it is made.
             sim.errors.SimulationError: SUMO fails, or ``MAX_EMPTY_RUNS`` runs in a row have no take-over.
         """
+        if options:
+            raise ValueError(f"MergeEnv.reset: options {sorted(map(str, options))} are not read by this environment "
+                             "(it takes none); set the scenario, reward and action space when making it "
+                             "(gymnasium.make('MergeIRL/OnRampMerge-v0', scenario=..., reward=...)) and the run "
+                             "with reset(seed=...)")
         super().reset(seed=seed)
         if seed is not None:
             self._start_run(int(seed))

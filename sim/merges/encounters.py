@@ -33,6 +33,10 @@ its ramp lanes for 7, its merge lane for 6; unknown lane codes are an error):
   much earlier). ``frame_gaps`` counts the jumps in an encounter's kept frames (a frame in
   which A or B is missing); learning splits encounters there
   (:func:`irl.domains.merge.mdp.resample_encounters`), so no decision step spans them.
+  A frame in which the lead car C is missing while it has rows before and after it (a gap in C's
+  rows, not C yet to enter or gone) is left out the same way, not read as "no lead car":
+  ``lead_gap_frames`` counts them per encounter and :func:`extract` warns
+  (:class:`LeadGapWarning`).
 * **Missing neighbours**: every B gets one row in the merges summary (``merges``), with
   ``A_id = 0`` when no lane-6 vehicle is behind it at the merge frame and ``C_id = 0`` when
   none is ahead. Without A there is no per-frame row (A is the driver being modelled). Without C
@@ -42,7 +46,8 @@ its ramp lanes for 7, its merge lane for 6; unknown lane codes are an error):
 
 from __future__ import annotations
 
-from collections.abc import Collection
+import warnings
+from collections.abc import Callable, Collection
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -62,6 +67,7 @@ MERGE_COLUMNS: dict[str, str] = {
     "merge_frame": "int64", "Global_Time": "int64", "B_is_truck": "bool",
     "first_frame": "int64", "n_frames": "int64",
     "merge_observed": "bool", "merge_gap_frames": "int64", "frame_gaps": "int64",
+    "lead_gap_frames": "int64",
 }
 
 _NEEDED = ("Vehicle_ID", "Frame_ID", "Global_Time", "Local_Y", "v_Vel", "v_Class", "Lane_ID")
@@ -106,6 +112,39 @@ class Encounters:
     frames: pd.DataFrame
     merges: pd.DataFrame
     excluded: pd.DataFrame = field(default_factory=lambda: _empty(EXCLUDED_COLUMNS))
+
+
+class LeadGapWarning(UserWarning):
+    """Frames in which the lead car C was missing from the table between rows of it were left out
+    of their encounters (a recording's gap in C's rows, read otherwise as "no lead car")."""
+
+
+def lead_gap_frames(frames: np.ndarray, c_ids: np.ndarray, rc: np.ndarray,
+                    rows: Callable[[int, np.ndarray], np.ndarray], first: pd.Series, last: pd.Series) -> np.ndarray:
+    """``bool[F]``: the frames in which the lead car is missing inside its own span of rows.
+
+    Args:
+        frames: ``[F]`` an encounter's frames, increasing.
+        c_ids: ``[F]`` the lead car per frame (0: none found).
+        rc: ``[F]`` the row of ``c_ids`` in each frame (-1: none).
+        rows: ``rows(vehicle, frames) -> [F] row or -1`` of the table.
+        first, last: each vehicle's first and last ``Frame_ID`` in the table.
+
+    The reference lead is the last one seen with a row; a frame is a gap when that car has no row
+    in it but has rows before and after it (the look-up then found another car further ahead, or
+    none).
+    """
+    gap = np.zeros(frames.shape, bool)
+    ref = 0
+    for i, (f, c, r) in enumerate(zip(frames.tolist(), c_ids.tolist(), rc.tolist())):
+        if c == ref and r >= 0:  # the same lead, seen: the usual frame
+            continue
+        if ref and int(first[ref]) < f < int(last[ref]) and rows(ref, np.array([f], np.int64))[0] < 0:
+            gap[i] = True
+            continue
+        if c and r >= 0:
+            ref = c
+    return gap
 
 
 def screen_merges(table: pd.DataFrame, merges: pd.DataFrame,
@@ -200,6 +239,9 @@ def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),
     would release A); ``window`` must then be left at its default. Simulated demonstrations use
     it (:func:`sim.merges.demonstrators.encounters_of_run`), so that they are what the controller observes.
 
+    Warns:
+        LeadGapWarning: frames with C missing between rows of it were left out.
+
     Raises:
         TrajectoryFormatError: see :func:`find_merges`; duplicate (Vehicle_ID, Frame_ID) rows.
         ValueError: ``take_over`` given with a window other than the default.
@@ -221,6 +263,7 @@ def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),
     vclass = table["v_Class"].to_numpy(np.int64)
     gtime = table["Global_Time"].to_numpy(np.int64)
     first_frame = pd.Series(frame).groupby(vid).min()
+    last_frame = pd.Series(frame).groupby(vid).max()
 
     controlled = (take_overs(index, merges, take_over, ramp_lanes=tuple(site.ramp_lanes))
                   if take_over is not None else None)
@@ -259,6 +302,11 @@ def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),
             else:
                 c_ids = np.full(frames.shape, c, np.int64)
                 rc = rows(c, frames) if c else np.full(frames.shape, -1)
+            c_gap = lead_gap_frames(frames, c_ids, rc, rows, first_frame, last_frame)
+            if c_gap.any():  # left out as A's and B's gaps are: counted, and learning splits there
+                frames, ra, rbb, ra_next = frames[~c_gap], ra[~c_gap], rbb[~c_gap], ra_next[~c_gap]
+                c_ids, rc = c_ids[~c_gap], rc[~c_gap]
+            n_lead_gaps = int(c_gap.sum())
             hc = rc >= 0
             yc = np.where(hc, y[np.where(hc, rc, 0)], np.nan)
             vc = np.where(hc, vel[np.where(hc, rc, 0)], np.nan)
@@ -273,14 +321,20 @@ def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),
             }))
             n = len(frames)
         else:
-            n = 0
+            n = n_lead_gaps = 0
             if controlled is not None:
                 c = 0
         summary.append((eid, b, a, c, mf, gtime[rb], truck, start, n, observed, gap_before,
-                        int(np.count_nonzero(np.diff(frames) > 1)) if n else 0))
+                        int(np.count_nonzero(np.diff(frames) > 1)) if n else 0, n_lead_gaps))
     frames_df = pd.concat(chunks, ignore_index=True) if chunks else _empty(ENCOUNTER_COLUMNS)
     frames_df = frames_df.astype(ENCOUNTER_COLUMNS).loc[:, list(ENCOUNTER_COLUMNS)]
     merges_df = pd.DataFrame(summary, columns=list(MERGE_COLUMNS)).astype(MERGE_COLUMNS)
+    gapped = merges_df[merges_df["lead_gap_frames"] > 0]
+    if len(gapped):
+        warnings.warn(f"{int(gapped['lead_gap_frames'].sum())} frame(s) of {len(gapped)} encounter(s) had the lead car C "
+                      "missing between rows of it (a gap in the recording) and were left out, as gaps in A and B "
+                      "are (not read as 'no lead car'); learning splits the encounters there (merges summary: "
+                      "lead_gap_frames)", LeadGapWarning, stacklevel=2)
     return Encounters(frames_df, merges_df, excluded)
 
 

@@ -138,7 +138,10 @@ class SumoSession:
             raise SimulationError("SumoSession.start: this session was started already; make a new one")
         if _OPEN is not None and not _OPEN._closed:
             raise SimulationError("SumoSession.start: another SUMO session is open in this process "
-                                  "(libsumo runs one at a time); close it first, or use one process per run")
+                                  "(libsumo runs one at a time); close it first (env.close(), session.close()), or "
+                                  "run each in a process of its own started with 'spawn' (e.g. gymnasium's "
+                                  "AsyncVectorEnv(..., context='spawn')): a process forked from this one inherits "
+                                  "its open session and is refused the same way")
         self._started = True
         import libsumo as ls
 

@@ -60,3 +60,19 @@ class DeprecatedFlag(argparse.Action):
         print(f"{parser.prog}: warning: {option_string} is deprecated and goes in the next release: use {self.use}",
               file=sys.stderr, flush=True)
         setattr(namespace, self.dest, True)
+
+
+class Once(argparse.Action):
+    """An option that takes one value and refuses being given again (argparse would silently keep
+    the last: ``--demos a --demos b`` reading b alone). ``what``: what the one value is, for the
+    message (e.g. ``"one encounter table"``); ``instead``: where several go, if anywhere."""
+
+    def __init__(self, option_strings, dest, *, what: str = "one value", instead: str = "", **kw):
+        super().__init__(option_strings, dest, **kw)
+        self.what, self.instead = what, instead
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        if getattr(namespace, self.dest, None) is not None and getattr(namespace, self.dest) != self.default:
+            parser.error(f"{option_string} given twice ({getattr(namespace, self.dest)}, then {values}): this command "
+                         f"reads {self.what}, and would keep only the last{'; ' + self.instead if self.instead else ''}")
+        setattr(namespace, self.dest, values)

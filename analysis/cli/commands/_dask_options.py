@@ -61,12 +61,25 @@ def apply_dask_options(args: argparse.Namespace) -> None:
     """Set the given options in Dask's configuration for the rest of this process.
 
     Raises:
+        AnalysisError: a ``--dask-tls-*`` option given with an executor that is not ``tls://``
+            (a ``dask://`` address would wait for a scheduler that answers TLS).
         FileNotFoundError: a ``--dask-tls-*`` file does not exist.
         AnalysisError: an option was given and Dask is not installed (one line, exit 2).
     """
     given = {key: getattr(args, dest) for dest, key in _KEYS.items() if getattr(args, dest, None) is not None}
     if not given:
         return
+    tls_given = [f"--{d.replace('_', '-')}" for d in ("dask_tls_ca_file", "dask_tls_cert", "dask_tls_key")
+                 if getattr(args, d, None) is not None]
+    executor = (getattr(args, "executor", None) or "").strip()
+    if tls_given and not executor.startswith("tls://"):
+        from analysis.errors import AnalysisError
+
+        where = f"--executor {executor}" if executor else "without --executor tls://HOST:PORT"
+        fix = (f"use --executor tls://{executor[len('dask://'):]}" if executor.startswith("dask://")
+               else "give --executor tls://HOST:PORT")
+        raise AnalysisError(f"{', '.join(tls_given)} given {where}: the certificates are used only over TLS "
+                            f"(dask:// is plain TCP); {fix}, or leave out {', '.join(tls_given)}")
     for dest in ("dask_tls_ca_file", "dask_tls_cert", "dask_tls_key"):
         path = getattr(args, dest, None)
         if path is not None and not Path(path).is_file():

@@ -22,7 +22,7 @@ import sys
 import time
 from dataclasses import replace
 
-from analysis.cli.commands._arg_types import add_allow_implausible, positive_int
+from analysis.cli.commands._arg_types import Once, add_allow_implausible, positive_int
 
 
 def register(subparsers) -> None:
@@ -35,7 +35,7 @@ def register(subparsers) -> None:
     sub.required = True
 
     f = sub.add_parser("fit", help="population + per-pair fits, written as TOML")
-    f.add_argument("--pairs", required=True, metavar="DIR", help="folder of pair CSVs (or with a train/ subfolder)")
+    f.add_argument("--pairs", required=True, metavar="DIR", action=Once, what="one folder of pairs", help="folder of pair CSVs (or with a train/ subfolder)")
     f.add_argument("--out", required=True, metavar="FILE", help="output params TOML")
     f.add_argument("--model", choices=("idm", "krauss", "eidm"), default="idm",
                    help="idm / krauss: numpy replica of SUMO, population + per-pair fits; eidm: real SUMO "
@@ -70,7 +70,7 @@ def register(subparsers) -> None:
                    help="params TOML from 'calibrate fit' (required without --driver)")
     e.add_argument("--driver", default=None, metavar="DRIVER.json",
                    help="a driver file of 'merge-irl learn-driver' (or a car-following logit) to replay")
-    e.add_argument("--pairs", required=True, metavar="DIR",
+    e.add_argument("--pairs", required=True, metavar="DIR", action=Once, what="one folder of pairs",
                    help="folder of pair CSVs (or with a train/ subfolder) to score; any folder")
     e.add_argument("--holdout", type=float, default=0.0, metavar="FRACTION",
                    help="evaluate only the held-out followers of 'fit --holdout FRACTION --seed S' (give the "
@@ -85,7 +85,7 @@ def register(subparsers) -> None:
 
     c = sub.add_parser("check", help="compare the i80 scenario's simulated traffic with the real pairs")
     c.add_argument("--params", required=True, metavar="FILE", help="params TOML from 'calibrate fit'")
-    c.add_argument("--pairs", required=True, metavar="DIR", help="folder of real pair CSVs to compare with")
+    c.add_argument("--pairs", required=True, metavar="DIR", action=Once, what="one folder of pairs", help="folder of real pair CSVs to compare with")
     c.add_argument("--scenario", default="i80", metavar="NAME|FILE", help="scenario preset or TOML (default i80)")
     c.add_argument("--duration", type=float, default=None, metavar="S",
                    help="simulated seconds, warm-up included, longer than the scenario's warm-up "
@@ -97,6 +97,9 @@ def register(subparsers) -> None:
                         "'calibrate preset' writes it)")
     c.add_argument("--drivers", type=positive_int, default=None, metavar="N",
                    help="resample N driver types from the per-pair fits with --seed (default: one per per-pair fit)")
+    c.add_argument("--heldout-only", action="store_true",
+                   help="compare only with the pairs whose follower the fit did not see (the params file's "
+                        "training followers left out; fit with --holdout F to keep some aside)")
     c.add_argument("--out", default=None, metavar="FILE", help="write the markdown report here")
     c.add_argument("--json", action="store_true", help="print the report as one JSON object")
     c.set_defaults(func=run_check)
@@ -212,6 +215,10 @@ def run_fit(args: argparse.Namespace) -> int:
         print(f"spread of the {len(result.per_pair)} per-pair fits (10% / median / 90%):", file=sys.stderr)
         for name, sp in result.spread:
             print(f"  {name:<9} {sp.q10:7.3f} {sp.median:7.3f} {sp.q90:7.3f}", file=sys.stderr)
+    from analysis.calibration.fit import bounds_warning
+
+    if line := bounds_warning(result.per_pair, result.fitted):
+        print(f"merge-irl calibrate fit: warning: {line}", file=sys.stderr)
     print(args.out)
     return 0
 
@@ -301,7 +308,7 @@ def run_check(args: argparse.Namespace) -> int:
     report = run_calibration_check(
         params_path=args.params, pairs_dir=args.pairs, scenario=args.scenario,
         duration_s=args.duration, seed=args.seed, keep_drivers=args.keep_drivers, n_drivers=args.drivers,
-        allow_implausible=args.allow_implausible,
+        allow_implausible=args.allow_implausible, heldout_only=args.heldout_only,
     )
     if args.out:
         report.write_markdown(args.out)
@@ -345,9 +352,20 @@ def run_preset(args: argparse.Namespace) -> int:
                                car_follow_model=args.car_follow_model, name=args.name or out.stem)
     spec_from_toml(text, source=str(out))  # what is written loads as a scenario
     write_text_atomic(out, text)
-    kinds = len({c.id for c in load_scenario(out).drivers.car})
-    print(f"{args.scenario} with {kinds} calibrated car driver type(s) from {args.params} "
-          f"({result.model} fits, driven by SUMO's {model}); run it: merge-irl generate --scenario {out}",
-          file=sys.stderr)
+    cars = load_scenario(out).drivers.car
+    kinds = len({c.id for c in cars})
+    distinct = len({replace(c, id="", probability=1.0) for c in cars})  # the same parameters drawn again
+    n_fits = len(result.per_pair)
+    if distinct < kinds:
+        said = (f"{kinds} car driver types drawn with replacement from {n_fits} per-pair fit(s): {distinct} distinct "
+                f"driver(s), {kinds - distinct} repeat(s)")
+    else:
+        said = f"{kinds} calibrated car driver type(s)"
+    print(f"{args.scenario} with {said} from {args.params} ({result.model} fits, driven by SUMO's {model}); "
+          f"run it: merge-irl generate --scenario {out}", file=sys.stderr)
+    if n is not None and n_fits and n > n_fits:
+        print(f"merge-irl calibrate preset: warning: --drivers {n} asks for more driver types than {args.params} has "
+              f"per-pair fits ({n_fits}): a resample repeats fits, it adds no driver the data does not have; "
+              f"fit more pairs (at least {n} followers) or leave out --drivers (one type per fit)", file=sys.stderr)
     print(out)
     return 0

@@ -45,6 +45,10 @@ def gap_lines(merges) -> list[str]:
     if len(gapped):
         out.append(f"frame gaps: {len(gapped)} encounter(s) with {int(gapped['frame_gaps'].sum())} gap(s) in their "
                    "frames; learning splits them there (no decision step spans missing frames)")
+    lead = merges[merges["lead_gap_frames"] > 0] if "lead_gap_frames" in merges.columns else merges.iloc[:0]
+    if len(lead):
+        out.append(f"lead car gaps: {len(lead)} encounter(s) with {int(lead['lead_gap_frames'].sum())} frame(s) in which "
+                   "C was missing between rows of it; left out (not read as 'no lead car'), learning splits there")
     late = merges[~merges["merge_observed"]]
     if len(late):
         out.append(f"merges not observed: {len(late)} B first seen in the merge lane after missing frames (up to "

@@ -7,7 +7,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from analysis.cli.commands._arg_types import add_allow_implausible, positive_int
+from analysis.cli.commands._arg_types import Once, add_allow_implausible, positive_int
 from analysis.cli.commands._dask_options import add_dask_options, apply_dask_options
 from sim.closed_loop.config import HIGH_BRAKE_RULES
 
@@ -36,14 +36,17 @@ def register(subparsers) -> None:
                    help="a Stable-Baselines3 VecNormalize.save file: its observation statistics normalise what "
                         "every --policy sees. A --policy exposing its action distribution (SB3's get_distribution, "
                         "a probs(obs) method) gets a held-out log-likelihood")
+    p.add_argument("--policy-timeout", type=float, default=None, metavar="SECONDS",
+                   help="seconds one decision of a --policy callable may take before the evaluation stops with an "
+                        "error naming it (default 60: no honest policy needs that long)")
     p.add_argument("--scenario", default="synthetic", help="preset name or scenario TOML (default synthetic)")
     p.add_argument("--episodes", type=int, default=3, help="episodes (seeds) per policy")
     p.add_argument("--seed", type=int, default=0, help="first seed; episode i uses seed + i")
     p.add_argument("--duration", type=float, default=None, help="simulated seconds per episode (default: the scenario's)")
     add_allow_implausible(p)
-    p.add_argument("--demos", default=None,
+    p.add_argument("--demos", default=None, action=Once, what="one held-out encounter table",
                    help="held-out encounter table (.parquet/.csv) for the action divergence and held-out LL")
-    p.add_argument("--train-demos", default=None,
+    p.add_argument("--train-demos", default=None, action=Once, what="one training encounter table",
                    help="training encounter table (.parquet/.csv) of the marginal, markov and bc baselines")
     p.add_argument("--baselines", default="sumo,uniform,marginal,markov,bc",
                    help="comma-separated baselines among sumo, uniform, marginal, markov, bc, idm, sumo-in-lane "
@@ -107,8 +110,11 @@ def run(args: argparse.Namespace) -> int:
 
         # discrete actions of a callable at the training frames' mean acceleration per bin, as the baselines'
         acc = training_action_acc(args.train_demos) if args.train_demos else CallablePolicy.action_acc_ft_s2
-        cf += [CallablePolicy.from_spec(spec, action_acc_ft_s2=acc, obs_stats=args.policy_vecnormalize or "")
-               for spec in args.policy]
+        from sim.drivers.callable_limits import DEFAULT_DECISION_LIMIT_S, check_limit
+
+        limit = DEFAULT_DECISION_LIMIT_S if args.policy_timeout is None else check_limit(args.policy_timeout)
+        cf += [CallablePolicy.from_spec(spec, action_acc_ft_s2=acc, obs_stats=args.policy_vecnormalize or "",
+                                        timeout_s=limit) for spec in args.policy]
     scen = Path(args.scenario).stem if args.scenario.endswith(".toml") else args.scenario
     out = Path(args.out) if args.out else Path("runs") / f"evaluate-{scen}-{args.seed}"
     from merge_irl.run_folder import locked

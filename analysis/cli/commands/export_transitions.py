@@ -18,8 +18,9 @@ def register(subparsers) -> None:
                     "decision step: obs and next_obs [N, 7] (d_AC, v_AC, d_AB, v_AB, v_A, len_C, len_B; ft, ft/s), "
                     "acts [N] (merge actions 0..4), acc_mps2 [N], dones [N], episode [N] (one per encounter or "
                     "control), read back by sim.merges.transitions.load.")
-    p.add_argument("--demos", nargs="+", required=True, metavar="PATH",
-                   help="encounter tables, NGSIM trajectory files or decision logs (episodes numbered across them)")
+    p.add_argument("--demos", nargs="+", action="extend", required=True, metavar="PATH",
+                   help="encounter tables, NGSIM trajectory files or decision logs (episodes numbered across them); "
+                        "repeat or list several: --demos a b and --demos a --demos b read both")
     p.add_argument("--out", required=True, metavar="FILE.npz", help="output file")
     p.add_argument("--decision-step-s", "--decision-step", dest="decision_step_s", type=float, default=None,
                    help="seconds per decision (default 0.3; a decision log must have been decided at it)")

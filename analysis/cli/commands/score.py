@@ -9,6 +9,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from analysis.cli.commands._arg_types import Once
 from irl.problems import DOMAINS
 
 
@@ -19,7 +20,7 @@ def register(subparsers) -> None:
                     "log-likelihood sum_t log pi(a_t|s_t) (paper Eq. 5 without log Pr(s_1)) and the number "
                     "of steps. Merge encounter tables are discretized with the model's bin edges.")
     p.add_argument("--model", required=True, metavar="MODEL.json", help="a model saved by 'merge-irl learn'")
-    p.add_argument("--demos", required=True,
+    p.add_argument("--demos", required=True, action=Once, what="one demonstrations file",
                    help="trajectories in a format of --domain: the authors' text files (gridworld, merge), "
                         "an encounter table .parquet/.csv (merge) or a .npz (npz)")
     p.add_argument("--domain", choices=DOMAINS, default=None,

@@ -37,7 +37,7 @@ from irl.domains.merge.planning.features import DEFAULT_LENGTH_FT, Shape, fit_sh
 from irl.domains.merge.planning.fit import fit_planner, select
 from irl.domains.merge.planning.model import PathTensors, PlannerConfig, first_step, path_tensors
 from irl.domains.merge.planning.policy import bin_log_policy_of_fine, fine_log_policy
-from irl.errors import ConfigError, ModelFileError
+from irl.errors import ConfigError, DemonstrationError, ModelFileError
 from merge_irl.atomic import write_json_atomic
 
 #: The ``format`` field of a planner file.
@@ -261,7 +261,8 @@ def learn_planning_driver(decisions: PlanningDecisions, *, seed: int = 0,
 
     Raises:
         ConfigError: an unknown ``selection``, or a config of another decision step.
-        DemonstrationError: fewer than 2 groups to select on.
+        DemonstrationError: fewer than 2 groups (followers) to select on (the message names
+            ``--no-selection``).
     """
     acc5 = decisions.action_acc_ft_s2()
     shape = shape_of(decisions)
@@ -269,6 +270,12 @@ def learn_planning_driver(decisions: PlanningDecisions, *, seed: int = 0,
     if isinstance(selection, PlannerConfig):
         config = selection
     elif selection == "heldout":
+        n_groups = int(np.unique(decisions.groups).size)
+        if n_groups < 2:  # said in the user's words, not split_groups'
+            raise DemonstrationError(
+                f"the held-out selection of the planner's settings needs demonstrations of at least 2 followers "
+                f"(pair files or merge encounters of distinct cars), got {n_groups}: give more data, or fit the "
+                "default settings without selection (learn-driver --no-selection; selection=PlannerConfig())")
         fi, va = split_groups(decisions.groups, 0.3, seed)
         fit_idx, val_idx = np.flatnonzero(fi), np.flatnonzero(va)
         if fit_idx.size > select_cap:

@@ -1,0 +1,52 @@
+"""One meaning of a repeated option everywhere: export-transitions reads every --demos whether
+repeated or listed (before: the last of three, 186 of 690 transitions); an option that takes one
+value refuses a second instead of keeping only the last."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+from irl_testdata import planning_encounters
+
+from sim.merges.transitions import load
+
+
+def _cli(*args, cwd=None) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "analysis", *args], capture_output=True, text=True, timeout=180,
+                          cwd=cwd)
+
+
+def test_export_transitions_reads_every_repeated_demos(tmp_path) -> None:
+    files = []
+    for i in range(3):
+        f = tmp_path / f"enc{i}.parquet"
+        planning_encounters(n=2 + i, seed=i).to_parquet(f)
+        files.append(str(f))
+    r = _cli("export-transitions", "--demos", files[0], "--demos", files[1], "--demos", files[2],
+             "--out", str(tmp_path / "rep.npz"))
+    assert r.returncode == 0, r.stderr
+    r = _cli("export-transitions", "--demos", *files, "--out", str(tmp_path / "list.npz"))
+    assert r.returncode == 0, r.stderr
+    each = []
+    for i, f in enumerate(files):
+        assert _cli("export-transitions", "--demos", f, "--out", str(tmp_path / f"one{i}.npz")).returncode == 0
+        each.append(len(load(tmp_path / f"one{i}.npz").acts))
+    rep, lst = load(tmp_path / "rep.npz"), load(tmp_path / "list.npz")
+    assert len(rep.acts) == len(lst.acts) == sum(each) and len(set(each)) == 3
+    assert (rep.acts == lst.acts).all() and int(rep.episode.max()) + 1 == 2 + 3 + 4
+
+
+@pytest.mark.parametrize("args, option", [
+    (["evaluate", "--demos", "a.parquet", "--demos", "b.parquet"], "--demos"),
+    (["evaluate", "--train-demos", "a.parquet", "--train-demos", "b.parquet"], "--train-demos"),
+    (["score", "--model", "m.json", "--demos", "a.csv", "--demos", "b.csv"], "--demos"),
+    (["calibrate", "fit", "--pairs", "x", "--pairs", "y", "--out", "p.toml"], "--pairs"),
+    (["calibrate", "check", "--params", "p.toml", "--pairs", "x", "--pairs", "y"], "--pairs"),
+])
+def test_a_one_value_option_given_twice_is_refused(tmp_path, args, option) -> None:
+    r = _cli(*args, cwd=tmp_path)
+    assert r.returncode == 2
+    last = r.stderr.strip().splitlines()[-1]
+    assert f"{option} given twice" in last and "would keep only the last" in last, r.stderr

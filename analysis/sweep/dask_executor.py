@@ -127,6 +127,10 @@ def tls_problem(e: BaseException, address: str, security) -> str:
             return (f"TLS: the scheduler ended the handshake ({_one_line(err)}): it refused this client's certificate "
                     f"{cert} (--dask-tls-cert): not signed by the scheduler's CA, or expired")
         err = err.__cause__ or err.__context__
+    if "before comm was established" in str(e):
+        # under load Dask reports the scheduler closing the TLS handshake without its SSL cause
+        return (f"TLS: the scheduler ended the handshake ({_one_line(e)}): it refused this client's certificate "
+                f"{cert} (--dask-tls-cert): not signed by the scheduler's CA, or expired")
     return ""
 
 

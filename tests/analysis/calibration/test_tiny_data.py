@@ -41,11 +41,18 @@ def test_preset_of_32_types_from_one_fit_says_one_distinct_driver(tmp_path) -> N
 
 def test_learn_driver_on_one_pair_says_what_it_needs(tmp_path) -> None:
     one = _one_pair(tmp_path)
-    r = _cli("learn-driver", "--demos", str(one), "--out", "d.json", "--no-progress", cwd=tmp_path)
+    # the likelihood fit selects its settings on a split of the followers
+    r = _cli("learn-driver", "--demos", str(one), "--fit", "likelihood", "--out", "d.json", "--no-progress",
+             cwd=tmp_path)
     assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
     assert "split_groups" not in r.stderr
     assert "at least 2 followers" in r.stderr and "got 1" in r.stderr and "--no-selection" in r.stderr
     assert not (tmp_path / "d.json").exists()
-    r = _cli("learn-driver", "--demos", str(one), "--out", "d.json", "--no-progress", "--no-selection", cwd=tmp_path)
+    r = _cli("learn-driver", "--demos", str(one), "--fit", "likelihood", "--out", "d.json", "--no-progress",
+             "--no-selection", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "d.json").is_file()
+    # the replay fit (the default for pairs) holds followers out only when asked: one cannot be split
+    r = _cli("learn-driver", "--demos", str(one), "--holdout", "0.3", "--out", "r.json", "--no-progress", cwd=tmp_path)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert "1 follower(s) cannot be split" in r.stderr and not (tmp_path / "r.json").exists()

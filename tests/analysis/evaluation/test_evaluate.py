@@ -223,7 +223,7 @@ def test_evaluate_cli_baselines_safety_filter_and_flag_gate(tmp_path):
     assert data["demos"]["close_to_c"]["n_encounters"] == 12
     for text in (md, r.stdout):
         assert "As within 2 m of C [95 % CI]" in text and "W1 jerk (m/s^3)" in text
-        assert f"| demonstrations | 12 | - | {expected}/12 = " in text
+        assert f"| demonstrations | 12 | - | - | {expected}/12 = " in text
         assert "| bc | " in text.split("W1 jerk (m/s^3)")[1]  # a row of every policy in the human table
 
 

@@ -34,7 +34,7 @@ MIN_LEADER_LENGTH_FT = 7.0
 MIN_MEDIAN_LEADER_LENGTH_FT = 9.0
 #: Highest plausible speed (ft/s, about 100 mph), as for NGSIM trajectories.
 MAX_SPEED_FT_S = 147.0
-#: Highest plausible 99th percentile of |acceleration| (ft/s^2, about 1 g).
+#: Highest plausible 99th percentile of the absolute acceleration (ft/s^2, about 1 g).
 MAX_P99_ACC_FT_S2 = 33.0
 #: Position advance over what the speeds imply, accepted as consistent (ratio of sums).
 KINEMATIC_TOLERANCE = 0.07

@@ -27,10 +27,10 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.calibration.driver_eval import evaluate_driver
+from analysis.calibration.driver_eval import evaluate_driver, replay_pairs
 from analysis.calibration.pairs import load_pairs, split_by_follower
 from analysis.calibration.params_file import load_result
-from analysis.experiments.learn_driver import CLOSE_GAP_M, pair_frames, replay_pairs_of
+from analysis.experiments.learn_driver import CLOSE_GAP_M, pair_frames
 from irl.domains.merge.planning.decisions import pair_decisions
 from irl.domains.merge.planning.driver import PlanningDriver
 from irl.domains.merge.planning.replay import replay
@@ -60,8 +60,8 @@ def main(argv: list[str] | None = None) -> int:
         ev = evaluate_driver(path, test, calibration=cal, seed=args.seed)
         iv = dict(ev.intervals)
         drv = PlanningDriver.load(path)
-        close = float(np.mean(replay(replay_pairs_of(test), drv.act, drv.decision_step_s).min_gap_m < CLOSE_GAP_M))
-        every = replay(replay_pairs_of(pairs), drv.act, drv.decision_step_s)
+        close = float(np.mean(ev.min_gap_m < CLOSE_GAP_M))  # the held-out replay's, not a second one
+        every = replay(replay_pairs(pairs), drv.act, drv.decision_step_s)
         d_med, d_mean = float(np.median(ev.default_rmse_m)), float(np.mean(ev.default_rmse_m))
         c_med = float(np.median(ev.calibrated_rmse_m)) if ev.calibrated_rmse_m is not None else float("nan")
         c_mean = float(np.mean(ev.calibrated_rmse_m)) if ev.calibrated_rmse_m is not None else float("nan")

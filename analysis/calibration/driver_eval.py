@@ -40,6 +40,7 @@ class DriverEvaluation:
         rmse_m, default_rmse_m: ``[P]`` per pair, the driver's and IDM with SUMO's defaults.
         calibrated_rmse_m: ``[P]`` the calibration's, or None.
         collided: ``[P]`` bool, the driver's bumper gap reached 0.
+        min_gap_m: ``[P]`` the driver's smallest bumper gap (m).
         intervals: ``(statistic, Interval)`` of the medians, means and ratios (95 % bootstrap).
     """
 
@@ -49,6 +50,7 @@ class DriverEvaluation:
     default_rmse_m: np.ndarray
     calibrated_rmse_m: np.ndarray | None
     collided: np.ndarray
+    min_gap_m: np.ndarray
     intervals: tuple[tuple[str, Interval], ...]
 
     @property
@@ -103,4 +105,4 @@ def evaluate_driver(path: str | os.PathLike, pairs: Sequence[CarFollowingPair], 
         stats["calibrated_mean_rmse_m"] = (np.mean, (cal,))
     intervals = bootstrap_intervals(stats, seed)
     return DriverEvaluation(str(Path(path)), tuple(p.name for p in pairs), r, d, cal,
-                            np.asarray(res.collided, dtype=bool), intervals)
+                            np.asarray(res.collided, dtype=bool), np.asarray(res.min_gap_m, dtype=np.float64), intervals)

@@ -28,11 +28,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from analysis.calibration.driver_eval import replay_pairs
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, read_encounters
 from irl.domains.merge.planning.decisions import PlanningDecisions, encounter_decisions, pair_decisions
 from irl.domains.merge.planning.driver import PlanningDriver, learn_planning_driver, shape_of
 from irl.domains.merge.planning.model import PlannerConfig
-from irl.domains.merge.planning.replay import ReplayPair, replay
+from irl.domains.merge.planning.replay import replay
 from irl.domains.merge.planning.replay_fit import ReplayFitConfig, fit_by_replay, fit_temperature
 from irl.errors import DemonstrationError
 from merge_irl.provenance import provenance
@@ -119,12 +120,6 @@ def learn_driver(paths: Sequence[str | os.PathLike], out: str | os.PathLike | No
     return driver
 
 
-def replay_pairs_of(pairs) -> list[ReplayPair]:
-    """Car-following pairs (SI) in the replay's units (ft, ft/s)."""
-    return [ReplayPair(p.name, p.x_follower * FT_PER_M, p.v_follower * FT_PER_M, p.x_leader * FT_PER_M,
-                       p.v_leader * FT_PER_M, p.leader_length * FT_PER_M) for p in pairs]
-
-
 def heldout_report(driver: PlanningDriver, pairs, *, decision_step_s: float) -> dict[str, float]:
     """The driver on held-out ``pairs`` (:class:`analysis.calibration.pairs.CarFollowingPair`)
     beside IDM with SUMO's default parameters on the same pairs (numpy replica): median and mean
@@ -140,7 +135,7 @@ def heldout_report(driver: PlanningDriver, pairs, *, decision_step_s: float) -> 
 
     if not pairs:
         raise DemonstrationError("held-out report: no pairs")
-    res = replay(replay_pairs_of(pairs), driver.act, driver.decision_step_s)
+    res = replay(replay_pairs(pairs), driver.act, driver.decision_step_s)
     batch = PairBatch.from_pairs(pairs)
     idm = np.asarray(batch.unsort(spacing_rmse("idm", batch, SUMO_DEFAULTS.as_dict())), dtype=np.float64)
     frames, groups = pair_frames(pairs)
@@ -157,7 +152,8 @@ def learn_driver_by_replay(pair_dirs: Sequence[str | os.PathLike], out: str | os
                            config: ReplayFitConfig | None = None,
                            log: Callable[[str], None] = lambda s: None) -> PlanningDriver:
     """A planning driver fitted by replaying the pairs of ``pair_dirs`` (module docstring) and,
-    with ``out``, written with its provenance. ``holdout``: the fraction of followers held out
+    with ``out``, written with its provenance. ``config``: the fit's settings (default
+    :class:`~irl.domains.merge.planning.replay_fit.ReplayFitConfig`), its planner at ``decision_step_s``. ``holdout``: the fraction of followers held out
     (0: none), split with ``seed``; their report is in ``info["heldout"]``.
 
     Raises:
@@ -174,12 +170,13 @@ def learn_driver_by_replay(pair_dirs: Sequence[str | os.PathLike], out: str | os
                                      "table is fitted with --fit likelihood")
         pairs.extend(load_pairs(p))
     train, test = split_by_follower(pairs, holdout, seed) if holdout else (tuple(pairs), ())
-    cfg = config or ReplayFitConfig(planner=replace(ReplayFitConfig().planner, decision_step_s=decision_step_s))
+    cfg = config or ReplayFitConfig()
+    cfg = replace(cfg, planner=replace(cfg.planner, decision_step_s=decision_step_s))
     frames, groups = pair_frames(train)
     dec = pair_decisions(frames, decision_step_s, groups=groups)
     log(f"{len(train)} training pairs of {len({p.group for p in train})} followers ({dec.n} decisions)"
         + (f", {len(test)} held-out pairs of {len({p.group for p in test})} followers" if test else ""))
-    fit = fit_by_replay(replay_pairs_of(train), shape_of(dec), dec.action_acc_ft_s2(), cfg, log=log)
+    fit = fit_by_replay(replay_pairs(train), shape_of(dec), dec.action_acc_ft_s2(), cfg, log=log)
     log(f"replay fit: {fit.objective:.3f} m (from {fit.start_objective:.3f} m) after {fit.n_evals} replays, "
         f"{fit.seconds:.0f} s{'' if fit.converged else ' (stopped at its budget)'}")
     driver, ll = fit_temperature(fit.driver, dec)

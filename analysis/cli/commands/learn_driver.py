@@ -61,13 +61,9 @@ def run(args: argparse.Namespace) -> int:
     step = DEFAULT_DECISION_STEP_S if args.decision_step_s is None else args.decision_step_s
     fit = resolve_fit(args.fit, args.demos)
     if fit == "replay":
-        from dataclasses import replace
-
         from irl.domains.merge.planning.replay_fit import ReplayFitConfig
 
-        base = ReplayFitConfig()
-        cfg = replace(base, planner=replace(base.planner, decision_step_s=step),
-                      **({"max_evals": args.max_evals} if args.max_evals is not None else {}))
+        cfg = ReplayFitConfig(max_evals=args.max_evals) if args.max_evals is not None else None
         driver = learn_driver_by_replay(args.demos, args.out, holdout=args.holdout, seed=args.seed,
                                         decision_step_s=step, config=cfg, log=log)
     else:

@@ -25,7 +25,7 @@ from analysis.calibration.models import SUMO_DEFAULTS
 from analysis.calibration.objective import spacing_rmse
 from analysis.calibration.pairs import CarFollowingPair, PairBatch
 from analysis.calibration.result import CalibrationResult
-from irl.domains.merge.planning.replay import ReplayPair, replay
+from irl.domains.merge.planning.replay import ActFn, ReplayPair, replay
 from merge_irl.units import FT_PER_M
 from scenarios.errors import SpecError
 from sim.drivers.formats import replay_act
@@ -91,7 +91,20 @@ def evaluate_driver(path: str | os.PathLike, pairs: Sequence[CarFollowingPair], 
     if not pairs:
         raise SpecError("evaluate --driver: no pairs to score")
     act, step = replay_act(path)
-    res = replay(replay_pairs(pairs), act, step)
+    return evaluate_act(act, step, pairs, calibration=calibration, seed=seed, driver=str(Path(path)))
+
+
+def evaluate_act(act: ActFn, decision_step_s: float, pairs: Sequence[CarFollowingPair], *,
+                 calibration: CalibrationResult | None = None, seed: int = 0, driver: str = "") -> DriverEvaluation:
+    """:func:`evaluate_driver` of a driver given as its replay action ``act`` (ft/s^2 of ``obs
+    [N, 7]``, ``prev_acc [N]``, ``acc_C [N]``) deciding every ``decision_step_s``, named ``driver``.
+
+    Raises:
+        SpecError: no pairs.
+    """
+    if not pairs:
+        raise SpecError("evaluate --driver: no pairs to score")
+    res = replay(replay_pairs(pairs), act, decision_step_s)
     batch = PairBatch.from_pairs(pairs)
     d = batch.unsort(spacing_rmse("idm", batch, SUMO_DEFAULTS.as_dict()))
     cal = None
@@ -104,5 +117,5 @@ def evaluate_driver(path: str | os.PathLike, pairs: Sequence[CarFollowingPair], 
         stats["calibrated_median_rmse_m"] = (np.median, (cal,))
         stats["calibrated_mean_rmse_m"] = (np.mean, (cal,))
     intervals = bootstrap_intervals(stats, seed)
-    return DriverEvaluation(str(Path(path)), tuple(p.name for p in pairs), r, d, cal,
+    return DriverEvaluation(driver, tuple(p.name for p in pairs), r, d, cal,
                             np.asarray(res.collided, dtype=bool), np.asarray(res.min_gap_m, dtype=np.float64), intervals)

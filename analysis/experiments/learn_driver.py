@@ -33,7 +33,6 @@ from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, read_encounters
 from irl.domains.merge.planning.decisions import PlanningDecisions, encounter_decisions, pair_decisions
 from irl.domains.merge.planning.driver import PlanningDriver, learn_planning_driver, shape_of
 from irl.domains.merge.planning.model import PlannerConfig
-from irl.domains.merge.planning.replay import replay
 from irl.domains.merge.planning.replay_fit import ReplayFitConfig, fit_by_replay, fit_temperature
 from irl.errors import DemonstrationError
 from merge_irl.provenance import provenance
@@ -129,21 +128,18 @@ def heldout_report(driver: PlanningDriver, pairs, *, decision_step_s: float) -> 
     Raises:
         DemonstrationError: no pairs.
     """
-    from analysis.calibration.models import SUMO_DEFAULTS
-    from analysis.calibration.objective import spacing_rmse
-    from analysis.calibration.pairs import PairBatch
+    from analysis.calibration.driver_eval import evaluate_act
 
     if not pairs:
         raise DemonstrationError("held-out report: no pairs")
-    res = replay(replay_pairs(pairs), driver.act, driver.decision_step_s)
-    batch = PairBatch.from_pairs(pairs)
-    idm = np.asarray(batch.unsort(spacing_rmse("idm", batch, SUMO_DEFAULTS.as_dict())), dtype=np.float64)
+    ev = evaluate_act(driver.act, driver.decision_step_s, pairs)
     frames, groups = pair_frames(pairs)
     dec = pair_decisions(frames, decision_step_s, groups=groups)
     recorded_close = float(np.mean([float(np.min(p.spacing)) < CLOSE_GAP_M for p in pairs]))
-    return {"pairs": len(pairs), "median_rmse_m": float(np.median(res.rmse_m)), "mean_rmse_m": float(np.mean(res.rmse_m)),
-            "idm_defaults_median_rmse_m": float(np.median(idm)), "idm_defaults_mean_rmse_m": float(np.mean(idm)),
-            "collisions": int(res.collided.sum()), "close_share": float(np.mean(res.min_gap_m < CLOSE_GAP_M)),
+    return {"pairs": len(pairs), "median_rmse_m": float(np.median(ev.rmse_m)), "mean_rmse_m": float(np.mean(ev.rmse_m)),
+            "idm_defaults_median_rmse_m": float(np.median(ev.default_rmse_m)),
+            "idm_defaults_mean_rmse_m": float(np.mean(ev.default_rmse_m)),
+            "collisions": int(ev.collided.sum()), "close_share": float(np.mean(ev.min_gap_m < CLOSE_GAP_M)),
             "recorded_close_share": recorded_close, "ll_per_decision": driver.heldout_ll_per_decision(dec)}
 
 

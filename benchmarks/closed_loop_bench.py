@@ -25,10 +25,10 @@ import numpy as np
 
 from analysis.recording.log import RerunLogger
 from benchmarks.bare_sumo import time_bare
+from irl.domains.merge.bins import MergeBins
 from scenarios.loader import load_scenario
 from scenarios.spec.parse import with_overrides
 from sim.closed_loop.controller import Controller
-from irl.domains.merge.bins import MergeBins
 from sim.drivers.learned import LearnedPolicy
 from sim.drivers.policy import Policy
 from sim.runtime.run import run_scenario

@@ -30,8 +30,8 @@ import time
 import numpy as np
 
 from scenarios.loader import load_scenario
-from sim.closed_loop.controller import Controller
 from sim.closed_loop.config import ControllerConfig
+from sim.closed_loop.controller import Controller
 from sim.drivers.policy import ConstantPolicy
 from sim.runtime.run import run_scenario
 

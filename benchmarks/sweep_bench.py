@@ -18,8 +18,8 @@ import argparse
 import math
 import sys
 import time
-from dataclasses import replace
 from collections import defaultdict
+from dataclasses import replace
 from pathlib import Path
 
 from analysis.experiments.reproduce import ReproduceConfig, reproduce_tables

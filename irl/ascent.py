@@ -7,8 +7,8 @@ returns an :class:`Evaluation` (L, its gradient and the Q table at theta). Trace
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np

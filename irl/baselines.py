@@ -22,9 +22,9 @@ fold, so paired tests can compare two methods on the same held-out trajectories
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
-from collections.abc import Callable
 
 import numpy as np
 from scipy.stats import wilcoxon

@@ -23,9 +23,9 @@ from pathlib import Path
 
 import numpy as np
 
-from merge_irl.atomic import write_atomic, write_text_atomic
 from irl.demonstrations import Demonstrations
 from irl.errors import DemonstrationError
+from merge_irl.atomic import write_atomic, write_text_atomic
 
 _DIGITS = re.compile(r"(\d+)")
 

@@ -12,17 +12,16 @@ from __future__ import annotations
 
 import os
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from collections.abc import Callable
 
 import numpy as np
 import pandas as pd
 
-from irl.domains.merge import mdp as merge_mdp
 from irl.demonstrations import Demonstrations
 from irl.domains import gridworld
+from irl.domains.merge import mdp as merge_mdp
 from irl.domains.merge.actions import ACTION_ACC_FT_S2
 from irl.domains.merge.bins import MergeBins, fit_quantile_bins
 from irl.domains.merge.features import FeatureSet, feature_set

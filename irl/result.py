@@ -11,14 +11,14 @@ from typing import Any
 
 import numpy as np
 
-from merge_irl.atomic import write_json_atomic
-from merge_irl.units import FRAME_S
 from irl.boltzmann import log_policy
 from irl.config import IRLConfig
 from irl.domains.merge.actions import ACTION_ACC_FT_S2
 from irl.domains.merge.states import STATE_ENCODINGS
 from irl.errors import ModelFileError
 from irl.methods.registry import method_names
+from merge_irl.atomic import write_json_atomic
+from merge_irl.units import FRAME_S
 
 #: ``action_acc_ft_s2`` of files written before the field existed: the bin midpoints.
 #: The ``format`` field of a tabular model file (``model.json`` of ``merge-irl learn``).

@@ -16,9 +16,9 @@ from __future__ import annotations
 import json
 import os
 import secrets
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
-from collections.abc import Callable
 
 
 def temporary_path(path: str | os.PathLike, suffix: str | None = None) -> Path:

@@ -25,10 +25,10 @@ from pathlib import Path
 
 from analysis.calibration import load_pairs, split_by_follower
 from analysis.calibration.check import KS_TARGET, VARIABLES, compare_distributions, diagnose, pair_states, table_states
-from studies.heldout_args import add_split_arguments
 from merge_irl.units import FT_PER_M
 from scenarios.loader import load_scenario
 from sim.runtime.run import run_scenario
+from studies.heldout_args import add_split_arguments
 
 
 def _cli(*args: str) -> None:

@@ -59,21 +59,21 @@ from pathlib import Path
 import pandas as pd
 
 from analysis.cli.commands._arg_types import non_negative_int, positive_int
-from analysis.experiments.dagger import DaggerConfig
-from analysis.demo.signal import bin_change_rate, braking_cap_share
-from analysis.evaluation.closed_loop_targets import floor_driver, target_checks
-from analysis.evaluation.evaluate import evaluate
-from analysis.evaluation.policies import cf_policy
-from analysis.evaluation.distances import wasserstein
 from analysis.demo.config import CF_DRIVER, DemoConfig, check_dagger_seeds
 from analysis.demo.pipeline import run_demo
+from analysis.demo.signal import bin_change_rate, braking_cap_share
+from analysis.evaluation.closed_loop_targets import floor_driver, target_checks
+from analysis.evaluation.distances import wasserstein
+from analysis.evaluation.evaluate import evaluate
+from analysis.evaluation.policies import cf_policy
+from analysis.experiments.dagger import DaggerConfig
 from irl.domains.merge.cf_logit import CarFollowingLogit
 from irl.errors import ConfigError
-from sim.closed_loop.records import COLLISION_KINDS
 from sim.closed_loop.config import ControllerConfig
-from sim.merges.rules import ENCOUNTER_RULES
-from sim.errors import SimError
+from sim.closed_loop.records import COLLISION_KINDS
 from sim.drivers.learned import CarFollowingLogitPolicy
+from sim.errors import SimError
+from sim.merges.rules import ENCOUNTER_RULES
 
 
 def _seeds(text: str) -> tuple[int, ...]:

@@ -23,11 +23,11 @@ import time
 
 import numpy as np
 
-from studies.heldout_args import add_split_arguments
 from analysis.calibration import CarFollowingPair, PairBatch, load_pairs, split_by_follower
 from analysis.calibration.fit import fit_population
 from analysis.calibration.models import SUMO_DEFAULTS, CFParams
 from analysis.calibration.objective import spacing_rmse
+from studies.heldout_args import add_split_arguments
 
 
 def initial_time_headway(pair: CarFollowingPair) -> float:

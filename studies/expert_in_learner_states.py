@@ -37,21 +37,21 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from analysis.evaluation.evaluate import evaluate
 from analysis.cli.commands._arg_types import non_negative_int, positive_int
+from analysis.evaluation.evaluate import evaluate
 from irl.boltzmann import log_policy
-from irl.methods.conditional_logit import fit_state_logit
-from irl.errors import IRLError
 from irl.domains.merge.features import feature_array
 from irl.domains.merge.mdp import resample_encounters
+from irl.errors import IRLError
+from irl.methods.conditional_logit import fit_state_logit
 from irl.result import SavedModel
 from scenarios.errors import ScenarioError
 from scenarios.loader import load_scenario
-from sim.closed_loop.controller import Controller
 from sim.closed_loop.config import ControllerConfig
-from sim.merges.expert_labels import ExpertLabels
-from sim.errors import SimError
+from sim.closed_loop.controller import Controller
 from sim.drivers.learned import LearnedPolicy
+from sim.errors import SimError
+from sim.merges.expert_labels import ExpertLabels
 from sim.runtime.run import run_scenario
 
 

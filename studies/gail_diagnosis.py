@@ -45,11 +45,11 @@ def _row(r: dict[str, str], key: str) -> float:
 
 def diagnose(demo: Path, cfg: GailConfig, *, train_seed: int, env_seed: int, out: Path, every: int) -> None:
     """Train one GAIL setting and print its diagnosis (module docstring)."""
-    from sim.drivers.baselines import training_action_acc
     from analysis.experiments.obs_scaler import ObsScaler
-    from studies.imitation_bench import TorchActor, heldout_loglik, make_gail, mean_entropy
     from irl.domains.merge.mdp import read_encounters
+    from sim.drivers.baselines import training_action_acc
     from sim.merges.transitions import from_encounters, to_imitation_trajectories
+    from studies.imitation_bench import TorchActor, heldout_loglik, make_gail, mean_entropy
 
     tp, hp = demo / "data" / "train_encounters.parquet", demo / "data" / "heldout_encounters.parquet"
     step = DEFAULT_DECISION_STEP_S

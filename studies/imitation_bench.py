@@ -303,13 +303,13 @@ def main(argv: list[str] | None = None) -> int:
 
 def run(args) -> int:
     from analysis.evaluation.evaluate import evaluate
-    from sim.drivers.baselines import training_action_acc
-    from sim.drivers.formats import driver_policy
     from analysis.experiments.dagger import DaggerConfig
     from irl.domains.merge.car_following import car_following_decisions
     from irl.domains.merge.cf_logit import CarFollowingLogit
     from irl.domains.merge.mdp import read_encounters
+    from sim.drivers.baselines import training_action_acc
     from sim.drivers.callables import CallablePolicy
+    from sim.drivers.formats import driver_policy
     from sim.merges.transitions import from_encounters
 
     out = Path(args.out)

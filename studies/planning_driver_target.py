@@ -39,13 +39,13 @@ from analysis.demo.config import DemoConfig
 from analysis.demo.pipeline import run_demo
 from analysis.evaluation.aggregate import rate_ci95
 from analysis.evaluation.evaluate import evaluate
-from sim.drivers.formats import driver_policy
 from analysis.experiments.learn_driver import pair_frames
 from irl.domains.merge.mdp import read_encounters
 from irl.domains.merge.planning.decisions import encounter_decisions, pair_decisions
 from irl.domains.merge.planning.driver import learn_planning_driver
 from irl.domains.merge.planning.model import PlannerConfig
 from sim.closed_loop.records import COLLISION_KINDS
+from sim.drivers.formats import driver_policy
 
 SAFETY = ("gap_need_C", "inv_ttc_C", "headway_C")
 

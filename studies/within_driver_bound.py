@@ -36,14 +36,22 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from studies.heldout_args import add_split_arguments
 from analysis.calibration import (
-    SUMO_DEFAULTS, CarFollowingPair, CFParams, PairBatch, fit_classes, fit_per_pair, fit_population, load_pairs,
-    split_by_follower, split_in_time,
+    SUMO_DEFAULTS,
+    CarFollowingPair,
+    CFParams,
+    PairBatch,
+    fit_classes,
+    fit_per_pair,
+    fit_population,
+    load_pairs,
+    split_by_follower,
+    split_in_time,
 )
 from analysis.calibration.objective import spacing_rmse
 from analysis.calibration.pairs import DuplicatePairWarning
 from scenarios.errors import SpecError
+from studies.heldout_args import add_split_arguments
 
 ROWS = ("population", "classes", "own, 5 parameters", "own, tau + minGap", "own fit on the rest")
 

@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from irl.domains import gridworld
 from irl.demonstrations import Demonstrations
+from irl.domains import gridworld
 
 #: noise -> (experts drawn, seed, baseline trajectories, baseline length): 12 experts / 38 steps
 #: without noise, 14 / 50 with 10% slips (duplicates removed); uniform-random baselines of 12 x 5

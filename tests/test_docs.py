@@ -18,10 +18,10 @@ import sys
 from pathlib import Path
 
 import pytest
-
-from analysis.cli.main import build_parser
 from doc_blocks import NOT_RUN_KINDS, RUNNABLE, blocks, stray_markers
 from shared_data import RAILUSM
+
+from analysis.cli.main import build_parser
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"

@@ -19,7 +19,6 @@ from dataclasses import replace
 from pathlib import Path
 
 import pytest
-
 from sim_testutil import default_sigint
 from sweep_tasks import DrawConfig, draw
 

@@ -13,7 +13,6 @@ from pathlib import Path
 
 import psutil
 import pytest
-
 from sim_testutil import default_sigint
 from sweep_tasks import DrawConfig, draw
 

@@ -22,8 +22,8 @@ from irl.errors import DemonstrationError
 from irl.problems import RawAccelerationWarning, load_merge_demos
 from scenarios.loader import load_scenario
 from scenarios.spec.parse import with_overrides
-from sim.merges.encounters import extract
 from sim.errors import TrajectoryFormatError
+from sim.merges.encounters import extract
 from sim.merges.generate import RUN_REPORT, generate
 from sim.ngsim.io import read_ngsim, write_ngsim_csv
 from sim.runtime.run import run_scenario

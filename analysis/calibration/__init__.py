@@ -22,7 +22,12 @@ from analysis.calibration.evaluate import Evaluation, PairScore, evaluate
 from analysis.calibration.fit import BOUNDS, FITTED, calibrate, fit_per_pair, fit_population
 from analysis.calibration.models import PARAM_NAMES, SUMO_DEFAULTS, CFParams, simulate_follower
 from analysis.calibration.pairs import (
-    CarFollowingPair, PairBatch, load_pairs, read_pair, split_by_follower, split_in_time,
+    CarFollowingPair,
+    PairBatch,
+    load_pairs,
+    read_pair,
+    split_by_follower,
+    split_in_time,
 )
 from analysis.calibration.params_file import load_result, save_result
 from analysis.calibration.result import CalibrationResult, PairFit, ParamSpread

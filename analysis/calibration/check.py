@@ -32,20 +32,37 @@ from pathlib import Path
 
 import pandas as pd
 
-from merge_irl.atomic import write_text_atomic
-from merge_irl.units import FT_PER_M
-from scenarios.errors import SpecError
 from analysis.calibration import evaluate, load_pairs, load_result
 from analysis.calibration.compare import (
-    CAUSES, HIST_BINS, KS_TARGET, Diagnosis, VariableComparison, compare_distributions, diagnose,
+    CAUSES,
+    HIST_BINS,
+    KS_TARGET,
+    Diagnosis,
+    VariableComparison,
+    compare_distributions,
+    diagnose,
 )
 from analysis.calibration.states import (
-    GAP_QUANTILES, MAX_SPACING_FT, REAL_LANES, SPEED_RANGE_FT_S, VARIABLES, AcceptedGaps, accepted_gaps, pair_states,
+    GAP_QUANTILES,
+    MAX_SPACING_FT,
+    REAL_LANES,
+    SPEED_RANGE_FT_S,
+    VARIABLES,
+    AcceptedGaps,
+    accepted_gaps,
+    pair_states,
     table_states,
 )
 from analysis.calibration.vtypes import (
-    driver_members, every_member, resample_members, scenario_car_model, to_vtype_specs,
+    driver_members,
+    every_member,
+    resample_members,
+    scenario_car_model,
+    to_vtype_specs,
 )
+from merge_irl.atomic import write_text_atomic
+from merge_irl.units import FT_PER_M
+from scenarios.errors import SpecError
 from scenarios.loader import load_scenario
 from scenarios.spec.parse import with_overrides
 from sim.runtime.run import run_scenario

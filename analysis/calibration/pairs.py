@@ -23,6 +23,7 @@ import pandas as pd
 
 from merge_irl.units import M_PER_FT
 from scenarios.errors import SpecError
+
 STEP_S = 0.1
 _NAME = re.compile(r"^(?:ngsim_)?(?P<period>.+?)_run.*_f(?P<f>\d+)_l(?P<l>\d+)_(?P<n>\d+)$")
 #: Fewest steps a pair (or a part of one, :func:`split_in_time`) may have.

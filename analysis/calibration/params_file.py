@@ -44,11 +44,11 @@ import warnings
 from dataclasses import asdict, fields
 from pathlib import Path
 
-from merge_irl.atomic import write_text_atomic
 from analysis.calibration.classes import DriverClasses
 from analysis.calibration.models import CALIBRATION_MODELS, PARAM_NAMES, SUMO_DEFAULTS, CFParams
 from analysis.calibration.objective import DEFAULT_OBJECTIVE, OBJECTIVES
 from analysis.calibration.result import CalibrationResult, PairFit, ParamSpread
+from merge_irl.atomic import write_text_atomic
 from scenarios.errors import SpecError
 from scenarios.toml_write import dumps
 

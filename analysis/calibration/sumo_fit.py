@@ -36,13 +36,13 @@ from dataclasses import replace
 import numpy as np
 from scipy.optimize import minimize
 
-from merge_irl.spawn_guard import GUARD_HINT, importing_main_in_worker
 from analysis.calibration.fit import CONGESTED_GUESS, FITTED, bounds_of, check_fitted
 from analysis.calibration.models import CALIBRATION_MODELS, SUMO_DEFAULTS, CFParams
 from analysis.calibration.objective import DEFAULT_OBJECTIVE, OBJECTIVES
-from analysis.calibration.result import CalibrationResult, followers_of
 from analysis.calibration.pairs import CarFollowingPair
+from analysis.calibration.result import CalibrationResult, followers_of
 from analysis.calibration.sumo_replay import ReplayCase, run_sumo_pairs
+from merge_irl.spawn_guard import GUARD_HINT, importing_main_in_worker
 from scenarios.errors import ScenarioError, SpecError
 
 #: SUMO runs (parameter sets simulated over all training pairs) of a population fit by default.

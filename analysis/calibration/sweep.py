@@ -11,8 +11,6 @@ import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from analysis.sweep import Task, run_sweep
-from analysis.sweep.executors import default_workers
 from analysis.calibration import (
     CarFollowingPair,
     CFParams,
@@ -21,10 +19,12 @@ from analysis.calibration import (
     read_pair,
 )
 from analysis.calibration.fit import FITTED, assemble_result, fit_population
+from analysis.calibration.models import MODELS
 from analysis.calibration.objective import DEFAULT_OBJECTIVE
 from analysis.calibration.result import CalibrationResult
-from analysis.calibration.models import MODELS
 from analysis.calibration.sumo_fit import DEFAULT_MAX_EVALS, calibrate_sumo
+from analysis.sweep import Task, run_sweep
+from analysis.sweep.executors import default_workers
 
 
 def fit_chunk_task(config: dict, seed: int) -> dict:

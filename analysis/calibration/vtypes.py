@@ -18,8 +18,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from analysis.calibration.fit import FITTED
-from analysis.calibration.result import CalibrationResult
 from analysis.calibration.models import CALIBRATION_MODELS, EIDM_NOISE_OFF, CFParams
+from analysis.calibration.result import CalibrationResult
 
 #: Range allowed in simulation (SI units).
 SIM_RANGE: dict[str, tuple[float, float]] = {

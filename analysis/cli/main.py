@@ -16,12 +16,11 @@ import sys
 import threading
 import warnings
 
+import analysis.cli.commands as _commands
 from irl.errors import IRLError
+from merge_irl.provenance import version_line
 from scenarios.errors import ScenarioError
 from sim.errors import SimError
-
-import analysis.cli.commands as _commands
-from merge_irl.provenance import version_line
 
 #: Errors that are the user's input at fault: printed as one line, exit status 2 (SimError
 #: includes analysis' own, :class:`analysis.errors.AnalysisError`).

@@ -11,10 +11,10 @@ import math
 import numbers
 from dataclasses import dataclass
 
+from analysis.errors import AnalysisError
 from analysis.experiments.dagger import DaggerConfig
 from irl.errors import ConfigError
 from sim.merges.rules import ENCOUNTER_RULES, check_rule
-from analysis.errors import AnalysisError
 
 #: The demo's name (and policy name) of the car-following logit driver trained with DAgger.
 CF_DRIVER = "cf-dagger"

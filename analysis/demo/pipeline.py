@@ -46,36 +46,37 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from analysis.experiments.dagger import DaggerConfig, train_cf_driver
 from analysis.demo.config import CF_DRIVER, PLANNER_DRIVER, DemoConfig, check_dagger_seeds
 from analysis.demo.estimate import estimate
+from analysis.errors import AnalysisError
 from analysis.evaluation.episode import frame_from_dict, frame_to_dict
 from analysis.evaluation.evaluate import EvaluationReport, evaluate
-from irl.domains.merge.encounters import prepare_encounters
 from analysis.evaluation.policies import learned_policy
 from analysis.evaluation.report import collision_bound_line, flag_lines, human_table, report_table
+from analysis.experiments.dagger import DaggerConfig, train_cf_driver
 from analysis.experiments.learn import fit_problem, merge_config, merge_encoding, merge_features, saved_model
-from merge_irl.provenance import provenance, provenance_markdown, text_digest, write_timings
 from analysis.sweep import Task, resolve_executor, run_sweep
-from merge_irl.atomic import write_text_atomic
-from irl.errors import IRLError
-from irl.methods.registry import method_names
 from irl.domains.merge.bins import fit_quantile_bins
+from irl.domains.merge.encounters import prepare_encounters
 from irl.domains.merge.planning.decisions import encounter_decisions
 from irl.domains.merge.planning.driver import learn_planning_driver
 from irl.domains.merge.planning.model import PlannerConfig
+from irl.errors import IRLError
+from irl.methods.registry import method_names
 from irl.problems import load_problem
+from merge_irl.atomic import write_text_atomic
+from merge_irl.provenance import provenance, provenance_markdown, text_digest, write_timings
 from scenarios.loader import load_scenario
 from scenarios.spec.model import ScenarioSpec
 from sim.closed_loop.controller import Controller
-from sim.merges.demonstrators import simulate_demonstrations
-from sim.merges.rules import ENCOUNTER_RULES
-from analysis.errors import AnalysisError
-from sim.runtime.outputs import write_parquet
 from sim.drivers.learned import CarFollowingLogitPolicy
 from sim.drivers.planning import PlanningDriverPolicy
 from sim.drivers.policy import Policy
+from sim.merges.demonstrators import simulate_demonstrations
+from sim.merges.rules import ENCOUNTER_RULES
+from sim.runtime.outputs import write_parquet
 from sim.runtime.run import run_scenario
+
 
 @dataclass(frozen=True)
 class DemoResult:
@@ -178,8 +179,8 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     """
     # rerun takes about 0.8 s to import; the sweep workers that import this module for
     # encounters_task never record
-    from analysis.recording.log import RerunLogger, log_training
     from analysis.recording.files import close_recording, open_recording, recording_identity, run_token
+    from analysis.recording.log import RerunLogger, log_training
 
     t0 = time.perf_counter()
     check_dagger_seeds(config)  # before any work

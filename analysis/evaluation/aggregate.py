@@ -29,9 +29,9 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from analysis.evaluation.metrics import EpisodeMetrics
 from analysis.evaluation.distances import js_divergence
 from analysis.evaluation.intervals import poisson_rate_ci95, rate_ci95
+from analysis.evaluation.metrics import EpisodeMetrics
 
 
 @dataclass(frozen=True)

@@ -18,10 +18,10 @@ import pandas as pd
 from analysis.evaluation.metrics import EpisodeMetrics, MetricsConfig, episode_metrics
 from merge_irl.units import FT_PER_M
 from scenarios.loader import load_scenario
-from sim.closed_loop.controller import Controller
 from sim.closed_loop.config import ControllerConfig
-from sim.runtime.hooks import StepHook
+from sim.closed_loop.controller import Controller
 from sim.drivers.policy import Policy
+from sim.runtime.hooks import StepHook
 from sim.runtime.run import run_scenario
 from sim.runtime.sites import site_of
 

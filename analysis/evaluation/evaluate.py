@@ -30,31 +30,29 @@ from pathlib import Path
 
 import pandas as pd
 
-from analysis.evaluation.episode import EpisodeResult, EpisodeSpec, run_episode_task
-from analysis.evaluation.heldout_scoring import load_heldout, policy_heldout_loglik
-from analysis.evaluation.policies import check_picklable, check_unambiguous, learned_policy, with_distinct_names
-from analysis.evaluation.report import write_outputs
-from analysis.evaluation.metrics import MetricsConfig
+from analysis.errors import AnalysisError
 from analysis.evaluation.aggregate import AggregateMetrics, aggregate
 from analysis.evaluation.distances import w1_to_demos
+from analysis.evaluation.episode import EpisodeResult, EpisodeSpec, run_episode_task
+from analysis.evaluation.heldout_scoring import load_heldout, policy_heldout_loglik
 from analysis.evaluation.human_likeness import DemoCloseness, demo_close_to_c, w1_acc_jerk
-from merge_irl.provenance import provenance, text_digest, write_timings
+from analysis.evaluation.metrics import MetricsConfig
+from analysis.evaluation.policies import check_picklable, check_unambiguous, learned_policy, with_distinct_names
+from analysis.evaluation.report import write_outputs
 from analysis.sweep import Task, resolve_executor, run_sweep
-from irl.errors import ConfigError
 from irl.domains.merge.actions import N_ACTIONS
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, frames_per_step
+from irl.errors import ConfigError
 from irl.result import SavedModel
+from merge_irl.provenance import provenance, text_digest, write_timings
 from merge_irl.run_folder import check_writable
 from merge_irl.units import FRAME_S, FT_PER_M
 from scenarios.loader import load_scenario
 from scenarios.spec.parse import with_overrides
 from sim.closed_loop.config import ControllerConfig
-from analysis.errors import AnalysisError
-from sim.drivers.policy import Policy, check_policy
 from sim.drivers.baselines import baseline_drivers, check_baselines, default_baselines, left_out_baselines
 from sim.drivers.learned import LearnedPolicy
-
-
+from sim.drivers.policy import Policy, check_policy
 
 
 class DecisionStepWarning(UserWarning):

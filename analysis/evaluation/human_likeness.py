@@ -40,6 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
+
 from analysis.evaluation.distances import wasserstein
 from analysis.evaluation.intervals import rate_ci95
 from merge_irl.units import FRAME_S, FT_PER_M

@@ -21,8 +21,8 @@ import pandas as pd
 from scipy.stats import binomtest
 
 from analysis.evaluation.palette import policy_color
-from merge_irl.atomic import write_atomic
 from irl.domains.merge.actions import ACTION_NAMES, N_ACTIONS
+from merge_irl.atomic import write_atomic
 from merge_irl.units import FRAME_S, FT_PER_M
 
 #: Braking beyond 1 g (ft/s^2, negative) is beyond what tyres can do: marked implausible.

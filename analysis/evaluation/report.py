@@ -17,10 +17,10 @@ import numpy as np
 from analysis.evaluation.aggregate import AggregateMetrics
 from analysis.evaluation.human_likeness import CLOSE_GAP_M, DemoCloseness
 from analysis.evaluation.intervals import rate_ci95
-from merge_irl.provenance import provenance_markdown
 from analysis.evaluation.plots import write_plots
-from merge_irl.atomic import write_text_atomic
 from irl.domains.merge.actions import ACTION_NAMES, N_ACTIONS
+from merge_irl.atomic import write_text_atomic
+from merge_irl.provenance import provenance_markdown
 
 
 def _fmt(x, nd=2) -> str:

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from analysis.errors import AnalysisError
 from analysis.sweep import Task, resolve_executor, run_sweep
 from irl.domains.merge.actions import N_ACTIONS
 from irl.domains.merge.car_following import OBS_COLUMNS, CFDecisions, car_following_decisions
@@ -37,13 +38,12 @@ from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S
 from irl.errors import ConfigError
 from scenarios.errors import SpecError
 from scenarios.loader import load_scenario
-from scenarios.spec.parse import with_overrides
 from scenarios.spec.model import ScenarioSpec
-from sim.closed_loop.controller import Controller
+from scenarios.spec.parse import with_overrides
 from sim.closed_loop.config import ControllerConfig
-from analysis.errors import AnalysisError
-from sim.merges.expert_labels import ExpertLabel, ExpertLabels
+from sim.closed_loop.controller import Controller
 from sim.drivers.learned import CarFollowingLogitPolicy
+from sim.merges.expert_labels import ExpertLabel, ExpertLabels
 from sim.runtime.run import run_scenario
 
 

@@ -21,18 +21,17 @@ from pathlib import Path
 
 import numpy as np
 
-from merge_irl.provenance import provenance as provenance_record
-from merge_irl.provenance import write_timings
-from merge_irl.run_folder import locked
 from irl.config import IRLConfig
 from irl.domains.merge.bins import MergeBins
 from irl.errors import ConvergenceError
 from irl.fit import fit, get_method
-from irl.problems import DOMAINS, Problem, load_problem
 from irl.methods.reirl import DEFAULT_EPSILON, DEFAULT_N_BASELINE
+from irl.problems import DOMAINS, Problem, load_problem
 from irl.result import FitResult, SavedModel
-from merge_irl.run_folder import check_writable
 from irl.unvisited_states import apply_unvisited_rule, visited_states
+from merge_irl.provenance import provenance as provenance_record
+from merge_irl.provenance import write_timings
+from merge_irl.run_folder import check_writable, locked
 
 
 def merge_config(base: IRLConfig | None = None, *, beta: float | None = None, l2: float | None = None,

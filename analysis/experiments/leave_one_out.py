@@ -20,8 +20,8 @@ from analysis.experiments.learn import fit_problem
 from analysis.experiments.trials import table_problem
 from irl.baselines import TABULAR_BASELINES, TabularPolicy, baseline_leave_one_out, leave_one_out, paired_test
 from irl.config import IRLConfig
-from irl.problems import Problem
 from irl.methods.reirl import DEFAULT_EPSILON
+from irl.problems import Problem
 
 
 def method_leave_one_out(problem: Problem, method: str, config: IRLConfig, seed: int = 0,

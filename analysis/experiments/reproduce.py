@@ -26,18 +26,25 @@ The report (one row per method and baseline, its JSON file and the text table) i
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from collections.abc import Sequence
 
-from merge_irl.provenance import provenance
 from analysis.experiments.reproduce_report import ReproductionReport, _table_report
+from analysis.experiments.trials import (
+    TrialOutcome,
+    TrialSpec,
+    cached_table_problem,
+    resolve_data_dir,
+    run_trial_spec,
+    trial_seeds,
+)
 from analysis.sweep import ResultStore, SweepReport, Task, run_sweep
-from analysis.experiments.trials import TrialOutcome, TrialSpec, cached_table_problem, resolve_data_dir, run_trial_spec, trial_seeds
 from irl.config import IRLConfig
 from irl.errors import ConfigError
 from irl.methods.registry import REGISTRY, method_names
 from irl.methods.reirl import DEFAULT_EPSILON
+from merge_irl.provenance import provenance
 
 DEFAULT_TRIALS = {1: 30, 2: 30, 3: 10}
 

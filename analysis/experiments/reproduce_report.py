@@ -13,21 +13,20 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from collections.abc import Sequence
 
 import numpy as np
 
-from merge_irl.provenance import write_timings
-from analysis.sweep import TaskFailure
 from analysis.experiments.trials import TrialOutcome, cached_table_problem, config_label
-from merge_irl.atomic import write_json_atomic
+from analysis.sweep import TaskFailure
 from irl.baselines import TABULAR_BASELINES, baseline_leave_one_out, fit_baseline, paired_test
 from irl.config import IRLConfig
 from irl.methods.registry import REGISTRY
 from irl.problems import Problem
-
+from merge_irl.atomic import write_json_atomic
+from merge_irl.provenance import write_timings
 
 
 def row_label(name: str) -> str:

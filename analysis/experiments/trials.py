@@ -16,9 +16,9 @@ from __future__ import annotations
 import functools
 import math
 import os
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from collections.abc import Callable, Iterable, Sequence
 
 import numpy as np
 
@@ -26,8 +26,8 @@ from analysis.experiments.learn import fit_problem
 from irl.boltzmann import loglik_from_counts, step_counts
 from irl.config import IRLConfig
 from irl.errors import ConfigError, DemonstrationError
-from irl.problems import Problem, load_problem
 from irl.methods.reirl import DEFAULT_EPSILON
+from irl.problems import Problem, load_problem
 
 
 @dataclass(frozen=True)

@@ -29,15 +29,15 @@ from pathlib import Path
 
 import pandas as pd
 
-from merge_irl.provenance import provenance, text_digest, write_timings
 from analysis.sweep import ResultStore, SweepReport, Task, derive_seed, run_sweep, task_digest
 from analysis.sweep.store import NOT_IN_DIGEST
 from merge_irl.atomic import write_atomic
+from merge_irl.provenance import provenance, text_digest, write_timings
 from merge_irl.run_folder import locked, remove_stale_locks, remove_temporaries
 from scenarios.spec.model import ScenarioSpec
 from scenarios.spec.parse import spec_from_toml, with_overrides
-from sim.merges.rules import ENCOUNTER_RULES, check_rule
 from sim.merges.generate import RUN_REPORT, SCENARIO, generate
+from sim.merges.rules import ENCOUNTER_RULES, check_rule
 
 STORE_DIR = ".sweep-store"
 SUMMARY = "sweep.csv"

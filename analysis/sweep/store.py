@@ -12,7 +12,6 @@ from typing import Any
 from merge_irl.atomic import write_json_atomic
 from merge_irl.run_folder import remove_temporaries
 
-
 #: Dataclass field metadata that leaves a field out of the task digest (e.g. an absolute output
 #: path, so that a sweep folder moved elsewhere still finds its finished tasks).
 NOT_IN_DIGEST = {"digest": False}

@@ -7,18 +7,17 @@ import multiprocessing
 import os
 import signal
 import time
+from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from typing import Any
-from collections.abc import Callable, Iterable, Sequence
-
-from merge_irl.progress import progress_bar, progress_write
 
 from analysis.sweep.executors import ExecutorSpec, parse_executor
 from analysis.sweep.seeds import derive_seed
 from analysis.sweep.store import ResultStore, task_digest
 from analysis.sweep.worker import call_task, die_with_parent
+from merge_irl.progress import progress_bar, progress_write
 from merge_irl.spawn_guard import GUARD_HINT, importing_main_in_worker
 
 

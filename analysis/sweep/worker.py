@@ -9,8 +9,8 @@ import signal
 import threading
 import time
 import traceback
-from typing import Any
 from collections.abc import Callable
+from typing import Any
 
 #: Linux ``prctl`` option: the signal a process receives when its parent dies.
 PR_SET_PDEATHSIG = 1

@@ -23,14 +23,14 @@ from dataclasses import replace
 import numpy as np
 
 from irl.ascent import Evaluation, feature_spread, lbfgs_ascent, preconditioner
-from irl.bellman.operators import backup_operator, boltzmann_dq, mean_weights
 from irl.bellman.fixed_point import FixedPoint, boltzmann_fixed_point, iteration_fixed_point
+from irl.bellman.operators import backup_operator, boltzmann_dq, mean_weights
 from irl.bellman.stability import iteration_stability
 from irl.boltzmann import demo_counts, loglik_from_counts, loglik_grad_from_counts
 from irl.config import IRLConfig
 from irl.demonstrations import Demonstrations
-from irl.methods.faithful import FaithfulSolver
 from irl.methods.common import result_from_ascent
+from irl.methods.faithful import FaithfulSolver
 from irl.result import FitResult
 from irl.transitions import SuccessorModel, reachable_states, restrict
 from irl.unbounded import boltzmann_recession

@@ -12,8 +12,8 @@ import numpy as np
 from irl.ascent import Evaluation
 from irl.boltzmann import demo_counts, loglik_grad_from_counts
 from irl.config import IRLConfig
-from irl.methods.damped_sweeps import make_plan
 from irl.demonstrations import Demonstrations
+from irl.methods.damped_sweeps import make_plan
 
 
 class FaithfulSolver:

@@ -23,10 +23,10 @@ import numpy as np
 
 from irl.ascent import unit_step_ascent
 from irl.bellman.fixed_point import boltzmann_fixed_point
-from irl.methods.boltzmann_fit import DampedBoltzmann, fit_exact
 from irl.config import IRLConfig
 from irl.demonstrations import Demonstrations
 from irl.errors import ConfigError, ConvergenceError
+from irl.methods.boltzmann_fit import DampedBoltzmann, fit_exact
 from irl.methods.common import finish_faithful, initial_theta
 from irl.result import FitResult
 from irl.transitions import TransitionModel, checked_model, model_successors

@@ -36,10 +36,10 @@ from irl.ascent import Evaluation, newton_concave, penalised, recession_directio
 from irl.bellman.operators import average_basis
 from irl.boltzmann import log_policy, loglik_grad_from_counts, step_counts
 from irl.config import IRLConfig
-from irl.methods.damped_sweeps import compose_sweep, iterate_affine
 from irl.demonstrations import Demonstrations
-from irl.methods.faithful import PlannedSweeps
 from irl.methods.common import fit_faithful, result_from_ascent, start_model_free
+from irl.methods.damped_sweeps import compose_sweep, iterate_affine
+from irl.methods.faithful import PlannedSweeps
 from irl.result import FitResult
 from irl.transitions import SuccessorModel, model_free_successors
 from irl.unobserved_successors import free_successors

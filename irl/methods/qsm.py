@@ -22,12 +22,12 @@ import numpy as np
 
 from irl.ascent import Evaluation
 from irl.bellman.operators import mean_weights
-from irl.methods.boltzmann_fit import fit_exact
 from irl.config import IRLConfig
-from irl.methods.damped_sweeps import compose_sweep, iterate_affine, softmax_sweep
 from irl.demonstrations import Demonstrations
-from irl.methods.faithful import PlannedSweeps
+from irl.methods.boltzmann_fit import fit_exact
 from irl.methods.common import fit_faithful, start_model_free
+from irl.methods.damped_sweeps import compose_sweep, iterate_affine, softmax_sweep
+from irl.methods.faithful import PlannedSweeps
 from irl.result import FitResult
 
 

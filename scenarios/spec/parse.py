@@ -14,15 +14,6 @@ from pathlib import Path
 from typing import Any
 
 from scenarios.errors import SpecError
-from scenarios.spec.model import (
-    VEHICLE_CLASSES,
-    DemandSpec,
-    DriversSpec,
-    RoadSpec,
-    ScenarioSpec,
-    SimulationSpec,
-    VTypeSpec,
-)
 from scenarios.spec.bounds import ALLOW_KEY, BOUNDS, allow_flag, check_bound
 from scenarios.spec.fields import (
     FieldContext,
@@ -32,6 +23,15 @@ from scenarios.spec.fields import (
     number,
     positive,
     string,
+)
+from scenarios.spec.model import (
+    VEHICLE_CLASSES,
+    DemandSpec,
+    DriversSpec,
+    RoadSpec,
+    ScenarioSpec,
+    SimulationSpec,
+    VTypeSpec,
 )
 
 CAR_FOLLOW_MODELS = (

@@ -8,8 +8,8 @@ from __future__ import annotations
 from typing import Any
 
 from merge_irl.units import FT_PER_M
-from sim.runtime.hooks import FrameState
 from sim.drivers.observe import lead_of
+from sim.runtime.hooks import FrameState
 
 
 def high_brake_need(v_a: float, v_lead: float, acc_lead: float, gap: float) -> float:

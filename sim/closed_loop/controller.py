@@ -46,15 +46,15 @@ import numpy as np
 from irl.domains.merge.actions import HIGH_BRAKE, action_of
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S
 from merge_irl.units import M_PER_FT
-from sim.closed_loop.records import Control, DecisionLog
+from sim.closed_loop.actuation import brake_to_need, safe_action
 from sim.closed_loop.config import ControllerConfig
 from sim.closed_loop.handover import EXIT_MARGIN_FT, HandOver
 from sim.closed_loop.observation import control_observation
-from sim.runtime.hooks import FrameState, RunContext
-from sim.runtime.lanes import aux_lane_start_ft
-from sim.closed_loop.actuation import brake_to_need, safe_action
+from sim.closed_loop.records import Control, DecisionLog
 from sim.drivers.observe import MergeObservation, lead_of
 from sim.drivers.policy import Policy, check_policy, choose_action
+from sim.runtime.hooks import FrameState, RunContext
+from sim.runtime.lanes import aux_lane_start_ft
 from sim.runtime.schema import RAMP_LANE, RIGHTMOST_MAIN_LANE
 
 __all__ = ["Controller", "EXIT_MARGIN_FT"]

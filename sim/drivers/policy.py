@@ -26,9 +26,9 @@ sees them; the evaluation reads that number and nothing else of the policy's kin
 from __future__ import annotations
 
 from bisect import bisect_right
+from collections.abc import Hashable, MutableMapping
 from dataclasses import dataclass
 from itertools import accumulate
-from collections.abc import Hashable, MutableMapping
 from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np

@@ -20,8 +20,7 @@ from merge_irl.units import FT_PER_M, M_PER_FT
 from sim.closed_loop.controller import Controller
 from sim.closed_loop.records import Control
 from sim.drivers.formats import RewardFn
-from sim.drivers.observe import (POLICY_OBS_HIGH, POLICY_OBS_LOW, MergeObservation, lead_of,
-                                 policy_observation)
+from sim.drivers.observe import POLICY_OBS_HIGH, POLICY_OBS_LOW, MergeObservation, lead_of, policy_observation
 from sim.drivers.policy import NO_LIKELIHOOD, PolicyDefaults
 from sim.env.config import MergeEnvConfig
 from sim.env.rewards import load_reward

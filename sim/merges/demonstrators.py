@@ -31,16 +31,16 @@ from collections.abc import Sequence
 import pandas as pd
 
 from scenarios.spec.model import ScenarioSpec
-from sim.closed_loop.controller import Controller
 from sim.closed_loop.config import ControllerConfig
-from sim.merges.rules import ENCOUNTER_RULES, check_rule
-from sim.merges.encounters import Encounters, EncounterWindow, extract
-from sim.runtime.hooks import StepHook
+from sim.closed_loop.controller import Controller
 from sim.drivers.policy import SumoPolicy
+from sim.merges.encounters import Encounters, EncounterWindow, extract
+from sim.merges.rules import ENCOUNTER_RULES, check_rule
+from sim.merges.take_over import TakeOverRule
+from sim.runtime.hooks import StepHook
 from sim.runtime.run import run_scenario
 from sim.runtime.run_result import SimulationResult
 from sim.runtime.sites import site_of
-from sim.merges.take_over import TakeOverRule
 
 
 def demonstrator_hooks(encounter_rule: str) -> list[StepHook]:

@@ -39,8 +39,8 @@ from scenarios.spec.model import ScenarioSpec
 from scenarios.spec.parse import with_overrides
 from scenarios.toml_write import dumps
 from sim.merges.demonstrators import simulate_demonstrations
-from sim.merges.rules import ENCOUNTER_RULES, check_rule
 from sim.merges.encounters import Encounters, EncounterWindow
+from sim.merges.rules import ENCOUNTER_RULES, check_rule
 from sim.runtime.hooks import StepHook
 from sim.runtime.outputs import write_parquet
 from sim.runtime.run_result import SimulationResult

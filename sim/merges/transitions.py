@@ -56,8 +56,8 @@ from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, encounter_runs, frame
 from irl.errors import ConfigError
 from merge_irl.atomic import write_atomic
 from merge_irl.units import FRAME_S, M_PER_FT
-from sim.errors import SimError
 from sim.drivers.observe import CONTINUOUS_NAMES, policy_rows
+from sim.errors import SimError
 
 #: The ``format`` entry of a transitions ``.npz`` file.
 TRANSITIONS_FORMAT = "merge-irl-transitions/1"
@@ -315,8 +315,8 @@ def rollout_transitions(scenario: Any, policy: Any, seed: int, *, duration_s: fl
         SimulationError: SUMO fails to start or to step.
     """
     from scenarios.loader import load_scenario
-    from sim.closed_loop.controller import Controller
     from sim.closed_loop.config import ControllerConfig
+    from sim.closed_loop.controller import Controller
     from sim.runtime.run import run_scenario
 
     spec = load_scenario(scenario) if isinstance(scenario, (str, Path)) else scenario

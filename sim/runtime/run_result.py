@@ -5,7 +5,6 @@ served demand)."""
 from __future__ import annotations
 
 import math
-
 from dataclasses import dataclass
 
 import pandas as pd

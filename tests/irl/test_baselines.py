@@ -2,15 +2,19 @@
 
 import numpy as np
 import pytest
+from irl_testdata import random_mdp
 
-from irl.baselines import (TABULAR_BASELINES, TabularPolicy, baseline_leave_one_out, fit_baseline, leave_one_out,
-                           paired_test)
+from irl.baselines import (
+    TABULAR_BASELINES,
+    TabularPolicy,
+    baseline_leave_one_out,
+    fit_baseline,
+    leave_one_out,
+    paired_test,
+)
 from irl.demonstrations import Demonstrations
 from irl.errors import ConfigError, DemonstrationError
-
 from irl.problems import load_problem
-
-from irl_testdata import random_mdp
 
 
 def _tiny() -> Demonstrations:

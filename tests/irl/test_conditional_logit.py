@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from irl.errors import ConfigError, DemonstrationError
 from irl.methods.conditional_logit import (
     conditional_log_policy,
     conditional_loglik,
@@ -13,7 +14,6 @@ from irl.methods.conditional_logit import (
     fit_state_logit,
     penalised_nll,
 )
-from irl.errors import ConfigError, DemonstrationError
 
 
 def _samples(rng: np.random.Generator, n: int, truth: np.ndarray, n_actions: int = 5):

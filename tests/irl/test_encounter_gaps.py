@@ -7,13 +7,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from irl_testdata import encounter_table as table
 
 from irl.domains.merge import mdp as m
-from irl.domains.merge.actions import ZERO_ACTION, N_ACTIONS, actions_of
+from irl.domains.merge.actions import N_ACTIONS, ZERO_ACTION, actions_of
 from irl.domains.merge.bins import MergeBins, fit_quantile_bins
 from irl.domains.merge.car_following import car_following_decisions
 from irl.domains.merge.planning.decisions import encounter_decisions
-from irl_testdata import encounter_table as table
 
 CASES = Path(__file__).resolve().parents[1] / "data" / "cases"
 

@@ -11,8 +11,8 @@ import pytest
 from irl_testdata import random_mdp
 
 from irl.boltzmann import demo_counts, loglik_grad_from_counts
-from irl.methods.boltzmann_fit import DampedBoltzmann, ExactBoltzmann
 from irl.config import IRLConfig
+from irl.methods.boltzmann_fit import DampedBoltzmann, ExactBoltzmann
 from irl.methods.qavg import FaithfulQAvg, qavg_basis
 from irl.methods.qsm import FaithfulQSM
 from irl.transitions import model_free_successors, model_successors

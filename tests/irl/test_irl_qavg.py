@@ -7,8 +7,7 @@ import pytest
 from irl_testdata import gridworld_demos, random_mdp
 
 from irl.bellman.operators import average_basis
-from irl.boltzmann import loglik_grad_from_counts
-from irl.boltzmann import demo_counts
+from irl.boltzmann import demo_counts, loglik_grad_from_counts
 from irl.config import IRLConfig
 from irl.demonstrations import Demonstrations
 from irl.fit import fit

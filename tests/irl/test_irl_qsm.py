@@ -8,8 +8,8 @@ import pytest
 import scipy.sparse as sp
 from irl_testdata import random_mdp
 
-from irl.bellman.operators import mean_weights, weight_matrix
 from irl.bellman.fixed_point import boltzmann_fixed_point
+from irl.bellman.operators import mean_weights, weight_matrix
 from irl.bellman.stability import _top_real_eigenvalue, iteration_stability
 from irl.config import IRLConfig
 from irl.demonstrations import Demonstrations

@@ -8,16 +8,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from irl_testdata import random_mdp
 
 from analysis.experiments.learn import fit_problem
-from irl.problems import load_problem
 from irl.bellman.fixed_point import iteration_fixed_point
-from irl.boltzmann import loglik_from_counts, log_policy, demo_counts
+from irl.boltzmann import demo_counts, log_policy, loglik_from_counts
 from irl.config import IRLConfig
+from irl.problems import load_problem
 from irl.transitions import model_free_successors, model_successors
 from irl.unbounded import hardmax_q, is_recession_direction
-
-from irl_testdata import random_mdp
 
 CASES = Path(__file__).parents[1] / "data" / "cases" / "irl-separable-demos"
 METHODS = ("qavg", "qsm", "mlirl")

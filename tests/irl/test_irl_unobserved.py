@@ -9,19 +9,17 @@ import pytest
 from irl_testdata import random_mdp
 
 from analysis.cli.main import main
-from irl.problems import DOMAINS
-
 from irl.bellman.fixed_point import iteration_fixed_point
 from irl.boltzmann import demo_counts, loglik_from_counts, loglik_grad_from_counts
-from irl.methods.boltzmann_fit import ExactBoltzmann
 from irl.config import IRLConfig
 from irl.demonstrations import Demonstrations
 from irl.domains.merge.bins import MergeBins
+from irl.domains.merge.mdp import kinematic_successors
 from irl.errors import ConfigError, DemonstrationError
 from irl.fit import fit
-from irl.domains.merge.mdp import kinematic_successors
-from irl.problems import load_problem
+from irl.methods.boltzmann_fit import ExactBoltzmann
 from irl.methods.qavg import qavg_basis, qavg_q
+from irl.problems import DOMAINS, load_problem
 from irl.result import SavedModel
 from irl.unobserved_successors import fallback_successors, free_successors
 

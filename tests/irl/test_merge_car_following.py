@@ -21,10 +21,10 @@ from irl.domains.merge.car_following import (
     car_following_features,
 )
 from irl.domains.merge.cf_logit import CarFollowingLogit
-from irl.errors import ConfigError, DemonstrationError, ModelFileError
 from irl.domains.merge.mdp import resample_encounters
-from sim.drivers.observe import MergeObservation
+from irl.errors import ConfigError, DemonstrationError, ModelFileError
 from sim.drivers.learned import CarFollowingLogitPolicy
+from sim.drivers.observe import MergeObservation
 
 ACC = (-12.0, -3.0, 0.0, 3.0, 9.0)
 COL = {n: i for i, n in enumerate(CF_FEATURES)}

@@ -7,10 +7,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from irl.domains.merge.planning.ceiling import (PROB_FLOOR, Marginal, PreviousBinMarkov, ceiling_features,
-                                                 class_log_probs, fit_ceiling, previous_bins)
-from irl.domains.merge.planning.decisions import PlanningDecisions
 from irl.domains.merge.actions import actions_of
+from irl.domains.merge.planning.ceiling import (
+    PROB_FLOOR,
+    Marginal,
+    PreviousBinMarkov,
+    ceiling_features,
+    class_log_probs,
+    fit_ceiling,
+    previous_bins,
+)
+from irl.domains.merge.planning.decisions import PlanningDecisions
 from irl.errors import DemonstrationError
 
 #: One acceleration inside each paper bin (ft/s^2).

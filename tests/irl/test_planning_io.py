@@ -20,8 +20,6 @@ from irl.domains.merge.planning.replay import ReplayPair, replay
 from irl.errors import ConfigError, DemonstrationError, ModelFileError
 
 
-
-
 def pair_frame(T: int = 40, v_f: float = 50.0, gap: float = 100.0, acc: float = 0.0) -> pd.DataFrame:
     t = 0.1 * np.arange(T)
     vf = v_f + acc * t

@@ -14,8 +14,14 @@ from irl.domains.merge.planning.decisions import PlanningDecisions
 from irl.domains.merge.planning.features import CLIP_TRACK, Shape, feature_names, gap_track
 from irl.domains.merge.planning.model import PlannerConfig
 from irl.domains.merge.planning.replay import ReplayPair, replay
-from irl.domains.merge.planning.replay_fit import (ReplayFitConfig, bootstrap_intervals, build_driver,
-                                                   fit_by_replay, fit_temperature, replay_objective)
+from irl.domains.merge.planning.replay_fit import (
+    ReplayFitConfig,
+    bootstrap_intervals,
+    build_driver,
+    fit_by_replay,
+    fit_temperature,
+    replay_objective,
+)
 from irl.errors import ConfigError, DemonstrationError
 
 ACC5 = (-8.0, -2.7, 0.0, 2.7, 8.0)

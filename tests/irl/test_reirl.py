@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from irl.domains import gridworld
 from irl.config import IRLConfig
 from irl.demonstrations import Demonstrations
+from irl.domains import gridworld
 from irl.errors import ConfigError
 from irl.methods.reirl import (
     discounted_counts,

@@ -11,11 +11,11 @@ import pytest
 import scipy.sparse as sp
 from irl_testdata import gridworld_demos, random_mdp
 
-from irl.domains.merge import mdp as merge_mdp
 from irl.config import IRLConfig
 from irl.demonstrations import Demonstrations
 from irl.dense_transitions import dense_estimate
 from irl.domains import gridworld
+from irl.domains.merge import mdp as merge_mdp
 from irl.domains.merge.actions import N_ACTIONS
 from irl.domains.merge.bins import MergeBins
 from irl.domains.merge.features import feature_set, features

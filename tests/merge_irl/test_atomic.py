@@ -9,11 +9,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.evaluation.plots import _plt, _save
-from merge_irl.atomic import temporary_path, write_atomic, write_json_atomic, write_text_atomic
-from analysis.calibration.result import CalibrationResult
 from analysis.calibration.models import CFParams
 from analysis.calibration.params_file import load_result, save_result
+from analysis.calibration.result import CalibrationResult
+from analysis.evaluation.plots import _plt, _save
+from merge_irl.atomic import temporary_path, write_atomic, write_json_atomic, write_text_atomic
 from scenarios.loader import load_scenario
 from scenarios.network import build_network
 

@@ -12,9 +12,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from merge_irl import provenance as prov
 from analysis.cli.main import main
 from irl.result import SavedModel
+from merge_irl import provenance as prov
 
 ROOT = Path(__file__).resolve().parents[2]
 HAVE_GIT = shutil.which("git") is not None

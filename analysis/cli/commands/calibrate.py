@@ -144,15 +144,15 @@ def _pairs(args: argparse.Namespace, *, held_out: bool):
 
 
 def run_fit(args: argparse.Namespace) -> int:
+    from analysis.calibration import save_result
+    from analysis.calibration.class_fit import class_edges, fit_classes
+    from analysis.calibration.models import CALIBRATION_MODELS, MODELS
+    from analysis.calibration.objective import DEFAULT_OBJECTIVE
+    from analysis.calibration.pairs import pair_files
+    from analysis.calibration.sumo_fit import DEFAULT_MAX_EVALS, MIN_MAX_EVALS
     from analysis.calibration.sweep import calibrate_parallel
     from merge_irl.progress import progress_bar
     from merge_irl.run_folder import check_writable
-    from analysis.calibration import save_result
-    from analysis.calibration.class_fit import class_edges, fit_classes
-    from analysis.calibration.objective import DEFAULT_OBJECTIVE
-    from analysis.calibration.models import CALIBRATION_MODELS, MODELS
-    from analysis.calibration.pairs import pair_files
-    from analysis.calibration.sumo_fit import DEFAULT_MAX_EVALS, MIN_MAX_EVALS
     from scenarios.errors import SpecError
 
     if args.max_evals is not None and args.model in MODELS:

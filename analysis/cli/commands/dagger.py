@@ -8,7 +8,6 @@ import sys
 from pathlib import Path
 
 from analysis.cli.commands._arg_types import add_allow_implausible, non_negative_int, positive_int
-
 from irl.domains.merge.actions import ACTION_NAMES
 
 #: Action names as ``--critical`` takes them (``high_brake`` ... ``high_accel``).

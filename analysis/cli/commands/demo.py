@@ -75,8 +75,8 @@ def run(args: argparse.Namespace) -> int:
     if args.workers is not None:
         config = replace(config, workers=args.workers)
     if args.executor is not None:
-        from analysis.sweep import resolve_executor
         from analysis.errors import AnalysisError
+        from analysis.sweep import resolve_executor
 
         if args.workers is not None:
             raise AnalysisError("give --executor or --workers, not both")

@@ -58,8 +58,8 @@ def gap_lines(merges) -> list[str]:
 
 def run(args: argparse.Namespace) -> int:
     from merge_irl.atomic import write_text_atomic
-    from sim.merges.encounters import EncounterWindow, extract
     from sim.errors import TrajectoryFormatError
+    from sim.merges.encounters import EncounterWindow, extract
     from sim.ngsim.io import read_ngsim, read_trajectories
     from sim.ngsim.smooth import SmoothingConfig
     from sim.runtime.outputs import write_parquet

@@ -80,11 +80,11 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from analysis.errors import AnalysisError
     from analysis.evaluation.evaluate import evaluate
-    from sim.drivers.baselines import check_baselines, left_out_baselines
     from analysis.evaluation.thresholds import check_thresholds, metrics_from_file, not_triggered, parse_thresholds
     from sim.closed_loop.config import ControllerConfig
-    from analysis.errors import AnalysisError
+    from sim.drivers.baselines import check_baselines, left_out_baselines
 
     thresholds = parse_thresholds(args.fail_if) if args.fail_if else ()  # syntax errors before any work
     from analysis.sweep import resolve_executor
@@ -98,8 +98,8 @@ def run(args: argparse.Namespace) -> int:
     check_baselines(baselines, "--baselines")
     if not args.model and not args.cf_model and not args.driver and not args.policy and not baselines:
         raise AnalysisError("nothing to evaluate: give --model, --driver, --cf-model, --policy and/or --baselines")
-    from sim.drivers.formats import driver_policy
     from analysis.evaluation.policies import cf_policy
+    from sim.drivers.formats import driver_policy
     from sim.drivers.policy import Policy
 
     # malformed files and specs before any work

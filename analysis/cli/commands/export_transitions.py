@@ -50,10 +50,16 @@ def run(args: argparse.Namespace) -> int:
 
     from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, read_encounters
     from merge_irl.units import FRAME_S
+    from sim.merges.transitions import (
+        TransitionsError,
+        concatenate,
+        from_decisions,
+        from_encounters,
+        from_trajectories,
+        save,
+    )
     from sim.ngsim.io import read_ngsim, read_trajectories
     from sim.ngsim.smooth import SmoothingConfig
-    from sim.merges.transitions import (TransitionsError, concatenate, from_decisions, from_encounters, from_trajectories,
-                                 save)
 
     step = args.decision_step_s if args.decision_step_s is not None else DEFAULT_DECISION_STEP_S
     if not str(args.out).endswith(".npz"):

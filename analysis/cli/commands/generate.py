@@ -92,8 +92,8 @@ def run(args: argparse.Namespace) -> int:
 def _run_sweep(args: argparse.Namespace, spec) -> int:
     from pathlib import Path
 
-    from analysis.sweep.generate import FAILURES, SUMMARY, generate_many
     from analysis.sweep import parse_executor
+    from analysis.sweep.generate import FAILURES, SUMMARY, generate_many
 
     if args.seed is not None and args.seeds is not None:
         print("merge-irl generate: error: give --seed or --seeds, not both", file=sys.stderr)
@@ -124,8 +124,8 @@ def _run_sweep(args: argparse.Namespace, spec) -> int:
 def _write_tracebacks(report, path) -> str:
     """The failed runs' tracebacks to ``path`` (not the terminal: the summary's FAILED lines say
     what failed); returns the line that says where they are."""
-    from merge_irl.atomic import write_text_atomic
     from analysis.cli.main import os_error_line
+    from merge_irl.atomic import write_text_atomic
 
     text = "".join(f"--- {f.key} ({f.attempts} attempt(s)): {f.error}\n{f.traceback}\n" for f in report.failures)
     try:

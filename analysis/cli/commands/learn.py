@@ -7,8 +7,9 @@ import argparse
 from dataclasses import replace
 
 from irl.config import SOLVERS, UNOBSERVED_RULES, IRLConfig
-from irl.problems import DOMAINS
 from irl.methods.registry import method_names  # names only: irl.fit loads scipy.optimize
+from irl.problems import DOMAINS
+
 
 def add_config_arguments(p: argparse.ArgumentParser) -> None:
     """The IRL settings shared by ``learn`` and ``reproduce``."""

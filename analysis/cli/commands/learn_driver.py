@@ -48,8 +48,8 @@ def register(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from analysis.experiments.learn_driver import learn_driver, learn_driver_by_replay, resolve_fit
-    from irl.errors import DemonstrationError
     from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S
+    from irl.errors import DemonstrationError
     from merge_irl.run_folder import check_writable
 
     check_writable(args.out)  # an unwritable --out fails now, not after the fit

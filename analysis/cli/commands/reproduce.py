@@ -6,8 +6,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from analysis.cli.commands.learn import add_config_arguments, config_from_args
 from analysis.cli.commands._dask_options import add_dask_options, apply_dask_options
+from analysis.cli.commands.learn import add_config_arguments, config_from_args
 
 #: Said when ``--data`` is missing: the demonstrations are not shipped (AGPL), users fetch them.
 DATA_SOURCE = ("--data DIR is required: the authors' demonstrations are not shipped; get the folder data/ "
@@ -50,10 +50,9 @@ def register(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from analysis.experiments.reproduce import ReproduceConfig, reproduce_tables
     from analysis.experiments.reproduce_report import format_report, save_reports_json
+    from analysis.sweep import parse_executor
     from irl.errors import ConfigError
     from irl.methods.reirl import DEFAULT_EPSILON
-
-    from analysis.sweep import parse_executor
 
     if args.data is None:
         raise ConfigError(DATA_SOURCE)  # one line, exit 2 (analysis.cli.main)

@@ -24,8 +24,14 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from analysis.errors import AnalysisError
-    from analysis.recording.view import (check_recordings, find_recordings, no_viewer_advice, open_viewer,
-                                         readable_recordings, viewer_command)
+    from analysis.recording.view import (
+        check_recordings,
+        find_recordings,
+        no_viewer_advice,
+        open_viewer,
+        readable_recordings,
+        viewer_command,
+    )
 
     files = find_recordings(args.target)
     if len(files) == 1 or not Path(args.target).is_dir():

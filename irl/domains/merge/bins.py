@@ -29,7 +29,6 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from merge_irl.atomic import write_json_atomic
 from irl.domains.merge.actions import N_ACTIONS
 from irl.domains.merge.encounters import validate_encounters
 from irl.domains.merge.states import (
@@ -42,6 +41,7 @@ from irl.domains.merge.states import (
     state_index,
 )
 from irl.errors import ConfigError, DemonstrationError, EncodingError
+from merge_irl.atomic import write_json_atomic
 
 
 def _check_prev_action(prev_action, encoding: str):

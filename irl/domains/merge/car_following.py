@@ -35,9 +35,9 @@ import pandas as pd
 from irl.domains.merge.actions import N_ACTIONS, ZERO_ACTION
 from irl.domains.merge.bins import MergeBins
 from irl.domains.merge.features import ACC_SCALE_FT_S2, BIAS_FEATURES, bias_columns, persistence_columns
+from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, resample_encounters
 from irl.domains.merge.states import split_driver_state
 from irl.errors import ConfigError, DemonstrationError
-from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, resample_encounters
 from merge_irl.units import FT_PER_M
 
 #: The car-following feature names, in the order of the feature axis.

@@ -22,12 +22,12 @@ from typing import Any
 
 import numpy as np
 
-from merge_irl.atomic import write_json_atomic
-from irl.methods.conditional_logit import conditional_log_policy, conditional_loglik, fit_conditional_logit
 from irl.domains.merge.actions import N_ACTIONS
 from irl.domains.merge.car_following import CF_FEATURES, CFDecisions, GapNeed, car_following_features
-from irl.errors import ConfigError, ModelFileError
 from irl.domains.merge.mdp import frames_per_step
+from irl.errors import ConfigError, ModelFileError
+from irl.methods.conditional_logit import conditional_log_policy, conditional_loglik, fit_conditional_logit
+from merge_irl.atomic import write_json_atomic
 
 #: The ``format`` field of a car-following logit file.
 CF_FORMAT = "merge-irl-cf-logit/2"

@@ -12,16 +12,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from shared_data import PAIRS_DIR
 
 from analysis.calibration import CFParams, evaluate, fit_population, load_pairs, load_result, save_result
 from analysis.calibration.class_fit import fit_classes
 from analysis.calibration.classes import DriverClasses, initial_time_headway
-from analysis.calibration.result import CalibrationResult
 from analysis.calibration.models import simulate_follower
 from analysis.calibration.pairs import CarFollowingPair
+from analysis.calibration.result import CalibrationResult
 from scenarios.errors import SpecError
-
-from shared_data import PAIRS_DIR
 
 #: Two driver types: close followers (short tau) and distant ones (long tau), otherwise alike.
 CLOSE = CFParams(accel=1.4, decel=2.2, tau=0.8, minGap=2.0, maxSpeed=22.0)

@@ -10,12 +10,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from shared_data import PAIRS_DIR
 
+from analysis.calibration import CFParams, load_pairs, load_result
 from analysis.calibration.check import compare_distributions, pair_states, table_states
 from merge_irl.units import M_PER_FT
-from analysis.calibration import CFParams, load_pairs, load_result
-
-from shared_data import PAIRS_DIR
 
 N_PAIRS = 36  # the vendored pairs (tests/data/README.md)
 

@@ -12,7 +12,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from shared_data import PAIRS_DIR
 
 from analysis.calibration import CarFollowingPair, PairBatch, evaluate, fit_population, load_pairs, load_result

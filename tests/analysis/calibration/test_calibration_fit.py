@@ -12,19 +12,25 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from shared_data import DATA, PAIRS_DIR, require
 
 from analysis.calibration import (
-    CFParams, calibrate, driver_members, evaluate, fit_population, load_pairs, load_result,
-    save_result, split_by_follower,
+    CFParams,
+    calibrate,
+    driver_members,
+    evaluate,
+    fit_population,
+    load_pairs,
+    load_result,
+    save_result,
+    split_by_follower,
 )
 from analysis.calibration.fit import FITTED, _fd_candidates, bounds_of
-from analysis.calibration.params_file import DefaultParamsWarning
 from analysis.calibration.objective import spacing_rmse
 from analysis.calibration.pairs import CarFollowingPair, PairBatch
+from analysis.calibration.params_file import DefaultParamsWarning
 from analysis.calibration.vtypes import SIM_RANGE
 from scenarios.errors import SpecError
-
-from shared_data import DATA, PAIRS_DIR, require
 
 TRUE = CFParams(accel=1.4, decel=2.2, tau=1.3, minGap=2.0, maxSpeed=22.0)
 

@@ -11,18 +11,21 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from shared_data import PAIRS_DIR
 
-from analysis.calibration import load_result
+from analysis.calibration import load_pairs, load_result
 from analysis.calibration.check import (
-    KS_TARGET, CalibrationCheck, compare_distributions, diagnose, pair_states, run_calibration_check,
+    KS_TARGET,
+    CalibrationCheck,
+    compare_distributions,
+    diagnose,
+    pair_states,
+    run_calibration_check,
 )
 from analysis.calibration.models import EIDM_NOISE_OFF
-from analysis.calibration.vtypes import SIM_RANGE, every_member, resample_members, scenario_car_model
-from analysis.calibration import load_pairs
 from analysis.calibration.pairs import pair_files
+from analysis.calibration.vtypes import SIM_RANGE, every_member, resample_members, scenario_car_model
 from scenarios.loader import load_scenario
-
-from shared_data import PAIRS_DIR
 
 
 def _cli(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:

@@ -9,7 +9,6 @@ import textwrap
 
 import numpy as np
 import pytest
-
 from shared_data import PAIRS_DIR
 
 from analysis.calibration import PairBatch, load_pairs

@@ -19,8 +19,7 @@ from analysis.calibration import (
     load_pairs,
     simulate_follower,
 )
-from analysis.calibration.objective import OBJECTIVES
-from analysis.calibration.objective import spacing_rmse, spacing_rmspe, theil_u
+from analysis.calibration.objective import OBJECTIVES, spacing_rmse, spacing_rmspe, theil_u
 from analysis.calibration.pairs import CarFollowingPair, PairBatch
 from scenarios.errors import SpecError
 

@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 from shared_data import PAIRS_DIR
 
-from analysis.calibration.sweep import calibrate_parallel
 from analysis.calibration import BOUNDS, evaluate, load_pairs
 from analysis.calibration.pairs import pair_files
+from analysis.calibration.sweep import calibrate_parallel
 
 
 def test_parallel_per_pair_fits_cover_every_pair() -> None:

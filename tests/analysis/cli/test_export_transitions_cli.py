@@ -8,12 +8,12 @@ import pytest
 from sim_testutil import short_run
 
 from analysis.cli.main import main
-from sim.closed_loop.controller import Controller
 from sim.closed_loop.config import ControllerConfig
-from sim.merges.encounters import extract
-from sim.ngsim.write import write_ngsim_csv
+from sim.closed_loop.controller import Controller
 from sim.drivers.policy import SumoPolicy
+from sim.merges.encounters import extract
 from sim.merges.transitions import from_decisions, from_encounters, from_trajectories, load
+from sim.ngsim.write import write_ngsim_csv
 
 
 @pytest.mark.sumo

@@ -5,7 +5,6 @@ import sys
 
 import numpy as np
 import pytest
-
 from irl_testdata import encounter_table, gridworld_demos
 
 from analysis.cli.main import main

@@ -6,13 +6,12 @@ import sys
 
 import numpy as np
 import pytest
+from irl_testdata import random_mdp
 
 from analysis.cli.main import main
 from irl.boltzmann import log_policy
 from irl.io import save_npz
 from irl.result import SavedModel
-
-from irl_testdata import random_mdp
 
 
 def _learn(tmp_path, demos_dir, extra=()):

@@ -61,7 +61,6 @@ def test_the_demo_says_how_long_it_will_take():
     """One line before any work: longer on a busy machine, shorter without DAgger, in a range
     that holds the measured demos whose load held during the run."""
     from analysis.demo.estimate import CPU_PER_SIM_S, CPU_PER_SIM_S_PER_LOAD, MEASURED, estimate, simulated_seconds
-
     from scenarios.loader import load_scenario
 
     spec = load_scenario("synthetic")

@@ -9,10 +9,16 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from sim.drivers.baselines import (BASELINES, Baseline, BaselineContext, baseline_drivers, default_baselines,
-                                   register_baseline)
-from sim.errors import SimError
+from sim.drivers.baselines import (
+    BASELINES,
+    Baseline,
+    BaselineContext,
+    baseline_drivers,
+    default_baselines,
+    register_baseline,
+)
 from sim.drivers.policy import ConstantPolicy, PolicyError
+from sim.errors import SimError
 
 
 @pytest.fixture

@@ -7,17 +7,17 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.evaluation.metrics import EpisodeMetrics
 from analysis.evaluation.aggregate import aggregate, rate_ci95
 from analysis.evaluation.distances import TTC_CAP_S, ttc_to_c, w1_to_demos
+from analysis.evaluation.metrics import EpisodeMetrics
 from analysis.evaluation.thresholds import check_thresholds, parse_thresholds
 from irl.baselines import BaselinePolicy
 from irl.config import IRLConfig
 from irl.domains.merge.actions import ACTION_ACC_FT_S2
 from irl.domains.merge.bins import MergeBins
 from irl.result import SavedModel
-from sim.drivers.observe import MergeObservation
 from sim.drivers.learned import BaselineTabularPolicy, LearnedPolicy, model_flags
+from sim.drivers.observe import MergeObservation
 
 EDGES = MergeBins.assumed_authors()
 

@@ -11,8 +11,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from irl.domains.merge import mdp as merge_mdp
 from irl.config import IRLConfig
+from irl.domains.merge import mdp as merge_mdp
 from irl.domains.merge.bins import MergeBins
 from irl.domains.merge.features import FEATURE_NAMES
 from irl.result import SavedModel
@@ -228,8 +228,8 @@ def test_evaluate_cli_baselines_safety_filter_and_flag_gate(tmp_path):
 
 
 def test_view_cli_prints_recordings(tmp_path):
-    from analysis.recording.log import log_training
     from analysis.recording.files import close_recording, open_recording
+    from analysis.recording.log import log_training
 
     rec, tmp = open_recording(tmp_path / "run" / "a.rrd")
     log_training(rec, "qavg", np.array([-3.0, -2.0]), np.zeros((2, 3)))

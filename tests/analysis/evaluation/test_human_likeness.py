@@ -12,7 +12,11 @@ import pytest
 
 from analysis.evaluation.aggregate import aggregate
 from analysis.evaluation.human_likeness import (
-    demo_acc_jerk, demo_close_to_c, frame_acc_jerk, min_gaps_to_c, w1_acc_jerk,
+    demo_acc_jerk,
+    demo_close_to_c,
+    frame_acc_jerk,
+    min_gaps_to_c,
+    w1_acc_jerk,
 )
 from analysis.evaluation.intervals import poisson_rate_ci95, rate_ci95
 from analysis.evaluation.metrics import EpisodeMetrics, MetricsConfig, episode_metrics

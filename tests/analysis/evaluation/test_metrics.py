@@ -8,9 +8,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.evaluation.metrics import EpisodeMetrics, MetricsConfig, episode_metrics
 from analysis.evaluation.aggregate import aggregate
 from analysis.evaluation.distances import js_divergence
+from analysis.evaluation.metrics import EpisodeMetrics, MetricsConfig, episode_metrics
 from irl.boltzmann import heldout_loglik
 from merge_irl.units import FT_PER_M
 from sim.runtime.schema import COLUMNS

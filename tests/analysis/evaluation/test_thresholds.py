@@ -8,8 +8,14 @@ import math
 import pytest
 
 from analysis.cli.main import main
-from analysis.evaluation.thresholds import (Threshold, ThresholdError, check_file, check_thresholds, parse_threshold,
-                                 parse_thresholds)
+from analysis.evaluation.thresholds import (
+    Threshold,
+    ThresholdError,
+    check_file,
+    check_thresholds,
+    parse_threshold,
+    parse_thresholds,
+)
 
 METRICS = {
     "qavg": {"policy": "qavg", "collisions": 0, "min_ttc_s": 2.5, "travel_time_s": [12.0, 1.0],

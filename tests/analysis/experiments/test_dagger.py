@@ -18,11 +18,11 @@ from irl.domains.merge.cf_logit import CarFollowingLogit
 from irl.errors import ConfigError, DemonstrationError
 from scenarios.errors import SpecError
 from scenarios.loader import load_scenario
-from sim.closed_loop.controller import Controller
 from sim.closed_loop.config import ControllerConfig
+from sim.closed_loop.controller import Controller
+from sim.drivers.learned import CarFollowingLogitPolicy
 from sim.errors import SimError
 from sim.merges.expert_labels import ExpertLabels
-from sim.drivers.learned import CarFollowingLogitPolicy
 from sim.runtime.run import run_scenario
 
 ACC = (-12.3, -4.0, 0.0, 3.0, 8.0)

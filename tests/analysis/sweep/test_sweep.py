@@ -11,9 +11,9 @@ import time
 from pathlib import Path
 
 import pytest
+from sweep_tasks import DrawConfig, FlakyConfig, draw, flaky
 
 from analysis.sweep import ResultStore, Task, derive_seed, parse_executor, run_sweep
-from sweep_tasks import DrawConfig, FlakyConfig, draw, flaky
 
 TESTS_DIR = Path(__file__).parents[2]
 

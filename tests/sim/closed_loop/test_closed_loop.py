@@ -8,14 +8,14 @@ import libsumo
 import numpy as np
 import pytest
 
-from analysis.evaluation.episode import run_episode
 from analysis.evaluation.distances import js_divergence
+from analysis.evaluation.episode import run_episode
 from irl.domains.merge.actions import ACTION_ACC_FT_S2
 from scenarios.loader import load_scenario
-from sim.closed_loop.records import COLLISION_KINDS, RELEASE_REASONS
-from sim.closed_loop.controller import Controller
 from sim.closed_loop.config import ControllerConfig
-from sim.drivers.policy import PolicyDefaults, ConstantPolicy, SumoPolicy, UniformPolicy
+from sim.closed_loop.controller import Controller
+from sim.closed_loop.records import COLLISION_KINDS, RELEASE_REASONS
+from sim.drivers.policy import ConstantPolicy, PolicyDefaults, SumoPolicy, UniformPolicy
 
 pytestmark = pytest.mark.sumo
 

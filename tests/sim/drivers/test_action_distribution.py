@@ -12,8 +12,7 @@ import pandas as pd
 import pytest
 
 from irl.domains.merge.car_following import car_following_decisions
-from sim.drivers.action_distribution import (ObsNormalized, action_probs_fn, gaussian_bin_probs,
-                                             with_vecnormalize)
+from sim.drivers.action_distribution import ObsNormalized, action_probs_fn, gaussian_bin_probs, with_vecnormalize
 from sim.drivers.callables import CallablePolicy
 from sim.drivers.observe import policy_rows
 from sim.drivers.policy import PolicyError

@@ -11,8 +11,6 @@ import numpy as np
 import pytest
 from irl_testdata import planning_encounters
 
-from sim.drivers.formats import policy_callable
-
 from analysis.evaluation.policies import learned_policy
 from irl.config import IRLConfig
 from irl.domains.merge.actions import ACTION_ACC_FT_S2, action_of
@@ -23,8 +21,15 @@ from irl.domains.merge.features import FEATURE_NAMES
 from irl.errors import ModelFileError
 from irl.result import SavedModel
 from merge_irl.units import FT_PER_M
-from sim.drivers.callables import (TRUCK_MIN_LENGTH_FT, CallablePolicy, PolicyCallable, load_callable, parse_action,
-                                 parse_spec)
+from sim.drivers.callables import (
+    TRUCK_MIN_LENGTH_FT,
+    CallablePolicy,
+    PolicyCallable,
+    load_callable,
+    parse_action,
+    parse_spec,
+)
+from sim.drivers.formats import policy_callable
 from sim.drivers.observe import CONTINUOUS_NAMES, CONTINUOUS_UNITS, MergeObservation
 from sim.drivers.policy import PolicyError, check_policy
 

@@ -9,10 +9,10 @@ from irl.config import IRLConfig
 from irl.domains.merge.bins import MergeBins
 from irl.result import SavedModel
 from sim.closed_loop.config import ControllerConfig, ControllerError
-from sim.errors import SimError
+from sim.drivers.learned import LearnedPolicy
 from sim.drivers.observe import MergeObservation
 from sim.drivers.policy import ConstantPolicy, PolicyError, SumoPolicy, UniformPolicy, choose_action
-from sim.drivers.learned import LearnedPolicy
+from sim.errors import SimError
 
 
 def test_choose_action_samples_with_the_generator_and_mode():

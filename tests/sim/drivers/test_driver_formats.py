@@ -17,8 +17,19 @@ import pytest
 from analysis.cli.main import main
 from irl.domains.merge.actions import N_ACTIONS, actions_of
 from irl.errors import ModelFileError
-from sim.drivers.formats import (FORMATS, DriverFormat, check_role, driver_policy, driver_reward, format_of,
-                                 load_driver, policy_callable, register_format, replay_act, unregister_format)
+from sim.drivers.formats import (
+    FORMATS,
+    DriverFormat,
+    check_role,
+    driver_policy,
+    driver_reward,
+    format_of,
+    load_driver,
+    policy_callable,
+    register_format,
+    replay_act,
+    unregister_format,
+)
 from sim.drivers.observe import MergeObservation
 from sim.drivers.policy import NO_LIKELIHOOD, PolicyDefaults
 

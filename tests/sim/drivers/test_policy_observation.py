@@ -9,8 +9,14 @@ import math
 import numpy as np
 
 from irl.domains.merge.planning.features import DEFAULT_LENGTH_FT
-from sim.drivers.observe import (NO_LEAD_GAP_FT, POLICY_OBS_HIGH, MergeObservation, policy_observation, policy_rows,
-                         unfill_policy_row)
+from sim.drivers.observe import (
+    NO_LEAD_GAP_FT,
+    POLICY_OBS_HIGH,
+    MergeObservation,
+    policy_observation,
+    policy_rows,
+    unfill_policy_row,
+)
 
 
 def _obs(d_ac: float, v_ac: float, len_c: float) -> MergeObservation:

@@ -7,8 +7,15 @@ import numpy as np
 import pytest
 
 from analysis.evaluation.evaluate import evaluate
-from sim.drivers.policy import (ConstantPolicy, Policy, PolicyDefaults, PolicyError, SumoPolicy, UniformPolicy,
-                        state_independent_loglik)
+from sim.drivers.policy import (
+    ConstantPolicy,
+    Policy,
+    PolicyDefaults,
+    PolicyError,
+    SumoPolicy,
+    UniformPolicy,
+    state_independent_loglik,
+)
 
 
 @pytest.mark.parametrize("policy", [SumoPolicy(), UniformPolicy(), ConstantPolicy(0)])
@@ -152,8 +159,8 @@ def test_a_policy_without_a_decision_step_is_refused_by_the_controller():
 
 def test_the_controller_decides_at_the_policys_step_else_the_domains_default():
     from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S
-    from sim.closed_loop.controller import Controller
     from sim.closed_loop.config import ControllerConfig
+    from sim.closed_loop.controller import Controller
 
     assert Controller(UniformPolicy()).decision_step_s == DEFAULT_DECISION_STEP_S
     assert Controller(SteppedPolicy()).decision_step_s == 0.3

@@ -15,10 +15,10 @@ from gymnasium.utils.env_checker import check_env  # noqa: E402
 
 import sim.env  # noqa: E402,F401  (registers the id)
 from irl.domains.merge.actions import HIGH_BRAKE  # noqa: E402
-from sim.closed_loop.records import RELEASE_REASONS  # noqa: E402
-from sim.closed_loop.config import ControllerConfig  # noqa: E402
-from sim.env import ENV_ID, MergeEnv  # noqa: E402
 from scenarios.errors import SpecError  # noqa: E402
+from sim.closed_loop.config import ControllerConfig  # noqa: E402
+from sim.closed_loop.records import RELEASE_REASONS  # noqa: E402
+from sim.env import ENV_ID, MergeEnv  # noqa: E402
 
 pytestmark = pytest.mark.sumo
 

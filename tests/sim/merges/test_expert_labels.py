@@ -11,10 +11,10 @@ from irl.domains.merge.bins import MergeBins
 from irl.domains.merge.states import n_states
 from merge_irl.units import M_PER_FT
 from scenarios.loader import load_scenario
-from sim.closed_loop.controller import Controller
 from sim.closed_loop.config import ControllerConfig
-from sim.merges.expert_labels import ExpertLabels
+from sim.closed_loop.controller import Controller
 from sim.drivers.learned import LearnedPolicy
+from sim.merges.expert_labels import ExpertLabels
 from sim.runtime.run import run_scenario
 
 

@@ -11,7 +11,6 @@ import time
 import numpy as np
 import pandas as pd
 import pytest
-
 from sim_testutil import default_sigint
 
 from irl.domains.merge.bins import MergeBins

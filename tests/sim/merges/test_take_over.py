@@ -11,12 +11,12 @@ from sim_testutil import short_run
 from test_encounters import make_table, straight
 
 from analysis.demo.config import DemoConfig
-from sim.closed_loop.controller import Controller
 from sim.closed_loop.config import ControllerConfig
+from sim.closed_loop.controller import Controller
+from sim.drivers.policy import SumoPolicy
 from sim.merges.demonstrators import demonstrator_hooks, encounters_of_run
 from sim.merges.encounters import EncounterWindow, extract
 from sim.merges.generate import generate
-from sim.drivers.policy import SumoPolicy
 from sim.merges.take_over import TakeOverRule
 
 FR = range(10, 41)

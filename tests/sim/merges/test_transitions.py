@@ -17,14 +17,23 @@ from sim_testutil import cache_env, short_run
 from irl.domains.merge.actions import actions_of
 from irl.domains.merge.mdp import ShortEncounterWarning
 from merge_irl.units import M_PER_FT
-from sim.closed_loop.controller import Controller
 from sim.closed_loop.config import ControllerConfig
-from sim.merges.encounters import extract
+from sim.closed_loop.controller import Controller
 from sim.drivers.observe import CONTINUOUS_NAMES
 from sim.drivers.policy import SumoPolicy
+from sim.merges.encounters import extract
 from sim.merges.take_over import TakeOverRule
-from sim.merges.transitions import (Transitions, TransitionsError, concatenate, from_decisions, from_encounters, load,
-                             rollout_transitions, save, to_imitation_trajectories)
+from sim.merges.transitions import (
+    Transitions,
+    TransitionsError,
+    concatenate,
+    from_decisions,
+    from_encounters,
+    load,
+    rollout_transitions,
+    save,
+    to_imitation_trajectories,
+)
 
 
 def encounter_table(sizes=(10, 7, 6), seed=0) -> pd.DataFrame:

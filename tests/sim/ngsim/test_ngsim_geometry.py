@@ -7,10 +7,9 @@ import tomllib
 from pathlib import Path
 
 import pytest
+from shared_data import GEOMETRY_DIR
 
 from tools.derive_i80_geometry import derive, to_toml
-
-from shared_data import GEOMETRY_DIR
 
 ROOT = Path(__file__).resolve().parents[3]
 SHIPPED = ROOT / "scenarios" / "data" / "i80_geometry.toml"

@@ -43,8 +43,8 @@ def fingerprint(seed: int) -> dict[str, str]:
     """sha256 of the table, SUMO ids, events, auxiliary lane start, decisions and control episodes
     of a ``DURATION_S`` synthetic run with a uniform-random driver (sampled: the generator path)."""
     from scenarios.loader import load_scenario
-    from sim.closed_loop.controller import Controller
     from sim.closed_loop.config import ControllerConfig
+    from sim.closed_loop.controller import Controller
     from sim.drivers.policy import UniformPolicy
     from sim.runtime.run import run_scenario
 

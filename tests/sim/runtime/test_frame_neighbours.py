@@ -10,8 +10,8 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sim.runtime.hooks import FrameState
 from sim.drivers.observe import lag_of, lead_of
+from sim.runtime.hooks import FrameState
 from sim.runtime.lanes import lane_numbers
 
 

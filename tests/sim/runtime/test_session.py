@@ -87,8 +87,8 @@ def test_a_scenario_declares_its_lane_coding_through_its_site_profile(tmp_path):
     from dataclasses import replace
 
     from scenarios.spec.parse import spec_from_toml
-    from sim.closed_loop.controller import Controller
     from sim.closed_loop.config import ControllerConfig
+    from sim.closed_loop.controller import Controller
     from sim.drivers.policy import ConstantPolicy
     from sim.runtime.run import run_scenario
 

@@ -22,8 +22,8 @@ import numpy as np
 import pandas as pd
 
 from irl.domains.merge.actions import N_ACTIONS, actions_of
-from irl.domains.merge.car_following import OBS_COLUMNS, car_following_decisions
 from irl.domains.merge.bins import MergeBins
+from irl.domains.merge.car_following import OBS_COLUMNS, car_following_decisions
 from irl.domains.merge.mdp import (
     DEFAULT_DECISION_STEP_S,
     FrameGapWarning,

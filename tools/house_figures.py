@@ -3,7 +3,7 @@
 Rows: the line count of ``evaluate()``; functions over 100 lines in the packages; functions over
 complexity 10 (ruff C901) and how many of them are outside ``tools/complexity_legacy.txt``; import
 circles; CLI options with two meanings; names re-exported by non-``__init__`` modules; register APIs;
-files citing the design or reference notes; commit-subject lengths since the habit gate.
+files citing the design or reference notes; issue numbers; commit-subject lengths since the habit gate.
 
 Usage: ``python tools/house_figures.py`` from the checkout (needs ruff and git); prints one
 ``figure | value | detail`` row per figure. Read-only: it writes nothing."""
@@ -211,6 +211,16 @@ def note_citations() -> tuple[int, str]:
     return len(found), ", ".join(found)
 
 
+ISSUE_NUMBER = re.compile(r"\b[Ii]ssues?[ -]#?\d+")
+
+
+def issue_numbers() -> tuple[str, str]:
+    """Mentions of an issue by its number, in the forms ``tests/test_habits.py`` refuses."""
+    hits = {_rel(p): len(ISSUE_NUMBER.findall(p.read_text(encoding="utf-8"))) for p in _citation_files()}
+    hits = {p: n for p, n in hits.items() if n}
+    return f"{sum(hits.values())} in {len(hits)} files", ", ".join(f"{p} ({n})" for p, n in hits.items())
+
+
 def _subject_lengths(*revisions: str) -> list[int]:
     out = subprocess.run(["git", "log", "--format=%s", *revisions], cwd=ROOT, capture_output=True, text=True,
                          check=True).stdout
@@ -242,6 +252,7 @@ FIGURES: tuple[tuple[str, Callable[[], tuple[object, str]]], ...] = (
     ("re-exports from non-__init__ modules", re_exports),
     ("register APIs", register_apis),
     ("files citing the design/reference notes", note_citations),
+    ("issue numbers in code and docs", issue_numbers),
     ("commit subjects since the gate", subject_lengths),
 )
 

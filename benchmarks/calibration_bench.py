@@ -1,5 +1,5 @@
 """Benchmark: `merge-irl calibrate fit` of this checkout beside a baseline checkout (speed and
-held-out quality), against issue 14's targets.
+held-out quality), against the calibration targets.
 
     python -m benchmarks.calibration_bench [--baseline /work/main] [--pairs DIR] [--holdout 0.3]
         [--seed 0] [--models idm krauss eidm] [--workers N] [--out-dir DIR] [--reuse]

@@ -10,7 +10,7 @@ Side by side on the same scenario, network, routes and seed:
 * ``rerun logging alone``: the wall time spent inside the logger's hook calls, per
   vehicle-frame.
 
-Targets (DESIGN.md section 7): closed loop at most 3x the bare binary; logging alone under
+Targets: closed loop at most 3x the bare binary; logging alone under
 10 microseconds per vehicle-frame. Run: ``python -m benchmarks.closed_loop_bench``.
 """
 

@@ -7,7 +7,7 @@ Same scenario, seed and simulated time, Zero (action 2) at every decision:
 * ``env``: :class:`sim.env.MergeEnv` stepped by a Python loop (``reset(seed)`` once, then ``reset()``
   continues the same SUMO run to its next take-over), one controlled car at a time;
 * ``multi-agent (ParallelEnv)``: :class:`sim.env.multi_agent.MergeParallelEnv` over the same run, every
-  controlled lag car an agent, Zero for each (issue 36's target: decisions per second at least 1.3x
+  controlled lag car an agent, Zero for each (target: decisions per second at least 1.3x
   the single-agent environment's, within 1.1x of the closed loop per decision);
 * ``env x1`` / ``env x2 (AsyncVectorEnv)``: one and two worker processes, one SUMO each (target:
   two at least 1.6x one's steps per second on 2 idle cores).
@@ -18,7 +18,7 @@ per decision; per simulated second: wall time. The closed loop controls every me
 so decides more often per simulated second than the environment, which drives one A at a time
 and runs SUMO alone between take-overs (in ``reset``): per decision, that time counts against
 the environment; per simulated second it does not.
-Target (issue 28): the environment's overhead per decision at most 1.3x the closed loop's.
+Target: the environment's overhead per decision at most 1.3x the closed loop's.
 Run: ``python -m benchmarks.env_step_bench [--sim-s 600] [--seed 1] [--repeat 3]``.
 """
 

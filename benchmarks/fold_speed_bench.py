@@ -1,6 +1,6 @@
 """Per-fold time of a Boltzmann-backup fit (MLIRL or Q-SM) on the authors' NGSIM data, before
-and after a code change, side by side in one run (issue 11: MLIRL and Q-SM fast enough at the
-driver encoding's 6250 states). Prints figures and ratios; not a timed test.
+and after a code change, side by side in one run (the target: MLIRL and Q-SM fast
+enough at the driver encoding's 6250 states). Prints figures and ratios; not a timed test.
 
     python benchmarks/fold_speed_bench.py /work/shared/data/railusm/merge_ngsim \\
         [--base main] [--method mlirl|qsm] [--gamma 0.9] [--folds 0,5] [--paper-check]

@@ -8,7 +8,7 @@ second, and the scaling when the demand or the duration is doubled::
 The bare binary writes FCD (position, speed, lane, acceleration) for the recorded period
 (``--device.fcd.begin`` = warm-up); ours is timed in-process (``sim.merges.generate.generate``) and
 as the ``merge-irl generate`` command (which adds Python start-up and imports). The last
-column compares ours with the bare binary writing nothing (DESIGN.md section 7: at most 2x).
+column compares ours with the bare binary writing nothing (target: at most 2x).
 """
 
 from __future__ import annotations

@@ -12,7 +12,7 @@
    fork, so it cannot separate the children); an import-only child gives the baseline.
 3. Times the population fit of the IDM calibration on the real pairs (``--pairs``).
 
-Targets (issue 4): >= 1 million rows/s, peak memory < 1/4 of pandas'.
+Targets: >= 1 million rows/s, peak memory < 1/4 of pandas'.
 """
 
 from __future__ import annotations

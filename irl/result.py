@@ -247,7 +247,8 @@ class SavedModel:
 
 
 def _driver_fields(path: Path, data: dict) -> dict[str, Any]:
-    """The issue-11 fields, with the defaults of files written before them."""
+    """The driver fields (state encoding, decision step, action accelerations, ...), with the
+    defaults of files written before them."""
     out: dict[str, Any] = {}
     enc = data.get("state_encoding", "paper")
     if enc not in STATE_ENCODINGS:

@@ -1,4 +1,4 @@
-"""One's own calibration as a scenario, scored on drivers the fit never saw (issue 29, item 11).
+"""One's own calibration as a scenario, scored on drivers the fit never saw.
 
 For each split by follower (``--seeds``): ``merge-irl calibrate fit --holdout F --seed S`` with the
 defaults (plus ``--fit-args``), ``merge-irl calibrate preset`` of that fit (scenario ``--scenario``,

@@ -1,4 +1,4 @@
-"""Study: the synthetic closed-loop target of issue 11, printed side by side (not timed).
+"""Study: the synthetic closed-loop target, printed side by side (not timed).
 
 One run of the whole pipeline (:func:`analysis.demo.pipeline.run_demo`): SUMO's drivers of the
 scenario generate the training encounters (``--train-seeds``, at least 3 runs) and

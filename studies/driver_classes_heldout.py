@@ -1,5 +1,5 @@
 """Study: one population vector per driver class, the class read from the pair's initial time
-headway. Does it bring held-out drivers nearer issue 14's 0.8 target than one vector for all?
+headway. Does it bring held-out drivers nearer the 0.8 target for unseen drivers than one vector for all?
 
     python -m studies.driver_classes_heldout [--pairs DIR] [--holdout 0.3] [--seeds 0 1 2]
         [--classes 1 3 5] [--model idm]

@@ -1,5 +1,5 @@
 """Leave-one-trajectory-out log-likelihood on the authors' NGSIM merge data, paper vs driver
-features, beside the baselines (issue 11 target: the best method beats ``marginal`` by >= 300
+features, beside the baselines (target: the best method beats ``marginal`` by >= 300
 nats with ``--features driver``, at a real discount). Prints a table; not a timed test.
 
     python -m studies.driver_loo /work/shared/data/railusm/merge_ngsim \\

@@ -1,4 +1,4 @@
-"""Diagnostic for issue 11: do the learned driver's collisions come from states the demonstrators
+"""Diagnostic for the closed-loop collisions: do the learned driver's collisions come from states the demonstrators
 never visit? DAgger with SUMO's car-following model as the expert (printed, not timed).
 
 The default learned driver (Q-Avg at gamma 0 on the driver features: a conditional logit over

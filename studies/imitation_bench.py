@@ -1,4 +1,4 @@
-"""Study: the ``imitation`` library's learners beside ours, in the same closed loop (issue 28, item 5).
+"""Study: the ``imitation`` library's learners beside ours, in the same closed loop.
 
 One run, side by side, on the demo's synthetic demonstrations (:func:`analysis.demo.pipeline.run_demo`:
 training runs ``--train-seeds``, ``--heldout-runs`` held-out runs from seed 201; or ``--demo`` a

@@ -1,5 +1,5 @@
-"""Study: the planning driver's held-out likelihood beside a history-free ceiling (issue 34, item 3:
-"likelihood scored fairly").
+"""Study: the planning driver's held-out likelihood beside a history-free ceiling (the
+likelihood scored fairly).
 
 Per decision (nats; the paper's 5 action bins of 0.3 s decisions) on the held-out groups of a
 split by group (seed ``--seed``, fraction ``--holdout``), it prints the log-likelihood of:

@@ -1,5 +1,5 @@
-"""Study: a driver learned from real car-following pairs, against the targets of issue 34 on the
-same pairs, side by side in one run.
+"""Study: a driver learned from real car-following pairs, against the pair-trained driver's targets
+on the same pairs, side by side in one run.
 
     python -m studies.pair_driver_target --driver pairs-replay.json \
         --pairs ../shared/data/ngsim_i80_car_following --params cal-classes3.toml --holdout 0.3 --seed 0

@@ -1,4 +1,4 @@
-"""Study: the planning driver's targets (issue 27), printed side by side in one run (not timed).
+"""Study: the planning driver's targets, printed side by side in one run (not timed).
 
 1. **Synthetic closed loop, demonstrations only.** :func:`analysis.demo.pipeline.run_demo` makes
    the training encounters (seeds ``--train-seeds``) and ``--heldout-runs`` held-out runs and

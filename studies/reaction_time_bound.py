@@ -1,5 +1,5 @@
 """Study: does a driver reaction time (SUMO's ``actionStepLength``) let one population vector
-reach issue 14's 0.8 target on held-out drivers? An in-sample upper bound.
+reach the 0.8 target on held-out drivers? An in-sample upper bound.
 
     python -m studies.reaction_time_bound [--pairs DIR] [--holdout 0.3] [--seed 0]
         [--model idm] [--steps 1 3 5 10 15] [--objective median both] [--maxiter 100] [--popsize 12]

@@ -1,5 +1,5 @@
 """Study: how well does a driver's *own* calibration predict the rest of its trajectory? The
-scale against which issue 14's 0.8 target for unseen drivers can be read.
+scale against which the 0.8 target for unseen drivers can be read.
 
     python -m studies.within_driver_bound [--pairs DIR] [--holdout 0.3] [--seeds 0 1 2]
         [--fraction 0.5] [--classes 3] [--model idm]
@@ -11,7 +11,7 @@ pairs, as median / mean spacing RMSE over pairs, each a ratio to SUMO's defaults
 (the same replica):
 
 * ``population``: the product's population fit on the *training* followers (``log`` objective),
-  the calibration issue 14 asks to generalise to unseen drivers;
+  the calibration meant to generalise to unseen drivers;
 * ``classes``: one population vector per class of the initial time headway (``--classes``),
   the class read at the start of the rest;
 * ``own, 5 parameters``: each held-out driver's own fit (``fit.fit_per_pair``, the five

@@ -1,4 +1,4 @@
-"""The README's CI recipe runs as written and passes on a fresh checkout (issue 29, item 10).
+"""The README's CI recipe runs as written and passes on a fresh checkout.
 
 The commands are read out of README.md (the fenced shell block that gates with
 ``check-metrics --fail-if``), so the README and this test cannot drift apart; only the

@@ -153,8 +153,8 @@ def test_the_readme_tables_have_short_cells():
 
 
 def test_the_closed_loop_page_leads_with_what_holds_now():
-    """The first section is the current table with its command and its date; history is on the
-    changelog page, which the table of contents lists."""
+    """The first section is the current table with its command and its date; the dated
+    measurements are the page's last section, the changes the changelog page's (in the contents)."""
     text = (ROOT / "docs" / "closed-loop.md").read_text(encoding="utf-8")
     first = text.split("\n## ", 2)[1]
     assert first.startswith("What holds now")
@@ -165,6 +165,7 @@ def test_the_closed_loop_page_leads_with_what_holds_now():
     assert "changelog" in (ROOT / "docs" / "index.md").read_text(encoding="utf-8")
     assert text.splitlines().index("## What holds now") < 10  # the answer first, not at line 745
     assert not re.search(r"^## .*(20\d\d-\d\d-\d\d)", text, re.MULTILINE)  # no dated log sections
+    assert re.findall(r"^## .*", text, re.MULTILINE)[-1] == "## Measurement history"  # history last
 
 
 @pytest.fixture(scope="session")

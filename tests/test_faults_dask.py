@@ -1,5 +1,5 @@
-"""``--executor dask://HOST:PORT`` / ``tls://HOST:PORT`` against real faults on loopback (issue 29,
-items 1 and 16): a real ``dask scheduler`` whose only worker (no nanny) is killed, one with no
+"""``--executor dask://HOST:PORT`` / ``tls://HOST:PORT`` against real faults on loopback:
+a real ``dask scheduler`` whose only worker (no nanny) is killed, one with no
 worker, a plain TCP listener that never answers, a port answering HTTP 400, and a TLS scheduler
 with self-signed certificates made here. Every wait is bounded (subprocess timeouts)."""
 
@@ -322,7 +322,7 @@ def test_tls_scheduler_with_self_signed_certificates(tmp_path):
         plain = parse_executor(address.replace("tls://", "dask://"))
         with pytest.raises(DaskUnavailable, match=address.replace("tls://", "tcp://")):
             run_sweep(tasks, progress=False, executor=replace(plain, dask=replace(quick, connect_timeout_s=3)))
-        # a certificate from another authority: which side refused which file (issue 35, item 5)
+        # a certificate from another authority: which side refused which file
         (tmp_path / "other").mkdir()
         other, other_key = _self_signed(tmp_path / "other")
         with pytest.raises(DaskUnavailable, match=r"TLS: this client refused the scheduler's certificate "
@@ -354,7 +354,7 @@ def test_tls_from_the_command_line(tmp_path):
 
 @pytest.mark.parametrize("executor", ["dask://127.0.0.1:1", "process:1", None])
 def test_tls_files_without_a_tls_address_are_refused_at_once(tmp_path, executor):
-    """issue 35, item 5: --dask-tls-* with dask:// waited 121 s despite a 10 s connect timeout."""
+    """--dask-tls-* with dask:// waited 121 s despite a 10 s connect timeout."""
     cert, key = _self_signed(tmp_path)
     out = tmp_path / "sweep"
     cmd = _generate(out, executor or "serial", "--dask-tls-cert", str(cert), "--dask-tls-key", str(key))
@@ -372,7 +372,7 @@ def test_tls_files_without_a_tls_address_are_refused_at_once(tmp_path, executor)
 
 
 def test_a_killed_scheduler_is_named_and_what_finished_is_kept(tmp_path):
-    """issue 35, item 5: the scheduler killed mid-sweep was reported as a dead worker with the
+    """The scheduler killed mid-sweep was reported as a dead worker with the
     ``if __name__ == "__main__"`` advice; now: the scheduler went away, finished results stored."""
     store = tmp_path / "store"
     tasks = [Task("fast", draw, DrawConfig(n=2)), Task("slow", draw, DrawConfig(n=2, sleep_s=30.0))]

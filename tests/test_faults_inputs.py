@@ -1,4 +1,4 @@
-"""Inputs that must be refused (issue 13, item 6): negative NGSIM speeds, lane numbers below 1,
+"""Inputs that must be refused: negative NGSIM speeds, lane numbers below 1,
 implausible road sizes, and a 2 GB sparse file refused with bounded memory."""
 
 from __future__ import annotations
@@ -90,7 +90,7 @@ def test_huge_sparse_file_is_refused_with_bounded_memory(tmp_path, table):
     ("[simulation]\nduration_s = 1e9\n", r"simulation\.duration_s: 1e\+09 s is implausible; expected 0 to 21600 s"),
 ])
 def test_absurd_but_parseable_settings_are_refused_unless_meant(text, field):
-    """Issue 29, item 5: bounds with the field named, and a way past them for those who mean it."""
+    """Scenario bounds with the field named, and a way past them for those who mean it."""
     with pytest.raises(SpecError, match=r"^x\.toml: " + field) as e:
         spec_from_toml(f'name = "x"\n{text}', source="x.toml")
     assert "\n" not in str(e.value) and "allow_implausible = true" in str(e.value)

@@ -1,5 +1,5 @@
 """Output faults, injected for real: concurrent writers, kills mid-run, leftovers, read-only and
-full file systems, paths that are files (issue 13, items 2, 3 and 7)."""
+full file systems, paths that are files."""
 
 from __future__ import annotations
 
@@ -180,7 +180,7 @@ def test_generate_on_a_full_disk_fails_in_one_line_and_publishes_nothing(full_fs
 
 
 def test_generate_sweep_on_a_full_disk_names_the_path_and_prints_no_traceback(full_fs, sim_env):
-    """Issue 29, item 6: the FAILED line names the file the full disk refused; no traceback."""
+    """The FAILED line names the file the full disk refused; no traceback."""
     out = full_fs / "sweep"
     proc = _cli("generate", "--scenario", "synthetic", "--seeds", "1", "--duration", "90", "--executor", "serial",
                 "--no-progress", "--out", str(out), env=sim_env)
@@ -286,7 +286,7 @@ def test_second_evaluate_into_the_same_out_fails_at_once(tmp_path, sim_env):
     assert not out.exists()
 
 
-# -- learn: one --out, one writer (issue 29, item 4) --------------------------------------------
+# -- learn: one --out, one writer --------------------------------------------------------------
 
 def test_second_learn_into_the_same_out_fails_at_once(tmp_path):
     sys.path.insert(0, str(Path(__file__).parent))

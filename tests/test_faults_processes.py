@@ -1,5 +1,5 @@
 """Process faults, injected for real: a sweep parent killed or interrupted; its workers must
-die with it, what finished must be stored (issue 13, items 1 and 4)."""
+die with it, what finished must be stored."""
 
 from __future__ import annotations
 
@@ -132,8 +132,7 @@ def test_generate_sweep_sigterm_stops_workers_and_publishes_nothing_half_done(tm
 
 def test_pool_worker_killed_like_the_oom_killer_is_retried_and_said(tmp_path, capsys):
     """SIGKILL of a process-pool worker (what the out-of-memory killer sends) mid-task: the task
-    runs again and succeeds, and a line on stderr names it, the signal and the rerun (issue 29,
-    item 6)."""
+    runs again and succeeds, and a line on stderr names it, the signal and the rerun."""
     from sweep_tasks import SleepConfig, mark_then_sleep
 
     markers = tmp_path / "markers"
@@ -168,7 +167,7 @@ def test_pool_worker_killed_like_the_oom_killer_is_retried_and_said(tmp_path, ca
 
 def test_failed_sweep_prints_no_traceback_after_its_lines(tmp_path):
     """``generate`` with a run that fails on every attempt (its run folder's path is a file): the
-    FAILED line, the retry said, the tracebacks in a file, none on stderr (issue 29, item 6)."""
+    FAILED line, the retry said, the tracebacks in a file, none on stderr."""
     out = tmp_path / "sweep"
     out.mkdir()
     (out / "synthetic-seed1").write_text("a file where the run's folder goes")

@@ -1,4 +1,4 @@
-"""Real data as users bring it (issue 12): the field cases of ``tests/data/cases/`` (made-up
+"""Real data as users bring it: the field cases of ``tests/data/cases/`` (made-up
 inputs in public formats, with the expected values of their README) and inputs of the same
 kinds built here: several recordings in one file, lane coding per site, the loader's report on
 the command line, invisible bytes, units, SUMO's teleports and unserved demand."""

@@ -12,7 +12,7 @@ import numpy as np
 from analysis.calibration.states import VARIABLES
 
 HIST_BINS = 40
-#: Issue 14's target: KS distance at most this for each variable.
+#: The calibration target: KS distance at most this for each variable.
 KS_TARGET = 0.15
 
 

@@ -1,6 +1,6 @@
 """How much signal a demonstrator gives: how often A's action bin changes between decisions.
 
-Issue 11 (cause 3): Krauss drivers with sigma 0.5 change action bin in 63 % of 0.1 s frames and
+Krauss drivers with sigma 0.5 change action bin in 63 % of 0.1 s frames and
 sit at the braking cap in 11 %; the authors' NGSIM humans change bin in 26 % of frames. A
 learner cannot tell such noise from a response to the state.
 

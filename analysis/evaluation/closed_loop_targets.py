@@ -1,4 +1,4 @@
-"""Issue 11's closed-loop targets for one learned driver, judged on an evaluation's aggregates.
+"""The closed-loop targets for one learned driver, judged on an evaluation's aggregates.
 
 Four checks (:func:`target_checks`), each a line of text and whether it is met:
 
@@ -36,7 +36,7 @@ def floor_driver(encounter_rule: str) -> str:
 
 
 def target_checks(name: str, aggs: Mapping[str, AggregateMetrics], floor: str = "sumo") -> list[tuple[str, bool]]:
-    """Issue 11's closed-loop targets for the driver ``name``: ``[(text, met)]``, four pairs in
+    """The closed-loop targets for the driver ``name``: ``[(text, met)]``, four pairs in
     the order of the module docstring, the Wasserstein ones against the driver ``floor``
     (:func:`floor_driver`). A NaN figure fails its check.
 

@@ -1,4 +1,4 @@
-"""Human likeness of closed-loop driving beside the demonstrations (issue 34, item 4): the
+"""Human likeness of closed-loop driving beside the demonstrations: the
 emergency-braking rate per controlled A, the share of As that came within 2 m of their lead car C,
 and the Wasserstein-1 distances of A's per-frame acceleration and jerk.
 

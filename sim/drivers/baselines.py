@@ -108,7 +108,7 @@ class Baseline:
     help: str = ""
 
 
-#: The baselines, by name, in their order (:func:`register_baseline`): issue 11's (SUMO's own
+#: The baselines, by name, in their order (:func:`register_baseline`): the closed-loop ones (SUMO's own
 #: driver, uniform random, and the tabular baselines of :mod:`irl.baselines` fitted on the
 #: training demonstrations) by default, and two references on request.
 BASELINES: dict[str, Baseline] = {}

@@ -52,7 +52,7 @@ class LearnedPolicy(PolicyDefaults):
             the one merge-state encoder; see :meth:`from_model`).
         name: label (e.g. the method).
         action_acc_ft_s2: ``[5]`` acceleration applied for each action (ft/s^2): the model's
-            conditional mean of each action bin in its training data (cause 8 of issue 11);
+            conditional mean of each action bin in its training data (bin midpoints overstated braking);
             the bin midpoints for models that do not save it.
         decision_step_s: the step the demonstrations were resampled to (s); the controller
             decides this often unless told otherwise.

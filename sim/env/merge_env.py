@@ -149,8 +149,8 @@ class MergeEnv(gym.Env):
         take-over (a new run, seeded from the environment's generator, when none is left).
 
         Raises:
-            ValueError: ``options`` holds any key: this environment reads none (issue 35: they
-                were ignored silently); the scenario, reward and driving are set when it is made.
+            ValueError: ``options`` holds any key: this environment reads none (they used to be
+                ignored silently); the scenario, reward and driving are set when it is made.
             sim.errors.SimulationError: SUMO fails, or ``MAX_EMPTY_RUNS`` runs in a row have no take-over.
         """
         if options:

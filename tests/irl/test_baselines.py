@@ -86,7 +86,7 @@ def test_tabular_policy_scores_a_state_policy():
 
 
 def test_authors_ngsim_leave_one_out_figures(railusm):
-    """Issue 11's figures on the authors' 12 trajectories: marginal -1529.8, markov -907.5."""
+    """The published baseline figures on the authors' 12 trajectories: marginal -1529.8, markov -907.5."""
     d = load_problem("merge", railusm / "merge_ngsim").demos
     totals = {name: float(baseline_leave_one_out(name, d).sum()) for name in TABULAR_BASELINES}
     assert totals["uniform"] == pytest.approx(1197 * np.log(1 / 5))

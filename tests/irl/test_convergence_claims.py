@@ -1,5 +1,5 @@
-""""Converged" only where the optimality check passes on the problem as given (issue 35, item
-7): a feature in units 1e14 times too large or 1e-7 times too small gives every method the fit of
+""""Converged" only where the optimality check passes on the problem as given: a
+feature in units 1e14 times too large or 1e-7 times too small gives every method the fit of
 the unit-scale problem, mapped back (no weights near 1e14, no stop at the start), and no method
 claims convergence at a point below the optimum; a diverged or unconverged model taken as the
 environment's reward is warned about."""

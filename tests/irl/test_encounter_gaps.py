@@ -1,4 +1,4 @@
-"""Resampling encounters by time where a recording has missing frames (issue 29, item 2)."""
+"""Resampling encounters by time where a recording has missing frames."""
 
 from __future__ import annotations
 

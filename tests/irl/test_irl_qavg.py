@@ -154,7 +154,7 @@ def test_terminal_pairs_take_their_reward():
 
 @pytest.mark.parametrize("scales", [(1e6, 1e-6), (1e4, 1e-4), (1e3, 1.0)])
 def test_features_on_very_different_scales_reach_the_same_optimum(scales):
-    """issue 29, item 7: with one feature in huge units and one in tiny units, Q-Avg reported
+    """With one feature in huge units and one in tiny units, Q-Avg reported
     "optimum reached" 0.22 nats below the optimum (or stopped at its iteration cap); the fit
     must be the unscaled fit, mapped back, and the optimum checked on the original problem."""
     from dataclasses import replace

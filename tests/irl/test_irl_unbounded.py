@@ -116,7 +116,7 @@ def test_iteration_fixed_point_is_the_damped_iteration_limit_from_zero():
 
 
 def test_qsm_reports_the_fixed_point_from_zero_on_ngsim(railusm):
-    """Issue 11 item 10: at gamma 0.9 the optimised branch (L -1094.16) is not the fixed point the
+    """At gamma 0.9 the optimised branch (L -1094.16) is not the fixed point the
     Eq. 15 iteration reaches from Q = 0 (L -1101.45); the fit reports the latter and says so."""
     p = load_problem("merge", railusm / "merge_ngsim")
     cfg = IRLConfig.reference()

@@ -1,4 +1,5 @@
-"""The merge state encodings ("paper", "driver") and the issue-11 model-file fields."""
+"""The merge state encodings ("paper", "driver") and the model-file fields that came with them
+(decision step, action accelerations)."""
 
 import json
 

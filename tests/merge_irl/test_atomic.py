@@ -125,7 +125,7 @@ def test_network_cache_folder_is_readable_like_the_files(tmp_path):
 
 def test_a_failed_write_that_names_no_file_is_reported_with_the_path(tmp_path):
     """A full disk seen by a library's writer (pyarrow, a plain write()) names no file: the error
-    that reaches the user names the file being written (issue 29, item 6)."""
+    that reaches the user names the file being written."""
     import errno
 
     from analysis.cli.main import os_error_line

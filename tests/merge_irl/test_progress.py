@@ -1,4 +1,4 @@
-"""Progress on terminals and elsewhere (issue 29, item 8): batch runs whose stderr is a log file
+"""Progress on terminals and elsewhere: batch runs whose stderr is a log file
 (nohup, CI, SLURM) get progress lines; terminals get bars; ``--no-progress`` gets nothing."""
 
 from __future__ import annotations

@@ -259,7 +259,7 @@ class MergeBins:
 
 def fit_quantile_bins(table: pd.DataFrame, *, safe_distance: float = SAFE_DISTANCE_FT,
                       where: str = "encounters") -> MergeBins:
-    """Quantile bin edges fitted on training encounters (DESIGN.md section 4's default).
+    """Quantile bin edges fitted on training encounters (the default binning).
 
     ``d_AB, v_AB``: the 20/40/60/80 % quantiles; ``v_AC`` the same over the frames with a car
     C (:meth:`MergeBins.assumed_authors`' ``v_AC`` edges when no frame has one). ``d_AC``: the

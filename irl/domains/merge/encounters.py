@@ -1,4 +1,4 @@
-"""The encounter table of the freeway-merge domain (DESIGN.md section 2): its columns, dtypes
+"""The encounter table of the freeway-merge domain: its columns, dtypes
 and units (:data:`~irl.domains.merge.encounters.ENCOUNTER_SCHEMA`), and the check a table passes before it is binned or
 learned from (:func:`~irl.domains.merge.encounters.validate_encounters`).
 """
@@ -23,7 +23,7 @@ class EncounterColumn:
     doc: str
 
 
-#: The per-frame encounter table (DESIGN.md section 2), one row per frame t of an encounter
+#: The per-frame encounter table, one row per frame t of an encounter
 #: in which A, B and A's speed at t + 0.1 s are known. ``sim.merges.encounters`` writes it from any
 #: NGSIM-schema trajectory table (simulated or real); ``irl.domains.merge.mdp`` learns from it.
 ENCOUNTER_SCHEMA: tuple[EncounterColumn, ...] = (

@@ -1,5 +1,5 @@
 """``merge-irl calibrate preset``: a ``calibrate fit`` params file to a scenario one runs, and
-``calibrate check``'s diagnosis of which variable misses the KS target and why (issue 29, item 11)."""
+``calibrate check``'s diagnosis of which variable misses the KS target and why."""
 
 from __future__ import annotations
 

@@ -37,8 +37,8 @@ def test_learn_gridworld_qavg_round_trip(tmp_path, capsys):
 
 
 def test_learn_shows_progress_lines_when_stderr_is_a_log_file(tmp_path):
-    """A fit run from a batch job (stderr a file, not a terminal) says how far it is (issue 29,
-    item 8), and --no-progress silences it."""
+    """A fit run from a batch job (stderr a file, not a terminal) says how far it is,
+    and --no-progress silences it."""
     demos_dir = tmp_path / "noise_0.1_expert_trajs"
     save_text_trajectories(gridworld_demos("0.1"), demos_dir)
     cmd = [sys.executable, "-m", "analysis", "learn", "--method", "qavg", "--domain", "gridworld", "--noise", "0.1",
@@ -123,7 +123,7 @@ def test_merge_defaults_have_one_home(tmp_path):
 
 
 def test_learn_says_where_an_encounter_table_has_missing_frames(tmp_path):
-    """issue 29, item 2: the split at a recording's gap is counted in learn's one-line report."""
+    """The split at a recording's gap is counted in learn's one-line report."""
     df = encounter_table(n=3, rows=60)
     df = df[~((df.encounter_id == 2) & df.Frame_ID.between(1020, 1033))]
     path = tmp_path / "enc.parquet"

@@ -43,7 +43,7 @@ def test_run_demo_small(tmp_path):
         assert all(agg[k] is not None and agg[k] >= 0 for k in ("w1_speed_A_ft_s", "w1_acc_A_ft_s2", "w1_d_AC_ft"))
         assert agg["w1_ttc_s"] is None or agg["w1_ttc_s"] >= 0
         assert "a_collision_ci95" in agg
-        # human likeness (issue 34, item 4): real held-out frames, so both W1 distances are measured
+        # human likeness: real held-out frames, so both W1 distances are measured
         assert 0 < agg["w1_acc_A_m_s2"] < 5 and 0 < agg["w1_jerk_A_m_s3"] < 100
         assert 0 <= agg["close_to_c_rate"] <= 1 and agg["emergency_braking_rate"] >= 0
     assert data["demos"]["n_steps"] > 0

@@ -1,4 +1,4 @@
-"""Closed-loop evaluation of issue 11: applied accelerations from the model, decision step,
+"""Closed-loop evaluation: applied accelerations from the model, decision step,
 baseline drivers, safety filter, collision-rate interval, Wasserstein distances, model flags."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""analysis/evaluation/closed_loop_targets.py: issue 11's closed-loop target checks (which
+"""analysis/evaluation/closed_loop_targets.py: the closed-loop target checks (which
 ``studies/closed_loop_target.py`` prints), on hand-made aggregates: the Wasserstein targets are
 judged against the demonstrators' own driver, and a figure that could not be measured fails."""
 

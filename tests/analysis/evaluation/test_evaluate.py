@@ -88,7 +88,7 @@ def test_evaluate_writes_report_metrics_plots(tmp_path):
         assert 0 <= lo <= agg["a_collision_rate"] <= hi <= 1
         assert agg["w1_acc_A_ft_s2"] >= 0 and agg["w1_d_AC_ft"] >= 0 and agg["w1_ttc_s"] >= 0
         assert agg["w1_speed_A_ft_s"] is None  # the held-out table has no v_A column
-        # no fit flags; on these random held-out frames a driver below uniform actions is flagged (issue 35)
+        # no fit flags; on these random held-out frames a driver below uniform actions is flagged
         ll = agg["heldout_loglik_per_step"]
         worse = ll is not None and ll < np.log(0.2) - 1e-9
         assert agg["flags"] == (["heldout_worse_than_uniform"] if worse else []) and agg["flagged"] == int(worse)
@@ -202,7 +202,7 @@ def test_evaluate_cli_baselines_safety_filter_and_flag_gate(tmp_path):
     assert data["controller"]["safety_ttc_s"] == 2.5
     md = (out / "report.md").read_text()
     assert "FLAGGED: not_converged" in md and "safety filter on (TTC >= 2.5 s)" in md
-    # human likeness (issue 34, item 4): per policy in metrics.json, report.md and the console
+    # human likeness: per policy in metrics.json, report.md and the console
     for name, p in data["policies"].items():
         agg = p["aggregate"]
         n = agg["n_controls"]
@@ -244,7 +244,7 @@ def test_view_cli_prints_recordings(tmp_path):
 
 @pytest.mark.parametrize("damage", ["text", "truncated", "zeroed"])
 def test_view_refuses_a_file_that_is_not_a_readable_recording(tmp_path, damage):
-    """issue 29, item 4: a corrupt or foreign .rrd is one line and exit 2, and no viewer starts."""
+    """A corrupt or foreign .rrd is one line and exit 2, and no viewer starts."""
     from analysis.recording.files import close_recording, open_recording
     from analysis.recording.log import log_training
 
@@ -271,7 +271,7 @@ def test_view_refuses_a_file_that_is_not_a_readable_recording(tmp_path, damage):
     assert r.returncode == 2 and len(lines) == 1, (r.returncode, r.stderr)
     assert lines[0].startswith("merge-irl view: error: ") and "bad.rrd" in lines[0]
     assert "not a readable rerun recording" in lines[0] and "open with" not in r.stdout
-    if damage == "truncated":  # in a run folder (issue 35, item 10): the bad one named, the good one opens
+    if damage == "truncated":  # in a run folder: the bad one named, the good one opens
         r = subprocess.run([sys.executable, "-m", "analysis", "view", str(tmp_path / "run")], capture_output=True,
                            text=True, timeout=120, env=env)
         lines = r.stderr.strip().splitlines()

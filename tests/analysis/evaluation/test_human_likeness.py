@@ -1,4 +1,4 @@
-"""Human likeness in every report (issue 34, item 4), on hand-made tables (no SUMO): emergency
+"""Human likeness in every report, on hand-made tables (no SUMO): emergency
 brakings per controlled A with a Poisson interval, the As within 2 m of C (closed loop and
 demonstrations), and W1 of A's per-frame acceleration and jerk."""
 

@@ -1,4 +1,4 @@
-"""The evaluation report reads right (issue 29, item 13): A collisions never above all collisions,
+"""The evaluation report reads right: A collisions never above all collisions,
 a legend generated from the columns shown, and what a few episodes can bound."""
 
 from __future__ import annotations

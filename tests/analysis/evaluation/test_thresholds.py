@@ -109,7 +109,7 @@ def test_teleports_threshold_sums_the_episodes(tmp_path, capsys):
 
 def test_a_gate_not_triggered_says_the_value_then_that_the_gate_held_off(tmp_path, capsys):
     """``ok ... (teleports>0)`` read as if teleports had occurred: the line now gives the value found
-    and says the gate was not triggered (issue 29, item 13)."""
+    and says the gate was not triggered."""
     p = tmp_path / "metrics.json"
     p.write_text(json.dumps({"format": "merge-irl-evaluation/1", "policies": {
         k: {"aggregate": v, "episodes": [{"teleports": 0}]} for k, v in METRICS.items()}}))

@@ -179,7 +179,7 @@ def test_cli_trains_and_evaluate_drives_the_result(tmp_path, capsys):
 
 
 def test_labelling_runs_take_their_duration_from_the_scenario():
-    """A fixed 240 s equalled i80's warm-up (issue 29, item 9): the default comes from the scenario."""
+    """A fixed 240 s equalled i80's warm-up: the default comes from the scenario."""
     i80, synthetic = load_scenario("i80"), load_scenario("synthetic")
     d = labelling_duration_s(i80, DaggerConfig())
     assert i80.simulation.warmup_s < d <= i80.simulation.duration_s

@@ -160,7 +160,7 @@ def test_recording_is_named_for_its_scenario_policy_and_seed(logged):
 
 @pytest.mark.sumo
 def test_recording_ids_are_unique_per_run_and_deterministic(tmp_path):
-    """issue 29, item 3: the SUMO baseline of two runs, and two different models of one name and
+    """The SUMO baseline of two runs, and two different models of one name and
     seed, got one id, so the viewer merged or dropped them; the same run repeated keeps its id."""
     from sim.drivers.policy import SumoPolicy
 

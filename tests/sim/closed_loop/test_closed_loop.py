@@ -322,7 +322,7 @@ def test_collision_and_removal_release_and_report(spec):
     assert set(kinds) <= set(COLLISION_KINDS) and kinds.isin(("A into C", "A into B")).any()
     assert (ct.loc[ct.reason != "collision", "collision_kind"] == "").all()
     # each collision that ended a control names its pair, one of the run's distinct pairs: A collisions,
-    # counted by distinct pair, never exceed the run's (issue 29, item 13)
+    # counted by distinct pair, never exceed the run's
     pairs = ct.loc[ct.reason == "collision", "collision_pair"]
     assert all(p.count(">") == 1 and ct.a_sumo[i] in p.split(">") for i, p in pairs.items())
     assert {tuple(p.split(">")) for p in pairs} <= ctl._collision_pairs

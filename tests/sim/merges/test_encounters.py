@@ -193,7 +193,7 @@ def _gap_tracks(b_missing=(), a_missing=()):
 
 
 def test_a_merge_first_seen_after_a_gap_is_flagged_not_dated_silently():
-    """issue 29, item 2: B's rows 18..21 (its last ramp frames) are missing, so B is first seen in
+    """Missing frames: B's rows 18..21 (its last ramp frames) are missing, so B is first seen in
     lane 6 at frame 22 but may have merged at 18: merge_observed is False, 4 frames missing."""
     full = extract(make_table(_gap_tracks()))
     assert full.merges.merge_observed.all() and (full.merges.merge_gap_frames == 0).all()

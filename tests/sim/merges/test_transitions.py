@@ -204,7 +204,7 @@ def test_rollout_of_a_callable_policy(tmp_path) -> None:
 
 
 def test_a_recordings_gap_ends_an_episode_and_no_next_obs_lies_across_it():
-    """issue 29, item 2: exported transitions split where frames are missing, as learning does."""
+    """Exported transitions split where frames are missing, as learning does."""
     import warnings as _w
 
     from irl_testdata import encounter_table

@@ -19,7 +19,7 @@ SEEDS = (1, 2)
 DURATION_S = 110.0
 #: Columns the control table gained after the recording, each by an intended change (left out of
 #: the fingerprint so the recording before the session refactor stays the reference):
-#: ``collision_pair`` (the colliding pair, so A collisions count distinct pairs; issue 29).
+#: ``collision_pair`` (the colliding pair, so A collisions count distinct pairs).
 ADDED_CONTROL_COLUMNS = ("collision_pair",)
 
 

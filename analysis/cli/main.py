@@ -18,6 +18,7 @@ import signal
 import sys
 import threading
 import warnings
+from typing import cast
 
 from analysis.cli.commands import COMMANDS, module_name
 from irl.errors import IRLError
@@ -38,7 +39,7 @@ def build_parser(*, load_all: bool = False) -> argparse.ArgumentParser:
         description="Learn merge-driving reward weights with model-free IRL and test them in SUMO.",
     )
     parser.add_argument("--version", action=_VersionAction, help="print the package, SUMO and git versions and exit")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", action=LazyCommands)
+    sub = cast(LazyCommands, parser.add_subparsers(dest="command", metavar="COMMAND", action=LazyCommands))
     sub.required = True
     for name, line in COMMANDS.items():
         sub.add_lazy(name, line)

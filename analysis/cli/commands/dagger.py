@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from analysis.cli.commands._arg_types import add_allow_implausible, non_negative_int, positive_int
+from analysis.cli.commands._arg_types import DeprecatedAlias, add_allow_implausible, non_negative_int, positive_int
 from analysis.cli.options import PROGRESS, WORKERS
 from analysis.experiments.dagger import DaggerConfig, train_cf_driver
 from irl.domains.merge.actions import ACTION_NAMES
@@ -58,8 +58,10 @@ def register(subparsers) -> None:
     p.add_argument("--critical", type=_actions, default=(0,), metavar="ACTIONS",
                    help=f"expert actions whose labels are kept, comma-separated among {', '.join(ACTION_KEYS)} "
                         "(default high_brake; all five: plain DAgger)")
-    p.add_argument("--decision-step-s", "--decision-step", dest="decision_step_s", type=float, default=None,
-                   help="seconds per decision (default: the merge domain's, 0.3; --decision-step is the older spelling)")
+    p.add_argument("--decision-step-s", dest="decision_step_s", type=float, default=None,
+                   help="seconds per decision (default: the merge domain's, 0.3)")
+    # the older spelling of --decision-step-s: one release more, with a note
+    p.add_argument("--decision-step", dest="decision_step_s", type=float, action=DeprecatedAlias, use="--decision-step-s")
     p.add_argument("--out", default=None, help=f"output folder (default {DEFAULT_OUT})")
     p.set_defaults(func=run)
 

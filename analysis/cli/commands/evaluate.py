@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from analysis.cli.commands._arg_types import Once, add_allow_implausible
+from analysis.cli.commands._arg_types import DeprecatedAlias, Once, add_allow_implausible
 from analysis.cli.options import (
     DASK,
     EPISODES,
@@ -60,9 +60,11 @@ def register(subparsers) -> None:
                         "('' for none; marginal, markov and bc need --train-demos; idm: the Intelligent Driver Model "
                         "with the scenario's car parameters, driven through the controller; sumo-in-lane: SUMO's "
                         "driver with A's lane changes off, as for every commanded driver)")
-    p.add_argument("--decision-step-s", "--decision-step", dest="decision_step_s", type=float, default=None,
+    p.add_argument("--decision-step-s", dest="decision_step_s", type=float, default=None,
                    help="seconds between two decisions of A (default: the first model's decision step, else the first "
                         "--cf-model's, else 0.3; a model driven at another step than its own is warned about)")
+    # the older spelling of --decision-step-s: one release more, with a note
+    p.add_argument("--decision-step", dest="decision_step_s", type=float, action=DeprecatedAlias, use="--decision-step-s")
     p.add_argument("--high-brake", choices=HIGH_BRAKE_RULES, default=HIGH_BRAKE_RULES[0],
                    help="actuation: mean (default, physical) = every action at the driver's own acceleration (the "
                         "model file's per-action mean), capped at A's emergency deceleration; need = High Brake harder "

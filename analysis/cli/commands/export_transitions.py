@@ -10,6 +10,7 @@ from pathlib import Path
 import pandas as pd
 import pyarrow.parquet as pq
 
+from analysis.cli.commands._arg_types import DeprecatedAlias
 from analysis.cli.options import demos_option
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, read_encounters
 from merge_irl.units import FRAME_S
@@ -37,8 +38,10 @@ def register(subparsers) -> None:
                     "acts [N] (merge actions 0..4), acc_mps2 [N], dones [N], episode [N] (one per encounter or "
                     "control), read back by sim.merges.transitions.load.")
     p.add_argument("--out", required=True, metavar="FILE.npz", help="output file")
-    p.add_argument("--decision-step-s", "--decision-step", dest="decision_step_s", type=float, default=None,
+    p.add_argument("--decision-step-s", dest="decision_step_s", type=float, default=None,
                    help="seconds per decision (default 0.3; a decision log must have been decided at it)")
+    # the older spelling of --decision-step-s: one release more, with a note
+    p.add_argument("--decision-step", dest="decision_step_s", type=float, action=DeprecatedAlias, use="--decision-step-s")
     p.add_argument("--location", default=None, metavar="SITE",
                    help="NGSIM files with a Location column: keep this site's rows (e.g. i-80)")
     p.add_argument("--recording", type=int, default=None, metavar="N",

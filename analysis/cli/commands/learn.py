@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from dataclasses import replace
 
+from analysis.cli.commands._arg_types import DeprecatedAlias
 from analysis.cli.options import PROGRESS, demos_option, seed_option
 from analysis.experiments.learn import learn, merge_config, merge_encoding, merge_features
 from irl.config import SOLVERS, UNOBSERVED_RULES, IRLConfig
@@ -53,10 +54,12 @@ def register(subparsers) -> None:
                                       "default: uniform-random ones generated under the model")
     p.add_argument("--bins", help="merge: JSON file of bin edges (default: assumed edges for text files, "
                                   "quantile bins fitted on an encounter table)")
-    p.add_argument("--decision-step-s", "--dt", dest="decision_step_s", type=float, default=None,
+    p.add_argument("--decision-step-s", dest="decision_step_s", type=float, default=None,
                    help="merge: decision step (s) the encounters are resampled at and the kinematic fallback uses "
                         "(default: the merge domain's, 0.3 for encounter tables; the authors' text files are at "
-                        "their 0.1 s frame; --dt is the older spelling)")
+                        "their 0.1 s frame)")
+    # the older spelling of --decision-step-s: one release more, with a note
+    p.add_argument("--dt", dest="decision_step_s", type=float, action=DeprecatedAlias, use="--decision-step-s")
     p.add_argument("--features", choices=("paper", "driver"), default=None,
                    help="merge feature set (default: driver for encounter tables, paper for the authors' files); "
                         "driver also puts A's previous action in the state")

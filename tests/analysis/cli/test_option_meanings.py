@@ -6,13 +6,16 @@ load lazily: ``merge-irl --help`` imports none of them."""
 from __future__ import annotations
 
 import argparse
+import pkgutil
 import subprocess
 import sys
 from collections import defaultdict
 
 import pytest
 
+import analysis.cli.commands as commands_package
 from analysis.cli.commands import COMMANDS as REGISTERED
+from analysis.cli.commands import module_name
 from analysis.cli.main import build_parser
 
 #: Old spellings kept for one release (hidden from --help, one stderr line naming the new one):
@@ -21,6 +24,10 @@ DEPRECATED_ALIASES = {
     ("calibrate fit", "--model"): "--cf-model-name",
     ("reproduce", "--json"): "--json-out",
     ("learn-driver", "--quiet"): "--no-progress",
+    ("learn", "--dt"): "--decision-step-s",
+    ("dagger", "--decision-step"): "--decision-step-s",
+    ("evaluate", "--decision-step"): "--decision-step-s",
+    ("export-transitions", "--decision-step"): "--decision-step-s",
 }
 
 #: (command, option) pairs allowed to differ from the option's other commands, each with why.
@@ -74,12 +81,34 @@ def test_the_whole_tree_is_walked():
     assert {"generate", "learn", "learn-driver", "evaluate", "demo", "dagger", "reproduce", "score",
             "calibrate fit", "calibrate evaluate", "calibrate check", "calibrate preset"} <= set(COMMANDS)
     assert {c.split()[0] for c in COMMANDS} == set(REGISTERED)
+    modules = {m.name for m in pkgutil.iter_modules(commands_package.__path__) if not m.name.startswith("_")}
+    assert modules == {module_name(c).rsplit(".", 1)[1] for c in REGISTERED}  # a new module is listed
     assert sum(len(p._actions) for p in COMMANDS.values()) > 150
 
 
 def test_zero_options_with_two_meanings():
     two = {o: {str(m): c for m, c in ms.items()} for o, ms in meanings().items() if len(ms) > 1}
     assert not two, f"{len(two)} options with two meanings: {two}"
+
+
+def test_one_spelling_per_meaning():
+    """Every destination is spelled the same in every command (its visible option strings)."""
+    spellings: dict[str, set[tuple[str, ...]]] = defaultdict(set)
+    for name, p in COMMANDS.items():
+        for a in p._actions:
+            shown = tuple(o for o in a.option_strings if (name, o) not in DEPRECATED_ALIASES)
+            if shown and a.help != argparse.SUPPRESS:
+                spellings[a.dest].add(shown)
+    two = {dest: sorted(s) for dest, s in spellings.items() if len(s) > 1 or len(next(iter(s))) > 1 and dest != "help"}
+    assert not two, f"{len(two)} meanings with two spellings: {two}"
+
+
+def test_deprecated_aliases_are_hidden_and_point_at_a_shown_option():
+    for (name, option), new in DEPRECATED_ALIASES.items():
+        (old,) = [a for a in COMMANDS[name]._actions if option in a.option_strings]
+        (shown,) = [a for a in COMMANDS[name]._actions if new in a.option_strings]
+        assert old.help == argparse.SUPPRESS and old.dest == shown.dest and shown.help != argparse.SUPPRESS
+        assert old.option_strings == [option] and getattr(old, "use", None) == new
 
 
 def test_the_shared_options_are_shared():
@@ -105,6 +134,8 @@ def test_every_allow_list_entry_is_still_needed():
     (["calibrate", "fit", "--pairs", "p", "--out", "o.toml", "--model", "krauss"], "--model", "--cf-model-name",
      "cf_model_name", "krauss"),
     (["reproduce", "--table", "1", "--json", "r.json"], "--json", "--json-out", "json_out", "r.json"),
+    (["learn", "--method", "qavg", "--domain", "merge", "--demos", "d", "--out", "m.json", "--dt", "0.5"], "--dt",
+     "--decision-step-s", "decision_step_s", 0.5),
 ])
 def test_a_deprecated_alias_works_and_names_the_new_spelling(capsys, argv, old, new, dest, value):
     args = build_parser().parse_args(argv)

@@ -32,8 +32,8 @@ def _parent() -> argparse.ArgumentParser:
 
 WORKERS = _parent()
 WORKERS.add_argument("--workers", type=positive_int, default=None, metavar="N",
-                     help="processes, one task (a SUMO run, a fit) each (default: every core); with --executor, "
-                          "the same as --executor process:N")
+                     help="processes running the tasks (SUMO runs, fits), one at a time each (default: every core); "
+                          "in a command with --executor, short for --executor process:N")
 
 EXECUTOR = _parent()
 EXECUTOR.add_argument("--executor", default=None, metavar="EXEC",

@@ -2,21 +2,25 @@
 
 Every subcommand lives in its own module under ``analysis/cli/commands/`` and is a thin layer over
 the Python API. A command module defines ``register(subparsers)``, which adds its parser and
-sets ``func`` (called with the parsed arguments; returns the exit status). Modules are found
-automatically, so adding a command never edits this file.
+sets ``func`` (called with the parsed arguments; returns the exit status). The modules are
+loaded lazily: :func:`build_parser` lists the commands of
+:data:`analysis.cli.commands.COMMANDS` with their help line, and imports a command's module
+(which imports its API at its top) only when the command line chooses it, or for every command
+with ``build_parser(load_all=True)`` (the whole parser tree, as the tests walk it). The shared
+options are in :mod:`analysis.cli.options`.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
-import pkgutil
 import signal
 import sys
 import threading
 import warnings
+from typing import cast
 
-import analysis.cli.commands as _commands
+from analysis.cli.commands import COMMANDS, module_name
 from irl.errors import IRLError
 from merge_irl.provenance import version_line
 from scenarios.errors import ScenarioError
@@ -27,20 +31,54 @@ from sim.errors import SimError
 USER_ERRORS: tuple[type[BaseException], ...] = (IRLError, ScenarioError, SimError, FileNotFoundError)
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(*, load_all: bool = False) -> argparse.ArgumentParser:
+    """The ``merge-irl`` parser; a command's own parser is built when the command is parsed, or at
+    once for every command with ``load_all``."""
     parser = argparse.ArgumentParser(
         prog="merge-irl",
         description="Learn merge-driving reward weights with model-free IRL and test them in SUMO.",
     )
     parser.add_argument("--version", action=_VersionAction, help="print the package, SUMO and git versions and exit")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub = cast(LazyCommands, parser.add_subparsers(dest="command", metavar="COMMAND", action=LazyCommands))
     sub.required = True
-    for info in sorted(pkgutil.iter_modules(_commands.__path__), key=lambda m: m.name):
-        if info.name.startswith("_"):
-            continue
-        module = importlib.import_module(f"{_commands.__name__}.{info.name}")
-        module.register(sub)
+    for name, line in COMMANDS.items():
+        sub.add_lazy(name, line)
+    if load_all:
+        for name in COMMANDS:
+            sub.load(name)
     return parser
+
+
+class LazyCommands(argparse._SubParsersAction):
+    """The subcommands, each a placeholder (its name and help line) until chosen: then its module
+    is imported and its ``register`` builds the real parser in the placeholder's place."""
+
+    def __init__(self, *args, **kw):
+        super().__init__(*args, **kw)
+        self._lazy: set[str] = set()
+
+    def add_lazy(self, name: str, help: str) -> None:
+        """A placeholder parser for ``name``, listed in ``--help`` with ``help``."""
+        self.add_parser(name, help=help, add_help=False)
+        self._lazy.add(name)
+
+    def add_parser(self, name, **kw):
+        if name in self._lazy:  # the real parser replaces the placeholder; the help line stays listed once
+            self._lazy.discard(name)
+            del self._name_parser_map[name]
+            kw.pop("help", None)
+        return super().add_parser(name, **kw)
+
+    def load(self, name: str) -> None:
+        """Build ``name``'s real parser (nothing when it is built already or not a command)."""
+        if name in self._lazy:
+            importlib.import_module(module_name(name)).register(self)
+            if name in self._lazy:
+                raise RuntimeError(f"{module_name(name)}.register added no parser named {name!r}")
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        self.load(values[0])
+        super().__call__(parser, namespace, values, option_string)
 
 
 class _VersionAction(argparse.Action):

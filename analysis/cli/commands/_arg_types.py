@@ -51,7 +51,6 @@ class DeprecatedFlag(argparse.Action):
 
     ``use``: the spelling to use instead, e.g. ``"--no-progress"``.
     """
-
     def __init__(self, option_strings, dest, *, use: str, **kw):
         super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, help=argparse.SUPPRESS, **kw)
         self.use = use
@@ -62,11 +61,30 @@ class DeprecatedFlag(argparse.Action):
         setattr(namespace, self.dest, True)
 
 
+class DeprecatedAlias(argparse.Action):
+    """An option kept for one release under an old spelling that takes a value: it stores the value
+    in ``dest``, as the option that replaces it does, and writes one line on stderr naming that
+    option (``merge-irl calibrate fit: warning: --model is deprecated ...: use --cf-model-name``).
+    Hidden from ``--help``; it sets nothing when not given (the new option holds the default).
+
+    ``use``: the spelling to use instead, e.g. ``"--cf-model-name"``.
+    """
+    def __init__(self, option_strings, dest, *, use: str, **kw):
+        kw.pop("help", None)
+        kw.pop("default", None)
+        super().__init__(option_strings, dest, default=argparse.SUPPRESS, help=argparse.SUPPRESS, **kw)
+        self.use = use
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(f"{parser.prog}: warning: {option_string} is deprecated and goes in the next release: use {self.use}",
+              file=sys.stderr, flush=True)
+        setattr(namespace, self.dest, values)
+
+
 class Once(argparse.Action):
     """An option that takes one value and refuses being given again (argparse would silently keep
     the last: ``--demos a --demos b`` reading b alone). ``what``: what the one value is, for the
     message (e.g. ``"one encounter table"``); ``instead``: where several go, if anywhere."""
-
     def __init__(self, option_strings, dest, *, what: str = "one value", instead: str = "", **kw):
         super().__init__(option_strings, dest, **kw)
         self.what, self.instead = what, instead

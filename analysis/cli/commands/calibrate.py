@@ -1,6 +1,6 @@
 """``merge-irl calibrate``: fit SUMO car-following parameters to real leader-follower pairs.
 
-* ``calibrate fit --pairs DIR --out params.toml [--model idm|krauss|eidm] [--classes C]``
+* ``calibrate fit --pairs DIR --out params.toml [--cf-model-name idm|krauss|eidm] [--classes C]``
 * ``calibrate evaluate --params FILE --pairs DIR [--json]``
 * ``calibrate check --params FILE --pairs DIR [--out report.md] [--json]``
 * ``calibrate preset --params FILE --out my_i80.toml [--scenario i80]``: a scenario preset with
@@ -15,30 +15,53 @@ runs (:mod:`analysis.calibration.sumo_fit`): population fit only, ``--max-evals`
 
 from __future__ import annotations
 
-# API imports sit inside the functions: `merge-irl --help` imports every command module (analysis/cli/commands/__init__.py).
 import argparse
 import json
 import sys
 import time
 from dataclasses import replace
+from pathlib import Path
 
-from analysis.cli.commands._arg_types import Once, add_allow_implausible, positive_int
+from analysis.calibration import evaluate, load_pairs, load_result, save_result, split_by_follower
+from analysis.calibration.check import run_calibration_check
+from analysis.calibration.class_fit import class_edges, fit_classes
+from analysis.calibration.driver_eval import evaluate_driver
+from analysis.calibration.fit import bounds_warning
+from analysis.calibration.models import CALIBRATION_MODELS, MODELS
+from analysis.calibration.objective import DEFAULT_OBJECTIVE
+from analysis.calibration.pairs import pair_files
+from analysis.calibration.preset import default_header, preset_with_drivers
+from analysis.calibration.sumo_fit import DEFAULT_MAX_EVALS, MIN_MAX_EVALS
+from analysis.calibration.sweep import calibrate_parallel
+from analysis.calibration.vtypes import scenario_car_model
+from analysis.cli.commands._arg_types import DeprecatedAlias, Once, add_allow_implausible, positive_int
+from analysis.cli.options import PROGRESS, WORKERS, seed_option
+from merge_irl.atomic import write_text_atomic
+from merge_irl.progress import progress_bar
+from merge_irl.run_folder import check_writable
+from scenarios.errors import SpecError
+from scenarios.loader import load_scenario
+from scenarios.spec.parse import spec_from_toml
+
+#: the car-following models ``calibrate fit --cf-model-name`` fits.
+CF_MODEL_NAMES = ("idm", "krauss", "eidm")
 
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "calibrate", help="fit / evaluate / check car-following parameters on real NGSIM pairs",
+        "calibrate",
         description="Calibrate SUMO car-following models (IDM, Krauss, EIDM) on real leader-follower pairs: "
                     "the leader is replayed, the follower simulated, the spacing error minimised.",
     )
     sub = p.add_subparsers(dest="calibrate_command", metavar="ACTION")
     sub.required = True
 
-    f = sub.add_parser("fit", help="population + per-pair fits, written as TOML")
+    f = sub.add_parser("fit", help="population + per-pair fits, written as TOML",
+                       parents=[seed_option("seed of the held-out split"), WORKERS, PROGRESS])
     f.add_argument("--pairs", required=True, metavar="DIR", action=Once, what="one folder of pairs", help="folder of pair CSVs (or with a train/ subfolder)")
     f.add_argument("--out", required=True, metavar="FILE", help="output params TOML")
-    f.add_argument("--model", choices=("idm", "krauss", "eidm"), default="idm",
-                   help="idm / krauss: numpy replica of SUMO, population + per-pair fits; eidm: real SUMO "
+    f.add_argument("--cf-model-name", choices=CF_MODEL_NAMES, default="idm",
+                   help="the car-following model fitted: ""idm / krauss: numpy replica of SUMO, population + per-pair fits; eidm: real SUMO "
                         "runs, population fit only (Nelder-Mead, see --max-evals)")
     f.add_argument("--max-evals", type=int, default=None, metavar="N",
                    help="eidm only: SUMO runs over the training pairs the population fit may use (default 60, "
@@ -54,14 +77,14 @@ def register(subparsers) -> None:
                         "'evaluate' then simulates each pair with its class's vector")
     f.add_argument("--holdout", type=float, default=0.0, metavar="FRACTION",
                    help="leave this share of followers out of the fit (split by follower; see --seed)")
-    f.add_argument("--seed", type=int, default=0, help="seed of the held-out split (default 0)")
+    # the spelling before --cf-model-name (--model is a model file elsewhere): one release more, with a note
+    f.add_argument("--model", dest="cf_model_name", choices=CF_MODEL_NAMES, action=DeprecatedAlias,
+                   use="--cf-model-name")
     f.add_argument("--limit", type=positive_int, default=None, metavar="N", help="use only the first N pair files")
-    f.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
-    f.add_argument("--workers", type=positive_int, default=None, metavar="N",
-                   help="processes for the per-pair fits (default: one per core)")
     f.set_defaults(func=run_fit)
 
     e = sub.add_parser("evaluate", help="per-pair and median spacing RMSE vs SUMO's defaults",
+                       parents=[seed_option("seed of the held-out split, as given to 'fit'"), WORKERS],
                        description="Replay each pair's recorded leader and score the follower's spacing RMSE: a "
                                    "calibration (--params) beside SUMO's defaults, or a learned driver (--driver, "
                                    "its most likely action each decision) beside SUMO's IDM defaults and, with "
@@ -75,22 +98,19 @@ def register(subparsers) -> None:
     e.add_argument("--holdout", type=float, default=0.0, metavar="FRACTION",
                    help="evaluate only the held-out followers of 'fit --holdout FRACTION --seed S' (give the "
                         "fit's --holdout, --seed and --limit; refused if a scored follower was in the fit)")
-    e.add_argument("--seed", type=int, default=0, help="seed of the held-out split, as given to 'fit' (default 0)")
     e.add_argument("--limit", type=positive_int, default=None, metavar="N",
                    help="use only the first N pair files, as 'fit --limit N'")
     e.add_argument("--json", action="store_true", help="print one JSON object")
-    e.add_argument("--workers", type=positive_int, default=None, metavar="N",
-                   help="eidm: processes for the SUMO runs (default: one per core)")
     e.set_defaults(func=run_evaluate)
 
-    c = sub.add_parser("check", help="compare the i80 scenario's simulated traffic with the real pairs")
+    c = sub.add_parser("check", help="compare the i80 scenario's simulated traffic with the real pairs",
+                       parents=[seed_option("seed of the SUMO run and the driver sample")])
     c.add_argument("--params", required=True, metavar="FILE", help="params TOML from 'calibrate fit'")
     c.add_argument("--pairs", required=True, metavar="DIR", action=Once, what="one folder of pairs", help="folder of real pair CSVs to compare with")
     c.add_argument("--scenario", default="i80", metavar="NAME|FILE", help="scenario preset or TOML (default i80)")
     c.add_argument("--duration", type=float, default=None, metavar="S",
                    help="simulated seconds, warm-up included, longer than the scenario's warm-up "
                         "(default: the scenario's own; i80: 600 s with 240 s of warm-up)")
-    c.add_argument("--seed", type=int, default=0, help="seed of the SUMO run and the driver sample (default 0)")
     add_allow_implausible(c)
     c.add_argument("--keep-drivers", action="store_true",
                    help="simulate the scenario's own drivers (default: the params file's driver distribution, as "
@@ -128,9 +148,6 @@ def register(subparsers) -> None:
 
 
 def _pairs(args: argparse.Namespace, *, held_out: bool):
-    from analysis.calibration import load_pairs, split_by_follower
-    from scenarios.errors import SpecError
-
     pairs = load_pairs(args.pairs, limit=getattr(args, "limit", None))
     if args.holdout:  # 0 = no held-out split; a negative or NaN fraction is refused, not ignored
         if not 0 < args.holdout < 1:
@@ -144,24 +161,13 @@ def _pairs(args: argparse.Namespace, *, held_out: bool):
 
 
 def run_fit(args: argparse.Namespace) -> int:
-    from analysis.calibration import save_result
-    from analysis.calibration.class_fit import class_edges, fit_classes
-    from analysis.calibration.models import CALIBRATION_MODELS, MODELS
-    from analysis.calibration.objective import DEFAULT_OBJECTIVE
-    from analysis.calibration.pairs import pair_files
-    from analysis.calibration.sumo_fit import DEFAULT_MAX_EVALS, MIN_MAX_EVALS
-    from analysis.calibration.sweep import calibrate_parallel
-    from merge_irl.progress import progress_bar
-    from merge_irl.run_folder import check_writable
-    from scenarios.errors import SpecError
-
-    if args.max_evals is not None and args.model in MODELS:
+    if args.max_evals is not None and args.cf_model_name in MODELS:
         raise SpecError(f"--max-evals: caps the SUMO runs of a model fitted through SUMO "
                         f"({', '.join(m for m in CALIBRATION_MODELS if m not in MODELS)}); "
-                        f"{args.model} is fitted by its numpy replica")
-    if args.classes > 1 and args.model not in MODELS:
+                        f"{args.cf_model_name} is fitted by its numpy replica")
+    if args.classes > 1 and args.cf_model_name not in MODELS:
         raise SpecError(f"--classes: driver classes need a model with a numpy replica ({', '.join(MODELS)}); "
-                        f"{args.model} is fitted through SUMO")
+                        f"{args.cf_model_name} is fitted through SUMO")
     if args.max_evals is not None and args.max_evals < MIN_MAX_EVALS:
         raise SpecError(f"--max-evals: expected at least {MIN_MAX_EVALS} SUMO runs, got {args.max_evals}")
     try:
@@ -171,22 +177,22 @@ def run_fit(args: argparse.Namespace) -> int:
     pairs = _pairs(args, held_out=False)
     if args.classes > 1:  # fail before minutes of fitting: too few pairs, or classes the quantiles cannot fill
         try:
-            class_edges(pairs, args.classes, model=args.model)
+            class_edges(pairs, args.classes, model=args.cf_model_name)
         except SpecError as e:  # "classes: ..." -> "--classes: ...", the option's name
             raise SpecError(f"--{e}") from None
     file_of = {f.stem: f for f in pair_files(args.pairs, limit=args.limit)}
-    print(f"fitting {args.model} on {len(pairs)} pairs ...", file=sys.stderr)
-    if args.model not in MODELS:
+    print(f"fitting {args.cf_model_name} on {len(pairs)} pairs ...", file=sys.stderr)
+    if args.cf_model_name not in MODELS:
         if not args.no_per_pair:
-            print(f"{args.model}: no numpy replica; population fit through SUMO only, no per-pair fits",
+            print(f"{args.cf_model_name}: no numpy replica; population fit through SUMO only, no per-pair fits",
                   file=sys.stderr)
-        bar = progress_bar(args.max_evals or DEFAULT_MAX_EVALS, desc=f"calibrate {args.model} (SUMO runs)",
+        bar = progress_bar(args.max_evals or DEFAULT_MAX_EVALS, desc=f"calibrate {args.cf_model_name} (SUMO runs)",
                            unit="run", enabled=not args.no_progress)
     else:  # the population fit's simulations (two starts, up to 40 each), then the per-pair fits' own bar
-        bar = progress_bar(None, desc=f"population {args.model}", unit="sim", leave=False,
+        bar = progress_bar(None, desc=f"population {args.cf_model_name}", unit="sim", leave=False,
                            enabled=not args.no_progress)
     try:
-        result = calibrate_parallel(pairs, [file_of[p.name] for p in pairs], model=args.model,
+        result = calibrate_parallel(pairs, [file_of[p.name] for p in pairs], model=args.cf_model_name,
                                     per_pair=not args.no_per_pair, workers=args.workers,
                                     objective=args.objective or DEFAULT_OBJECTIVE,
                                     progress=not args.no_progress, max_evals_sumo=args.max_evals,
@@ -197,7 +203,7 @@ def run_fit(args: argparse.Namespace) -> int:
         t0 = time.perf_counter()
         with progress_bar(None, desc=f"{args.classes} class fits", unit="sim", leave=False,
                           enabled=not args.no_progress) as class_bar:
-            classes = fit_classes(pairs, args.classes, model=args.model, objective=result.objective,
+            classes = fit_classes(pairs, args.classes, model=args.cf_model_name, objective=result.objective,
                                   tick=lambda: class_bar.update(1))
         result = replace(result, classes=classes)
         print(f"{classes.n_classes} driver classes of the initial time headway, edges "
@@ -215,7 +221,6 @@ def run_fit(args: argparse.Namespace) -> int:
         print(f"spread of the {len(result.per_pair)} per-pair fits (10% / median / 90%):", file=sys.stderr)
         for name, sp in result.spread:
             print(f"  {name:<9} {sp.q10:7.3f} {sp.median:7.3f} {sp.q90:7.3f}", file=sys.stderr)
-    from analysis.calibration.fit import bounds_warning
 
     if line := bounds_warning(result.per_pair, result.fitted):
         print(f"merge-irl calibrate fit: warning: {line}", file=sys.stderr)
@@ -224,9 +229,6 @@ def run_fit(args: argparse.Namespace) -> int:
 
 
 def run_evaluate(args: argparse.Namespace) -> int:
-    from analysis.calibration import evaluate, load_result
-    from scenarios.errors import SpecError
-
     if args.driver is not None:
         return run_evaluate_driver(args)
     if args.params is None:
@@ -269,9 +271,6 @@ def run_evaluate(args: argparse.Namespace) -> int:
 
 def run_evaluate_driver(args: argparse.Namespace) -> int:
     """``calibrate evaluate --driver``: the driver's replay beside SUMO's IDM defaults (and ``--params``)."""
-    from analysis.calibration import load_result
-    from analysis.calibration.driver_eval import evaluate_driver
-
     calibration = load_result(args.params) if args.params is not None else None
     pairs = _pairs(args, held_out=True)
     ev = evaluate_driver(args.driver, pairs, calibration=calibration, seed=args.seed)
@@ -296,10 +295,6 @@ def run_evaluate_driver(args: argparse.Namespace) -> int:
 
 
 def run_check(args: argparse.Namespace) -> int:
-    from analysis.calibration.check import run_calibration_check
-    from merge_irl.run_folder import check_writable
-    from scenarios.errors import SpecError
-
     if args.out:
         try:
             check_writable(args.out)  # an unwritable --out fails now, not after the SUMO run
@@ -320,17 +315,6 @@ def run_check(args: argparse.Namespace) -> int:
 
 
 def run_preset(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
-    from analysis.calibration import load_result
-    from analysis.calibration.preset import default_header, preset_with_drivers
-    from analysis.calibration.vtypes import scenario_car_model
-    from merge_irl.atomic import write_text_atomic
-    from merge_irl.run_folder import check_writable
-    from scenarios.errors import SpecError
-    from scenarios.loader import load_scenario
-    from scenarios.spec.parse import spec_from_toml
-
     out = Path(args.out)
     if args.seed is not None and args.drivers is None:
         raise SpecError("--seed: seeds a --drivers N resample; without --drivers every per-pair fit is written, no draw")

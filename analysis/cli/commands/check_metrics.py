@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
-# API imports sit inside the functions: `merge-irl --help` imports every command module (analysis/cli/commands/__init__.py).
 import argparse
 import sys
+
+from analysis.evaluation.thresholds import check_thresholds, metrics_from_file, not_triggered, parse_thresholds
 
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "check-metrics", help="check an evaluation's metrics.json against thresholds (CI gate)",
+        "check-metrics",
         description="Read METRICS.json written by 'merge-irl evaluate' and exit 1 if any --fail-if "
                     "threshold holds for any policy (or the named one). Syntax: [POLICY.]METRIC OP NUMBER, "
                     "OP one of > >= < <= == !=; e.g. --fail-if 'collisions>0' --fail-if 'qavg.min_ttc_s<1.5'. "
@@ -21,8 +22,6 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from analysis.evaluation.thresholds import check_thresholds, metrics_from_file, not_triggered, parse_thresholds
-
     thresholds = parse_thresholds(args.fail_if)
     metrics = metrics_from_file(args.metrics)
     breaches = check_thresholds(thresholds, metrics)

@@ -2,13 +2,21 @@
 
 from __future__ import annotations
 
-# API imports sit inside the functions: `merge-irl --help` imports every command module (analysis/cli/commands/__init__.py).
 import argparse
 import sys
 from pathlib import Path
 
-from analysis.cli.commands._arg_types import add_allow_implausible, non_negative_int, positive_int
+from analysis.cli.commands._arg_types import DeprecatedAlias, add_allow_implausible, non_negative_int, positive_int
+from analysis.cli.options import PROGRESS, WORKERS
+from analysis.experiments.dagger import DaggerConfig, train_cf_driver
 from irl.domains.merge.actions import ACTION_NAMES
+from irl.domains.merge.car_following import car_following_decisions
+from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, read_encounters
+from merge_irl.run_folder import check_writable, locked
+from scenarios.loader import load_scenario
+
+#: Where ``--out`` defaults to.
+DEFAULT_OUT = "runs/dagger"
 
 #: Action names as ``--critical`` takes them (``high_brake`` ... ``high_accel``).
 ACTION_KEYS = tuple(n.lower().replace(" ", "_") for n in ACTION_NAMES)
@@ -24,7 +32,7 @@ def _actions(text: str) -> tuple[int, ...]:
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "dagger", help="train a car-following logit driver with SUMO as the expert in its own states",
+        "dagger", parents=[WORKERS, PROGRESS],
         description="Fit the car-following logit (features of A's speed, gaps and closing speeds) on "
                     "training encounters, then for --rounds rounds let it drive in SUMO, ask SUMO's "
                     "car-following model for its action at every decision, keep the labels whose action "
@@ -46,33 +54,27 @@ def register(subparsers) -> None:
                    help="simulated seconds per labelling run, warm-up included (default: the scenario's warm-up + "
                         "180 s, at most its duration: synthetic 240 s, i80 420 s)")
     add_allow_implausible(p)
-    p.add_argument("--l2", type=float, default=0.1, help="L2 penalty of the fits (default 0.1)")
+    p.add_argument("--l2", type=float, default=None, help=f"L2 penalty of the fits (default {DaggerConfig.l2})")
     p.add_argument("--critical", type=_actions, default=(0,), metavar="ACTIONS",
                    help=f"expert actions whose labels are kept, comma-separated among {', '.join(ACTION_KEYS)} "
                         "(default high_brake; all five: plain DAgger)")
-    p.add_argument("--decision-step-s", "--decision-step", dest="decision_step_s", type=float, default=None,
-                   help="seconds per decision (default: the merge domain's, 0.3; --decision-step is the older spelling)")
-    p.add_argument("--workers", type=positive_int, default=None,
-                   help="processes for the labelling runs (one SUMO each; default every core)")
-    p.add_argument("--no-progress", action="store_true", help="no line per round")
-    p.add_argument("--out", default="runs/dagger", help="output folder (default runs/dagger)")
+    p.add_argument("--decision-step-s", dest="decision_step_s", type=float, default=None,
+                   help="seconds per decision (default: the merge domain's, 0.3)")
+    # the older spelling of --decision-step-s: one release more, with a note
+    p.add_argument("--decision-step", dest="decision_step_s", type=float, action=DeprecatedAlias, use="--decision-step-s")
+    p.add_argument("--out", default=None, help=f"output folder (default {DEFAULT_OUT})")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from analysis.experiments.dagger import DaggerConfig, train_cf_driver
-    from irl.domains.merge.car_following import car_following_decisions
-    from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, read_encounters
-    from merge_irl.run_folder import check_writable, locked
-    from scenarios.loader import load_scenario
-
     config = DaggerConfig(rounds=args.rounds, episodes_per_round=args.episodes_per_round,
-                          label_seed=args.label_seed, duration_s=args.duration, l2=args.l2,
+                          label_seed=args.label_seed, duration_s=args.duration,
+                          l2=DaggerConfig.l2 if args.l2 is None else args.l2,
                           critical_actions=args.critical, decision_step_s=DEFAULT_DECISION_STEP_S if args.decision_step_s is None else args.decision_step_s)
     spec = load_scenario(args.scenario, allow_implausible=args.allow_implausible)  # errors before any work
     train = read_encounters(args.train)
     car_following_decisions(train, decision_step_s=config.decision_step_s, where=str(args.train))  # before --out is made
-    out = Path(args.out)
+    out = Path(args.out or DEFAULT_OUT)
     check_writable(out / "cf-logit.json")
     with locked(out):  # a second run into the same folder fails at once
         models = train_cf_driver(train, spec, config, workers=args.workers, where=str(args.train),

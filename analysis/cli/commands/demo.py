@@ -8,18 +8,22 @@ and the ``.rrd`` log, and print where they are. See :func:`analysis.demo.pipelin
 
 from __future__ import annotations
 
-# API imports sit inside the functions: `merge-irl --help` imports every command module (analysis/cli/commands/__init__.py).
 import argparse
 from dataclasses import replace
 
 from analysis.cli.commands._arg_types import non_negative_int, positive_int
-from analysis.cli.commands._dask_options import add_dask_options, apply_dask_options
+from analysis.cli.options import DASK, EPISODES, EXECUTOR, PROGRESS, WORKERS, apply_dask_options, executor_from_args
+from analysis.demo.config import DemoConfig
+from analysis.demo.pipeline import run_demo
+from analysis.sweep.executors import default_workers
+from scenarios.loader import load_scenario
+from scenarios.spec.parse import with_overrides
 from sim.merges.rules import ENCOUNTER_RULES
 
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "demo", help="the whole pipeline on the default scenario (generate, learn, evaluate, log)",
+        "demo", parents=[EPISODES, WORKERS, EXECUTOR, PROGRESS, DASK],
         description="Generate synthetic merges, learn with Q-Avg (--methods adds MLIRL, Q-SM, REIRL) and train the "
                     "car-following logit driver cf-dagger (--dagger-rounds), re-inject the learned drivers into "
                     "SUMO, evaluate them beside SUMO's driver and the baselines uniform, marginal, markov and bc, "
@@ -29,8 +33,6 @@ def register(subparsers) -> None:
                    help="scenario preset or TOML file (default: synthetic)")
     p.add_argument("--duration", type=float, default=None, metavar="S",
                    help="simulated seconds of each data run (default: the scenario's)")
-    p.add_argument("--episodes", type=positive_int, default=None, metavar="N",
-                   help="evaluation episodes per policy (default 3)")
     p.add_argument("--methods", default=None, metavar="LIST",
                    help="comma-separated IRL methods (default: qavg; mlirl, qsm and reirl are slower at the driver "
                         "encoding's 6250 states, add them here)")
@@ -46,41 +48,22 @@ def register(subparsers) -> None:
     p.add_argument("--encounter-rule", choices=ENCOUNTER_RULES, default=ENCOUNTER_RULES[0],
                    help="how the data runs become demonstrations (default in-lane: as the closed-loop controller "
                         "observes SUMO's drivers, A's lane held; see merge-irl generate --help)")
-    p.add_argument("--workers", type=positive_int, default=None, metavar="N", help="processes (default 2)")
-    p.add_argument("--executor", default=None,
-                   help="where data runs and episodes run: serial, process[:N], dask-local[:N], dask://HOST:PORT, "
-                        "tls://HOST:PORT (default: process:<workers>)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bars")
-    add_dask_options(p)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from analysis.demo.config import DemoConfig
-    from analysis.demo.pipeline import run_demo
-
     config = DemoConfig(scenario=args.scenario, encounter_rule=args.encounter_rule, heldout_runs=args.heldout_runs)
     if args.duration is not None:
-        from scenarios.loader import load_scenario
-        from scenarios.spec.parse import with_overrides
 
         with_overrides(load_scenario(args.scenario), duration_s=args.duration)  # one line, exit 2, before any run
         config = replace(config, data_duration_s=args.duration)
-    if args.episodes is not None:
-        config = replace(config, eval_episodes=args.episodes)
+    config = replace(config, eval_episodes=args.episodes)
     if args.methods:
         config = replace(config, methods=tuple(m.strip() for m in args.methods.split(",") if m.strip()))
     if args.dagger_rounds is not None:
         config = replace(config, dagger_rounds=args.dagger_rounds)
-    if args.workers is not None:
-        config = replace(config, workers=args.workers)
-    if args.executor is not None:
-        from analysis.errors import AnalysisError
-        from analysis.sweep import resolve_executor
-
-        if args.workers is not None:
-            raise AnalysisError("give --executor or --workers, not both")
-        config = replace(config, executor=resolve_executor(args.executor, None))
+    # every core unless --workers or --executor says otherwise, as every command's --workers
+    config = replace(config, workers=args.workers or default_workers(), executor=executor_from_args(args))
     apply_dask_options(args)
     result = run_demo(args.out, config, progress=not args.no_progress)
     print(result.format())

@@ -2,10 +2,17 @@
 
 from __future__ import annotations
 
-# API imports sit inside the functions: `merge-irl --help` imports every command module (analysis/cli/commands/__init__.py).
 import argparse
 import sys
 from pathlib import Path
+
+from merge_irl.atomic import write_text_atomic
+from sim.errors import TrajectoryFormatError
+from sim.merges.encounters import EncounterWindow, extract
+from sim.ngsim.io import read_ngsim, read_trajectories
+from sim.ngsim.smooth import SmoothingConfig
+from sim.runtime.outputs import write_parquet
+from sim.runtime.sites import I80, SITES, load_site
 
 #: RMS jerk (ft/s^3) above which unsmoothed accelerations are taken as raw measurement noise.
 RAW_JERK_FT_S3 = 30.0
@@ -13,7 +20,7 @@ RAW_JERK_FT_S3 = 30.0
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "encounters", help="extract merge encounters (B merging, lag A, lead C) from a trajectory file",
+        "encounters",
         description="Find every ramp -> merge-lane merge in TRAJECTORIES and write the per-frame encounter "
                     "table to --out, by the merge-frame rule (A = B's lag car at B's merge frame; a simulated "
                     "run's own encounters.parquet is cut by generate's --encounter-rule); the per-merge summary "
@@ -57,14 +64,6 @@ def gap_lines(merges) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from merge_irl.atomic import write_text_atomic
-    from sim.errors import TrajectoryFormatError
-    from sim.merges.encounters import EncounterWindow, extract
-    from sim.ngsim.io import read_ngsim, read_trajectories
-    from sim.ngsim.smooth import SmoothingConfig
-    from sim.runtime.outputs import write_parquet
-    from sim.runtime.sites import I80, SITES, load_site
-
     if args.max_frames_before is not None and args.max_frames_before < 0:
         raise TrajectoryFormatError(f"--max-frames-before: must be >= 0, got {args.max_frames_before}")
     if args.frames_after < 0:

@@ -2,19 +2,28 @@
 
 from __future__ import annotations
 
-# API imports sit inside the functions: `merge-irl --help` imports every command module (analysis/cli/commands/__init__.py).
 import argparse
 import sys
 from pathlib import Path
 
-from analysis.cli.commands._arg_types import Once, add_allow_implausible, positive_int
-from analysis.cli.commands._dask_options import add_dask_options, apply_dask_options
+from analysis.cli.commands._arg_types import DeprecatedAlias, Once, add_allow_implausible
+from analysis.cli.options import (
+    DASK,
+    EPISODES,
+    EXECUTOR,
+    PROGRESS,
+    WORKERS,
+    apply_dask_options,
+    executor_from_args,
+    seed_option,
+)
 from sim.closed_loop.config import HIGH_BRAKE_RULES
 
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "evaluate", help="drive merge lag cars with learned models in SUMO and compare with baselines",
+        "evaluate", parents=[EPISODES, seed_option("first seed; episode i uses seed + i"), WORKERS, EXECUTOR,
+                             PROGRESS, DASK],
         description="Re-inject learned IRL models (or callables of your own, --policy) as the lag car A of every "
                     "merge, run N episodes per policy beside the baselines (SUMO's own driver, uniform, marginal, "
                     "markov, bc; on request idm and sumo-in-lane), and write report.md, metrics.json, PNG plots and "
@@ -40,8 +49,6 @@ def register(subparsers) -> None:
                    help="seconds one decision of a --policy callable may take before the evaluation stops with an "
                         "error naming it (default 60: no honest policy needs that long)")
     p.add_argument("--scenario", default="synthetic", help="preset name or scenario TOML (default synthetic)")
-    p.add_argument("--episodes", type=int, default=3, help="episodes (seeds) per policy")
-    p.add_argument("--seed", type=int, default=0, help="first seed; episode i uses seed + i")
     p.add_argument("--duration", type=float, default=None, help="simulated seconds per episode (default: the scenario's)")
     add_allow_implausible(p)
     p.add_argument("--demos", default=None, action=Once, what="one held-out encounter table",
@@ -53,9 +60,11 @@ def register(subparsers) -> None:
                         "('' for none; marginal, markov and bc need --train-demos; idm: the Intelligent Driver Model "
                         "with the scenario's car parameters, driven through the controller; sumo-in-lane: SUMO's "
                         "driver with A's lane changes off, as for every commanded driver)")
-    p.add_argument("--decision-step-s", "--decision-step", dest="decision_step_s", type=float, default=None,
+    p.add_argument("--decision-step-s", dest="decision_step_s", type=float, default=None,
                    help="seconds between two decisions of A (default: the first model's decision step, else the first "
                         "--cf-model's, else 0.3; a model driven at another step than its own is warned about)")
+    # the older spelling of --decision-step-s: one release more, with a note
+    p.add_argument("--decision-step", dest="decision_step_s", type=float, action=DeprecatedAlias, use="--decision-step-s")
     p.add_argument("--high-brake", choices=HIGH_BRAKE_RULES, default=HIGH_BRAKE_RULES[0],
                    help="actuation: mean (default, physical) = every action at the driver's own acceleration (the "
                         "model file's per-action mean), capped at A's emergency deceleration; need = High Brake harder "
@@ -65,17 +74,11 @@ def register(subparsers) -> None:
                    help="safety-filter variant: replace an action that would bring A's TTC to its leader "
                         "below S seconds (default: raw, no filter); interventions are reported")
     p.add_argument("--mode", action="store_true", help="take the most likely action instead of sampling")
-    p.add_argument("--executor", default=None,
-                   help="where episodes run: serial, process[:N] (default: every core), dask-local[:N], "
-                        "dask://HOST:PORT, tls://HOST:PORT")
-    p.add_argument("--workers", type=positive_int, default=None, help="processes (one SUMO each); same as --executor process:N")
     p.add_argument("--no-rrd", action="store_true", help="do not write rerun recordings")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--out", default=None, help="output folder (default ./runs/evaluate-<scenario>-<seed>/)")
     p.add_argument("--fail-if", action="append", default=[], metavar="EXPR",
                    help="exit 1 if a metric threshold holds, e.g. 'collisions>0' or "
                         "'qavg.min_ttc_s<1.5' (repeat, or separate with commas); checked on metrics.json")
-    add_dask_options(p)
     p.set_defaults(func=run)
 
 
@@ -87,11 +90,7 @@ def run(args: argparse.Namespace) -> int:
     from sim.drivers.baselines import check_baselines, left_out_baselines
 
     thresholds = parse_thresholds(args.fail_if) if args.fail_if else ()  # syntax errors before any work
-    from analysis.sweep import resolve_executor
-
-    if args.executor is not None and args.workers is not None:
-        raise AnalysisError("give --executor or --workers, not both")
-    executor = resolve_executor(args.executor, args.workers)
+    executor = executor_from_args(args)
     apply_dask_options(args)
 
     baselines = tuple(b.strip() for b in args.baselines.split(",") if b.strip())

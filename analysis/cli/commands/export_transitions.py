@@ -3,27 +3,45 @@ transition arrays of imitation learning (``sim.merges.transitions``)."""
 
 from __future__ import annotations
 
-# API imports sit inside the functions: `merge-irl --help` imports every command module (analysis/cli/commands/__init__.py).
 import argparse
 import sys
 from pathlib import Path
 
+import pandas as pd
+import pyarrow.parquet as pq
+
+from analysis.cli.commands._arg_types import DeprecatedAlias
+from analysis.cli.options import demos_option
+from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, read_encounters
+from merge_irl.units import FRAME_S
+from sim.merges.transitions import (
+    TransitionsError,
+    concatenate,
+    from_decisions,
+    from_encounters,
+    from_trajectories,
+    save,
+)
+from sim.ngsim.io import read_ngsim, read_trajectories
+from sim.ngsim.smooth import SmoothingConfig
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "export-transitions", help="export demonstrations as transition arrays (obs, acts, next_obs, dones) in .npz",
+        "export-transitions", parents=[demos_option(
+            "encounter tables, NGSIM trajectory files or decision logs, kept apart as sources (episodes numbered "
+            "across them)", required=True)],
         description="Read encounter tables (.parquet/.csv of 'merge-irl generate' or 'merge-irl encounters'), NGSIM "
                     "trajectory files (.csv/.txt; merges cut by the merge-frame rule) or closed-loop decision logs "
                     "(.parquet/.csv with the controller's decision columns) and write one .npz of transitions at the "
                     "decision step: obs and next_obs [N, 7] (d_AC, v_AC, d_AB, v_AB, v_A, len_C, len_B; ft, ft/s), "
                     "acts [N] (merge actions 0..4), acc_mps2 [N], dones [N], episode [N] (one per encounter or "
                     "control), read back by sim.merges.transitions.load.")
-    p.add_argument("--demos", nargs="+", action="extend", required=True, metavar="PATH",
-                   help="encounter tables, NGSIM trajectory files or decision logs (episodes numbered across them); "
-                        "repeat or list several: --demos a b and --demos a --demos b read both")
     p.add_argument("--out", required=True, metavar="FILE.npz", help="output file")
-    p.add_argument("--decision-step-s", "--decision-step", dest="decision_step_s", type=float, default=None,
+    p.add_argument("--decision-step-s", dest="decision_step_s", type=float, default=None,
                    help="seconds per decision (default 0.3; a decision log must have been decided at it)")
+    # the older spelling of --decision-step-s: one release more, with a note
+    p.add_argument("--decision-step", dest="decision_step_s", type=float, action=DeprecatedAlias, use="--decision-step-s")
     p.add_argument("--location", default=None, metavar="SITE",
                    help="NGSIM files with a Location column: keep this site's rows (e.g. i-80)")
     p.add_argument("--recording", type=int, default=None, metavar="N",
@@ -45,22 +63,6 @@ def _kind(columns) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    import pandas as pd
-    import pyarrow.parquet as pq
-
-    from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, read_encounters
-    from merge_irl.units import FRAME_S
-    from sim.merges.transitions import (
-        TransitionsError,
-        concatenate,
-        from_decisions,
-        from_encounters,
-        from_trajectories,
-        save,
-    )
-    from sim.ngsim.io import read_ngsim, read_trajectories
-    from sim.ngsim.smooth import SmoothingConfig
-
     step = args.decision_step_s if args.decision_step_s is not None else DEFAULT_DECISION_STEP_S
     if not str(args.out).endswith(".npz"):
         raise TransitionsError(f"--out {args.out}: the file name must end in .npz")

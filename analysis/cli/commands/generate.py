@@ -5,18 +5,22 @@ With ``--seeds`` and/or ``--demand-scale`` it runs a resumable sweep (``analysis
 
 from __future__ import annotations
 
-# API imports sit inside the functions: `merge-irl --help` imports every command module (analysis/cli/commands/__init__.py).
 import argparse
 import sys
+from pathlib import Path
 
 from analysis.cli.commands._arg_types import add_allow_implausible
-from analysis.cli.commands._dask_options import add_dask_options, apply_dask_options
+from analysis.cli.main import os_error_line
+from analysis.cli.options import DASK, EXECUTOR, PROGRESS, apply_dask_options, executor_from_args
+from analysis.sweep.generate import FAILURES, SUMMARY, generate_many, parse_scales, parse_seeds
+from merge_irl.atomic import write_text_atomic
+from scenarios.loader import load_scenario
+from scenarios.spec.parse import with_overrides
+from sim.merges.generate import generate
 from sim.merges.rules import ENCOUNTER_RULES
 
 
 def _seeds(text: str):
-    from analysis.sweep.generate import parse_seeds
-
     try:
         return parse_seeds(text)
     except ValueError as e:
@@ -24,8 +28,6 @@ def _seeds(text: str):
 
 
 def _scales(text: str):
-    from analysis.sweep.generate import parse_scales
-
     try:
         return parse_scales(text)
     except ValueError as e:
@@ -34,7 +36,7 @@ def _scales(text: str):
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "generate", help="simulate a scenario in SUMO and write NGSIM-schema trajectories + merge encounters",
+        "generate", parents=[EXECUTOR, PROGRESS, DASK],
         description="Simulate a scenario headless in SUMO; write trajectories.parquet, encounters.parquet, "
                     "merges.parquet and scenario.toml (and trajectories.csv with --csv) into --out. "
                     "With --seeds and/or --demand-scale, run one simulation per seed x demand scale "
@@ -48,9 +50,6 @@ def register(subparsers) -> None:
                    help="sweep: SUMO seeds, e.g. 1,2,3 or 1-10 or 1-3,7")
     p.add_argument("--demand-scale", type=_scales, default=None, metavar="LIST",
                    help="sweep: factors on every demand flow, e.g. 0.5,1,2")
-    p.add_argument("--executor", default="process", metavar="EXEC",
-                   help="sweep executor: process[:N] (default, every core), serial, dask-local[:N], "
-                        "dask://HOST:PORT, tls://HOST:PORT")
     p.add_argument("--encounter-rule", choices=ENCOUNTER_RULES, default=ENCOUNTER_RULES[0],
                    help="how the run becomes demonstrations: in-lane (default; SUMO's drivers observed as the "
                         "closed-loop controller observes them, A's lane held while observed), take-over (the "
@@ -58,23 +57,17 @@ def register(subparsers) -> None:
                         "merge-frame (A = B's lag car at B's merge frame); run.toml records it; docs/encounters.md")
     p.add_argument("--csv", action="store_true", help="also write trajectories.csv in NGSIM's text format")
     add_allow_implausible(p)
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--out", default=None, metavar="DIR",
                    help="output folder (default: ./runs/<scenario>-<seed>, or ./runs/<scenario>-sweep for a sweep)")
-    add_dask_options(p)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from scenarios.loader import load_scenario
-    from scenarios.spec.parse import with_overrides
-
     spec = load_scenario(args.scenario, allow_implausible=args.allow_implausible)
     if args.duration is not None:
         with_overrides(spec, duration_s=args.duration)  # an implausible --duration: one line, exit 2, now
     if args.seeds is not None or args.demand_scale is not None:
         return _run_sweep(args, spec)
-    from sim.merges.generate import generate
 
     res = generate(spec, args.out, seed=args.seed, duration_s=args.duration, csv=args.csv,
                    progress=not args.no_progress, encounter_rule=args.encounter_rule)
@@ -90,25 +83,16 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run_sweep(args: argparse.Namespace, spec) -> int:
-    from pathlib import Path
-
-    from analysis.sweep import parse_executor
-    from analysis.sweep.generate import FAILURES, SUMMARY, generate_many
-
     if args.seed is not None and args.seeds is not None:
         print("merge-irl generate: error: give --seed or --seeds, not both", file=sys.stderr)
         return 2
-    try:
-        parse_executor(args.executor)
-    except ValueError as e:
-        print(f"merge-irl generate: error: {e}", file=sys.stderr)
-        return 2
+    executor = executor_from_args(args)  # a bad --executor: one line, exit 2, before any run
     apply_dask_options(args)
     seeds = args.seeds if args.seeds is not None else (
         (args.seed,) if args.seed is not None else (spec.simulation.seed,))
     out = Path(args.out) if args.out else Path("runs") / f"{spec.name}-sweep"
     report = generate_many(spec, seeds, args.demand_scale, out, duration_s=args.duration, csv=args.csv,
-                           executor=args.executor, progress=not args.no_progress,
+                           executor=executor, progress=not args.no_progress,
                            encounter_rule=args.encounter_rule)
     for r in report.results.values():
         print(f"{r['out_dir']}\t{r['n_vehicles']} vehicles\t{r['n_merges']} merges")
@@ -124,9 +108,6 @@ def _run_sweep(args: argparse.Namespace, spec) -> int:
 def _write_tracebacks(report, path) -> str:
     """The failed runs' tracebacks to ``path`` (not the terminal: the summary's FAILED lines say
     what failed); returns the line that says where they are."""
-    from analysis.cli.main import os_error_line
-    from merge_irl.atomic import write_text_atomic
-
     text = "".join(f"--- {f.key} ({f.attempts} attempt(s)): {f.error}\n{f.traceback}\n" for f in report.failures)
     try:
         write_text_atomic(path, text)

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
-# API imports sit inside the functions: `merge-irl --help` imports every command module (analysis/cli/commands/__init__.py).
 import argparse
 from dataclasses import replace
 
+from analysis.cli.commands._arg_types import DeprecatedAlias
+from analysis.cli.options import PROGRESS, demos_option, seed_option
+from analysis.experiments.learn import learn, merge_config, merge_encoding, merge_features
 from irl.config import SOLVERS, UNOBSERVED_RULES, IRLConfig
 from irl.methods.registry import method_names  # names only: irl.fit loads scipy.optimize
+from irl.methods.reirl import DEFAULT_EPSILON
 from irl.problems import DOMAINS
 
 
@@ -38,24 +41,25 @@ def config_from_args(args: argparse.Namespace) -> IRLConfig:
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "learn", help="fit reward weights (Q-Avg, Q-SM, MLIRL or REIRL) and save model.json",
+        "learn", parents=[demos_option(
+            "trajectories (merge encounter tables: several files or runs, kept apart): a directory/file in the "
+            "authors' text format (gridworld, merge), an encounter table .parquet/.csv (merge), or a .npz (npz)",
+            required=True), seed_option("seed of the fit's random numbers (initial weights, generated baselines)"), PROGRESS],
         description="Fit one IRL method on tabular demonstrations and save the result as model.json "
                     "(theta, loglik, q, settings, merge bin edges).")
     p.add_argument("--method", choices=method_names(), required=True)
-    p.add_argument("--demos", required=True, action="append",
-                   help="trajectories (merge encounter tables: repeat for several files or runs, kept apart): "
-                        "a directory/file in the authors' text format (gridworld, merge), "
-                        "an encounter table .parquet/.csv (merge), or a .npz (npz)")
     p.add_argument("--domain", choices=DOMAINS, required=True)
     p.add_argument("--noise", type=float, default=0.0, help="gridworld slip probability of the true model")
     p.add_argument("--baseline", help="REIRL baseline trajectories (same format as --demos); "
                                       "default: uniform-random ones generated under the model")
     p.add_argument("--bins", help="merge: JSON file of bin edges (default: assumed edges for text files, "
                                   "quantile bins fitted on an encounter table)")
-    p.add_argument("--decision-step-s", "--dt", dest="decision_step_s", type=float, default=None,
+    p.add_argument("--decision-step-s", dest="decision_step_s", type=float, default=None,
                    help="merge: decision step (s) the encounters are resampled at and the kinematic fallback uses "
                         "(default: the merge domain's, 0.3 for encounter tables; the authors' text files are at "
-                        "their 0.1 s frame; --dt is the older spelling)")
+                        "their 0.1 s frame)")
+    # the older spelling of --decision-step-s: one release more, with a note
+    p.add_argument("--dt", dest="decision_step_s", type=float, action=DeprecatedAlias, use="--decision-step-s")
     p.add_argument("--features", choices=("paper", "driver"), default=None,
                    help="merge feature set (default: driver for encounter tables, paper for the authors' files); "
                         "driver also puts A's previous action in the state")
@@ -64,16 +68,11 @@ def register(subparsers) -> None:
     p.add_argument("--epsilon", type=float, default=None, help="REIRL L1 weight of the dual (default: per feature, the "
                                                            "Hoeffding bound of the experts' feature-count estimate)")
     add_config_arguments(p)
-    p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", required=True, help="model.json to write")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from analysis.experiments.learn import learn, merge_config, merge_encoding, merge_features
-    from irl.methods.reirl import DEFAULT_EPSILON
-
     config = config_from_args(args)
     features = args.features
     if args.domain == "merge":  # the merge defaults: irl.problems.DOMAINS['merge'].defaults

@@ -2,16 +2,23 @@
 
 from __future__ import annotations
 
-# API imports sit inside the functions: `merge-irl --help` imports every command module (analysis/cli/commands/__init__.py).
 import argparse
 import sys
 
 from analysis.cli.commands._arg_types import DeprecatedFlag
+from analysis.cli.options import PROGRESS, demos_option, seed_option
+from analysis.experiments.learn_driver import learn_driver, learn_driver_by_replay, resolve_fit
+from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S
+from irl.domains.merge.planning.replay_fit import ReplayFitConfig
+from irl.errors import DemonstrationError
+from merge_irl.run_folder import check_writable
 
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "learn-driver", help="learn a planning driver (reward over continuous merge features) from demonstrations",
+        "learn-driver", parents=[demos_option(
+            "an encounter table (.parquet/.csv, with v_A) or a folder of car-following pair CSVs (several "
+            "sources, kept apart)", required=True), seed_option("seed of the held-out split"), PROGRESS],
         description="Fit a planning driver (a reward over continuous merge features, acted on by a short-horizon "
                     "planner on a kinematic model) from demonstrations alone (no simulator labels). "
                     "--fit replay (the default for folders of real car-following pair CSVs): the reward's weights "
@@ -22,9 +29,6 @@ def register(subparsers) -> None:
                     "weights by maximum likelihood, the settings by held-out likelihood. Writes DRIVER.json "
                     "(format merge-irl-planner/1), which 'merge-irl evaluate --driver' and "
                     "'merge-irl calibrate evaluate --driver' take.")
-    p.add_argument("--demos", required=True, action="append", metavar="PATH",
-                   help="an encounter table (.parquet/.csv, with v_A) or a folder of car-following pair CSVs "
-                        "(repeat for several sources, kept apart)")
     p.add_argument("--out", required=True, metavar="DRIVER.json", help="driver file to write")
     p.add_argument("--decision-step-s", dest="decision_step_s", type=float, default=None,
                    help="seconds per decision, a multiple of 0.1 (default: the merge domain's, 0.3)")
@@ -37,21 +41,14 @@ def register(subparsers) -> None:
     p.add_argument("--max-evals", dest="max_evals", type=int, default=None, metavar="N",
                    help="--fit replay: replays the optimiser may spend (default 100; each replays every "
                         "training pair)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the held-out split (default 0)")
     p.add_argument("--no-selection", action="store_true",
                    help="skip the held-out selection of the planner's settings: fit the defaults (faster)")
-    p.add_argument("--no-progress", action="store_true", help="no progress lines on stderr")
     # the spelling before --no-progress, which every other command uses: one release more, with a note
     p.add_argument("--quiet", dest="no_progress", action=DeprecatedFlag, use="--no-progress")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from analysis.experiments.learn_driver import learn_driver, learn_driver_by_replay, resolve_fit
-    from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S
-    from irl.errors import DemonstrationError
-    from merge_irl.run_folder import check_writable
-
     check_writable(args.out)  # an unwritable --out fails now, not after the fit
 
     def log(line: str) -> None:
@@ -61,7 +58,6 @@ def run(args: argparse.Namespace) -> int:
     step = DEFAULT_DECISION_STEP_S if args.decision_step_s is None else args.decision_step_s
     fit = resolve_fit(args.fit, args.demos)
     if fit == "replay":
-        from irl.domains.merge.planning.replay_fit import ReplayFitConfig
 
         cfg = ReplayFitConfig(max_evals=args.max_evals) if args.max_evals is not None else None
         driver = learn_driver_by_replay(args.demos, args.out, holdout=args.holdout, seed=args.seed,

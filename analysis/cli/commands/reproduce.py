@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
-# API imports sit inside the functions: `merge-irl --help` imports every command module (analysis/cli/commands/__init__.py).
 import argparse
 import sys
 
-from analysis.cli.commands._dask_options import add_dask_options, apply_dask_options
+from analysis.cli.commands._arg_types import DeprecatedAlias
 from analysis.cli.commands.learn import add_config_arguments, config_from_args
+from analysis.cli.options import DASK, EXECUTOR, PROGRESS, apply_dask_options, executor_from_args, seed_option
+from analysis.experiments.reproduce import ReproduceConfig, reproduce_tables
+from analysis.experiments.reproduce_report import format_report, save_reports_json
+from irl.errors import ConfigError
+from irl.methods.reirl import DEFAULT_EPSILON
 
 #: Said when ``--data`` is missing: the demonstrations are not shipped (AGPL), users fetch them.
 DATA_SOURCE = ("--data DIR is required: the authors' demonstrations are not shipped; get the folder data/ "
@@ -16,7 +20,7 @@ DATA_SOURCE = ("--data DIR is required: the authors' demonstrations are not ship
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "reproduce", help="reproduce the paper's Table 1, 2 or 3 (all four methods, N trials)",
+        "reproduce", parents=[seed_option("master seed of the trials"), EXECUTOR, PROGRESS, DASK],
         description="Run MLIRL, Q-Avg, Q-SM and REIRL over N random initialisations on the authors' data and "
                     "print the paper's table: mean ± std of each weight and of the final log-likelihood, "
                     "the leave-one-trajectory-out log-likelihood with Wilcoxon p-values of the paired held-out "
@@ -30,51 +34,38 @@ def register(subparsers) -> None:
                         "of https://github.com/RAILUSM/Model-free-IRL")
     p.add_argument("--trials", type=int, help="random initialisations per method (default 30, 30, 10)")
     add_config_arguments(p)
-    p.add_argument("--seed", type=int, default=0, help="master seed of the trials")
     p.add_argument("--epsilon", type=float, default=None, help="REIRL L1 weight of the dual (default: per feature, the Hoeffding bound "
                                                            "of the experts' feature-count estimate)")
     p.add_argument("--no-holdout", action="store_true", help="skip the leave-one-trajectory-out evaluation")
-    p.add_argument("--json", help="also write every trial and the summary to this JSON file "
+    p.add_argument("--json-out", metavar="FILE.json", help="also write every trial and the summary to this JSON file "
                                   "(several tables: {\"tables\": [...]})")
-    p.add_argument("--executor", default="process",
-                   help="where trials run: serial, process[:N] (default: every core), dask-local[:N], "
-                        "dask://HOST:PORT, tls://HOST:PORT; results do not depend on it")
+    # the spelling before --json-out (--json is a flag elsewhere): one release more, with a note
+    p.add_argument("--json", dest="json_out", action=DeprecatedAlias, use="--json-out")
     p.add_argument("--store", default=None, metavar="DIR",
                    help="keep each finished trial in DIR; a re-run skips them (resume)")
     p.add_argument("--retries", type=int, default=1, help="re-runs of a failing trial (default 1)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    add_dask_options(p)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from analysis.experiments.reproduce import ReproduceConfig, reproduce_tables
-    from analysis.experiments.reproduce_report import format_report, save_reports_json
-    from analysis.sweep import parse_executor
-    from irl.errors import ConfigError
-    from irl.methods.reirl import DEFAULT_EPSILON
-
     if args.data is None:
         raise ConfigError(DATA_SOURCE)  # one line, exit 2 (analysis.cli.main)
-    try:
-        parse_executor(args.executor)  # a bad --executor is a one-line error before any work
-    except ValueError as e:
-        raise ConfigError(str(e)) from None
+    executor = executor_from_args(args)  # a bad --executor is a one-line error before any work
     apply_dask_options(args)
     run_ = reproduce_tables(args.table, ReproduceConfig(
         args.data, trials=args.trials, irl_config=config_from_args(args), seed=args.seed,
         holdout=not args.no_holdout, epsilon=DEFAULT_EPSILON if args.epsilon is None else args.epsilon,
-        executor=args.executor, store=args.store, retries=args.retries,
+        executor=executor, store=args.store, retries=args.retries,
         progress=not args.no_progress,
     ))
     print("\n\n".join(format_report(r) for r in run_.reports))
     print(run_.sweep.summary().splitlines()[0], file=sys.stderr)
-    if args.json:
+    if args.json_out:
         if len(run_.reports) == 1:
-            run_.reports[0].save_json(args.json)
+            run_.reports[0].save_json(args.json_out)
         else:
-            save_reports_json(run_.reports, args.json)
-        print(f"wrote {args.json}")
+            save_reports_json(run_.reports, args.json_out)
+        print(f"wrote {args.json_out}")
     if not run_.ok:
         print(run_.sweep.summary(), file=sys.stderr)
         return 1

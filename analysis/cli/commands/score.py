@@ -1,28 +1,32 @@
-"""``merge-irl score``: the log-likelihood of any demonstrations under a saved model."""
+"""``merge-irl score``: the log-likelihood of any demonstrations under a saved model (several
+``--demos`` are scored as one set: the sums over them)."""
 
 from __future__ import annotations
 
-# API imports sit inside the functions: `merge-irl --help` imports every command module (analysis/cli/commands/__init__.py).
 import argparse
 import json
 import math
 from pathlib import Path
 from typing import Any
 
-from analysis.cli.commands._arg_types import Once
-from irl.problems import DOMAINS
+from analysis.cli.options import demos_option
+from irl.baselines import TabularPolicy
+from irl.domains.merge.bins import MergeBins
+from irl.errors import DemonstrationError, ModelFileError
+from irl.problems import DOMAINS, load_problem
+from irl.result import SavedModel
+from sim.drivers.formats import check_role
 
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "score", help="log-likelihood of demonstrations under a saved model.json",
+        "score", parents=[demos_option(
+            "trajectories in a format of --domain: the authors' text files (gridworld, merge), an encounter "
+            "table .parquet/.csv (merge) or a .npz (npz); several are scored as one set", required=True)],
         description="Score demonstrations under a saved model's policy softmax(beta Q): print the total "
                     "log-likelihood sum_t log pi(a_t|s_t) (paper Eq. 5 without log Pr(s_1)) and the number "
                     "of steps. Merge encounter tables are discretized with the model's bin edges.")
     p.add_argument("--model", required=True, metavar="MODEL.json", help="a model saved by 'merge-irl learn'")
-    p.add_argument("--demos", required=True, action=Once, what="one demonstrations file",
-                   help="trajectories in a format of --domain: the authors' text files (gridworld, merge), "
-                        "an encounter table .parquet/.csv (merge) or a .npz (npz)")
     p.add_argument("--domain", choices=DOMAINS, default=None,
                    help="how to read --demos (default: the model's domain)")
     p.add_argument("--json", action="store_true",
@@ -45,11 +49,6 @@ def score(model, demos_path: str, domain: str | None = None) -> dict:
         DemonstrationError: no domain known, or the demonstrations' state/action counts differ
             from the model's Q table.
     """
-    from irl.baselines import TabularPolicy
-    from irl.domains.merge.bins import MergeBins
-    from irl.errors import DemonstrationError
-    from irl.problems import load_problem
-
     domain = domain or model.domain
     if domain not in DOMAINS:
         raise DemonstrationError(f"{demos_path}: the model names no domain ({model.domain!r}); "
@@ -70,9 +69,21 @@ def score(model, demos_path: str, domain: str | None = None) -> dict:
             "method": model.method, "converged": bool(model.converged), "unbounded": bool(model.unbounded)}
 
 
-def _info_number(model, key: str, default: float) -> float:
-    from irl.errors import ModelFileError
+def merged(results: list[dict]) -> dict:
+    """One :func:`score` result for several demonstration sets scored under the same model (the
+    sums of their log-likelihoods, steps and trajectories; the trajectories in order): the score
+    of their union, since the model fixes the state bins. ``results``: at least one."""
+    if len(results) == 1:
+        return results[0]
+    first = results[0]
+    loglik = float(sum(r["loglik"] for r in results))
+    n_steps = sum(r["n_steps"] for r in results)
+    return {**first, "loglik": loglik, "n_steps": n_steps,
+            "n_trajectories": sum(r["n_trajectories"] for r in results), "loglik_per_step": loglik / n_steps,
+            "trajectory_logliks": [x for r in results for x in r["trajectory_logliks"]]}
 
+
+def _info_number(model, key: str, default: float) -> float:
     value = model.info.get(key, default)
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise ModelFileError(f"model field 'info.{key}' must be a finite number, got {value!r}")
@@ -80,19 +91,16 @@ def _info_number(model, key: str, default: float) -> float:
 
 
 def run(args: argparse.Namespace) -> int:
-    from irl.result import SavedModel
-    from sim.drivers.formats import check_role
-
     check_role(args.model, "model", option="--model")  # a driver's file: say which command takes it
     model = SavedModel.load(args.model)
-    result = score(model, args.demos, args.domain)
+    result = merged([score(model, path, args.domain) for path in args.demos])
     if args.json:
         print(json.dumps({k: (v if not isinstance(v, float) or math.isfinite(v) else None)
                           for k, v in result.items()}))
         return 0
     flags = [f for f, on in (("NOT converged", not result["converged"]),
                              ("unbounded", result["unbounded"])) if on]
-    print(f"{Path(args.model).name} ({model.method}) on {args.demos}: loglik {result['loglik']:.4f} over "
+    print(f"{Path(args.model).name} ({model.method}) on {', '.join(args.demos)}: loglik {result['loglik']:.4f} over "
           f"{result['n_steps']} steps in {result['n_trajectories']} trajectories "
           f"({result['loglik_per_step']:.4f} per step)" + (f"  [model {'; '.join(flags)}]" if flags else ""))
     return 0

@@ -2,13 +2,24 @@
 
 from __future__ import annotations
 
-# API imports sit inside the functions: `merge-irl --help` imports every command module (analysis/cli/commands/__init__.py).
 import argparse
+import sys
+from pathlib import Path
+
+from analysis.errors import AnalysisError
+from analysis.recording.view import (
+    check_recordings,
+    find_recordings,
+    no_viewer_advice,
+    open_viewer,
+    readable_recordings,
+    viewer_command,
+)
 
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "view", help="open a run's rerun recordings (.rrd) in the rerun viewer",
+        "view",
         description="Open the .rrd files of a run folder (searched recursively) or one .rrd file in the "
                     "rerun viewer when one is available; otherwise print how to open them. Every file is read "
                     "first: in a folder, one that is not a readable .rrd is named on stderr and left out, and the "
@@ -20,19 +31,6 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import sys
-    from pathlib import Path
-
-    from analysis.errors import AnalysisError
-    from analysis.recording.view import (
-        check_recordings,
-        find_recordings,
-        no_viewer_advice,
-        open_viewer,
-        readable_recordings,
-        viewer_command,
-    )
-
     files = find_recordings(args.target)
     if len(files) == 1 or not Path(args.target).is_dir():
         check_recordings(files)  # the one file asked for is corrupt or foreign: one line, exit 2, no viewer

@@ -139,7 +139,7 @@ def test_cli_classes_end_to_end(tmp_path: Path) -> None:
 
 def test_cli_classes_errors_exit_2(tmp_path: Path) -> None:
     out = str(tmp_path / "x.toml")
-    r = _cli("calibrate", "fit", "--pairs", str(PAIRS_DIR), "--out", out, "--model", "eidm", "--classes", "2")
+    r = _cli("calibrate", "fit", "--pairs", str(PAIRS_DIR), "--out", out, "--cf-model-name", "eidm", "--classes", "2")
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert "--classes: driver classes need a model with a numpy replica" in r.stderr
     r = _cli("calibrate", "fit", "--pairs", str(PAIRS_DIR), "--out", out, "--limit", "6", "--no-per-pair",

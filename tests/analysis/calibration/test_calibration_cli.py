@@ -69,7 +69,7 @@ def test_user_errors_are_one_line_exit_2(tmp_path: Path) -> None:
             r = _cli("calibrate", *cmd, "--pairs", str(PAIRS_DIR), "--workers", n)
             assert r.returncode == 2 and "--workers: expected a positive whole number" in r.stderr, r.stderr
     # checked before the pairs are read: the folder does not even exist
-    r = _cli("calibrate", "fit", "--model", "eidm", "--max-evals", "3", "--pairs", str(tmp_path / "nowhere"),
+    r = _cli("calibrate", "fit", "--cf-model-name", "eidm", "--max-evals", "3", "--pairs", str(tmp_path / "nowhere"),
              "--out", str(tmp_path / "x.toml"))
     assert r.returncode == 2 and "--max-evals: expected at least 7 SUMO runs, got 3" in r.stderr, r.stderr
     r = _cli("calibrate", "fit", "--max-evals", "60", "--pairs", str(tmp_path / "nowhere"),

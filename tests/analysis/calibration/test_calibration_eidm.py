@@ -1,5 +1,5 @@
 """EIDM calibration through real SUMO: a known driver recovered from pairs SUMO's EIDM generated,
-the SUMO scoring equal to the replica's for IDM, and the CLI wiring of ``--model eidm``."""
+the SUMO scoring equal to the replica's for IDM, and the CLI wiring of ``--cf-model-name eidm``."""
 
 from __future__ import annotations
 
@@ -142,7 +142,7 @@ def _cli(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:
 @pytest.mark.sumo
 def test_cli_fit_and_evaluate_eidm(tmp_path: Path) -> None:
     out = tmp_path / "eidm.toml"
-    r = _cli("calibrate", "fit", "--pairs", str(PAIRS_DIR), "--out", str(out), "--model", "eidm",
+    r = _cli("calibrate", "fit", "--pairs", str(PAIRS_DIR), "--out", str(out), "--cf-model-name", "eidm",
              "--limit", "4", "--max-evals", "10", "--workers", "1")
     assert r.returncode == 0, r.stderr
     assert "no per-pair fits" in r.stderr
@@ -165,9 +165,9 @@ def test_cli_fit_and_evaluate_eidm(tmp_path: Path) -> None:
 
 
 def test_cli_rejects_bad_model_and_budget(tmp_path: Path) -> None:
-    r = _cli("calibrate", "fit", "--pairs", str(PAIRS_DIR), "--out", str(tmp_path / "x.toml"), "--model", "eidn")
+    r = _cli("calibrate", "fit", "--pairs", str(PAIRS_DIR), "--out", str(tmp_path / "x.toml"), "--cf-model-name", "eidn")
     assert r.returncode == 2 and "invalid choice: 'eidn'" in r.stderr
-    r = _cli("calibrate", "fit", "--pairs", str(PAIRS_DIR), "--out", str(tmp_path / "x.toml"), "--model", "eidm",
+    r = _cli("calibrate", "fit", "--pairs", str(PAIRS_DIR), "--out", str(tmp_path / "x.toml"), "--cf-model-name", "eidm",
              "--max-evals", "0")
     assert r.returncode == 2 and "--max-evals" in r.stderr and len(r.stderr.strip().splitlines()) == 1
     bad = tmp_path / "p.toml"

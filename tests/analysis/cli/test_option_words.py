@@ -23,7 +23,7 @@ def _commands(parser: argparse.ArgumentParser, prefix: str = "") -> dict[str, ar
     return out
 
 
-COMMANDS = _commands(build_parser())
+COMMANDS = _commands(build_parser(load_all=True))
 
 
 def _visible(dest: str) -> dict[str, tuple[str, ...]]:

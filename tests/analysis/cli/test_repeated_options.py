@@ -1,9 +1,11 @@
-"""One meaning of a repeated option everywhere: export-transitions reads every --demos whether
-repeated or listed (before: the last of three, 186 of 690 transitions); an option that takes one
-value refuses a second instead of keeping only the last."""
+"""One meaning of a repeated option everywhere: every --demos is read whether repeated or listed
+(export-transitions before: the last of three, 186 of 690 transitions), kept apart as sources or
+merged (score: one set); an option that takes one value refuses a second instead of keeping only
+the last."""
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 
@@ -38,10 +40,31 @@ def test_export_transitions_reads_every_repeated_demos(tmp_path) -> None:
     assert (rep.acts == lst.acts).all() and int(rep.episode.max()) + 1 == 2 + 3 + 4
 
 
+def test_score_reads_every_demos_as_one_set(tmp_path) -> None:
+    from analysis.cli.main import main
+
+    files = []
+    for i in range(2):
+        f = tmp_path / f"enc{i}.parquet"
+        planning_encounters(n=2 + i, seed=i).to_parquet(f)
+        files.append(str(f))
+    model = tmp_path / "m.json"
+    assert main(["learn", "--method", "qavg", "--domain", "merge", "--demos", *files, "--out", str(model),
+                 "--no-progress"]) == 0
+    rep = _cli("score", "--model", str(model), "--demos", files[0], "--demos", files[1], "--json")
+    lst = _cli("score", "--model", str(model), "--demos", *files, "--json")
+    one = [_cli("score", "--model", str(model), "--demos", f, "--json") for f in files]
+    assert rep.returncode == lst.returncode == 0, rep.stderr
+    both, each = json.loads(rep.stdout), [json.loads(r.stdout) for r in one]
+    assert json.loads(lst.stdout) == both
+    assert both["n_steps"] == sum(e["n_steps"] for e in each) and len(set(e["n_steps"] for e in each)) == 2
+    assert both["loglik"] == pytest.approx(sum(e["loglik"] for e in each))
+    assert both["trajectory_logliks"] == each[0]["trajectory_logliks"] + each[1]["trajectory_logliks"]
+
+
 @pytest.mark.parametrize("args, option", [
     (["evaluate", "--demos", "a.parquet", "--demos", "b.parquet"], "--demos"),
     (["evaluate", "--train-demos", "a.parquet", "--train-demos", "b.parquet"], "--train-demos"),
-    (["score", "--model", "m.json", "--demos", "a.csv", "--demos", "b.csv"], "--demos"),
     (["calibrate", "fit", "--pairs", "x", "--pairs", "y", "--out", "p.toml"], "--pairs"),
     (["calibrate", "check", "--params", "p.toml", "--pairs", "x", "--pairs", "y"], "--pairs"),
 ])

@@ -37,7 +37,7 @@ def test_trial_seeds_are_deterministic_and_distinct():
 def test_cli_table_1_two_trials(railusm, tmp_path, capsys):
     out = tmp_path / "t1.json"
     rc = main(["reproduce", "--table", "1", "--data", str(railusm), "--trials", "2", "--no-holdout",
-               "--json", str(out), "--no-progress", "--executor", "serial"])
+               "--json-out", str(out), "--no-progress", "--executor", "serial"])
     assert rc == 0
     text = capsys.readouterr().out
     for label in ("MLIRL", "Q-Avg", "Q-SM", "REIRL", "θ_5 (blue)", "Final log-likelihood", "p vs MLIRL",

@@ -37,6 +37,7 @@ MOVED_PACKAGES: dict[str, str] = {
     "analysis.benchmarks": "benchmarks",
     "analysis.commands": "analysis.cli.commands",
     "analysis.scripts": "tools",
+    "irl.domains.merge.planning": "irl.planning",
     "scenarios.calibration": "analysis.calibration",
 }
 
@@ -185,6 +186,16 @@ MOVED: dict[str, str] = {
     "analysis.benchmarks.sweep_bench": "benchmarks.sweep_bench",
     "analysis.scripts": "tools",
     "analysis.scripts.derive_i80_geometry": "tools.derive_i80_geometry",
+    # 2026-12-07: the planning learner out of irl.domains into a package named for it
+    "irl.domains.merge.planning": "irl.planning",
+    "irl.domains.merge.planning.decisions": "irl.planning.decisions",
+    "irl.domains.merge.planning.driver": "irl.planning.driver",
+    "irl.domains.merge.planning.features": "irl.planning.features",
+    "irl.domains.merge.planning.fit": "irl.planning.fit",
+    "irl.domains.merge.planning.model": "irl.planning.model",
+    "irl.domains.merge.planning.policy": "irl.planning.policy",
+    "irl.domains.merge.planning.replay": "irl.planning.replay",
+    "irl.domains.merge.planning.replay_fit": "irl.planning.replay_fit",
 }
 
 

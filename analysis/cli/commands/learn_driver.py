@@ -61,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
     step = DEFAULT_DECISION_STEP_S if args.decision_step_s is None else args.decision_step_s
     fit = resolve_fit(args.fit, args.demos)
     if fit == "replay":
-        from irl.domains.merge.planning.replay_fit import ReplayFitConfig
+        from irl.planning.replay_fit import ReplayFitConfig
 
         cfg = ReplayFitConfig(max_evals=args.max_evals) if args.max_evals is not None else None
         driver = learn_driver_by_replay(args.demos, args.out, holdout=args.holdout, seed=args.seed,

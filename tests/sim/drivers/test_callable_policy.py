@@ -134,9 +134,9 @@ def _tabular(tmp_path):
 
 
 def test_every_learned_model_file_is_a_policy_callable(tmp_path) -> None:
-    from irl.domains.merge.planning.decisions import encounter_decisions
-    from irl.domains.merge.planning.driver import learn_planning_driver
-    from irl.domains.merge.planning.model import PlannerConfig
+    from irl.planning.decisions import encounter_decisions
+    from irl.planning.driver import learn_planning_driver
+    from irl.planning.model import PlannerConfig
 
     rng = np.random.default_rng(0)
     obs = np.column_stack([rng.uniform(20, 250, 40), rng.normal(0, 5, 40), rng.uniform(-50, 120, 40),

@@ -42,7 +42,7 @@ MOVED_PACKAGES: dict[str, str] = {
 }
 
 #: New homes that are folders of the source checkout, not installed with the package.
-CHECKOUT_ONLY = ("benchmarks", "tools")
+CHECKOUT_ONLY = ("benchmarks", "studies", "tools")
 
 #: Old module path -> where its names live today.
 MOVED: dict[str, str] = {
@@ -144,7 +144,7 @@ MOVED: dict[str, str] = {
     "analysis.dagger": "analysis.experiments.dagger",
     "analysis.demo_basic": "analysis.demo.basic",
     "analysis.demo_config": "analysis.demo.config",
-    "analysis.demo_signal": "analysis.demo.signal",
+    "analysis.demo_signal": "studies.support.signal",
     "analysis.episode": "analysis.evaluation.episode",
     "analysis.evaluate": "analysis.evaluation.evaluate",
     "analysis.evaluate_heldout": "analysis.evaluation.heldout_scoring",
@@ -196,6 +196,11 @@ MOVED: dict[str, str] = {
     "irl.domains.merge.planning.policy": "irl.planning.policy",
     "irl.domains.merge.planning.replay": "irl.planning.replay",
     "irl.domains.merge.planning.replay_fit": "irl.planning.replay_fit",
+    # 2026-12-07: study support out of the installed packages
+    "analysis.demo.signal": "studies.support.signal",
+    "analysis.evaluation.closed_loop_targets": "studies.support.closed_loop_targets",
+    "analysis.experiments.gail_config": "studies.support.gail_config",
+    "analysis.experiments.obs_scaler": "studies.support.obs_scaler",
 }
 
 

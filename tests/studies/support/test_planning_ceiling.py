@@ -9,7 +9,8 @@ import pytest
 
 from irl.domains.merge.actions import actions_of
 from irl.errors import DemonstrationError
-from irl.planning.ceiling import (
+from irl.planning.decisions import PlanningDecisions
+from studies.support.ceiling import (
     PROB_FLOOR,
     Marginal,
     PreviousBinMarkov,
@@ -18,7 +19,6 @@ from irl.planning.ceiling import (
     fit_ceiling,
     previous_bins,
 )
-from irl.planning.decisions import PlanningDecisions
 
 #: One acceleration inside each paper bin (ft/s^2).
 BIN_ACC = np.array([-8.0, -2.7, 0.0, 2.7, 8.0])

@@ -21,14 +21,9 @@ from irl.domains.merge.features import FEATURE_NAMES
 from irl.errors import ModelFileError
 from irl.result import SavedModel
 from merge_irl.units import FT_PER_M
-from sim.drivers.callables import (
-    TRUCK_MIN_LENGTH_FT,
-    CallablePolicy,
-    PolicyCallable,
-    load_callable,
-    parse_action,
-    parse_spec,
-)
+from sim.drivers.callable_actions import parse_action
+from sim.drivers.callable_specs import load_callable, parse_spec
+from sim.drivers.callables import TRUCK_MIN_LENGTH_FT, CallablePolicy, PolicyCallable
 from sim.drivers.formats import policy_callable
 from sim.drivers.observe import CONTINUOUS_NAMES, CONTINUOUS_UNITS, MergeObservation
 from sim.drivers.policy import PolicyError, check_policy

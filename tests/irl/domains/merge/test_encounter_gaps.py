@@ -15,7 +15,7 @@ from irl.domains.merge.bins import MergeBins, fit_quantile_bins
 from irl.domains.merge.car_following import car_following_decisions
 from irl.planning.decisions import encounter_decisions
 
-CASES = Path(__file__).resolve().parents[1] / "data" / "cases"
+CASES = Path(__file__).resolve().parents[3] / "data" / "cases"
 
 
 def row_by_row(df, bins, k, encoding):

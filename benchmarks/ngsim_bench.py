@@ -4,7 +4,7 @@
 
 1. Generates an NGSIM-format CSV of at least ``--size-mb`` MB in the temp folder (deleted
    afterwards unless ``--keep``): vehicles driving along Local_Y in lanes 1..7, written with
-   :func:`sim.ngsim.io.write_ngsim_csv_blocks`.
+   :func:`sim.ngsim.write.write_ngsim_csv_blocks`.
 2. In a fresh subprocess each: ``read_ngsim`` of the whole file, ``read_ngsim`` with a lane
    filter (lanes 6 and 7, the merge lanes), and ``pandas.read_csv`` of the whole file. Each
    child reports its wall time and its peak resident memory (``VmHWM`` of /proc/self/status:
@@ -31,7 +31,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.calibration import fit_population, load_pairs
-from sim.ngsim.io import write_ngsim_csv_blocks
+from sim.ngsim.write import write_ngsim_csv_blocks
 from sim.runtime.schema import COLUMNS
 
 _CHILD = textwrap.dedent("""

@@ -17,9 +17,9 @@ import numpy as np
 
 from irl.domains.merge.car_following import CF_FEATURES
 from irl.domains.merge.cf_logit import CarFollowingLogit
-from irl.domains.merge.planning.driver import PlanningDriver
-from irl.domains.merge.planning.features import Shape
-from irl.domains.merge.planning.model import PlannerConfig
+from irl.planning.driver import PlanningDriver
+from irl.planning.features import Shape
+from irl.planning.model import PlannerConfig
 
 ACC = (-9.5, -2.2, 0.05, 2.3, 6.0)
 

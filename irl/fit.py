@@ -11,11 +11,11 @@ import numpy as np
 from irl.config import IRLConfig
 from irl.demonstrations import Demonstrations
 from irl.errors import ConfigError
-from irl.methods.registry import REGISTRY, Method, get_method, method_names, register, unregister
+from irl.methods.registry import REGISTRY, Method, get_method, method_names, register
 from irl.result import FitResult
 from irl.transitions import TransitionModel
 
-__all__ = ["REGISTRY", "Method", "fit", "get_method", "method_names", "register", "unregister"]
+__all__ = ["REGISTRY", "Method", "fit", "method_names", "register"]
 
 
 def fit(method: str, demos: Demonstrations, config: IRLConfig, rng: np.random.Generator, *,

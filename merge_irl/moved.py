@@ -37,11 +37,12 @@ MOVED_PACKAGES: dict[str, str] = {
     "analysis.benchmarks": "benchmarks",
     "analysis.commands": "analysis.cli.commands",
     "analysis.scripts": "tools",
+    "irl.domains.merge.planning": "irl.planning",
     "scenarios.calibration": "analysis.calibration",
 }
 
 #: New homes that are folders of the source checkout, not installed with the package.
-CHECKOUT_ONLY = ("benchmarks", "tools")
+CHECKOUT_ONLY = ("benchmarks", "studies", "tools")
 
 #: Old module path -> where its names live today.
 MOVED: dict[str, str] = {
@@ -143,7 +144,7 @@ MOVED: dict[str, str] = {
     "analysis.dagger": "analysis.experiments.dagger",
     "analysis.demo_basic": "analysis.demo.basic",
     "analysis.demo_config": "analysis.demo.config",
-    "analysis.demo_signal": "analysis.demo.signal",
+    "analysis.demo_signal": "studies.support.signal",
     "analysis.episode": "analysis.evaluation.episode",
     "analysis.evaluate": "analysis.evaluation.evaluate",
     "analysis.evaluate_heldout": "analysis.evaluation.heldout_scoring",
@@ -185,6 +186,21 @@ MOVED: dict[str, str] = {
     "analysis.benchmarks.sweep_bench": "benchmarks.sweep_bench",
     "analysis.scripts": "tools",
     "analysis.scripts.derive_i80_geometry": "tools.derive_i80_geometry",
+    # 2026-12-07: the planning learner out of irl.domains into a package named for it
+    "irl.domains.merge.planning": "irl.planning",
+    "irl.domains.merge.planning.decisions": "irl.planning.decisions",
+    "irl.domains.merge.planning.driver": "irl.planning.driver",
+    "irl.domains.merge.planning.features": "irl.planning.features",
+    "irl.domains.merge.planning.fit": "irl.planning.fit",
+    "irl.domains.merge.planning.model": "irl.planning.model",
+    "irl.domains.merge.planning.policy": "irl.planning.policy",
+    "irl.domains.merge.planning.replay": "irl.planning.replay",
+    "irl.domains.merge.planning.replay_fit": "irl.planning.replay_fit",
+    # 2026-12-07: study support out of the installed packages
+    "analysis.demo.signal": "studies.support.signal",
+    "analysis.evaluation.closed_loop_targets": "studies.support.closed_loop_targets",
+    "analysis.experiments.gail_config": "studies.support.gail_config",
+    "analysis.experiments.obs_scaler": "studies.support.obs_scaler",
 }
 
 

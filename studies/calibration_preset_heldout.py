@@ -24,7 +24,8 @@ import time
 from pathlib import Path
 
 from analysis.calibration import load_pairs, split_by_follower
-from analysis.calibration.check import KS_TARGET, VARIABLES, compare_distributions, diagnose, pair_states, table_states
+from analysis.calibration.compare import KS_TARGET, compare_distributions, diagnose
+from analysis.calibration.states import VARIABLES, pair_states, table_states
 from merge_irl.units import FT_PER_M
 from scenarios.loader import load_scenario
 from sim.runtime.run import run_scenario

@@ -43,7 +43,7 @@ learn; every learned driver and every baseline (``sumo``, ``uniform``, ``margina
   every learned driver, the default one (``--driver``, default ``cf-dagger``) first: 0
   collisions by controlled cars with the 95 % upper bound, held-out LL per step above
   ``marginal`` and ``bc``, W1 of speed and of d_AC within 1.5x the SUMO-driver floor
-  (:mod:`analysis.evaluation.closed_loop_targets`).
+  (:mod:`studies.support.closed_loop_targets`).
 
 Run: ``python -m studies.closed_loop_target [--episodes 30] [--methods qavg]`` (MLIRL took over 5 min
 at the driver encoding's 6250 states with the dense transition model: add it once it is sparse).
@@ -61,8 +61,6 @@ import pandas as pd
 from analysis.cli.commands._arg_types import non_negative_int, positive_int
 from analysis.demo.config import CF_DRIVER, DemoConfig, check_dagger_seeds
 from analysis.demo.pipeline import run_demo
-from analysis.demo.signal import bin_change_rate, braking_cap_share
-from analysis.evaluation.closed_loop_targets import floor_driver, target_checks
 from analysis.evaluation.distances import wasserstein
 from analysis.evaluation.evaluate import evaluate
 from analysis.evaluation.policies import cf_policy
@@ -74,6 +72,8 @@ from sim.closed_loop.records import COLLISION_KINDS
 from sim.drivers.learned import CarFollowingLogitPolicy
 from sim.errors import SimError
 from sim.merges.rules import ENCOUNTER_RULES
+from studies.support.closed_loop_targets import floor_driver, target_checks
+from studies.support.signal import bin_change_rate, braking_cap_share
 
 
 def _seeds(text: str) -> tuple[int, ...]:

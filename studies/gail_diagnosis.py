@@ -1,7 +1,7 @@
 """GAIL's training on the merge, diagnosed: does the generator leave the uniform policy, and why not.
 
 For each GAIL setting given (``--config`` JSON, the fields of
-:class:`analysis.experiments.gail_config.GailConfig`), on the demo's synthetic demonstrations
+:class:`studies.support.gail_config.GailConfig`), on the demo's synthetic demonstrations
 (``--demo``, a folder :func:`analysis.demo.pipeline.run_demo` left), it trains
 :func:`studies.imitation_bench.make_gail`'s trainer as the comparison does (``--train-seed``,
 ``--gail-env-seed``) and prints:
@@ -33,9 +33,9 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.experiments.gail_config import GailConfig, parse_gail_config
 from irl.domains.merge.actions import N_ACTIONS
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S
+from studies.support.gail_config import GailConfig, parse_gail_config
 
 
 def _row(r: dict[str, str], key: str) -> float:
@@ -45,11 +45,11 @@ def _row(r: dict[str, str], key: str) -> float:
 
 def diagnose(demo: Path, cfg: GailConfig, *, train_seed: int, env_seed: int, out: Path, every: int) -> None:
     """Train one GAIL setting and print its diagnosis (module docstring)."""
-    from analysis.experiments.obs_scaler import ObsScaler
     from irl.domains.merge.mdp import read_encounters
     from sim.drivers.baselines import training_action_acc
     from sim.merges.transitions import from_encounters, to_imitation_trajectories
     from studies.imitation_bench import TorchActor, heldout_loglik, make_gail, mean_entropy
+    from studies.support.obs_scaler import ObsScaler
 
     tp, hp = demo / "data" / "train_encounters.parquet", demo / "data" / "heldout_encounters.parquet"
     step = DEFAULT_DECISION_STEP_S

@@ -62,11 +62,11 @@ from typing import Any
 
 import numpy as np
 
-from analysis.experiments.gail_config import GailConfig, gail_log_summary
-from analysis.experiments.obs_scaler import ObsScaler
 from irl.domains.merge.actions import N_ACTIONS
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S
 from sim.merges.transitions import Transitions, to_imitation_trajectories
+from studies.support.gail_config import GailConfig, gail_log_summary
+from studies.support.obs_scaler import ObsScaler
 
 #: The evaluation's trivial baselines, in the table's order.
 BASELINES = ("uniform", "marginal", "markov", "bc", "sumo", "sumo-in-lane")

@@ -10,7 +10,7 @@ split by group (seed ``--seed``, fraction ``--holdout``), it prints the log-like
   absent; and ``acc_C``, the lead car's acceleration as brake lights), no previous action; one
   of :data:`SETTINGS` chosen by ``GroupKFold`` (``--folds``) on the training groups only
   (pooled validation LL), refitted on all training decisions
-  (:func:`irl.domains.merge.planning.ceiling.fit_ceiling`);
+  (:func:`studies.support.ceiling.fit_ceiling`);
 * the **previous-bin Markov** model ``P(b | bin of prev_acc)`` (Laplace 1; unknown previous:
   the marginal). It sees history, so it is *not* a like-for-like comparison with the
   history-free models (the ceiling, and a driver without ``jerk`` or an actuation lag);
@@ -56,10 +56,10 @@ from analysis.calibration.pairs import load_pairs, split_by_follower
 from analysis.experiments.learn_driver import pair_frames
 from irl.domains.merge.bins import MergeBins
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, encounter_runs, read_encounters, resample_encounters
-from irl.domains.merge.planning.ceiling import Marginal, PreviousBinMarkov, fit_ceiling
-from irl.domains.merge.planning.decisions import PlanningDecisions, encounter_decisions, pair_decisions, split_groups
-from irl.domains.merge.planning.driver import PlanningDriver
+from irl.planning.decisions import PlanningDecisions, encounter_decisions, pair_decisions, split_groups
+from irl.planning.driver import PlanningDriver
 from studies.heldout_args import DEFAULT_PAIRS
+from studies.support.ceiling import Marginal, PreviousBinMarkov, fit_ceiling
 
 #: The gradient-boosting settings tried by grouped cross-validation (no early stopping: its
 #: internal validation split is not by group).

@@ -31,9 +31,9 @@ from analysis.calibration.driver_eval import evaluate_driver, replay_pairs
 from analysis.calibration.pairs import load_pairs, split_by_follower
 from analysis.calibration.params_file import load_result
 from analysis.experiments.learn_driver import CLOSE_GAP_M, pair_frames
-from irl.domains.merge.planning.decisions import pair_decisions
-from irl.domains.merge.planning.driver import PlanningDriver
-from irl.domains.merge.planning.replay import replay
+from irl.planning.decisions import pair_decisions
+from irl.planning.driver import PlanningDriver
+from irl.planning.replay import replay
 
 
 def main(argv: list[str] | None = None) -> int:

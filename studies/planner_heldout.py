@@ -1,4 +1,4 @@
-"""Held-out measurements of the planning driver (irl.domains.merge.planning) on synthetic merge
+"""Held-out measurements of the planning driver (irl.planning) on synthetic merge
 encounters or real NGSIM I-80 car-following pairs.
 
     OMP_NUM_THREADS=1 python -m studies.planner_heldout --data synthetic --out planner-synthetic.json
@@ -31,11 +31,11 @@ from analysis.calibration.pairs import duplicate_files, pair_files, read_pair
 from irl.domains.merge.actions import actions_of
 from irl.domains.merge.car_following import CFDecisions
 from irl.domains.merge.cf_logit import CarFollowingLogit
-from irl.domains.merge.planning.decisions import PlanningDecisions, encounter_decisions, pair_decisions, split_groups
-from irl.domains.merge.planning.driver import learn_planning_driver
-from irl.domains.merge.planning.fit import fit_planner
-from irl.domains.merge.planning.model import PlannerConfig, path_tensors
-from irl.domains.merge.planning.replay import ReplayPair, replay
+from irl.planning.decisions import PlanningDecisions, encounter_decisions, pair_decisions, split_groups
+from irl.planning.driver import learn_planning_driver
+from irl.planning.fit import fit_planner
+from irl.planning.model import PlannerConfig, path_tensors
+from irl.planning.replay import ReplayPair, replay
 from merge_irl.units import FT_PER_M
 
 PAIRS_DIR = "/work/shared/data/ngsim_i80_car_following/train"

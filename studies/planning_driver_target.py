@@ -41,9 +41,9 @@ from analysis.evaluation.aggregate import rate_ci95
 from analysis.evaluation.evaluate import evaluate
 from analysis.experiments.learn_driver import pair_frames
 from irl.domains.merge.mdp import read_encounters
-from irl.domains.merge.planning.decisions import encounter_decisions, pair_decisions
-from irl.domains.merge.planning.driver import learn_planning_driver
-from irl.domains.merge.planning.model import PlannerConfig
+from irl.planning.decisions import encounter_decisions, pair_decisions
+from irl.planning.driver import learn_planning_driver
+from irl.planning.model import PlannerConfig
 from sim.closed_loop.records import COLLISION_KINDS
 from sim.drivers.formats import driver_policy
 

@@ -1,5 +1,7 @@
 """The package import graph, read from the source (ast): no circles, and the floors of
-docs/architecture.md, with no exception. Every import counts, at module top or inside a function."""
+docs/architecture.md, with no exception. Every import counts, at module top or inside a function.
+No package imports the script folders (``benchmarks``, ``studies``); tests import of them only
+``studies.support``, what the studies share and the tests check, which the packages do not ship."""
 
 import ast
 from pathlib import Path
@@ -161,31 +163,48 @@ def test_irl_never_imports_sumo():
     assert {m: v for m, v in bad.items() if v} == {}
 
 
-#: The script folders at the top of the checkout (not installed): nothing of the packages or the
-#: tests imports them; a test may run a script as a subprocess.
+#: The script folders at the top of the checkout (not installed): nothing of the packages imports
+#: them, and the tests import only :data:`STUDY_SUPPORT`, the modules the studies share that the
+#: tests check (the packages do not ship them); a test may run a script as a subprocess.
 SCRIPT_FOLDERS = ("benchmarks", "studies")
+STUDY_SUPPORT = "studies.support"
 
 
-def _script_imports(path: Path) -> list[str]:
+def _script_imports(path: Path, allowed: tuple[str, ...] = ()) -> list[str]:
+    """The imports of a script folder in ``path``, other than of ``allowed`` and its modules."""
     found = []
     for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), str(path))):
         names = ([a.name for a in node.names] if isinstance(node, ast.Import)
                  else [node.module or ""] if isinstance(node, ast.ImportFrom) and not node.level else [])
-        found += [f"{n} (line {node.lineno})" for n in names if n.split(".")[0] in SCRIPT_FOLDERS]
+        found += [f"{n} (line {node.lineno})" for n in names if n.split(".")[0] in SCRIPT_FOLDERS
+                  and not any(n == a or n.startswith(a + ".") for a in allowed)]
     return found
 
 
-def test_no_package_or_test_imports_the_script_folders():
-    paths = [*MODULES.values(), *sorted((ROOT / "tests").rglob("*.py"))]
+def test_no_package_imports_the_script_folders():
+    paths = list(MODULES.values())
     assert len(paths) > 200
     bad = {p.relative_to(ROOT).as_posix(): hits for p in paths if (hits := _script_imports(p))}
     assert bad == {}
 
 
+def test_tests_import_only_the_study_support():
+    paths = sorted((ROOT / "tests").rglob("*.py"))
+    assert len(paths) > 100
+    bad = {p.relative_to(ROOT).as_posix(): hits for p in paths if (hits := _script_imports(p, (STUDY_SUPPORT,)))}
+    assert bad == {}
+    users = [p for p in paths if _script_imports(p) and not _script_imports(p, (STUDY_SUPPORT,))]
+    assert users, "no test imports studies.support: the exception is not needed"
+
+
 def test_the_script_check_sees_an_import(tmp_path):
     f = tmp_path / "t.py"
-    f.write_text("import os\ndef g():\n    from studies.x import y\nimport benchmarks.z as z\n", encoding="utf-8")
-    assert sorted(_script_imports(f)) == ["benchmarks.z (line 4)", "studies.x (line 3)"]
+    f.write_text("import os\ndef g():\n    from studies.x import y\nimport benchmarks.z as z\n"
+                 "from studies.support.ceiling import c\nimport studies.supportive\n", encoding="utf-8")
+    assert sorted(_script_imports(f)) == ["benchmarks.z (line 4)", "studies.support.ceiling (line 5)",
+                                          "studies.supportive (line 6)", "studies.x (line 3)"]
+    assert sorted(_script_imports(f, (STUDY_SUPPORT,))) == ["benchmarks.z (line 4)", "studies.supportive (line 6)",
+                                                             "studies.x (line 3)"]
 
 
 def test_the_floor_is_really_used():

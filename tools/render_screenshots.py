@@ -34,8 +34,8 @@ from pathlib import Path
 import numpy as np
 
 from analysis.recording.blueprint import merge_blueprint
-from analysis.recording.log import MIRROR_Y
 from analysis.recording.read import read_rrd_table, recording_info
+from analysis.recording.scene import MIRROR_Y
 
 
 def blueprint_inputs(rrd: Path) -> dict:

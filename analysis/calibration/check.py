@@ -33,26 +33,8 @@ from pathlib import Path
 import pandas as pd
 
 from analysis.calibration import evaluate, load_pairs, load_result
-from analysis.calibration.compare import (
-    CAUSES,
-    HIST_BINS,
-    KS_TARGET,
-    Diagnosis,
-    VariableComparison,
-    compare_distributions,
-    diagnose,
-)
-from analysis.calibration.states import (
-    GAP_QUANTILES,
-    MAX_SPACING_FT,
-    REAL_LANES,
-    SPEED_RANGE_FT_S,
-    VARIABLES,
-    AcceptedGaps,
-    accepted_gaps,
-    pair_states,
-    table_states,
-)
+from analysis.calibration.compare import KS_TARGET, Diagnosis, VariableComparison, compare_distributions, diagnose
+from analysis.calibration.states import GAP_QUANTILES, accepted_gaps, pair_states, table_states
 from analysis.calibration.vtypes import (
     driver_members,
     every_member,
@@ -68,10 +50,7 @@ from scenarios.spec.parse import with_overrides
 from sim.runtime.run import run_scenario
 from sim.runtime.sites import site_of
 
-__all__ = ["CAUSES", "GAP_QUANTILES", "HIST_BINS", "KS_TARGET", "MAX_SPACING_FT", "N_MEMBERS", "REAL_LANES",
-           "SPEED_RANGE_FT_S", "VARIABLES", "AcceptedGaps", "CalibrationCheck", "Diagnosis", "VariableComparison",
-           "accepted_gaps", "calibrated_spec", "compare_distributions", "diagnose", "pair_states",
-           "run_calibration_check", "table_states"]
+__all__ = ["N_MEMBERS", "CalibrationCheck", "calibrated_spec", "run_calibration_check"]
 
 #: Driver types of a resample (``n_members``) from a params file with per-pair fits; the ``i80``
 #: preset has 32. The default is every per-pair fit once (:func:`~.vtypes.every_member`).

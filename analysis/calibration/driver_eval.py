@@ -3,7 +3,7 @@
 Each pair's recorded leader is replayed; the learned driver follows from the recorded initial
 state, taking its most likely action every decision (deterministic; the driver's format says how:
 :func:`sim.drivers.formats.replay_act`), integrated exactly at
-0.1 s (:func:`irl.domains.merge.planning.replay.replay`). Scored per pair: the spacing RMSE
+0.1 s (:func:`irl.planning.replay.replay`). Scored per pair: the spacing RMSE
 (bumper gap, m) and a collision (bumper gap <= 0). Beside it on the same pairs: IDM with SUMO's
 default parameters (:data:`analysis.calibration.models.SUMO_DEFAULTS`, the numpy replica) and,
 when given, a calibration of ``merge-irl calibrate fit`` (its model, population or driver
@@ -25,7 +25,7 @@ from analysis.calibration.models import SUMO_DEFAULTS
 from analysis.calibration.objective import spacing_rmse
 from analysis.calibration.pairs import CarFollowingPair, PairBatch
 from analysis.calibration.result import CalibrationResult
-from irl.domains.merge.planning.replay import ActFn, ReplayPair, replay
+from irl.planning.replay import ActFn, ReplayPair, replay
 from merge_irl.units import FT_PER_M
 from scenarios.errors import SpecError
 from sim.drivers.formats import replay_act

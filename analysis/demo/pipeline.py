@@ -58,11 +58,11 @@ from analysis.experiments.learn import fit_problem, merge_config, merge_encoding
 from analysis.sweep import Task, resolve_executor, run_sweep
 from irl.domains.merge.bins import fit_quantile_bins
 from irl.domains.merge.encounters import prepare_encounters
-from irl.domains.merge.planning.decisions import encounter_decisions
-from irl.domains.merge.planning.driver import learn_planning_driver
-from irl.domains.merge.planning.model import PlannerConfig
 from irl.errors import IRLError
 from irl.methods.registry import method_names
+from irl.planning.decisions import encounter_decisions
+from irl.planning.driver import learn_planning_driver
+from irl.planning.model import PlannerConfig
 from irl.problems import load_problem
 from merge_irl.atomic import write_text_atomic
 from merge_irl.provenance import provenance, provenance_markdown, text_digest, write_timings

@@ -24,7 +24,8 @@ import numpy as np
 from irl.config import IRLConfig
 from irl.domains.merge.bins import MergeBins
 from irl.errors import ConvergenceError
-from irl.fit import fit, get_method
+from irl.fit import fit
+from irl.methods.registry import get_method
 from irl.methods.reirl import DEFAULT_EPSILON, DEFAULT_N_BASELINE
 from irl.problems import DOMAINS, Problem, load_problem
 from irl.result import FitResult, SavedModel

@@ -7,14 +7,14 @@ layout of ``analysis.calibration.pairs``: C the recorded leader, no B). Two crit
 
 * ``replay`` (the default when every source is a pair folder): the reward's weights and gap shape
   are chosen by what the driver does when it drives, replaying the training pairs from their
-  recorded initial states (:func:`irl.domains.merge.planning.replay_fit.fit_by_replay`), then its
-  temperature by the training likelihood (:func:`~irl.domains.merge.planning.replay_fit.fit_temperature`).
+  recorded initial states (:func:`irl.planning.replay_fit.fit_by_replay`), then its
+  temperature by the training likelihood (:func:`~irl.planning.replay_fit.fit_temperature`).
   With ``holdout``, followers are split as ``merge-irl calibrate fit --holdout`` splits them
   (:func:`analysis.calibration.pairs.split_by_follower`, same seed: the same followers), and the
   held-out followers are scored beside IDM with SUMO's defaults (:func:`heldout_report`).
 * ``likelihood`` (the default for encounter tables): the planner's settings chosen by held-out
   likelihood on a split of the groups, its weights by maximum likelihood on all of them
-  (:func:`irl.domains.merge.planning.driver.learn_planning_driver`). Several sources are learned
+  (:func:`irl.planning.driver.learn_planning_driver`). Several sources are learned
   from together, their encounters and pairs kept apart as groups.
 """
 
@@ -30,11 +30,11 @@ import pandas as pd
 
 from analysis.calibration.driver_eval import replay_pairs
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, read_encounters
-from irl.domains.merge.planning.decisions import PlanningDecisions, encounter_decisions, pair_decisions
-from irl.domains.merge.planning.driver import PlanningDriver, learn_planning_driver, shape_of
-from irl.domains.merge.planning.model import PlannerConfig
-from irl.domains.merge.planning.replay_fit import ReplayFitConfig, fit_by_replay, fit_temperature
 from irl.errors import DemonstrationError
+from irl.planning.decisions import PlanningDecisions, encounter_decisions, pair_decisions
+from irl.planning.driver import PlanningDriver, learn_planning_driver, shape_of
+from irl.planning.model import PlannerConfig
+from irl.planning.replay_fit import ReplayFitConfig, fit_by_replay, fit_temperature
 from merge_irl.provenance import provenance
 from merge_irl.units import FT_PER_M
 
@@ -47,7 +47,7 @@ CLOSE_GAP_M = 2.0
 
 def pair_frames(pairs) -> tuple[list[pd.DataFrame], list[str]]:
     """Car-following pairs (:class:`analysis.calibration.pairs.CarFollowingPair`, SI units) as
-    the planning driver's pair tables (ft, ft/s; :data:`irl.domains.merge.planning.decisions.PAIR_COLUMNS`)
+    the planning driver's pair tables (ft, ft/s; :data:`irl.planning.decisions.PAIR_COLUMNS`)
     and their followers (the groups)."""
     frames = [pd.DataFrame({"t": p.t, "x_follower": p.x_follower * FT_PER_M, "v_follower": p.v_follower * FT_PER_M,
                             "x_leader": p.x_leader * FT_PER_M, "v_leader": p.v_leader * FT_PER_M,
@@ -100,7 +100,7 @@ def learn_driver(paths: Sequence[str | os.PathLike], out: str | os.PathLike | No
     """Learn a planning driver on the demonstrations of ``paths`` (:func:`load_driver_demos`)
     and, with ``out``, write it (format ``merge-irl-planner/1``) with the provenance of its inputs
     in ``info["provenance"]``. ``select``: choose the planner's settings by held-out likelihood
-    (else :class:`~irl.domains.merge.planning.model.PlannerConfig`'s defaults). ``log`` receives
+    (else :class:`~irl.planning.model.PlannerConfig`'s defaults). ``log`` receives
     one line per selection trial.
 
     Raises:
@@ -149,7 +149,7 @@ def learn_driver_by_replay(pair_dirs: Sequence[str | os.PathLike], out: str | os
                            log: Callable[[str], None] = lambda s: None) -> PlanningDriver:
     """A planning driver fitted by replaying the pairs of ``pair_dirs`` (module docstring) and,
     with ``out``, written with its provenance. ``config``: the fit's settings (default
-    :class:`~irl.domains.merge.planning.replay_fit.ReplayFitConfig`), its planner at ``decision_step_s``. ``holdout``: the fraction of followers held out
+    :class:`~irl.planning.replay_fit.ReplayFitConfig`), its planner at ``decision_step_s``. ``holdout``: the fraction of followers held out
     (0: none), split with ``seed``; their report is in ``info["heldout"]``.
 
     Raises:

@@ -60,29 +60,16 @@ import pyarrow as pa
 import rerun as rr
 
 from analysis.recording.blueprint import merge_blueprint
-from analysis.recording.columns import ACTION_RGBA, BAR_HALF_WIDTH, action_bar_columns, bar_chart_column
+from analysis.recording.columns import action_bar_columns, bar_chart_column
 from analysis.recording.files import close_recording, open_recording, policy_digest, recording_identity, run_token
-from analysis.recording.scene import (
-    LANE_LINE_RGBA,
-    LANE_ROLES,
-    MIRROR_Y,
-    ROAD_RGBA,
-    ROLE_COLORS,
-    ROLE_IDS,
-    ROLE_LABELS,
-    ROLE_RGBA_U32,
-    log_scene,
-    road_landmarks,
-)
+from analysis.recording.scene import ROLE_IDS, ROLE_LABELS, ROLE_RGBA_U32, log_scene
 from irl.domains.merge.actions import ACTION_NAMES
 from irl.domains.merge.features import FEATURE_NAMES, paper_features
 from sim.drivers.observe import lead_of
 from sim.runtime.hooks import FrameState, RunContext
 from sim.runtime.sites import I80
 
-__all__ = ["ACTION_RGBA", "BAR_HALF_WIDTH", "LANE_LINE_RGBA", "LANE_ROLES", "MIRROR_Y", "ROAD_RGBA", "ROLE_COLORS",
-           "ROLE_IDS", "ROLE_LABELS", "ROLE_RGBA_U32", "RerunLogger", "action_bar_columns", "log_training",
-           "road_landmarks"]
+__all__ = ["RerunLogger", "log_training"]
 
 def log_training(rec: rr.RecordingStream, method: str, loglik_trace: np.ndarray, theta_trace: np.ndarray,
                  feature_names: Sequence[str] = ()) -> None:

@@ -48,7 +48,7 @@ from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S
 from merge_irl.units import M_PER_FT
 from sim.closed_loop.actuation import brake_to_need, safe_action
 from sim.closed_loop.config import ControllerConfig
-from sim.closed_loop.handover import EXIT_MARGIN_FT, HandOver
+from sim.closed_loop.handover import HandOver
 from sim.closed_loop.observation import control_observation
 from sim.closed_loop.records import Control, DecisionLog
 from sim.drivers.observe import MergeObservation, lead_of
@@ -57,7 +57,7 @@ from sim.runtime.hooks import FrameState, RunContext
 from sim.runtime.lanes import aux_lane_start_ft
 from sim.runtime.schema import RAMP_LANE, RIGHTMOST_MAIN_LANE
 
-__all__ = ["Controller", "EXIT_MARGIN_FT"]
+__all__ = ["Controller"]
 
 
 class Controller(HandOver):

@@ -42,9 +42,9 @@ import pandas as pd
 
 from irl.domains.merge.actions import ACTION_ACC_FT_S2, N_ACTIONS, ZERO_ACTION, action_of
 from merge_irl.units import FT_PER_M
-from sim.drivers.callable_actions import PLAUSIBLE_ACC_MPS2, _one_line, act_of, parse_action
+from sim.drivers.callable_actions import _one_line, act_of, parse_action
 from sim.drivers.callable_limits import DEFAULT_DECISION_LIMIT_S, call_with_limit, check_limit
-from sim.drivers.callable_specs import CallableSpec, load_callable, parse_spec
+from sim.drivers.callable_specs import CallableSpec, load_callable
 from sim.drivers.observe import CONTINUOUS_NAMES, MergeObservation, policy_observation, unfill_policy_row
 from sim.drivers.policy import NO_LIKELIHOOD, Policy, PolicyDefaults, PolicyError, check_policy, choose_action
 
@@ -53,8 +53,7 @@ from sim.drivers.policy import NO_LIKELIHOOD, Policy, PolicyDefaults, PolicyErro
 #: (4.5-5 m) and trucks (12 m). A heuristic: the controller itself reads B's vehicle class.
 TRUCK_MIN_LENGTH_FT = 8.0 * FT_PER_M
 
-__all__ = ["CallablePolicy", "CallableSpec", "PLAUSIBLE_ACC_MPS2", "PolicyCallable", "TRUCK_MIN_LENGTH_FT", "act_of",
-           "load_callable", "parse_action", "parse_spec"]
+__all__ = ["CallablePolicy", "PolicyCallable", "TRUCK_MIN_LENGTH_FT"]
 
 
 # -- callable -> Policy -----------------------------------------------------------------------

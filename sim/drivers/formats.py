@@ -31,8 +31,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
-from irl.domains.merge.planning.replay import ActFn
 from irl.errors import ModelFileError
+from irl.planning.replay import ActFn
 
 if TYPE_CHECKING:  # pragma: no cover
     from sim.drivers.callables import PolicyCallable
@@ -57,7 +57,7 @@ class DriverFormat:
         policy: ``(learned, name, source) -> Policy`` (:class:`sim.drivers.policy.Policy`): the
             closed-loop driver, named ``name``, read from ``source`` ("" when built in code).
         replay_act: ``learned -> (act, decision_step_s)``: its most likely acceleration when
-            replaying real pairs (:data:`irl.domains.merge.planning.replay.ActFn`: ``act(obs [N, 7], prev_acc [N], acc_C [N]) -> [N]`` ft/s^2); None: the format does not replay pairs.
+            replaying real pairs (:data:`irl.planning.replay.ActFn`: ``act(obs [N, 7], prev_acc [N], acc_C [N]) -> [N]`` ft/s^2); None: the format does not replay pairs.
         reward: ``learned -> reward`` (:data:`RewardFn`) for the environment; None: no reward.
         role: ``"driver"`` (``evaluate --driver``) or ``"model"`` (``evaluate --model``).
     """

@@ -31,8 +31,8 @@ from irl.domains.merge.car_following import CFDecisions, car_following_decisions
 from irl.domains.merge.cf_logit import CF_FORMAT, CarFollowingLogit
 from irl.domains.merge.features import feature_set
 from irl.domains.merge.mdp import discretize
-from irl.domains.merge.planning.replay import ActFn
 from irl.errors import ConfigError
+from irl.planning.replay import ActFn
 from irl.result import MODEL_FORMAT, SavedModel
 from merge_irl.units import FRAME_S
 from sim.drivers.formats import DriverFormat, family_of, register_format

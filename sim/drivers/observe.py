@@ -47,10 +47,10 @@ def fill_policy_rows(rows: np.ndarray) -> np.ndarray:
 
     No lead car C (``d_AC`` or ``v_AC`` not finite) reads as a car :data:`NO_LEAD_GAP_FT` ahead at
     A's speed (``v_AC = 0``); an unknown length (``len_C`` without C too) as the planning driver's
-    :data:`irl.domains.merge.planning.features.DEFAULT_LENGTH_FT` (4.5 m); any other NaN as 0.
+    :data:`irl.planning.features.DEFAULT_LENGTH_FT` (4.5 m); any other NaN as 0.
     A copy; ``rows`` is not changed.
     """
-    from irl.domains.merge.planning.features import DEFAULT_LENGTH_FT  # scipy: only when asked
+    from irl.planning.features import DEFAULT_LENGTH_FT  # scipy: only when asked
 
     out = np.array(rows, dtype=np.float64, copy=True).reshape(-1, len(CONTINUOUS_NAMES))
     no_c = ~(np.isfinite(out[:, 0]) & np.isfinite(out[:, 1]))

@@ -1,5 +1,5 @@
 """The planning driver in the closed loop: a :class:`sim.drivers.policy.Policy` around a learned
-:class:`irl.domains.merge.planning.driver.PlanningDriver`.
+:class:`irl.planning.driver.PlanningDriver`.
 
 At each decision the driver sees what a driver sees (:class:`sim.drivers.observe.MergeObservation`):
 the gaps and closing speeds to C and B, A's speed, the vehicle lengths, the acceleration it
@@ -27,8 +27,8 @@ import numpy as np
 import pandas as pd
 
 from irl.domains.merge.actions import N_ACTIONS, actions_of
-from irl.domains.merge.planning.decisions import encounter_decisions
-from irl.domains.merge.planning.driver import PLANNER_FORMAT, PlanningDriver
+from irl.planning.decisions import encounter_decisions
+from irl.planning.driver import PLANNER_FORMAT, PlanningDriver
 from sim.drivers.formats import DriverFormat, family_of, register_format
 from sim.drivers.observe import MergeObservation
 from sim.drivers.policy import PolicyDefaults
@@ -99,7 +99,7 @@ class PlanningDriverPolicy(PolicyDefaults):
     def heldout_loglik(self, encounters: pd.DataFrame, *, decision_step_s: float,
                        where: str) -> tuple[float, float]:
         """``(sum, per decision)`` of ``log P(paper action | x)`` over the held-out encounters'
-        decisions at the driver's own step (:func:`irl.domains.merge.planning.decisions.encounter_decisions`)."""
+        decisions at the driver's own step (:func:`irl.planning.decisions.encounter_decisions`)."""
         dec = encounter_decisions(encounters, self.driver.decision_step_s, where=where)
         lp = self.driver.bin_log_policy(dec.obs, dec.prev_acc, dec.acc_C)[np.arange(dec.n), dec.actions]
         total = float(lp.sum())
@@ -110,7 +110,7 @@ class PlanningDriverPolicy(PolicyDefaults):
 class PlanningReward:
     """The planning driver's learned reward of one decision step as the environment's reward,
     ``theta . phi(x, acc)`` plus its collision penalty
-    (:meth:`~irl.domains.merge.planning.driver.PlanningDriver.step_reward`)."""
+    (:meth:`~irl.planning.driver.PlanningDriver.step_reward`)."""
 
     driver: PlanningDriver
     name: str = "planner"

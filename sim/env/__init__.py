@@ -22,9 +22,11 @@ from typing import Any
 
 import gymnasium as gym
 
+from sim.drivers.learned import TabularReward
+from sim.drivers.planning import PlanningReward
 from sim.env.config import MergeEnvConfig
 from sim.env.merge_env import MergeEnv, make_env
-from sim.env.rewards import PlanningReward, TabularReward, load_reward
+from sim.env.rewards import load_reward
 from sim.env.task_reward import TASK_REWARDS, TaskReward
 
 #: The registered environment id.

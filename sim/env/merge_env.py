@@ -67,7 +67,7 @@ from sim.closed_loop.controller import Controller
 from sim.closed_loop.records import Control
 from sim.drivers.observe import POLICY_OBS_HIGH, POLICY_OBS_LOW, MergeObservation
 from sim.env.config import MergeEnvConfig, resolve_config
-from sim.env.core import TRUNCATING_REASONS, EnvCore, end_flags
+from sim.env.core import EnvCore, end_flags
 from sim.runtime.hooks import FrameState
 from sim.runtime.session import SumoSession
 
@@ -79,7 +79,7 @@ MAX_EMPTY_RUNS = 3
 #: The render modes (:mod:`sim.env.render`).
 RENDER_MODES = ("rgb_array",)
 
-__all__ = ["MAX_EMPTY_RUNS", "MergeEnv", "OBS_HIGH", "OBS_LOW", "RENDER_MODES", "TRUNCATING_REASONS", "make_env"]
+__all__ = ["MAX_EMPTY_RUNS", "MergeEnv", "OBS_HIGH", "OBS_LOW", "RENDER_MODES", "make_env"]
 
 
 def check_render_mode(render_mode: str | None) -> str | None:

@@ -21,10 +21,8 @@ from __future__ import annotations
 import os
 
 from sim.drivers.formats import RewardFn, driver_reward
-from sim.drivers.learned import TabularReward
-from sim.drivers.planning import PlanningReward
 
-__all__ = ["PlanningReward", "RewardFn", "TabularReward", "load_reward"]
+__all__ = ["load_reward"]
 
 
 def load_reward(path: str | os.PathLike) -> RewardFn:

@@ -55,10 +55,11 @@ import pandas as pd
 
 from irl.domains.merge.actions import forward_acceleration
 from irl.domains.merge.encounters import ENCOUNTER_COLUMNS
+from merge_irl.units import FRAME_S
 from sim.drivers.observe import lag_lead_positions
 from sim.errors import TrajectoryFormatError
 from sim.merges.take_over import TableIndex, TakeOverRule, take_overs
-from sim.runtime.schema import FRAME_S, V_CLASS_TRUCK
+from sim.runtime.schema import V_CLASS_TRUCK
 from sim.runtime.sites import I80, SiteProfile, check_lanes
 
 #: Columns of the per-merge summary table, in order.

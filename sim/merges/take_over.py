@@ -31,9 +31,9 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from merge_irl.units import FRAME_S
 from sim.closed_loop.config import ControllerConfig
 from sim.drivers.observe import lag_lead_positions
-from sim.runtime.schema import FRAME_S
 
 
 @dataclass(frozen=True)

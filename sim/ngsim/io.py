@@ -8,11 +8,7 @@
   (what commands taking "a trajectory file" call).
 """
 
-from sim.ngsim.read import DEFAULT_CHUNKSIZE, NgsimLoad, NgsimReport, read_ngsim, read_trajectories
-from sim.ngsim.smooth import SmoothingConfig, smooth_table
-from sim.ngsim.write import quantize_ngsim, write_ngsim_csv, write_ngsim_csv_blocks
+from sim.ngsim.read import read_ngsim, read_trajectories
+from sim.ngsim.write import write_ngsim_csv
 
-__all__ = [
-    "DEFAULT_CHUNKSIZE", "NgsimLoad", "NgsimReport", "SmoothingConfig", "quantize_ngsim",
-    "read_ngsim", "read_trajectories", "smooth_table", "write_ngsim_csv", "write_ngsim_csv_blocks",
-]
+__all__ = ["read_ngsim", "read_trajectories", "write_ngsim_csv"]

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from sim.runtime.schema import FRAME_S
+from merge_irl.units import FRAME_S
 
 
 @dataclass(frozen=True)

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from merge_irl.units import FT_PER_M
 from scenarios.spec.model import ScenarioSpec
 from sim.runtime.hooks import RunContext
-from sim.runtime.schema import FT_PER_M
 from sim.runtime.sites import I80, SiteProfile
 
 

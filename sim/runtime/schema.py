@@ -12,8 +12,6 @@ from __future__ import annotations
 
 import pandas as pd
 
-from merge_irl.units import FRAME_S, FT_PER_M  # noqa: F401  (re-exported: the table's units)
-
 #: Column order and numpy dtype of every column of the trajectory table.
 COLUMNS: dict[str, str] = {
     "Vehicle_ID": "int64",

@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from merge_irl.units import FRAME_S, FT_PER_M
 from scenarios.routes import type_class_map
 from scenarios.spec.model import ScenarioSpec
 from scenarios.spec.parse import with_overrides
@@ -43,7 +44,7 @@ from sim.runtime.hooks import FrameState, RunContext
 from sim.runtime.lanes import LaneNumbering, lane_tables
 from sim.runtime.recorder import TrajectoryRecorder
 from sim.runtime.run_result import RunEvents
-from sim.runtime.schema import FRAME_S, FT_PER_M, V_CLASS_AUTO, V_CLASS_TRUCK
+from sim.runtime.schema import V_CLASS_AUTO, V_CLASS_TRUCK
 from sim.runtime.sites import site_of
 from sim.runtime.sumo_inputs import prepare_inputs, sumo_args
 

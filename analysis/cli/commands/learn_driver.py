@@ -9,8 +9,8 @@ from analysis.cli.commands._arg_types import DeprecatedFlag
 from analysis.cli.options import PROGRESS, demos_option, seed_option
 from analysis.experiments.learn_driver import learn_driver, learn_driver_by_replay, resolve_fit
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S
-from irl.domains.merge.planning.replay_fit import ReplayFitConfig
 from irl.errors import DemonstrationError
+from irl.planning.replay_fit import ReplayFitConfig
 from merge_irl.run_folder import check_writable
 
 

@@ -13,7 +13,8 @@ import pytest
 from shared_data import PAIRS_DIR
 
 from analysis.calibration import CFParams, load_pairs, load_result
-from analysis.calibration.check import compare_distributions, pair_states, table_states
+from analysis.calibration.compare import compare_distributions
+from analysis.calibration.states import pair_states, table_states
 from merge_irl.units import M_PER_FT
 
 N_PAIRS = 36  # the vendored pairs (tests/data/README.md)

@@ -11,10 +11,10 @@ import pytest
 import sumolib
 
 from analysis.calibration import CFParams, PairFit, load_result
-from analysis.calibration.check import accepted_gaps, pair_states, table_states
 from analysis.calibration.pairs import CarFollowingPair
 from analysis.calibration.preset import preset_with_drivers
 from analysis.calibration.result import CalibrationResult
+from analysis.calibration.states import accepted_gaps, pair_states, table_states
 from analysis.calibration.vtypes import SIM_RANGE, member_spread, resample_members, to_vtype_specs
 from merge_irl.units import M_PER_FT
 from scenarios.errors import SpecError

@@ -14,16 +14,11 @@ import pytest
 from shared_data import PAIRS_DIR
 
 from analysis.calibration import load_pairs, load_result
-from analysis.calibration.check import (
-    KS_TARGET,
-    CalibrationCheck,
-    compare_distributions,
-    diagnose,
-    pair_states,
-    run_calibration_check,
-)
+from analysis.calibration.check import CalibrationCheck, run_calibration_check
+from analysis.calibration.compare import KS_TARGET, compare_distributions, diagnose
 from analysis.calibration.models import EIDM_NOISE_OFF
 from analysis.calibration.pairs import pair_files
+from analysis.calibration.states import pair_states
 from analysis.calibration.vtypes import SIM_RANGE, every_member, resample_members, scenario_car_model
 from scenarios.loader import load_scenario
 

@@ -1,7 +1,7 @@
 """``studies/imitation_bench.py`` and ``studies/gail_diagnosis.py`` run as scripts without torch:
 they import and answer ``--help`` without torch, imitation or Stable-Baselines3 and refuse bad
 options in one line, and their extra stays out of the default install and the ``test`` extra.
-Their torch-free parts are tested beside their modules (test_gail_config.py, test_obs_scaler.py);
+Their torch-free parts are tested beside their modules (tests/studies/support/);
 the training and the table need the ``imitation-bench`` extra and run as the study only
 (docs/imitation.md)."""
 

@@ -12,8 +12,8 @@ import pandas as pd
 import pytest
 
 from analysis.cli.main import main
-from irl.domains.merge.planning.decisions import encounter_decisions
-from irl.domains.merge.planning.driver import PLANNER_FORMAT, PlanningDriver
+from irl.planning.decisions import encounter_decisions
+from irl.planning.driver import PLANNER_FORMAT, PlanningDriver
 
 PAIRS = Path(__file__).resolve().parents[2] / "data" / "ngsim_i80_car_following" / "train"
 

@@ -14,7 +14,8 @@ from irl.boltzmann import log_policy
 from irl.config import IRLConfig
 from irl.demonstrations import Demonstrations
 from irl.errors import ConfigError, ModelFileError
-from irl.fit import Method, fit, method_names, register, unregister
+from irl.fit import Method, fit, method_names, register
+from irl.methods.registry import unregister
 from irl.result import FitResult, SavedModel
 
 TOY_THETA = 0.25

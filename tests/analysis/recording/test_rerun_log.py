@@ -10,8 +10,9 @@ import rerun as rr
 
 from analysis.evaluation.episode import run_episode
 from analysis.recording.files import close_recording, open_recording, recording_identity
-from analysis.recording.log import ROLE_IDS, ROLE_LABELS, log_training
+from analysis.recording.log import log_training
 from analysis.recording.read import read_blueprint, read_entities, read_rrd_table, recording_info
+from analysis.recording.scene import ROLE_IDS, ROLE_LABELS
 from irl.domains.merge.bins import MergeBins
 from scenarios.loader import load_scenario
 from sim.drivers.learned import LearnedPolicy

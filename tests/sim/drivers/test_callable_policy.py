@@ -21,14 +21,9 @@ from irl.domains.merge.features import FEATURE_NAMES
 from irl.errors import ModelFileError
 from irl.result import SavedModel
 from merge_irl.units import FT_PER_M
-from sim.drivers.callables import (
-    TRUCK_MIN_LENGTH_FT,
-    CallablePolicy,
-    PolicyCallable,
-    load_callable,
-    parse_action,
-    parse_spec,
-)
+from sim.drivers.callable_actions import parse_action
+from sim.drivers.callable_specs import load_callable, parse_spec
+from sim.drivers.callables import TRUCK_MIN_LENGTH_FT, CallablePolicy, PolicyCallable
 from sim.drivers.formats import policy_callable
 from sim.drivers.observe import CONTINUOUS_NAMES, CONTINUOUS_UNITS, MergeObservation
 from sim.drivers.policy import PolicyError, check_policy
@@ -134,9 +129,9 @@ def _tabular(tmp_path):
 
 
 def test_every_learned_model_file_is_a_policy_callable(tmp_path) -> None:
-    from irl.domains.merge.planning.decisions import encounter_decisions
-    from irl.domains.merge.planning.driver import learn_planning_driver
-    from irl.domains.merge.planning.model import PlannerConfig
+    from irl.planning.decisions import encounter_decisions
+    from irl.planning.driver import learn_planning_driver
+    from irl.planning.model import PlannerConfig
 
     rng = np.random.default_rng(0)
     obs = np.column_stack([rng.uniform(20, 250, 40), rng.normal(0, 5, 40), rng.uniform(-50, 120, 40),

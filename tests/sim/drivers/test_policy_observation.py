@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from irl.domains.merge.planning.features import DEFAULT_LENGTH_FT
+from irl.planning.features import DEFAULT_LENGTH_FT
 from sim.drivers.observe import (
     NO_LEAD_GAP_FT,
     POLICY_OBS_HIGH,

@@ -153,9 +153,9 @@ def test_tabular_model_reward_is_theta_dot_phi_of_the_state_in_info(tmp_path):
 
 def test_planning_driver_reward_from_its_file_depends_on_the_action(tmp_path):
     from irl.domains.merge.actions import ACTION_ACC_FT_S2
-    from irl.domains.merge.planning.driver import PlanningDriver
-    from irl.domains.merge.planning.features import Shape
-    from irl.domains.merge.planning.model import PlannerConfig
+    from irl.planning.driver import PlanningDriver
+    from irl.planning.features import Shape
+    from irl.planning.model import PlannerConfig
     from sim.env import PlanningReward, load_reward
 
     cfg = PlannerConfig()

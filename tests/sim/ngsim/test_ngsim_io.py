@@ -15,13 +15,9 @@ import pytest
 from merge_irl.units import M_PER_FT
 from sim.errors import TrajectoryFormatError
 from sim.ngsim.format import NGSIM_HEADER
-from sim.ngsim.io import (
-    SmoothingConfig,
-    quantize_ngsim,
-    read_ngsim,
-    read_trajectories,
-    write_ngsim_csv,
-)
+from sim.ngsim.io import read_ngsim, read_trajectories, write_ngsim_csv
+from sim.ngsim.smooth import SmoothingConfig
+from sim.ngsim.write import quantize_ngsim
 from sim.runtime.schema import COLUMNS, sort_table
 from tests.ngsim_testdata import synthetic_table
 

@@ -7,7 +7,8 @@ import pandas as pd
 import pytest
 from sim_testutil import short_run
 
-from sim.runtime.schema import COLUMNS, FT_PER_M, V_CLASS_AUTO, V_CLASS_TRUCK
+from merge_irl.units import FT_PER_M
+from sim.runtime.schema import COLUMNS, V_CLASS_AUTO, V_CLASS_TRUCK
 
 pytestmark = pytest.mark.sumo
 

@@ -1,7 +1,7 @@
 """Reward features of one predicted step of the planning driver, and their shape fit.
 
 The reward is linear, ``r(s, a, a_prev) = theta . phi(s', a, a_prev)`` (learned ``theta``), plus
-a fixed collision penalty (:attr:`~irl.domains.merge.planning.model.PlannerConfig.collision_penalty`,
+a fixed collision penalty (:attr:`~irl.planning.model.PlannerConfig.collision_penalty`,
 not learned). Units: ft, ft/s, ft/s^2, s. A step is one decision step in which A holds one
 acceleration ``a``; state features are scored on the state the step ends in, action features
 on ``a`` and the acceleration held before it (``a_prev``, continuous):
@@ -29,7 +29,7 @@ on ``a`` and the acceleration held before it (``a_prev``, continuous):
                           never lets the driver leave its bin; see docs of the driver).
                           Optional (``jerk``): without it the reward has no action history
                           (persistence may instead be an actuation lag, see
-                          :attr:`~irl.domains.merge.planning.model.PlannerConfig.lag`).
+                          :attr:`~irl.planning.model.PlannerConfig.lag`).
 ``bias_<action>``         one-hot of the paper action (bin) of ``a`` (Zero is the reference;
                           optional).
 ========================  ==================================================================

@@ -1,4 +1,4 @@
-"""Reference scores of the planning driver's held-out likelihood (irl/domains/merge/planning/ceiling):
+"""Reference scores of the planning driver's held-out likelihood (irl/planning/ceiling):
 the smoothed marginal and previous-bin Markov by hand, the classifier's columns and floor, and the
 grouped cross-validated choice with a stub classifier (no scikit-learn)."""
 
@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from irl.domains.merge.actions import actions_of
-from irl.domains.merge.planning.ceiling import (
+from irl.errors import DemonstrationError
+from irl.planning.decisions import PlanningDecisions
+from studies.support.ceiling import (
     PROB_FLOOR,
     Marginal,
     PreviousBinMarkov,
@@ -17,8 +19,6 @@ from irl.domains.merge.planning.ceiling import (
     fit_ceiling,
     previous_bins,
 )
-from irl.domains.merge.planning.decisions import PlanningDecisions
-from irl.errors import DemonstrationError
 
 #: One acceleration inside each paper bin (ft/s^2).
 BIN_ACC = np.array([-8.0, -2.7, 0.0, 2.7, 8.0])

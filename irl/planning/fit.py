@@ -2,7 +2,7 @@
 
 Objective: the mean penalised negative log-likelihood of the observed paper actions,
 ``(-sum_n w_n log P(b_n | x_n) + l2/2 |theta|^2) / sum_n w_n``
-(:func:`irl.domains.merge.planning.policy.loglik_grad`), minimised by scipy's L-BFGS-B from
+(:func:`irl.planning.policy.loglik_grad`), minimised by scipy's L-BFGS-B from
 ``theta0`` (0 by default) with the exact gradient: deterministic. Settings are compared by the
 held-out log-likelihood per decision on a split by group (encounter / pair), never by row.
 """
@@ -17,9 +17,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.optimize import minimize
 
-from irl.domains.merge.planning.model import BACKUPS, PathTensors, PlannerConfig
-from irl.domains.merge.planning.policy import bin_log_policy, loglik_grad
 from irl.errors import ConfigError
+from irl.planning.model import BACKUPS, PathTensors, PlannerConfig
+from irl.planning.policy import bin_log_policy, loglik_grad
 
 
 @dataclass(frozen=True)
@@ -51,7 +51,7 @@ def fit_planner(T: PathTensors, actions: np.ndarray, config: PlannerConfig, *, l
     features minus their mean over its paths (every backup and the softmax are shift-equivariant,
     so the policy does not change), divided by each feature's standard deviation ``s_k``; the
     weights and the penalty are those of the original features. A fixed jerk weight
-    (:attr:`~irl.domains.merge.planning.model.PlannerConfig.jerk_weight`) is not fitted: its
+    (:attr:`~irl.planning.model.PlannerConfig.jerk_weight`) is not fitted: its
     feature's return joins the collision penalty's as a fixed part of every path's return, and
     the weight is returned in its place in ``theta`` (no L2 on it; ``grad_norm`` over the others).
 

@@ -10,7 +10,7 @@ here are chosen by the closed-loop (multi-step) error of the driving itself.
 
 **Criterion** (:func:`replay_objective`): each training pair's recorded leader moves as recorded
 and the driver follows from the recorded initial state, taking its most likely action every
-decision (:func:`irl.domains.merge.planning.replay.replay`); the objective is the mean over pairs
+decision (:func:`irl.planning.replay.replay`); the objective is the mean over pairs
 of the spacing RMSE (m) plus ``collision_cost_m`` for a pair whose bumper gap reached 0, or
 their median, or (the default) the average of the mean and the median: the targets name both,
 and the mean alone is led by a few pairs nobody follows well (on the I-80 pairs it chose a
@@ -45,13 +45,13 @@ from typing import Any
 import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 
-from irl.domains.merge.planning.decisions import PlanningDecisions
-from irl.domains.merge.planning.driver import PlanningDriver
-from irl.domains.merge.planning.features import Shape
-from irl.domains.merge.planning.model import PlannerConfig, path_tensors
-from irl.domains.merge.planning.policy import bin_log_policy_of_fine, log_softmax, path_returns, q_values
-from irl.domains.merge.planning.replay import ReplayPair, ReplayResult, replay
 from irl.errors import ConfigError, DemonstrationError
+from irl.planning.decisions import PlanningDecisions
+from irl.planning.driver import PlanningDriver
+from irl.planning.features import Shape
+from irl.planning.model import PlannerConfig, path_tensors
+from irl.planning.policy import bin_log_policy_of_fine, log_softmax, path_returns, q_values
+from irl.planning.replay import ReplayPair, ReplayResult, replay
 from merge_irl.units import FT_PER_M
 
 #: Shape parameters the fit may free, with their bounds (ft, s).

@@ -29,8 +29,8 @@ import numpy as np
 
 from irl.domains.merge.actions import N_ACTIONS, actions_of
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, frames_per_step
-from irl.domains.merge.planning.features import DEFAULT_LENGTH_FT, Shape, collision, feature_names, step_features
 from irl.errors import ConfigError
+from irl.planning.features import DEFAULT_LENGTH_FT, Shape, collision, feature_names, step_features
 
 BACKUPS = ("avg", "boltzmann", "softmax")
 C_MODELS = ("cv", "ca")
@@ -62,7 +62,7 @@ class PlannerConfig:
         feature ``(v_A / v0)^4``; lag: ``k`` in (0, 1], the actuation lag of the first step:
         A applies ``a = (1 - k) a_prev + k a*``, ``a*`` the chosen fine-grid value (1: none; see
         :func:`path_tensors`); v0_ft_s: the desired speed of the speed features (ft/s; 0: the
-        fitted one of :func:`~irl.domains.merge.planning.features.fit_shape`); jerk_weight: a
+        fitted one of :func:`~irl.planning.features.fit_shape`); jerk_weight: a
         fixed (not fitted) weight of the jerk feature, ``<= 0``, or None: fitted (a fitted jerk
         weight makes the driver a copycat of its own last acceleration in closed loop; see the
         docs of the driver); gap_track: the symmetric gap-tracking features (``gap_track_C``,

@@ -8,8 +8,8 @@ from types import SimpleNamespace
 
 import pytest
 
-from analysis.evaluation.closed_loop_targets import floor_driver, target_checks
 from sim.merges.rules import ENCOUNTER_RULES
+from studies.support.closed_loop_targets import floor_driver, target_checks
 
 
 def _agg(collisions=0, ll=float("nan"), speed=1.0, d_ac=10.0):

@@ -1,4 +1,4 @@
-"""The planning driver's numerics (irl/domains/merge/planning: model, policy, fit): exact
+"""The planning driver's numerics (irl/planning: model, policy, fit): exact
 gradients, shapes, determinism, braking, theta recovery. No data files, no SUMO."""
 
 from __future__ import annotations
@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 
 from irl.domains.merge.actions import actions_of
-from irl.domains.merge.planning.features import Shape
-from irl.domains.merge.planning.fit import fit_planner
-from irl.domains.merge.planning.model import BACKUPS, PlannerConfig, leaf_accelerations, path_tensors
-from irl.domains.merge.planning.policy import bin_log_policy, fine_log_policy, loglik_grad
 from irl.errors import ConfigError
+from irl.planning.features import Shape
+from irl.planning.fit import fit_planner
+from irl.planning.model import BACKUPS, PlannerConfig, leaf_accelerations, path_tensors
+from irl.planning.policy import bin_log_policy, fine_log_policy, loglik_grad
 
 ACC = np.array([-9.5, -2.2, 0.0, 2.3, 6.1])
 SHAPE = Shape()

@@ -2,7 +2,7 @@
 gradient of the log-likelihood.
 
 Path returns ``R = Phi theta + penalty Col`` (``[N, G, C, (C)]``,
-:mod:`irl.domains.merge.planning.model`) are backed up to the first action over each later
+:mod:`irl.planning.model`) are backed up to the first action over each later
 action axis in turn (last first):
 
 * ``avg``: the plain mean (Q-Avg's backup, MacGlashan & Littman 2015, "Between imitation and
@@ -17,7 +17,7 @@ The gradient of ``log P(b | x)`` w.r.t. ``theta`` is exact:
 ``sum_g (pi(g | x, b) - pi(g | x)) dQ(g)/dtheta`` with ``dQ(g)/dR(leaf)`` the product of each
 level's derivative (avg ``1/C``; softmax ``p_a``; boltzmann ``p_a (1 + X_a - V)``).
 
-**Actuation lag** (:attr:`~irl.domains.merge.planning.model.PlannerConfig.lag` ``< 1``): a fine
+**Actuation lag** (:attr:`~irl.planning.model.PlannerConfig.lag` ``< 1``): a fine
 choice ``g`` applies ``(1 - k) a_prev + k g``, so its bin depends on the decision (``bins [N, G]``)
 and a paper action may be out of reach of every choice; then
 ``P(b | x) = (1 - eps) sum_{g: bin_n(g) = b} pi(g | x) + eps / 5`` (:data:`LAG_FLOOR` ``eps``),
@@ -29,8 +29,8 @@ from __future__ import annotations
 import numpy as np
 
 from irl.domains.merge.actions import N_ACTIONS
-from irl.domains.merge.planning.model import PathTensors
 from irl.errors import ConfigError
+from irl.planning.model import PathTensors
 
 #: ``eps`` of the uniform floor of the paper-action probabilities under an actuation lag.
 LAG_FLOOR = 1e-4

@@ -1,5 +1,5 @@
 """The planning driver's decisions builders, driver file and pair replay
-(irl/domains/merge/planning: decisions, driver, replay). No SUMO."""
+(irl/planning: decisions, driver, replay). No SUMO."""
 
 from __future__ import annotations
 
@@ -13,11 +13,11 @@ from irl_testdata import planning_encounters
 
 from irl.domains.merge.actions import actions_of
 from irl.domains.merge.car_following import car_following_decisions
-from irl.domains.merge.planning.decisions import PlanningDecisions, encounter_decisions, pair_decisions, split_groups
-from irl.domains.merge.planning.driver import PLANNER_FORMAT, PlanningDriver, learn_planning_driver
-from irl.domains.merge.planning.model import PlannerConfig
-from irl.domains.merge.planning.replay import ReplayPair, replay
 from irl.errors import ConfigError, DemonstrationError, ModelFileError
+from irl.planning.decisions import PlanningDecisions, encounter_decisions, pair_decisions, split_groups
+from irl.planning.driver import PLANNER_FORMAT, PlanningDriver, learn_planning_driver
+from irl.planning.model import PlannerConfig
+from irl.planning.replay import ReplayPair, replay
 
 
 def pair_frame(T: int = 40, v_f: float = 50.0, gap: float = 100.0, acc: float = 0.0) -> pd.DataFrame:
@@ -166,8 +166,8 @@ def test_lagged_driver_acts_with_its_lag_and_old_files_load(tmp_path) -> None:
 def test_step_reward_is_the_first_step_of_a_planner_path() -> None:
     from dataclasses import replace
 
-    from irl.domains.merge.planning.features import Shape
-    from irl.domains.merge.planning.model import _paths_chunk, first_step
+    from irl.planning.features import Shape
+    from irl.planning.model import _paths_chunk, first_step
 
     cfg = PlannerConfig()
     obs = np.array([[80.0, 5.0, 30.0, -2.0, 60.0, 15.0, 15.0], [np.nan, np.nan, -20.0, 3.0, 60.0, np.nan, 15.0]])

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from analysis.experiments.gail_config import GAIL_LOG_COLUMNS, GailConfig, gail_log_summary, parse_gail_config
+from studies.support.gail_config import GAIL_LOG_COLUMNS, GailConfig, gail_log_summary, parse_gail_config
 
 
 def test_gail_log_summary_reads_first_and_last_round_and_negates_the_entropy_loss(tmp_path: Path) -> None:

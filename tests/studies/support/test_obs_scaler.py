@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.experiments.obs_scaler import ObsScaler
 from sim.drivers.observe import NO_LEAD_GAP_FT, policy_rows
+from studies.support.obs_scaler import ObsScaler
 
 
 def test_scaler_fills_the_missing_lead_car_and_standardises_on_the_training_rows() -> None:

@@ -1,9 +1,9 @@
 """The planning driver (:class:`PlanningDriver`), its JSON file (format ``merge-irl-planner/1``)
 and :func:`learn_planning_driver`.
 
-The driver chooses A's acceleration on the fine grid of its :class:`~irl.domains.merge.planning.model.PlannerConfig`
-(the first action of a receding-horizon tree, :mod:`irl.domains.merge.planning.model`), by the softmax of its backed-up
-values (:mod:`irl.domains.merge.planning.policy`); it is scored on the five paper actions, each the sum of its fine actions'
+The driver chooses A's acceleration on the fine grid of its :class:`~irl.planning.model.PlannerConfig`
+(the first action of a receding-horizon tree, :mod:`irl.planning.model`), by the softmax of its backed-up
+values (:mod:`irl.planning.policy`); it is scored on the five paper actions, each the sum of its fine actions'
 probabilities.
 
 **Action history (the copycat).** A reward with a fitted jerk weight (``PlannerConfig(jerk=True)``)
@@ -32,12 +32,12 @@ from typing import Any
 import numpy as np
 
 from irl.domains.merge.actions import N_ACTIONS, action_of
-from irl.domains.merge.planning.decisions import PlanningDecisions, split_groups
-from irl.domains.merge.planning.features import DEFAULT_LENGTH_FT, Shape, fit_shape
-from irl.domains.merge.planning.fit import fit_planner, select
-from irl.domains.merge.planning.model import PathTensors, PlannerConfig, first_step, path_tensors
-from irl.domains.merge.planning.policy import bin_log_policy_of_fine, fine_log_policy
 from irl.errors import ConfigError, DemonstrationError, ModelFileError
+from irl.planning.decisions import PlanningDecisions, split_groups
+from irl.planning.features import DEFAULT_LENGTH_FT, Shape, fit_shape
+from irl.planning.fit import fit_planner, select
+from irl.planning.model import PathTensors, PlannerConfig, first_step, path_tensors
+from irl.planning.policy import bin_log_policy_of_fine, fine_log_policy
 from merge_irl.atomic import write_json_atomic
 
 #: The ``format`` field of a planner file.
@@ -235,7 +235,7 @@ def _numbers(path: Path, name: str, value: Any, n: int) -> np.ndarray:
 
 
 def shape_of(decisions: PlanningDecisions) -> Shape:
-    """The feature shape fitted on ``decisions`` (:func:`~irl.domains.merge.planning.features.fit_shape`)."""
+    """The feature shape fitted on ``decisions`` (:func:`~irl.planning.features.fit_shape`)."""
     len_C = np.where(np.isfinite(decisions.obs[:, 5]), decisions.obs[:, 5], DEFAULT_LENGTH_FT)
     return fit_shape(decisions.obs[:, 0] - len_C, decisions.obs[:, 4], decisions.obs[:, 1], decisions.acc)
 
@@ -251,12 +251,12 @@ def learn_planning_driver(decisions: PlanningDecisions, *, seed: int = 0,
                           log: Callable[[str], None] = lambda s: None) -> PlanningDriver:
     """Learn a planning driver on ``decisions``.
 
-    ``selection="heldout"``: the settings by :func:`~irl.domains.merge.planning.fit.select` on an inner 70/30 split of the
+    ``selection="heldout"``: the settings by :func:`~irl.planning.fit.select` on an inner 70/30 split of the
     groups (``seed``), the fitting part capped at about ``select_cap`` decisions by drawing whole
-    groups (``seed + 1``); a :class:`~irl.domains.merge.planning.model.PlannerConfig`: that setting. Then the weights are
+    groups (``seed + 1``); a :class:`~irl.planning.model.PlannerConfig`: that setting. Then the weights are
     fitted on all ``decisions`` (L2 ``l2``). The shape and the paper actions' accelerations come
     from all ``decisions`` (the desired speed the config's when it sets one, :func:`shape_for`).
-    ``base``: the settings the selection starts from (default :class:`~irl.domains.merge.planning.model.PlannerConfig`'s,
+    ``base``: the settings the selection starts from (default :class:`~irl.planning.model.PlannerConfig`'s,
     at the decisions' step).
 
     Raises:

@@ -13,9 +13,9 @@ from irl.domains.merge import mdp as m
 from irl.domains.merge.actions import N_ACTIONS, ZERO_ACTION, actions_of
 from irl.domains.merge.bins import MergeBins, fit_quantile_bins
 from irl.domains.merge.car_following import car_following_decisions
-from irl.domains.merge.planning.decisions import encounter_decisions
+from irl.planning.decisions import encounter_decisions
 
-CASES = Path(__file__).resolve().parents[1] / "data" / "cases"
+CASES = Path(__file__).resolve().parents[3] / "data" / "cases"
 
 
 def row_by_row(df, bins, k, encoding):

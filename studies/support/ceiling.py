@@ -1,5 +1,5 @@
 """Reference scores for the planning driver's held-out likelihood (nats per decision, the paper
-action bins of :class:`~irl.domains.merge.planning.decisions.PlanningDecisions`): the smoothed
+action bins of :class:`~irl.planning.decisions.PlanningDecisions`): the smoothed
 marginal, the previous-bin Markov model and a history-free classifier tuned by grouped
 cross-validation (the "ceiling" a reward over the same observation could approach).
 
@@ -25,8 +25,8 @@ from typing import Any
 import numpy as np
 
 from irl.domains.merge.actions import N_ACTIONS, actions_of
-from irl.domains.merge.planning.decisions import PlanningDecisions
 from irl.errors import DemonstrationError
+from irl.planning.decisions import PlanningDecisions
 
 #: Probabilities a classifier gives below this are raised to it (then renormalised): a class it
 #: never saw in training costs ``log(1e-9)`` = -20.7 nats, not minus infinity.

@@ -1,4 +1,4 @@
-"""The planning driver fitted by what its driving does (irl.domains.merge.planning.replay_fit):
+"""The planning driver fitted by what its driving does (irl.planning.replay_fit):
 the gap-tracking feature, the replay fit on pairs of a known follower, the temperature, the
 bootstrap intervals and the refusals."""
 
@@ -10,11 +10,12 @@ import numpy as np
 import pytest
 
 from irl.domains.merge.actions import actions_of
-from irl.domains.merge.planning.decisions import PlanningDecisions
-from irl.domains.merge.planning.features import CLIP_TRACK, Shape, feature_names, gap_track
-from irl.domains.merge.planning.model import PlannerConfig
-from irl.domains.merge.planning.replay import ReplayPair, replay
-from irl.domains.merge.planning.replay_fit import (
+from irl.errors import ConfigError, DemonstrationError
+from irl.planning.decisions import PlanningDecisions
+from irl.planning.features import CLIP_TRACK, Shape, feature_names, gap_track
+from irl.planning.model import PlannerConfig
+from irl.planning.replay import ReplayPair, replay
+from irl.planning.replay_fit import (
     ReplayFitConfig,
     bootstrap_intervals,
     build_driver,
@@ -22,7 +23,6 @@ from irl.domains.merge.planning.replay_fit import (
     fit_temperature,
     replay_objective,
 )
-from irl.errors import ConfigError, DemonstrationError
 
 ACC5 = (-8.0, -2.7, 0.0, 2.7, 8.0)
 
@@ -134,7 +134,7 @@ def test_bad_settings_are_refused():
 
 
 def test_the_criteria_are_the_statistics_they_name():
-    from irl.domains.merge.planning.replay import ReplayResult
+    from irl.planning.replay import ReplayResult
 
     r = ReplayResult(("a", "b", "c"), np.array([1.0, 2.0, 6.0]), np.array([False, False, True]), np.ones(3))
     assert replay_objective(r, 10.0, "mean") == pytest.approx(19.0 / 3)

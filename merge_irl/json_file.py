@@ -19,6 +19,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, TypeVar, get_type_hints
@@ -151,6 +152,7 @@ def describe(e: ValidationError) -> str:
     msg = str(first["msg"])
     for old, new in _PHRASES:
         msg = msg.replace(old, new)
+    msg = re.sub(r" or instance of \w+", "", msg)  # a nested schema's class name says nothing to users
     if first["type"] not in ("missing", "extra_forbidden", "value_error") and "input" in first:
         msg += f", got {brief(first['input'])}"
     more = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""

@@ -72,20 +72,23 @@ def read_json_object(path: str | os.PathLike, *, what: str, error: type[Exceptio
     return data
 
 
-def validate(schema: type[M], data: Any, source: str | os.PathLike, *, error: type[Exception]) -> M:
+def validate(schema: type[M], data: Any, source: str | os.PathLike, *, error: type[Exception], at: str = "",
+             context: dict[str, Any] | None = None) -> M:
     """``data`` validated by the pydantic model ``schema``.
 
     Args:
         source: the file (or ``"<dict>"``), first in messages.
         error: the exception class raised.
+        at: where ``data`` sits in its file (``"drivers.car[0]"``), before each field path.
+        context: passed to the schema's validators (pydantic's validation context).
 
     Raises:
         error: ``"<source>: <field.path>: <problem>"`` (:func:`describe`).
     """
     try:
-        return schema.model_validate(data)
+        return schema.model_validate(data, context=context)
     except ValidationError as e:
-        raise error(f"{source}: {describe(e)}") from None
+        raise error(f"{source}: {describe(e, at=at)}") from None
 
 
 def validate_as(adapter: TypeAdapter[Any], data: Any, source: str | os.PathLike, *,
@@ -129,6 +132,8 @@ def field_path(loc: Sequence[int | str]) -> str:
     ``("theta", 3)`` -> ``theta[3]`` (``<top>`` when empty)."""
     out = ""
     for part in loc:
+        if part == "[key]":  # pydantic's mark of an error in a mapping's key (the key precedes it)
+            continue
         if isinstance(part, int):
             out += f"[{part}]"
         else:
@@ -144,7 +149,7 @@ _PHRASES = (("Input should be ", "must be "), ("Value error, ", ""), ("Assertion
             ("a valid string", "a string"))
 
 
-def describe(e: ValidationError) -> str:
+def describe(e: ValidationError, *, at: str = "") -> str:
     """One line for a validation error: its first problem as ``field.path: problem, got value``
     (``(and N more)`` when there are more; a validator's own message as it says it)."""
     errors = e.errors(include_url=False)
@@ -156,7 +161,10 @@ def describe(e: ValidationError) -> str:
     if first["type"] not in ("missing", "extra_forbidden", "value_error") and "input" in first:
         msg += f", got {brief(first['input'])}"
     more = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""
-    return f"{field_path(first['loc'])}: {msg}{more}"
+    where = field_path(first["loc"])
+    if at:
+        where = at if where == "<top>" else at + ("" if where.startswith("[") else ".") + where
+    return f"{where}: {msg}{more}"
 
 
 def json_type(value: Any) -> str:

@@ -102,3 +102,30 @@ def test_the_registry_reads_a_learned_file_once(tmp_path, monkeypatch, make):
         formats.driver_policy(p)
         assert reads == [p]
     assert json_file.read_json is formats.read_json  # the registry's one reader is the shared one
+
+
+def test_the_scenario_schemas_cover_their_dataclasses_and_name_nested_fields():
+    from dataclasses import fields
+
+    from scenarios.errors import SpecError
+    from scenarios.spec.model import DemandSpec, RoadSpec, VTypeSpec
+    from scenarios.spec.parse import spec_from_dict
+    from scenarios.spec.schema import DemandSchema, RoadSchema, VTypeSchema
+
+    for schema, cls in ((RoadSchema, RoadSpec), (DemandSchema, DemandSpec), (VTypeSchema, VTypeSpec)):
+        assert set(schema.model_fields) == {f.name for f in fields(cls)}, cls.__name__
+    bad = {"name": "s", "drivers": {"truck": [{"id": "t", "lc_params": {"lcSpeedGain": [1]}}]}}
+    with pytest.raises(SpecError, match=r"^s\.toml: drivers\.truck\[0\]\.lc_params\.lcSpeedGain: must be a number, "
+                                        r"string or boolean, got list$"):
+        spec_from_dict(bad, source="s.toml")
+
+
+def test_the_params_file_names_a_nested_field(tmp_path):
+    from analysis.calibration.params_file import load_result
+    from scenarios.errors import SpecError
+
+    p = tmp_path / "params.toml"
+    p.write_text('model = "idm"\n[population]\ntau = 1.0\n[spread.tau]\nmean = 1.0\nstd = "x"\nmedian = 1.0\n'
+                 'q10 = 1.0\nq90 = 1.0\n')
+    with pytest.raises(SpecError, match=r"params\.toml: spread\.tau\.std: must be a number, got 'x'$"):
+        load_result(p)

@@ -151,7 +151,8 @@ _PHRASES = (("Input should be ", "must be "), ("Value error, ", ""), ("Assertion
 
 def describe(e: ValidationError, *, at: str = "") -> str:
     """One line for a validation error: its first problem as ``field.path: problem, got value``
-    (``(and N more)`` when there are more; a validator's own message as it says it)."""
+    (``(and N more)`` when there are more; a validator's own message as it says it; a check of
+    the whole object, with no field path, its message alone)."""
     errors = e.errors(include_url=False)
     first = errors[0]
     msg = str(first["msg"])
@@ -161,6 +162,8 @@ def describe(e: ValidationError, *, at: str = "") -> str:
     if first["type"] not in ("missing", "extra_forbidden", "value_error") and "input" in first:
         msg += f", got {brief(first['input'])}"
     more = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""
+    if not first["loc"] and not at:  # a check across fields says where itself
+        return f"{msg}{more}"
     where = field_path(first["loc"])
     if at:
         where = at if where == "<top>" else at + ("" if where.startswith("[") else ".") + where

@@ -129,3 +129,14 @@ def test_the_params_file_names_a_nested_field(tmp_path):
                  'q10 = 1.0\nq90 = 1.0\n')
     with pytest.raises(SpecError, match=r"params\.toml: spread\.tau\.std: must be a number, got 'x'$"):
         load_result(p)
+
+
+def test_the_npz_manifest_names_the_array_and_entry(tmp_path):
+    from irl.errors import DemonstrationError
+    from irl.io import load_npz
+
+    p = tmp_path / "demos.npz"
+    np.savez(p, features=np.zeros((4, 2, 1)), states=np.array([0, 1, 2]), actions=np.array([0, 1, 0.5]),
+             offsets=np.array([0, 3]))
+    with pytest.raises(DemonstrationError, match=r"demos\.npz: actions: entry 2 = 0\.5 is not an integer$"):
+        load_npz(p)

@@ -216,18 +216,22 @@ def load_result(path: str | os.PathLike) -> CalibrationResult:
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
         raise SpecError(f"{src}: not valid TOML: {e}") from e
     m = validate(ParamsFileSchema, data, src, error=SpecError)
-    pairs = tuple(PairFit(name=p.name, group=p.group, rmse_m=p.rmse_m, params=_params(src, f"pair[{i}].params", p.params))
-                  for i, p in enumerate(m.pair))
+    pairs = []
+    for i, p in enumerate(m.pair):  # loops, not comprehensions: the warnings point at the caller
+        pairs.append(PairFit(name=p.name, group=p.group, rmse_m=p.rmse_m, params=_params(src, f"pair[{i}].params",
+                                                                                        p.params)))
     classes = None
     if m.classes is not None:
-        members = tuple(_params(src, f"classes.member[{i}]", t) for i, t in enumerate(m.classes.member))
+        members = []
+        for i, t in enumerate(m.classes.member):
+            members.append(_params(src, f"classes.member[{i}]", t))
         try:
-            classes = DriverClasses(edges_s=tuple(m.classes.edges_s), params=members)
+            classes = DriverClasses(edges_s=tuple(m.classes.edges_s), params=tuple(members))
         except SpecError as e:
             raise SpecError(f"{src}: classes: {e}") from None
     return CalibrationResult(
         model=m.model, fitted=tuple(m.fitted), population=_params(src, "population", m.population),
-        population_median_rmse_m=m.population_median_rmse_m, per_pair=pairs,
+        population_median_rmse_m=m.population_median_rmse_m, per_pair=tuple(pairs),
         spread=tuple((n, ParamSpread(**s.model_dump())) for n, s in m.spread.items()),
         n_pairs=len(pairs) if m.n_pairs is None else int(m.n_pairs),
         seconds_population=m.seconds_population, seconds_per_pair=m.seconds_per_pair, objective=m.objective,

@@ -189,5 +189,5 @@ def test_a_partial_parameter_table_names_the_defaults_it_takes_and_followers_rou
     back = load_result(save_result(res, tmp_path / "back.toml"))
     assert back == res
     p.write_text('model = "idm"\ntrain_followers = "a/1"\n[population]\naccel = 1.0\n')
-    with pytest.raises(SpecError, match="train_followers must be a list"):
+    with pytest.raises(SpecError, match=r"hand\.toml: train_followers: must be a list, got 'a/1'"):
         load_result(p)

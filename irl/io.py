@@ -22,10 +22,12 @@ import re
 from pathlib import Path
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict, ValidationInfo, field_validator, model_validator
 
 from irl.demonstrations import Demonstrations
 from irl.errors import DemonstrationError
 from merge_irl.atomic import write_atomic, write_text_atomic
+from merge_irl.json_file import validate
 
 _DIGITS = re.compile(r"(\d+)")
 
@@ -143,113 +145,153 @@ def save_text_trajectories(demos: Demonstrations, directory: str | os.PathLike, 
 _REQUIRED = ("features", "states", "actions", "offsets")
 
 
-def _int_array(arr: np.ndarray, name: str, where: str) -> np.ndarray:
+def _int_array(arr: np.ndarray) -> np.ndarray:
+    """``arr`` as a 1-D int64 array (integral floats allowed); ValueError naming the entry at fault."""
     if arr.ndim != 1:
-        raise DemonstrationError(f"{where}: array {name!r} must be 1-D, got shape {arr.shape}")
+        raise ValueError(f"must be 1-D, got shape {arr.shape}")
     if np.issubdtype(arr.dtype, np.integer):
         if arr.dtype == np.uint64 and arr.size and int(arr.max()) > 2**62:
             j = int(np.argmax(arr))
-            raise DemonstrationError(f"{where}: array {name!r} entry {j} = {arr[j]} is out of range")
+            raise ValueError(f"entry {j} = {arr[j]} is out of range")
         return arr.astype(np.int64)
     if np.issubdtype(arr.dtype, np.floating):
         with np.errstate(invalid="ignore", over="ignore"):  # float16: 2**62 casts to inf
             bad = np.flatnonzero(~np.isfinite(arr) | (arr != np.round(arr)) | (np.abs(arr) > 2.0**62))
         if bad.size:
-            raise DemonstrationError(
-                f"{where}: array {name!r} entry {bad[0]} = {arr[bad[0]]} is not an integer"
-            )
+            raise ValueError(f"entry {bad[0]} = {arr[bad[0]]} is not an integer")
         return arr.astype(np.int64)
-    raise DemonstrationError(f"{where}: array {name!r} must hold integers, got dtype {arr.dtype}")
+    raise ValueError(f"must hold integers, got dtype {arr.dtype}")
 
 
-def load_npz(path: str | os.PathLike) -> Demonstrations:
-    """Load the generic ``.npz`` format (see the module docstring).
+class NpzManifest(BaseModel):
+    """The schema of a demonstrations ``.npz``: its arrays (the module docstring), each checked in
+    itself and against the ones before it; the states' and actions' range last."""
+
+    model_config = ConfigDict(arbitrary_types_allowed=True, extra="ignore")
+
+    features: np.ndarray
+    states: np.ndarray
+    actions: np.ndarray
+    offsets: np.ndarray
+    names: np.ndarray | None = None
+    feature_names: np.ndarray | None = None
+
+    @field_validator("features")
+    @classmethod
+    def _features(cls, f: np.ndarray) -> np.ndarray:
+        if f.ndim != 3 or 0 in f.shape:
+            raise ValueError(f"must have shape [S, A, K], got {f.shape}")
+        if not np.issubdtype(f.dtype, np.number) or np.issubdtype(f.dtype, np.complexfloating):
+            raise ValueError(f"must be real numbers, got dtype {f.dtype}")
+        f = f.astype(np.float64)
+        bad = np.argwhere(~np.isfinite(f))
+        if bad.size:
+            s, a, k = bad[0]
+            raise ValueError(f"entry [{s}, {a}, {k}] is {f[s, a, k]}")
+        return f
+
+    @field_validator("states")
+    @classmethod
+    def _states(cls, arr: np.ndarray) -> np.ndarray:
+        return _int_array(arr)
+
+    @field_validator("actions")
+    @classmethod
+    def _actions(cls, arr: np.ndarray, info: ValidationInfo) -> np.ndarray:
+        arr = _int_array(arr)
+        states = info.data.get("states")
+        if states is not None and states.shape != arr.shape:
+            raise ValueError(f"{arr.shape} and 'states' {states.shape} differ in length")
+        return arr
+
+    @field_validator("offsets")
+    @classmethod
+    def _offsets(cls, arr: np.ndarray, info: ValidationInfo) -> np.ndarray:
+        offsets = _int_array(arr)
+        if offsets.size < 2:
+            raise ValueError("needs at least 2 entries [0, ..., N]")
+        n = info.data["states"].size if "states" in info.data else offsets[-1]
+        if offsets[0] != 0 or offsets[-1] != n:
+            raise ValueError(f"must start at 0 and end at N = {n}, got {offsets[0]} ... {offsets[-1]}")
+        steps = np.diff(offsets)
+        if np.any(steps < 0):
+            raise ValueError(f"not monotone at entry {int(np.flatnonzero(steps < 0)[0]) + 1}")
+        if np.any(steps == 0):
+            i = int(np.flatnonzero(steps == 0)[0])
+            raise ValueError(f"trajectory {i} is empty (offsets[{i}] == offsets[{i + 1}])")
+        return offsets
+
+    @field_validator("names")
+    @classmethod
+    def _names(cls, raw: np.ndarray | None, info: ValidationInfo) -> np.ndarray | None:
+        n = info.data["offsets"].size - 1 if "offsets" in info.data else None
+        if raw is not None and (raw.ndim != 1 or (n is not None and raw.size != n)):
+            raise ValueError(f"must hold {n} trajectory names, got shape {raw.shape}")
+        return raw
+
+    @field_validator("feature_names")
+    @classmethod
+    def _feature_names(cls, fn: np.ndarray | None, info: ValidationInfo) -> np.ndarray | None:
+        k = info.data["features"].shape[2] if "features" in info.data else None
+        if fn is not None and (fn.ndim != 1 or (k is not None and fn.size != k)):
+            raise ValueError(f"must hold K = {k} names, got shape {fn.shape}")
+        return fn
+
+    @model_validator(mode="after")
+    def _in_range(self) -> NpzManifest:
+        n_states, n_actions, _ = self.features.shape
+        for arr, kind, n in ((self.states, "state", n_states), (self.actions, "action", n_actions)):
+            bad_i = np.flatnonzero((arr < 0) | (arr >= n))
+            if bad_i.size:
+                j = int(bad_i[0])
+                traj = int(np.searchsorted(self.offsets, j, side="right") - 1)
+                raise ValueError(f"array '{kind}s' entry {j} (trajectory {traj}, step {j - self.offsets[traj]}): "
+                                 f"{kind} {arr[j]} out of range [0, {n})")
+        return self
+
+
+def _read_arrays(path: Path) -> dict[str, np.ndarray]:
+    """Every array of the ``.npz`` at ``path``.
 
     Raises:
-        DemonstrationError: a missing or unreadable file, a missing array, or an array of the
-            wrong dtype, shape or range (naming the array and the entry).
+        DemonstrationError: a missing or unreadable file, or a single ``.npy``.
     """
-    path = Path(path)
-    where = str(path)
     if not path.is_file():
-        raise DemonstrationError(f"{where}: no such file")
+        raise DemonstrationError(f"{path}: no such file")
     try:
         loaded = np.load(path, allow_pickle=False)
     except Exception as e:  # numpy/zipfile raise many types for a corrupt file
-        raise DemonstrationError(f"{where}: not a readable .npz file ({type(e).__name__}: {e})") from None
+        raise DemonstrationError(f"{path}: not a readable .npz file ({type(e).__name__}: {e})") from None
     if not isinstance(loaded, np.lib.npyio.NpzFile):
-        raise DemonstrationError(f"{where}: holds a single .npy array, expected an .npz archive of named arrays")
+        raise DemonstrationError(f"{path}: holds a single .npy array, expected an .npz archive of named arrays")
     try:
         with loaded as data:
-            arrays = {k: data[k] for k in data.files}
+            return {k: data[k] for k in data.files}
     except Exception as e:  # corrupt members: bad CRC, truncated data, unsupported compression
-        raise DemonstrationError(f"{where}: not a readable .npz file ({type(e).__name__}: {e})") from None
+        raise DemonstrationError(f"{path}: not a readable .npz file ({type(e).__name__}: {e})") from None
+
+
+def load_npz(path: str | os.PathLike) -> Demonstrations:
+    """Load the generic ``.npz`` format (see the module docstring), its arrays checked by
+    :class:`NpzManifest`.
+
+    Raises:
+        DemonstrationError: a missing or unreadable file, a missing array, or an array of the
+            wrong dtype, shape or range (one line naming the file, the array and the entry).
+    """
+    path = Path(path)
+    where = str(path)
+    arrays = _read_arrays(path)
     missing = [k for k in _REQUIRED if k not in arrays]
     if missing:
         raise DemonstrationError(f"{where}: missing array(s) {missing}; expected {list(_REQUIRED)}")
-    features = arrays["features"]
-    if features.ndim != 3 or 0 in features.shape:
-        raise DemonstrationError(f"{where}: array 'features' must have shape [S, A, K], got {features.shape}")
-    if not np.issubdtype(features.dtype, np.number) or np.issubdtype(features.dtype, np.complexfloating):
-        raise DemonstrationError(f"{where}: array 'features' must be real numbers, got dtype {features.dtype}")
-    features = features.astype(np.float64)
-    bad = np.argwhere(~np.isfinite(features))
-    if bad.size:
-        s, a, k = bad[0]
-        raise DemonstrationError(f"{where}: array 'features' entry [{s}, {a}, {k}] is {features[s, a, k]}")
-    n_states, n_actions, n_feat = features.shape
-    states = _int_array(arrays["states"], "states", where)
-    actions = _int_array(arrays["actions"], "actions", where)
-    offsets = _int_array(arrays["offsets"], "offsets", where)
-    if states.shape != actions.shape:
-        raise DemonstrationError(
-            f"{where}: arrays 'states' {states.shape} and 'actions' {actions.shape} differ in length"
-        )
-    if offsets.size < 2:
-        raise DemonstrationError(f"{where}: array 'offsets' needs at least 2 entries [0, ..., N]")
-    if offsets[0] != 0 or offsets[-1] != states.size:
-        raise DemonstrationError(
-            f"{where}: array 'offsets' must start at 0 and end at N = {states.size}, "
-            f"got {offsets[0]} ... {offsets[-1]}"
-        )
-    steps = np.diff(offsets)
-    if np.any(steps < 0):
-        i = int(np.flatnonzero(steps < 0)[0])
-        raise DemonstrationError(f"{where}: array 'offsets' not monotone at entry {i + 1}")
-    if np.any(steps == 0):
-        i = int(np.flatnonzero(steps == 0)[0])
-        raise DemonstrationError(f"{where}: trajectory {i} is empty (offsets[{i}] == offsets[{i + 1}])")
-    for arr, kind, n in ((states, "state", n_states), (actions, "action", n_actions)):
-        bad_i = np.flatnonzero((arr < 0) | (arr >= n))
-        if bad_i.size:
-            j = int(bad_i[0])
-            traj = int(np.searchsorted(offsets, j, side="right") - 1)
-            raise DemonstrationError(
-                f"{where}: array '{kind}s' entry {j} (trajectory {traj}, step {j - offsets[traj]}): "
-                f"{kind} {arr[j]} out of range [0, {n})"
-            )
-    names: tuple[str, ...] = ()
-    if "names" in arrays:
-        raw = arrays["names"]
-        if raw.ndim != 1 or raw.size != offsets.size - 1:
-            raise DemonstrationError(
-                f"{where}: array 'names' must hold {offsets.size - 1} trajectory names, got shape {raw.shape}"
-            )
-        names = tuple(str(x) for x in raw)
-    if "feature_names" in arrays:
-        fn = arrays["feature_names"]
-        if fn.ndim != 1 or fn.size != n_feat:
-            raise DemonstrationError(
-                f"{where}: array 'feature_names' must hold K = {n_feat} names, got shape {fn.shape}"
-            )
+    m = validate(NpzManifest, arrays, where, error=DemonstrationError)
+    cut = [slice(m.offsets[i], m.offsets[i + 1]) for i in range(m.offsets.size - 1)]
+    n_states, n_actions, _ = m.features.shape
     return Demonstrations(
-        states=tuple(states[offsets[i]:offsets[i + 1]] for i in range(offsets.size - 1)),
-        actions=tuple(actions[offsets[i]:offsets[i + 1]] for i in range(offsets.size - 1)),
-        features=features,
-        n_states=n_states,
-        n_actions=n_actions,
-        source=where,
-        names=names,
+        states=tuple(m.states[c] for c in cut), actions=tuple(m.actions[c] for c in cut), features=m.features,
+        n_states=n_states, n_actions=n_actions, source=where,
+        names=() if m.names is None else tuple(str(x) for x in m.names),
     )
 
 

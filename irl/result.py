@@ -2,22 +2,23 @@
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
+from pydantic import BaseModel, Field, ValidationInfo, field_validator
 
 from irl.boltzmann import log_policy
 from irl.config import IRLConfig
 from irl.domains.merge.actions import ACTION_ACC_FT_S2
 from irl.domains.merge.states import STATE_ENCODINGS
-from irl.errors import ModelFileError
+from irl.errors import ConfigError, ModelFileError
 from irl.methods.registry import method_names
 from merge_irl.atomic import write_json_atomic
+from merge_irl.json_file import STRICT, dataclass_schema, read_json_object, to_dataclass, validate
 from merge_irl.units import FRAME_S
 
 #: ``action_acc_ft_s2`` of files written before the field existed: the bin midpoints.
@@ -168,170 +169,118 @@ class SavedModel:
         """Read a ``model.json``.
 
         Raises:
-            ModelFileError: a missing, unreadable or malformed file (naming the field at fault).
+            ModelFileError: a missing, unreadable or malformed file (one line naming the file and
+                the field path at fault, e.g. ``model.json: settings.gamma: ...``).
         """
-        path = Path(path)
+        return cls.from_json_dict(read_json_object(path, what="model file", error=ModelFileError), Path(path))
+
+    @classmethod
+    def from_json_dict(cls, data: Any, source: str | os.PathLike = "<dict>") -> SavedModel:
+        """The model of a parsed ``model.json`` object (:meth:`to_json_dict`'s layout), validated
+        by its schema (:class:`ModelFileSchema`); ``source`` names it in messages.
+
+        Raises:
+            ModelFileError: a malformed field (``source: field.path: problem``).
+        """
+        m = validate(ModelFileSchema, data, source, error=ModelFileError)
         try:
-            data = json.loads(path.read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise ModelFileError(f"{path}: no such model file") from None
-        except OSError as e:
-            raise ModelFileError(f"{path}: cannot read model file ({e.strerror or e})") from None
-        except (ValueError, UnicodeDecodeError, RecursionError) as e:  # JSONDecodeError is a ValueError
-            raise ModelFileError(f"{path}: not a JSON model file ({type(e).__name__}: {str(e)[:200]})") from None
-        if not isinstance(data, dict):
-            raise ModelFileError(f"{path}: expected a JSON object at top level, got {_json_type(data)}")
-        fmt = data.get("format")
-        if isinstance(fmt, str) and fmt.partition("/")[0] != MODEL_FORMAT.partition("/")[0]:
-            raise ModelFileError(f"{path}: format {fmt!r} is not a tabular IRL model's ({MODEL_FORMAT!r}, "
-                                 "'merge-irl learn')")
-        for key in ("method", "theta", "loglik", "settings", "q"):
-            if key not in data:
-                raise ModelFileError(f"{path}: missing field {key!r}")
-        if not isinstance(data["method"], str) or data["method"] not in method_names():
-            raise ModelFileError(f"{path}: field 'method' must be one of {method_names()}, got {_brief(data['method'])}")
-        theta = _number_array(path, "theta", data["theta"], 1)
-        q = _number_array(path, "q", data["q"], 2)
-        if not np.all(np.isfinite(theta)):
-            raise ModelFileError(f"{path}: field 'theta' must be a non-empty list of finite numbers")
-        if not np.all(np.isfinite(q)):
-            raise ModelFileError(f"{path}: field 'q' must be a finite [S][A] table")
-        loglik = data["loglik"]
-        if isinstance(loglik, bool) or not isinstance(loglik, (int, float)):
-            raise ModelFileError(f"{path}: field 'loglik' must be a number, got {_json_type(loglik)}")
-        try:
-            loglik = float(loglik)
-        except OverflowError:
-            raise ModelFileError(f"{path}: field 'loglik' is out of range") from None
-        if math.isnan(loglik):
-            raise ModelFileError(f"{path}: field 'loglik' is NaN")
-        config = _settings(path, data["settings"])
-        edges_raw = data.get("bin_edges", {})
-        if edges_raw is None:
-            edges_raw = {}
-        if not isinstance(edges_raw, dict):
-            raise ModelFileError(f"{path}: field 'bin_edges' must be an object, got {_json_type(edges_raw)}")
-        edges = {}
-        for k, v in edges_raw.items():
-            arr = _number_array(path, f"bin_edges.{k}", v, 1, allow_empty=True)
-            if np.any(np.isnan(arr)):
-                raise ModelFileError(f"{path}: field 'bin_edges.{k}' holds NaN")
-            edges[str(k)] = tuple(float(x) for x in arr)
-        names = data.get("feature_names", [])
-        if names is None:
-            names = []
-        if not isinstance(names, list) or not all(isinstance(x, str) for x in names):
-            raise ModelFileError(f"{path}: field 'feature_names' must be a list of strings")
-        if names and len(names) != theta.size:
-            raise ModelFileError(
-                f"{path}: field 'feature_names' has {len(names)} names for {theta.size} weights in 'theta'")
-        domain = data.get("domain", "")
-        if not isinstance(domain, str):
-            raise ModelFileError(f"{path}: field 'domain' must be a string, got {_json_type(domain)}")
-        flags = {}
-        for key, default in (("converged", True), ("unbounded", False)):
-            flags[key] = data.get(key, default)
-            if not isinstance(flags[key], bool):
-                raise ModelFileError(f"{path}: field {key!r} must be true or false, got {_brief(flags[key])}")
-        info = data.get("info", {})
-        if info is None:
-            info = {}
-        if not isinstance(info, dict):
-            raise ModelFileError(f"{path}: field 'info' must be an object, got {_json_type(info)}")
-        extra = _driver_fields(path, data)
+            config = to_dataclass(IRLConfig, m.settings)
+        except (ConfigError, TypeError, ValueError, OverflowError) as e:
+            name, _, rest = str(e).partition(" ")  # IRLConfig's checks say "<field> must be ..."
+            where = f"settings.{name}: {rest}" if name in SettingsSchema.model_fields else f"settings: {e}"
+            raise ModelFileError(f"{source}: {where}") from None
         return cls(
-            method=data["method"], theta=theta, loglik=loglik, q=q, config=config,
-            domain=domain, feature_names=tuple(names), bin_edges=edges,
-            converged=flags["converged"], unbounded=flags["unbounded"], info=dict(info), **extra,
+            method=m.method, theta=np.asarray(m.theta, dtype=float), loglik=m.loglik,
+            q=np.asarray(m.q, dtype=float), config=config, domain=m.domain,
+            feature_names=tuple(m.feature_names or ()),
+            bin_edges={k: tuple(v) for k, v in (m.bin_edges or {}).items()},
+            converged=m.converged, unbounded=m.unbounded, info=dict(m.info or {}),
+            state_encoding=m.state_encoding, decision_step_s=m.decision_step_s,
+            action_acc_ft_s2=tuple(m.action_acc_ft_s2), feature_set=m.feature_set,
+            unvisited_rule=m.unvisited_rule,
         )
 
 
-def _driver_fields(path: Path, data: dict) -> dict[str, Any]:
-    """The driver fields (state encoding, decision step, action accelerations, ...), with the
-    defaults of files written before them."""
-    out: dict[str, Any] = {}
-    enc = data.get("state_encoding", "paper")
-    if enc not in STATE_ENCODINGS:
-        raise ModelFileError(f"{path}: field 'state_encoding' must be one of {STATE_ENCODINGS}, got {_brief(enc)}")
-    out["state_encoding"] = enc
-    raw = data.get("decision_step_s", FRAME_S)
-    try:  # a JSON integer may be too large for a float
-        step = float(raw) if isinstance(raw, (int, float)) and not isinstance(raw, bool) else math.nan
-    except OverflowError:
-        step = math.nan
-    # a whole number of 0.1 s frames: the decision step the demonstrations were resampled to
-    frames = round(step / 0.1) if math.isfinite(step) else 0
-    if not (math.isfinite(step) and step > 0 and frames >= 1 and abs(frames * 0.1 - step) < 1e-9):
-        raise ModelFileError(f"{path}: field 'decision_step_s' must be a positive multiple of 0.1 s, got {_brief(raw)}")
-    out["decision_step_s"] = step
-    acc = _number_array(path, "action_acc_ft_s2", data.get("action_acc_ft_s2", list(DEFAULT_ACTION_ACC)), 1)
-    if acc.size != len(DEFAULT_ACTION_ACC) or not np.all(np.isfinite(acc)):
-        raise ModelFileError(f"{path}: field 'action_acc_ft_s2' must be {len(DEFAULT_ACTION_ACC)} finite numbers")
-    out["action_acc_ft_s2"] = tuple(float(x) for x in acc)
-    for key, default in (("feature_set", ""), ("unvisited_rule", "none")):
-        val = data.get(key, default)
-        if not isinstance(val, str):
-            raise ModelFileError(f"{path}: field {key!r} must be a string, got {_brief(val)}")
-        out[key] = val
-    return out
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+#: The ``settings`` object: :class:`IRLConfig`'s fields, each of its default's JSON type, no others
+#: (the value checks are ``IRLConfig``'s own).
+SettingsSchema = dataclass_schema(IRLConfig)
 
 
-def _json_type(value: Any) -> str:
-    return {dict: "an object", list: "a list", str: "a string", bool: "a boolean", int: "a number",
-            float: "a number", type(None): "null"}.get(type(value), type(value).__name__)
+class ModelFileSchema(BaseModel):
+    """The schema of a ``model.json`` (:class:`SavedModel`'s fields as JSON; files written before
+    the later fields load with their defaults, null lists and objects as empty)."""
 
+    model_config = STRICT
 
-def _brief(value: Any) -> str:
-    text = repr(value)
-    return text if len(text) <= 60 else text[:50] + "..."
+    format: Any = None
+    method: str
+    theta: list[Finite] = Field(min_length=1)
+    loglik: float
+    settings: SettingsSchema  # type: ignore[valid-type]
+    q: list[Annotated[list[Finite], Field(min_length=1)]] = Field(min_length=1)
+    domain: str = ""
+    feature_names: list[str] | None = None
+    bin_edges: dict[str, list[float]] | None = None
+    converged: bool = True
+    unbounded: bool = False
+    info: dict[str, Any] | None = None
+    state_encoding: str = "paper"
+    decision_step_s: float = FRAME_S
+    action_acc_ft_s2: list[Finite] = Field(default=list(DEFAULT_ACTION_ACC), min_length=len(DEFAULT_ACTION_ACC),
+                                           max_length=len(DEFAULT_ACTION_ACC))
+    feature_set: str = ""
+    unvisited_rule: str = "none"
 
+    @field_validator("format")
+    @classmethod
+    def _tabular(cls, fmt: Any) -> Any:
+        if isinstance(fmt, str) and fmt.partition("/")[0] != MODEL_FORMAT.partition("/")[0]:
+            raise ValueError(f"{fmt!r} is not a tabular IRL model's ({MODEL_FORMAT!r}, 'merge-irl learn')")
+        return fmt
 
-def _number_array(path: Path, name: str, value: Any, ndim: int, *, allow_empty: bool = False) -> np.ndarray:
-    """``value`` as a float array of ``ndim`` dims (a list, or a list of equal-length lists)."""
-    shape = "a list of numbers" if ndim == 1 else "a list of equal-length lists of numbers ([S][A])"
+    @field_validator("method")
+    @classmethod
+    def _registered(cls, method: str) -> str:
+        if method not in method_names():
+            raise ValueError(f"must be one of {method_names()}, got {method!r}")
+        return method
 
-    def flat(v: Any, depth: int) -> list:
-        if depth == 0:
-            if isinstance(v, bool) or not isinstance(v, (int, float)):
-                raise ModelFileError(f"{path}: field {name!r} must be {shape}; found {_brief(v)}")
-            return [v]
-        if not isinstance(v, list):
-            raise ModelFileError(f"{path}: field {name!r} must be {shape}; found {_json_type(v)}")
-        return [x for item in v for x in flat(item, depth - 1)]
+    @field_validator("loglik", "bin_edges")
+    @classmethod
+    def _no_nan(cls, value: Any) -> Any:
+        values = [value] if isinstance(value, float) else [x for v in (value or {}).values() for x in v]
+        if any(math.isnan(x) for x in values):
+            raise ValueError("holds NaN")
+        return value
 
-    flat(value, ndim)
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (ValueError, OverflowError) as e:
-        raise ModelFileError(f"{path}: field {name!r} must be {shape} ({e})") from None
-    if arr.ndim != ndim or (arr.size == 0 and not allow_empty):
-        raise ModelFileError(f"{path}: field {name!r} must be non-empty {shape}, got shape {arr.shape}")
-    return arr
+    @field_validator("q")
+    @classmethod
+    def _table(cls, q: list[list[float]]) -> list[list[float]]:
+        if len({len(row) for row in q}) != 1:
+            raise ValueError("must be a list of equal-length lists of numbers ([S][A])")
+        return q
 
+    @field_validator("state_encoding")
+    @classmethod
+    def _encoding(cls, enc: str) -> str:
+        if enc not in STATE_ENCODINGS:
+            raise ValueError(f"must be one of {STATE_ENCODINGS}, got {enc!r}")
+        return enc
 
-def _settings(path: Path, raw: Any) -> IRLConfig:
-    """``IRLConfig`` from the ``settings`` object, with each value's JSON type checked."""
-    if not isinstance(raw, dict):
-        raise ModelFileError(f"{path}: field 'settings' must be an object, got {_json_type(raw)}")
-    defaults = IRLConfig()
-    for key, value in raw.items():
-        if not hasattr(defaults, key):
-            continue  # reported by IRLConfig.from_dict below, with the known names
-        want = type(getattr(defaults, key))
-        ok = (isinstance(value, bool) if want is bool else
-              isinstance(value, str) if want is str else
-              isinstance(value, int) and not isinstance(value, bool) if want is int else
-              isinstance(value, (int, float)) and not isinstance(value, bool))
-        if not ok:
-            raise ModelFileError(
-                f"{path}: field 'settings.{key}' must be {'a number' if want in (int, float) else want.__name__}"
-                f"{' (integer)' if want is int else ''}, got {_brief(value)}")
-        if want is float:
-            try:
-                float(value)
-            except OverflowError:
-                raise ModelFileError(f"{path}: field 'settings.{key}' is out of range") from None
-    try:
-        return IRLConfig.from_dict(raw)
-    except (TypeError, ValueError, OverflowError) as e:
-        raise ModelFileError(f"{path}: field 'settings': {e}") from None
+    @field_validator("decision_step_s")
+    @classmethod
+    def _whole_frames(cls, step: float) -> float:
+        # a whole number of 0.1 s frames: the decision step the demonstrations were resampled to
+        frames = round(step / 0.1) if math.isfinite(step) else 0
+        if not (step > 0 and frames >= 1 and abs(frames * 0.1 - step) < 1e-9):
+            raise ValueError(f"must be a positive multiple of 0.1 s, got {step!r}")
+        return step
+
+    @field_validator("feature_names")
+    @classmethod
+    def _one_name_per_weight(cls, names: list[str] | None, info: ValidationInfo) -> list[str] | None:
+        theta = info.data.get("theta")
+        if names and theta is not None and len(names) != len(theta):
+            raise ValueError(f"has {len(names)} names for {len(theta)} weights in 'theta'")
+        return names

@@ -41,14 +41,18 @@ import math
 import os
 import tomllib
 import warnings
-from dataclasses import asdict, fields
+from dataclasses import asdict
 from pathlib import Path
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, create_model, field_validator
 
 from analysis.calibration.classes import DriverClasses
 from analysis.calibration.models import CALIBRATION_MODELS, PARAM_NAMES, SUMO_DEFAULTS, CFParams
 from analysis.calibration.objective import DEFAULT_OBJECTIVE, OBJECTIVES
 from analysis.calibration.result import CalibrationResult, PairFit, ParamSpread
 from merge_irl.atomic import write_text_atomic
+from merge_irl.json_file import STRICT, validate
 from scenarios.errors import SpecError
 from scenarios.toml_write import dumps
 
@@ -88,63 +92,120 @@ def save_result(r: CalibrationResult, path: str | os.PathLike) -> Path:
     return write_text_atomic(path, text)
 
 
-def _params(src: str, where: str, d: object) -> CFParams:
-    if not isinstance(d, dict):
-        raise SpecError(f"{src}: [{where}] must be a table of SUMO vType attributes")
-    unknown = sorted(set(d) - set(PARAM_NAMES))
-    if unknown:
-        raise SpecError(f"{src}: [{where}] unknown parameter(s) {unknown}; expected {list(PARAM_NAMES)}")
-    vals = {}
-    for k, v in d.items():
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 < v < math.inf:
-            raise SpecError(f"{src}: [{where}] {k} = {v!r}; expected a positive finite number")
-        vals[k] = float(v)
+class DefaultParamsWarning(UserWarning):
+    """A parameter table of a params file leaves parameters out: they take SUMO's defaults."""
+
+
+Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+#: A parameter table: SUMO vType attributes (:data:`PARAM_NAMES`), each a positive finite number;
+#: those left out take SUMO's defaults (named in a :class:`DefaultParamsWarning`).
+_PARAM_FIELDS: dict[str, Any] = {n: (Positive | None, None) for n in PARAM_NAMES}
+ParamsTable = create_model("ParamsTable", __config__=ConfigDict(strict=True, extra="forbid"), **_PARAM_FIELDS)
+
+
+class SpreadSchema(BaseModel):
+    """``[spread.<parameter>]``: :class:`ParamSpread`'s numbers."""
+
+    model_config = STRICT
+    mean: float
+    std: float
+    median: float
+    q10: float
+    q90: float
+
+
+class PairSchema(BaseModel):
+    """One ``[[pair]]``: :class:`PairFit`'s fields."""
+
+    model_config = STRICT
+    name: str
+    group: str
+    rmse_m: float
+    params: ParamsTable  # type: ignore[valid-type]  # built from PARAM_NAMES
+
+
+class ClassesSchema(BaseModel):
+    """``[classes]``: ``edges_s`` (s) and one ``[[classes.member]]`` table more than edges."""
+
+    model_config = STRICT
+    edges_s: list[float]
+    member: list[ParamsTable]  # type: ignore[valid-type]
+
+    @field_validator("member")
+    @classmethod
+    def _one_more_than_edges(cls, member: list[Any], info: ValidationInfo) -> list[Any]:
+        edges = info.data.get("edges_s")
+        if edges is not None and len(member) != len(edges) + 1:
+            raise ValueError(f"{len(edges)} edges_s need {len(edges) + 1} [[classes.member]] tables, got {len(member)}")
+        return member
+
+
+class ParamsFileSchema(BaseModel):
+    """The schema of a params TOML (the module docstring's layout); unknown top-level keys are ignored."""
+
+    model_config = STRICT
+    model: Any = Field(default=None, validate_default=True)
+    objective: str = DEFAULT_OBJECTIVE
+    fitted: list[Literal[PARAM_NAMES]] = []  # type: ignore[valid-type]  # the names, from the models
+    n_pairs: float | None = None
+    population_median_rmse_m: float = math.nan
+    seconds_population: float = 0.0
+    seconds_per_pair: float = 0.0
+    train_followers: list[str] = []
+    population: ParamsTable  # type: ignore[valid-type]
+    spread: dict[str, SpreadSchema] = {}
+    pair: list[PairSchema] = []
+    classes: ClassesSchema | None = None
+
+    @field_validator("model")
+    @classmethod
+    def _known_model(cls, model: Any) -> Any:
+        if model is None:
+            raise ValueError(f'missing: model = "..." (the car-following model the parameters are for; one of '
+                             f"{sorted(CALIBRATION_MODELS)})")
+        if model not in CALIBRATION_MODELS:
+            raise ValueError(f"expected one of {sorted(CALIBRATION_MODELS)}, got {model!r}")
+        return model
+
+    @field_validator("objective")
+    @classmethod
+    def _known_objective(cls, objective: str) -> str:
+        if objective not in OBJECTIVES:
+            raise ValueError(f"expected one of {sorted(OBJECTIVES)}, got {objective!r}")
+        return objective
+
+    @field_validator("n_pairs")
+    @classmethod
+    def _whole(cls, n: float | None) -> float | None:
+        if n is not None and not (n >= 0 and n == int(n)):
+            raise ValueError(f"expected a whole number >= 0, got {n!r}")
+        return n
+
+
+def _params(src: str, where: str, table: Any) -> CFParams:
+    """The parameters of a validated table; warns naming the ones that take SUMO's defaults."""
+    vals = {k: v for k, v in dict(table).items() if v is not None}
     missing = [k for k in PARAM_NAMES if k not in vals]
     if missing:  # a hand-written table may name only some: say which values are SUMO's defaults
-        warnings.warn(f"{src}: [{where}] has no {', '.join(missing)}: SUMO's defaults are used "
+        warnings.warn(f"{src}: {where}: has no {', '.join(missing)}: SUMO's defaults are used "
                       f"({', '.join(f'{k} = {getattr(SUMO_DEFAULTS, k):g}' for k in missing)})",
                       DefaultParamsWarning, stacklevel=3)
     return CFParams(**vals)
 
 
-class DefaultParamsWarning(UserWarning):
-    """A parameter table of a params file leaves parameters out: they take SUMO's defaults."""
-
-
-def _classes(src: str, d: object) -> DriverClasses:
-    if not isinstance(d, dict) or "edges_s" not in d or "member" not in d:
-        raise SpecError(f"{src}: [classes] needs edges_s = [...] (s) and [[classes.member]] parameter tables")
-    edges, members = d["edges_s"], d["member"]
-    if not isinstance(edges, list) or any(isinstance(e, bool) or not isinstance(e, (int, float)) for e in edges):
-        raise SpecError(f"{src}: [classes] edges_s = {edges!r}; expected a list of numbers (s)")
-    if not isinstance(members, list) or len(members) != len(edges) + 1:
-        raise SpecError(f"{src}: [classes] {len(edges)} edges_s need {len(edges) + 1} [[classes.member]] tables, "
-                        f"got {len(members) if isinstance(members, list) else members!r}")
-    params = tuple(_params(src, f"classes.member {i + 1}", m) for i, m in enumerate(members))
-    try:
-        return DriverClasses(edges_s=tuple(float(e) for e in edges), params=params)
-    except SpecError as e:
-        raise SpecError(f"{src}: [classes] {e}") from None
-
-
-def _number(v: object) -> float:
-    """``v`` as a float; TOML strings and booleans are not numbers (TypeError)."""
-    if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise TypeError(f"{v!r} is not a number")
-    return float(v)
-
-
 def load_result(path: str | os.PathLike) -> CalibrationResult:
     """Read a params TOML written by :func:`save_result` (or hand-written with at least
     ``model`` and ``[population]``; ``objective`` defaults to :data:`~.objective.DEFAULT_OBJECTIVE`;
-    parameters a table leaves out take SUMO's defaults, named in a :class:`DefaultParamsWarning`).
+    parameters a table leaves out take SUMO's defaults, named in a :class:`DefaultParamsWarning`),
+    validated by :class:`ParamsFileSchema`.
 
     Raises:
         FileNotFoundError: ``path`` does not exist.
-        SpecError: not valid TOML, no or an unknown ``model``, no ``[population]`` table, a parameter
-            that is not a positive finite number, a malformed
-            ``[spread.*]``, ``[[pair]]`` or ``[classes]`` entry, ``fitted`` not a list of parameter
-            names, or a non-numeric ``n_pairs``, ``population_median_rmse_m`` or ``seconds_*``.
+        SpecError: not valid TOML, or a field the schema refuses, as one line ``file: field.path:
+            problem`` (no or an unknown ``model``, no ``[population]`` table, a parameter that is
+            not a positive finite number, a malformed ``[spread.*]``, ``[[pair]]`` or
+            ``[classes]`` entry, ``fitted`` not a list of parameter names, a non-numeric
+            ``n_pairs``, ``population_median_rmse_m`` or ``seconds_*``).
     """
     path = Path(path)
     src = str(path)
@@ -154,61 +215,25 @@ def load_result(path: str | os.PathLike) -> CalibrationResult:
         raise
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
         raise SpecError(f"{src}: not valid TOML: {e}") from e
-    if "model" not in data:
-        raise SpecError(f"{src}: missing model = \"...\" (the car-following model the parameters are for; "
-                        f"one of {sorted(CALIBRATION_MODELS)})")
-    model = data["model"]
-    if model not in CALIBRATION_MODELS:
-        raise SpecError(f"{src}: model = {model!r}; expected one of {sorted(CALIBRATION_MODELS)}")
-    objective = data.get("objective", DEFAULT_OBJECTIVE)
-    if objective not in OBJECTIVES:
-        raise SpecError(f"{src}: objective = {objective!r}; expected one of {sorted(OBJECTIVES)}")
-    if "population" not in data:
-        raise SpecError(f"{src}: missing [population] table")
-    pop = _params(src, "population", data["population"])
-    spread_tables = data.get("spread", {})
-    if not isinstance(spread_tables, dict):
-        raise SpecError(f"{src}: spread must be tables [spread.<parameter>]")
-    spread = []
-    for n, s in spread_tables.items():
-        try:
-            spread.append((n, ParamSpread(**{f.name: _number(s[f.name]) for f in fields(ParamSpread)})))
-        except (KeyError, TypeError, ValueError) as e:
-            raise SpecError(f"{src}: [spread.{n}] needs numbers mean, std, median, q10, q90") from e
-    pair_tables = data.get("pair", [])
-    if not isinstance(pair_tables, list):
-        raise SpecError(f"{src}: pair must be an array of tables [[pair]]")
+    m = validate(ParamsFileSchema, data, src, error=SpecError)
     pairs = []
-    for i, p in enumerate(pair_tables):
+    for i, p in enumerate(m.pair):  # loops, not comprehensions: the warnings point at the caller
+        pairs.append(PairFit(name=p.name, group=p.group, rmse_m=p.rmse_m, params=_params(src, f"pair[{i}].params",
+                                                                                        p.params)))
+    classes = None
+    if m.classes is not None:
+        members = []
+        for i, t in enumerate(m.classes.member):
+            members.append(_params(src, f"classes.member[{i}]", t))
         try:
-            pairs.append(PairFit(name=str(p["name"]), group=str(p["group"]), rmse_m=_number(p["rmse_m"]),
-                                 params=_params(src, f"pair {i} params", p["params"])))
-        except KeyError as e:
-            raise SpecError(f"{src}: [[pair]] number {i + 1} misses {e}") from e
-        except (TypeError, ValueError) as e:
-            raise SpecError(f"{src}: [[pair]] number {i + 1}: rmse_m = {p.get('rmse_m')!r}; expected a number"
-                            if isinstance(p, dict) else f"{src}: [[pair]] number {i + 1} must be a table") from e
-    fitted = data.get("fitted", [])
-    if not isinstance(fitted, list) or not all(isinstance(f, str) and f in PARAM_NAMES for f in fitted):
-        raise SpecError(f"{src}: fitted = {fitted!r}; expected a list of names from {list(PARAM_NAMES)}")
-    followers = data.get("train_followers", [])
-    if not isinstance(followers, list) or not all(isinstance(f, str) for f in followers):
-        raise SpecError(f"{src}: train_followers must be a list of follower names (strings)")
-    numbers = {}
-    for key, default in (("population_median_rmse_m", float("nan")), ("seconds_population", 0.0),
-                         ("seconds_per_pair", 0.0), ("n_pairs", len(pairs))):
-        try:
-            numbers[key] = _number(data.get(key, default))
-        except (TypeError, ValueError) as e:
-            raise SpecError(f"{src}: {key} = {data[key]!r}; expected a number") from e
-    if numbers["n_pairs"] != int(numbers["n_pairs"]) or numbers["n_pairs"] < 0:
-        raise SpecError(f"{src}: n_pairs = {data['n_pairs']!r}; expected a whole number >= 0")
+            classes = DriverClasses(edges_s=tuple(m.classes.edges_s), params=tuple(members))
+        except SpecError as e:
+            raise SpecError(f"{src}: classes: {e}") from None
     return CalibrationResult(
-        model=model, fitted=tuple(fitted), population=pop,
-        population_median_rmse_m=numbers["population_median_rmse_m"],
-        per_pair=tuple(pairs), spread=tuple(spread), n_pairs=int(numbers["n_pairs"]),
-        seconds_population=numbers["seconds_population"],
-        seconds_per_pair=numbers["seconds_per_pair"], objective=objective,
-        classes=_classes(src, data["classes"]) if "classes" in data else None,
-        train_followers=tuple(sorted(set(followers))),
+        model=m.model, fitted=tuple(m.fitted), population=_params(src, "population", m.population),
+        population_median_rmse_m=m.population_median_rmse_m, per_pair=tuple(pairs),
+        spread=tuple((n, ParamSpread(**s.model_dump())) for n, s in m.spread.items()),
+        n_pairs=len(pairs) if m.n_pairs is None else int(m.n_pairs),
+        seconds_population=m.seconds_population, seconds_per_pair=m.seconds_per_pair, objective=m.objective,
+        classes=classes, train_followers=tuple(sorted(set(m.train_followers))),
     )

@@ -21,15 +21,15 @@ written before these options load with the settings they meant (:data:`LEGACY_CO
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field, fields, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
+from pydantic import BaseModel, Field, field_validator
 
 from irl.domains.merge.actions import N_ACTIONS, action_of
 from irl.errors import ConfigError, DemonstrationError, ModelFileError
@@ -39,6 +39,7 @@ from irl.planning.fit import fit_planner, select
 from irl.planning.model import PathTensors, PlannerConfig, first_step, path_tensors
 from irl.planning.policy import bin_log_policy_of_fine, fine_log_policy
 from merge_irl.atomic import write_json_atomic
+from merge_irl.json_file import STRICT, dataclass_schema, read_json_object, to_dataclass, validate
 
 #: The ``format`` field of a planner file.
 PLANNER_FORMAT = "merge-irl-planner/1"
@@ -178,60 +179,64 @@ class PlanningDriver:
         """Read a planner file.
 
         Raises:
-            ModelFileError: missing, unreadable, another format, or a malformed field (path and
-                field named).
+            ModelFileError: missing, unreadable, another format, or a malformed field (one line
+                naming the file and the field path).
         """
-        path = Path(path)
-        try:
-            data = json.loads(path.read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise ModelFileError(f"{path}: no such planner file") from None
-        except (OSError, ValueError, UnicodeDecodeError, RecursionError) as e:
-            raise ModelFileError(f"{path}: not a readable JSON file ({type(e).__name__}: {str(e)[:200]})") from None
-        got = data.get("format") if isinstance(data, dict) else type(data).__name__
-        if got != PLANNER_FORMAT:
-            raise ModelFileError(f"{path}: expected format {PLANNER_FORMAT!r}, got {got!r}")
-        for key in ("feature_names", "theta", "config", "shape", "decision_step_s", "action_acc_ft_s2"):
-            if key not in data:
-                raise ModelFileError(f"{path}: missing field {key!r}")
+        return cls.from_json_dict(read_json_object(path, what="planner file", error=ModelFileError), Path(path))
 
-        def obj(name: str, kind: type) -> dict[str, Any]:
-            value = data[name]
-            names = {f.name for f in fields(kind)}
-            optional = OPTIONAL_CONFIG_KEYS if kind is PlannerConfig else frozenset()
-            if not isinstance(value, dict) or not names - optional <= set(value) <= names:
-                raise ModelFileError(f"{path}: field {name!r} must be an object with the keys {sorted(names)}"
-                                     + (f" (optional: {sorted(optional)})" if optional else ""))
-            return value
+    @classmethod
+    def from_json_dict(cls, data: Any, source: str | os.PathLike = "<dict>") -> PlanningDriver:
+        """The driver of a parsed planner file object (:meth:`to_json_dict`'s layout), validated
+        by :class:`PlannerFileSchema`; ``source`` names it in messages.
 
+        Raises:
+            ModelFileError: as :meth:`load`.
+        """
+        m = validate(PlannerFileSchema, data, source, error=ModelFileError)
         try:
-            config = PlannerConfig(**{**LEGACY_CONFIG, **obj("config", PlannerConfig)})
-            shape = Shape(**obj("shape", Shape))
+            config = to_dataclass(PlannerConfig, m.config)
+            shape = to_dataclass(Shape, m.shape)
         except (ConfigError, TypeError) as e:
-            raise ModelFileError(f"{path}: field 'config' or 'shape': {e}") from None
-        theta = _numbers(path, "theta", data["theta"], len(config.feature_names))
-        acc = _numbers(path, "action_acc_ft_s2", data["action_acc_ft_s2"], N_ACTIONS)
-        if data["feature_names"] != list(config.feature_names):
-            raise ModelFileError(f"{path}: field 'feature_names' must be {list(config.feature_names)} for its config")
-        step = _numbers(path, "decision_step_s", [data["decision_step_s"]], 1)[0]
-        loglik = data.get("loglik")
-        loglik = math.nan if loglik is None else float(_numbers(path, "loglik", [loglik], 1)[0])
-        converged = data.get("converged", True)
-        info = data.get("info") or {}
-        if not isinstance(converged, bool) or not isinstance(info, dict) or loglik > 0:
-            raise ModelFileError(f"{path}: field 'converged' must be true/false, 'info' an object and 'loglik' <= 0")
+            raise ModelFileError(f"{source}: config or shape: {e}") from None
+        if m.feature_names != list(config.feature_names):
+            raise ModelFileError(f"{source}: feature_names: must be {list(config.feature_names)} for its config")
         try:
-            return cls(theta, tuple(data["feature_names"]), config, shape, float(step), tuple(acc), loglik, converged,
-                       dict(info))
+            return cls(np.asarray(m.theta, dtype=np.float64), tuple(m.feature_names), config, shape, m.decision_step_s,
+                       tuple(m.action_acc_ft_s2), math.nan if m.loglik is None else m.loglik, m.converged,
+                       dict(m.info or {}))
         except ConfigError as e:
-            raise ModelFileError(f"{path}: {e}") from None
+            raise ModelFileError(f"{source}: theta, decision_step_s or action_acc_ft_s2: {e}") from None
 
 
-def _numbers(path: Path, name: str, value: Any, n: int) -> np.ndarray:
-    if not isinstance(value, list) or len(value) != n or not all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value):
-        raise ModelFileError(f"{path}: field {name!r} must be a list of {n} finite numbers")
-    return np.array(value, dtype=np.float64)
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+#: ``config``: :class:`PlannerConfig`'s fields, those of :data:`LEGACY_CONFIG` optional.
+PlannerConfigSchema = dataclass_schema(PlannerConfig, optional=LEGACY_CONFIG)
+#: ``shape``: every :class:`Shape` field.
+ShapeSchema = dataclass_schema(Shape, optional={})
+
+
+class PlannerFileSchema(BaseModel):
+    """The schema of a planner file (format :data:`PLANNER_FORMAT`)."""
+
+    model_config = STRICT
+
+    format: Any = Field(default=None, validate_default=True)
+    feature_names: list[str]
+    theta: list[Finite] = Field(min_length=1)
+    config: PlannerConfigSchema  # type: ignore[valid-type]  # built from the dataclass
+    shape: ShapeSchema  # type: ignore[valid-type]
+    decision_step_s: Finite
+    action_acc_ft_s2: list[Finite] = Field(min_length=N_ACTIONS, max_length=N_ACTIONS)
+    loglik: Finite | None = Field(default=None, le=0)
+    converged: bool = True
+    info: dict[str, Any] | None = None
+
+    @field_validator("format")
+    @classmethod
+    def _this_format(cls, fmt: Any) -> Any:
+        if fmt != PLANNER_FORMAT:
+            raise ValueError(f"expected format {PLANNER_FORMAT!r}, got {fmt!r}")
+        return fmt
 
 
 def shape_of(decisions: PlanningDecisions) -> Shape:

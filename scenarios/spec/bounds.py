@@ -65,16 +65,23 @@ def check_bound(ctx: FieldContext, path: str, value: float, *, allow: bool, key:
         SpecError: one line, ``file: field: value unit is implausible (...); expected low to high unit
             (why); to run it anyway ...``.
     """
-    b = BOUNDS[key or path]
+    problem = bound_problem(key or path, value, allow=allow, given_as=given_as)
+    if problem:
+        raise ctx.fail(path, problem)
+
+
+def bound_problem(key: str, value: float, *, allow: bool = False, given_as: str = "") -> str:
+    """What is implausible about ``value`` of the :data:`BOUNDS` entry ``key`` (``""``: nothing,
+    or ``allow``); the message of :func:`check_bound` without the file and field."""
+    b = BOUNDS[key]
     if allow or b.low <= value <= b.high:
-        return
+        return ""
     hint = ""
     if b.unit == "m/s" and value > b.high:
         hint = f" ({value * 3.6:.0f} km/h; {value:g} mph would be {value * 0.44704:.1f} m/s)"
     what = f"{given_as} {value:g} {b.unit}" if given_as else f"{value:g} {b.unit}"
-    raise ctx.fail(path, f"{what} is implausible{hint}; expected {b.low:g} to {b.high:g} {b.unit} ({b.why}); "
-                         f"if you mean it, set {ALLOW_KEY} = true at the top of the scenario file "
-                         f"or pass --allow-implausible")
+    return (f"{what} is implausible{hint}; expected {b.low:g} to {b.high:g} {b.unit} ({b.why}); "
+            f"if you mean it, set {ALLOW_KEY} = true at the top of the scenario file or pass --allow-implausible")
 
 
 def allow_flag(ctx: FieldContext, data: dict) -> bool:

@@ -6,9 +6,12 @@
 from __future__ import annotations
 
 import math
-from typing import Any
+from collections.abc import Callable
+from typing import Any, TypeVar
 
 from scenarios.errors import SpecError
+
+T = TypeVar("T")
 
 #: No field of a scenario is meaningful beyond this (seconds, metres, veh/h).
 MAX_MAGNITUDE = 1e15
@@ -40,20 +43,62 @@ def check_keys(ctx: FieldContext, path: str, data: Any, allowed: list[str]) -> d
     return data
 
 
-def number(ctx: FieldContext, path: str, v: Any, *, integer: bool = False) -> float | int:
+def number_value(v: Any, *, integer: bool = False) -> float | int:
     """``v`` as a float (or an int with ``integer``); booleans are not numbers.
+
+    Raises:
+        ValueError: not a number (an integer), above :data:`MAX_MAGNITUDE` in magnitude, or not
+            finite (the message says which; the caller names the field).
+    """
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or (integer and not isinstance(v, int)):
+        kind = "an integer" if integer else "a number"
+        raise ValueError(f"must be {kind}, got {v!r} ({type(v).__name__})")
+    if abs(v) > MAX_MAGNITUDE:  # also keeps huge TOML integers from overflowing float()
+        raise ValueError(f"must be at most {MAX_MAGNITUDE:g} in magnitude, got {short_repr(v)}")
+    if not integer and not math.isfinite(v):
+        raise ValueError(f"must be finite, got {v!r}")
+    return int(v) if integer else float(v)
+
+
+def positive_value(v: Any, *, integer: bool = False) -> float | int:
+    """:func:`number_value`, above 0 (ValueError otherwise)."""
+    x = number_value(v, integer=integer)
+    if x <= 0:
+        raise ValueError(f"must be positive, got {v!r}")
+    return x
+
+
+def non_negative_value(v: Any) -> float:
+    """:func:`number_value`, at least 0 (ValueError otherwise)."""
+    x = number_value(v)
+    if x < 0:
+        raise ValueError(f"must be >= 0, got {v!r}")
+    return x
+
+
+def string_value(v: Any, choices: tuple[str, ...] | None = None) -> str:
+    """``v``, a string (one of ``choices`` when given); ValueError otherwise."""
+    if not isinstance(v, str):
+        raise ValueError(f"must be a string, got {v!r} ({type(v).__name__})")
+    if choices is not None and v not in choices:
+        raise ValueError(f"must be one of {', '.join(choices)}, got {v!r}")
+    return v
+
+
+def _at(ctx: FieldContext, path: str, check: Callable[..., T], *args: Any, **kw: Any) -> T:
+    try:
+        return check(*args, **kw)
+    except ValueError as e:
+        raise ctx.fail(path, str(e)) from None
+
+
+def number(ctx: FieldContext, path: str, v: Any, *, integer: bool = False) -> float | int:
+    """:func:`number_value` of the field at ``path``.
 
     Raises:
         SpecError: not a number (an integer), above :data:`MAX_MAGNITUDE` in magnitude, or not finite.
     """
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or (integer and not isinstance(v, int)):
-        kind = "an integer" if integer else "a number"
-        raise ctx.fail(path, f"must be {kind}, got {v!r} ({type(v).__name__})")
-    if abs(v) > MAX_MAGNITUDE:  # also keeps huge TOML integers from overflowing float()
-        raise ctx.fail(path, f"must be at most {MAX_MAGNITUDE:g} in magnitude, got {short_repr(v)}")
-    if not integer and not math.isfinite(v):
-        raise ctx.fail(path, f"must be finite, got {v!r}")
-    return int(v) if integer else float(v)
+    return _at(ctx, path, number_value, v, integer=integer)
 
 
 def is_float(text: str) -> bool:
@@ -77,10 +122,7 @@ def positive(ctx: FieldContext, path: str, v: Any, *, integer: bool = False) -> 
     Raises:
         SpecError: as :func:`number`, or not above 0.
     """
-    x = number(ctx, path, v, integer=integer)
-    if x <= 0:
-        raise ctx.fail(path, f"must be positive, got {v!r}")
-    return x
+    return _at(ctx, path, positive_value, v, integer=integer)
 
 
 def non_negative(ctx: FieldContext, path: str, v: Any) -> float:
@@ -89,10 +131,7 @@ def non_negative(ctx: FieldContext, path: str, v: Any) -> float:
     Raises:
         SpecError: as :func:`number`, or below 0.
     """
-    x = number(ctx, path, v)
-    if x < 0:
-        raise ctx.fail(path, f"must be >= 0, got {v!r}")
-    return x
+    return _at(ctx, path, non_negative_value, v)
 
 
 def string(ctx: FieldContext, path: str, v: Any, choices: tuple[str, ...] | None = None) -> str:
@@ -101,8 +140,4 @@ def string(ctx: FieldContext, path: str, v: Any, choices: tuple[str, ...] | None
     Raises:
         SpecError: not a string, or not one of ``choices``.
     """
-    if not isinstance(v, str):
-        raise ctx.fail(path, f"must be a string, got {v!r} ({type(v).__name__})")
-    if choices is not None and v not in choices:
-        raise ctx.fail(path, f"must be one of {', '.join(choices)}, got {v!r}")
-    return v
+    return _at(ctx, path, string_value, v, choices)

@@ -7,18 +7,19 @@ before anything is simulated. The file layout is described in :mod:`scenarios.sp
 from __future__ import annotations
 
 import math
-import re
 import tomllib
-from dataclasses import fields
+from dataclasses import fields, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
+from pydantic import BaseModel
+
+from merge_irl.json_file import validate
 from scenarios.errors import SpecError
-from scenarios.spec.bounds import ALLOW_KEY, BOUNDS, allow_flag, check_bound
+from scenarios.spec.bounds import ALLOW_KEY, allow_flag, check_bound
 from scenarios.spec.fields import (
     FieldContext,
     check_keys,
-    is_float,
     non_negative,
     number,
     positive,
@@ -33,51 +34,46 @@ from scenarios.spec.model import (
     SimulationSpec,
     VTypeSpec,
 )
-
-CAR_FOLLOW_MODELS = (
-    "Krauss", "KraussOrig1", "KraussPS", "KraussX", "EIDM", "IDM", "IDMM", "BKerner",
-    "Wiedemann", "W99", "PWagner2009", "PWagner2012", "SmartSK", "Daniel1", "ACC", "CACC",
+from scenarios.spec.schema import (
+    PARAM_NAME,
+    DemandSchema,
+    RoadSchema,
+    VTypeSchema,
+    given,
 )
-LANE_CHANGE_MODELS = ("LC2013", "SL2015", "DK2008")
-_PARAM_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
+
+M = TypeVar("M", bound=BaseModel)
+
 def _road(ctx: FieldContext, data: Any, allow: bool) -> RoadSpec:
-    names = [f.name for f in fields(RoadSpec)]
-    d = check_keys(ctx, "road", data, names)
-    kw: dict[str, Any] = {}
-    for n in names:
-        if n not in d:
-            continue
-        p = f"road.{n}"
-        if n == "main_lanes":
-            kw[n] = positive(ctx, p, d[n], integer=True)
-            if kw[n] > 6:
-                raise ctx.fail(p, f"must be at most 6 (I-80 numbering 1..6), got {d[n]}")
-        elif n == "ramp_angle_deg":
-            kw[n] = number(ctx, p, d[n])
-            if not 0 < kw[n] < 45:
-                raise ctx.fail(p, f"must be in (0, 45) degrees, got {d[n]!r}")
-        elif n == "bottleneck_drop":
-            kw[n] = string(ctx, p, d[n], ("right", "left"))
-        elif n == "bottleneck_lanes":  # 0 = as many as the main road
-            kw[n] = number(ctx, p, d[n], integer=True)
-            if not 0 <= kw[n] <= 6:
-                raise ctx.fail(p, f"must be 0 (as the main road) to 6, got {d[n]}")
-        elif n.startswith("bottleneck_"):  # 0 = no bottleneck
-            kw[n] = number(ctx, p, d[n])
-            if kw[n] < 0:
-                raise ctx.fail(p, f"must be >= 0, got {d[n]!r}")
-            check_bound(ctx, p, kw[n], allow=allow)
-        else:
-            kw[n] = positive(ctx, p, d[n])
-            if p in BOUNDS:
-                check_bound(ctx, p, kw[n], allow=allow)
-    r = RoadSpec(**kw)
+    d = check_keys(ctx, "road", data, [f.name for f in fields(RoadSpec)])
+    r = RoadSpec(**given(_schema(ctx, RoadSchema, d, "road", allow)))
+    _check_geometry(ctx, r)
+    _check_bottleneck(ctx, r, d)
+    return r
+
+
+def _schema(ctx: FieldContext, schema: type[M], data: dict[str, Any], at: str, allow: bool = False) -> M:
+    return validate(schema, data, ctx.source, error=SpecError, at=at, context={"allow": allow})
+
+
+def _check_geometry(ctx: FieldContext, r: RoadSpec) -> None:
     if r.merge_position_m + r.aux_length_m >= r.main_length_m:
         raise ctx.fail(
             "road.aux_length_m",
             f"merge_position_m + aux_length_m = {r.merge_position_m + r.aux_length_m:g} m must be "
             f"shorter than main_length_m = {r.main_length_m:g} m (the auxiliary lane ends on the road)",
         )
+    ramp_dx = r.ramp_length_m * math.cos(math.radians(r.ramp_angle_deg))
+    if ramp_dx > r.merge_position_m:
+        raise ctx.fail(
+            "road.ramp_length_m",
+            f"the ramp ({r.ramp_length_m:g} m at {r.ramp_angle_deg:g} deg) would start before the section "
+            f"start: its length along the road, {ramp_dx:.1f} m, must be at most merge_position_m = "
+            f"{r.merge_position_m:g} m",
+        )
+
+
+def _check_bottleneck(ctx: FieldContext, r: RoadSpec, d: dict[str, Any]) -> None:
     if r.bottleneck_length_m > 0 and "bottleneck_speed_mps" not in d:  # its default 0 means "no bottleneck"
         raise ctx.fail("road.bottleneck_speed_mps",
                        f"missing: a bottleneck of {r.bottleneck_length_m:g} m needs its speed limit (for a lane "
@@ -88,11 +84,11 @@ def _road(ctx: FieldContext, data: Any, allow: bool) -> RoadSpec:
                        f"got {r.bottleneck_speed_mps:g}")
     if not r.bottleneck_length_m > 0:
         no_bottleneck = RoadSpec()
-        given = sorted(k for k in d if k.startswith("bottleneck_") and k != "bottleneck_length_m"
-                       and getattr(r, k) != getattr(no_bottleneck, k))  # a written spec repeats the defaults
-        if given:
+        given_ = sorted(k for k in d if k.startswith("bottleneck_") and k != "bottleneck_length_m"
+                        and getattr(r, k) != getattr(no_bottleneck, k))  # a written spec repeats the defaults
+        if given_:
             raise ctx.fail("road.bottleneck_length_m",
-                           f"{', '.join(given)} given but no bottleneck: set bottleneck_length_m > 0 "
+                           f"{', '.join(given_)} given but no bottleneck: set bottleneck_length_m > 0 "
                            f"(the bottleneck's length past main_length_m) or remove them")
     elif (r.bottleneck_lanes in (0, r.main_lanes) and r.bottleneck_speed_mps >= r.speed_limit_mps):
         raise ctx.fail("road.bottleneck_speed_mps",
@@ -102,111 +98,43 @@ def _road(ctx: FieldContext, data: Any, allow: bool) -> RoadSpec:
     if r.bottleneck_lanes > r.main_lanes:
         raise ctx.fail("road.bottleneck_lanes", f"{r.bottleneck_lanes} lanes: a bottleneck has at most main_lanes = "
                                                 f"{r.main_lanes}")
-    ramp_dx = r.ramp_length_m * math.cos(math.radians(r.ramp_angle_deg))
-    if ramp_dx > r.merge_position_m:
-        raise ctx.fail(
-            "road.ramp_length_m",
-            f"the ramp ({r.ramp_length_m:g} m at {r.ramp_angle_deg:g} deg) would start before the section "
-            f"start: its length along the road, {ramp_dx:.1f} m, must be at most merge_position_m = "
-            f"{r.merge_position_m:g} m",
-        )
-    return r
+
+
+def _main_veh_h(ctx: FieldContext, d: dict[str, Any], main_lanes: int, allow: bool) -> tuple[float, ...]:
+    """``demand.main_veh_h``: one value for every main lane, or one per lane (checked, bounded)."""
+    if "main_veh_h" not in d:
+        base = DemandSpec().main_veh_h
+        return tuple(base[min(i, len(base) - 1)] for i in range(main_lanes))
+    v = d["main_veh_h"]
+    if not isinstance(v, list):
+        x = non_negative(ctx, "demand.main_veh_h", v)
+        check_bound(ctx, "demand.main_veh_h", x, allow=allow)
+        return (x,) * main_lanes
+    if len(v) != main_lanes:
+        raise ctx.fail("demand.main_veh_h", f"must have one value per main lane ({main_lanes}), got {len(v)}")
+    out = tuple(non_negative(ctx, f"demand.main_veh_h[{i}]", x) for i, x in enumerate(v))
+    for i, x in enumerate(out):
+        check_bound(ctx, f"demand.main_veh_h[{i}]", x, allow=allow, key="demand.main_veh_h")
+    return out
 
 
 def _demand(ctx: FieldContext, data: Any, main_lanes: int, allow: bool) -> DemandSpec:
-    names = [f.name for f in fields(DemandSpec)]
-    d = check_keys(ctx, "demand", data, names)
-    kw: dict[str, Any] = {}
-    if "main_veh_h" in d:
-        v = d["main_veh_h"]
-        if isinstance(v, list):
-            if len(v) != main_lanes:
-                raise ctx.fail("demand.main_veh_h", f"must have one value per main lane ({main_lanes}), got {len(v)}")
-            kw["main_veh_h"] = tuple(non_negative(ctx, f"demand.main_veh_h[{i}]", x) for i, x in enumerate(v))
-        else:
-            kw["main_veh_h"] = (non_negative(ctx, "demand.main_veh_h", v),) * main_lanes
-    else:
-        base = DemandSpec().main_veh_h
-        kw["main_veh_h"] = tuple(base[min(i, len(base) - 1)] for i in range(main_lanes))
-    if "ramp_veh_h" in d:
-        kw["ramp_veh_h"] = non_negative(ctx, "demand.ramp_veh_h", d["ramp_veh_h"])
-    for i, x in enumerate(kw["main_veh_h"]):
-        where = f"demand.main_veh_h[{i}]" if isinstance(d.get("main_veh_h"), list) else "demand.main_veh_h"
-        check_bound(ctx, where, x, allow=allow, key="demand.main_veh_h")
-    if "ramp_veh_h" in kw:
-        check_bound(ctx, "demand.ramp_veh_h", kw["ramp_veh_h"], allow=allow)
-    if "truck_share" in d:
-        kw["truck_share"] = non_negative(ctx, "demand.truck_share", d["truck_share"])
-        if kw["truck_share"] > 1:
-            raise ctx.fail("demand.truck_share", f"must be in [0, 1], got {d['truck_share']!r}")
-    if "arrivals" in d:
-        kw["arrivals"] = string(ctx, "demand.arrivals", d["arrivals"], ("poisson", "uniform"))
-    if "depart_speed" in d:
-        v = d["depart_speed"]
-        if isinstance(v, str) and is_float(v):  # a speed written back as text by to_toml
-            v = float(v)
-        if isinstance(v, (int, float)) and not isinstance(v, bool):
-            kw["depart_speed"] = str(non_negative(ctx, "demand.depart_speed", v))
-        else:
-            kw["depart_speed"] = string(ctx, "demand.depart_speed", v, ("desired", "max", "avg", "speedLimit", "random", "last"))
-    dem = DemandSpec(**kw)
+    d = check_keys(ctx, "demand", data, [f.name for f in fields(DemandSpec)])
+    main = _main_veh_h(ctx, d, main_lanes, allow)
+    dem = DemandSpec(**{**given(_schema(ctx, DemandSchema, d, "demand", allow)), "main_veh_h": main})
     if sum(dem.main_veh_h) + dem.ramp_veh_h <= 0:
         raise ctx.fail("demand", "zero demand everywhere: main_veh_h and ramp_veh_h are all 0")
     return dem
 
 
-def _params(ctx: FieldContext, path: str, v: Any, prefix: str = "") -> tuple[tuple[str, Any], ...]:
-    if not isinstance(v, dict):
-        raise ctx.fail(path, f"must be a table of SUMO attributes, got {type(v).__name__}")
-    out = []
-    reserved = {"id", "vClass", "length", "width", "minGap", "maxSpeed", "accel", "decel",
-                "emergencyDecel", "sigma", "tau", "speedFactor", "speedDev", "carFollowModel",
-                "laneChangeModel", "probability"}
-    for k in sorted(v):
-        val = v[k]
-        if not _PARAM_NAME.match(k) or k in reserved or (prefix and not k.startswith(prefix)):
-            need = f"a SUMO attribute name starting with {prefix!r}" if prefix else "a SUMO attribute name"
-            raise ctx.fail(f"{path}.{k}", f"must be {need}, not one of the spec's own fields")
-        if not isinstance(val, (int, float, str, bool)):
-            raise ctx.fail(f"{path}.{k}", f"must be a number, string or boolean, got {type(val).__name__}")
-        if isinstance(val, (int, float)) and not isinstance(val, bool):
-            number(ctx, f"{path}.{k}", val)  # finite, of sane magnitude
-        out.append((k, val))
-    return tuple(out)
-
-
 def _vtype(ctx: FieldContext, path: str, data: Any, cls: str) -> VTypeSpec:
-    names = [f.name for f in fields(VTypeSpec)]
-    d = check_keys(ctx, path, data, names)
-    if "id" not in d:
-        raise ctx.fail(f"{path}.id", "missing (every vType needs an id)")
-    kw: dict[str, Any] = {"id": string(ctx, f"{path}.id", d["id"])}
-    if not _PARAM_NAME.match(kw["id"]):
-        raise ctx.fail(f"{path}.id", f"must be letters, digits and _, got {kw['id']!r}")
+    d = check_keys(ctx, path, data, [f.name for f in fields(VTypeSpec)])
+    kw = given(_schema(ctx, VTypeSchema, d, path))
+    for name in ("cf_params", "lc_params"):
+        if name in kw:
+            kw[name] = tuple(sorted(kw[name].items()))
     defaults = DriversSpec().truck[0] if cls == "truck" else VTypeSpec(id="car")
-    for n in names:
-        if n == "id":
-            continue
-        p = f"{path}.{n}"
-        if n not in d:
-            kw[n] = getattr(defaults, n)
-            continue
-        v = d[n]
-        if n == "car_follow_model":
-            kw[n] = string(ctx, p, v, CAR_FOLLOW_MODELS)
-        elif n == "lane_change_model":
-            kw[n] = string(ctx, p, v, LANE_CHANGE_MODELS)
-        elif n == "cf_params":
-            kw[n] = _params(ctx, p, v)
-        elif n == "lc_params":
-            kw[n] = _params(ctx, p, v, prefix="lc")
-        elif n in ("sigma", "speed_dev"):
-            kw[n] = non_negative(ctx, p, v)
-            if n == "sigma" and kw[n] > 1:
-                raise ctx.fail(p, f"must be in [0, 1], got {v!r}")
-        else:
-            kw[n] = positive(ctx, p, v)
-    return VTypeSpec(**kw)
+    return replace(defaults, **kw)
 
 
 def _drivers(ctx: FieldContext, data: Any) -> DriversSpec:
@@ -275,7 +203,7 @@ def spec_from_dict(data: dict[str, Any], *, source: str = "<dict>", allow_implau
     if "name" not in d:
         raise ctx.fail("name", "missing (the scenario needs a name)")
     name = string(ctx, "name", d["name"])
-    if not _PARAM_NAME.match(name.replace("-", "_")):
+    if not PARAM_NAME.match(name.replace("-", "_")):
         raise ctx.fail("name", f"must be letters, digits, - and _, got {name!r}")
     road = _road(ctx, d.get("road", {}), allow)
     return ScenarioSpec(

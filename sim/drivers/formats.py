@@ -17,13 +17,13 @@ one :func:`register_format` call (or the call from one's own code), and no edit 
 
     from sim.drivers.formats import DriverFormat, register_format
     register_format(DriverFormat("my-driver", "my driver (my-learn)", load=MyDriver.load,
+                                 parse=MyDriver.from_json_dict,
                                  policy=lambda d, name, source: MyPolicy(d, name=name, source=source),
                                  replay_act=lambda d: (d.act, d.decision_step_s)))
 """
 
 from __future__ import annotations
 
-import json
 import os
 import warnings
 from collections.abc import Callable
@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 from irl.errors import ModelFileError
 from irl.planning.replay import ActFn
+from merge_irl.json_file import read_json
 
 if TYPE_CHECKING:  # pragma: no cover
     from sim.drivers.callables import PolicyCallable
@@ -54,6 +55,9 @@ class DriverFormat:
             version of the family are this format's (its ``load`` refuses versions it cannot read).
         label: what the file is, for users (``"planning driver ('merge-irl learn-driver')"``).
         load: ``path -> the learned object`` (raises ``ModelFileError`` naming the file).
+        parse: ``(data, path) -> the learned object`` from the file's parsed JSON object ``data``
+            (``path`` for messages; raises ``ModelFileError``): the registry reads each file once
+            and hands its content here; None: the registry calls ``load(path)`` instead.
         policy: ``(learned, name, source) -> Policy`` (:class:`sim.drivers.policy.Policy`): the
             closed-loop driver, named ``name``, read from ``source`` ("" when built in code).
         replay_act: ``learned -> (act, decision_step_s)``: its most likely acceleration when
@@ -69,6 +73,11 @@ class DriverFormat:
     replay_act: Callable[[Any], tuple[ActFn, float]] | None = None
     reward: Callable[[Any], RewardFn] | None = None
     role: Role = "driver"
+    parse: Callable[[dict[str, Any], Path], Any] | None = None
+
+    def learned(self, data: dict[str, Any], path: Path) -> Any:
+        """The learned object of a file already read (``data``, its JSON object)."""
+        return self.parse(data, path) if self.parse is not None else self.load(path)
 
 
 #: The registered formats by family, in registration order (:func:`register_format`).
@@ -105,23 +114,27 @@ def _known() -> str:
     return ", ".join(f"{f.family}/... ({f.label})" for f in FORMATS.values())
 
 
+def _read(path: str | os.PathLike) -> tuple[str, dict[str, Any]]:
+    """The ``format`` field and the JSON object of a learned file (the one read of the file).
+
+    Raises:
+        ModelFileError: a missing or unreadable file, not a JSON object, or no string ``format``.
+    """
+    data = read_json(path, what="model or driver file", error=ModelFileError)
+    fmt = data.get("format") if isinstance(data, dict) else None
+    if not isinstance(fmt, str):
+        raise ModelFileError(f"{path}: not a model or driver file (no string 'format' field); expected one of: "
+                             f"{_known()}")
+    return fmt, data
+
+
 def format_field(path: str | os.PathLike) -> str:
     """The ``format`` field of a learned file (JSON).
 
     Raises:
         ModelFileError: a missing or unreadable file, not a JSON object, or no string ``format``.
     """
-    p = Path(path)
-    try:
-        data = json.loads(p.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ModelFileError(f"{p}: no such model or driver file") from None
-    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as e:
-        raise ModelFileError(f"{p}: cannot read a driver file ({e.__class__.__name__}: {str(e)[:200]})") from None
-    fmt = data.get("format") if isinstance(data, dict) else None
-    if not isinstance(fmt, str):
-        raise ModelFileError(f"{p}: not a model or driver file (no string 'format' field); expected one of: {_known()}")
-    return fmt
+    return _read(path)[0]
 
 
 def format_of(path: str | os.PathLike, role: Role | None = None, *, option: str = "") -> DriverFormat:
@@ -137,7 +150,18 @@ def format_of(path: str | os.PathLike, role: Role | None = None, *, option: str 
         ModelFileError: unreadable, no ``format``, an unregistered family (the known ones listed),
             or a file of the other role.
     """
-    fmt = format_field(path)
+    return _format_and_data(path, role, option=option)[0]
+
+
+def _format_and_data(path: str | os.PathLike, role: Role | None = None, *,
+                     option: str = "") -> tuple[DriverFormat, dict[str, Any]]:
+    """:func:`format_of`, with the file's JSON object (read once, for :meth:`DriverFormat.learned`)."""
+    fmt, data = _read(path)
+    return _registered(path, fmt, role, option), data
+
+
+def _registered(path: str | os.PathLike, fmt: str, role: Role | None, option: str) -> DriverFormat:
+    """The registered format of the ``format`` field ``fmt``, checked against ``role``."""
     f = FORMATS.get(family_of(fmt))
     if f is None:
         raise ModelFileError(f"{path}: format {fmt!r} is not a registered model or driver format; expected one of: "
@@ -163,7 +187,7 @@ def check_role(path: str | os.PathLike, role: Role, *, option: str = "") -> None
     except ModelFileError:
         return
     if family_of(fmt) in FORMATS:
-        format_of(path, role, option=option)
+        _registered(path, fmt, role, option)
 
 
 def load_driver(path: str | os.PathLike, role: Role | None = "driver") -> Any:
@@ -173,7 +197,8 @@ def load_driver(path: str | os.PathLike, role: Role | None = "driver") -> Any:
     Raises:
         ModelFileError: see :func:`format_of`, and the format's own loader's errors.
     """
-    return format_of(path, role).load(Path(path))
+    f, data = _format_and_data(path, role)
+    return f.learned(data, Path(path))
 
 
 def driver_policy(path: str | os.PathLike, name: str = "", *, role: Role | None = "driver",
@@ -186,8 +211,8 @@ def driver_policy(path: str | os.PathLike, name: str = "", *, role: Role | None 
     """
     from sim.drivers.policy import PolicyError
 
-    f = format_of(path, role, option=option)
-    learned = f.load(Path(path))
+    f, data = _format_and_data(path, role, option=option)
+    learned = f.learned(data, Path(path))
     try:
         return f.policy(learned, name or Path(path).stem, str(path))
     except PolicyError as e:
@@ -200,10 +225,10 @@ def replay_act(path: str | os.PathLike) -> tuple[ActFn, float]:
     Raises:
         ModelFileError: see :func:`format_of`, or a format that does not replay pairs.
     """
-    f = format_of(path, "driver", option="--driver")
+    f, data = _format_and_data(path, "driver", option="--driver")
     if f.replay_act is None:
         raise ModelFileError(f"{path}: a {f.label} does not replay car-following pairs")
-    return f.replay_act(f.load(Path(path)))
+    return f.replay_act(f.learned(data, Path(path)))
 
 
 class UnreliableRewardWarning(UserWarning):
@@ -227,11 +252,11 @@ def driver_reward(path: str | os.PathLike) -> RewardFn:
     p = Path(path)
     if not p.is_file():
         raise FileNotFoundError(f"reward model file not found: {p}")
-    f = format_of(p)
+    f, data = _format_and_data(p)
     if f.reward is None:
         with_reward = ", ".join(x.label for x in FORMATS.values() if x.reward is not None)
         raise ModelFileError(f"{p}: a {f.label} has no reward; the environment's rewards come from: {with_reward}")
-    learned = f.load(p)
+    learned = f.learned(data, p)
     why = [w for w, bad in (("its fit did not converge", not getattr(learned, "converged", True)),
                             ("its weights are unbounded (no finite maximiser: they diverged)",
                              bool(getattr(learned, "unbounded", False)))) if bad]

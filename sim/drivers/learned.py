@@ -326,9 +326,11 @@ def cf_replay_act(cf: CarFollowingLogit) -> tuple[ActFn, float]:
 
 register_format(DriverFormat(
     family_of(MODEL_FORMAT), "tabular IRL model ('merge-irl learn')", load=SavedModel.load,
+    parse=SavedModel.from_json_dict,
     policy=lambda model, name, source: LearnedPolicy.from_model(model, name=name or model.method),
     reward=TabularReward.from_model, role="model"))
 register_format(DriverFormat(
     family_of(CF_FORMAT), "car-following logit ('merge-irl dagger')", load=CarFollowingLogit.load,
+    parse=CarFollowingLogit.from_json_dict,
     policy=lambda cf, name, source: CarFollowingLogitPolicy(cf, name=name, source=source),
     replay_act=cf_replay_act))

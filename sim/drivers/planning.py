@@ -128,5 +128,6 @@ class PlanningReward:
 
 register_format(DriverFormat(
     family_of(PLANNER_FORMAT), "planning driver ('merge-irl learn-driver')", load=PlanningDriver.load,
+    parse=PlanningDriver.from_json_dict,
     policy=lambda driver, name, source: PlanningDriverPolicy(driver, name=name, source=source),
     replay_act=lambda driver: (driver.act, driver.decision_step_s), reward=PlanningReward))

@@ -103,17 +103,17 @@ def test_npz_round_trip(tmp_path):
     "over, message",
     [
         ({"offsets": None}, r"missing array\(s\) \['offsets'\]"),
-        ({"features": np.zeros((S, A))}, r"array 'features' must have shape \[S, A, K\]"),
-        ({"features": np.full((S, A, K), np.nan)}, r"array 'features' entry \[0, 0, 0\] is nan"),
-        ({"states": np.array([0, 1, 2])}, r"'states' \(3,\) and 'actions' \(4,\) differ in length"),
-        ({"states": np.array([0.0, 1.5, 2, 5])}, r"array 'states' entry 1 = 1.5 is not an integer"),
-        ({"states": np.array(["a", "b", "c", "d"])}, r"array 'states' must hold integers"),
-        ({"offsets": np.array([0, 3, 5])}, r"'offsets' must start at 0 and end at N = 4"),
-        ({"offsets": np.array([0, 3, 2, 4])}, r"'offsets' not monotone at entry 2"),
-        ({"offsets": np.array([0, 0, 4])}, r"trajectory 0 is empty"),
+        ({"features": np.zeros((S, A))}, r"features: must have shape \[S, A, K\], got \(6, 3\)"),
+        ({"features": np.full((S, A, K), np.nan)}, r"features: entry \[0, 0, 0\] is nan"),
+        ({"states": np.array([0, 1, 2])}, r"actions: \(4,\) and 'states' \(3,\) differ in length"),
+        ({"states": np.array([0.0, 1.5, 2, 5])}, r"states: entry 1 = 1.5 is not an integer"),
+        ({"states": np.array(["a", "b", "c", "d"])}, r"states: must hold integers, got dtype <U1"),
+        ({"offsets": np.array([0, 3, 5])}, r"offsets: must start at 0 and end at N = 4"),
+        ({"offsets": np.array([0, 3, 2, 4])}, r"offsets: not monotone at entry 2"),
+        ({"offsets": np.array([0, 0, 4])}, r"offsets: trajectory 0 is empty"),
         ({"states": np.array([0, 1, 9, 5])}, r"'states' entry 2 \(trajectory 0, step 2\): state 9 out of range \[0, 6\)"),
         ({"actions": np.array([0, 1, 2, 3])}, r"'actions' entry 3 \(trajectory 1, step 0\): action 3 out of range"),
-        ({"feature_names": np.array(["x"])}, r"'feature_names' must hold K = 2 names"),
+        ({"feature_names": np.array(["x"])}, r"feature_names: must hold K = 2 names"),
     ],
 )
 def test_npz_rejects_bad_files(tmp_path, over, message):
@@ -153,5 +153,5 @@ def test_npz_rejects_npy_and_corrupt_archives(tmp_path):
     with pytest.raises(DemonstrationError, match=r"crc\.npz: not a readable \.npz file"):
         load_npz(bad)
     huge = make_npz(tmp_path / "huge.npz", states=np.array([0.0, 1.0, 1e300, 5.0]))
-    with pytest.raises(DemonstrationError, match=r"'states' entry 2 = 1e\+300 is not an integer"):
+    with pytest.raises(DemonstrationError, match=r"huge\.npz: states: entry 2 = 1e\+300 is not an integer"):
         load_npz(huge)

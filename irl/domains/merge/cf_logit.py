@@ -13,14 +13,14 @@ learned driver reaches (DAgger; ``analysis.experiments.dagger``), which ``info``
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
+from pydantic import BaseModel, Field, field_validator
 
 from irl.domains.merge.actions import N_ACTIONS
 from irl.domains.merge.car_following import CF_FEATURES, CFDecisions, GapNeed, car_following_features
@@ -28,6 +28,7 @@ from irl.domains.merge.mdp import frames_per_step
 from irl.errors import ConfigError, ModelFileError
 from irl.methods.conditional_logit import conditional_log_policy, conditional_loglik, fit_conditional_logit
 from merge_irl.atomic import write_json_atomic
+from merge_irl.json_file import STRICT, dataclass_schema, read_json_object, to_dataclass, validate
 
 #: The ``format`` field of a car-following logit file.
 CF_FORMAT = "merge-irl-cf-logit/2"
@@ -144,59 +145,62 @@ class CarFollowingLogit:
 
         Raises:
             ModelFileError: missing, unreadable, another format (an earlier one of
-                :data:`OLD_CF_FORMATS` with its reason), or a malformed field (named).
+                :data:`OLD_CF_FORMATS` with its reason), or a malformed field (one line naming the
+                file and the field path).
         """
-        path = Path(path)
+        return cls.from_json_dict(read_json_object(path, what="model file", error=ModelFileError), Path(path))
+
+    @classmethod
+    def from_json_dict(cls, data: Any, source: str | os.PathLike = "<dict>") -> CarFollowingLogit:
+        """The driver of a parsed file object (:meth:`to_json_dict`'s layout), validated by
+        :class:`CFLogitSchema`; ``source`` names it in messages.
+
+        Raises:
+            ModelFileError: as :meth:`load`.
+        """
+        m = validate(CFLogitSchema, data, source, error=ModelFileError)
         try:
-            data = json.loads(path.read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise ModelFileError(f"{path}: no such model file") from None
-        except (OSError, ValueError, UnicodeDecodeError, RecursionError) as e:
-            raise ModelFileError(f"{path}: not a readable JSON model file ({type(e).__name__}: {str(e)[:200]})") from None
-        if isinstance(data, dict) and isinstance(data.get("format"), str) and data["format"] in OLD_CF_FORMATS:
-            raise ModelFileError(f"{path}: format {data['format']!r}: {OLD_CF_FORMATS[data['format']]}; "
-                                 f"train it again with 'merge-irl dagger' (writes {CF_FORMAT!r})")
-        if not isinstance(data, dict) or data.get("format") != CF_FORMAT:
-            got = data.get("format") if isinstance(data, dict) else type(data).__name__
-            raise ModelFileError(f"{path}: expected format {CF_FORMAT!r} (a file of 'merge-irl dagger'), "
-                                 f"got {got!r}")
-        for key in ("feature_names", "theta", "action_acc_ft_s2", "decision_step_s", "gap_need"):
-            if key not in data:
-                raise ModelFileError(f"{path}: missing field {key!r}")
-        if data["feature_names"] != list(CF_FEATURES):
-            raise ModelFileError(f"{path}: field 'feature_names' must be {list(CF_FEATURES)}")
-        theta = _numbers(path, "theta", data["theta"], len(CF_FEATURES))
-        acc = _numbers(path, "action_acc_ft_s2", data["action_acc_ft_s2"], N_ACTIONS)
-        step = _number(path, "decision_step_s", data["decision_step_s"])
-        raw_gap = data["gap_need"]
-        names = {f.name for f in dataclasses.fields(GapNeed)}
-        if not isinstance(raw_gap, dict) or set(raw_gap) != names:
-            raise ModelFileError(f"{path}: field 'gap_need' must be an object with the keys {sorted(names)}")
-        gap_values = {k: _number(path, f"gap_need.{k}", v) for k, v in raw_gap.items()}
-        l2 = _number(path, "l2", data.get("l2", 0.1))
-        loglik = data.get("loglik")
-        loglik = float("nan") if loglik is None else _number(path, "loglik", loglik)
-        converged = data.get("converged", True)
-        if not isinstance(converged, bool):
-            raise ModelFileError(f"{path}: field 'converged' must be true or false, got {converged!r}")
-        info = data.get("info") or {}
-        if not isinstance(info, dict):
-            raise ModelFileError(f"{path}: field 'info' must be an object")
-        if l2 < 0 or loglik > 0:
-            raise ModelFileError(f"{path}: field 'l2' must be >= 0 and 'loglik' <= 0, got {l2}, {loglik}")
-        try:
-            return cls(theta, tuple(acc), step, GapNeed(**gap_values), l2, loglik, converged, dict(info))
+            return cls(np.asarray(m.theta, dtype=np.float64), tuple(m.action_acc_ft_s2), m.decision_step_s,
+                       to_dataclass(GapNeed, m.gap_need), m.l2, math.nan if m.loglik is None else m.loglik,
+                       m.converged, dict(m.info or {}))
         except ConfigError as e:
-            raise ModelFileError(f"{path}: {e}") from None
+            raise ModelFileError(f"{source}: {e}") from None
 
 
-def _number(path: Path, name: str, value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ModelFileError(f"{path}: field {name!r} must be a finite number, got {str(value)[:40]!r}")
-    return float(value)
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+#: ``gap_need``: every :class:`GapNeed` parameter, a number (their range is ``GapNeed``'s check).
+GapNeedSchema = dataclass_schema(GapNeed, optional={})
 
 
-def _numbers(path: Path, name: str, value: Any, n: int) -> np.ndarray:
-    if not isinstance(value, list) or len(value) != n:
-        raise ModelFileError(f"{path}: field {name!r} must be a list of {n} finite numbers")
-    return np.array([_number(path, f"{name}[{i}]", v) for i, v in enumerate(value)], dtype=np.float64)
+class CFLogitSchema(BaseModel):
+    """The schema of a car-following logit file (format :data:`CF_FORMAT`)."""
+
+    model_config = STRICT
+
+    format: Any = Field(default=None, validate_default=True)
+    feature_names: list[str]
+    theta: list[Finite] = Field(min_length=len(CF_FEATURES), max_length=len(CF_FEATURES))
+    action_acc_ft_s2: list[Finite] = Field(min_length=N_ACTIONS, max_length=N_ACTIONS)
+    decision_step_s: Finite
+    gap_need: GapNeedSchema  # type: ignore[valid-type]  # built from the dataclass
+    l2: Finite = Field(default=0.1, ge=0)
+    loglik: Finite | None = Field(default=None, le=0)
+    converged: bool = True
+    info: dict[str, Any] | None = None
+
+    @field_validator("format", mode="before")
+    @classmethod
+    def _this_format(cls, fmt: Any) -> Any:
+        if isinstance(fmt, str) and fmt in OLD_CF_FORMATS:
+            raise ValueError(f"{fmt!r}: {OLD_CF_FORMATS[fmt]}; train it again with 'merge-irl dagger' "
+                             f"(writes {CF_FORMAT!r})")
+        if fmt != CF_FORMAT:
+            raise ValueError(f"expected format {CF_FORMAT!r} (a file of 'merge-irl dagger'), got {fmt!r}")
+        return fmt
+
+    @field_validator("feature_names")
+    @classmethod
+    def _cf_features(cls, names: list[str]) -> list[str]:
+        if names != list(CF_FEATURES):
+            raise ValueError(f"must be {list(CF_FEATURES)}, got {names!r}")
+        return names

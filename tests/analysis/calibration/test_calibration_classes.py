@@ -105,12 +105,12 @@ def test_classes_toml_round_trip_and_errors(two_classes, tmp_path: Path) -> None
     assert load_result(tmp_path / "two.toml") == replace(r, classes=two_classes)
     head = 'model = "idm"\n[population]\ntau = 1.0\n'
     bad = {
-        "[classes]\nedges_s = [1.0]\n": "needs edges_s",
-        '[classes]\nedges_s = ["x"]\n[[classes.member]]\ntau = 1.0\n[[classes.member]]\ntau = 1.0\n': "edges_s",
-        "[classes]\nedges_s = [1.0]\n[[classes.member]]\ntau = 1.0\n": r"need 2 \[\[classes\.member\]\]",
+        "[classes]\nedges_s = [1.0]\n": r"classes\.member: missing",
+        '[classes]\nedges_s = ["x"]\n[[classes.member]]\ntau = 1.0\n[[classes.member]]\ntau = 1.0\n': r"classes\.edges_s\[0\]: must be a number, got 'x'",
+        "[classes]\nedges_s = [1.0]\n[[classes.member]]\ntau = 1.0\n": r"classes\.member: 1 edges_s need 2 \[\[classes\.member\]\] tables, got 1",
         "[classes]\nedges_s = [1.0]\n[[classes.member]]\ntau = 1.0\n[[classes.member]]\ntau = -1.0\n":
-            r"\[classes.member 2\] tau",
-        "[classes]\nedges_s = [2.0, 1.0]\n" + "[[classes.member]]\ntau = 1.0\n" * 3: "increasing",
+            r"classes\.member\[1\]\.tau: must be greater than 0",
+        "[classes]\nedges_s = [2.0, 1.0]\n" + "[[classes.member]]\ntau = 1.0\n" * 3: r"classes: .*expected increasing",
     }
     for text, msg in bad.items():
         (tmp_path / "bad.toml").write_text(head + text)

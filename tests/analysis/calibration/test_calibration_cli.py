@@ -177,6 +177,6 @@ def test_warnings_are_one_line(tmp_path: Path) -> None:
     r = _cli("calibrate", "evaluate", "--params", str(part), "--pairs", str(PAIRS_DIR), "--limit", "3", "--json")
     assert r.returncode == 0, r.stderr
     lines = [ln for ln in r.stderr.splitlines() if "Warning" in ln or ln.startswith("merge-irl calibrate: warning")]
-    assert lines == [f"merge-irl calibrate: warning: {part}: [population] has no decel, tau, minGap, maxSpeed, delta, "
+    assert lines == [f"merge-irl calibrate: warning: {part}: population: has no decel, tau, minGap, maxSpeed, delta, "
                      "emergencyDecel: SUMO's defaults are used (decel = 4.5, tau = 1, minGap = 2.5, maxSpeed = 29.06, "
                      "delta = 4, emergencyDecel = 9)"], r.stderr

@@ -56,11 +56,12 @@ def test_every_registry_is_a_registry_and_keeps_its_old_error_class():
     from sim.drivers.baselines import BASELINES
     from sim.drivers.formats import FORMATS
     from sim.drivers.policy import PolicyError
+    from sim.env.task_reward import TASK_REWARDS
     from sim.errors import TrajectoryFormatError
     from sim.runtime.sites import SITES
 
     olds = [(REGISTRY, ConfigError), (DOMAINS, ConfigError), (BASELINE_FITTERS, ConfigError),
-            (FORMATS, ValueError), (BASELINES, PolicyError), (SITES, TrajectoryFormatError)]
+            (FORMATS, ValueError), (BASELINES, PolicyError), (SITES, TrajectoryFormatError), (TASK_REWARDS, KeyError)]
     for reg, old in olds:
         assert isinstance(reg, Registry)
         with pytest.raises(RegistryError) as e:

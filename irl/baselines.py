@@ -31,10 +31,17 @@ from scipy.stats import wilcoxon
 
 from irl.demonstrations import Demonstrations
 from irl.errors import ConfigError, DemonstrationError
+from merge_irl.registry import Registry, RegistryError
 
-#: The tabular baselines of the paper tables, scored by leave-one-trajectory-out (not the closed-loop
+
+class TabularBaselineError(RegistryError, ConfigError):
+    """An unknown tabular baseline, or one registered twice (a :class:`ConfigError`)."""
+
+
+#: The tabular baselines' fitters by name, ``fit(demos) -> BaselinePolicy`` (not the closed-loop
 #: drivers of an evaluation: those are :data:`sim.drivers.baselines.BASELINES`).
-TABULAR_BASELINES = ("uniform", "marginal", "markov", "bc")
+BASELINE_FITTERS: Registry[Callable[[Demonstrations], BaselinePolicy]] = Registry(
+    "baseline", error=TabularBaselineError)
 
 
 class TrajectoryScorer(Protocol):
@@ -129,29 +136,50 @@ def _smoothed_log(counts: np.ndarray) -> np.ndarray:
     return np.log(c) - np.log(c.sum(axis=-1, keepdims=True))
 
 
+def _uniform(demos: Demonstrations) -> BaselinePolicy:
+    S, A = demos.n_states, demos.n_actions
+    return BaselinePolicy("uniform", np.full((S, A), -np.log(A)))
+
+
+def _marginal_log(demos: Demonstrations) -> np.ndarray:
+    return _smoothed_log(np.bincount(demos.flat()[1], minlength=demos.n_actions))  # [A]
+
+
+def _marginal(demos: Demonstrations) -> BaselinePolicy:
+    return BaselinePolicy("marginal", np.broadcast_to(_marginal_log(demos), (demos.n_states, demos.n_actions)).copy())
+
+
+def _markov(demos: Demonstrations) -> BaselinePolicy:
+    A = demos.n_actions
+    pairs = np.zeros((A, A))
+    for a in demos.actions:
+        np.add.at(pairs, (a[:-1], a[1:]), 1.0)
+    return BaselinePolicy("markov", np.broadcast_to(_marginal_log(demos), (demos.n_states, A)).copy(),
+                          _smoothed_log(pairs))
+
+
+def _bc(demos: Demonstrations) -> BaselinePolicy:
+    states, actions, _ = demos.flat()
+    counts = np.zeros((demos.n_states, demos.n_actions))
+    np.add.at(counts, (states, actions), 1.0)
+    return BaselinePolicy("bc", _smoothed_log(counts))
+
+
+for _name, _fit in (("uniform", _uniform), ("marginal", _marginal), ("markov", _markov), ("bc", _bc)):
+    BASELINE_FITTERS.register(_name, _fit)
+
+#: The tabular baselines of the paper tables, scored by leave-one-trajectory-out, in their order.
+TABULAR_BASELINES = BASELINE_FITTERS.names()
+
+
 def fit_baseline(name: str, demos: Demonstrations) -> BaselinePolicy:
-    """Fit baseline ``name`` (one of ``TABULAR_BASELINES``) on ``demos``; see the module doc.
+    """Fit baseline ``name`` (one of :data:`BASELINE_FITTERS`: ``TABULAR_BASELINES``) on ``demos``;
+    see the module doc.
 
     Raises:
-        ConfigError: unknown ``name``.
+        ConfigError (TabularBaselineError): unknown ``name`` (the known ones listed).
     """
-    S, A = demos.n_states, demos.n_actions
-    states, actions, _ = demos.flat()
-    if name == "uniform":
-        return BaselinePolicy(name, np.full((S, A), -np.log(A)))
-    marginal = _smoothed_log(np.bincount(actions, minlength=A))  # [A]
-    if name == "marginal":
-        return BaselinePolicy(name, np.broadcast_to(marginal, (S, A)).copy())
-    if name == "markov":
-        pairs = np.zeros((A, A))
-        for a in demos.actions:
-            np.add.at(pairs, (a[:-1], a[1:]), 1.0)
-        return BaselinePolicy(name, np.broadcast_to(marginal, (S, A)).copy(), _smoothed_log(pairs))
-    if name == "bc":
-        counts = np.zeros((S, A))
-        np.add.at(counts, (states, actions), 1.0)
-        return BaselinePolicy(name, _smoothed_log(counts))
-    raise ConfigError(f"unknown baseline {name!r}; expected one of {TABULAR_BASELINES}")
+    return BASELINE_FITTERS[name](demos)
 
 
 def leave_one_out(demos: Demonstrations,

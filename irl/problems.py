@@ -28,6 +28,7 @@ from irl.domains.merge.features import FeatureSet, feature_set
 from irl.errors import ConfigError, DemonstrationError
 from irl.io import load_feature_names, load_npz
 from irl.transitions import SuccessorModel, TransitionModel, estimate_transitions, model_successors
+from merge_irl.registry import Registry, RegistryError
 from merge_irl.units import FRAME_S
 
 
@@ -296,20 +297,22 @@ def _merge_fallback(problem: Problem) -> np.ndarray | None:
                                           problem.action_acc_ft_s2)
 
 
+class DomainRegistryError(RegistryError, ConfigError):
+    """An unknown IRL domain, or one registered twice (a :class:`ConfigError`)."""
+
+
 #: The IRL domains, by name: the one home of what differs between them.
-DOMAINS: dict[str, Domain] = {
-    d.name: d for d in (
-        Domain("gridworld", _load_gridworld, _counted_model),
-        # merge fits: beta 1 (the policy depends on beta * theta only), L2 0 (with the driver
-        # features the Q-Avg likelihood of simulated encounters is bounded; the fit's unbounded test
-        # flags it otherwise), and the kinematic rule for unobserved pairs, chosen by
-        # leave-one-trajectory-out likelihood on the authors' NGSIM data (docs/irl.md,
-        # studies/driver_loo.py)
-        Domain("merge", _load_merge, _merge_model, _merge_pad, _merge_fallback,
-               DomainDefaults(merge_mdp.DEFAULT_DECISION_STEP_S, beta=1.0, l2=0.0, unobserved="kinematic")),
-        Domain("npz", _load_npz, _counted_model),
-    )
-}
+DOMAINS: Registry[Domain] = Registry("IRL domain", error=DomainRegistryError)
+DOMAINS.register("gridworld", Domain("gridworld", _load_gridworld, _counted_model))
+# merge fits: beta 1 (the policy depends on beta * theta only), L2 0 (with the driver
+# features the Q-Avg likelihood of simulated encounters is bounded; the fit's unbounded test
+# flags it otherwise), and the kinematic rule for unobserved pairs, chosen by
+# leave-one-trajectory-out likelihood on the authors' NGSIM data (docs/irl.md,
+# studies/driver_loo.py)
+DOMAINS.register("merge", Domain("merge", _load_merge, _merge_model, _merge_pad, _merge_fallback,
+                                 DomainDefaults(merge_mdp.DEFAULT_DECISION_STEP_S, beta=1.0, l2=0.0,
+                                                unobserved="kinematic")))
+DOMAINS.register("npz", Domain("npz", _load_npz, _counted_model))
 
 
 def load_problem(

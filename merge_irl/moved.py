@@ -21,6 +21,8 @@ Four old paths are not here because the name exists again with another meaning: 
 and the modules of ``irl.domains.merge``). Renamed attributes (``ControllerConfig.decision_s`` ->
 ``decision_step_s``, ...) have no alias either; docs/changelog.md lists them.
 
+The finder and these entries go in version 0.3.0 (docs/changelog.md, "Moved import paths").
+
 Data and the standard library only: this module imports nothing of ours.
 """
 
@@ -46,6 +48,10 @@ CHECKOUT_ONLY = ("benchmarks", "studies", "tools")
 
 #: Old module path -> where its names live today.
 MOVED: dict[str, str] = {
+    # 2026-12-07: the callable drivers one sub-package
+    "sim.drivers.callable_actions": "sim.drivers.callables.actions",
+    "sim.drivers.callable_limits": "sim.drivers.callables.limits",
+    "sim.drivers.callable_specs": "sim.drivers.callables.specs",
     # 2026-12-05: sim/ by concept (ca94975)
     "sim.actuation": "sim.closed_loop.actuation",
     "sim.callable_policy": "sim.drivers.callables",

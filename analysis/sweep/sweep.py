@@ -123,7 +123,7 @@ def run_sweep(
     a sweep killed midway loses only the tasks in flight. A task that raises, or kills its
     worker process, is retried ``retries`` times and then reported in ``failures``; the other
     tasks go on, except after an error whose class says ``abort = True`` (e.g. a callable
-    driver's time-out, :class:`sim.drivers.callable_limits.DecisionTimeout`): then the sweep stops
+    driver's time-out, :class:`sim.drivers.callables.limits.DecisionTimeout`): then the sweep stops
     at once, its workers ended, finished results kept, and that failure is reported
     (``SweepReport.aborted``).
 

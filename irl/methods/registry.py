@@ -11,12 +11,12 @@ imported when first used, so reading the registry imports no solver.
 
 from __future__ import annotations
 
-import importlib
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 from irl.errors import ConfigError
+from merge_irl.registry import Registry, RegistryError, resolve_ref
 
 #: A fitter or option builder: a callable, or ``"module:function"`` imported on first use.
 Ref = str | Callable[..., Any]
@@ -28,13 +28,7 @@ def resolve(ref: Ref) -> Callable[..., Any]:
     Raises:
         ConfigError: ``ref`` is a string that does not name an importable function.
     """
-    if callable(ref):
-        return ref
-    module, _, name = ref.partition(":")
-    try:
-        return getattr(importlib.import_module(module), name)
-    except (ImportError, AttributeError) as e:
-        raise ConfigError(f"{ref!r} does not name an importable function ({e})") from e
+    return ref if callable(ref) else resolve_ref(ref, ConfigError)
 
 
 @dataclass(frozen=True)
@@ -71,45 +65,42 @@ class Method:
         return {} if self.problem_options is None else dict(resolve(self.problem_options)(problem, config, **settings))
 
 
+class MethodRegistryError(RegistryError, ConfigError):
+    """An unknown IRL method, one registered twice or without a name (a :class:`ConfigError`)."""
+
+
 #: The methods, in the row order of the paper's tables (MLIRL, Q-Avg, Q-SM, REIRL).
-REGISTRY: dict[str, Method] = {}
+REGISTRY: Registry[Method] = Registry("IRL method", error=MethodRegistryError)
 
 
 def register(method: Method, *, replace: bool = False) -> Method:
     """Add ``method`` to :data:`REGISTRY` (at the end of the order) and return it.
 
     Raises:
-        ConfigError: a method of that name is registered and ``replace`` is False, or the name is
-            empty.
+        MethodRegistryError (a ConfigError): a method of that name is registered and ``replace``
+            is False, or the name is empty.
     """
-    if not method.name or not method.name.strip():
-        raise ConfigError("a method needs a name")
-    if method.name in REGISTRY and not replace:
-        raise ConfigError(f"IRL method {method.name!r} is already registered")
-    REGISTRY[method.name] = method
+    REGISTRY.register(method.name, method, replace=replace)
     return method
 
 
 def unregister(name: str) -> None:
     """Remove ``name`` from :data:`REGISTRY` (nothing if absent)."""
-    REGISTRY.pop(name, None)
+    REGISTRY.unregister(name)
 
 
 def method_names() -> tuple[str, ...]:
     """The registered method names, in registry order."""
-    return tuple(REGISTRY)
+    return REGISTRY.names()
 
 
 def get_method(name: str) -> Method:
     """The registered method ``name``.
 
     Raises:
-        ConfigError: no such method (the message lists the registered ones).
+        MethodRegistryError (a ConfigError): no such method (the message lists the registered ones).
     """
-    m = REGISTRY.get(name)
-    if m is None:
-        raise ConfigError(f"unknown IRL method {name!r}; expected one of {method_names()}")
-    return m
+    return REGISTRY[name]
 
 
 register(Method("mlirl", "MLIRL", "irl.methods.mlirl:fit_mlirl", needs_transitions=True, cost=2))

@@ -30,7 +30,7 @@ back to SUMO) and records why, in :attr:`Control.reason <sim.closed_loop.records
 
 Who hit whom in a collision is in :attr:`Control.collision_kind <sim.closed_loop.records.Control.collision_kind>`
 (one of ``COLLISION_KINDS``). Settings: :mod:`sim.closed_loop.config`; records: :mod:`sim.closed_loop.records`;
-take-overs and releases: :mod:`sim.closed_loop.handover`; the observation:
+take-overs and releases: :mod:`sim.closed_loop.handover` (an object the controller holds, :attr:`Controller.hand_over`); the observation:
 :mod:`sim.closed_loop.observation`; the safety filter and High Brake by need: :mod:`sim.closed_loop.actuation`.
 The run continues after every release. Decisions are kept in :attr:`Controller.decisions`
 (one row per decision) and control episodes in :attr:`Controller.controls`.
@@ -54,45 +54,37 @@ from sim.closed_loop.records import Control, DecisionLog
 from sim.drivers.observe import MergeObservation, lead_of
 from sim.drivers.policy import Policy, check_policy, choose_action
 from sim.runtime.hooks import FrameState, RunContext
-from sim.runtime.lanes import aux_lane_start_ft
-from sim.runtime.schema import RAMP_LANE, RIGHTMOST_MAIN_LANE
 
 __all__ = ["Controller"]
 
 
-class Controller(HandOver):
+class Controller:
     """A :class:`sim.runtime.hooks.StepHook` that drives merge lag cars with ``policy``.
 
     After the run, :attr:`controls` lists every control episode and :meth:`decision_table`
     gives the decisions. :attr:`last` maps A's Vehicle_ID to its latest
     ``(observation, probs [5], action)`` for loggers that run after this hook in the same
     frame; :attr:`decided` holds the As that decided in the current frame; :attr:`roles` maps Vehicle_ID -> role char ("A", "B", "C") for the current frame.
+    Take-overs and releases are :attr:`hand_over`'s (a :class:`~sim.closed_loop.handover.HandOver`).
     """
 
     def __init__(self, policy: Policy, config: ControllerConfig = ControllerConfig()):
         check_policy(policy, scoring=False, where="controller")
         self.policy = policy
         self.config = config
-        self.controls: list[Control] = []
+        self.hand_over = HandOver(policy, config)
+        self.controls: list[Control] = self.hand_over.controls  # the same list
         self.decisions = DecisionLog()
         self.last: dict[int, tuple[MergeObservation, np.ndarray, int]] = {}
         self.roles: dict[int, str] = {}
         self.decided: set[int] = set()  # As that took a decision in the current frame
         self.rows: dict[int, int] = {}  # Vehicle_ID -> row of the current frame
         self.role_rows: dict[int, str] = {}  # row of the current frame -> role
-        self._active: dict[int, Control] = {}  # a_id -> control
-        self._handled_b: set[int] = set()
+        self._active = self.hand_over.active  # a_id -> control (the same dict)
         self._b_seen_ramp: set[int] = set()
         self._rng: np.random.Generator | None = None
         self._every = 1
-        self._zone_start = 0.0
-        self._section_end = math.inf
         self._traci: Any = None  # the libsumo module (untyped), set by on_start
-        self._collision_pairs: set[tuple[str, str]] = set()
-        self._frame_collisions: list[tuple[str, str]] = []  # (collider, victim) SUMO ids of the current frame
-        self._vehicle_id_of: Any = None
-        self._merge_lane = RIGHTMOST_MAIN_LANE  # the run's site profile's, set by on_start
-        self._ramp_lane = RAMP_LANE
         self.n_teleports = 0  # teleports in the whole run, all vehicles
 
     @property
@@ -111,16 +103,10 @@ class Controller(HandOver):
         self._traci = libsumo
         cfg = self.config
         self._every = max(1, int(round(self.decision_step_s / ctx.frame_s)))
-        self._hold_frames = cfg.hold_frames(ctx.frame_s)
-        self._max_frames = cfg.max_frames(ctx.frame_s)
         self._frame_s = ctx.frame_s
-        self._section_end = float(ctx.section_length_ft)
-        self._zone_start = cfg.zone_start(aux_lane_start_ft(ctx))
         seed = cfg.seed if cfg.seed is not None else int(ctx.seed)
         self._rng = np.random.default_rng(seed)
-        self._vehicle_id_of = ctx.vehicle_id_of
-        self._merge_lane = int(ctx.site.merge_lane)
-        self._ramp_lane = int(ctx.site.ramp_lanes[0])
+        self.hand_over.start(ctx, libsumo)
 
     def on_step(self, ctx: RunContext, frame: FrameState) -> None:
         for c, ia, ib, ic in self.advance(frame):
@@ -142,11 +128,7 @@ class Controller(HandOver):
         colliding = sim.getCollidingVehiclesIDList()
         teleported = sim.getStartingTeleportIDList()
         arrived = sim.getArrivedIDList() if self._active else ()
-        self._frame_collisions = []
-        if colliding:
-            for col in sim.getCollisions():
-                self._collision_pairs.add((col.collider, col.victim))
-                self._frame_collisions.append((col.collider, col.victim))
+        self.hand_over.note_collisions(sim.getCollisions() if colliding else ())
         self.n_teleports += len(teleported)
         rows = self._rows_of(frame) if self._active else {}
         self.rows = rows
@@ -157,10 +139,10 @@ class Controller(HandOver):
         for a_id, c in list(self._active.items()):
             ib = rows.get(c.b_id)
             ia = rows.get(a_id)
-            if c.merge_frame < 0 and ib is not None and frame.lane_id[ib] == self._merge_lane:
+            if c.merge_frame < 0 and ib is not None and frame.lane_id[ib] == self.merge_lane:
                 c.merge_frame = frame.frame
                 c.b_ahead = bool(ia is not None and frame.local_y[ib] > frame.local_y[ia])
-            reason = self._release_reason(c, frame, ia, ib, colliding, teleported, arrived)
+            reason = self.hand_over.release_reason(c, frame, ia, ib, colliding, teleported, arrived)
             if reason:
                 # a teleported car is still known to SUMO (off the road for a while): it gets its
                 # own speed and lane-change modes back like any other released car
@@ -179,7 +161,7 @@ class Controller(HandOver):
             # the lead of the gap A-C that B merges into, so it is ahead of A and nothing is between
             # them; B's lead would be a car behind A while B is behind A, and would hide A's real
             # lead car while B drives ahead of it on the ramp (collisions "A into other")
-            ic = lead_of(frame, float(frame.local_y[ia]), lane=self._merge_lane, exclude=(ia, ib))
+            ic = lead_of(frame, float(frame.local_y[ia]), lane=self.merge_lane, exclude=(ia, ib))
             self.roles[a_id] = "A"
             self.roles[c.b_id] = "B"
             self.role_rows[ia] = "A"
@@ -198,7 +180,23 @@ class Controller(HandOver):
     @property
     def merge_lane(self) -> int:
         """The lane code A is controlled in (the run's site profile's merge lane; I-80: 6)."""
-        return self._merge_lane
+        return self.hand_over.merge_lane
+
+    @property
+    def n_collisions(self) -> int:
+        """Distinct (collider, victim) pairs that collided in the whole run, all vehicles."""
+        return self.hand_over.n_collisions
+
+    def take_over(self, frame: FrameState, *, limit: int | None = None) -> list[Control]:
+        """Hand new lag cars A to the policy (:meth:`sim.closed_loop.handover.HandOver.take_over`);
+        returns the new control episodes (also in :attr:`controls`)."""
+        return self.hand_over.take_over(frame, limit=limit)
+
+    def release(self, c: Control, frame_no: int, reason: str, *, present: bool) -> None:
+        """End control episode ``c`` at ``frame_no`` for ``reason`` and hand A back to SUMO
+        (:meth:`sim.closed_loop.handover.HandOver.release`); A leaves :attr:`last`."""
+        self.hand_over.release(c, frame_no, reason, present=present)
+        self.last.pop(c.a_id, None)
 
     @property
     def last_frame(self) -> int:
@@ -253,14 +251,14 @@ class Controller(HandOver):
             if self.config.safety_ttc_s is not None:
                 acc_table = [self.policy.acceleration(obs, a) for a in range(len(probs))]
                 safe = safe_action(frame, ia, action, acc_table, self._every * self._frame_s,
-                                   float(self.config.safety_ttc_s or 0.0), lane=self._merge_lane)
+                                   float(self.config.safety_ttc_s or 0.0), lane=self.merge_lane)
                 filtered = safe != action
                 action = safe
                 c.n_interventions += int(filtered)
             acc = float(self.policy.acceleration(obs, action))
             if action == HIGH_BRAKE and self.config.high_brake == "need":
                 own = acc
-                acc = brake_to_need(frame, ia, acc, c.a_sumo, self._traci.vehicle, lane=self._merge_lane)
+                acc = brake_to_need(frame, ia, acc, c.a_sumo, self._traci.vehicle, lane=self.merge_lane)
                 need = acc < own
                 c.n_need_brakes += int(need)
             acc = max(acc, -c.max_decel_ft_s2) if math.isfinite(c.max_decel_ft_s2) else acc  # A's physical limit

@@ -31,7 +31,7 @@ from scipy.special import ndtr
 
 from irl.domains.merge.actions import N_ACTIONS
 from merge_irl.units import M_PER_FT
-from sim.drivers.callable_actions import act_of
+from sim.drivers.callables.actions import act_of
 from sim.drivers.policy import PolicyError
 
 #: The acceleration edges between the five actions (ft/s^2), :func:`irl.domains.merge.actions.action_of`'s.

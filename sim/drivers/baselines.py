@@ -25,6 +25,7 @@ from irl.domains.merge.actions import ACTION_ACC_FT_S2, actions_of
 from irl.domains.merge.bins import MergeBins, fit_quantile_bins
 from irl.domains.merge.encounters import prepare_encounters
 from irl.domains.merge.mdp import action_mean_acc, discretize, read_encounters
+from merge_irl.registry import Registry, RegistryError
 from sim.drivers.idm import IdmPolicy
 from sim.drivers.learned import BaselineTabularPolicy
 from sim.drivers.policy import Policy, PolicyError, SumoPolicy, UniformPolicy
@@ -108,21 +109,23 @@ class Baseline:
     help: str = ""
 
 
-#: The baselines, by name, in their order (:func:`register_baseline`): the closed-loop ones (SUMO's own
-#: driver, uniform random, and the tabular baselines of :mod:`irl.baselines` fitted on the
-#: training demonstrations) by default, and two references on request.
-BASELINES: dict[str, Baseline] = {}
+class BaselineRegistryError(RegistryError, PolicyError):
+    """A baseline registered twice or without a name, or an unknown one (a :class:`PolicyError`)."""
+
+
+#: The baselines, by name, in their order (:func:`register_baseline`): SUMO's own driver, uniform
+#: random, and the tabular baselines of :mod:`irl.baselines` fitted on the training demonstrations
+#: by default, and two references on request.
+BASELINES: Registry[Baseline] = Registry("baseline", error=BaselineRegistryError)
 
 
 def register_baseline(baseline: Baseline) -> Baseline:
     """Add ``baseline`` to :data:`BASELINES` (after the others); returns it.
 
     Raises:
-        PolicyError: a baseline of that name is registered already.
+        PolicyError (BaselineRegistryError): a baseline of that name is registered already.
     """
-    if baseline.name in BASELINES:
-        raise PolicyError(f"a baseline named {baseline.name!r} is registered already")
-    BASELINES[baseline.name] = baseline
+    BASELINES.register(baseline.name, baseline)
     return baseline
 
 

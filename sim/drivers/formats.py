@@ -10,10 +10,11 @@ reads a learned file asks this registry, and only it reads the ``format`` field:
 (:func:`replay_act`), the environment's ``reward=`` (:func:`driver_reward`), :func:`load_driver`
 and :func:`policy_callable`.
 
-The built-in formats register themselves in their own modules (:mod:`sim.drivers.learned`: the
-tabular IRL model and the car-following logit; :mod:`sim.drivers.planning`: the planning driver);
-``sim.drivers`` imports every module of its folder, so a new driver type is one module there with
-one :func:`register_format` call (or the call from one's own code), and no edit elsewhere::
+The built-in formats are defined in their own modules (:mod:`sim.drivers.learned`: the tabular
+IRL model and the car-following logit; :mod:`sim.drivers.planning`: the planning driver) and
+registered here as ``"module:attr"`` entries of :data:`FORMATS`, imported when first read; a new
+driver type is one module with its :class:`DriverFormat` and one entry here (or one
+:func:`register_format` call from one's own code)::
 
     from sim.drivers.formats import DriverFormat, register_format
     register_format(DriverFormat("my-driver", "my driver (my-learn)", load=MyDriver.load,
@@ -34,6 +35,7 @@ from typing import TYPE_CHECKING, Any, Literal
 from irl.errors import ModelFileError
 from irl.planning.replay import ActFn
 from merge_irl.json_file import read_json
+from merge_irl.registry import Registry, RegistryError
 
 if TYPE_CHECKING:  # pragma: no cover
     from sim.drivers.callables import PolicyCallable
@@ -80,29 +82,59 @@ class DriverFormat:
         return self.parse(data, path) if self.parse is not None else self.load(path)
 
 
-#: The registered formats by family, in registration order (:func:`register_format`).
-FORMATS: dict[str, DriverFormat] = {}
+class FormatRegistryError(RegistryError, ValueError):
+    """A driver format refused: a bad family or role, registered twice, or unknown."""
+
+
+def _check_format(family: str, fmt: DriverFormat) -> None:
+    if not fmt.family or "/" in fmt.family or fmt.family != family:
+        raise FormatRegistryError(f"driver format family must be a non-empty name without '/' "
+                                  f"(and the key it is registered under), got {fmt.family!r}")
+    if fmt.role not in ("model", "driver"):
+        raise FormatRegistryError(f"driver format {fmt.family!r}: role must be 'model' or 'driver', got {fmt.role!r}")
+
+
+#: The registered formats by family, in registration order (:func:`register_format`); the built-in
+#: ones are ``"module:attr"`` entries, imported when first read.
+FORMATS: Registry[DriverFormat] = Registry("driver format", error=FormatRegistryError, check=_check_format)
+FORMATS.register("merge-irl-model", "sim.drivers.learned:MODEL_DRIVER_FORMAT")
+FORMATS.register("merge-irl-cf-logit", "sim.drivers.learned:CF_DRIVER_FORMAT")
+FORMATS.register("merge-irl-planner", "sim.drivers.planning:PLANNER_DRIVER_FORMAT")
+
+
+_SCANNED: list[bool] = []
+
+
+def _import_driver_modules() -> bool:
+    """Import every module of ``sim.drivers`` not imported yet, once per process, so a driver type
+    whose module calls :func:`register_format` needs no entry here; True the first time."""
+    if _SCANNED:
+        return False
+    _SCANNED.append(True)
+    import importlib
+    import pkgutil
+
+    import sim.drivers as package
+
+    for info in pkgutil.iter_modules(package.__path__, package.__name__ + "."):
+        importlib.import_module(info.name)
+    return True
 
 
 def register_format(fmt: DriverFormat) -> DriverFormat:
     """Add ``fmt`` to :data:`FORMATS`; returns it.
 
     Raises:
-        ValueError: a family with ``/`` or empty, an unknown role, or a family registered already.
+        ValueError (FormatRegistryError): a family with ``/`` or empty, an unknown role, or a family
+            registered already.
     """
-    if not fmt.family or "/" in fmt.family:
-        raise ValueError(f"driver format family must be a non-empty name without '/', got {fmt.family!r}")
-    if fmt.role not in ("model", "driver"):
-        raise ValueError(f"driver format {fmt.family!r}: role must be 'model' or 'driver', got {fmt.role!r}")
-    if fmt.family in FORMATS:
-        raise ValueError(f"a driver format {fmt.family!r} is registered already")
-    FORMATS[fmt.family] = fmt
+    FORMATS.register(fmt.family, fmt)
     return fmt
 
 
 def unregister_format(family: str) -> None:
     """Remove a registered format (tests and plug-ins that register their own); no error if absent."""
-    FORMATS.pop(family, None)
+    FORMATS.unregister(family)
 
 
 def family_of(format_field: str) -> str:
@@ -163,6 +195,8 @@ def _format_and_data(path: str | os.PathLike, role: Role | None = None, *,
 def _registered(path: str | os.PathLike, fmt: str, role: Role | None, option: str) -> DriverFormat:
     """The registered format of the ``format`` field ``fmt``, checked against ``role``."""
     f = FORMATS.get(family_of(fmt))
+    if f is None and _import_driver_modules():
+        f = FORMATS.get(family_of(fmt))
     if f is None:
         raise ModelFileError(f"{path}: format {fmt!r} is not a registered model or driver format; expected one of: "
                              f"{_known()}")

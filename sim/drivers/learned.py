@@ -35,7 +35,7 @@ from irl.errors import ConfigError
 from irl.planning.replay import ActFn
 from irl.result import MODEL_FORMAT, SavedModel
 from merge_irl.units import FRAME_S
-from sim.drivers.formats import DriverFormat, family_of, register_format
+from sim.drivers.formats import DriverFormat, family_of
 from sim.drivers.policy import PolicyDefaults, PolicyError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -324,13 +324,16 @@ def cf_replay_act(cf: CarFollowingLogit) -> tuple[ActFn, float]:
     return act, cf.decision_step_s
 
 
-register_format(DriverFormat(
+#: The tabular IRL model's driver format (registered lazily in :data:`sim.drivers.formats.FORMATS`).
+MODEL_DRIVER_FORMAT = DriverFormat(
     family_of(MODEL_FORMAT), "tabular IRL model ('merge-irl learn')", load=SavedModel.load,
     parse=SavedModel.from_json_dict,
     policy=lambda model, name, source: LearnedPolicy.from_model(model, name=name or model.method),
-    reward=TabularReward.from_model, role="model"))
-register_format(DriverFormat(
+    reward=TabularReward.from_model, role="model")
+
+#: The car-following logit's driver format (registered lazily in :data:`sim.drivers.formats.FORMATS`).
+CF_DRIVER_FORMAT = DriverFormat(
     family_of(CF_FORMAT), "car-following logit ('merge-irl dagger')", load=CarFollowingLogit.load,
     parse=CarFollowingLogit.from_json_dict,
     policy=lambda cf, name, source: CarFollowingLogitPolicy(cf, name=name, source=source),
-    replay_act=cf_replay_act))
+    replay_act=cf_replay_act)

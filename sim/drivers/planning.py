@@ -29,7 +29,7 @@ import pandas as pd
 from irl.domains.merge.actions import N_ACTIONS, actions_of
 from irl.planning.decisions import encounter_decisions
 from irl.planning.driver import PLANNER_FORMAT, PlanningDriver
-from sim.drivers.formats import DriverFormat, family_of, register_format
+from sim.drivers.formats import DriverFormat, family_of
 from sim.drivers.observe import MergeObservation
 from sim.drivers.policy import PolicyDefaults
 
@@ -126,8 +126,9 @@ class PlanningReward:
                                              np.array([acc_ft_s2]))[0])
 
 
-register_format(DriverFormat(
+#: The planning driver's format (registered lazily in :data:`sim.drivers.formats.FORMATS`).
+PLANNER_DRIVER_FORMAT = DriverFormat(
     family_of(PLANNER_FORMAT), "planning driver ('merge-irl learn-driver')", load=PlanningDriver.load,
     parse=PlanningDriver.from_json_dict,
     policy=lambda driver, name, source: PlanningDriverPolicy(driver, name=name, source=source),
-    replay_act=lambda driver: (driver.act, driver.decision_step_s), reward=PlanningReward))
+    replay_act=lambda driver: (driver.act, driver.decision_step_s), reward=PlanningReward)

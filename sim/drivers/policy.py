@@ -1,4 +1,7 @@
-"""Driving policies for a controlled vehicle: observation -> distribution over the 5 actions.
+"""Drivers (policies) of a controlled vehicle: observation -> distribution over the 5 actions.
+
+:class:`Driver` is the protocol every driver implements (``Policy`` is its old name, kept as an
+alias).
 
 A policy maps the merge observation of car A (:class:`sim.drivers.observe.MergeObservation`: the four
 continuous variables, B's truck flag and the discrete state) to probabilities over the merge
@@ -18,7 +21,7 @@ Policies in the same harness:
 The learned drivers are in :mod:`sim.drivers.learned` (tabular IRL models, the fitted tabular
 baselines, the car-following logit) and :mod:`sim.drivers.planning` (the planning driver).
 
-Every policy scores held-out demonstrations itself (:meth:`Policy.heldout_loglik`), as learning
+Every policy scores held-out demonstrations itself (:meth:`Driver.heldout_loglik`), as learning
 sees them; the evaluation reads that number and nothing else of the policy's kind
 (:func:`analysis.evaluation.heldout_scoring.policy_heldout_loglik`).
 """
@@ -58,8 +61,11 @@ class PolicyError(SimError, ValueError):
 
 
 @runtime_checkable
-class Policy(Protocol):
-    """Observation -> action distribution, and the policy's own held-out score.
+class Driver(Protocol):
+    """What drives A: observation -> action distribution, and the driver's own held-out score.
+
+    ``Driver`` is the protocol's name (the word for what drives A); :data:`Policy` is the same
+    protocol under its old name, and the classes that implement it keep ``Policy`` in theirs.
 
     Everything the controller and the evaluation read of a policy is declared here.
 
@@ -136,6 +142,9 @@ class Policy(Protocol):
         """
         ...
 
+
+#: The old name of :class:`Driver` (the same protocol; ``isinstance(x, Policy)`` works as before).
+Policy = Driver
 
 #: What the controller reads of every policy (the evaluation also reads ``heldout_loglik``).
 CONTROLLER_MEMBERS = ("name", "controls", "decision_step_s", "keep_lane", "encoder", "state_encoding", "flags",

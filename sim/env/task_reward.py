@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from merge_irl.registry import Registry
 from merge_irl.units import FT_PER_M
 from sim.drivers.observe import MergeObservation
 
@@ -119,20 +120,16 @@ class ZeroReward:
 
 
 #: The rewards selectable by name (``reward="task"``); ``"task"`` is the environments' default.
-TASK_REWARDS: dict[str, TaskReward | ZeroReward] = {
-    "task": TaskReward(),
-    "progress": TaskReward(w_near_miss=0.0, w_comfort=0.0, w_jerk=0.0),
-    "zero": ZeroReward(),
-}
+TASK_REWARDS: Registry[TaskReward | ZeroReward] = Registry("reward")
+TASK_REWARDS.register("task", TaskReward())
+TASK_REWARDS.register("progress", TaskReward(w_near_miss=0.0, w_comfort=0.0, w_jerk=0.0))
+TASK_REWARDS.register("zero", ZeroReward())
 
 
 def task_reward(name: str) -> TaskReward | ZeroReward:
     """The named reward of :data:`TASK_REWARDS`.
 
     Raises:
-        KeyError: an unknown name (the names listed).
+        KeyError (RegistryError): an unknown name (the names listed).
     """
-    try:
-        return TASK_REWARDS[name]
-    except KeyError:
-        raise KeyError(f"no reward named {name!r}; the named rewards are {sorted(TASK_REWARDS)}") from None
+    return TASK_REWARDS[name]

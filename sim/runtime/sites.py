@@ -29,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+from merge_irl.registry import Registry, RegistryError
 from sim.errors import TrajectoryFormatError
 from sim.runtime.schema import RAMP_LANE, RIGHTMOST_MAIN_LANE
 
@@ -76,8 +77,26 @@ class SiteProfile:
 I80 = SiteProfile("i-80", tuple(range(1, RIGHTMOST_MAIN_LANE + 1)), RIGHTMOST_MAIN_LANE, (RAMP_LANE,))
 US101 = SiteProfile("us-101", (1, 2, 3, 4, 5), 5, (7,), auxiliary_lanes=(6,), other_lanes=(8,))
 
-#: Built-in profiles by name.
-SITES: dict[str, SiteProfile] = {s.name: s for s in (I80, US101)}
+class SiteRegistryError(RegistryError, TrajectoryFormatError):
+    """An unknown site profile, or one registered twice (a :class:`TrajectoryFormatError`)."""
+
+
+#: Profiles by name (lower case): the built-in ones and any :func:`register_site` added.
+SITES: Registry[SiteProfile] = Registry("site", error=SiteRegistryError)
+
+
+def register_site(site: SiteProfile) -> SiteProfile:
+    """Add ``site`` to :data:`SITES` under its lower-cased name (for :func:`load_site`); returns it.
+
+    Raises:
+        SiteRegistryError (a TrajectoryFormatError): a site of that name is registered already.
+    """
+    SITES.register(site.name.strip().lower(), site)
+    return site
+
+
+register_site(I80)
+register_site(US101)
 
 
 def site_of(spec: object) -> SiteProfile:

@@ -109,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
 
         # discrete actions of a callable at the training frames' mean acceleration per bin, as the baselines'
         acc = training_action_acc(args.train_demos) if args.train_demos else CallablePolicy.action_acc_ft_s2
-        from sim.drivers.callable_limits import DEFAULT_DECISION_LIMIT_S, check_limit
+        from sim.drivers.callables.limits import DEFAULT_DECISION_LIMIT_S, check_limit
 
         limit = DEFAULT_DECISION_LIMIT_S if args.policy_timeout is None else check_limit(args.policy_timeout)
         cf += [CallablePolicy.from_spec(spec, action_acc_ft_s2=acc, obs_stats=args.policy_vecnormalize or "",

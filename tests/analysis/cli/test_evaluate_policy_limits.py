@@ -15,7 +15,7 @@ import uuid
 import psutil
 import pytest
 
-from sim.drivers.callable_limits import DecisionTimeout, call_with_limit, check_limit
+from sim.drivers.callables.limits import DecisionTimeout, call_with_limit, check_limit
 from sim.drivers.policy import PolicyError
 
 #: A callable that never returns: sleeps (a network call), and one that spins and swallows

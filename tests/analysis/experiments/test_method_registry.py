@@ -70,11 +70,11 @@ def test_a_registered_method_is_listed_fitted_and_its_model_files_load(toy, tmp_
 
 
 def test_registering_twice_or_without_a_name_is_refused(toy):
-    with pytest.raises(ConfigError, match="already registered"):
+    with pytest.raises(ConfigError, match="registered already"):
         register(Method("toy", "Toy", fit_toy))
     with pytest.raises(ConfigError, match="needs a name"):
         register(Method(" ", "blank", fit_toy))
-    with pytest.raises(ConfigError, match="does not name an importable function"):
+    with pytest.raises(ConfigError, match="does not name an importable object"):
         fit_with_bad_ref()
 
 

@@ -325,7 +325,7 @@ def test_collision_and_removal_release_and_report(spec):
     # counted by distinct pair, never exceed the run's
     pairs = ct.loc[ct.reason == "collision", "collision_pair"]
     assert all(p.count(">") == 1 and ct.a_sumo[i] in p.split(">") for i, p in pairs.items())
-    assert {tuple(p.split(">")) for p in pairs} <= ctl._collision_pairs
+    assert {tuple(p.split(">")) for p in pairs} <= ctl.hand_over.collision_pairs
     assert (ct.loc[ct.reason != "collision", "collision_pair"] == "").all()
     # control went on after the removal: later take-overs happened
     removed_row = ct[ct.a_sumo == probe.removed].iloc[0]
@@ -439,3 +439,13 @@ def test_the_physical_actuation_caps_at_as_emergency_deceleration_and_the_observ
             checked += 1
         prev[row.a_id] = row.acc_cmd
     assert checked >= 10
+
+
+def test_the_take_over_is_an_object_the_controller_holds():
+    from sim.closed_loop.controller import Controller
+    from sim.closed_loop.handover import HandOver
+    from sim.drivers.policy import UniformPolicy
+
+    ctl = Controller(UniformPolicy())
+    assert not issubclass(Controller, HandOver) and isinstance(ctl.hand_over, HandOver)
+    assert ctl.controls is ctl.hand_over.controls and ctl.n_collisions == 0 == len(ctl.hand_over.active)

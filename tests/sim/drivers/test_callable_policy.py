@@ -10,6 +10,8 @@ import sys
 import numpy as np
 import pytest
 from irl_testdata import planning_encounters
+from sim.drivers.callable_actions import parse_action
+from sim.drivers.callable_specs import load_callable, parse_spec
 
 from analysis.evaluation.policies import learned_policy
 from irl.config import IRLConfig
@@ -21,8 +23,6 @@ from irl.domains.merge.features import FEATURE_NAMES
 from irl.errors import ModelFileError
 from irl.result import SavedModel
 from merge_irl.units import FT_PER_M
-from sim.drivers.callable_actions import parse_action
-from sim.drivers.callable_specs import load_callable, parse_spec
 from sim.drivers.callables import TRUCK_MIN_LENGTH_FT, CallablePolicy, PolicyCallable
 from sim.drivers.formats import policy_callable
 from sim.drivers.observe import CONTINUOUS_NAMES, CONTINUOUS_UNITS, MergeObservation
@@ -174,3 +174,21 @@ def test_every_learned_model_file_is_a_policy_callable(tmp_path) -> None:
         fn(np.zeros(5))
     with pytest.raises(ModelFileError):
         policy_callable(tmp_path / "none.json")
+
+
+def test_the_adapters_are_named_by_direction_and_the_old_names_still_work() -> None:
+    import sim.drivers.callables as callables
+    from sim.drivers.callables.adapters import CallableFromDriver, DriverFromCallable
+    from sim.drivers.policy import ConstantPolicy, Driver, Policy
+
+    assert callables.CallablePolicy is DriverFromCallable and callables.PolicyCallable is CallableFromDriver
+    assert Policy is Driver
+    d = DriverFromCallable(lambda obs: 3, name="three")
+    assert isinstance(d, Driver) and d.probs(OBS).tolist() == [0, 0, 0, 1, 0]
+    assert CallableFromDriver(ConstantPolicy(1))(np.zeros(7)) == 1
+
+
+def test_the_old_callable_module_paths_name_their_new_home() -> None:
+    for old, new in [("callable_actions", "actions"), ("callable_limits", "limits"), ("callable_specs", "specs")]:
+        with pytest.raises(ModuleNotFoundError, match=rf"sim\.drivers\.{old} moved to sim\.drivers\.callables\.{new}"):
+            __import__(f"sim.drivers.{old}")

@@ -191,3 +191,27 @@ def test_names_that_moved_out_of_the_evaluations_policies_say_where_they_went():
         policies.load_driver  # noqa: B018
     with pytest.raises(AttributeError):
         policies.nothing_here  # noqa: B018
+
+
+def test_a_driver_module_in_the_folder_registers_itself_when_its_family_is_first_read(tmp_path, monkeypatch):
+    """A new driver type needs no entry in formats.py: a file of a family the registry does not
+    know makes it import the folder's modules once, and a module's own register_format counts."""
+    import sim.drivers as package
+    from sim.drivers import formats
+
+    folder = tmp_path / "more_drivers"
+    folder.mkdir()
+    (folder / "toy_scan_driver.py").write_text(
+        "from sim.drivers.formats import DriverFormat, register_format\n"
+        "register_format(DriverFormat('toy-scan', 'toy scanned driver', load=lambda p: 'loaded', "
+        "policy=lambda d, name, source: d))\n")
+    monkeypatch.setattr(package, "__path__", [*package.__path__, str(folder)])
+    monkeypatch.setattr(formats, "_SCANNED", [])
+    f = tmp_path / "d.json"
+    f.write_text(json.dumps({"format": "toy-scan/1"}))
+    try:
+        assert formats.load_driver(f) == "loaded"
+    finally:
+        formats.unregister_format("toy-scan")
+        import sys
+        sys.modules.pop("sim.drivers.toy_scan_driver", None)

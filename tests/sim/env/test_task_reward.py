@@ -50,7 +50,7 @@ def test_named_rewards_and_bad_weights():
     assert task_reward("task") == TaskReward() and isinstance(task_reward("zero"), ZeroReward)
     p = TASK_REWARDS["progress"]
     assert isinstance(p, TaskReward) and p.w_near_miss == p.w_comfort == 0 and p.collision_penalty > 0
-    with pytest.raises(KeyError, match="the named rewards are"):
+    with pytest.raises(KeyError, match="unknown reward .fast.; expected one of: task, progress, zero"):
         task_reward("fast")
     with pytest.raises(ValueError, match="w_progress"):
         TaskReward(w_progress=-1.0)

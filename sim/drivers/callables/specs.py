@@ -1,6 +1,6 @@
 """``module:callable[:name]`` specs of callable drivers (``merge-irl evaluate --policy``):
 :func:`parse_spec` checks one, :func:`load_callable` imports its callable (a dotted module or a
-path to a ``.py`` file). The adapter itself is :mod:`sim.drivers.callables`."""
+path to a ``.py`` file). The adapters themselves are :mod:`sim.drivers.callables.adapters`."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from sim.drivers.callable_actions import _one_line
+from sim.drivers.callables.messages import one_line
 from sim.drivers.policy import PolicyError
 
 
@@ -92,7 +92,7 @@ def _import(spec: CallableSpec, where: str) -> Any:
             ispec.loader.exec_module(module)
         except Exception as e:  # the user's module may raise anything
             sys.modules.pop(mod_name, None)
-            raise PolicyError(f"{where}: importing {path} failed ({type(e).__name__}: {_one_line(e)})") from None
+            raise PolicyError(f"{where}: importing {path} failed ({type(e).__name__}: {one_line(e)})") from None
         return module
     try:
         return importlib.import_module(spec.module)
@@ -100,7 +100,7 @@ def _import(spec: CallableSpec, where: str) -> Any:
         raise PolicyError(f"{where}: no module {e.name!r} (a dotted module must be importable: installed or on "
                           "PYTHONPATH; or give a path to a .py file)") from None
     except Exception as e:
-        raise PolicyError(f"{where}: importing {spec.module} failed ({type(e).__name__}: {_one_line(e)})") from None
+        raise PolicyError(f"{where}: importing {spec.module} failed ({type(e).__name__}: {one_line(e)})") from None
 
 
 def load_callable(spec: str | CallableSpec) -> tuple[Callable[[np.ndarray], Any], CallableSpec]:

@@ -1,7 +1,7 @@
 """What a callable driver returns, and how it is asked: :func:`parse_action` checks a returned
 action (an action index ``0..4`` or A's acceleration in m/s^2, numpy scalars and one-element arrays
 as their element) and :func:`act_of` calls a function or a ``predict(obs, deterministic=True)``
-object alike. The adapter itself is :mod:`sim.drivers.callables`."""
+object alike. The adapters themselves are :mod:`sim.drivers.callables.adapters`."""
 
 from __future__ import annotations
 
@@ -96,7 +96,3 @@ def act_of(fn: Callable[..., Any]) -> Callable[[np.ndarray], Any]:
 
 def _label(fn: Any) -> str:
     return getattr(fn, "__qualname__", None) or type(fn).__name__
-
-
-def _one_line(e: BaseException) -> str:
-    return " ".join(str(e).split())

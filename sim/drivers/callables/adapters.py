@@ -1,4 +1,5 @@
-"""Any callable ``obs -> action`` as a closed-loop driver, and any driver as such a callable.
+"""The two adapters: any callable ``obs -> action`` as a closed-loop driver (:class:`DriverFromCallable`),
+and any driver as such a callable (:class:`CallableFromDriver`).
 
 The observation a callable sees is the continuous merge observation of car A,
 ``MergeObservation.continuous()[0]``: ``[7]`` float64, columns
@@ -17,14 +18,14 @@ returns a ``()`` or ``(1,)`` array): integer dtypes are discrete actions, float 
 continuous ones. An object with a ``predict(obs, deterministic=True)`` method returning
 ``(action, state)`` (Stable-Baselines3's and imitation's policies) is called through it.
 
-* :class:`CallablePolicy` wraps such a callable into :class:`sim.drivers.policy.Policy`, so the controller
+* :class:`DriverFromCallable` wraps such a callable into :class:`sim.drivers.policy.Policy`, so the controller
   (and ``merge-irl evaluate --policy module:callable[:name]``) drives with it.
-* :func:`load_callable` resolves a ``module:callable[:name]`` spec (a dotted module or a path to a
-  ``.py`` file; :mod:`sim.drivers.callable_specs`); a :class:`CallablePolicy` built from a spec
+* :func:`~sim.drivers.callables.specs.load_callable` resolves a ``module:callable[:name]`` spec (a dotted module or a path to a
+  ``.py`` file; :mod:`sim.drivers.callables.specs`); a :class:`DriverFromCallable` built from a spec
   pickles as its spec, so evaluation workers (fresh processes) import the callable again instead
-  of pickling it. What a callable returns is checked by :func:`parse_action`
-  (:mod:`sim.drivers.callable_actions`).
-* :class:`PolicyCallable` goes the other way: any :class:`sim.drivers.policy.Policy` (a learned model, a
+  of pickling it. What a callable returns is checked by
+  :func:`~sim.drivers.callables.actions.parse_action`.
+* :class:`CallableFromDriver` goes the other way: any :class:`sim.drivers.policy.Policy` (a learned model, a
   driver file's policy) as a callable ``obs [7] -> int`` (the action index), e.g. for the
   Gymnasium environment; ``sim.drivers.formats.policy_callable`` builds one from a file.
 """
@@ -42,23 +43,24 @@ import pandas as pd
 
 from irl.domains.merge.actions import ACTION_ACC_FT_S2, N_ACTIONS, ZERO_ACTION, action_of
 from merge_irl.units import FT_PER_M
-from sim.drivers.callable_actions import _one_line, act_of, parse_action
-from sim.drivers.callable_limits import DEFAULT_DECISION_LIMIT_S, call_with_limit, check_limit
-from sim.drivers.callable_specs import CallableSpec, load_callable
+from sim.drivers.callables.actions import act_of, parse_action
+from sim.drivers.callables.limits import DEFAULT_DECISION_LIMIT_S, call_with_limit, check_limit
+from sim.drivers.callables.messages import one_line
+from sim.drivers.callables.specs import CallableSpec, load_callable
 from sim.drivers.observe import CONTINUOUS_NAMES, MergeObservation, policy_observation, unfill_policy_row
 from sim.drivers.policy import NO_LIKELIHOOD, Policy, PolicyDefaults, PolicyError, check_policy, choose_action
 
 #: A vehicle at least this long (ft) is taken as a truck when only the continuous observation
-#: is known (:class:`PolicyCallable` encoding a tabular state): 8 m, between the presets' cars
+#: is known (:class:`CallableFromDriver` encoding a tabular state): 8 m, between the presets' cars
 #: (4.5-5 m) and trucks (12 m). A heuristic: the controller itself reads B's vehicle class.
 TRUCK_MIN_LENGTH_FT = 8.0 * FT_PER_M
 
-__all__ = ["CallablePolicy", "PolicyCallable", "TRUCK_MIN_LENGTH_FT"]
+__all__ = ["CallableFromDriver", "CallablePolicy", "DriverFromCallable", "PolicyCallable", "TRUCK_MIN_LENGTH_FT"]
 
 
 # -- callable -> Policy -----------------------------------------------------------------------
 @dataclass(frozen=True)
-class CallablePolicy(PolicyDefaults):
+class DriverFromCallable(PolicyDefaults):
     """A callable ``obs [7] -> action`` (see the module docstring) as a :class:`sim.drivers.policy.Policy`.
 
     At each decision the controller asks :meth:`probs` (one-hot on the returned action, or on the
@@ -113,7 +115,7 @@ class CallablePolicy(PolicyDefaults):
         object.__setattr__(self, "timeout_s", check_limit(self.timeout_s))
 
     @classmethod
-    def from_spec(cls, spec: str | CallableSpec, *, name: str = "", **kw: Any) -> CallablePolicy:
+    def from_spec(cls, spec: str | CallableSpec, *, name: str = "", **kw: Any) -> DriverFromCallable:
         """The policy of a ``module:callable[:name]`` spec (:func:`load_callable`), named ``name``
         or the spec's name; ``kw``: the other fields.
 
@@ -143,7 +145,7 @@ class CallablePolicy(PolicyDefaults):
         except PolicyError:
             raise
         except Exception as e:  # the user's callable may raise anything: named, with its message
-            raise PolicyError(f"{where}: the callable raised {type(e).__name__}: {_one_line(e)}") from e
+            raise PolicyError(f"{where}: the callable raised {type(e).__name__}: {one_line(e)}") from e
         a = parse_action(out, where=where)
         if isinstance(a, int):
             b, acc = a, math.nan
@@ -185,21 +187,21 @@ class CallablePolicy(PolicyDefaults):
 
 def _from_spec(spec: str, name: str, controls: bool, decision_step_s: float | None,
                action_acc_ft_s2: tuple[float, ...], obs_stats: str = "",
-               timeout_s: float = DEFAULT_DECISION_LIMIT_S) -> CallablePolicy:
-    return CallablePolicy.from_spec(spec, name=name, controls=controls, decision_step_s=decision_step_s,
+               timeout_s: float = DEFAULT_DECISION_LIMIT_S) -> DriverFromCallable:
+    return DriverFromCallable.from_spec(spec, name=name, controls=controls, decision_step_s=decision_step_s,
                                     action_acc_ft_s2=action_acc_ft_s2, obs_stats=obs_stats, timeout_s=timeout_s)
 
 
 def _rebuild(fn: Callable[..., Any], name: str, spec: str, source: str, controls: bool,
              decision_step_s: float | None, action_acc_ft_s2: tuple[float, ...], obs_stats: str = "",
-             timeout_s: float = DEFAULT_DECISION_LIMIT_S) -> CallablePolicy:
-    return CallablePolicy(fn, name=name, spec=spec, source=source, controls=controls,
+             timeout_s: float = DEFAULT_DECISION_LIMIT_S) -> DriverFromCallable:
+    return DriverFromCallable(fn, name=name, spec=spec, source=source, controls=controls,
                           decision_step_s=decision_step_s, action_acc_ft_s2=action_acc_ft_s2, obs_stats=obs_stats,
                           timeout_s=timeout_s)
 
 
 # -- Policy -> callable -----------------------------------------------------------------------
-class PolicyCallable:
+class CallableFromDriver:
     """A :class:`sim.drivers.policy.Policy` as a callable ``obs -> int`` (the action index 0..4).
 
     ``obs``: the ``[7]`` (or ``[1, 7]``) continuous observation (:data:`sim.drivers.observe.CONTINUOUS_NAMES`),
@@ -265,3 +267,9 @@ class PolicyCallable:
         a = choose_action(np.asarray(self.policy.probs(o), dtype=np.float64), self._rng, mode=self.mode)
         self._prev, self._prev_acc = a, float(self.policy.acceleration(o, a))
         return a
+
+
+#: The old names (still working): ``CallablePolicy`` is :class:`DriverFromCallable` (a callable
+#: as a driver), ``PolicyCallable`` is :class:`CallableFromDriver` (a driver as a callable).
+CallablePolicy = DriverFromCallable
+PolicyCallable = CallableFromDriver

@@ -51,7 +51,7 @@ def run_plan(plan: EvaluationPlan) -> EvaluationRun:
                       rrd_path=str(out / "rerun" / f"{p.name}.rrd") if (cfg.rrd and i == 0) else None)
             tasks.append((plan.spec, p, cfg.seed + i, kw))
     try:
-        results = run_episodes(tasks, executor=plan.executor, progress=cfg.progress)
+        results = sweep_episodes(tasks, plan.executor, progress=cfg.progress)  # the plan's executor, as resolved
     except BaseException:  # a failed or interrupted evaluation leaves no partial recording behind
         discard_unfinished(out, [p.name for p in plan.policies], created=created)
         raise
@@ -76,7 +76,15 @@ def run_episodes(tasks: Sequence[tuple], *, workers: int | None = None, executor
     Raises:
         AnalysisError: if an episode failed twice (every failure listed).
     """
-    executor = resolve_executor(executor, workers)
+    return sweep_episodes(tasks, resolve_executor(executor, workers), store=store, progress=progress)
+
+
+def sweep_episodes(tasks: Sequence[tuple], executor: str, *, store=None, progress: bool = True) -> list[EpisodeResult]:
+    """:func:`run_episodes` on a resolved ``executor`` spec (:func:`analysis.sweep.resolve_executor`).
+
+    Raises:
+        AnalysisError: if an episode failed twice (every failure listed).
+    """
     sweep_tasks = []
     for i, (scenario, policy, seed, kw) in enumerate(tasks):
         kw = dict(kw)

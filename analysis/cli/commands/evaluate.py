@@ -116,20 +116,18 @@ def evaluation_config(args: argparse.Namespace):
     arguments: ``--driver`` (and its aliases) then ``--policy`` as one driver spec list.
 
     Raises:
-        AnalysisError: --executor with --workers, an executor that does not parse, or nothing to
-            evaluate.
+        AnalysisError: --executor with --workers, or nothing to evaluate (an executor that does
+            not parse: the plan).
         SimError: an unknown baseline.
         PolicyError: a bad --policy spec.
     """
     from analysis.errors import AnalysisError
     from analysis.evaluation.config import EvaluationConfig
-    from analysis.sweep import resolve_executor
     from sim.closed_loop.config import ControllerConfig
     from sim.drivers.baselines import check_baselines
 
     if args.executor is not None and args.workers is not None:
         raise AnalysisError("give --executor or --workers, not both")
-    executor = resolve_executor(args.executor, args.workers)
     apply_dask_options(args)
     baselines = tuple(b.strip() for b in args.baselines.split(",") if b.strip())
     check_baselines(baselines, "--baselines")
@@ -142,7 +140,7 @@ def evaluation_config(args: argparse.Namespace):
     return EvaluationConfig(
         args.scenario, args.episodes, args.seed, out, drivers=(*args.driver, *_callable_policies(args)),
         baselines=baselines, duration_s=args.duration, demos=args.demos, train_demos=args.train_demos,
-        controller=controller, executor=executor, rrd=not args.no_rrd, progress=not args.no_progress,
+        controller=controller, workers=args.workers, executor=args.executor, rrd=not args.no_rrd, progress=not args.no_progress,
         allow_implausible=args.allow_implausible)
 
 

@@ -44,7 +44,11 @@ class EvaluationConfig:
         drivers: driver specs (:data:`DriverSpec`), in order; a tabular IRL model's file or a
             ``SavedModel`` is a *model* (listed first in the report, its bins feed the fitted
             baselines, its decision step is the default); a baseline name adds that baseline.
-        baselines: baseline names; None: :func:`sim.drivers.baselines.default_baselines`.
+        baselines: names of :data:`sim.drivers.baselines.BASELINES`; None: its default set
+            (:func:`~sim.drivers.baselines.default_baselines`: ``sumo``, ``uniform``, ``marginal``,
+            ``markov``, ``bc``); ``idm``, ``sumo-in-lane`` and registered ones on request. The
+            fitted ones (``marginal``, ``markov``, ``bc``) are left out, and said so in report.md,
+            without ``train_demos``.
         duration_s: simulated seconds per episode; None: the scenario's.
         demos: held-out encounters (action divergence, held-out log-likelihood, W1); None: NaN.
         train_demos: training encounters of the fitted baselines (``marginal``, ``markov``, ``bc``).

@@ -63,7 +63,6 @@ from analysis.demo.config import CF_DRIVER, DemoConfig, check_dagger_seeds
 from analysis.demo.pipeline import run_demo
 from analysis.evaluation.distances import wasserstein
 from analysis.evaluation.evaluate import evaluate
-from analysis.evaluation.policies import cf_policy
 from analysis.experiments.dagger import DaggerConfig
 from irl.domains.merge.cf_logit import CarFollowingLogit
 from irl.errors import ConfigError
@@ -243,11 +242,10 @@ def main(argv=None) -> int:
     print("High Brake decisions braked harder than the action's mean (A closing in on its leader): "
           + (", ".join(harder) or "none"))
     if args.safety_ttc > 0:
-        irl = [] if driver == CF_DRIVER else [res.models[driver]]
-        cf = [cf_policy(res.models[driver], name=driver)] if driver == CF_DRIVER else []
-        safe = evaluate(irl, args.scenario, args.episodes, cfg.eval_seed,
+        # any learned file is a driver spec: the registry reads it (a model, or cf-dagger named after its file)
+        safe = evaluate([res.models[driver]], args.scenario, args.episodes, cfg.eval_seed,
                         Path(args.out) / f"evaluation-safety-{args.safety_ttc:g}s", duration_s=args.eval_duration,
-                        baselines=(), policies=cf, controller=ControllerConfig(safety_ttc_s=args.safety_ttc),
+                        baselines=(), controller=ControllerConfig(safety_ttc_s=args.safety_ttc),
                         workers=args.workers, rrd=False, progress=False)
         s = safe.aggregates[driver]
         lo, hi = s.a_collision_ci95

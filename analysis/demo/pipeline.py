@@ -15,7 +15,7 @@
    ``analysis.experiments.dagger``; 0: left out);
 4. **re-inject and evaluate**: every model and ``cf-dagger`` drive the lag cars A of new
    episodes (other seeds), beside SUMO's own driver and the baselines uniform, marginal, markov
-   and bc (``analysis.evaluation.evaluate``), with the held-out encounters for the held-out
+   and bc (``analysis.evaluation``: planned, run and reported), with the held-out encounters for the held-out
    log-likelihood and the Wasserstein distances;
 5. **log**: ``demo.rrd`` holds the IRL training traces of every method and one closed-loop
    episode driven by Q-Avg (vehicles, policy, metrics); the evaluation adds one ``.rrd`` per
@@ -49,10 +49,13 @@ import pandas as pd
 from analysis.demo.config import CF_DRIVER, PLANNER_DRIVER, DemoConfig, check_dagger_seeds
 from analysis.demo.estimate import estimate
 from analysis.errors import AnalysisError
+from analysis.evaluation.config import EvaluationConfig
 from analysis.evaluation.episode import frame_from_dict, frame_to_dict
-from analysis.evaluation.evaluate import EvaluationReport, evaluate
+from analysis.evaluation.outcome import EvaluationReport, write_report
+from analysis.evaluation.plan import plan_evaluation
 from analysis.evaluation.policies import learned_policy
 from analysis.evaluation.report import collision_bound_line, flag_lines, human_table, report_table
+from analysis.evaluation.run import run_plan
 from analysis.experiments.dagger import DaggerConfig, train_cf_driver
 from analysis.experiments.learn import fit_problem, merge_config, merge_encoding, merge_features, saved_model
 from analysis.sweep import Task, resolve_executor, run_sweep
@@ -283,9 +286,11 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     _say(f"[5/5] evaluating {len(models)} model{'s' * (len(models) > 1)} + sumo, uniform, marginal, markov, bc, "
          f"{config.eval_episodes} episodes each", quiet)
     irl_models = [path for name, path in models.items() if name not in (CF_DRIVER, "cf-logit", PLANNER_DRIVER)]
-    report = evaluate(irl_models, config.scenario, config.eval_episodes, config.eval_seed,
-                      out / "evaluation", duration_s=config.eval_duration_s, demos=held_path, train_demos=train_path,
-                      policies=drivers, workers=config.workers, executor=config.executor, progress=progress)
+    plan = plan_evaluation(EvaluationConfig(
+        config.scenario, config.eval_episodes, config.eval_seed, out / "evaluation", drivers=(*irl_models, *drivers),
+        duration_s=config.eval_duration_s, demos=held_path, train_demos=train_path, workers=config.workers,
+        executor=config.executor, progress=progress))
+    report = write_report(plan, run_plan(plan))
     phase("evaluation")
     wall = time.perf_counter() - t0
     result = DemoResult(out, models, report, out / "demo.rrd", out / "summary.md", int(train["encounter_id"].nunique()),

@@ -1,6 +1,6 @@
 """The drivers of a closed-loop evaluation from their files, and distinct names for all.
 
-Used by :func:`analysis.evaluation.evaluate.evaluate`. A learned file becomes a driver through
+Used by :func:`analysis.evaluation.plan.plan_evaluation`. A learned file becomes a driver through
 the driver-format registry (:mod:`sim.drivers.formats`); the baselines are the registry of
 :mod:`sim.drivers.baselines`.
 """

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 from pathlib import Path
 
 from analysis.cli.commands._arg_types import DeprecatedAlias, Once, add_allow_implausible
@@ -17,24 +18,51 @@ from analysis.cli.options import (
     executor_from_args,
     seed_option,
 )
-from sim.closed_loop.config import HIGH_BRAKE_RULES
+from analysis.errors import AnalysisError
+from analysis.evaluation.config import EvaluationConfig
+from analysis.evaluation.outcome import write_report
+from analysis.evaluation.plan import plan_evaluation
+from analysis.evaluation.report import flag_lines, human_table, report_table
+from analysis.evaluation.run import run_plan
+from analysis.evaluation.thresholds import check_thresholds, metrics_from_file, not_triggered, parse_thresholds
+from merge_irl.run_folder import locked
+from sim.closed_loop.config import HIGH_BRAKE_RULES, ControllerConfig
+from sim.drivers.baselines import check_baselines, left_out_baselines, training_action_acc
+from sim.drivers.callables import CallablePolicy
+from sim.drivers.callables.limits import DEFAULT_DECISION_LIMIT_S, check_limit
+
+
+class DeprecatedDriverAlias(argparse._AppendAction):
+    """``--model``/``--cf-model``: append to ``--driver``'s list, saying once on stderr (and as a
+    :class:`DeprecationWarning`) that the option is an alias of ``--driver``."""
+
+    use = "--driver"
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        said: set[str] = getattr(namespace, "_deprecated_said", set())
+        if option_string not in said:
+            note = f"merge-irl evaluate: {option_string} is deprecated; use --driver (the same meaning)"
+            print(note, file=sys.stderr)
+            warnings.warn(note, DeprecationWarning, stacklevel=2)
+            namespace._deprecated_said = said | {option_string}
+        super().__call__(parser, namespace, values, option_string)
 
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
         "evaluate", parents=[EPISODES, seed_option("first seed; episode i uses seed + i"), WORKERS, EXECUTOR,
                              PROGRESS, DASK],
-        description="Re-inject learned IRL models (or callables of your own, --policy) as the lag car A of every "
+        description="Re-inject learned drivers (--driver: files or baseline names; callables of your own, --policy) as the lag car A of every "
                     "merge, run N episodes per policy beside the baselines (SUMO's own driver, uniform, marginal, "
                     "markov, bc; on request idm and sumo-in-lane), and write report.md, metrics.json, PNG plots and "
                     "rerun recordings.")
-    p.add_argument("--model", action="append", default=[], metavar="MODEL.json",
-                   help="a saved merge model (repeat for several); none: only the baselines")
-    p.add_argument("--cf-model", action="append", default=[], metavar="CF_MODEL.json",
-                   help="a car-following logit driver written by 'merge-irl dagger' (repeatable)")
-    p.add_argument("--driver", action="append", default=[], metavar="DRIVER.json",
-                   help="any driver file: a planning driver of 'merge-irl learn-driver' or a car-following logit "
-                        "(repeatable; named after the file's stem)")
+    p.add_argument("--driver", action="append", default=[], metavar="SPEC",
+                   help="a driver (repeatable, in order): a learned file of any registered format (a tabular IRL "
+                        "model of 'merge-irl learn', a car-following logit of 'merge-irl dagger', a planning driver "
+                        "of 'merge-irl learn-driver'; named after the file's stem, a model after its method) or a "
+                        "baseline name (added to --baselines); none: only the baselines")
+    for alias in ("--model", "--cf-model"):  # older spellings of --driver: hidden, one stderr line each
+        p.add_argument(alias, action=DeprecatedDriverAlias, dest="driver", metavar="FILE", help=argparse.SUPPRESS)
     p.add_argument("--policy", action="append", default=[], metavar="MODULE:CALLABLE[:NAME]",
                    help="a callable obs -> action of your own (repeatable): MODULE a dotted module name or a path to "
                         "a .py file; obs the [7] continuous observation (d_AC, v_AC, d_AB, v_AB, v_A, len_C, len_B; "
@@ -61,8 +89,8 @@ def register(subparsers) -> None:
                         "with the scenario's car parameters, driven through the controller; sumo-in-lane: SUMO's "
                         "driver with A's lane changes off, as for every commanded driver)")
     p.add_argument("--decision-step-s", dest="decision_step_s", type=float, default=None,
-                   help="seconds between two decisions of A (default: the first model's decision step, else the first "
-                        "--cf-model's, else 0.3; a model driven at another step than its own is warned about)")
+                   help="seconds between two decisions of A (default: the first tabular model's decision step, else the "
+                        "first other driver's that has one, else 0.3; a model driven at another step than its own is warned about)")
     # the older spelling of --decision-step-s: one release more, with a note
     p.add_argument("--decision-step", dest="decision_step_s", type=float, action=DeprecatedAlias, use="--decision-step-s")
     p.add_argument("--high-brake", choices=HIGH_BRAKE_RULES, default=HIGH_BRAKE_RULES[0],
@@ -83,58 +111,59 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from analysis.errors import AnalysisError
-    from analysis.evaluation.evaluate import evaluate
-    from analysis.evaluation.thresholds import check_thresholds, metrics_from_file, not_triggered, parse_thresholds
-    from sim.closed_loop.config import ControllerConfig
-    from sim.drivers.baselines import check_baselines, left_out_baselines
-
     thresholds = parse_thresholds(args.fail_if) if args.fail_if else ()  # syntax errors before any work
+    config = evaluation_config(args)
+    with locked(config.out_dir):  # a second evaluate into the same folder fails at once (one line)
+        plan = plan_evaluation(config)  # malformed files and specs before any work
+        report = write_report(plan, run_plan(plan))
+    return _print_report(report, plan.baselines, args.train_demos, thresholds)
+
+
+def evaluation_config(args: argparse.Namespace) -> EvaluationConfig:
+    """The :class:`~analysis.evaluation.config.EvaluationConfig` of ``merge-irl evaluate``'s
+    arguments: ``--driver`` (and its aliases) then ``--policy`` as one driver spec list.
+
+    Raises:
+        AnalysisError: --executor with --workers, a spec that does not parse, or nothing to
+            evaluate.
+        SimError: an unknown baseline.
+        PolicyError: a bad --policy spec.
+    """
     executor = executor_from_args(args)
     apply_dask_options(args)
-
     baselines = tuple(b.strip() for b in args.baselines.split(",") if b.strip())
     check_baselines(baselines, "--baselines")
-    if not args.model and not args.cf_model and not args.driver and not args.policy and not baselines:
-        raise AnalysisError("nothing to evaluate: give --model, --driver, --cf-model, --policy and/or --baselines")
-    from analysis.evaluation.policies import cf_policy
-    from sim.drivers.formats import driver_policy
-    from sim.drivers.policy import Policy
-
-    # malformed files and specs before any work
-    cf: list[Policy] = [cf_policy(path) for path in args.cf_model] + [driver_policy(path, option="--driver") for path in args.driver]
-    if args.policy:
-        from sim.drivers.baselines import training_action_acc
-        from sim.drivers.callables import CallablePolicy
-
-        # discrete actions of a callable at the training frames' mean acceleration per bin, as the baselines'
-        acc = training_action_acc(args.train_demos) if args.train_demos else CallablePolicy.action_acc_ft_s2
-        from sim.drivers.callables.limits import DEFAULT_DECISION_LIMIT_S, check_limit
-
-        limit = DEFAULT_DECISION_LIMIT_S if args.policy_timeout is None else check_limit(args.policy_timeout)
-        cf += [CallablePolicy.from_spec(spec, action_acc_ft_s2=acc, obs_stats=args.policy_vecnormalize or "",
-                                        timeout_s=limit) for spec in args.policy]
+    if not args.driver and not args.policy and not baselines:
+        raise AnalysisError("nothing to evaluate: give --driver, --policy and/or --baselines")
     scen = Path(args.scenario).stem if args.scenario.endswith(".toml") else args.scenario
     out = Path(args.out) if args.out else Path("runs") / f"evaluate-{scen}-{args.seed}"
-    from merge_irl.run_folder import locked
+    controller = ControllerConfig(decision_step_s=args.decision_step_s, mode=args.mode, safety_ttc_s=args.safety_ttc,
+                                  high_brake=args.high_brake)
+    return EvaluationConfig(
+        args.scenario, args.episodes, args.seed, out, drivers=(*args.driver, *_callable_policies(args)),
+        baselines=baselines, duration_s=args.duration, demos=args.demos, train_demos=args.train_demos,
+        controller=controller, executor=executor, rrd=not args.no_rrd, progress=not args.no_progress,
+        allow_implausible=args.allow_implausible)
 
-    with locked(out):  # a second evaluate into the same folder fails at once (one line)
-        report = evaluate(
-            args.model, args.scenario, args.episodes, args.seed, out, duration_s=args.duration, demos=args.demos,
-            baselines=baselines, train_demos=args.train_demos, policies=cf,
-            controller=ControllerConfig(decision_step_s=args.decision_step_s, mode=args.mode, safety_ttc_s=args.safety_ttc,
-                                        high_brake=args.high_brake),
-            executor=executor, rrd=not args.no_rrd, progress=not args.no_progress,
-            allow_implausible=args.allow_implausible,
-        )
-    from analysis.evaluation.report import flag_lines, human_table, report_table
 
+def _callable_policies(args: argparse.Namespace) -> list:
+    """The ``--policy MODULE:CALLABLE[:NAME]`` drivers (``--policy-vecnormalize``, ``--policy-timeout``)."""
+    if not args.policy:
+        return []
+    # discrete actions of a callable at the training frames' mean acceleration per bin, as the baselines'
+    acc = training_action_acc(args.train_demos) if args.train_demos else CallablePolicy.action_acc_ft_s2
+    limit = DEFAULT_DECISION_LIMIT_S if args.policy_timeout is None else check_limit(args.policy_timeout)
+    return [CallablePolicy.from_spec(spec, action_acc_ft_s2=acc, obs_stats=args.policy_vecnormalize or "",
+                                     timeout_s=limit) for spec in args.policy]
+
+
+def _print_report(report, baselines: tuple[str, ...], train_demos, thresholds) -> int:
     print(report_table(report.aggregates))
     print("human likeness:")
     print(human_table(report.aggregates, report.demo_closeness))
     for line in flag_lines(report.aggregates):
         print(line, file=sys.stderr)
-    left_out = left_out_baselines(baselines, args.train_demos)
+    left_out = left_out_baselines(baselines, train_demos)
     if left_out:
         print(f"note: {', '.join(left_out)} {'is' if len(left_out) == 1 else 'are'} left out without --train-demos",
               file=sys.stderr)
@@ -142,13 +171,12 @@ def run(args: argparse.Namespace) -> int:
     print(f"metrics: {report.metrics_json}")
     for name, path in report.rrd.items():
         print(f"rerun:   {path}  ({name}; open with: merge-irl view {path})")
-    if thresholds:
-        metrics = metrics_from_file(report.metrics_json)
-        breaches = check_thresholds(thresholds, metrics)
-        for b in breaches:
-            print(f"FAIL {b}", file=sys.stderr)
-        for line in not_triggered(thresholds, metrics):
-            print(line, file=sys.stderr)
-        if breaches:
-            return 1
-    return 0
+    if not thresholds:
+        return 0
+    metrics = metrics_from_file(report.metrics_json)
+    breaches = check_thresholds(thresholds, metrics)
+    for b in breaches:
+        print(f"FAIL {b}", file=sys.stderr)
+    for line in not_triggered(thresholds, metrics):
+        print(line, file=sys.stderr)
+    return 1 if breaches else 0

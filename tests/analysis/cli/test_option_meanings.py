@@ -28,6 +28,8 @@ DEPRECATED_ALIASES = {
     ("dagger", "--decision-step"): "--decision-step-s",
     ("evaluate", "--decision-step"): "--decision-step-s",
     ("export-transitions", "--decision-step"): "--decision-step-s",
+    ("evaluate", "--model"): "--driver",
+    ("evaluate", "--cf-model"): "--driver",
 }
 
 #: (command, option) pairs allowed to differ from the option's other commands, each with why.
@@ -37,9 +39,9 @@ ALLOWED = {
     ("generate", "--seed"), ("calibrate preset", "--seed"),
     # the calibration commands compare with the real I-80 pairs: their scenario is i80, not synthetic.
     ("calibrate check", "--scenario"), ("calibrate preset", "--scenario"),
-    # evaluate's driver options (--model, --driver) become one --driver spec list in a change of
-    # their own; until then evaluate repeats them while score / calibrate evaluate read one file.
-    ("evaluate", "--model"), ("evaluate", "--driver"),
+    # evaluate compares several drivers (--driver repeatable: files or baseline names); score and
+    # calibrate evaluate score one driver file.
+    ("evaluate", "--driver"),
     # evaluate reads one held-out table into the evaluation API (a path or one DataFrame); several
     # merged wait for that API to take them, so a second one is refused rather than dropped.
     ("evaluate", "--demos"),

@@ -132,7 +132,7 @@ def test_evaluate_writes_report_metrics_plots(tmp_path):
 def test_evaluate_cli(tmp_path):
     model_path = _model().save(tmp_path / "model.json")
     out = tmp_path / "ev"
-    r = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--model", str(model_path), "--episodes", "1",
+    r = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--driver", str(model_path), "--episodes", "1",
                         "--duration", "100", "--baselines", "sumo", "--no-rrd", "--no-progress", "--seed", "5",
                         "--executor", "process:2",
                         "--out", str(out), "--fail-if", "sumo.n_episodes<1"],
@@ -146,7 +146,7 @@ def test_evaluate_cli(tmp_path):
     # a recording an earlier evaluation left in that folder is removed (it is not this one's)
     (tmp_path / "ev2" / "rerun").mkdir(parents=True)
     (tmp_path / "ev2" / "rerun" / "old-policy.rrd").write_bytes(b"earlier")
-    again = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--model", str(model_path), "--episodes", "1",
+    again = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--driver", str(model_path), "--episodes", "1",
                             "--duration", "100", "--baselines", "sumo", "--no-rrd", "--no-progress", "--seed", "5",
                             "--executor", "serial", "--out", str(tmp_path / "ev2")],
                            capture_output=True, text=True, timeout=300)
@@ -154,7 +154,7 @@ def test_evaluate_cli(tmp_path):
     for name in ("metrics.json", "report.md"):
         assert (out / name).read_bytes() == (tmp_path / "ev2" / name).read_bytes(), name
     assert not list((tmp_path / "ev2" / "rerun").glob("*.rrd"))
-    bad = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--model", str(tmp_path / "nope.json"),
+    bad = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--driver", str(tmp_path / "nope.json"),
                           "--out", str(tmp_path / "x")], capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and "nope.json" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
     bad = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--baselines", "human",
@@ -188,7 +188,7 @@ def test_evaluate_cli_baselines_safety_filter_and_flag_gate(tmp_path):
     held = _encounters(120, seed=4).assign(len_C=15.0)  # C's length: the demonstrations' bumper gaps to C
     held.to_parquet(demos)
     out = tmp_path / "ev"
-    r = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--model", str(model_path), "--episodes", "1",
+    r = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--driver", str(model_path), "--episodes", "1",
                         "--duration", "100", "--baselines", "markov,bc,idm", "--train-demos", str(demos),
                         "--demos", str(demos), "--safety-ttc", "2.5", "--no-rrd", "--no-progress", "--seed", "5",
                         "--executor", "process:2", "--out", str(out), "--fail-if", "flagged>0"],

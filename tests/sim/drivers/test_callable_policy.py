@@ -10,8 +10,6 @@ import sys
 import numpy as np
 import pytest
 from irl_testdata import planning_encounters
-from sim.drivers.callable_actions import parse_action
-from sim.drivers.callable_specs import load_callable, parse_spec
 
 from analysis.evaluation.policies import learned_policy
 from irl.config import IRLConfig
@@ -24,6 +22,8 @@ from irl.errors import ModelFileError
 from irl.result import SavedModel
 from merge_irl.units import FT_PER_M
 from sim.drivers.callables import TRUCK_MIN_LENGTH_FT, CallablePolicy, PolicyCallable
+from sim.drivers.callables.actions import parse_action
+from sim.drivers.callables.specs import load_callable, parse_spec
 from sim.drivers.formats import policy_callable
 from sim.drivers.observe import CONTINUOUS_NAMES, CONTINUOUS_UNITS, MergeObservation
 from sim.drivers.policy import PolicyError, check_policy

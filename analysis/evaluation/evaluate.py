@@ -33,16 +33,14 @@ import pandas as pd
 
 from analysis.evaluation.config import EvaluationConfig
 from analysis.evaluation.metrics import MetricsConfig
-from analysis.evaluation.outcome import UNIFORM_LL_PER_STEP, EvaluationReport, heldout_flags, write_report
-from analysis.evaluation.plan import DecisionStepWarning, plan_evaluation
-from analysis.evaluation.run import discard_unfinished, run_episodes, run_plan
+from analysis.evaluation.outcome import EvaluationReport, write_report
+from analysis.evaluation.plan import plan_evaluation
+from analysis.evaluation.run import run_plan
 from irl.result import SavedModel
 from sim.closed_loop.config import ControllerConfig
 from sim.drivers.policy import Policy
 
 #: The names this facade answers for (their homes: config, plan, run and outcome).
-__all__ = ["UNIFORM_LL_PER_STEP", "DecisionStepWarning", "EvaluationReport", "discard_unfinished", "evaluate",
-           "heldout_flags", "run_episodes"]
 
 
 def evaluate(

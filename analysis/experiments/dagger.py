@@ -184,7 +184,7 @@ def train_cf_driver(train_encounters: pd.DataFrame, scenario, config: DaggerConf
         scenario: preset name, TOML path or ScenarioSpec of the labelling runs (the one the
             demonstrations came from).
         config: :class:`DaggerConfig`.
-        workers, executor: where the labelling runs run (:func:`analysis.evaluation.evaluate.run_episodes`'
+        workers, executor: where the labelling runs run (:func:`analysis.evaluation.run.run_episodes`'
             meaning: default every core, one SUMO per worker process); the results do not
             depend on it (each run has its own seed).
         where: how errors name the encounters (e.g. their file).

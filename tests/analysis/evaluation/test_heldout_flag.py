@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from irl_testdata import encounter_table
 
-from analysis.evaluation.evaluate import UNIFORM_LL_PER_STEP, evaluate, heldout_flags
+from analysis.evaluation.evaluate import evaluate
+from analysis.evaluation.outcome import UNIFORM_LL_PER_STEP, heldout_flags
 from analysis.evaluation.report import flag_lines
 from irl.config import IRLConfig
 from irl.domains.merge.bins import MergeBins

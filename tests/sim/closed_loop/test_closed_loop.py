@@ -365,7 +365,7 @@ def test_teleported_car_is_released_with_its_modes_back(spec):
 
 
 def test_same_seed_same_metrics_across_processes(spec):
-    from analysis.evaluation.evaluate import run_episodes
+    from analysis.evaluation.run import run_episodes
 
     kw = dict(duration_s=120.0)
     a, b, c = run_episodes([(spec, UniformPolicy(), 5, kw), (spec, UniformPolicy(), 5, kw),
@@ -382,8 +382,8 @@ def test_episodes_through_the_sweep_match_in_process_runs(spec, uniform_run):
     """Episodes run by the sweep runner (spawned worker, results through JSON) equal the same
     episodes run here; one worker runs two simulations one after the other."""
     from analysis.evaluation.episode import EpisodeResult
-    from analysis.evaluation.evaluate import run_episodes
     from analysis.evaluation.report import metrics_to_json
+    from analysis.evaluation.run import run_episodes
 
     back = EpisodeResult.from_dict(uniform_run.to_dict())  # JSON form keeps values and dtypes
     for name in ("controls", "decisions", "speed_profiles", "table"):

@@ -55,7 +55,7 @@ class SteppedPolicy(PlainPolicy):
 
 
 def test_a_decision_step_other_than_a_policys_own_is_said_before_any_episode(tmp_path):
-    from analysis.evaluation.evaluate import DecisionStepWarning
+    from analysis.evaluation.plan import DecisionStepWarning
     from sim.closed_loop.config import ControllerConfig
 
     # the duplicate names stop the evaluation before SUMO starts; the warning comes first
@@ -72,7 +72,7 @@ class SlowPolicy(SteppedPolicy):
 
 
 def test_the_first_policys_step_is_the_default_even_when_names_repeat(tmp_path):
-    from analysis.evaluation.evaluate import DecisionStepWarning
+    from analysis.evaluation.plan import DecisionStepWarning
 
     with pytest.warns(DecisionStepWarning, match=r"every 0.3 s, but stepped was trained at 0.6 s"), \
             pytest.raises(PolicyError):

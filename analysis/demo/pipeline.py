@@ -183,7 +183,7 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     # rerun takes about 0.8 s to import; the sweep workers that import this module for
     # encounters_task never record
     from analysis.recording.files import close_recording, open_recording, recording_identity, run_token
-    from analysis.recording.log import RerunLogger, log_training
+    from analysis.recording.log import RerunLogger
 
     t0 = time.perf_counter()
     check_dagger_seeds(config)  # before any work
@@ -226,53 +226,15 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     _say(f"[3/5] learning {', '.join(config.methods)}", quiet)
     rid, name = recording_identity(config.scenario, "demo", config.eval_seed, run=run_token(out / "demo.rrd"))
     rec, tmp_rrd = open_recording(out / "demo.rrd", recording_id=rid, name=f"{name}: training and one episode")
-    models: dict[str, Path] = {}
-    messages: dict[str, str] = {}
-    fit_times: dict[str, float] = {}
-    for method in config.methods:
-        cfg = merge_config(gamma=config.gamma, l2=config.l2, method=method)
-        fit = fit_problem(problem, method, cfg, config.fit_seed, progress=False)
-        messages[method] = fit.message
-        fit_times[method] = float(fit.wall_time_s)
-        log_training(rec, method, fit.loglik_trace, fit.theta_trace, problem.feature_names)
-        usable = math.isfinite(fit.loglik) and np.all(np.isfinite(fit.q)) and np.all(np.isfinite(fit.theta))
-        _say(f"      {method}: loglik {fit.loglik:.2f}, theta {[round(float(x), 3) for x in fit.theta]} "
-             f"({fit.wall_time_s:.2f} s){' FLAGGED ' + ', '.join(fit.flags) if fit.flags else ''}"
-             f"{'' if usable else ' -- not usable, left out: ' + fit.message}", quiet)
-        if usable:
-            model = saved_model(fit, problem, seed=config.fit_seed, source=str(train_path), provenance=model_prov,
-                                unvisited=config.unvisited)
-            models[method] = model.save(out / "models" / f"{method}.json")
+    models, messages, fit_times = _fit_methods(config, problem, rec, train_path, model_prov, out, quiet)
     if not models:
         raise IRLError("demo: no IRL method produced a usable model: " + "; ".join(f"{k}: {v}" for k, v in messages.items()))
     phase("irl_fits")
-    drivers: list[Policy] = []
-    if config.dagger_rounds > 0:
-        t_cf = time.perf_counter()
-        cf = train_cf_driver(train, config.scenario, DaggerConfig(rounds=config.dagger_rounds), workers=config.workers,
-                             executor=config.executor, where=str(train_path), progress=not quiet)
-        models[CF_DRIVER] = cf[-1].save(out / "models" / "cf-dagger.json")
-        models["cf-logit"] = cf[0].save(out / "models" / "cf-logit.json")  # round 0, the demonstrations alone
-        drivers.append(CarFollowingLogitPolicy(cf[-1], name=CF_DRIVER, source=str(models[CF_DRIVER])))
-        drivers.append(CarFollowingLogitPolicy(cf[0], name="cf-logit", source=str(models["cf-logit"])))
-        fit_times[CF_DRIVER] = time.perf_counter() - t_cf
-        _say(f"      {CF_DRIVER}: {config.dagger_rounds} DAgger rounds, High Brake labels per round "
-             f"{cf[-1].info['labels_per_round']} ({fit_times[CF_DRIVER]:.0f} s)"
-             f"{'' if cf[-1].converged else ' FLAGGED not_converged'}", quiet)
-
+    drivers = _cf_drivers(config, train, train_path, out, models, fit_times, quiet)
     phase("cf_dagger")
     # the planning driver, from the demonstrations alone, at the settings the held-out selection of
     # `merge-irl learn-driver` chose on this scenario's data (PlannerConfig's defaults; docs/closed-loop.md)
-    t_pl = time.perf_counter()
-    planner = learn_planning_driver(encounter_decisions(train, where=str(train_path)), seed=config.fit_seed,
-                                    selection=PlannerConfig())
-    models[PLANNER_DRIVER] = planner.save(out / "models" / f"{PLANNER_DRIVER}.json")
-    drivers.append(PlanningDriverPolicy(planner, name=PLANNER_DRIVER, source=str(models[PLANNER_DRIVER])))
-    fit_times[PLANNER_DRIVER] = time.perf_counter() - t_pl
-    _say(f"      {PLANNER_DRIVER}: {planner.info['n_decisions']} decisions, loglik "
-         f"{planner.loglik / planner.info['n_decisions']:.3f} per decision ({fit_times[PLANNER_DRIVER]:.1f} s)"
-         f"{'' if planner.converged else ' FLAGGED not_converged'}", quiet)
-
+    drivers.append(_planning_driver(config, train, train_path, out, models, fit_times, quiet))
     phase("planner")
     _say("[4/5] one closed-loop episode with Q-Avg, logged to demo.rrd", quiet)
     first = "qavg" if "qavg" in models else next(iter(models))
@@ -304,6 +266,67 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     write_timings(out, {"wall_time_s": wall, "fit_wall_time_s": fit_times, "phase_wall_s": phases})
     _remove_stale_models(out / "models", written=set(models.values()))
     return result
+
+
+def _fit_methods(config: DemoConfig, problem, rec, train_path: Path, model_prov: dict, out: Path,
+                 quiet: bool) -> tuple[dict[str, Path], dict[str, str], dict[str, float]]:
+    """Fit every IRL method of ``config`` (each logged into the recording ``rec``) and save the
+    usable models to ``out/models/<method>.json``: ``(models, messages, fit wall seconds)``."""
+    from analysis.recording.log import log_training  # rerun: imported only when recording
+
+    models: dict[str, Path] = {}
+    messages: dict[str, str] = {}
+    fit_times: dict[str, float] = {}
+    for method in config.methods:
+        cfg = merge_config(gamma=config.gamma, l2=config.l2, method=method)
+        fit = fit_problem(problem, method, cfg, config.fit_seed, progress=False)
+        messages[method] = fit.message
+        fit_times[method] = float(fit.wall_time_s)
+        log_training(rec, method, fit.loglik_trace, fit.theta_trace, problem.feature_names)
+        usable = math.isfinite(fit.loglik) and np.all(np.isfinite(fit.q)) and np.all(np.isfinite(fit.theta))
+        _say(f"      {method}: loglik {fit.loglik:.2f}, theta {[round(float(x), 3) for x in fit.theta]} "
+             f"({fit.wall_time_s:.2f} s){' FLAGGED ' + ', '.join(fit.flags) if fit.flags else ''}"
+             f"{'' if usable else ' -- not usable, left out: ' + fit.message}", quiet)
+        if usable:
+            model = saved_model(fit, problem, seed=config.fit_seed, source=str(train_path), provenance=model_prov,
+                                unvisited=config.unvisited)
+            models[method] = model.save(out / "models" / f"{method}.json")
+    return models, messages, fit_times
+
+
+def _cf_drivers(config: DemoConfig, train: pd.DataFrame, train_path: Path, out: Path, models: dict[str, Path],
+                fit_times: dict[str, float], quiet: bool) -> list[Policy]:
+    """``cf-dagger`` and its round 0 ``cf-logit`` (saved, added to ``models`` and ``fit_times``),
+    or none with ``dagger_rounds`` 0."""
+    drivers: list[Policy] = []
+    if config.dagger_rounds > 0:
+        t_cf = time.perf_counter()
+        cf = train_cf_driver(train, config.scenario, DaggerConfig(rounds=config.dagger_rounds), workers=config.workers,
+                             executor=config.executor, where=str(train_path), progress=not quiet)
+        models[CF_DRIVER] = cf[-1].save(out / "models" / "cf-dagger.json")
+        models["cf-logit"] = cf[0].save(out / "models" / "cf-logit.json")  # round 0, the demonstrations alone
+        drivers.append(CarFollowingLogitPolicy(cf[-1], name=CF_DRIVER, source=str(models[CF_DRIVER])))
+        drivers.append(CarFollowingLogitPolicy(cf[0], name="cf-logit", source=str(models["cf-logit"])))
+        fit_times[CF_DRIVER] = time.perf_counter() - t_cf
+        _say(f"      {CF_DRIVER}: {config.dagger_rounds} DAgger rounds, High Brake labels per round "
+             f"{cf[-1].info['labels_per_round']} ({fit_times[CF_DRIVER]:.0f} s)"
+             f"{'' if cf[-1].converged else ' FLAGGED not_converged'}", quiet)
+    return drivers
+
+
+def _planning_driver(config: DemoConfig, train: pd.DataFrame, train_path: Path, out: Path, models: dict[str, Path],
+                     fit_times: dict[str, float], quiet: bool) -> Policy:
+    """The planning driver from the demonstrations alone, at the settings the held-out selection of
+    ``merge-irl learn-driver`` chose on this scenario's data (saved, added to ``models`` and ``fit_times``)."""
+    t_pl = time.perf_counter()
+    planner = learn_planning_driver(encounter_decisions(train, where=str(train_path)), seed=config.fit_seed,
+                                    selection=PlannerConfig())
+    models[PLANNER_DRIVER] = planner.save(out / "models" / f"{PLANNER_DRIVER}.json")
+    fit_times[PLANNER_DRIVER] = time.perf_counter() - t_pl
+    _say(f"      {PLANNER_DRIVER}: {planner.info['n_decisions']} decisions, loglik "
+         f"{planner.loglik / planner.info['n_decisions']:.3f} per decision ({fit_times[PLANNER_DRIVER]:.1f} s)"
+         f"{'' if planner.converged else ' FLAGGED not_converged'}", quiet)
+    return PlanningDriverPolicy(planner, name=PLANNER_DRIVER, source=str(models[PLANNER_DRIVER]))
 
 
 def _remove_stale_models(folder: Path, written: set[Path]) -> None:

@@ -39,7 +39,7 @@ from __future__ import annotations
 import math
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -200,6 +200,52 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
         phases[name] = now - t_phase
         t_phase = now
 
+    train, heldout, train_path, held_path = _simulate_data(config, out, quiet)
+    phase("data_runs")
+    problem, model_prov = _discretize(config, out, train, train_path, quiet)
+
+    _say(f"[3/5] learning {', '.join(config.methods)}", quiet)
+    rid, name = recording_identity(config.scenario, "demo", config.eval_seed, run=run_token(out / "demo.rrd"))
+    rec, tmp_rrd = open_recording(out / "demo.rrd", recording_id=rid, name=f"{name}: training and one episode")
+    models, messages, fit_times = _fit_irl_models(
+        config, problem, out, train_path, model_prov, quiet,
+        log=lambda method, lls, thetas: log_training(rec, method, lls, thetas, problem.feature_names))
+    phase("irl_fits")
+    drivers: list[Policy] = []
+    if config.dagger_rounds > 0:
+        _train_cf_drivers(config, train, train_path, out, quiet, models, drivers, fit_times)
+
+    phase("cf_dagger")
+    _learn_planner(config, train, train_path, out, quiet, models, drivers, fit_times)
+
+    phase("planner")
+    _say("[4/5] one closed-loop episode with Q-Avg, logged to demo.rrd", quiet)
+    first = "qavg" if "qavg" in models else next(iter(models))
+    pol = learned_policy(models[first])
+    logger = RerunLogger(out / "demo.rrd", recording=(rec, tmp_rrd), training_methods=config.methods)
+    # the logger needs the episode's controller: run_episode builds it, so attach via extra hook
+    _run_logged_episode(config, pol, logger)
+    close_recording(rec, tmp_rrd, out / "demo.rrd")
+    phase("logged_episode")
+
+    report = _evaluate(config, out, models, drivers, (train_path, held_path), quiet=quiet, progress=progress)
+    phase("evaluation")
+    wall = time.perf_counter() - t0
+    result = DemoResult(out, models, report, out / "demo.rrd", out / "summary.md", int(train["encounter_id"].nunique()),
+                        problem.demos.n_steps, wall, messages, config.encounter_rule,
+                        int(heldout["encounter_id"].nunique()), config.heldout_runs)
+    _write_summary(config, out, result, models)
+    write_timings(out, {"wall_time_s": wall, "fit_wall_time_s": fit_times, "phase_wall_s": phases})
+    _remove_stale_models(out / "models", written=set(models.values()))
+    return result
+
+
+def _simulate_data(config: DemoConfig, out: Path, quiet: bool) -> tuple[pd.DataFrame, pd.DataFrame, Path, Path]:
+    """Step 1: simulate the training and held-out runs and write their encounters.
+
+    Returns ``(train, heldout, train_path, held_path)``: the prepared encounter tables and the
+    parquet files under ``out/data`` they were written to.
+    """
     n_held = config.heldout_runs
     _say(f"[1/5] simulating {len(config.train_seeds)} training runs + {n_held} held-out run{'s' * (n_held > 1)} "
          f"of {config.scenario}", quiet)
@@ -213,8 +259,12 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     held_path = out / "data" / "heldout_encounters.parquet"
     for df, path in ((train, train_path), (heldout, held_path)):
         write_parquet(df, path)
+    return train, heldout, train_path, held_path
 
-    phase("data_runs")
+
+def _discretize(config: DemoConfig, out: Path, train: pd.DataFrame, train_path: Path, quiet: bool):
+    """Step 2: quantile bins fitted on ``train`` (saved to ``out/data/bins.json``) and the merge
+    problem of the training encounters. Returns ``(problem, model_provenance)``."""
     _say("[2/5] discretizing (quantile bins fitted on the training encounters)", quiet)
     bins = fit_quantile_bins(train, where=str(train_path))
     bins.save(out / "data" / "bins.json")
@@ -222,10 +272,21 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
     problem = load_problem("merge", train_path, bins=bins, name=f"{config.scenario} training encounters",
                            encoding=merge_encoding(features), features=features)
     model_prov = provenance({"demos": train_path, "bins": out / "data" / "bins.json"})
+    return problem, model_prov
 
-    _say(f"[3/5] learning {', '.join(config.methods)}", quiet)
-    rid, name = recording_identity(config.scenario, "demo", config.eval_seed, run=run_token(out / "demo.rrd"))
-    rec, tmp_rrd = open_recording(out / "demo.rrd", recording_id=rid, name=f"{name}: training and one episode")
+
+def _fit_irl_models(config: DemoConfig, problem, out: Path, train_path: Path, model_prov, quiet: bool, *,
+                    log: Callable[[str, np.ndarray, np.ndarray], None],
+                    ) -> tuple[dict[str, Path], dict[str, str], dict[str, float]]:
+    """Step 3: fit each IRL method of ``config``; save the usable models under ``out/models``.
+
+    ``log(method, loglik_trace [n], theta_trace [n, K])`` records each fit's training traces.
+    Returns ``(models, messages, fit_times)``: the saved model files by method (usable fits only),
+    every method's fit message and its fit wall time (s).
+
+    Raises:
+        IRLError: no method produced a usable model (finite loglik, Q and theta).
+    """
     models: dict[str, Path] = {}
     messages: dict[str, str] = {}
     fit_times: dict[str, float] = {}
@@ -234,7 +295,7 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
         fit = fit_problem(problem, method, cfg, config.fit_seed, progress=False)
         messages[method] = fit.message
         fit_times[method] = float(fit.wall_time_s)
-        log_training(rec, method, fit.loglik_trace, fit.theta_trace, problem.feature_names)
+        log(method, fit.loglik_trace, fit.theta_trace)
         usable = math.isfinite(fit.loglik) and np.all(np.isfinite(fit.q)) and np.all(np.isfinite(fit.theta))
         _say(f"      {method}: loglik {fit.loglik:.2f}, theta {[round(float(x), 3) for x in fit.theta]} "
              f"({fit.wall_time_s:.2f} s){' FLAGGED ' + ', '.join(fit.flags) if fit.flags else ''}"
@@ -245,22 +306,31 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
             models[method] = model.save(out / "models" / f"{method}.json")
     if not models:
         raise IRLError("demo: no IRL method produced a usable model: " + "; ".join(f"{k}: {v}" for k, v in messages.items()))
-    phase("irl_fits")
-    drivers: list[Policy] = []
-    if config.dagger_rounds > 0:
-        t_cf = time.perf_counter()
-        cf = train_cf_driver(train, config.scenario, DaggerConfig(rounds=config.dagger_rounds), workers=config.workers,
-                             executor=config.executor, where=str(train_path), progress=not quiet)
-        models[CF_DRIVER] = cf[-1].save(out / "models" / "cf-dagger.json")
-        models["cf-logit"] = cf[0].save(out / "models" / "cf-logit.json")  # round 0, the demonstrations alone
-        drivers.append(CarFollowingLogitPolicy(cf[-1], name=CF_DRIVER, source=str(models[CF_DRIVER])))
-        drivers.append(CarFollowingLogitPolicy(cf[0], name="cf-logit", source=str(models["cf-logit"])))
-        fit_times[CF_DRIVER] = time.perf_counter() - t_cf
-        _say(f"      {CF_DRIVER}: {config.dagger_rounds} DAgger rounds, High Brake labels per round "
-             f"{cf[-1].info['labels_per_round']} ({fit_times[CF_DRIVER]:.0f} s)"
-             f"{'' if cf[-1].converged else ' FLAGGED not_converged'}", quiet)
+    return models, messages, fit_times
 
-    phase("cf_dagger")
+
+def _train_cf_drivers(config: DemoConfig, train: pd.DataFrame, train_path: Path, out: Path, quiet: bool,
+                      models: dict[str, Path], drivers: list[Policy], fit_times: dict[str, float]) -> None:
+    """The car-following drivers (DAgger's last round and round 0), saved under ``out/models``;
+    adds their files to ``models``, their policies to ``drivers`` and the DAgger wall time (s)
+    to ``fit_times``."""
+    t_cf = time.perf_counter()
+    cf = train_cf_driver(train, config.scenario, DaggerConfig(rounds=config.dagger_rounds), workers=config.workers,
+                         executor=config.executor, where=str(train_path), progress=not quiet)
+    models[CF_DRIVER] = cf[-1].save(out / "models" / "cf-dagger.json")
+    models["cf-logit"] = cf[0].save(out / "models" / "cf-logit.json")  # round 0, the demonstrations alone
+    drivers.append(CarFollowingLogitPolicy(cf[-1], name=CF_DRIVER, source=str(models[CF_DRIVER])))
+    drivers.append(CarFollowingLogitPolicy(cf[0], name="cf-logit", source=str(models["cf-logit"])))
+    fit_times[CF_DRIVER] = time.perf_counter() - t_cf
+    _say(f"      {CF_DRIVER}: {config.dagger_rounds} DAgger rounds, High Brake labels per round "
+         f"{cf[-1].info['labels_per_round']} ({fit_times[CF_DRIVER]:.0f} s)"
+         f"{'' if cf[-1].converged else ' FLAGGED not_converged'}", quiet)
+
+
+def _learn_planner(config: DemoConfig, train: pd.DataFrame, train_path: Path, out: Path, quiet: bool,
+                   models: dict[str, Path], drivers: list[Policy], fit_times: dict[str, float]) -> None:
+    """The planning driver, saved under ``out/models``; adds its file to ``models``, its policy to
+    ``drivers`` and its fit wall time (s) to ``fit_times``."""
     # the planning driver, from the demonstrations alone, at the settings the held-out selection of
     # `merge-irl learn-driver` chose on this scenario's data (PlannerConfig's defaults; docs/closed-loop.md)
     t_pl = time.perf_counter()
@@ -273,16 +343,12 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
          f"{planner.loglik / planner.info['n_decisions']:.3f} per decision ({fit_times[PLANNER_DRIVER]:.1f} s)"
          f"{'' if planner.converged else ' FLAGGED not_converged'}", quiet)
 
-    phase("planner")
-    _say("[4/5] one closed-loop episode with Q-Avg, logged to demo.rrd", quiet)
-    first = "qavg" if "qavg" in models else next(iter(models))
-    pol = learned_policy(models[first])
-    logger = RerunLogger(out / "demo.rrd", recording=(rec, tmp_rrd), training_methods=config.methods)
-    # the logger needs the episode's controller: run_episode builds it, so attach via extra hook
-    _run_logged_episode(config, pol, logger)
-    close_recording(rec, tmp_rrd, out / "demo.rrd")
-    phase("logged_episode")
 
+def _evaluate(config: DemoConfig, out: Path, models: dict[str, Path], drivers: list[Policy],
+              demo_paths: tuple[Path, Path], *, quiet: bool, progress: bool) -> EvaluationReport:
+    """Step 5: evaluate the IRL models and ``drivers`` with the baselines into ``out/evaluation``;
+    ``demo_paths``: the training and held-out encounter files."""
+    train_path, held_path = demo_paths
     _say(f"[5/5] evaluating {len(models)} model{'s' * (len(models) > 1)} + sumo, uniform, marginal, markov, bc, "
          f"{config.eval_episodes} episodes each", quiet)
     irl_models = [path for name, path in models.items() if name not in (CF_DRIVER, "cf-logit", PLANNER_DRIVER)]
@@ -290,20 +356,16 @@ def run_demo(out_dir: str | Path | None = None, config: DemoConfig = DemoConfig(
         config.scenario, config.eval_episodes, config.eval_seed, out / "evaluation", drivers=(*irl_models, *drivers),
         duration_s=config.eval_duration_s, demos=held_path, train_demos=train_path, workers=config.workers,
         executor=config.executor, progress=progress))
-    report = write_report(plan, run_plan(plan))
-    phase("evaluation")
-    wall = time.perf_counter() - t0
-    result = DemoResult(out, models, report, out / "demo.rrd", out / "summary.md", int(train["encounter_id"].nunique()),
-                        problem.demos.n_steps, wall, messages, config.encounter_rule,
-                        int(heldout["encounter_id"].nunique()), config.heldout_runs)
+    return write_report(plan, run_plan(plan))
+
+
+def _write_summary(config: DemoConfig, out: Path, result: DemoResult, models: dict[str, Path]) -> None:
+    """``out/summary.md``: the result (without timings) and the provenance of the scenario and models."""
     scenario_file = config.scenario if Path(config.scenario).is_file() else None
     summary_prov = provenance({"scenario": scenario_file}, models,
                               extra={"scenario_sha256": text_digest(load_scenario(config.scenario).to_toml())})
     write_text_atomic(out / "summary.md", "# merge-irl demo\n\n```\n" + result.format(timings=False) + "\n```\n\n"
                       + provenance_markdown(summary_prov) + "\n")
-    write_timings(out, {"wall_time_s": wall, "fit_wall_time_s": fit_times, "phase_wall_s": phases})
-    _remove_stale_models(out / "models", written=set(models.values()))
-    return result
 
 
 def _remove_stale_models(folder: Path, written: set[Path]) -> None:

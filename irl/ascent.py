@@ -159,88 +159,123 @@ def lbfgs_ascent(evaluate: Callable[[np.ndarray], Evaluation], theta0: np.ndarra
     at a sane point (e.g. ``|L(0)|``), so that an absurd ``L`` does not loosen the check.
     """
     sc = np.ones(np.size(theta0)) if scale is None else np.asarray(scale, dtype=np.float64)
-    cache: dict[bytes, Evaluation] = {}
-    last: list = []
-    failures: list[str] = []
-
-    def ev_at(x: np.ndarray) -> Evaluation:
-        key = x.tobytes()
-        if key not in cache:
-            if len(cache) > 8:
-                cache.clear()
-            cache[key] = evaluate(x.copy())
-        return cache[key]
-
-    anchor: list = []  # [x, -f, -g] of the last accepted iterate
-
-    def fun(u):
-        x = u / sc  # theta
-        ev = ev_at(x)
-        last[:] = [x.copy(), ev]
-        if not ev.ok:
-            if not anchor:
-                raise _InnerFailure(ev.message)
-            # a trial point without a fixed point: a steep wall around the last accepted
-            # iterate sends the line search back
-            failures.append(ev.message)
-            xa, fa, ga = anchor
-            d = u - xa * sc
-            wall = 1e3 * (1.0 + abs(fa))
-            return fa + wall * (1.0 + float(d @ d)), 2.0 * wall * d
-        f, g = penalised(ev, x, config.l2)
-        return -f, -g / sc
-
-    lls, thetas = [], []
     theta = np.asarray(theta0, dtype=np.float64).copy()
     bar = progress_bar(progress, config.max_outer, desc)
-
-    def remember(x, ev):
-        if ev.ok:
-            f, g = penalised(ev, x, config.l2)
-            anchor[:] = [np.array(x, dtype=float), -f, -g]
-        if on_accept is not None:
-            on_accept(np.asarray(x), ev)
-
-    def callback(u):
-        x = np.asarray(u) / sc
-        ev = ev_at(x)
-        remember(x, ev)
-        lls.append(ev.loglik)
-        thetas.append(np.array(x, dtype=float))
-        bar.update(1)
-        bar.set_postfix(L=f"{ev.loglik:.4f}")
-
-    remember(theta, ev_at(theta))
+    problem = _LbfgsProblem(evaluate, config.l2, sc, on_accept, bar)
+    problem.remember(theta, problem.ev_at(theta))
     try:
-        res = so.minimize(fun, theta * sc, jac=True, method="L-BFGS-B", callback=callback,
+        res = so.minimize(problem.fun, theta * sc, jac=True, method="L-BFGS-B", callback=problem.callback,
                           options={"maxiter": config.max_outer, "gtol": gtol, "ftol": 1e-13,
                                    "maxcor": 20, "maxls": 50})
     except _InnerFailure as e:
         bar.close()
-        x, ev = last
-        lls.append(ev.loglik)
-        thetas.append(x)
-        return AscentResult(x, ev, np.array(lls), np.array(thetas), False,
-                            f"inner fixed point failed: {e}", {"outer_steps": float(len(lls))})
+        x, ev = problem.last
+        problem.lls.append(ev.loglik)
+        problem.thetas.append(x)
+        return AscentResult(x, ev, np.array(problem.lls), np.array(problem.thetas), False,
+                            f"inner fixed point failed: {e}", {"outer_steps": float(len(problem.lls))})
     bar.close()
+    return _lbfgs_result(problem, res, l2=config.l2, gtol=gtol, scaled=scale is not None,
+                         reference=reference)
+
+
+class _LbfgsProblem:
+    """The objective :func:`lbfgs_ascent` hands scipy, in ``u = sc * theta`` (``sc``: ``[K]``).
+
+    Holds the evaluation cache (by theta's bytes, cleared past 8 entries), the last evaluated
+    ``[theta, evaluation]`` (``last``), the inner-failure messages of trial points
+    (``failures``), the anchor ``[x, -f, -g]`` of the last accepted iterate and the trace of
+    accepted iterates (``lls``: log-likelihoods; ``thetas``: ``[K]`` arrays).
+    """
+
+    def __init__(self, evaluate: Callable[[np.ndarray], Evaluation], l2: float, sc: np.ndarray,
+                 on_accept: Callable[[np.ndarray, Evaluation], None] | None, bar) -> None:
+        self.evaluate, self.l2, self.sc, self.on_accept, self.bar = evaluate, l2, sc, on_accept, bar
+        self.cache: dict[bytes, Evaluation] = {}
+        self.last: list = []
+        self.failures: list[str] = []
+        self.anchor: list = []  # [x, -f, -g] of the last accepted iterate
+        self.lls: list = []
+        self.thetas: list = []
+
+    def ev_at(self, x: np.ndarray) -> Evaluation:
+        """The evaluation at theta ``x`` (``[K]``), cached."""
+        key = x.tobytes()
+        if key not in self.cache:
+            if len(self.cache) > 8:
+                self.cache.clear()
+            self.cache[key] = self.evaluate(x.copy())
+        return self.cache[key]
+
+    def fun(self, u: np.ndarray) -> tuple[float, np.ndarray]:
+        """``(-f, -grad f / sc)`` at ``u`` (``[K]``); a steep wall where the inner solve fails.
+
+        Raises:
+            _InnerFailure: the inner solve fails before any iterate is accepted.
+        """
+        sc = self.sc
+        x = u / sc  # theta
+        ev = self.ev_at(x)
+        self.last[:] = [x.copy(), ev]
+        if not ev.ok:
+            if not self.anchor:
+                raise _InnerFailure(ev.message)
+            # a trial point without a fixed point: a steep wall around the last accepted
+            # iterate sends the line search back
+            self.failures.append(ev.message)
+            xa, fa, ga = self.anchor
+            d = u - xa * sc
+            wall = 1e3 * (1.0 + abs(fa))
+            return fa + wall * (1.0 + float(d @ d)), 2.0 * wall * d
+        f, g = penalised(ev, x, self.l2)
+        return -f, -g / sc
+
+    def remember(self, x: np.ndarray, ev: Evaluation) -> None:
+        """Anchor the accepted iterate ``x`` (theta, ``[K]``) and call ``on_accept``."""
+        if ev.ok:
+            f, g = penalised(ev, x, self.l2)
+            self.anchor[:] = [np.array(x, dtype=float), -f, -g]
+        if self.on_accept is not None:
+            self.on_accept(np.asarray(x), ev)
+
+    def callback(self, u: np.ndarray) -> None:
+        """scipy's per-iteration callback: remember, trace and report the iterate ``u``."""
+        x = np.asarray(u) / self.sc
+        ev = self.ev_at(x)
+        self.remember(x, ev)
+        self.lls.append(ev.loglik)
+        self.thetas.append(np.array(x, dtype=float))
+        self.bar.update(1)
+        self.bar.set_postfix(L=f"{ev.loglik:.4f}")
+
+
+def _lbfgs_result(problem: _LbfgsProblem, res, *, l2: float, gtol: float, scaled: bool,
+                  reference: float) -> AscentResult:
+    """The :class:`AscentResult` of a finished scipy run ``res``: the optimality check and message.
+
+    ``converged`` needs scipy's success and ``|g / sc|_inf`` (penalised gradient per unit of
+    scale) at most ``max(100 gtol, 1e-5 max(1, min(|L|, |reference|)))``; ``scaled``: a
+    ``scale`` was given (the message then also reports the scaled norm).
+    """
+    sc, lls, thetas = problem.sc, problem.lls, problem.thetas
     x = np.asarray(res.x, dtype=float) / sc
-    ev = ev_at(x)
+    ev = problem.ev_at(x)
     if not thetas or not np.array_equal(thetas[-1], x):
         lls.append(ev.loglik)
         thetas.append(x.copy())
-    g_pen = penalised(ev, x, config.l2)[1]
+    g_pen = penalised(ev, x, l2)[1]
     gnorm = float(np.max(np.abs(g_pen)))
     g_scaled = float(np.max(np.abs(g_pen / sc)))
     tol = max(gtol * 100, 1e-5 * max(1.0, min(abs(ev.loglik), abs(reference))))
     ok = bool(res.success) and g_scaled <= tol
     msg = f"L-BFGS: {res.message} after {res.nit} iterations, |grad|_inf = {gnorm:.3g}"
-    if scale is not None:
+    if scaled:
         msg += f" ({g_scaled:.3g} per unit of feature spread)"
     if res.success and not ok:
         msg += f", above {tol:.3g}: not an optimum"
-    if failures:
-        msg += (f"; {len(failures)} trial points had no fixed point and were stepped back from "
-                f"(first: {failures[0]})")
+    if problem.failures:
+        msg += (f"; {len(problem.failures)} trial points had no fixed point and were stepped back from "
+                f"(first: {problem.failures[0]})")
     return AscentResult(x, ev, np.array(lls), np.array(thetas).reshape(len(thetas), -1), ok, msg,
                         {"outer_steps": float(res.nit), "evaluations": float(res.nfev),
                          "grad_inf": gnorm, "grad_inf_scaled": g_scaled})

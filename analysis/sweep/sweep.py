@@ -138,11 +138,53 @@ def run_sweep(
     if store is not None and not isinstance(store, ResultStore):
         store = ResultStore(store)
     task_list = list(tasks)
+    keys = _unique_keys(task_list)
+    t0 = time.perf_counter()
+    seeds, done, todo = _plan(task_list, seed, store)
+    n_cached = len(done)
+    if todo and spec.kind == "dask":  # an unusable scheduler is one line, before any progress line
+        _check_dask_scheduler(spec)
+    bar = progress_bar(len(task_list), initial=n_cached, desc=desc, unit="task", enabled=progress)
+    finish = _Finisher(done, store, bar, retries, desc)
+
+    aborted = False
+    try:
+        _execute(spec, todo, finish, desc)
+    except _SweepAborted:
+        aborted = True
+    finally:
+        bar.close()
+    ordered = {k: done[k] for k in keys if k in done}
+    order = {k: i for i, k in enumerate(keys)}
+    return SweepReport(
+        results=ordered,
+        seeds=seeds,
+        failures=tuple(sorted(finish.failures, key=lambda f: order[f.key])),
+        n_cached=n_cached,
+        n_run=len(todo),
+        wall_time_s=time.perf_counter() - t0,
+        task_times_s=finish.times,
+        aborted=aborted,
+    )
+
+
+def _unique_keys(task_list: Sequence[Task]) -> list[str]:
+    """The tasks' keys, in order.
+
+    Raises:
+        ValueError: two tasks share a key.
+    """
     keys = [t.key for t in task_list]
     if len(set(keys)) != len(keys):
         dupes = sorted({k for k in keys if keys.count(k) > 1})
         raise ValueError(f"task keys must be unique; repeated: {dupes}")
-    t0 = time.perf_counter()
+    return keys
+
+
+def _plan(task_list: Sequence[Task], seed: int,
+          store: ResultStore | None) -> tuple[dict[str, int], dict[str, dict], list[_Pending]]:
+    """``(seeds, done, todo)``: each task's derived seed by key, the stored results by key and the
+    tasks still to run (in order)."""
     seeds: dict[str, int] = {}
     done: dict[str, dict] = {}
     todo: list[_Pending] = []
@@ -155,64 +197,58 @@ def run_sweep(
             done[t.key] = record["result"]
         else:
             todo.append(_Pending(t, s, digest))
-    n_cached = len(done)
-    if todo and spec.kind == "dask":  # an unusable scheduler is one line, before any progress line
-        _check_dask_scheduler(spec)
-    failures: list[TaskFailure] = []
-    times: dict[str, float] = {}
-    bar = progress_bar(len(task_list), initial=n_cached, desc=desc, unit="task", enabled=progress)
+    return seeds, done, todo
 
-    def say(line: str) -> None:
-        """A line on stderr that the progress bar does not overwrite (said with or without it)."""
-        progress_write(line)
 
-    def finish(p: _Pending, record: dict) -> bool:
-        """Record an attempt's outcome; return True if the task should be retried."""
+class _Finisher:
+    """Records each attempt's outcome for :func:`run_sweep` (called as ``finish(pending, record)``).
+
+    Results go into ``done`` (by key) and the store, failures past ``retries`` into
+    ``failures``, each attempt's wall time (s) into ``times``; ``bar`` advances once per task.
+    """
+
+    def __init__(self, done: dict[str, dict], store: ResultStore | None, bar, retries: int, desc: str) -> None:
+        self.done, self.store, self.bar, self.retries, self.desc = done, store, bar, retries, desc
+        self.failures: list[TaskFailure] = []
+        self.times: dict[str, float] = {}
+
+    def __call__(self, p: _Pending, record: dict) -> bool:
+        """Record an attempt's outcome; return True if the task should be retried.
+
+        Raises:
+            _SweepAborted: the task failed for good with an error that aborts the sweep.
+        """
         p.attempts += 1
         p.last = record
-        times[p.task.key] = float(record.get("wall_time_s", 0.0))
+        self.times[p.task.key] = float(record.get("wall_time_s", 0.0))
         if record.get("ok"):
-            done[p.task.key] = record["result"]
-            if store is not None:
-                store.put(p.digest, {"key": p.task.key, "func": p.task.func_name,
-                                     "seed": p.seed, "result": record["result"]})
-            bar.update(1)
+            self.done[p.task.key] = record["result"]
+            if self.store is not None:
+                self.store.put(p.digest, {"key": p.task.key, "func": p.task.func_name,
+                                          "seed": p.seed, "result": record["result"]})
+            self.bar.update(1)
             return False
-        if p.attempts <= retries and record.get("retry", True):
-            say(f"{desc}: {p.task.key} failed ({record.get('error', 'unknown error')}); "
-                f"running it again (attempt {p.attempts + 1} of {retries + 1})")
+        if p.attempts <= self.retries and record.get("retry", True):
+            progress_write(f"{self.desc}: {p.task.key} failed ({record.get('error', 'unknown error')}); "
+                           f"running it again (attempt {p.attempts + 1} of {self.retries + 1})")
             return True
-        failures.append(TaskFailure(p.task.key, record.get("error", "unknown error"), p.attempts,
-                                    record.get("traceback", "")))
-        bar.update(1)
+        self.failures.append(TaskFailure(p.task.key, record.get("error", "unknown error"), p.attempts,
+                                         record.get("traceback", "")))
+        self.bar.update(1)
         if record.get("abort"):
             raise _SweepAborted(p.task.key)
         return False
 
-    aborted = False
-    try:
-        if spec.kind == "serial":
-            _run_serial(todo, finish)
-        elif spec.kind == "process":
-            _run_process_pool(todo, finish, spec.workers, say=lambda line: say(f"{desc}: {line}"))
-        else:
-            _run_dask(todo, finish, spec)
-    except _SweepAborted:
-        aborted = True
-    finally:
-        bar.close()
-    ordered = {k: done[k] for k in keys if k in done}
-    order = {k: i for i, k in enumerate(keys)}
-    return SweepReport(
-        results=ordered,
-        seeds=seeds,
-        failures=tuple(sorted(failures, key=lambda f: order[f.key])),
-        n_cached=n_cached,
-        n_run=len(todo),
-        wall_time_s=time.perf_counter() - t0,
-        task_times_s=times,
-        aborted=aborted,
-    )
+
+def _execute(spec: ExecutorSpec, todo: Sequence[_Pending], finish: _Finisher, desc: str) -> None:
+    """Run ``todo`` on ``spec``'s executor; progress lines on stderr, each prefixed by ``desc``
+    (said with or without the progress bar, which does not overwrite them)."""
+    if spec.kind == "serial":
+        _run_serial(todo, finish)
+    elif spec.kind == "process":
+        _run_process_pool(todo, finish, spec.workers, say=lambda line: progress_write(f"{desc}: {line}"))
+    else:
+        _run_dask(todo, finish, spec)
 
 
 def _run_serial(todo: Sequence[_Pending], finish) -> None:

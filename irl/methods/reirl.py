@@ -268,21 +268,10 @@ def fit_reirl(
         raise ConfigError(f"REIRL theta_cap must be positive, got {theta_cap}")
     model = estimate_transitions(demos) if transitions is None else checked_model(transitions, demos)
     longest = max(s.size for s in demos.states)
-    if baseline is None:
-        if int(n_baseline) < 1:
-            raise ConfigError(f"n_baseline must be >= 1, got {n_baseline}")
-        baseline = uniform_baseline(demos, model, int(n_baseline), longest, rng)
-    elif (baseline.n_states, baseline.n_actions) != (demos.n_states, demos.n_actions):
-        raise DemonstrationError(
-            f"baseline {baseline.source}: {baseline.n_states} states x {baseline.n_actions} actions, "
-            f"experts have {demos.n_states} x {demos.n_actions}"
-        )
+    baseline = _baseline_of(demos, model, baseline, n_baseline, longest, rng)
     length = max(longest, max(s.size for s in baseline.states))
     phi = np.asarray(demos.features)
-    es, ea = pad_trajectories(demos.states, demos.actions, length, pad_step)
-    bs, ba = pad_trajectories(baseline.states, baseline.actions, length, pad_step)
-    f_expert = discounted_counts(es, ea, phi, config.gamma).mean(axis=0)
-    f_base = discounted_counts(bs, ba, phi, config.gamma)
+    f_expert, f_base = _feature_counts(demos, baseline, length, pad_step, config.gamma)
     log_w = np.full(f_base.shape[0], -np.log(f_base.shape[0]))
     eps = (hoeffding_epsilon(phi, demos.n_trajectories, length, config.gamma, delta) if epsilon is None
            else np.full(phi.shape[2], float(epsilon)))
@@ -292,25 +281,17 @@ def fit_reirl(
         theta, status, value = solve_dual(f_base, f_expert, log_w, eps, theta_cap=theta_cap)
     message = f"cvxpy status {status}; dual value {value:.6g}"
     converged = status == "optimal"
-    try:
-        q = np.asarray(solve_q(theta, phi, model, config))
-    except IRLError as e:  # the MDP for this theta has no computable Boltzmann fixed point
-        q = phi @ theta
+    q, q_failure = _final_q(theta, phi, model, config)
+    if q_failure:
         converged = False
-        message += f"; solving the MDP for the learned theta failed ({e}): loglik uses Q = R"
+        message += q_failure
     ll = loglik_from_counts(q, config.beta, step_counts(*demos.flat()[:2], demos.n_states, demos.n_actions))
-    eps_text = np.array2string(eps, precision=3)
     uninformative = not unbounded and bool(np.all(np.abs(theta) <= 1e-6 * max(1.0, float(np.max(np.abs(f_base))))))
-    if unbounded:
+    if unbounded or uninformative:
         converged = False
-        message += (f"; INFEASIBLE: the dual is unbounded below (no reweighting of the baseline matches the "
-                    f"experts' feature counts within eps = {eps_text}); theta is only the minimiser within "
-                    f"|theta_k| <= {theta_cap:g} and must not be used as a driver")
-    elif uninformative:
-        converged = False
+        message += _verdict(unbounded, eps, theta_cap)
+    if uninformative:
         theta = np.zeros_like(theta)
-        message += (f"; UNINFORMATIVE: every weight is 0 (the experts' feature counts lie within eps = "
-                    f"{eps_text} of the baseline's: indistinguishable at this confidence)")
     return FitResult(
         method="reirl",
         theta=theta,
@@ -328,6 +309,57 @@ def fit_reirl(
                "uninformative": float(uninformative), "epsilon_hoeffding": float(epsilon is None),
                **{f"epsilon_{k}": float(e) for k, e in enumerate(eps)}},
     )
+
+
+def _baseline_of(demos: Demonstrations, model, baseline: Demonstrations | None, n_baseline: int,
+                 longest: int, rng: np.random.Generator) -> Demonstrations:
+    """The baseline trajectories: ``baseline`` checked against the experts' MDP, or ``n_baseline``
+    uniform-random trajectories of ``longest`` steps under ``model`` when it is None.
+
+    Raises:
+        ConfigError: ``n_baseline < 1`` (when drawn).
+        DemonstrationError: ``baseline`` has another number of states or actions.
+    """
+    if baseline is None:
+        if int(n_baseline) < 1:
+            raise ConfigError(f"n_baseline must be >= 1, got {n_baseline}")
+        return uniform_baseline(demos, model, int(n_baseline), longest, rng)
+    if (baseline.n_states, baseline.n_actions) != (demos.n_states, demos.n_actions):
+        raise DemonstrationError(
+            f"baseline {baseline.source}: {baseline.n_states} states x {baseline.n_actions} actions, "
+            f"experts have {demos.n_states} x {demos.n_actions}"
+        )
+    return baseline
+
+
+def _feature_counts(demos: Demonstrations, baseline: Demonstrations, length: int,
+                    pad_step: PadStep | None, gamma: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(f_expert [K], f_base [m, K])``: the experts' mean and the baseline's per-trajectory
+    discounted feature counts, every trajectory padded to ``length`` steps."""
+    phi = np.asarray(demos.features)
+    es, ea = pad_trajectories(demos.states, demos.actions, length, pad_step)
+    bs, ba = pad_trajectories(baseline.states, baseline.actions, length, pad_step)
+    return discounted_counts(es, ea, phi, gamma).mean(axis=0), discounted_counts(bs, ba, phi, gamma)
+
+
+def _final_q(theta: np.ndarray, phi: np.ndarray, model, config: IRLConfig) -> tuple[np.ndarray, str]:
+    """``(q [S, A], failure)``: the Boltzmann Q of the MDP for ``theta`` and ``""``; where it has
+    no computable fixed point, ``Q = R = phi @ theta`` and the message suffix saying so."""
+    try:
+        return np.asarray(solve_q(theta, phi, model, config)), ""
+    except IRLError as e:  # the MDP for this theta has no computable Boltzmann fixed point
+        return phi @ theta, f"; solving the MDP for the learned theta failed ({e}): loglik uses Q = R"
+
+
+def _verdict(unbounded: bool, eps: np.ndarray, theta_cap: float) -> str:
+    """The message suffix of a dual without minimiser (``unbounded``) or with every weight 0."""
+    eps_text = np.array2string(eps, precision=3)
+    if unbounded:
+        return (f"; INFEASIBLE: the dual is unbounded below (no reweighting of the baseline matches the "
+                f"experts' feature counts within eps = {eps_text}); theta is only the minimiser within "
+                f"|theta_k| <= {theta_cap:g} and must not be used as a driver")
+    return (f"; UNINFORMATIVE: every weight is 0 (the experts' feature counts lie within eps = "
+            f"{eps_text} of the baseline's: indistinguishable at this confidence)")
 
 
 def problem_options(problem, config: IRLConfig, *, epsilon: float | None = DEFAULT_EPSILON,

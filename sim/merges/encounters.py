@@ -49,6 +49,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Callable, Collection
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -256,76 +257,31 @@ def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),
     index = TableIndex(table, site.merge_lane)  # merge-lane vehicles per frame by Local_Y: A/C look-ups
     if not index.unique:
         raise TrajectoryFormatError("trajectory table: duplicate (Vehicle_ID, Frame_ID) rows")
-    vid, frame, y, rows = index.vid, index.frame, index.y, index.rows
-    vel = table["v_Vel"].to_numpy(np.float64)
-    length = (table["v_Length"].to_numpy(np.float64) if "v_Length" in table.columns
-              else np.full(len(table), np.nan))
-    length = np.where(length > 0, length, np.nan)  # a length of 0 (NGSIM's readers accept it) is unknown
-    vclass = table["v_Class"].to_numpy(np.int64)
-    gtime = table["Global_Time"].to_numpy(np.int64)
-    first_frame = pd.Series(frame).groupby(vid).min()
-    last_frame = pd.Series(frame).groupby(vid).max()
+    vid, frame, rows = index.vid, index.frame, index.rows
+    cols = _row_columns(table, index)
 
     controlled = (take_overs(index, merges, take_over, ramp_lanes=tuple(site.ramp_lanes))
                   if take_over is not None else None)
     summary, chunks = [], []
     for eid, (b, mf) in enumerate(zip(merges["B_id"].to_numpy(), merges["merge_frame"].to_numpy()), start=1):
         rb = rows(b, np.array([mf]))[0]
-        truck = bool(vclass[rb] == V_CLASS_TRUCK)
+        truck = bool(cols.vclass[rb] == V_CLASS_TRUCK)
         observed = bool(rows(b, np.array([mf - 1]))[0] >= 0)  # B seen in the frame before its merge frame
         gap_before = 0 if observed else int(mf - 1 - frame[(vid == b) & (frame < mf)].max())
         if controlled is not None:
             to = controlled[eid - 1]
-            a, start = to.a_id, to.start
+            a, c, start = to.a_id, 0, to.start
             frames = np.arange(to.start, to.end, dtype=np.int64)
         else:
-            ys_m, vids_m = index.merge_lane_at(int(mf))
-            ys_m, vids_m = [yy for yy, v in zip(ys_m, vids_m) if v != b], vids_m[vids_m != b]
-            ia, ic = lag_lead_positions(ys_m, float(y[rb]))  # the controller's rule too
-            a = int(vids_m[ia]) if ia >= 0 else 0
-            c = int(vids_m[ic]) if ic >= 0 else 0
-            start = mf
-            if a:
-                start = int(max(first_frame[a], first_frame[b]))
-                if window.max_frames_before is not None:
-                    start = max(start, int(mf) - window.max_frames_before)
-            frames = np.arange(start, mf + window.frames_after + 1, dtype=np.int64)
+            a, c, start, frames = _merge_frame_window(index, cols, window, b, mf, rb)
+        n = n_lead_gaps = 0
         if a:
-            ra, rbb, ra_next = rows(a, frames), rows(b, frames), rows(a, frames + 1)
-            keep = (ra >= 0) & (rbb >= 0) & (ra_next >= 0)
-            frames, ra, rbb, ra_next = frames[keep], ra[keep], rbb[keep], ra_next[keep]
-            if controlled is not None:  # C: A's lead car other than B, frame by frame
-                c_ids = np.array([index.lead(int(f), float(ya), (a, int(b))) for f, ya in zip(frames, y[ra])],
-                                 dtype=np.int64)
-                rc = np.where(c_ids > 0, index.row_of.get_indexer(pd.MultiIndex.from_arrays([c_ids, frames])), -1)
-                at_merge = np.flatnonzero(frames == mf)
-                c = int(c_ids[at_merge[0]]) if len(at_merge) else int(c_ids[-1]) if len(c_ids) else 0
-            else:
-                c_ids = np.full(frames.shape, c, np.int64)
-                rc = rows(c, frames) if c else np.full(frames.shape, -1)
-            c_gap = lead_gap_frames(frames, c_ids, rc, rows, first_frame, last_frame)
-            if c_gap.any():  # left out as A's and B's gaps are: counted, and learning splits there
-                frames, ra, rbb, ra_next = frames[~c_gap], ra[~c_gap], rbb[~c_gap], ra_next[~c_gap]
-                c_ids, rc = c_ids[~c_gap], rc[~c_gap]
-            n_lead_gaps = int(c_gap.sum())
-            hc = rc >= 0
-            yc = np.where(hc, y[np.where(hc, rc, 0)], np.nan)
-            vc = np.where(hc, vel[np.where(hc, rc, 0)], np.nan)
-            lc = np.where(hc, length[np.where(hc, rc, 0)], np.nan)
-            chunks.append(pd.DataFrame({
-                "encounter_id": eid, "B_id": b, "A_id": a, "C_id": c_ids,
-                "Frame_ID": frames, "Global_Time": gtime[ra], "merge_frame": mf,
-                "d_AC": yc - y[ra], "d_AB": y[rbb] - y[ra],
-                "v_AC": vel[ra] - vc, "v_AB": vel[ra] - vel[rbb],
-                "B_is_truck": truck, "acc_A": forward_acceleration(vel[ra], vel[ra_next], FRAME_S),
-                "v_A": vel[ra], "len_C": lc, "len_B": length[rbb], "merge_observed": observed,
-            }))
+            chunk, c, frames, n_lead_gaps = _encounter_frames(
+                index, cols, _Encounter(eid, b, a, c, mf, truck, observed), frames,
+                controlled=controlled is not None)
+            chunks.append(chunk)
             n = len(frames)
-        else:
-            n = n_lead_gaps = 0
-            if controlled is not None:
-                c = 0
-        summary.append((eid, b, a, c, mf, gtime[rb], truck, start, n, observed, gap_before,
+        summary.append((eid, b, a, c, mf, cols.gtime[rb], truck, start, n, observed, gap_before,
                         int(np.count_nonzero(np.diff(frames) > 1)) if n else 0, n_lead_gaps))
     frames_df = pd.concat(chunks, ignore_index=True) if chunks else _empty(ENCOUNTER_COLUMNS)
     frames_df = frames_df.astype(ENCOUNTER_COLUMNS).loc[:, list(ENCOUNTER_COLUMNS)]
@@ -337,6 +293,122 @@ def extract(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),
                       "are (not read as 'no lead car'); learning splits the encounters there (merges summary: "
                       "lead_gap_frames)", LeadGapWarning, stacklevel=2)
     return Encounters(frames_df, merges_df, excluded)
+
+
+class _RowColumns(NamedTuple):
+    """The table's per-row columns that :func:`extract` reads (each of length n_rows, in table order).
+
+    ``vel``: v_Vel (ft/s, float64); ``length``: v_Length (ft, float64; NaN where the table has no
+    such column or the length is not > 0); ``vclass``: v_Class (int64); ``gtime``: Global_Time
+    (ms, int64); ``first_frame`` / ``last_frame``: each Vehicle_ID's first and last Frame_ID.
+    """
+
+    vel: np.ndarray
+    length: np.ndarray
+    vclass: np.ndarray
+    gtime: np.ndarray
+    first_frame: pd.Series
+    last_frame: pd.Series
+
+
+def _row_columns(table: pd.DataFrame, index: TableIndex) -> _RowColumns:
+    """The per-row columns of ``table`` that :func:`extract` reads (see :class:`_RowColumns`)."""
+    vel = table["v_Vel"].to_numpy(np.float64)
+    length = (table["v_Length"].to_numpy(np.float64) if "v_Length" in table.columns
+              else np.full(len(table), np.nan))
+    length = np.where(length > 0, length, np.nan)  # a length of 0 (NGSIM's readers accept it) is unknown
+    vclass = table["v_Class"].to_numpy(np.int64)
+    gtime = table["Global_Time"].to_numpy(np.int64)
+    first_frame = pd.Series(index.frame).groupby(index.vid).min()
+    last_frame = pd.Series(index.frame).groupby(index.vid).max()
+    return _RowColumns(vel, length, vclass, gtime, first_frame, last_frame)
+
+
+class _Encounter(NamedTuple):
+    """One merge as :func:`_encounter_frames` writes it: ids (Vehicle_ID; ``c`` 0 for none) and merge frame."""
+
+    eid: int
+    b: int
+    a: int
+    c: int
+    mf: int
+    truck: bool
+    observed: bool
+
+
+def _merge_frame_window(index: TableIndex, cols: _RowColumns, window: EncounterWindow,
+                        b: int, mf: int, rb: int) -> tuple[int, int, int, np.ndarray]:
+    """A and C of B at its merge frame ``mf`` (B's row ``rb``), and the window's frames.
+
+    Returns ``(a, c, start, frames)``: A's and C's Vehicle_IDs (0 for none), the window's first
+    frame (``mf`` without A) and its frames (int64 Frame_IDs, ``start`` .. ``mf + frames_after``).
+    """
+    ys_m, vids_m = index.merge_lane_at(int(mf))
+    ys_m, vids_m = [yy for yy, v in zip(ys_m, vids_m) if v != b], vids_m[vids_m != b]
+    ia, ic = lag_lead_positions(ys_m, float(index.y[rb]))  # the controller's rule too
+    a = int(vids_m[ia]) if ia >= 0 else 0
+    c = int(vids_m[ic]) if ic >= 0 else 0
+    start = mf
+    if a:
+        start = int(max(cols.first_frame[a], cols.first_frame[b]))
+        if window.max_frames_before is not None:
+            start = max(start, int(mf) - window.max_frames_before)
+    frames = np.arange(start, mf + window.frames_after + 1, dtype=np.int64)
+    return a, c, start, frames
+
+
+def _lead_cars(index: TableIndex, enc: _Encounter, frames: np.ndarray, ra: np.ndarray,
+               *, controlled: bool) -> tuple[np.ndarray, np.ndarray, int]:
+    """C frame by frame over ``frames`` (A's rows ``ra``, both of length n_frames).
+
+    Returns ``(c_ids, rc, c)``: C's Vehicle_ID per frame (int64, 0 for none), C's table row per
+    frame (-1 where C has none) and the C of the merges summary. Under the take-over rule C is
+    A's lead car other than B in every frame (the summary's C: the one at the merge frame, else
+    the last); otherwise the merge frame's ``enc.c`` throughout.
+    """
+    if controlled:  # C: A's lead car other than B, frame by frame
+        c_ids = np.array([index.lead(int(f), float(ya), (enc.a, int(enc.b))) for f, ya in zip(frames, index.y[ra])],
+                         dtype=np.int64)
+        rc = np.where(c_ids > 0, index.row_of.get_indexer(pd.MultiIndex.from_arrays([c_ids, frames])), -1)
+        at_merge = np.flatnonzero(frames == enc.mf)
+        c = int(c_ids[at_merge[0]]) if len(at_merge) else int(c_ids[-1]) if len(c_ids) else 0
+        return c_ids, rc, c
+    c_ids = np.full(frames.shape, enc.c, np.int64)
+    rc = index.rows(enc.c, frames) if enc.c else np.full(frames.shape, -1)
+    return c_ids, rc, enc.c
+
+
+def _encounter_frames(index: TableIndex, cols: _RowColumns, enc: _Encounter, frames: np.ndarray,
+                      *, controlled: bool) -> tuple[pd.DataFrame, int, np.ndarray, int]:
+    """The per-frame rows (ENCOUNTER_COLUMNS' names) of one encounter with an A over the window ``frames``.
+
+    Frames without A, B or A's next row, and frames in a gap of C's rows, are left out.
+    Returns ``(chunk, c, kept_frames, n_lead_gaps)``: the rows, the summary's C (Vehicle_ID, 0
+    for none), the kept Frame_IDs (int64) and how many frames a gap in C's rows left out.
+    """
+    rows, y, vel, length = index.rows, index.y, cols.vel, cols.length
+    a, b, mf = enc.a, enc.b, enc.mf
+    ra, rbb, ra_next = rows(a, frames), rows(b, frames), rows(a, frames + 1)
+    keep = (ra >= 0) & (rbb >= 0) & (ra_next >= 0)
+    frames, ra, rbb, ra_next = frames[keep], ra[keep], rbb[keep], ra_next[keep]
+    c_ids, rc, c = _lead_cars(index, enc, frames, ra, controlled=controlled)
+    c_gap = lead_gap_frames(frames, c_ids, rc, rows, cols.first_frame, cols.last_frame)
+    if c_gap.any():  # left out as A's and B's gaps are: counted, and learning splits there
+        frames, ra, rbb, ra_next = frames[~c_gap], ra[~c_gap], rbb[~c_gap], ra_next[~c_gap]
+        c_ids, rc = c_ids[~c_gap], rc[~c_gap]
+    hc = rc >= 0
+    yc = np.where(hc, y[np.where(hc, rc, 0)], np.nan)
+    vc = np.where(hc, vel[np.where(hc, rc, 0)], np.nan)
+    lc = np.where(hc, length[np.where(hc, rc, 0)], np.nan)
+    chunk = pd.DataFrame({
+        "encounter_id": enc.eid, "B_id": b, "A_id": a, "C_id": c_ids,
+        "Frame_ID": frames, "Global_Time": cols.gtime[ra], "merge_frame": mf,
+        "d_AC": yc - y[ra], "d_AB": y[rbb] - y[ra],
+        "v_AC": vel[ra] - vc, "v_AB": vel[ra] - vel[rbb],
+        "B_is_truck": enc.truck, "acc_A": forward_acceleration(vel[ra], vel[ra_next], FRAME_S),
+        "v_A": vel[ra], "len_C": lc, "len_B": length[rbb], "merge_observed": enc.observed,
+    })
+    return chunk, c, frames, int(c_gap.sum())
 
 
 def extract_encounters(table: pd.DataFrame, *, window: EncounterWindow = EncounterWindow(),

@@ -6,7 +6,7 @@ A learned file is JSON with a ``format`` field ``"<family>/<version>"`` (``merge
 builds, its acceleration for replaying real car-following pairs
 (``merge-irl calibrate evaluate --driver``) and its reward for the environment. Everything that
 reads a learned file asks this registry, and only it reads the ``format`` field:
-``merge-irl evaluate --model/--driver`` (:func:`driver_policy`), ``calibrate evaluate --driver``
+``merge-irl evaluate --driver`` (:func:`driver_policy`), ``calibrate evaluate --driver``
 (:func:`replay_act`), the environment's ``reward=`` (:func:`driver_reward`), :func:`load_driver`
 and :func:`policy_callable`.
 
@@ -201,10 +201,9 @@ def _registered(path: str | os.PathLike, fmt: str, role: Role | None, option: st
         raise ModelFileError(f"{path}: format {fmt!r} is not a registered model or driver format; expected one of: "
                              f"{_known()}")
     if role is not None and f.role != role:
-        other = "--model" if f.role == "model" else "--driver"
         given = f" ({option})" if option else ""
         raise ModelFileError(f"{path}{given}: format {fmt!r} is not a {role}'s: it is a {f.label}; give it to "
-                             f"'merge-irl evaluate {other}'")
+                             "'merge-irl evaluate --driver'")
     return f
 
 

@@ -4,7 +4,8 @@ ratios, not a timed test).
     python -m benchmarks.driver_targets --driver pairs-replay.json \
         --pairs ../shared/data/ngsim_i80_car_following --params cal.toml \
         [--i80-seeds 1-30] [--synthetic-seeds 1-30,2000-2059] [--demos HELD-OUT.parquet] \
-        [--train-demos TRAIN.parquet] [--skip i80,synthetic,pairs] [--workers N] [--json OUT]
+        [--train-demos TRAIN.parquet] [--skip i80,synthetic,pairs] [--duration S] [--workers N] \
+        [--out-dir DIR] [--json OUT]
 
 ``--params`` is ``merge-irl calibrate fit --pairs PAIRS --classes 3 --holdout 0.3 --seed 0``'s
 file; ``--holdout``/``--seed`` must match it (the same held-out followers). Three tables, each
@@ -118,15 +119,16 @@ class Closed:
 
 
 def eb_near_a(agg: Any) -> int:
-    """Emergency brakings near A counted for A: the by-role field where the evaluation has one,
-    else the total near A (``emergency_brakings``)."""
-    for name in ("emergency_brakings_by_role", "emergency_brakings_role"):
-        by = getattr(agg, name, None)
-        if isinstance(by, dict) and "A" in by:
-            return int(by["A"])
-    for name in ("emergency_brakings_A", "emergency_brakings_a"):
-        if isinstance(getattr(agg, name, None), (int, np.integer)):
-            return int(getattr(agg, name))
+    """Emergency brakings near A counted for A: a by-role count of A where the evaluation has one
+    (a field ``emergency_brakings*`` holding a role -> count mapping with ``A``, or one named
+    ``emergency_brakings*_A``), else the total near A (``emergency_brakings``)."""
+    fields = {k: v for k, v in vars(agg).items() if k.startswith("emergency_brakings")}
+    for v in fields.values():
+        if isinstance(v, dict) and "A" in v:
+            return int(v["A"])
+    for k, v in fields.items():
+        if k.lower().endswith("_a") and isinstance(v, (int, np.integer)):
+            return int(v)
     return int(agg.emergency_brakings)
 
 
@@ -146,10 +148,15 @@ def run_closed(args, scenario: str, ranges, baselines, out_root: Path, **kw) -> 
         out = out_root / f"{scenario}-{first}-{first + n - 1}"
         log(f"{scenario}: seeds {first}-{first + n - 1}, {len(args.driver)} driver(s) + {list(baselines)} -> {out}")
         rep = evaluate(args.driver, scenario, n, first, out, baselines=baselines, workers=args.workers, rrd=False,
-                       progress=True, **kw)
+                       duration_s=args.duration, progress=True, **kw)
         for name, agg in rep.aggregates.items():
             by.setdefault(name, []).append(agg)
     return {name: closed_of(aggs) for name, aggs in by.items()}
+
+
+def drivers_first(res: dict[str, Closed], baselines) -> list[tuple[str, Closed]]:
+    """The learned drivers, then the baselines, each in the evaluation's order."""
+    return sorted(res.items(), key=lambda kv: kv[0] in baselines)
 
 
 def closed_row(name: str, c: Closed, ref: Closed | None, ref_b_ahead: float, ref_name: str) -> dict[str, Any]:
@@ -189,7 +196,7 @@ def i80_table(args, out_root: Path) -> list[dict[str, Any]]:
     res = run_closed(args, "i80", seed_ranges(args.i80_seeds), ("uniform", "sumo", "sumo-in-lane"), out_root)
     ref = res.get("sumo")
     rows = []
-    for name, c in res.items():
+    for name, c in drivers_first(res, ("uniform", "sumo", "sumo-in-lane")):
         r = closed_row(name, c, ref, ref.b_ahead if ref else float("nan"), "sumo")
         if name not in ("uniform", "sumo", "sumo-in-lane"):
             r["targets"] = closed_targets(r, timeouts=True)
@@ -213,7 +220,7 @@ def synthetic_table(args, out_root: Path) -> list[dict[str, Any]]:
                      train_demos=args.train_demos)
     ref, demo_ahead = res.get("sumo-in-lane"), demos_b_ahead(args.demos)
     rows = []
-    for name, c in res.items():
+    for name, c in drivers_first(res, base):
         r = closed_row(name, c, ref, demo_ahead, "sumo-in-lane")
         if name not in base:
             r["targets"] = closed_targets(r, timeouts=False)
@@ -385,6 +392,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--demos", default=None, metavar="HELD-OUT.parquet")
     ap.add_argument("--train-demos", default=None, metavar="TRAIN.parquet")
     ap.add_argument("--skip", default="", help="comma-separated tables to skip: i80, synthetic, pairs")
+    ap.add_argument("--duration", type=float, default=None, help="simulated s per episode (default: the scenario's)")
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--out-dir", default=None, help="evaluation outputs (default: a temporary folder)")
     ap.add_argument("--json", default=None, metavar="FILE")

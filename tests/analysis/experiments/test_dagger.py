@@ -131,7 +131,7 @@ def test_cli_rejects_bad_input_in_one_line_before_sumo(tmp_path, capsys):
     bad.write_text('{"format": "merge-irl-model/1"}')
     assert main(["evaluate", "--cf-model", str(bad), "--baselines", "", "--out", str(tmp_path / "e")]) == 2
     # --cf-model (an alias of --driver) reads through the driver-format registry: the file's own fault, named
-    assert "bad.json: missing field 'method'" in capsys.readouterr().err and not (tmp_path / "e").exists()
+    assert "bad.json: method: missing" in capsys.readouterr().err and not (tmp_path / "e").exists()
     # a driver file where an IRL model.json is expected says which command takes it
     good = CarFollowingLogit.fit(car_following_decisions(_accelerating_demos())).save(tmp_path / "cf.json")
     assert main(["score", "--model", str(good), "--demos", str(table)]) == 2

@@ -82,7 +82,7 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys):
     assert main(["evaluate", "--driver", str(not_a_driver), "--baselines", "", "--out", str(tmp_path / "ev")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     # --driver takes a file of any registered format: a tabular model's file is read as one, and its fault named
-    assert len(err) == 1 and "model.json: missing field 'method'" in err[0]
+    assert len(err) == 1 and "model.json: method: missing" in err[0]
     assert main(["calibrate", "evaluate", "--pairs", str(PAIRS)]) == 2
     assert "--params FILE" in capsys.readouterr().err
 

@@ -24,7 +24,9 @@ predicted above, and B counts (features) only while predicted ahead (front to fr
 ``"driver"``, a driver's view of the road from A's observation alone:
 
 * B ahead at the observation stays a leader over the whole path (nothing drives through a car:
-  its features saturate instead of vanishing once the prediction puts it behind A);
+  its features saturate instead of vanishing once the prediction puts it behind A), unless its
+  front is beyond C's rear (``d_AB > d_AC - len_C``: beside or ahead of C, so not between A and
+  C, and C is the leader);
 * ``col``: a leader (C, or B ahead) at a bumper gap ``<= 0``, or below ``margin_ft`` while A is
   faster than it (:func:`~irl.planning.features.closing_margin`); a leader whose bumper gap is
   not positive at the observation (a car alongside, in the other lane) is no collision partner;
@@ -153,10 +155,7 @@ class PlannerConfig:
         if not (isinstance(self.temperature, (int, float)) and not isinstance(self.temperature, bool)
                 and math.isfinite(self.temperature) and self.temperature > 0):
             problems.append(f"temperature must be a finite number > 0, got {self.temperature!r}")
-        for name, low in (("c_brake_ft_s2", 1e-9), ("margin_ft", 0.0)):
-            x = getattr(self, name)
-            if not (isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and x >= low):
-                problems.append(f"{name} must be a finite number {'> 0' if low else '>= 0'}, got {x!r}")
+        problems += _road_problems(self.c_brake_ft_s2, self.margin_ft)
         for name in ("jerk", "free_road", "with_bias", "gap_track"):
             if not isinstance(getattr(self, name), bool):
                 problems.append(f"{name} must be true or false, got {getattr(self, name)!r}")
@@ -188,6 +187,15 @@ class PlannerConfig:
         """``[depth]`` int: the first step of each segment."""
         n = self.n_steps
         return np.array([0, 1] if self.depth == 2 else [0, 1, 1 + (n - 1) // 2])
+
+
+def _road_problems(c_brake_ft_s2: object, margin_ft: object) -> list[str]:
+    """The problems of the driver road model's numbers (:class:`PlannerConfig`)."""
+    out = []
+    for name, x, low in (("c_brake_ft_s2", c_brake_ft_s2, 1e-9), ("margin_ft", margin_ft, 0.0)):
+        if not (isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and x >= low):
+            out.append(f"{name} must be a finite number {'> 0' if low else '>= 0'}, got {x!r}")
+    return out
 
 
 def leaf_accelerations(config: PlannerConfig, action_acc: np.ndarray,
@@ -306,7 +314,9 @@ def _paths_chunk(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray, leave
     has_C = np.isfinite(d_AC) & np.isfinite(v_AC)
     d_AC = np.where(has_C, d_AC, 1e6)
     v_C0 = np.where(has_C, v_A0 - np.where(has_C, v_AC, 0.0), 0.0)
-    B_lead = np.isfinite(d_AB) & np.isfinite(v_AB) & (d_AB > 0)
+    road = config.road_model == "driver"
+    # the driver's model: B beside or ahead of C's rear is not between A and C (one car per lane spot)
+    B_lead = np.isfinite(d_AB) & np.isfinite(v_AB) & (d_AB > 0) & ~(road & has_C & (d_AB > d_AC - len_C))
     d_AB = np.where(B_lead, d_AB, 1e6)
     v_B0 = np.where(B_lead, v_A0 - np.where(B_lead, v_AB, 0.0), 0.0)
     L, n = leaves.shape[1:]
@@ -329,7 +339,6 @@ def _paths_chunk(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray, leave
     s_C = d_AC + v_C0 * te + 0.5 * a_C * te * te - x_A - len_C
     v_C = np.maximum(v_C0 + a_C * te, 0.0)
     d_B = d_AB + v_B0 * t - x_A
-    road = config.road_model == "driver"
     B_ahead = B_lead if road else B_lead & (d_B > 0)
     acc_prev = np.empty((obs.shape[0], L, n))
     acc_prev[:, :, 1:] = leaves[:, :, :-1]

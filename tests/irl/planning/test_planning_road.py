@@ -106,6 +106,12 @@ def test_b_ahead_is_a_leader_and_never_driven_through() -> None:
     assert np.all(T_new.Phi[0, grid == 9.0, ..., j] > T_old.Phi[0, grid == 9.0, ..., j])
     # B alongside (bumper gap not positive at the observation, the other lane): no collision partner
     assert step_col(obs_row(d_AB=5.0, v_AB=0.0, v_A=40.0, len_B=15.0), 0.0, DRIVER) == 0.0
+    # B stopped beside C (its front beyond C's rear): not between A and C, so C is the leader
+    beside_C = obs_row(d_AC=200.0, v_AC=0.0, d_AB=190.0, v_AB=40.0, v_A=40.0, len_C=15.0, len_B=15.0)
+    between = obs_row(d_AC=200.0, v_AC=0.0, d_AB=55.0, v_AB=40.0, v_A=40.0, len_C=15.0, len_B=15.0)
+    T_beside = path_tensors(beside_C, np.zeros(1), np.zeros(1), ACC, Shape(), DRIVER)
+    assert np.all(T_beside.Phi[0, ..., j] == 0.0) and np.all(T_beside.Col == 0.0)
+    assert step_col(between, 9.0, DRIVER) >= 1.0
 
 
 def legacy_file_of(driver: PlanningDriver) -> dict:

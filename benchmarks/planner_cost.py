@@ -1,11 +1,13 @@
 """Per-decision cost of the planning driver on one observation (one core), beside the
-car-following logit's, and their ratio (target: <= 2 ms per planner decision).
+car-following logit's, and their ratio (target: <= 3 ms per planner decision), under both road
+models of the planner (``legacy`` and ``driver``, side by side).
 
     PYTHONPATH=. OMP_NUM_THREADS=1 python benchmarks/planner_cost.py
 
 Times ``PlanningDriver.act`` (path tensors of the observation, the backup, the softmax, the most
 likely fine action: what a controller does per decision) and ``CarFollowingLogit.log_policy``,
-the median of repeated calls after warm-up, for each grid and tree.
+the median of repeated calls after warm-up, for each grid and tree (B ahead of A, so the driver
+model's safety condition runs for both leaders).
 """
 
 from __future__ import annotations
@@ -46,17 +48,21 @@ def main() -> None:
     prev, prev_acc, acc_C = np.array([2]), np.array([0.3]), np.array([-1.0])
     cf = CarFollowingLogit(rng.normal(0, 0.5, len(CF_FEATURES)), ACC, 0.3)
     t_cf = per_call_ms(lambda: cf.log_policy(obs, prev))
-    print(f"{'driver':58s} {'ms/decision':>11s} {'x cf-logit':>10s}")
-    print(f"{'cf-logit (CarFollowingLogit.log_policy)':58s} {t_cf:11.3f} {1.0:10.1f}")
+    print(f"{'driver':58s} {'ms legacy':>9s} {'ms driver':>9s} {'x cf-logit':>10s}")
+    print(f"{'cf-logit (CarFollowingLogit.log_policy)':58s} {t_cf:9.3f} {t_cf:9.3f} {1.0:10.1f}")
     for grid, depth, horizon, later in (("g13", 2, 3.0, "bins"), ("g24", 2, 2.1, "bins"), ("g24", 2, 3.9, "bins"),
                                         ("g24", 2, 3.0, "bins+hold"), ("g24", 3, 3.0, "bins")):
         for backup in ("avg", "boltzmann", "softmax"):
-            cfg = PlannerConfig(horizon_s=horizon, depth=depth, backup=backup, grid=grid, later=later, c_model="ca")
-            drv = PlanningDriver(rng.normal(0, 0.5, len(cfg.feature_names)), cfg.feature_names, cfg, Shape(), 0.3, ACC)
-            t = per_call_ms(_act_of(drv, obs, prev_acc, acc_C))
+            ts = []
+            theta = rng.normal(0, 0.5, len(PlannerConfig().feature_names))
+            for road in ("legacy", "driver"):
+                cfg = PlannerConfig(horizon_s=horizon, depth=depth, backup=backup, grid=grid, later=later,
+                                    c_model="ca", road_model=road)
+                drv = PlanningDriver(theta, cfg.feature_names, cfg, Shape(), 0.3, ACC)
+                ts.append(per_call_ms(_act_of(drv, obs, prev_acc, acc_C)))
             paths = drv.fine_grid.size * (5 + (later == "bins+hold")) ** (depth - 1)
             name = f"planner {grid} {backup} depth={depth} H={horizon}s {later} ({paths} paths)"
-            print(f"{name:58s} {t:11.3f} {t / t_cf:10.1f}")
+            print(f"{name:58s} {ts[0]:9.3f} {ts[1]:9.3f} {ts[1] / t_cf:10.1f}")
 
 
 if __name__ == "__main__":

@@ -40,13 +40,15 @@ from irl.planning.model import PathTensors, PlannerConfig, first_step, path_tens
 from irl.planning.policy import bin_log_policy_of_fine, fine_log_policy
 from merge_irl.atomic import write_json_atomic
 from merge_irl.json_file import STRICT, dataclass_schema, read_json_object, to_dataclass, validate
+from merge_irl.units import FT_PER_M
 
 #: The ``format`` field of a planner file.
 PLANNER_FORMAT = "merge-irl-planner/1"
 #: Keys of the file's ``config`` that older files lack, with the values those files meant (a
 #: fitted jerk weight was then always part of the reward; the current default has none).
 LEGACY_CONFIG: dict[str, Any] = {"jerk": True, "free_road": False, "lag": 1.0, "v0_ft_s": 0.0, "jerk_weight": None,
-                                 "gap_track": False, "temperature": 1.0}
+                                 "gap_track": False, "temperature": 1.0, "road_model": "legacy",
+                                 "c_brake_ft_s2": 4.5 * FT_PER_M, "margin_ft": 1.0 * FT_PER_M}
 OPTIONAL_CONFIG_KEYS = frozenset(LEGACY_CONFIG)
 
 
@@ -149,7 +151,7 @@ class PlanningDriver:
     def step_reward(self, obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray, acc: np.ndarray) -> np.ndarray:
         """``[N]`` the learned reward of one decision step: ``theta . phi`` of the step that applies
         ``acc [N]`` (ft/s^2) from observations ``obs [N, 7]`` (with ``prev_acc [N]`` and C's
-        ``acc_C [N]``, ft/s^2), plus ``collision_penalty`` when the step ends in a collision with C:
+        ``acc_C [N]``, ft/s^2), plus ``collision_penalty`` times its collision count (``first_step``):
         the first step of every path the planner scores (:func:`~.model.path_tensors`)."""
         obs = np.asarray(obs, dtype=np.float64).reshape(-1, 7)
         acc = np.asarray(acc, dtype=np.float64).reshape(-1)

@@ -34,8 +34,11 @@ on ``a`` and the acceleration held before it (``a_prev``, continuous):
                           optional).
 ========================  ==================================================================
 
-A collision is a bumper gap ``<= 0`` to C (the leader in A's lane); B, the merging car in the
-next lane, is no collision partner.
+A collision (legacy road model) is a bumper gap ``<= 0`` to C (the leader in A's lane); B, the
+merging car in the next lane, is no collision partner. The driver's road model
+(:attr:`~irl.planning.model.PlannerConfig.road_model`) also counts B ahead of A, a gap below a
+margin while it closes, and a first action after which A, braking at its emergency deceleration,
+could not stay behind a leader braking hard (:func:`min_gap_braking`, :func:`closing_margin`).
 
 **Shape fit** (:func:`fit_shape`): ``v0`` a high quantile of A's speed; ``s0, T, b`` by a robust
 least-squares fit of IDM's acceleration to the demonstrated ones. IDM's maximum acceleration
@@ -227,3 +230,37 @@ def step_features(s_C: np.ndarray, v_C: np.ndarray, has_C: np.ndarray, s_B: np.n
 def collision(s_C: np.ndarray, has_C: np.ndarray) -> np.ndarray:
     """bool, the broadcast shape: the step ends in a collision with C (bumper gap ``<= 0``)."""
     return has_C & (s_C <= 0.0)
+
+
+def closing_margin(s: np.ndarray, v_a: np.ndarray, v_l: np.ndarray, present: np.ndarray,
+                   margin_ft: float) -> np.ndarray:
+    """bool, the broadcast shape: a bumper gap ``s`` (ft) to a ``present`` leader ``<= 0``, or
+    below ``margin_ft`` while A (speed ``v_a``) is faster than the leader (``v_l``, ft/s): a small
+    gap that opens costs nothing."""
+    return present & ((s <= 0.0) | ((s < margin_ft) & (v_a > v_l)))
+
+
+def min_gap_braking(gap: np.ndarray, v_f: np.ndarray, v_l: np.ndarray, b_f: np.ndarray | float,
+                    b_l: np.ndarray | float) -> np.ndarray:
+    """The smallest bumper gap (ft) over ``t >= 0`` when a follower at speed ``v_f`` brakes at
+    ``b_f > 0`` and its leader at ``v_l`` brakes at ``b_l > 0`` (ft/s, ft/s^2), each until it
+    stops, from the bumper gap ``gap``; closed form, broadcast over the inputs.
+
+    The gap is piecewise quadratic in ``t``, with kinks where either car stops; while both move
+    it has a stationary point where the speeds are equal (a minimum when ``b_f > b_l``), and once
+    one has stopped it is monotone. Its minimum is therefore the least of its values at 0, at the
+    equal-speed time (clipped into the phase where both move) and at both stopping times
+    (the safe-distance condition of Gipps 1981, Transp. Res. B 15, 105, without its
+    approximations).
+    """
+    v_f, v_l = np.maximum(v_f, 0.0), np.maximum(v_l, 0.0)
+    t_f, t_l = v_f / b_f, v_l / b_l
+    db = np.asarray(b_f - b_l, dtype=np.float64)
+    t_eq = np.where(db > 0, np.maximum(v_f - v_l, 0.0) / np.where(db > 0, db, 1.0), 0.0)
+    t_eq = np.minimum(t_eq, np.minimum(t_f, t_l))
+
+    def at(t: np.ndarray) -> np.ndarray:
+        tf, tl = np.minimum(t, t_f), np.minimum(t, t_l)
+        return gap + (v_l * tl - 0.5 * b_l * tl * tl) - (v_f * tf - 0.5 * b_f * tf * tf)
+
+    return np.minimum(np.minimum(gap, at(t_eq)), np.minimum(at(t_f), at(t_l)))

@@ -12,12 +12,30 @@ coarse accelerations, the five paper actions' training means (``later="bins"``) 
 "hold the first action" (``later="bins+hold"``, ``C = 6``). ``depth=2``: one later segment,
 steps ``1..n-1``; ``depth=3``: steps ``1..m-1`` and ``m..n-1``, ``m = 1 + (n - 1) // 2``. A
 path's features are ``Phi = sum_k gamma^k phi(s_{k+1}, a_k, a_{k-1})``, ``[N, G, C, (C), K]``,
-and its collisions ``Col = sum_k gamma^k 1[s_C(k+1) <= 0]``.
+and its collisions ``Col = sum_k gamma^k col(k+1)`` (plus ``unsafe`` below, undiscounted).
 
 **Kinematic model** (no theta): A holds each step's acceleration exactly (constant
 acceleration, speed stopping at 0); C at constant velocity (``c_model="cv"``) or constant
 acceleration ``acc_C`` until it stops (``"ca"``); B at constant velocity, a leader only if it was
-ahead at the observation and while predicted ahead (front to front). Positions relative to A's.
+ahead at the observation (``d_AB > 0``). Positions relative to A's.
+
+**Road model** (:attr:`PlannerConfig.road_model`). ``"legacy"``: ``col = 1[s_C <= 0]``, C as
+predicted above, and B counts (features) only while predicted ahead (front to front).
+``"driver"``, a driver's view of the road from A's observation alone:
+
+* B ahead at the observation stays a leader over the whole path (nothing drives through a car:
+  its features saturate instead of vanishing once the prediction puts it behind A), unless its
+  front is beyond C's rear (``d_AB > d_AC - len_C``: beside or ahead of C, so not between A and
+  C, and C is the leader);
+* ``col``: a leader (C, or B ahead) at a bumper gap ``<= 0``, or below ``margin_ft`` while A is
+  faster than it (:func:`~irl.planning.features.closing_margin`); a leader whose bumper gap is
+  not positive at the observation (a car alongside, in the other lane) is no collision partner;
+* ``unsafe`` (1 per path of an unsafe first action; Gipps-style safe distance): a leader may
+  brake from now on at ``b_L = c_brake_ft_s2`` (C: ``max(c_brake_ft_s2, -acc_C)``, harder if it
+  is seen braking harder), and A, after its first step, at its emergency deceleration
+  (``-min(EMERGENCY_FT_S2)``); the first action is unsafe when the smallest bumper gap of that
+  scenario from the end of the first step on (:func:`~irl.planning.features.min_gap_braking`)
+  is ``<= 0``, or below ``margin_ft`` and below the gap at the observation (the gap closes).
 """
 
 from __future__ import annotations
@@ -30,11 +48,22 @@ import numpy as np
 from irl.domains.merge.actions import N_ACTIONS, actions_of
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, frames_per_step
 from irl.errors import ConfigError
-from irl.planning.features import DEFAULT_LENGTH_FT, Shape, collision, feature_names, step_features
+from irl.planning.features import (
+    DEFAULT_LENGTH_FT,
+    Shape,
+    closing_margin,
+    collision,
+    feature_names,
+    min_gap_braking,
+    step_features,
+)
+from merge_irl.units import FT_PER_M
 
 BACKUPS = ("avg", "boltzmann", "softmax")
 C_MODELS = ("cv", "ca")
 LATER = ("bins", "bins+hold")
+#: Road models of the planner's prediction (module docstring).
+ROAD_MODELS = ("driver", "legacy")
 #: Fine acceleration grids of the first action (ft/s^2); ``"bins"``: the five paper actions'
 #: training means (the coarse driver, for comparison).
 #: A's emergency braking (ft/s^2) on every fine grid: about 9 and 6.5 m/s^2, a car's physical
@@ -68,7 +97,11 @@ class PlannerConfig:
         docs of the driver); gap_track: the symmetric gap-tracking features (``gap_track_C``,
         ``gap_track_B``); temperature: ``tau > 0`` of the policy over the first actions,
         ``softmax(Q / tau)``: it changes the likelihood, never the most likely action (a driver
-        fitted by replay gets its ``tau`` from the training likelihood).
+        fitted by replay gets its ``tau`` from the training likelihood); road_model: one of
+        :data:`ROAD_MODELS` (module docstring; files written before it load with ``"legacy"``);
+        c_brake_ft_s2: the deceleration (ft/s^2, > 0) a leader may brake at from now on in the
+        ``"driver"`` model (default 4.5 m/s^2); margin_ft: the bumper gap (ft, >= 0) a path must
+        keep while closing on a leader in the ``"driver"`` model (default 1 m).
 
     Raises:
         ConfigError: a value outside the above.
@@ -91,13 +124,17 @@ class PlannerConfig:
     jerk_weight: float | None = None
     gap_track: bool = False
     temperature: float = 1.0
+    road_model: str = "driver"
+    c_brake_ft_s2: float = 4.5 * FT_PER_M
+    margin_ft: float = 1.0 * FT_PER_M
 
     def __post_init__(self) -> None:
         frames_per_step(self.decision_step_s)
         problems = []
         if self.depth not in (2, 3):
             problems.append(f"depth must be 2 or 3, got {self.depth!r}")
-        for name, options in (("backup", BACKUPS), ("c_model", C_MODELS), ("grid", tuple(GRIDS)), ("later", LATER)):
+        for name, options in (("backup", BACKUPS), ("c_model", C_MODELS), ("grid", tuple(GRIDS)), ("later", LATER),
+                              ("road_model", ROAD_MODELS)):
             if getattr(self, name) not in options:
                 problems.append(f"{name} must be one of {options}, got {getattr(self, name)!r}")
         if not (isinstance(self.gamma, (int, float)) and 0 < self.gamma <= 1):
@@ -118,6 +155,7 @@ class PlannerConfig:
         if not (isinstance(self.temperature, (int, float)) and not isinstance(self.temperature, bool)
                 and math.isfinite(self.temperature) and self.temperature > 0):
             problems.append(f"temperature must be a finite number > 0, got {self.temperature!r}")
+        problems += _road_problems(self.c_brake_ft_s2, self.margin_ft)
         for name in ("jerk", "free_road", "with_bias", "gap_track"):
             if not isinstance(getattr(self, name), bool):
                 problems.append(f"{name} must be true or false, got {getattr(self, name)!r}")
@@ -149,6 +187,15 @@ class PlannerConfig:
         """``[depth]`` int: the first step of each segment."""
         n = self.n_steps
         return np.array([0, 1] if self.depth == 2 else [0, 1, 1 + (n - 1) // 2])
+
+
+def _road_problems(c_brake_ft_s2: object, margin_ft: object) -> list[str]:
+    """The problems of the driver road model's numbers (:class:`PlannerConfig`)."""
+    out = []
+    for name, x, low in (("c_brake_ft_s2", c_brake_ft_s2, 1e-9), ("margin_ft", margin_ft, 0.0)):
+        if not (isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and x >= low):
+            out.append(f"{name} must be a finite number {'> 0' if low else '>= 0'}, got {x!r}")
+    return out
 
 
 def leaf_accelerations(config: PlannerConfig, action_acc: np.ndarray,
@@ -236,9 +283,10 @@ def path_tensors(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray, actio
 
 def first_step(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray, acc: np.ndarray, shape: Shape,
                config: PlannerConfig) -> tuple[np.ndarray, np.ndarray]:
-    """``([N, K] features, [N] collision 0/1)`` of the one decision step that applies ``acc [N]``
+    """``([N, K] features, [N] collision count)`` of the one decision step that applies ``acc [N]``
     (ft/s^2) from ``obs [N, 7]`` (``prev_acc``, ``acc_C`` ``[N]``, NaN -> 0): the first step of a
-    path of :func:`path_tensors`, undiscounted.
+    path of :func:`path_tensors`, undiscounted (0/1; ``"driver"`` road model: 0-2, the step's
+    ``col`` plus ``unsafe``).
 
     Raises:
         ConfigError: arrays of other shapes.
@@ -266,7 +314,9 @@ def _paths_chunk(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray, leave
     has_C = np.isfinite(d_AC) & np.isfinite(v_AC)
     d_AC = np.where(has_C, d_AC, 1e6)
     v_C0 = np.where(has_C, v_A0 - np.where(has_C, v_AC, 0.0), 0.0)
-    B_lead = np.isfinite(d_AB) & np.isfinite(v_AB) & (d_AB > 0)
+    road = config.road_model == "driver"
+    # the driver's model: B beside or ahead of C's rear is not between A and C (one car per lane spot)
+    B_lead = np.isfinite(d_AB) & np.isfinite(v_AB) & (d_AB > 0) & ~(road & has_C & (d_AB > d_AC - len_C))
     d_AB = np.where(B_lead, d_AB, 1e6)
     v_B0 = np.where(B_lead, v_A0 - np.where(B_lead, v_AB, 0.0), 0.0)
     L, n = leaves.shape[1:]
@@ -289,11 +339,38 @@ def _paths_chunk(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray, leave
     s_C = d_AC + v_C0 * te + 0.5 * a_C * te * te - x_A - len_C
     v_C = np.maximum(v_C0 + a_C * te, 0.0)
     d_B = d_AB + v_B0 * t - x_A
-    B_ahead = B_lead & (d_B > 0)
+    B_ahead = B_lead if road else B_lead & (d_B > 0)
     acc_prev = np.empty((obs.shape[0], L, n))
     acc_prev[:, :, 1:] = leaves[:, :, :-1]
     acc_prev[:, :, 0] = prev_acc[:, None]
     f = step_features(s_C, v_C, has_C, d_B - len_B, v_B0, B_ahead, v_A, leaves, acc_prev, shape,
                       config.with_bias, config.jerk, config.free_road, config.gap_track, need)
     g = config.gamma ** np.arange(n)
-    return np.einsum("nlsk,s->nlk", f, g), collision(s_C, has_C) @ g
+    Phi = np.einsum("nlsk,s->nlk", f, g)
+    if not road:
+        return Phi, collision(s_C, has_C) @ g
+    gap_C0, gap_B0 = (d_AC - len_C)[:, :, 0], (d_AB - len_B)[:, :, 0]
+    C_real, B_real = has_C[:, :, 0] & (gap_C0 > 0), B_lead[:, :, 0] & (gap_B0 > 0)
+    col = (closing_margin(s_C, v_A, v_C, C_real[:, :, None], config.margin_ft)
+           | closing_margin(d_B - len_B, v_A, v_B0, B_real[:, :, None], config.margin_ft))
+    b_C = np.maximum(config.c_brake_ft_s2, -acc_C[:, None])
+    x_A1, v_A1 = x_A[:, :, 0], v_A[:, :, 0]
+    unsafe = (_unsafe_first(gap_C0, v_C0[:, :, 0], b_C, C_real, x_A1, v_A1, config)
+              | _unsafe_first(gap_B0, v_B0[:, :, 0], config.c_brake_ft_s2, B_real, x_A1, v_A1, config))
+    return Phi, col @ g + unsafe
+
+
+#: A's deceleration (ft/s^2, > 0) after its first step in the safe-distance condition.
+EMERGENCY_DECEL_FT_S2 = -min(EMERGENCY_FT_S2)
+
+
+def _unsafe_first(gap0: np.ndarray, v_L0: np.ndarray, b_L: np.ndarray | float, present: np.ndarray,
+                  x_A1: np.ndarray, v_A1: np.ndarray, config: PlannerConfig) -> np.ndarray:
+    """``[N, L]`` bool, the safe-distance condition of the ``"driver"`` road model (module
+    docstring) towards one leader: bumper gap ``gap0 [N, 1]`` (ft) and speed ``v_L0 [N, 1]``
+    (ft/s) at the observation, braking at ``b_L`` (ft/s^2) from now on; A after its first step at
+    ``x_A1``, ``v_A1 [N or 1, L]`` (ft, ft/s), then braking at :data:`EMERGENCY_DECEL_FT_S2`."""
+    te = np.minimum(config.decision_step_s, v_L0 / b_L)
+    g1 = gap0 + v_L0 * te - 0.5 * b_L * te * te - x_A1
+    m = min_gap_braking(g1, v_A1, np.maximum(v_L0 - b_L * te, 0.0), EMERGENCY_DECEL_FT_S2, b_L)
+    return present & ((m <= 0.0) | ((m < config.margin_ft) & (m < gap0 - 1e-9)))

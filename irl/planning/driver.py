@@ -99,15 +99,19 @@ class PlanningDriver:
         """``[G]`` the accelerations the driver chooses among (ft/s^2)."""
         return self.config.fine_grid(np.asarray(self.action_acc_ft_s2))
 
-    def tensors(self, obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray) -> PathTensors:
-        """Path tensors of observations ``obs [N, 7]``, ``prev_acc [N]``, ``acc_C [N]``: the
-        features of the driver's nonzero weights only (the others are 0 and weigh nothing)."""
+    def tensors(self, obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray,
+                b_merged: np.ndarray | None = None) -> PathTensors:
+        """Path tensors of observations ``obs [N, 7]``, ``prev_acc [N]``, ``acc_C [N]`` (and
+        ``b_merged [N]``: B in A's lane, :func:`~.model.path_tensors`): the features of the
+        driver's nonzero weights only (the others are 0 and weigh nothing)."""
         need = frozenset(n for n, w in zip(self.feature_names, self.theta) if w != 0.0)
-        return path_tensors(obs, prev_acc, acc_C, self.action_acc_ft_s2, self.shape, self.config, need=need)
+        return path_tensors(obs, prev_acc, acc_C, self.action_acc_ft_s2, self.shape, self.config, need=need,
+                            b_merged=b_merged)
 
-    def fine_log_policy(self, obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray) -> np.ndarray:
+    def fine_log_policy(self, obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray,
+                        b_merged: np.ndarray | None = None) -> np.ndarray:
         """``[N, G]`` ``log pi(g | x)`` over the fine grid."""
-        return fine_log_policy(self.tensors(obs, prev_acc, acc_C), self.theta, self.config.backup,
+        return fine_log_policy(self.tensors(obs, prev_acc, acc_C, b_merged), self.theta, self.config.backup,
                                self.config.collision_penalty, self.config.temperature)
 
     def bin_log_policy(self, obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray) -> np.ndarray:
@@ -126,10 +130,13 @@ class PlanningDriver:
         prev = np.nan_to_num(np.asarray(prev_acc, dtype=np.float64), nan=0.0)
         return (1.0 - self.config.lag) * prev + self.config.lag * choice
 
-    def act(self, obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray) -> np.ndarray:
+    def act(self, obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray,
+            b_merged: np.ndarray | None = None) -> np.ndarray:
         """``[N]`` the acceleration A applies for the most likely fine action of each observation
-        (ft/s^2; :meth:`applied`)."""
-        return self.applied(self.fine_grid[np.argmax(self.fine_log_policy(obs, prev_acc, acc_C), axis=1)], prev_acc)
+        (ft/s^2; :meth:`applied`): the driver's decision rule, the one its replay fit selects and
+        the closed loop drives by. ``b_merged [N]``: B in A's lane (None: not known)."""
+        lp = self.fine_log_policy(obs, prev_acc, acc_C, b_merged)
+        return self.applied(self.fine_grid[np.argmax(lp, axis=1)], prev_acc)
 
     def choose(self, obs_row, prev_acc: float = 0.0, acc_C: float = 0.0,
                mode: bool | np.random.Generator = True) -> tuple[int, float]:

@@ -245,17 +245,22 @@ class PathTensors:
 
 
 def path_tensors(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray, action_acc, shape: Shape,
-                 config: PlannerConfig, *, chunk: int = 512, need: frozenset[str] | None = None) -> PathTensors:
+                 config: PlannerConfig, *, chunk: int = 512, need: frozenset[str] | None = None,
+                 b_merged: np.ndarray | None = None) -> PathTensors:
     """Path tensors (module docstring) of ``obs [N, 7]``, ``prev_acc [N]``, ``acc_C [N]`` with
     the paper actions' accelerations ``action_acc [5]`` (ft/s^2), in chunks of ``chunk`` decisions;
     ``need``: the features computed (the others 0: acting needs only those of nonzero weight),
-    None: all (learning).
+    None: all (learning); ``b_merged [N]`` bool: whether B has merged into A's lane (the
+    ``"driver"`` road model counts B as a collision partner only then; None: B ahead always is,
+    as in demonstrations that do not say).
 
     Raises:
         ConfigError: ``obs`` not ``[N, 7]``, ``prev_acc``/``acc_C`` not ``[N]``, ``action_acc``
-            not 5 finite numbers.
+            not 5 finite numbers, ``b_merged`` not ``[N]``.
     """
     obs = np.asarray(obs, dtype=np.float64)
+    if b_merged is not None and np.shape(b_merged) != (obs.shape[0],):
+        raise ConfigError(f"b_merged must be [N] = [{obs.shape[0]}], got {np.shape(b_merged)}")
     prev_acc = np.nan_to_num(np.asarray(prev_acc, dtype=np.float64), nan=0.0)
     acc_C = np.nan_to_num(np.asarray(acc_C, dtype=np.float64), nan=0.0)
     acc5 = np.asarray(action_acc, dtype=np.float64)
@@ -276,7 +281,9 @@ def path_tensors(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray, actio
         hi = min(lo + chunk, N)
         lv = leaf_accelerations(config, acc5, config.applied(fine, prev_acc[lo:hi])).reshape(hi - lo, -1, leaf.shape[-1]) \
             if lagged else leaves[None]
-        Phi[lo:hi], Col[lo:hi] = _paths_chunk(obs[lo:hi], prev_acc[lo:hi], acc_C[lo:hi], lv, shape, config, need)
+        merged = None if b_merged is None else b_merged[lo:hi]
+        Phi[lo:hi], Col[lo:hi] = _paths_chunk(obs[lo:hi], prev_acc[lo:hi], acc_C[lo:hi], lv, shape, config, need,
+                                              merged)
     bins = actions_of(config.applied(fine, prev_acc)) if lagged else actions_of(fine)
     return PathTensors(Phi.reshape((N, *tail, K)), Col.reshape((N, *tail)), bins)
 
@@ -305,7 +312,8 @@ def first_step(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray, acc: np
 
 
 def _paths_chunk(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray, leaves: np.ndarray, shape: Shape,
-                 config: PlannerConfig, need: frozenset[str] | None = None) -> tuple[np.ndarray, np.ndarray]:
+                 config: PlannerConfig, need: frozenset[str] | None = None,
+                 b_merged: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """``([N, L, K], [N, L])`` of one chunk: every step of every path at once (``[N, L, n]``);
     ``leaves [1 or N, L, n]`` the paths' accelerations."""
     d_AC, v_AC, d_AB, v_AB, v_A0, len_C, len_B = (obs[:, j:j + 1, None] for j in range(7))
@@ -351,6 +359,8 @@ def _paths_chunk(obs: np.ndarray, prev_acc: np.ndarray, acc_C: np.ndarray, leave
         return Phi, collision(s_C, has_C) @ g
     gap_C0, gap_B0 = (d_AC - len_C)[:, :, 0], (d_AB - len_B)[:, :, 0]
     C_real, B_real = has_C[:, :, 0] & (gap_C0 > 0), B_lead[:, :, 0] & (gap_B0 > 0)
+    if b_merged is not None:  # B on the ramp is no collision partner: only a merged B is in A's lane
+        B_real = B_real & np.asarray(b_merged, dtype=bool).reshape(-1, 1)
     col = (closing_margin(s_C, v_A, v_C, C_real[:, :, None], config.margin_ft)
            | closing_margin(d_B - len_B, v_A, v_B0, B_real[:, :, None], config.margin_ft))
     b_C = np.maximum(config.c_brake_ft_s2, -acc_C[:, None])

@@ -141,3 +141,19 @@ def test_old_files_load_with_the_legacy_model_and_act_as_before(tmp_path) -> Non
     assert PlanningDriver.load(tmp_path / "new.json").config == new.config
     assert asdict(new.config)["margin_ft"] == 2.0
     assert np.any(new.act(obs, prev, acc_C) != old.act(obs, prev, acc_C))
+
+
+def test_a_b_on_the_ramp_is_no_collision_partner_until_it_has_merged():
+    """B just ahead of a fast A: with B merged the driver's road model brakes for it; with B still
+    on the ramp (b_merged False) A's plan does not count B as a car in its lane."""
+    cfg = PlannerConfig(road_model="driver")
+    # no C; B 6 m ahead (front to front, a 4.5 m car: 1.5 m bumper gap), 8 m/s slower than A
+    obs = np.array([[np.nan, np.nan, 6.0 * FT_PER_M, 8.0 * FT_PER_M, 25.0 * FT_PER_M, np.nan, 4.5 * FT_PER_M]] * 2)
+    zeros = np.zeros(2)
+    T = path_tensors(obs, zeros, zeros, np.array([-12.0, -4.0, 0.0, 4.0, 8.0]), Shape(), cfg,
+                     b_merged=np.array([True, False]))
+    merged, ramp = T.Col[0], T.Col[1]
+    assert merged.min() > 0  # every plan predicts a collision or an unsafe gap behind a merged B
+    assert ramp.max() == 0  # none behind a B still on the ramp
+    with pytest.raises(ConfigError, match="b_merged"):
+        path_tensors(obs, zeros, zeros, np.array([-12.0, -4.0, 0.0, 4.0, 8.0]), Shape(), cfg, b_merged=np.ones(3))

@@ -203,6 +203,15 @@ def flag_lines(aggs: dict[str, AggregateMetrics]) -> list[str]:
             "without checking" for name, a in aggs.items() if a.flags]
 
 
+def _actions_line(controller) -> str:
+    """How the drivers decided (report.md): by a fitted decision rule where a driver has one."""
+    other = "the most likely action of the others" if controller.mode else "actions sampled for the others"
+    if getattr(controller, "rule", "fitted") == "fitted":
+        return (f"a driver's fitted decision rule where it has one (the planning driver's most likely acceleration), "
+                f"{other} from the driver's likelihood model")
+    return f"every driver's action {'at the mode of' if controller.mode else 'drawn from'} its likelihood model"
+
+
 def metrics_to_json(obj) -> str:
     """JSON text with NaN/inf written as null."""
     def clean(x):
@@ -251,7 +260,7 @@ def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes,
         f"# Closed-loop evaluation: {scenario}",
         "",
         f"{episodes} episode(s) per policy, seeds {seed}..{seed + episodes - 1} (the same traffic for every "
-        f"policy); decision step {controller.decision_step_s} s, actions {'mode' if controller.mode else 'sampled'}, "
+        f"policy); decision step {controller.decision_step_s} s, {_actions_line(controller)}, "
         f"safety filter {'off (raw)' if controller.safety_ttc_s is None else f'on (TTC >= {controller.safety_ttc_s} s)'}; "
         + ("actuation physical: every action at the driver's own acceleration, capped at A's emergency deceleration."
            if controller.high_brake == "mean" else

@@ -228,11 +228,11 @@ def flag_lines(aggs: dict[str, AggregateMetrics]) -> list[str]:
 
 def _actions_line(controller) -> str:
     """How the drivers decided (report.md): by a fitted decision rule where a driver has one."""
-    other = "the most likely action of the others" if controller.mode else "actions sampled for the others"
+    how = "at the mode of" if controller.mode else "drawn from"
     if getattr(controller, "rule", "fitted") == "fitted":
-        return (f"a driver's fitted decision rule where it has one (the planning driver's most likely acceleration), "
-                f"{other} from the driver's likelihood model")
-    return f"every driver's action {'at the mode of' if controller.mode else 'drawn from'} its likelihood model"
+        return ("actions by a driver's fitted decision rule where it has one (the planning driver's most likely "
+                f"acceleration), else {how} the driver's likelihood model")
+    return f"actions {how} every driver's likelihood model (rule `likelihood-draw`)"
 
 
 def metrics_to_json(obj) -> str:

@@ -203,6 +203,7 @@ def test_evaluate_cli_baselines_safety_filter_and_flag_gate(tmp_path):
     md = (out / "report.md").read_text()
     assert "FLAGGED: not_converged" in md and "safety filter on (TTC >= 2.5 s)" in md
     assert "below -(4.5 + 0.05) m/s^2" in md and data["metrics_config"]["emergency_tolerance_m_s2"] == 0.05
+    assert "fitted decision rule where it has one" in md and data["controller"]["rule"] == "fitted"
     # human likeness: per policy in metrics.json, report.md and the console
     for name, p in data["policies"].items():
         agg = p["aggregate"]

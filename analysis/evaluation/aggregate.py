@@ -9,7 +9,9 @@ Definitions beyond the per-episode ones (:mod:`analysis.evaluation.metrics`):
   replaced (0 in the raw default), and their share of the commanded decisions.
 * ``emergency_braking_rate`` with ``emergency_braking_ci95``: ``emergency_brakings`` (near A) per
   controlled A, with the exact Poisson 95 % interval of the count
-  (:func:`~analysis.evaluation.intervals.poisson_rate_ci95`: an A can cause several events).
+  (:func:`~analysis.evaluation.intervals.poisson_rate_ci95`: an A can cause several events);
+  ``emergency_brakings_A`` / ``_B`` / ``_follower``: the same events by role (they add up to
+  ``emergency_brakings``; the threshold and its tolerance: :class:`~analysis.evaluation.metrics.MetricsConfig`).
 * ``a_into_c`` / ``a_into_b``: of ``a_collisions``, those where A ran into its lead car C / into
   the merging car B (:data:`sim.closed_loop.records.COLLISION_KINDS`), counted apart.
 * ``close_to_c`` / ``close_to_c_rate`` with ``close_to_c_ci95``: the controlled As that came
@@ -79,6 +81,9 @@ class AggregateMetrics:
     close_to_c_ci95: tuple[float, float] = (float("nan"), float("nan"))
     w1_acc_A_m_s2: float = float("nan")
     w1_jerk_A_m_s3: float = float("nan")
+    emergency_brakings_A: int = 0
+    emergency_brakings_B: int = 0
+    emergency_brakings_follower: int = 0
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -140,6 +145,9 @@ def aggregate(
         collisions=sum(e.collisions for e in episodes), a_collisions=sum(e.a_collisions for e in episodes),
         a_into_c=sum(e.a_into_c for e in episodes), a_into_b=sum(e.a_into_b for e in episodes),
         emergency_brakings=n_eb,
+        emergency_brakings_A=sum(e.emergency_brakings_A for e in episodes),
+        emergency_brakings_B=sum(e.emergency_brakings_B for e in episodes),
+        emergency_brakings_follower=sum(e.emergency_brakings_follower for e in episodes),
         emergency_brakings_all=sum(e.emergency_brakings_all for e in episodes),
         min_ttc_s=float(min(e.min_ttc_s for e in episodes)),
         b_ahead_rate=(ahead / merges if merges else float("nan"), _mean_std([e.b_ahead_rate for e in episodes])[1]),

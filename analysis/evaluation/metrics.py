@@ -13,11 +13,17 @@ Definitions (NGSIM units in, SI where stated):
   because A collided. A pair is counted once even when it ends several control episodes (with
   SUMO's ``--collision.action warn`` the cars keep overlapping, and a later take-over of the
   same A ends at once on the same pair), so ``a_collisions <= collisions``.
-* ``emergency_brakings``: braking events harder than ``emergency_decel_m_s2`` (default
+* ``emergency_brakings``: braking events strictly beyond ``emergency_decel_m_s2`` (default
   4.5 m/s^2 = 14.76 ft/s^2, the default ``decel`` of SUMO's passenger car, beyond which SUMO
-  itself speaks of emergency braking) by A, B or the car following A while A is controlled;
-  an event is a maximal run of consecutive frames of one vehicle below the threshold.
-  ``emergency_brakings_all`` counts the same over every vehicle of the run.
+  itself speaks of emergency braking) by more than ``emergency_tolerance_m_s2`` (default
+  0.05 m/s^2): an acceleration ``acc < -(emergency_decel_m_s2 + emergency_tolerance_m_s2)``,
+  compared in m/s^2 (:func:`is_emergency`), so a car braking at exactly its normal maximum
+  (SUMO's 4.5 m/s^2, a hair below -4.5 after the trip through ft/s^2) is not counted; by A, B or
+  the car following A while A is controlled. An event is a maximal run of consecutive frames of
+  one vehicle beyond the threshold. ``emergency_brakings_A``, ``emergency_brakings_B`` and
+  ``emergency_brakings_follower`` split them by role (a vehicle-frame in two roles takes the
+  first of A, B, follower; an event the role of its first frame), so the three add up to
+  ``emergency_brakings``. ``emergency_brakings_all`` counts the same over every vehicle of the run.
 * ``close_to_c``: control episodes whose A came closer than ``close_gap_m`` (default 2 m) bumper
   to bumper to its lead car C while controlled (C: the nearest merge-lane vehicle ahead of A other
   than B, in the frames where A is in the merge lane;
@@ -44,7 +50,7 @@ import pandas as pd
 from analysis.evaluation.distances import js_divergence
 from analysis.evaluation.human_likeness import CLOSE_GAP_M, min_gaps_to_c
 from irl.domains.merge.actions import N_ACTIONS
-from merge_irl.units import FRAME_S, FT_PER_M
+from merge_irl.units import FRAME_S, FT_PER_M, M_PER_FT
 from sim.runtime.schema import RIGHTMOST_MAIN_LANE
 
 
@@ -54,6 +60,8 @@ class MetricsConfig:
 
     Attributes:
         emergency_decel_m_s2: deceleration beyond which braking counts as emergency (m/s^2).
+        emergency_tolerance_m_s2: how far beyond ``emergency_decel_m_s2`` braking must be to
+            count (m/s^2, >= 0): ``acc < -(emergency_decel_m_s2 + emergency_tolerance_m_s2)``.
         section_margin_ft: a travel time counts when A's record starts within this of the
             section start and ends within this of its end (ft).
         close_gap_m: bumper gap to C below which an A counts as close to C (m).
@@ -62,6 +70,17 @@ class MetricsConfig:
     emergency_decel_m_s2: float = 4.5
     section_margin_ft: float = 60.0
     close_gap_m: float = CLOSE_GAP_M
+    emergency_tolerance_m_s2: float = 0.05
+
+    def __post_init__(self) -> None:
+        if not (self.emergency_tolerance_m_s2 >= 0 and np.isfinite(self.emergency_tolerance_m_s2)):
+            raise ValueError(f"MetricsConfig.emergency_tolerance_m_s2: must be a finite number >= 0, got "
+                             f"{self.emergency_tolerance_m_s2}")
+
+    @property
+    def emergency_threshold_m_s2(self) -> float:
+        """The acceleration (m/s^2, negative) below which braking counts as emergency."""
+        return -(self.emergency_decel_m_s2 + self.emergency_tolerance_m_s2)
 
 
 @dataclass(frozen=True)
@@ -90,6 +109,9 @@ class EpisodeMetrics:
     close_to_c: int = 0
     a_into_c: int = 0
     a_into_b: int = 0
+    emergency_brakings_A: int = 0
+    emergency_brakings_B: int = 0
+    emergency_brakings_follower: int = 0
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -105,18 +127,49 @@ class EpisodeMetrics:
         return cls(**kw)
 
 
-def _runs_below(acc: np.ndarray, vid: np.ndarray, frame: np.ndarray, thr: float) -> int:
-    """Number of maximal runs of consecutive frames per vehicle with ``acc < thr``.
+#: The roles whose emergency brakings are counted apart (``emergency_brakings_<role>``), in the
+#: order a vehicle-frame in two roles is given the first.
+EMERGENCY_ROLES = ("A", "B", "follower")
 
-    Inputs sorted by (vid, frame), all ``[N]``.
-    """
-    below = acc < thr
-    if not below.any():
-        return 0
+
+def is_emergency(acc_ft_s2: np.ndarray, config: MetricsConfig) -> np.ndarray:
+    """``[N]`` bool: accelerations (ft/s^2) strictly beyond the emergency threshold, compared in
+    m/s^2: ``acc < -(emergency_decel_m_s2 + emergency_tolerance_m_s2)``."""
+    return np.asarray(acc_ft_s2, dtype=np.float64) * M_PER_FT < config.emergency_threshold_m_s2
+
+
+def _run_starts(below: np.ndarray, vid: np.ndarray, frame: np.ndarray) -> np.ndarray:
+    """``[N]`` bool: the rows that start a maximal run of consecutive frames of one vehicle with
+    ``below`` set. Inputs sorted by (vid, frame), all ``[N]``."""
+    starts = np.zeros(below.size, dtype=bool)
     idx = np.flatnonzero(below)
-    new = np.ones(idx.size, dtype=bool)
-    new[1:] = (vid[idx[1:]] != vid[idx[:-1]]) | (frame[idx[1:]] != frame[idx[:-1]] + 1)
-    return int(new.sum())
+    if idx.size:
+        new = np.ones(idx.size, dtype=bool)
+        new[1:] = (vid[idx[1:]] != vid[idx[:-1]]) | (frame[idx[1:]] != frame[idx[:-1]] + 1)
+        starts[idx[new]] = True
+    return starts
+
+
+def _emergency_events(rows: pd.DataFrame, config: MetricsConfig) -> np.ndarray:
+    """``[N]`` bool over ``rows`` (sorted by vehicle and frame): the first frame of each emergency braking."""
+    return _run_starts(is_emergency(rows["v_Acc"].to_numpy(np.float64), config), rows["Vehicle_ID"].to_numpy(),
+                       rows["Frame_ID"].to_numpy())
+
+
+def _near_a(t: pd.DataFrame, wins: list[tuple[int, int, int, int]]) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame]:
+    """``(near, a_rows, f_rows)``: the rows of A, B and A's follower inside the control windows
+    (``near``, one row per vehicle-frame, sorted, with its role index into
+    :data:`EMERGENCY_ROLES` in ``_role``), and those of A and of A's follower."""
+    w = pd.DataFrame(wins, columns=["a_id", "b_id", "start", "end"])
+    a_rows = t.merge(w[["a_id", "start", "end"]], left_on="Vehicle_ID", right_on="a_id")
+    a_rows = a_rows[(a_rows["Frame_ID"] >= a_rows["start"]) & (a_rows["Frame_ID"] <= a_rows["end"])]
+    b_rows = t.merge(w[["b_id", "start", "end"]], left_on="Vehicle_ID", right_on="b_id")
+    b_rows = b_rows[(b_rows["Frame_ID"] >= b_rows["start"]) & (b_rows["Frame_ID"] <= b_rows["end"])]
+    fol_keys = a_rows.loc[a_rows["Following"] > 0, ["Following", "Frame_ID"]].rename(columns={"Following": "fid"})
+    f_rows = t.merge(fol_keys.drop_duplicates(), left_on=["Vehicle_ID", "Frame_ID"], right_on=["fid", "Frame_ID"])
+    near = pd.concat([r[t.columns].assign(_role=i) for i, r in enumerate((a_rows, b_rows, f_rows))])
+    near = near.drop_duplicates(["Vehicle_ID", "Frame_ID"]).sort_values(["Vehicle_ID", "Frame_ID"])
+    return near, a_rows, f_rows
 
 
 def _windows(controls: pd.DataFrame, last_frame: int) -> list[tuple[int, int, int, int]]:
@@ -154,32 +207,21 @@ def episode_metrics(
         merge_lane: the site's merge lane code (where A's lead car C is looked for; lane 6 on
             I-80, every preset).
     """
-    thr = -config.emergency_decel_m_s2 * FT_PER_M
     t = table.sort_values(["Vehicle_ID", "Frame_ID"], kind="stable")
-    vid = t["Vehicle_ID"].to_numpy()
     frm = t["Frame_ID"].to_numpy()
-    acc = t["v_Acc"].to_numpy(dtype=np.float64)
-    eb_all = _runs_below(acc, vid, frm, thr)
+    eb_all = int(_emergency_events(t, config).sum())
     last_frame = int(frm.max()) if frm.size else 0
     wins = _windows(controls, last_frame)
 
     # rows of A, B and A's follower inside their windows
+    eb_role = np.zeros(len(EMERGENCY_ROLES), dtype=np.int64)
     if wins:
-        w = pd.DataFrame(wins, columns=["a_id", "b_id", "start", "end"])
-        a_rows = t.merge(w[["a_id", "start", "end"]], left_on="Vehicle_ID", right_on="a_id")
-        a_rows = a_rows[(a_rows["Frame_ID"] >= a_rows["start"]) & (a_rows["Frame_ID"] <= a_rows["end"])]
-        b_rows = t.merge(w[["b_id", "start", "end"]], left_on="Vehicle_ID", right_on="b_id")
-        b_rows = b_rows[(b_rows["Frame_ID"] >= b_rows["start"]) & (b_rows["Frame_ID"] <= b_rows["end"])]
-        fol_keys = a_rows.loc[a_rows["Following"] > 0, ["Following", "Frame_ID"]].rename(columns={"Following": "fid"})
-        f_rows = t.merge(fol_keys.drop_duplicates(), left_on=["Vehicle_ID", "Frame_ID"], right_on=["fid", "Frame_ID"])
-        near = pd.concat([a_rows[t.columns], b_rows[t.columns], f_rows[t.columns]])
-        near = near.drop_duplicates(["Vehicle_ID", "Frame_ID"]).sort_values(["Vehicle_ID", "Frame_ID"])
-        eb_near = _runs_below(near["v_Acc"].to_numpy(float), near["Vehicle_ID"].to_numpy(),
-                              near["Frame_ID"].to_numpy(), thr)
+        near, a_rows, f_rows = _near_a(t, wins)
+        eb_role = np.bincount(near["_role"].to_numpy()[_emergency_events(near, config)], minlength=len(EMERGENCY_ROLES))
         ttc = _min_ttc(t, pd.concat([a_rows[t.columns], f_rows[t.columns]]))
         mean_speed = float(a_rows["v_Vel"].mean()) if len(a_rows) else float("nan")
     else:
-        eb_near, ttc, mean_speed = 0, float("inf"), float("nan")
+        ttc, mean_speed = float("inf"), float("nan")
 
     merged = controls[controls["merge_frame"] >= 0] if len(controls) else controls
     b_ahead = float(np.mean(merged["b_ahead"].astype(bool))) if len(merged) else float("nan")
@@ -196,7 +238,9 @@ def episode_metrics(
         policy=policy, seed=int(seed), n_controls=int(len(controls)), n_merges=int(len(merged)),
         collisions=int(collisions), a_collisions=a_coll, a_into_c=a_into_c, a_into_b=a_into_b,
         teleports=int(teleports),
-        emergency_brakings=int(eb_near), emergency_brakings_all=int(eb_all), min_ttc_s=float(ttc),
+        emergency_brakings=int(eb_role.sum()), emergency_brakings_all=eb_all, min_ttc_s=float(ttc),
+        emergency_brakings_A=int(eb_role[0]), emergency_brakings_B=int(eb_role[1]),
+        emergency_brakings_follower=int(eb_role[2]),
         b_ahead_rate=b_ahead, travel_time_s=float(np.nanmean(tt)) if np.isfinite(tt).any() else float("nan"),
         mean_speed_A_ft_s=mean_speed, action_counts=tuple(int(x) for x in counts), js_divergence=jsd,
         release_reasons={str(k): int(v) for k, v in reasons.items()},

@@ -56,7 +56,7 @@ def _interventions(a: AggregateMetrics) -> str:
 @dataclass(frozen=True)
 class Column:
     """One column of :func:`report_table`: its header, its legend (``{decel}``: the emergency
-    deceleration threshold, m/s^2) and its cell for one policy."""
+    deceleration threshold, ``{tol}``: its tolerance, both m/s^2) and its cell for one policy."""
 
     header: str
     legend: str
@@ -78,8 +78,12 @@ COLUMNS: tuple[Column, ...] = (
     Column("A collisions / As [95 % CI]",
            "A's collision pairs over the As controlled, with the Wilson 95 % interval", lambda name, a: _ci(a)),
     Column("emergency brakings (near / all)",
-           "braking harder than {decel} m/s^2 by A, B and A's follower while A is controlled / by every vehicle",
+           "brakings strictly beyond {decel} m/s^2 (acceleration below -({decel} + {tol}) m/s^2) by A, B and A's "
+           "follower while A is controlled / by every vehicle",
            lambda name, a: f"{a.emergency_brakings} / {a.emergency_brakings_all}"),
+    Column("emergency brakings by A / B / A's follower",
+           "the near ones by role (a car in two roles counted as the first of A, B, follower: they add up to near)",
+           lambda name, a: _by_role(a)),
     Column("min TTC (s)", "smallest time-to-collision over A->leader and follower->A while controlled",
            lambda name, a: _fmt(a.min_ttc_s)),
     Column("B merged ahead of A", "share of the merges (mean ± std over episodes)",
@@ -103,6 +107,11 @@ COLUMNS: tuple[Column, ...] = (
 )
 
 
+def _by_role(a: AggregateMetrics) -> str:
+    """``A / B / follower`` emergency brakings."""
+    return f"{a.emergency_brakings_A} / {a.emergency_brakings_B} / {a.emergency_brakings_follower}"
+
+
 def _per_a(k: int, n: int, rate: float, ci: tuple[float, float]) -> str:
     """``k/n = rate [low, high]`` ("-" when ``n`` is 0)."""
     if not math.isfinite(rate):
@@ -116,10 +125,13 @@ HUMAN_COLUMNS: tuple[Column, ...] = (
     Column("policy", "the driver of A (`demonstrations`: the held-out encounters)", lambda name, a: name),
     Column("As controlled", "control episodes (`demonstrations`: encounters)", lambda name, a: str(a.n_controls)),
     Column("emergency brakings near A per A [95 % CI]",
-           "brakings harder than {decel} m/s^2 by A, B and A's follower while A is controlled, per controlled A, "
-           "with the exact Poisson 95 % interval (events, not As: one A can cause several)",
+           "brakings strictly beyond {decel} m/s^2 (below -({decel} + {tol}) m/s^2) by A, B and A's follower while "
+           "A is controlled, per controlled A, with the exact Poisson 95 % interval (events, not As: one A can "
+           "cause several)",
            lambda name, a: _per_a(a.emergency_brakings, a.n_controls, a.emergency_braking_rate,
                                   a.emergency_braking_ci95)),
+    Column("emergency brakings by A / B / A's follower", "those brakings by role",
+           lambda name, a: _by_role(a)),
     Column("A into C / A into B",
            "of A's collision pairs, those where A ran into its lead car C / into the merging car B",
            lambda name, a: f"{a.a_into_c} / {a.a_into_b}"),
@@ -157,7 +169,7 @@ def human_table(aggs: dict[str, AggregateMetrics], demos: DemoCloseness | None =
     if demos is None:
         return table
     lines = table.split("\n")
-    cells = ["demonstrations", str(demos.n_encounters), "-", "-",
+    cells = ["demonstrations", str(demos.n_encounters), "-", "-", "-",
              _per_a(demos.n_close, demos.n_encounters, demos.rate, demos.ci95), "-", "-"]
     return "\n".join([*lines[:2], "| " + " | ".join(cells) + " |", *lines[2:]])
 
@@ -167,11 +179,22 @@ def _header(c: Column, close_gap_m: float) -> str:
 
 
 def column_legend(columns: tuple[Column, ...] = COLUMNS, *, emergency_decel_m_s2: float = 4.5,
-                  close_gap_m: float = CLOSE_GAP_M) -> str:
+                  close_gap_m: float = CLOSE_GAP_M, emergency_tolerance_m_s2: float = 0.05) -> str:
     """The legend of :func:`report_table` with the same ``columns``: one entry per column, in order."""
     return "Columns: " + "; ".join(
         f"{_header(c, close_gap_m)} = "
-        f"{c.legend.format(decel=f'{emergency_decel_m_s2:g}', gap=f'{close_gap_m:g}')}" for c in columns) + "."
+        f"{c.legend.format(decel=f'{emergency_decel_m_s2:g}', tol=f'{emergency_tolerance_m_s2:g}', gap=f'{close_gap_m:g}')}"
+        for c in columns) + "."
+
+
+def emergency_line(metrics) -> str:
+    """What report.md counts as an emergency braking (``metrics``: the
+    :class:`~analysis.evaluation.metrics.MetricsConfig`)."""
+    d, tol = metrics.emergency_decel_m_s2, metrics.emergency_tolerance_m_s2
+    return (f"Emergency braking: a run of consecutive 0.1 s frames of one car with acceleration below -({d:g} + "
+            f"{tol:g}) m/s^2, i.e. strictly beyond {d:g} m/s^2 by more than the tolerance {tol:g} m/s^2 (a car "
+            f"braking at exactly {d:g} m/s^2, SUMO's normal maximum, is not counted); near A: by A, B or A's "
+            "follower while A is controlled, counted by role.")
 
 
 def collision_bound_line(aggs: dict[str, AggregateMetrics]) -> str:
@@ -201,6 +224,15 @@ def flag_lines(aggs: dict[str, AggregateMetrics]) -> list[str]:
         return " and ".join(said)
     return [f"WARNING: model {name} is flagged ({', '.join(a.flags)}): {why(a.flags)}; do not rank or deploy it "
             "without checking" for name, a in aggs.items() if a.flags]
+
+
+def _actions_line(controller) -> str:
+    """How the drivers decided (report.md): by a fitted decision rule where a driver has one."""
+    how = "at the mode of" if controller.mode else "drawn from"
+    if getattr(controller, "rule", "fitted") == "fitted":
+        return ("actions by a driver's fitted decision rule where it has one (the planning driver's most likely "
+                f"acceleration), else {how} the driver's likelihood model")
+    return f"actions {how} every driver's likelihood model (rule `likelihood-draw`)"
 
 
 def metrics_to_json(obj) -> str:
@@ -251,7 +283,7 @@ def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes,
         f"# Closed-loop evaluation: {scenario}",
         "",
         f"{episodes} episode(s) per policy, seeds {seed}..{seed + episodes - 1} (the same traffic for every "
-        f"policy); decision step {controller.decision_step_s} s, actions {'mode' if controller.mode else 'sampled'}, "
+        f"policy); decision step {controller.decision_step_s} s, {_actions_line(controller)}, "
         f"safety filter {'off (raw)' if controller.safety_ttc_s is None else f'on (TTC >= {controller.safety_ttc_s} s)'}; "
         + ("actuation physical: every action at the driver's own acceleration, capped at A's emergency deceleration."
            if controller.high_brake == "mean" else
@@ -266,7 +298,10 @@ def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes,
         "",
         collision_bound_line(aggs),
         "",
-        column_legend(emergency_decel_m_s2=metrics.emergency_decel_m_s2),
+        emergency_line(metrics),
+        "",
+        column_legend(emergency_decel_m_s2=metrics.emergency_decel_m_s2,
+                      emergency_tolerance_m_s2=metrics.emergency_tolerance_m_s2),
         "Baselines `marginal`, `markov`, `bc` (when run) are fitted on the training demonstrations (add-one "
         "smoothed). The JS divergence of A's action distribution to the demonstrations' is in metrics.json "
         "(`js_divergence`); the distributions themselves are below.",
@@ -276,7 +311,7 @@ def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes,
         human_table(aggs, demo_closeness, close_gap_m=metrics.close_gap_m),
         "",
         column_legend(HUMAN_COLUMNS, emergency_decel_m_s2=metrics.emergency_decel_m_s2,
-                      close_gap_m=metrics.close_gap_m),
+                      close_gap_m=metrics.close_gap_m, emergency_tolerance_m_s2=metrics.emergency_tolerance_m_s2),
         "",
         *flag_lines(aggs),
         *([f"Left out: {', '.join(left_out)} (no training demonstrations given)."] if left_out else []),

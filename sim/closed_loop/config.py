@@ -15,6 +15,8 @@ class ControllerError(SimError, ValueError):
 
 #: How the High Brake action is applied (:attr:`ControllerConfig.high_brake`).
 HIGH_BRAKE_RULES = ("mean", "need")
+#: How a driver with a fitted decision rule decides (:attr:`ControllerConfig.rule`).
+DECISION_RULES = ("fitted", "likelihood-draw")
 
 
 @dataclass(frozen=True)
@@ -25,7 +27,16 @@ class ControllerConfig:
         decision_step_s: time between two decisions (s); rounded to whole frames. None: the
             policy's own ``decision_step_s`` (a learned model decides on the step its
             demonstrations were resampled to), else 0.3 s.
-        mode: take the most likely action instead of sampling.
+        mode: take the most likely action of the driver's probabilities instead of sampling them
+            (a driver without a fitted decision rule, or ``rule="likelihood-draw"``).
+        rule: how a driver with a fitted decision rule (``decide``,
+            :func:`sim.drivers.policy.fitted_decision`; the planning driver) decides.
+            ``"fitted"`` (default): by that rule, with ``mode`` or not (the planning driver's
+            most likely fine acceleration, what its replay fit and pair scores use).
+            ``"likelihood-draw"``: the former behaviour, a paper action drawn from (or the mode
+            of) the driver's likelihood model ``probs`` and the driver's acceleration within it.
+            A driver without a rule (the tabular IRL models, fitted as stochastic policies)
+            draws from ``probs`` under either.
         zone_start_ft: B is taken into account once its ``Local_Y`` is at least this (ft);
             None = ``zone_margin_ft`` before the start of the auxiliary lane (from the lane
             shapes of the run).
@@ -69,10 +80,13 @@ class ControllerConfig:
     seed: int | None = None
     safety_ttc_s: float | None = None
     high_brake: str = "mean"
+    rule: str = "fitted"
 
     def __post_init__(self) -> None:
         if self.high_brake not in HIGH_BRAKE_RULES:
             raise ControllerError(f"controller.high_brake: must be one of {HIGH_BRAKE_RULES}, got {self.high_brake!r}")
+        if self.rule not in DECISION_RULES:
+            raise ControllerError(f"controller.rule: must be one of {DECISION_RULES}, got {self.rule!r}")
         for name in ("decision_step_s", "max_lag_ft", "max_control_s", "safety_ttc_s"):
             v = getattr(self, name)
             if v is None and name in ("decision_step_s", "safety_ttc_s"):

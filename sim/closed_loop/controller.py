@@ -6,9 +6,13 @@ take-over zone (``Local_Y >= zone_start_ft``) gets, once, a lag car A: the neare
 vehicle strictly behind B's ``Local_Y`` within ``max_lag_ft`` that is not already controlled
 (the rule :mod:`sim.merges.take_over` applies to recorded tables).
 From then on, every ``decision_step_s`` seconds the controller observes A, B and C (C = A's lead
-car: the nearest lane-6 vehicle ahead of A, other than B), encodes the state, asks the policy for its action
-distribution, samples an action (or takes its mode, ``mode=True``) and applies the action's
-acceleration (High Brake harder when A needs it to stop behind its leader, up to A's ``decel``:
+car: the nearest lane-6 vehicle ahead of A, other than B), encodes the state and asks the policy
+for its decision: a driver with a fitted decision rule (``decide``, the planning driver's most
+likely acceleration: :func:`sim.drivers.policy.fitted_decision`) is driven by that rule
+(``ControllerConfig.rule="fitted"``, the default); any other driver's action is sampled from its
+action distribution ``probs`` (or its mode, ``mode=True``). ``probs`` is logged with every decision
+either way (the driver's likelihood model). The controller applies the action's
+acceleration (the rule's own, else the driver's for the action) (High Brake harder when A needs it to stop behind its leader, up to A's ``decel``:
 ``ControllerConfig.high_brake``) with ``vehicle.setSpeedMode(A, 0)`` + ``setLaneChangeMode(A, 0)`` +
 ``setAcceleration``: SUMO neither changes A's lane nor its speed on its own. A policy with
 ``controls = False`` (the SUMO baseline) is observed and logged the same way but never
@@ -43,7 +47,7 @@ from typing import Any
 
 import numpy as np
 
-from irl.domains.merge.actions import HIGH_BRAKE, action_of
+from irl.domains.merge.actions import HIGH_BRAKE, N_ACTIONS, action_of
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S
 from merge_irl.units import M_PER_FT
 from sim.closed_loop.actuation import brake_to_need, safe_action
@@ -52,7 +56,7 @@ from sim.closed_loop.handover import HandOver
 from sim.closed_loop.observation import control_observation
 from sim.closed_loop.records import Control, DecisionLog
 from sim.drivers.observe import MergeObservation, lead_of
-from sim.drivers.policy import Policy, check_policy, choose_action
+from sim.drivers.policy import Policy, check_policy, choose_action, fitted_decision
 from sim.runtime.hooks import FrameState, RunContext
 
 __all__ = ["Controller"]
@@ -111,8 +115,8 @@ class Controller:
     def on_step(self, ctx: RunContext, frame: FrameState) -> None:
         for c, ia, ib, ic in self.advance(frame):
             obs = self.observe(c, frame, ia, ib, ic)
-            probs, action = self.decide(c, obs)
-            self.apply(c, frame, ia, ic, obs, probs, action)
+            probs, action, acc = self.decide(c, obs)
+            self.apply(c, frame, ia, ic, obs, probs, action, chosen_acc_ft_s2=acc)
 
     def advance(self, frame: FrameState, *, max_take_overs: int | None = None) -> list[tuple[Control, int, int, int | None]]:
         """Everything of one frame but the decisions: SUMO's collisions and teleports, the
@@ -216,25 +220,38 @@ class Controller:
         (:func:`sim.closed_loop.observation.control_observation`)."""
         return control_observation(self.policy, c, frame, ia, ib, ic, self._every * self._frame_s)
 
-    def decide(self, c: Control, obs: MergeObservation) -> tuple[np.ndarray, int]:
-        """The policy's decision: ``(probs [5], action)``, the action sampled from ``probs`` with
-        the controller's generator (its mode with ``mode=True``); for a policy that does not
-        command A (``controls = False``), -1: :meth:`apply` then logs what SUMO did."""
+    def decide(self, c: Control, obs: MergeObservation) -> tuple[np.ndarray, int, float | None]:
+        """The policy's decision: ``(probs [5], action, acc_ft_s2)``. ``probs`` is the driver's
+        likelihood model (logged). A driver with a fitted decision rule decides by it
+        (``rule="fitted"``): its action and acceleration (ft/s^2); otherwise the action is
+        sampled from ``probs`` with the controller's generator (its mode with ``mode=True``) and
+        ``acc_ft_s2`` is None (:meth:`apply` takes the driver's acceleration for the action). For
+        a policy that does not command A (``controls = False``), ``(probs, -1, None)``:
+        :meth:`apply` then logs what SUMO did.
+
+        Raises:
+            PolicyError: the driver's rule answered no action 0..4 with a finite acceleration.
+        """
         probs = np.asarray(self.policy.probs(obs), dtype=np.float64)
         if not c.commanded:
-            return probs, -1
+            return probs, -1, None
+        rule = fitted_decision(self.policy, obs) if self.config.rule == "fitted" else None
+        if rule is not None:
+            return probs, rule[0], rule[1]
         assert self._rng is not None, "on_start seeds the generator before any step"
-        return probs, choose_action(probs, self._rng, mode=self.config.mode)
+        return probs, choose_action(probs, self._rng, mode=self.config.mode), None
 
     def apply(self, c: Control, frame: FrameState, ia: int, ic: int | None, obs: MergeObservation, probs: np.ndarray,
-              action: int, *, acc_ft_s2: float | None = None) -> float:
+              action: int, *, acc_ft_s2: float | None = None, chosen_acc_ft_s2: float | None = None) -> float:
         """Apply ``action`` to A (row ``ia``; C at row ``ic``, None without C) as the controller applies every decision, and log it:
-        the safety filter (``safety_ttc_s``), the action's acceleration (``policy.acceleration``;
-        ``high_brake="need"``), capped at A's emergency deceleration, held for one decision step
+        the safety filter (``safety_ttc_s``), the action's acceleration (``chosen_acc_ft_s2``, the
+        driver's fitted rule's, when given and the filter kept the action, else
+        ``policy.acceleration``; ``high_brake="need"``), capped at A's emergency deceleration, held for one decision step
         with ``vehicle.setAcceleration``. ``acc_ft_s2`` (ft/s^2) replaces the action's acceleration
         (a continuous action; the logged action is then its bin, :func:`irl.domains.merge.actions.action_of`).
         Not commanded (``c.commanded`` False): nothing is applied; the action logged is the bin of
-        A's acceleration in the frame. Returns the acceleration applied (ft/s^2).
+        A's acceleration in the frame. ``probs [5]``: logged with the decision (the driver's
+        likelihood model). Returns the acceleration applied (ft/s^2).
         """
         c_id = int(frame.vehicle_id[ic]) if ic is not None else 0
         v_c = float(frame.speed[ic]) if ic is not None else math.nan
@@ -248,20 +265,7 @@ class Controller:
             acc = max(acc, -c.max_decel_ft_s2) if math.isfinite(c.max_decel_ft_s2) else acc  # A's physical limit
             self._traci.vehicle.setAcceleration(c.a_sumo, acc * M_PER_FT, step_s)
         elif c.commanded:
-            if self.config.safety_ttc_s is not None:
-                acc_table = [self.policy.acceleration(obs, a) for a in range(len(probs))]
-                safe = safe_action(frame, ia, action, acc_table, self._every * self._frame_s,
-                                   float(self.config.safety_ttc_s or 0.0), lane=self.merge_lane)
-                filtered = safe != action
-                action = safe
-                c.n_interventions += int(filtered)
-            acc = float(self.policy.acceleration(obs, action))
-            if action == HIGH_BRAKE and self.config.high_brake == "need":
-                own = acc
-                acc = brake_to_need(frame, ia, acc, c.a_sumo, self._traci.vehicle, lane=self.merge_lane)
-                need = acc < own
-                c.n_need_brakes += int(need)
-            acc = max(acc, -c.max_decel_ft_s2) if math.isfinite(c.max_decel_ft_s2) else acc  # A's physical limit
+            action, acc, filtered, need = self._command(c, frame, ia, obs, action, chosen_acc_ft_s2)
             self._traci.vehicle.setAcceleration(c.a_sumo, acc * M_PER_FT, step_s)
         else:
             acc = float(frame.acc[ia])
@@ -278,6 +282,30 @@ class Controller:
             d_ac, d_ab, v_ac, v_ab, truck, obs.len_C, obs.len_B, *probs.tolist(), filtered, need,
         ))
         return acc
+
+    def _command(self, c: Control, frame: FrameState, ia: int, obs: MergeObservation, action: int,
+                 chosen: float | None) -> tuple[int, float, bool, bool]:
+        """``(action, acc ft/s^2, filtered, need)`` A is commanded for the driver's ``action``
+        (with its own acceleration ``chosen``, or None): the safety filter, the acceleration, High
+        Brake by need, A's physical limit; counts interventions and need brakes on ``c``."""
+        filtered = need = False
+        if self.config.safety_ttc_s is not None:
+            acc_table = [self.policy.acceleration(obs, a) for a in range(N_ACTIONS)]
+            if chosen is not None:
+                acc_table[action] = chosen
+            safe = safe_action(frame, ia, action, acc_table, self._every * self._frame_s,
+                               float(self.config.safety_ttc_s or 0.0), lane=self.merge_lane)
+            filtered = safe != action
+            action = safe
+            c.n_interventions += int(filtered)
+        acc = float(chosen) if chosen is not None and not filtered else float(self.policy.acceleration(obs, action))
+        if action == HIGH_BRAKE and self.config.high_brake == "need":
+            own = acc
+            acc = brake_to_need(frame, ia, acc, c.a_sumo, self._traci.vehicle, lane=self.merge_lane)
+            need = acc < own
+            c.n_need_brakes += int(need)
+        acc = max(acc, -c.max_decel_ft_s2) if math.isfinite(c.max_decel_ft_s2) else acc  # A's physical limit
+        return action, acc, filtered, need
 
     # -- results ------------------------------------------------------------------------
     def decision_table(self):

@@ -305,7 +305,10 @@ def policy_callable(path: str | os.PathLike, *, mode: bool = True, seed: int = 0
     Gymnasium environment or a loop of one's own (:class:`sim.drivers.callables.PolicyCallable`;
     ``obs``: the ``[7]`` policy observation, :data:`sim.drivers.observe.CONTINUOUS_NAMES`).
     ``mode``: the most likely action (default), else sampled with
-    ``numpy.random.default_rng(seed)``; call ``reset()`` at the start of each episode.
+    ``numpy.random.default_rng(seed)``, for a driver without a fitted decision rule; a driver with
+    one (the planning driver's most likely acceleration) decides by it either way, as it drives
+    in the closed loop (:func:`sim.drivers.policy.fitted_decision`); call ``reset()`` at the start
+    of each episode.
 
     Raises:
         ModelFileError: see :func:`format_of`.

@@ -5,11 +5,14 @@ At each decision the driver sees what a driver sees (:class:`sim.drivers.observe
 the gaps and closing speeds to C and B, A's speed, the vehicle lengths, the acceleration it
 applied over its previous decision (``acc_prev``) and C's acceleration from C's speed change over
 that decision (``acc_C``: brake lights, not C's true acceleration). It plans over its horizon on
-a kinematic model and returns the probabilities of the five paper actions (the sums of its fine
-accelerations' probabilities in each bin); the controller draws a bin (or takes the most likely
-one) and applies :meth:`PlanningDriverPolicy.acceleration`, the driver's most likely fine
-acceleration within that bin, under the physical actuation (nothing of the simulator's ground
-truth is read).
+a kinematic model. What drives A is the rule its fit selected (:meth:`PlanningDriverPolicy.decide`):
+the most likely fine acceleration, as applied, exactly :meth:`PlanningDriver.act` of the
+observation (the acceleration the replay fit and the pair scores use), under the physical actuation
+(nothing of the simulator's ground truth is read). :meth:`PlanningDriverPolicy.probs`, the
+probabilities of the five paper actions (the sums of its fine accelerations' probabilities at the
+likelihood temperature in each bin), is the driver's likelihood model: its held-out
+log-likelihood and the reports' action distributions, not how it drives (a draw from it is
+reachable with ``ControllerConfig(rule="likelihood-draw")``).
 
 The planning driver's format (``merge-irl-planner/...``, ``merge-irl learn-driver``) is
 registered here in the driver-format registry (:mod:`sim.drivers.formats`): its policy, its
@@ -78,8 +81,18 @@ class PlanningDriverPolicy(PolicyDefaults):
         self._last.update(obs=obs, lp=lp, applied=applied, bins=actions_of(applied))
         return lp
 
+    def decide(self, obs: MergeObservation) -> tuple[int, float]:
+        """The driver's fitted decision rule at ``obs``: ``(paper action, acceleration ft/s^2)``,
+        the most likely fine acceleration as applied (:meth:`PlanningDriver.act` of the
+        observation, ``acc_prev``/``acc_C`` unknown read as 0) and its bin."""
+        lp = self._fine_log_policy(obs)
+        g = int(np.argmax(lp))
+        return int(self._last["bins"][g]), float(self._last["applied"][g])
+
     def probs(self, obs: MergeObservation) -> np.ndarray:
-        """``[5]`` probabilities of the paper actions: the sums over the fine accelerations in each bin."""
+        """``[5]`` probabilities of the paper actions, the driver's likelihood model (what its
+        held-out log-likelihood scores; it drives by :meth:`decide`): the sums over the fine
+        accelerations in each bin."""
         p = np.exp(self._fine_log_policy(obs))
         out = np.zeros(N_ACTIONS)
         np.add.at(out, self._last["bins"], p)
@@ -87,7 +100,8 @@ class PlanningDriverPolicy(PolicyDefaults):
 
     def acceleration(self, obs: MergeObservation, action: int) -> float:
         """The driver's most likely fine acceleration (ft/s^2) within the bin ``action`` at
-        ``obs``, as applied (under an actuation lag, :meth:`PlanningDriver.applied`; the paper
+        ``obs`` (for the bin of :meth:`decide`, its acceleration; for another bin, one a safety
+        filter or a draw from the likelihood model chose), as applied (under an actuation lag, :meth:`PlanningDriver.applied`; the paper
         action is the bin of the applied acceleration), or the training mean of the bin when no
         fine acceleration lies in it."""
         lp = self._fine_log_policy(obs)

@@ -5,10 +5,16 @@ alias).
 
 A policy maps the merge observation of car A (:class:`sim.drivers.observe.MergeObservation`: the four
 continuous variables, B's truck flag and the discrete state) to probabilities over the merge
-domain's five acceleration actions (High Brake, Low Brake, Zero, Low Accel, High Accel). The
-controller samples an action (or takes the mode) and applies
-:data:`irl.domains.merge.actions.ACTION_ACC_FT_S2`, the representative acceleration of each action bin
-(the action bins and names are :mod:`irl.domains.merge.actions`', the state encoding
+domain's five acceleration actions (High Brake, Low Brake, Zero, Low Accel, High Accel): the
+driver's *likelihood model*, what its held-out log-likelihood and the reports' action
+distributions score. A driver fitted with a decision rule of its own (the planning driver: its most
+likely fine acceleration, as the replay fit selects it) declares it as :meth:`PolicyDefaults.decide`
+``(obs) -> (paper action, acceleration ft/s^2)``, and that rule drives A
+(:func:`fitted_decision`). A driver without one (``decide`` returns None: the tabular IRL models,
+fitted as stochastic policies) drives by its probabilities: the controller samples an action (or
+takes the mode) and applies :data:`irl.domains.merge.actions.ACTION_ACC_FT_S2`, the representative
+acceleration of each action bin, or the driver's own :meth:`Driver.acceleration` (the action bins
+and names are :mod:`irl.domains.merge.actions`', the state encoding
 :mod:`irl.domains.merge.states`').
 
 Policies in the same harness:
@@ -85,11 +91,18 @@ class Driver(Protocol):
     :class:`PolicyDefaults` gives every member but ``name``, ``controls``, ``decision_step_s``,
     ``probs`` and ``heldout_loglik`` a default; the policies here inherit it.
 
-    One optional member, read when present (so a class without it still is a ``Policy``):
-    ``heldout_inputs(encounters, *, where, cache) -> dict``, extra keyword arguments of
-    :meth:`heldout_loglik` prepared from the held-out encounters, so that work several policies
-    need (the car-following decisions at one step) is done once: ``cache`` is one dict shared by
-    every policy scored on the same held-out table (:meth:`PolicyDefaults.heldout_inputs`: none).
+    Two optional members, read when present (so a class without them still is a ``Policy``):
+
+    * ``heldout_inputs(encounters, *, where, cache) -> dict``, extra keyword arguments of
+      :meth:`heldout_loglik` prepared from the held-out encounters, so that work several policies
+      need (the car-following decisions at one step) is done once: ``cache`` is one dict shared by
+      every policy scored on the same held-out table (:meth:`PolicyDefaults.heldout_inputs`: none).
+    * ``decide(obs) -> (action, acc_ft_s2) | None``, the driver's *fitted decision rule*: the
+      paper action (0..4, the bin of the acceleration) and the acceleration (ft/s^2) the driver
+      applies at ``obs``, the rule its fit selected. When it answers, that is what drives A
+      (:func:`fitted_decision`); ``probs`` stays the driver's likelihood model (held-out scores,
+      action distributions). None (:meth:`PolicyDefaults.decide`): no rule of its own; the
+      controller draws from ``probs`` (or takes its mode).
     """
 
     # read-only properties, so frozen dataclasses (the policies here) satisfy the protocol
@@ -118,7 +131,8 @@ class Driver(Protocol):
     def source(self) -> str: ...
 
     def probs(self, obs: MergeObservation) -> np.ndarray:
-        """``[5]`` action probabilities (sum to 1)."""
+        """``[5]`` action probabilities (sum to 1): the driver's likelihood model (what drives A
+        unless the driver has a fitted decision rule, ``decide``)."""
         ...
 
     def acceleration(self, obs: MergeObservation, action: int) -> float:
@@ -173,6 +187,11 @@ class PolicyDefaults:
         """No extra inputs to :meth:`Policy.heldout_loglik`."""
         return {}
 
+    def decide(self, obs: MergeObservation) -> tuple[int, float] | None:
+        """None: no fitted decision rule of the driver's own (it drives by its probabilities,
+        :meth:`Driver.probs`, drawn or at their mode)."""
+        return None
+
 
 def missing_members(policy: object, *, scoring: bool = True) -> list[str]:
     """The members of :class:`Policy` that ``policy`` lacks (``heldout_loglik`` only when
@@ -206,6 +225,28 @@ def state_independent_loglik(p: np.ndarray, encounters: pd.DataFrame, *, decisio
     with np.errstate(divide="ignore"):
         lp = np.log(np.asarray(p, dtype=float))[actions]
     return float(lp.sum()), float(lp.mean()) if lp.size else float("nan")
+
+
+def fitted_decision(policy: object, obs: MergeObservation) -> tuple[int, float] | None:
+    """``(action, acc_ft_s2)`` of ``policy``'s fitted decision rule at ``obs`` (its ``decide``;
+    action 0..4, acceleration in ft/s^2), or None when it has none (no ``decide``, or one that
+    answers None).
+
+    Raises:
+        PolicyError: ``decide`` answered something else than an action 0..4 and a finite number.
+    """
+    rule = getattr(policy, "decide", None)
+    out = rule(obs) if rule is not None else None
+    if out is None:
+        return None
+    try:
+        action, acc = int(out[0]), float(out[1])
+    except (TypeError, ValueError, IndexError):
+        action, acc = -1, float("nan")
+    if not (0 <= action < N_ACTIONS and np.isfinite(acc)):
+        raise PolicyError(f"{getattr(policy, 'name', type(policy).__name__)}: decide must return (action 0..4, "
+                          f"finite acceleration ft/s^2) or None, got {out!r}")
+    return action, acc
 
 
 def choose_action(probs: np.ndarray, rng: np.random.Generator, *, mode: bool = False) -> int:

@@ -48,7 +48,15 @@ from sim.drivers.callables.limits import DEFAULT_DECISION_LIMIT_S, call_with_lim
 from sim.drivers.callables.messages import one_line
 from sim.drivers.callables.specs import CallableSpec, load_callable
 from sim.drivers.observe import CONTINUOUS_NAMES, MergeObservation, policy_observation, unfill_policy_row
-from sim.drivers.policy import NO_LIKELIHOOD, Policy, PolicyDefaults, PolicyError, check_policy, choose_action
+from sim.drivers.policy import (
+    NO_LIKELIHOOD,
+    Policy,
+    PolicyDefaults,
+    PolicyError,
+    check_policy,
+    choose_action,
+    fitted_decision,
+)
 
 #: A vehicle at least this long (ft) is taken as a truck when only the continuous observation
 #: is known (:class:`CallableFromDriver` encoding a tabular state): 8 m, between the presets' cars
@@ -209,13 +217,16 @@ class CallableFromDriver:
     alone, what the policy reads beyond it is rebuilt as the controller would have it: A's previous
     action is the last one this callable returned in the episode (:meth:`reset` starts a new
     episode; unknown before the first decision), the acceleration over the previous decision is the
-    one the policy applies for that action (:meth:`sim.drivers.policy.Policy.acceleration`), C's acceleration 0 (unknown), B a truck when ``len_B`` is at least
+    one the policy applied (its fitted rule's, else :meth:`sim.drivers.policy.Policy.acceleration`), C's acceleration 0 (unknown), B a truck when ``len_B`` is at least
     :data:`TRUCK_MIN_LENGTH_FT`, and the discrete state encoded with the policy's bins
     (``encoder``, ``state_encoding``) when it has them.
 
     Args:
         policy: the driver (its members checked as the controller checks them).
-        mode: take the most likely action (default) instead of sampling one.
+        mode: take the most likely action (default) instead of sampling one, for a driver
+            without a fitted decision rule; a driver with one (``decide``, the planning driver)
+            decides by it either way, as in the closed loop
+            (:func:`sim.drivers.policy.fitted_decision`).
         seed: the sampling generator's seed (``numpy.random.default_rng``).
 
     Raises:
@@ -264,6 +275,10 @@ class CallableFromDriver:
     def __call__(self, obs: np.ndarray | MergeObservation) -> int:
         """The action index ``0..4`` the policy takes at ``obs``."""
         o = self.observation(obs)
+        rule = fitted_decision(self.policy, o)  # a driver's fitted rule drives, as in the controller
+        if rule is not None:
+            self._prev, self._prev_acc = rule
+            return rule[0]
         a = choose_action(np.asarray(self.policy.probs(o), dtype=np.float64), self._rng, mode=self.mode)
         self._prev, self._prev_acc = a, float(self.policy.acceleration(o, a))
         return a

@@ -202,12 +202,15 @@ def test_evaluate_cli_baselines_safety_filter_and_flag_gate(tmp_path):
     assert data["controller"]["safety_ttc_s"] == 2.5
     md = (out / "report.md").read_text()
     assert "FLAGGED: not_converged" in md and "safety filter on (TTC >= 2.5 s)" in md
+    assert "below -(4.5 + 0.05) m/s^2" in md and data["metrics_config"]["emergency_tolerance_m_s2"] == 0.05
+    assert "fitted decision rule where it has one" in md and data["controller"]["rule"] == "fitted"
     # human likeness: per policy in metrics.json, report.md and the console
     for name, p in data["policies"].items():
         agg = p["aggregate"]
         n = agg["n_controls"]
         assert n > 0, name
         assert agg["emergency_braking_rate"] == pytest.approx(agg["emergency_brakings"] / n)
+        assert agg["emergency_brakings"] == sum(agg[f"emergency_brakings_{r}"] for r in ("A", "B", "follower"))
         lo, hi = agg["emergency_braking_ci95"]
         assert 0 <= lo <= agg["emergency_braking_rate"] < hi
         assert 0 <= agg["close_to_c"] <= n and agg["close_to_c_rate"] == pytest.approx(agg["close_to_c"] / n)
@@ -223,7 +226,8 @@ def test_evaluate_cli_baselines_safety_filter_and_flag_gate(tmp_path):
     assert data["demos"]["close_to_c"]["n_encounters"] == 12
     for text in (md, r.stdout):
         assert "As within 2 m of C [95 % CI]" in text and "W1 jerk (m/s^3)" in text
-        assert f"| demonstrations | 12 | - | - | {expected}/12 = " in text
+        assert f"| demonstrations | 12 | - | - | - | {expected}/12 = " in text
+        assert "emergency brakings by A / B / A's follower" in text
         assert "| bc | " in text.split("W1 jerk (m/s^3)")[1]  # a row of every policy in the human table
 
 

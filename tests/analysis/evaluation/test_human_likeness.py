@@ -200,13 +200,14 @@ def test_aggregate_rates_per_controlled_a_and_the_human_table():
     table = human_table({"p": agg}, demos, close_gap_m=2.0)
     lines = table.splitlines()
     headers = [h.strip() for h in lines[0].strip("|").split("|")]
-    assert headers == ["policy", "As controlled", "emergency brakings near A per A [95 % CI]", "A into C / A into B",
+    assert headers == ["policy", "As controlled", "emergency brakings near A per A [95 % CI]",
+                       "emergency brakings by A / B / A's follower", "A into C / A into B",
                        "As within 2 m of C [95 % CI]", "W1 acc (m/s^2)", "W1 jerk (m/s^3)"]
     lo, hi = poisson_rate_ci95(12, 40)[1:]
-    assert lines[2].startswith("| demonstrations | 2 | - | - | 1/2 = 0.500 [")
-    assert lines[3] == (f"| p | 40 | 12/40 = 0.300 [{lo:.3f}, {hi:.3f}] | 0 / 0 | 3/40 = 0.075 "
+    assert lines[2].startswith("| demonstrations | 2 | - | - | - | 1/2 = 0.500 [")
+    assert lines[3] == (f"| p | 40 | 12/40 = 0.300 [{lo:.3f}, {hi:.3f}] | 0 / 0 / 0 | 0 / 0 | 3/40 = 0.075 "
                         f"[{agg.close_to_c_ci95[0]:.3f}, {agg.close_to_c_ci95[1]:.3f}] | 0.25 | 3.50 |")
     assert "demonstrations" not in human_table({"p": agg})
     legend = column_legend(HUMAN_COLUMNS, emergency_decel_m_s2=4.5, close_gap_m=1.5)
     entries = [e.split(" = ", 1)[0] for e in legend.removeprefix("Columns: ").rstrip(".").split("; ")]
-    assert entries[4] == "As within 1.5 m of C [95 % CI]" and "{" not in legend and "4.5 m/s^2" in legend
+    assert entries[5] == "As within 1.5 m of C [95 % CI]" and "{" not in legend and "4.5 m/s^2" in legend

@@ -101,6 +101,7 @@ def test_emergency_braking_counts_runs_near_a_only_while_controlled():
     controls = _controls([(1, 2, "a", 0, 14, "timeout", -1, None, True, 30.0, 3)])
     m = episode_metrics(t, controls, _decisions([0, 0, 0]), policy="p", seed=0, section_length_ft=400.0)
     assert m.emergency_brakings == 3  # A twice in the window + the follower; B=2 never
+    assert (m.emergency_brakings_A, m.emergency_brakings_B, m.emergency_brakings_follower) == (2, 0, 1)
     assert m.emergency_brakings_all == 5
     assert m.n_merges == 0 and math.isnan(m.b_ahead_rate)
     # a stricter threshold counts nothing
@@ -149,3 +150,29 @@ def test_a_collisions_are_counted_apart_by_who_ran_into_whom():
     assert _a_collisions(controls) == 3
     assert _a_collisions(controls, "A into C") == 1 and _a_collisions(controls, "A into B") == 1
     assert _a_collisions(controls.drop(columns="collision_kind"), "A into C") == 0
+
+
+@pytest.mark.parametrize("decel_m_s2,counted", [(4.5, False), (4.52, False), (4.6, True)])
+@pytest.mark.parametrize("role", ["A", "B", "follower"])
+def test_braking_at_exactly_the_threshold_is_not_an_emergency_beyond_it_is_under_its_role(role, decel_m_s2,
+                                                                                        counted):
+    """SUMO's normal maximum, 4.5 m/s^2, goes through ft/s^2 and lands a hair below -4.5: not
+    counted (nor within the 0.05 m/s^2 tolerance); 4.6 m/s^2 is, under the braking car's role."""
+    t = _scene(acc_a=0.0)
+    car = {"A": 1, "B": 4, "follower": 3}[role]
+    acc_ft = -decel_m_s2 * FT_PER_M * (1 + 1e-12)  # a hair below, as SUMO's table has it
+    t.loc[(t.Vehicle_ID == car) & t.Frame_ID.isin([5, 6]), "v_Acc"] = acc_ft
+    controls = _controls([(1, 4, "a", 0, 19, "merge_done", 10, True, True, 30.0, 7)])
+    m = episode_metrics(t, controls, _decisions([2]), policy="p", seed=0, section_length_ft=400.0)
+    by_role = {"A": m.emergency_brakings_A, "B": m.emergency_brakings_B, "follower": m.emergency_brakings_follower}
+    assert by_role == {r: int(counted and r == role) for r in by_role}
+    assert m.emergency_brakings == sum(by_role.values()) == m.emergency_brakings_all == int(counted)
+    # without a tolerance the hair below -4.5 counts again (what the tolerance is for)
+    loose = episode_metrics(t, controls, _decisions([2]), policy="p", seed=0, section_length_ft=400.0,
+                            config=MetricsConfig(emergency_tolerance_m_s2=0.0))
+    assert loose.emergency_brakings == 1
+
+
+def test_the_emergency_tolerance_is_checked():
+    with pytest.raises(ValueError, match="emergency_tolerance_m_s2"):
+        MetricsConfig(emergency_tolerance_m_s2=-0.1)

@@ -165,7 +165,10 @@ def test_every_learned_model_file_is_a_policy_callable(tmp_path) -> None:
     drv = learn_planning_driver(d, selection=PlannerConfig(grid="g13", horizon_s=0.9))
     pl_fn = policy_callable(drv.save(tmp_path / "planner.json"))
     x = obs[30]
-    assert pl_fn(x) == int(np.argmax(drv.bin_log_policy(x[None], np.array([0.0]), np.array([0.0]))[0]))
+    # it decides by its fitted rule (the most likely fine acceleration's bin), with mode or not
+    assert pl_fn(x) == action_of(float(drv.act(x[None], np.array([0.0]), np.array([0.0]))[0]))
+    assert policy_callable(drv.save(tmp_path / "planner.json"), mode=False, seed=3)(x) == pl_fn.__class__(
+        pl_fn.policy)(x)
     assert pl_fn(obs[31:32]) in range(5)  # [1, 7] too
     # sampled with its own generator: reproducible
     s1 = [PolicyCallable(pol, mode=False, seed=7)(x) for x in obs]

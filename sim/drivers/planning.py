@@ -75,7 +75,8 @@ class PlanningDriverPolicy(PolicyDefaults):
             return self._last["lp"]
         prev = obs.acc_prev if math.isfinite(obs.acc_prev) else 0.0
         acc_c = obs.acc_C if math.isfinite(obs.acc_C) else 0.0
-        lp = self.driver.fine_log_policy(obs.continuous(), np.array([prev]), np.array([acc_c]))[0]
+        lp = self.driver.fine_log_policy(obs.continuous(), np.array([prev]), np.array([acc_c]),
+                                         np.array([bool(obs.b_merged)]))[0]
         grid = self.driver.fine_grid
         applied = self.driver.applied(grid, np.full(grid.size, prev))  # the grid itself unless a lag
         self._last.update(obs=obs, lp=lp, applied=applied, bins=actions_of(applied))
@@ -84,7 +85,8 @@ class PlanningDriverPolicy(PolicyDefaults):
     def decide(self, obs: MergeObservation) -> tuple[int, float]:
         """The driver's fitted decision rule at ``obs``: ``(paper action, acceleration ft/s^2)``,
         the most likely fine acceleration as applied (:meth:`PlanningDriver.act` of the
-        observation, ``acc_prev``/``acc_C`` unknown read as 0) and its bin."""
+        observation, ``acc_prev``/``acc_C`` unknown read as 0, ``b_merged`` the observation's)
+        and its bin."""
         lp = self._fine_log_policy(obs)
         g = int(np.argmax(lp))
         return int(self._last["bins"][g]), float(self._last["applied"][g])

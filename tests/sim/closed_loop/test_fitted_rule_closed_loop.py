@@ -63,7 +63,7 @@ def test_a_planning_driver_applies_act_of_its_observations_and_flips_less(driver
     for obs, row in zip(pol.seen, dec.itertuples()):
         prev = obs.acc_prev if math.isfinite(obs.acc_prev) else 0.0
         acc_c = obs.acc_C if math.isfinite(obs.acc_C) else 0.0
-        want = float(driver.act(obs.continuous(), np.array([prev]), np.array([acc_c]))[0])
+        want = float(driver.act(obs.continuous(), np.array([prev]), np.array([acc_c]), np.array([obs.b_merged]))[0])
         assert row.action == action_of(want)
         if want > -29.0:  # A's physical limit (9 m/s^2 cars, 7 trucks) not reached: applied as decided
             assert row.acc_cmd == pytest.approx(want, abs=1e-9)

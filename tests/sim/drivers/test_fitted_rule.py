@@ -56,7 +56,7 @@ def test_the_closed_loop_decision_is_the_fitted_act(driver):
     for o in obs:
         prev = o.acc_prev if math.isfinite(o.acc_prev) else 0.0
         acc_c = o.acc_C if math.isfinite(o.acc_C) else 0.0
-        want = float(driver.act(o.continuous(), np.array([prev]), np.array([acc_c]))[0])
+        want = float(driver.act(o.continuous(), np.array([prev]), np.array([acc_c]), np.array([o.b_merged]))[0])
         assert pol.decide(o) == (action_of(want), want)
         for ctl in ctls:
             probs, action, acc = ctl.decide(_Commanded(), o)  # type: ignore[arg-type]

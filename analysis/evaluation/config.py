@@ -61,6 +61,9 @@ class EvaluationConfig:
         rrd: write a rerun recording of each driver's first episode.
         progress: show a progress bar.
         allow_implausible: run a scenario (and ``duration_s``) outside the plausibility bounds.
+        pairs: a folder of recorded car-following pairs (:func:`analysis.calibration.pairs.load_pairs`,
+            e.g. NGSIM I-80): the ``recorded drivers`` row of the human-likeness table and every
+            driver's W1 distances to it (:mod:`analysis.evaluation.recorded`); None: no such row.
     """
 
     scenario: Any
@@ -79,3 +82,4 @@ class EvaluationConfig:
     rrd: bool = True
     progress: bool = True
     allow_implausible: bool = False
+    pairs: str | os.PathLike[str] | None = None

@@ -18,6 +18,7 @@ from analysis.evaluation.distances import w1_to_demos
 from analysis.evaluation.episode import EpisodeResult
 from analysis.evaluation.human_likeness import DemoCloseness, demo_close_to_c, w1_acc_jerk
 from analysis.evaluation.plan import EvaluationPlan
+from analysis.evaluation.recorded import RecordedComparison, compare_to_recorded
 from analysis.evaluation.report import write_outputs
 from analysis.evaluation.run import EvaluationRun
 from irl.domains.merge.actions import N_ACTIONS
@@ -39,6 +40,7 @@ class EvaluationReport:
         rrd: policy name -> rerun recording (first episode), if written.
         demo_closeness: the share of held-out encounters whose A came within the metrics'
             ``close_gap_m`` of C (None without ``demos``).
+        recorded: every driver beside the recorded drivers of ``pairs`` (None without ``pairs``).
     """
 
     out_dir: Path
@@ -49,6 +51,7 @@ class EvaluationReport:
     plots: tuple[Path, ...] = ()
     rrd: dict[str, Path] = field(default_factory=dict)
     demo_closeness: DemoCloseness | None = None
+    recorded: RecordedComparison | None = None
 
 
 def write_report(plan: EvaluationPlan, run: EvaluationRun) -> EvaluationReport:
@@ -69,6 +72,7 @@ def write_report(plan: EvaluationPlan, run: EvaluationRun) -> EvaluationReport:
               **w1_acc_jerk([r.speed_profiles for r in rs], held.encounters)} if held is not None and rs else None
         aggs[p.name] = aggregate([r.metrics for r in rs], demo_action_counts=counts, heldout=ho, w1=w1,
                                  flags=tuple(p.flags) + heldout_flags(ho))
+    recorded = compare_to_recorded(plan.recorded, by_policy) if plan.recorded is not None else None
     closeness = demo_close_to_c(held.encounters, cfg.metrics.close_gap_m) if held is not None else None
     scen_name = cfg.scenario if isinstance(cfg.scenario, (str, Path)) else plan.spec.name
     report_md, metrics_json, plots = write_outputs(
@@ -76,6 +80,7 @@ def write_report(plan: EvaluationPlan, run: EvaluationRun) -> EvaluationReport:
         duration_s=cfg.duration_s, controller=plan.controller, metrics=cfg.metrics,
         provenance=dict(plan.provenance), speed_limit_ft_s=plan.spec.road.speed_limit_mps * FT_PER_M,
         left_out=left_out_baselines(plan.baselines, cfg.train_demos), demo_closeness=closeness,
+        recorded=recorded,
     )
     write_timings(out, {"episode_wall_time_s": {name: [float(r.wall_time_s) for r in rs]
                                                 for name, rs in by_policy.items()}})
@@ -83,7 +88,7 @@ def write_report(plan: EvaluationPlan, run: EvaluationRun) -> EvaluationReport:
     for old in (out / "rerun").glob("*.rrd"):  # every other recording there: an earlier evaluation's
         if old not in rrds.values():
             old.unlink(missing_ok=True)
-    return EvaluationReport(out, aggs, by_policy, report_md, metrics_json, plots, rrds, closeness)
+    return EvaluationReport(out, aggs, by_policy, report_md, metrics_json, plots, rrds, closeness, recorded)
 
 
 #: Held-out log-likelihood per step of uniform actions over the merge actions (log 1/5 = -1.609):

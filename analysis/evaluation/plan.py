@@ -21,16 +21,19 @@ from typing import Any
 
 import pandas as pd
 
+from analysis.calibration.pairs import load_pairs
 from analysis.errors import AnalysisError
 from analysis.evaluation.config import EvaluationConfig
 from analysis.evaluation.driver_specs import resolve_driver_specs
 from analysis.evaluation.heldout_scoring import HeldOut, load_heldout, policy_heldout_loglik
 from analysis.evaluation.policies import check_picklable, check_unambiguous, with_distinct_names
+from analysis.evaluation.recorded import RecordedDrivers, recorded_drivers
 from analysis.sweep import resolve_executor
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, frames_per_step
 from irl.errors import ConfigError
 from merge_irl.provenance import provenance, text_digest
 from merge_irl.units import FRAME_S
+from scenarios.errors import SpecError
 from scenarios.loader import load_scenario
 from scenarios.spec.parse import with_overrides
 from sim.closed_loop.config import ControllerConfig
@@ -56,6 +59,8 @@ class EvaluationPlan:
         heldout: the held-out encounters, or None without ``demos``.
         scores: policy name -> held-out log-likelihood ``(sum, per step)``, or None without ``demos``.
         provenance: the provenance record of the inputs (:func:`evaluation_provenance`).
+        recorded: the recorded drivers' distributions of ``config.pairs``, at the decision step
+            (:func:`analysis.evaluation.recorded.recorded_drivers`), or None without ``pairs``.
     """
 
     config: EvaluationConfig
@@ -67,6 +72,7 @@ class EvaluationPlan:
     heldout: HeldOut | None = field(repr=False)
     scores: Mapping[str, tuple[float, float] | None] = field(repr=False)
     provenance: Mapping[str, Any] = field(repr=False)
+    recorded: RecordedDrivers | None = field(default=None, repr=False)
 
     @property
     def out_dir(self) -> Path:
@@ -92,6 +98,7 @@ def plan_evaluation(config: EvaluationConfig) -> EvaluationPlan:
         ModelFileError: a driver file is missing, malformed or of no registered format.
         DemonstrationError: the held-out or training encounters cannot be read, lack columns, or
             cannot be scored.
+        SpecError: ``pairs`` is not a folder of valid pair CSVs (the folder or file named).
     """
     if config.episodes < 1:
         raise AnalysisError(f"evaluate: episodes must be >= 1, got {config.episodes}")
@@ -106,6 +113,7 @@ def plan_evaluation(config: EvaluationConfig) -> EvaluationPlan:
     models = [d.policy for d in resolved.models]
     controller = _fixed_step(config.controller, models + others)
     step = float(controller.decision_step_s)  # type: ignore[arg-type]
+    recorded = _recorded(config.pairs, step, config.metrics.close_gap_m) if config.pairs is not None else None
     base = baseline_drivers(baselines, spec, config.train_demos, models[0].encoder if models else None, step)
     check_unambiguous(others, models + base)  # a --policy named 'sumo' beside the baseline: refused, not 'sumo-2'
     files = [d.file for d in resolved.models] + [None] * len(base) + [d.file for d in resolved.others]
@@ -119,7 +127,20 @@ def plan_evaluation(config: EvaluationConfig) -> EvaluationPlan:
     scores = {p.name: policy_heldout_loglik(p, held, step, cache=shared) if held is not None else None for p in pols}
     # the files as read, before the work: a driver's file, else its source (a callable's module), else None
     prov = evaluation_provenance({p.name: f or p.source or None for p, f in zip(pols, files)}, config, spec)
-    return EvaluationPlan(config, spec, tuple(pols), baselines, controller, executor, held, scores, prov)
+    return EvaluationPlan(config, spec, tuple(pols), baselines, controller, executor, held, scores, prov, recorded)
+
+
+def _recorded(pairs, step: float, close_gap_m: float) -> RecordedDrivers:
+    """The recorded drivers of the ``pairs`` folder at ``step`` s.
+
+    Raises:
+        SpecError: the folder is missing, a file, empty of pair CSVs, or holds an invalid pair.
+    """
+    try:
+        loaded = load_pairs(pairs)
+    except FileNotFoundError:
+        raise SpecError(f"evaluate: --pairs {pairs}: no such folder (a folder of recorded pair CSVs)") from None
+    return recorded_drivers(loaded, step, source=str(pairs), gap_m=close_gap_m)
 
 
 def _scenario(config: EvaluationConfig):
@@ -155,11 +176,12 @@ def _fixed_step(controller: ControllerConfig, pols: list[Policy]) -> ControllerC
 
 def evaluation_provenance(files: Mapping[str, Any], config: EvaluationConfig, spec) -> dict:
     """:func:`merge_irl.provenance.provenance` of an evaluation: each policy's file (``files``),
-    the held-out and training demonstrations and scenario files read, and the SHA-256 of the
+    the held-out and training demonstrations, pairs folder and scenario files read, and the SHA-256 of the
     scenario actually simulated (its TOML)."""
     scenario = config.scenario
     scenario_file = scenario if isinstance(scenario, (str, Path)) and Path(scenario).is_file() else None
     demos_file = None if isinstance(config.demos, pd.DataFrame) else config.demos
     train_file = None if isinstance(config.train_demos, pd.DataFrame) else config.train_demos
-    return provenance({"demos": demos_file, "train_demos": train_file, "scenario": scenario_file}, dict(files),
+    inputs = {"demos": demos_file, "train_demos": train_file, "scenario": scenario_file, "pairs": config.pairs}
+    return provenance(inputs, dict(files),
                       extra={"scenario_sha256": text_digest(spec.to_toml())})

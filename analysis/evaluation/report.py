@@ -18,6 +18,7 @@ from analysis.evaluation.aggregate import AggregateMetrics
 from analysis.evaluation.human_likeness import CLOSE_GAP_M, DemoCloseness
 from analysis.evaluation.intervals import rate_ci95
 from analysis.evaluation.plots import write_plots
+from analysis.evaluation.recorded import W1_KEYS, RecordedComparison, RecordedDrivers
 from irl.domains.merge.actions import ACTION_NAMES, N_ACTIONS
 from merge_irl.atomic import write_text_atomic
 from merge_irl.provenance import provenance_markdown
@@ -161,17 +162,65 @@ def report_table(aggs: dict[str, AggregateMetrics], columns: tuple[Column, ...] 
 
 
 def human_table(aggs: dict[str, AggregateMetrics], demos: DemoCloseness | None = None, *,
-                close_gap_m: float = CLOSE_GAP_M) -> str:
-    """The human-likeness table (:data:`HUMAN_COLUMNS`), one row per policy, and a first row
+                close_gap_m: float = CLOSE_GAP_M, recorded: RecordedComparison | None = None) -> str:
+    """The human-likeness table (:data:`HUMAN_COLUMNS`), one row per policy, and first rows
     ``demonstrations`` with the held-out encounters' share within ``close_gap_m`` of C when
-    ``demos`` is given (its other cells ``-``)."""
-    table = report_table(aggs, HUMAN_COLUMNS, close_gap_m=close_gap_m)
-    if demos is None:
-        return table
+    ``demos`` is given (its other cells ``-``) and ``recorded drivers`` when ``recorded`` is
+    given: then the table has the columns of :func:`human_columns` and the recorded row its
+    pairs, its share of pairs within the gap and its own summary (its other cells ``-``)."""
+    columns = human_columns(recorded)
+    table = report_table(aggs, columns, close_gap_m=close_gap_m)
     lines = table.split("\n")
-    cells = ["demonstrations", str(demos.n_encounters), "-", "-", "-",
-             _per_a(demos.n_close, demos.n_encounters, demos.rate, demos.ci95), "-", "-"]
-    return "\n".join([*lines[:2], "| " + " | ".join(cells) + " |", *lines[2:]])
+    first = []
+    pad = ["-"] * (len(columns) - len(HUMAN_COLUMNS))
+    if demos is not None:
+        first.append(["demonstrations", str(demos.n_encounters), "-", "-", "-",
+                      _per_a(demos.n_close, demos.n_encounters, demos.rate, demos.ci95), "-", "-", *pad])
+    if recorded is not None:
+        first.append(_recorded_cells(recorded.recorded))
+    return "\n".join([*lines[:2], *("| " + " | ".join(c) + " |" for c in first), *lines[2:]])
+
+
+def _recorded_cells(rec: RecordedDrivers) -> list[str]:
+    """The ``recorded drivers`` row of :func:`human_table` (the columns of :func:`human_columns`)."""
+    rate, lo, hi = rec.close_rate
+    return ["recorded drivers", str(rec.n_pairs), "-", "-", "-", _per_a(rec.n_close, rec.n_pairs, rate, (lo, hi)),
+            "-", "-", "-", _summary(rec.summary)]
+
+
+def _summary(summary: dict[str, float] | None) -> str:
+    """``mean abs acc / median gap / median headway`` (``-`` where unknown)."""
+    if summary is None:
+        return "-"
+    return " / ".join(_fmt(summary[k]) for k in ("mean_abs_acc_m_s2", "median_gap_m", "median_headway_s"))
+
+
+def human_columns(recorded: RecordedComparison | None = None) -> tuple[Column, ...]:
+    """:data:`HUMAN_COLUMNS`, and with ``recorded`` two more: each driver's Wasserstein-1
+    distances to the recorded drivers (:mod:`analysis.evaluation.recorded`) and its own mean
+    |acceleration|, median gap and median time headway."""
+    if recorded is None:
+        return HUMAN_COLUMNS
+    drivers = recorded.drivers
+
+    def w1(name: str, a: AggregateMetrics) -> str:
+        d = drivers.get(name)
+        return " / ".join(_fmt(d.w1[k]) for k in W1_KEYS) if d is not None else "-"
+
+    def own(name: str, a: AggregateMetrics) -> str:
+        d = drivers.get(name)
+        return _summary(d.summary if d is not None else None)
+
+    step = f"{recorded.recorded.decision_step_s:g}"
+    return (*HUMAN_COLUMNS,
+            Column("W1 to recorded acc / jerk / gap / headway",
+                   "Wasserstein-1 distances to the `recorded drivers` (the followers of the real pairs, --pairs) of "
+                   "A's acceleration (m/s^2) and jerk (m/s^3) per 0.1 s frame while controlled, and of its bumper "
+                   f"gap to C (m) and time headway (gap / own speed, s) at its decisions; the recorded side per "
+                   f"frame and every {step} s (the decision step) likewise", w1),
+            Column("mean abs acc / median gap / median headway",
+                   "the same samples' mean absolute acceleration (m/s^2), median gap (m) and median time headway "
+                   "(s); `recorded drivers`: the recorded followers'", own))
 
 
 def _header(c: Column, close_gap_m: float) -> str:
@@ -235,6 +284,12 @@ def _actions_line(controller) -> str:
     return f"actions {how} every driver's likelihood model (rule `likelihood-draw`)"
 
 
+def _recorded_keys(recorded: RecordedComparison | None, name: str) -> dict:
+    """A policy's keys beside the recorded drivers in metrics.json (``{}`` without them)."""
+    d = recorded.drivers.get(name) if recorded is not None else None
+    return d.to_dict() if d is not None else {}
+
+
 def metrics_to_json(obj) -> str:
     """JSON text with NaN/inf written as null."""
     def clean(x):
@@ -256,12 +311,16 @@ def metrics_to_json(obj) -> str:
 
 def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes, duration_s, controller, metrics,
                   provenance: dict | None = None, speed_limit_ft_s: float | None = None,
-                  left_out: list[str] | tuple[str, ...] = (), demo_closeness: DemoCloseness | None = None):
+                  left_out: list[str] | tuple[str, ...] = (), demo_closeness: DemoCloseness | None = None,
+                  recorded: RecordedComparison | None = None):
     """Write report.md, metrics.json and the plots (:mod:`analysis.evaluation.plots`); return their
     paths. ``provenance`` (:func:`merge_irl.provenance.provenance`) goes into both; ``left_out``
     names the baselines that could not be fitted (no training demonstrations); ``demo_closeness``:
     the held-out encounters' share within ``metrics.close_gap_m`` of C (metrics.json's
-    ``demos.close_to_c`` and the first row of the human-likeness table)."""
+    ``demos.close_to_c`` and the first row of the human-likeness table); ``recorded``: the drivers
+    beside the recorded drivers (metrics.json's ``recorded_drivers`` and each policy's aggregate
+    keys of :meth:`~analysis.evaluation.recorded.DriverVsRecorded.to_dict`, and the
+    ``recorded drivers`` row and two columns of the human-likeness table)."""
     plots = write_plots(out, aggs, by_policy, held, speed_limit_ft_s=speed_limit_ft_s)
     payload = {
         "format": "merge-irl-evaluation/1",
@@ -272,10 +331,13 @@ def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes,
                   **({"close_to_c": demo_closeness.to_dict()} if demo_closeness is not None else {})}
         if held is not None else None,
         "policies": {
-            name: {"aggregate": a.to_dict(), "episodes": [r.metrics.to_dict() for r in by_policy[name]]}
+            name: {"aggregate": {**a.to_dict(), **_recorded_keys(recorded, name)},
+                   "episodes": [r.metrics.to_dict() for r in by_policy[name]]}
             for name, a in aggs.items()
         },
     }
+    if recorded is not None:
+        payload["recorded_drivers"] = recorded.recorded.to_dict()
     if provenance is not None:
         payload["provenance"] = provenance
     mj = write_text_atomic(out / "metrics.json", metrics_to_json(payload))
@@ -306,11 +368,13 @@ def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes,
         "smoothed). The JS divergence of A's action distribution to the demonstrations' is in metrics.json "
         "(`js_divergence`); the distributions themselves are below.",
         "",
-        "Human likeness beside the held-out demonstrations:",
+        "Human likeness beside the held-out demonstrations"
+        + (f" and the recorded drivers ({recorded.recorded.n_pairs} pairs of {recorded.recorded.source}):"
+           if recorded is not None else ":"),
         "",
-        human_table(aggs, demo_closeness, close_gap_m=metrics.close_gap_m),
+        human_table(aggs, demo_closeness, close_gap_m=metrics.close_gap_m, recorded=recorded),
         "",
-        column_legend(HUMAN_COLUMNS, emergency_decel_m_s2=metrics.emergency_decel_m_s2,
+        column_legend(human_columns(recorded), emergency_decel_m_s2=metrics.emergency_decel_m_s2,
                       close_gap_m=metrics.close_gap_m, emergency_tolerance_m_s2=metrics.emergency_tolerance_m_s2),
         "",
         *flag_lines(aggs),

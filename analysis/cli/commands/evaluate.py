@@ -83,6 +83,10 @@ def register(subparsers) -> None:
                    help="held-out encounter table (.parquet/.csv) for the action divergence and held-out LL")
     p.add_argument("--train-demos", default=None, action=Once, what="one training encounter table",
                    help="training encounter table (.parquet/.csv) of the marginal, markov and bc baselines")
+    p.add_argument("--pairs", default=None, metavar="DIR", action=Once, what="one folder of pairs",
+                   help="folder of recorded car-following pair CSVs (or with a train/ subfolder; e.g. NGSIM I-80): "
+                        "adds the 'recorded drivers' row to the human-likeness table and every driver's W1 of "
+                        "acceleration, jerk, gap and time headway to it")
     p.add_argument("--baselines", default="sumo,uniform,marginal,markov,bc",
                    help="comma-separated baselines among sumo, uniform, marginal, markov, bc, idm, sumo-in-lane "
                         "('' for none; marginal, markov and bc need --train-demos; idm: the Intelligent Driver Model "
@@ -143,7 +147,7 @@ def evaluation_config(args: argparse.Namespace) -> EvaluationConfig:
         args.scenario, args.episodes, args.seed, out, drivers=(*args.driver, *_callable_policies(args)),
         baselines=baselines, duration_s=args.duration, demos=args.demos, train_demos=args.train_demos,
         controller=controller, executor=executor, rrd=not args.no_rrd, progress=not args.no_progress,
-        allow_implausible=args.allow_implausible)
+        allow_implausible=args.allow_implausible, pairs=args.pairs)
 
 
 def _callable_policies(args: argparse.Namespace) -> list:
@@ -160,7 +164,7 @@ def _callable_policies(args: argparse.Namespace) -> list:
 def _print_report(report, baselines: tuple[str, ...], train_demos, thresholds) -> int:
     print(report_table(report.aggregates))
     print("human likeness:")
-    print(human_table(report.aggregates, report.demo_closeness))
+    print(human_table(report.aggregates, report.demo_closeness, recorded=report.recorded))
     for line in flag_lines(report.aggregates):
         print(line, file=sys.stderr)
     left_out = left_out_baselines(baselines, train_demos)

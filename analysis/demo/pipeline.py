@@ -65,7 +65,7 @@ from irl.errors import IRLError
 from irl.methods.registry import method_names
 from irl.planning.decisions import encounter_decisions
 from irl.planning.driver import learn_planning_driver
-from irl.planning.model import PlannerConfig
+from irl.planning.model import LIKELIHOOD_ROAD_MODEL, PlannerConfig
 from irl.problems import load_problem
 from merge_irl.atomic import write_text_atomic
 from merge_irl.provenance import provenance, provenance_markdown, text_digest, write_timings
@@ -320,7 +320,7 @@ def _planning_driver(config: DemoConfig, train: pd.DataFrame, train_path: Path, 
     ``merge-irl learn-driver`` chose on this scenario's data (saved, added to ``models`` and ``fit_times``)."""
     t_pl = time.perf_counter()
     planner = learn_planning_driver(encounter_decisions(train, where=str(train_path)), seed=config.fit_seed,
-                                    selection=PlannerConfig())
+                                    selection=PlannerConfig(road_model=LIKELIHOOD_ROAD_MODEL))
     models[PLANNER_DRIVER] = planner.save(out / "models" / f"{PLANNER_DRIVER}.json")
     fit_times[PLANNER_DRIVER] = time.perf_counter() - t_pl
     _say(f"      {PLANNER_DRIVER}: {planner.info['n_decisions']} decisions, loglik "

@@ -33,7 +33,7 @@ from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, read_encounters
 from irl.errors import DemonstrationError
 from irl.planning.decisions import PlanningDecisions, encounter_decisions, pair_decisions
 from irl.planning.driver import PlanningDriver, learn_planning_driver, shape_of
-from irl.planning.model import PlannerConfig
+from irl.planning.model import LIKELIHOOD_ROAD_MODEL, PlannerConfig
 from irl.planning.replay_fit import ReplayFitConfig, fit_by_replay, fit_temperature
 from merge_irl.provenance import provenance
 from merge_irl.units import FT_PER_M
@@ -109,7 +109,8 @@ def learn_driver(paths: Sequence[str | os.PathLike], out: str | os.PathLike | No
     """
     decisions = load_driver_demos(paths, decision_step_s=decision_step_s)
     log(f"{decisions.n} decisions in {len(set(decisions.groups.tolist()))} encounters/pairs")
-    selection = "heldout" if select else PlannerConfig(decision_step_s=decisions.decision_step_s)
+    selection = "heldout" if select else PlannerConfig(decision_step_s=decisions.decision_step_s,
+                                                        road_model=LIKELIHOOD_ROAD_MODEL)
     driver = learn_planning_driver(decisions, seed=seed, selection=selection, log=log)
     inputs = {("demos" if len(paths) == 1 else f"demos{i}"): p for i, p in enumerate(paths, start=1)}
     driver.info["provenance"] = provenance(inputs)

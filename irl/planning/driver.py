@@ -36,7 +36,7 @@ from irl.errors import ConfigError, DemonstrationError, ModelFileError
 from irl.planning.decisions import PlanningDecisions, split_groups
 from irl.planning.features import DEFAULT_LENGTH_FT, Shape, fit_shape
 from irl.planning.fit import fit_planner, select
-from irl.planning.model import PathTensors, PlannerConfig, first_step, path_tensors
+from irl.planning.model import LIKELIHOOD_ROAD_MODEL, PathTensors, PlannerConfig, first_step, path_tensors
 from irl.planning.policy import bin_log_policy_of_fine, fine_log_policy
 from merge_irl.atomic import write_json_atomic
 from merge_irl.json_file import STRICT, dataclass_schema, read_json_object, to_dataclass, validate
@@ -270,8 +270,8 @@ def learn_planning_driver(decisions: PlanningDecisions, *, seed: int = 0,
     groups (``seed + 1``); a :class:`~irl.planning.model.PlannerConfig`: that setting. Then the weights are
     fitted on all ``decisions`` (L2 ``l2``). The shape and the paper actions' accelerations come
     from all ``decisions`` (the desired speed the config's when it sets one, :func:`shape_for`).
-    ``base``: the settings the selection starts from (default :class:`~irl.planning.model.PlannerConfig`'s,
-    at the decisions' step).
+    ``base``: the settings the selection starts from (default :class:`~irl.planning.model.PlannerConfig`'s
+    with the road model :data:`~irl.planning.model.LIKELIHOOD_ROAD_MODEL`, at the decisions' step).
 
     Raises:
         ConfigError: an unknown ``selection``, or a config of another decision step.
@@ -309,7 +309,7 @@ def learn_planning_driver(decisions: PlanningDecisions, *, seed: int = 0,
                 cache[key] = path_tensors(d.obs, d.prev_acc, d.acc_C, acc5, shape_for(shape, cfg), cfg)
             return cache[key]
 
-        base = replace(base or PlannerConfig(), decision_step_s=decisions.decision_step_s)
+        base = replace(base or PlannerConfig(road_model=LIKELIHOOD_ROAD_MODEL), decision_step_s=decisions.decision_step_s)
         config, tr = select(build, dfit.actions, dval.actions, base=base, l2=l2, log=log, **(select_options or {}))
         cache.clear()
         trials = [{**asdict(t.config), "val_ll": t.val_ll, "train_ll": t.train_ll, "converged": t.converged}

@@ -77,6 +77,14 @@ GRIDS: dict[str, tuple[float, ...]] = {
 }
 
 
+#: The road model of a planner fitted by likelihood (:func:`~irl.planning.driver.learn_planning_driver`):
+#: ``"legacy"``. The driver's road model counts as a collision every first action it calls unsafe,
+#: and the demonstrators of the synthetic scenario take such actions: fitted by likelihood on the
+#: demo's demonstrations (2026-12-07) its held-out log-likelihood is -4.45 per decision against
+#: -1.29 with the legacy model. A driver fitted by replay (what its driving does) uses ``"driver"``.
+LIKELIHOOD_ROAD_MODEL = "legacy"
+
+
 @dataclass(frozen=True)
 class PlannerConfig:
     """Settings of the planner (selected on held-out data, not learned).

@@ -30,6 +30,8 @@ from sim.drivers.policy import Policy
 DriverSpec = Union[str, "os.PathLike[str]", SavedModel, Policy, Callable[..., Any]]
 #: Encounters given as a file (Parquet/CSV) or a table.
 Encounters = Union[str, "os.PathLike[str]", pd.DataFrame, None]
+#: Held-out encounters: one table, or several paths read as one set.
+HeldOutEncounters = Union[Encounters, tuple[Union[str, "os.PathLike[str]"], ...]]  # noqa: UP007 (a runtime alias: "X | Y" cannot hold the quoted name)
 
 
 @dataclass(frozen=True)
@@ -50,7 +52,8 @@ class EvaluationConfig:
             fitted ones (``marginal``, ``markov``, ``bc``) are left out, and said so in report.md,
             without ``train_demos``.
         duration_s: simulated seconds per episode; None: the scenario's.
-        demos: held-out encounters (action divergence, held-out log-likelihood, W1); None: NaN.
+        demos: held-out encounters (action divergence, held-out log-likelihood, W1), a table or a
+            tuple of paths read as one set; None: NaN.
         train_demos: training encounters of the fitted baselines (``marginal``, ``markov``, ``bc``).
         controller: the controller; ``decision_step_s`` None is fixed by the plan.
         metrics: the metric settings.
@@ -73,7 +76,7 @@ class EvaluationConfig:
     drivers: tuple[DriverSpec, ...] = ()
     baselines: tuple[str, ...] | None = None
     duration_s: float | None = None
-    demos: Encounters = None
+    demos: HeldOutEncounters = None
     train_demos: Encounters = None
     controller: ControllerConfig = ControllerConfig()
     metrics: MetricsConfig = MetricsConfig()

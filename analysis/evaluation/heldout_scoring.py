@@ -9,6 +9,7 @@ decision step). Used by :func:`analysis.evaluation.evaluate.evaluate`.
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,15 +37,34 @@ class HeldOut:
     source: str = ""
 
 
-def load_heldout(demos: str | os.PathLike | pd.DataFrame) -> HeldOut:
-    """Held-out demonstrations from an encounter table (Parquet/CSV path or DataFrame)."""
+def load_heldout(demos: str | os.PathLike | pd.DataFrame | Sequence[str | os.PathLike]) -> HeldOut:
+    """Held-out demonstrations from an encounter table (Parquet/CSV path or DataFrame), or from
+    several tables read as one set (a sequence of paths: each table's ``encounter_id`` offset past
+    the previous tables', so encounters of different files stay apart).
+
+    Raises:
+        DemonstrationError: a table cannot be read or lacks columns (the file named).
+    """
     if isinstance(demos, pd.DataFrame):
         df, src = demos, "encounters"
-    else:
+    elif isinstance(demos, (str, os.PathLike)):
         df, src = read_encounters(demos), str(demos)
+    else:
+        df, src = _merged_tables(demos), ", ".join(str(p) for p in demos)
     df = prepare_encounters(df, src)
     counts = np.bincount(actions_of(df["acc_A"].to_numpy(float)), minlength=N_ACTIONS)
     return HeldOut(df, counts.astype(np.int64), src)
+
+
+def _merged_tables(paths: Sequence[str | os.PathLike]) -> pd.DataFrame:
+    """The encounter tables of ``paths`` as one, ``encounter_id`` offset per table."""
+    frames, offset = [], 0
+    for path in paths:
+        df = prepare_encounters(read_encounters(path), str(path)).copy()
+        df["encounter_id"] = df["encounter_id"].astype("int64") + offset
+        offset = int(df["encounter_id"].max()) + 1 if len(df) else offset
+        frames.append(df)
+    return pd.concat(frames, ignore_index=True)
 
 
 def policy_heldout_loglik(policy: Policy, heldout: HeldOut, decision_step_s: float = DEFAULT_DECISION_STEP_S, *,

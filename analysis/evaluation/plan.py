@@ -180,8 +180,10 @@ def evaluation_provenance(files: Mapping[str, Any], config: EvaluationConfig, sp
     scenario actually simulated (its TOML)."""
     scenario = config.scenario
     scenario_file = scenario if isinstance(scenario, (str, Path)) and Path(scenario).is_file() else None
-    demos_file = None if isinstance(config.demos, pd.DataFrame) else config.demos
+    demos = config.demos
+    held = {f"demos{i}": p for i, p in enumerate(demos, start=1)} if isinstance(demos, tuple) and len(demos) > 1 \
+        else {"demos": demos[0] if isinstance(demos, tuple) else None if isinstance(demos, pd.DataFrame) else demos}
     train_file = None if isinstance(config.train_demos, pd.DataFrame) else config.train_demos
-    inputs = {"demos": demos_file, "train_demos": train_file, "scenario": scenario_file, "pairs": config.pairs}
+    inputs = {**held, "train_demos": train_file, "scenario": scenario_file, "pairs": config.pairs}
     return provenance(inputs, dict(files),
                       extra={"scenario_sha256": text_digest(spec.to_toml())})

@@ -79,8 +79,9 @@ def register(subparsers) -> None:
     p.add_argument("--scenario", default="synthetic", help="preset name or scenario TOML (default synthetic)")
     p.add_argument("--duration", type=float, default=None, help="simulated seconds per episode (default: the scenario's)")
     add_allow_implausible(p)
-    p.add_argument("--demos", default=None, action=Once, what="one held-out encounter table",
-                   help="held-out encounter table (.parquet/.csv) for the action divergence and held-out LL")
+    p.add_argument("--demos", nargs="+", action="extend", default=None, metavar="PATH",
+                   help="held-out encounter tables (.parquet/.csv) for the action divergence and held-out LL, read as "
+                        "one set (repeat or list several: --demos a b and --demos a --demos b read both)")
     p.add_argument("--train-demos", default=None, action=Once, what="one training encounter table",
                    help="training encounter table (.parquet/.csv) of the marginal, markov and bc baselines")
     p.add_argument("--pairs", default=None, metavar="DIR", action=Once, what="one folder of pairs",
@@ -145,9 +146,14 @@ def evaluation_config(args: argparse.Namespace) -> EvaluationConfig:
                                   high_brake=args.high_brake)
     return EvaluationConfig(
         args.scenario, args.episodes, args.seed, out, drivers=(*args.driver, *_callable_policies(args)),
-        baselines=baselines, duration_s=args.duration, demos=args.demos, train_demos=args.train_demos,
+        baselines=baselines, duration_s=args.duration, demos=_demos(args.demos), train_demos=args.train_demos,
         controller=controller, executor=executor, rrd=not args.no_rrd, progress=not args.no_progress,
         allow_implausible=args.allow_implausible, pairs=args.pairs)
+
+
+def _demos(paths: list[str] | None) -> str | tuple[str, ...] | None:
+    """``--demos``: one path, or several read as one set."""
+    return None if not paths else paths[0] if len(paths) == 1 else tuple(paths)
 
 
 def _callable_policies(args: argparse.Namespace) -> list:

@@ -42,9 +42,6 @@ ALLOWED = {
     # evaluate compares several drivers (--driver repeatable: files or baseline names); score and
     # calibrate evaluate score one driver file.
     ("evaluate", "--driver"),
-    # evaluate reads one held-out table into the evaluation API (a path or one DataFrame); several
-    # merged wait for that API to take them, so a second one is refused rather than dropped.
-    ("evaluate", "--demos"),
 }
 
 

@@ -63,7 +63,6 @@ def test_score_reads_every_demos_as_one_set(tmp_path) -> None:
 
 
 @pytest.mark.parametrize("args, option", [
-    (["evaluate", "--demos", "a.parquet", "--demos", "b.parquet"], "--demos"),
     (["evaluate", "--train-demos", "a.parquet", "--train-demos", "b.parquet"], "--train-demos"),
     (["calibrate", "fit", "--pairs", "x", "--pairs", "y", "--out", "p.toml"], "--pairs"),
     (["calibrate", "check", "--params", "p.toml", "--pairs", "x", "--pairs", "y"], "--pairs"),
@@ -73,3 +72,21 @@ def test_a_one_value_option_given_twice_is_refused(tmp_path, args, option) -> No
     assert r.returncode == 2
     last = r.stderr.strip().splitlines()[-1]
     assert f"{option} given twice" in last and "would keep only the last" in last, r.stderr
+
+
+def test_evaluate_reads_every_demos_as_one_held_out_set(tmp_path) -> None:
+    """evaluate --demos a --demos b (or --demos a b): both tables, their encounters kept apart."""
+    from analysis.cli.commands.evaluate import _demos
+    from analysis.evaluation.heldout_scoring import load_heldout
+
+    files = []
+    for i in range(2):
+        f = tmp_path / f"enc{i}.parquet"
+        planning_encounters(n=2 + i, seed=i).to_parquet(f)
+        files.append(str(f))
+    assert _demos([files[0]]) == files[0] and _demos(files) == tuple(files) and _demos(None) is None
+    each = [load_heldout(f) for f in files]
+    both = load_heldout(_demos(files))
+    assert len(both.encounters) == sum(len(h.encounters) for h in each)
+    assert both.encounters["encounter_id"].nunique() == sum(h.encounters["encounter_id"].nunique() for h in each)
+    assert (both.action_counts == sum(h.action_counts for h in each)).all()

@@ -216,10 +216,16 @@ def check_role(path: str | os.PathLike, role: Role, *, option: str = "") -> None
         ModelFileError: a registered format of the other role.
     """
     try:
-        fmt = format_field(path)
+        data = _read(path)[1]
     except ModelFileError:
         return
-    if family_of(fmt) in FORMATS:
+    check_role_of(data, path, role, option=option)
+
+
+def check_role_of(data: Any, path: str | os.PathLike, role: Role, *, option: str = "") -> None:
+    """:func:`check_role` of a file already read: its parsed JSON ``data`` (any value)."""
+    fmt = data.get("format") if isinstance(data, dict) else None
+    if isinstance(fmt, str) and family_of(fmt) in FORMATS:
         _registered(path, fmt, role, option)
 
 

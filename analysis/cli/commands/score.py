@@ -15,7 +15,8 @@ from irl.domains.merge.bins import MergeBins
 from irl.errors import DemonstrationError, ModelFileError
 from irl.problems import DOMAINS, load_problem
 from irl.result import SavedModel
-from sim.drivers.formats import check_role
+from merge_irl.json_file import read_json_object
+from sim.drivers.formats import check_role_of
 
 
 def register(subparsers) -> None:
@@ -91,8 +92,9 @@ def _info_number(model, key: str, default: float) -> float:
 
 
 def run(args: argparse.Namespace) -> int:
-    check_role(args.model, "model", option="--model")  # a driver's file: say which command takes it
-    model = SavedModel.load(args.model)
+    data = read_json_object(args.model, what="model file", error=ModelFileError)  # the one read of the file
+    check_role_of(data, args.model, "model", option="--model")  # a driver's file: say which command takes it
+    model = SavedModel.from_json_dict(data, Path(args.model))
     result = merged([score(model, path, args.domain) for path in args.demos])
     if args.json:
         print(json.dumps({k: (v if not isinstance(v, float) or math.isfinite(v) else None)

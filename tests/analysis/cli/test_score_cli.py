@@ -87,3 +87,25 @@ def test_score_merge_table_uses_the_model_bins(tmp_path, capsys):
     part = json.loads(capsys.readouterr().out)
     # discretized with the model's bins (not bins refitted on the part): the same per-trajectory values
     assert part["trajectory_logliks"] == pytest.approx(full["trajectory_logliks"][2:], rel=1e-12)
+
+
+def test_score_reads_the_model_file_once(tmp_path, capsys, monkeypatch):
+    """score checks the file's role and loads the model from one read of the file."""
+    from pathlib import Path
+
+    _, d = random_mdp(1, n_states=6, n_actions=3)
+    npz = save_npz(d, tmp_path / "d.npz")
+    out = tmp_path / "m.json"
+    assert main(["learn", "--method", "qavg", "--domain", "npz", "--demos", str(npz), "--l2", "0.1",
+                 "--out", str(out), "--no-progress"]) == 0
+    capsys.readouterr()
+    reads: list[Path] = []
+    real = Path.read_text
+
+    def counting(self: Path, *a, **kw) -> str:
+        reads.append(self)
+        return real(self, *a, **kw)
+
+    monkeypatch.setattr(Path, "read_text", counting)
+    assert main(["score", "--model", str(out), "--demos", str(npz), "--json"]) == 0
+    assert reads.count(out) == 1

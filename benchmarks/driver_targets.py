@@ -13,8 +13,8 @@ skippable (``--skip``), with a PASS/MISS column per target:
 
 1. **i80** (the evaluation API, ``--i80-seeds``; beside ``uniform``, ``sumo``, ``sumo-in-lane``):
    As controlled, A-into-C and A-into-B collisions (Wilson 95 %), emergency brakings near A per A
-   (the by-role count for A where the evaluation has one, else the total near A; exact Poisson
-   95 %) and its ratio to ``sumo``'s, the share of merges with B ahead of A beside ``sumo``'s,
+   (by A, B and A's follower, strictly beyond 4.5 m/s^2; exact Poisson 95 %; A's own count beside
+   it) and its ratio to ``sumo``'s, the share of merges with B ahead of A beside ``sumo``'s,
    take-overs released by time-out. Targets: 0 / 0 collisions, EB <= 2x ``sumo``'s, B ahead
    within 10 points of ``sumo``'s, <= 1 % time-outs.
 2. **Real pairs**, held-out split (:mod:`analysis.calibration.driver_eval`): median / mean spacing
@@ -113,30 +113,30 @@ class Closed:
     a_into_b: int
     a_collisions: int
     eb_near_a: int
+    eb_A: int
     n_merges: int
     b_ahead: float
     timeouts: int
 
 
 def eb_near_a(agg: Any) -> int:
-    """Emergency brakings near A counted for A: a by-role count of A where the evaluation has one
-    (a field ``emergency_brakings*`` holding a role -> count mapping with ``A``, or one named
-    ``emergency_brakings*_A``), else the total near A (``emergency_brakings``)."""
-    fields = {k: v for k, v in vars(agg).items() if k.startswith("emergency_brakings")}
-    for v in fields.values():
-        if isinstance(v, dict) and "A" in v:
-            return int(v["A"])
-    for k, v in fields.items():
-        if k.lower().endswith("_a") and isinstance(v, (int, np.integer)):
-            return int(v)
+    """Emergency brakings near A: by A, B and A's follower while A is controlled
+    (``emergency_brakings``, strictly beyond the metric's threshold), what the target counts."""
     return int(agg.emergency_brakings)
+
+
+def eb_by_a(agg: Any) -> int:
+    """A's own emergency brakings (``emergency_brakings_A``; the total where the evaluation has no
+    count by role)."""
+    return int(getattr(agg, "emergency_brakings_A", agg.emergency_brakings))
 
 
 def closed_of(aggs: list[Any]) -> Closed:
     merges = sum(a.n_merges for a in aggs)
     ahead = sum(a.b_ahead_rate[0] * a.n_merges for a in aggs if a.n_merges)
     return Closed(sum(a.n_controls for a in aggs), sum(a.a_into_c for a in aggs), sum(a.a_into_b for a in aggs),
-                  sum(a.a_collisions for a in aggs), sum(eb_near_a(a) for a in aggs), merges,
+                  sum(a.a_collisions for a in aggs), sum(eb_near_a(a) for a in aggs),
+                  sum(eb_by_a(a) for a in aggs), merges,
                   ahead / merges if merges else float("nan"),
                   sum(int(a.release_reasons.get("timeout", 0)) for a in aggs))
 
@@ -164,7 +164,7 @@ def closed_row(name: str, c: Closed, ref: Closed | None, ref_b_ahead: float, ref
     ref_eb = ref.eb_near_a / ref.n_controls if ref and ref.n_controls else float("nan")
     return {"policy": name, "As": c.n_controls, "a_into_c": c.a_into_c, "a_into_b": c.a_into_b,
             "a_collisions": c.a_collisions, "collision_rate_ci95": rate_ci95(c.a_collisions, c.n_controls),
-            "eb_near_a_per_a_ci95": eb, "eb_ratio": eb[0] / ref_eb if ref_eb > 0 else float("inf") if eb[0] else 1.0,
+            "eb_near_a_per_a_ci95": eb, "eb_by_A": c.eb_A, "eb_ratio": eb[0] / ref_eb if ref_eb > 0 else float("inf") if eb[0] else 1.0,
             "b_ahead": c.b_ahead, "b_ahead_ref": ref_b_ahead, "merges": c.n_merges,
             "timeout_rate_ci95": rate_ci95(c.timeouts, c.n_controls), "reference": ref_name}
 
@@ -180,13 +180,13 @@ def closed_targets(r: dict[str, Any], timeouts: bool) -> dict[str, bool]:
 
 def print_closed(title: str, rows: list[dict[str, Any]], ref_label: str) -> None:
     print(f"\n### {title}\n")
-    print(f"| policy | As | A into C | A into B | A collisions / A (Wilson 95 %) | EB near A / A (Poisson 95 %) "
+    print(f"| policy | As | A into C | A into B | A collisions / A (Wilson 95 %) | EB near A / A (Poisson 95 %; A's own) "
           f"| EB ratio | B ahead (vs {ref_label}) | time-outs / A | targets |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         tg = r.get("targets", {})
         print(f"| {r['policy']} | {r['As']} | {r['a_into_c']} | {r['a_into_b']} | "
-              f"{ci(r['collision_rate_ci95'], pct=True, nd=1)} | {ci(r['eb_near_a_per_a_ci95'], nd=3)} | "
+              f"{ci(r['collision_rate_ci95'], pct=True, nd=1)} | {ci(r['eb_near_a_per_a_ci95'], nd=3)} ({r['eb_by_A']}) | "
               f"{r['eb_ratio']:.2f} | {100 * r['b_ahead']:.0f} % ({100 * r['b_ahead_ref']:.0f} %) | "
               f"{ci(r['timeout_rate_ci95'], pct=True, nd=1)} | "
               f"{'; '.join(f'{k}: {verdict(v)}' for k, v in tg.items()) or '-'} |")

@@ -86,3 +86,11 @@ class EvaluationConfig:
     progress: bool = True
     allow_implausible: bool = False
     pairs: str | os.PathLike[str] | None = None
+
+    def __post_init__(self) -> None:
+        # one spec given alone (a path, a SavedModel, a driver) is a list of one, not a string's
+        # characters; a list becomes the tuple the field holds
+        drivers = self.drivers
+        if isinstance(drivers, (str, os.PathLike)) or not isinstance(drivers, (tuple, list)):
+            drivers = (drivers,)
+        object.__setattr__(self, "drivers", tuple(drivers))

@@ -111,6 +111,9 @@ def _is_baseline(spec: str) -> bool:
 
 
 def _from_file(path: str | os.PathLike[str], option: str) -> ResolvedDriver:
+    if not Path(path).exists() and not any(sep in str(path) for sep in ("/", "\\", ".")):
+        raise ModelFileError(f"{option} {path}: neither a file nor a baseline name (baselines: "
+                             f"{', '.join(BASELINES)})")
     if _role(path) == "model":  # a tabular model: its own checks (a merge model, a LearnedPolicy)
         return ResolvedDriver(learned_policy(path), path, model=True)
     pol = driver_policy(path, role=None, option=option)

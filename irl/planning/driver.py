@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -204,9 +204,12 @@ class PlanningDriver:
         m = validate(PlannerFileSchema, data, source, error=ModelFileError)
         try:
             config = to_dataclass(PlannerConfig, m.config)
+        except (ConfigError, TypeError) as e:
+            raise ModelFileError(f"{source}: {_field_problems('config', e, PlannerConfig)}") from None
+        try:
             shape = to_dataclass(Shape, m.shape)
         except (ConfigError, TypeError) as e:
-            raise ModelFileError(f"{source}: config or shape: {e}") from None
+            raise ModelFileError(f"{source}: {_field_problems('shape', e, Shape)}") from None
         if m.feature_names != list(config.feature_names):
             raise ModelFileError(f"{source}: feature_names: must be {list(config.feature_names)} for its config")
         try:
@@ -246,6 +249,20 @@ class PlannerFileSchema(BaseModel):
         if fmt != PLANNER_FORMAT:
             raise ValueError(f"expected format {PLANNER_FORMAT!r}, got {fmt!r}")
         return fmt
+
+
+def _field_problems(field: str, error: Exception, kind: type) -> str:
+    """A settings class's message (``"PlannerConfig: gamma must be ...; depth must be ..."``) as
+    field paths of the file (``"config.gamma: must be ...; config.depth: must be ..."``)."""
+    text = str(error)
+    head, sep, rest = text.partition(": ")
+    problems = rest.split("; ") if sep and head.isidentifier() else [text]
+    out = []
+    for problem in problems:
+        name, space, what = problem.partition(" ")
+        known = name in {f.name for f in fields(kind)}
+        out.append(f"{field}.{name}: {what}" if space and known else f"{field}: {problem}")
+    return "; ".join(out)
 
 
 def shape_of(decisions: PlanningDecisions) -> Shape:

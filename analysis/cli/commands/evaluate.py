@@ -41,7 +41,8 @@ class DeprecatedDriverAlias(argparse._AppendAction):
     def __call__(self, parser, namespace, values, option_string=None):
         said: set[str] = getattr(namespace, "_deprecated_said", set())
         if option_string not in said:
-            note = f"merge-irl evaluate: {option_string} is deprecated; use --driver (the same meaning)"
+            note = (f"{parser.prog}: warning: {option_string} is deprecated and goes in the next release: use "
+                    "--driver (the same meaning)")
             print(note, file=sys.stderr)
             warnings.warn(note, DeprecationWarning, stacklevel=2)
             namespace._deprecated_said = said | {option_string}

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from analysis.cli.commands._arg_types import add_allow_implausible
 from analysis.cli.main import os_error_line
-from analysis.cli.options import DASK, EXECUTOR, PROGRESS, apply_dask_options, executor_from_args
+from analysis.cli.options import DASK, EXECUTOR, PROGRESS, WORKERS, apply_dask_options, executor_from_args
 from analysis.sweep.generate import FAILURES, SUMMARY, generate_many, parse_scales, parse_seeds
 from merge_irl.atomic import write_text_atomic
 from scenarios.loader import load_scenario
@@ -36,7 +36,7 @@ def _scales(text: str):
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "generate", parents=[EXECUTOR, PROGRESS, DASK],
+        "generate", parents=[WORKERS, EXECUTOR, PROGRESS, DASK],
         description="Simulate a scenario headless in SUMO; write trajectories.parquet, encounters.parquet, "
                     "merges.parquet and scenario.toml (and trajectories.csv with --csv) into --out. "
                     "With --seeds and/or --demand-scale, run one simulation per seed x demand scale "

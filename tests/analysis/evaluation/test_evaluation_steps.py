@@ -148,7 +148,8 @@ def test_the_aliases_say_they_are_deprecated_and_plan_as_driver(tmp_path, half, 
     with pytest.warns(DeprecationWarning, match="--driver"):
         old = _args(alias, str(model), alias, str(half), *common)
     err = capsys.readouterr().err.strip().splitlines()
-    assert err == [f"merge-irl evaluate: {alias} is deprecated; use --driver (the same meaning)"]  # once
+    assert err == [f"merge-irl evaluate: warning: {alias} is deprecated and goes in the next release: use --driver "
+                   "(the same meaning)"]  # once
     with warnings.catch_warnings():
         warnings.simplefilter("error", DeprecationWarning)
         new = _args("--driver", str(model), "--driver", str(half), *common)
@@ -179,3 +180,17 @@ def test_evaluate_is_a_thin_wrapper():
     lines = fn.end_lineno - fn.lineno + 1  # type: ignore[operator]
     assert lines <= 60, f"evaluate() is {lines} lines; its work belongs in config, plan, run and outcome"
     assert inspect.signature(module.evaluate).parameters["workers"].default is None
+
+
+def test_one_driver_given_alone_is_a_list_of_one():
+    """drivers="x.json" is one spec, not its characters; a list becomes a tuple."""
+    assert EvaluationConfig("synthetic", 1, 1, "out", drivers="x.json").drivers == ("x.json",)
+    assert EvaluationConfig("synthetic", 1, 1, "out", drivers=["a.json", "idm"]).drivers == ("a.json", "idm")
+
+
+def test_a_misspelt_baseline_is_named_as_neither_file_nor_baseline(tmp_path, monkeypatch):
+    """--driver IDM: not 'no such file' but what it could have been, the baselines listed."""
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(ModelFileError, match=r"--driver IDM: neither a file nor a baseline name \(baselines: .*idm"):
+        plan_evaluation(EvaluationConfig("synthetic", 1, 1, tmp_path / "out", drivers=("IDM",)))
+    assert not (tmp_path / "out").exists()

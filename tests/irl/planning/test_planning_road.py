@@ -157,3 +157,17 @@ def test_a_b_on_the_ramp_is_no_collision_partner_until_it_has_merged():
     assert ramp.max() == 0  # none behind a B still on the ramp
     with pytest.raises(ConfigError, match="b_merged"):
         path_tensors(obs, zeros, zeros, np.array([-12.0, -4.0, 0.0, 4.0, 8.0]), Shape(), cfg, b_merged=np.ones(3))
+
+
+def test_a_value_out_of_range_in_a_planner_file_names_its_field_path(tmp_path):
+    """config.gamma 1.5 (the right type, a wrong value): the message names config.gamma."""
+    from irl.errors import ModelFileError
+
+    driver = PlanningDriver(np.zeros(len(PlannerConfig().feature_names)), PlannerConfig().feature_names,
+                            PlannerConfig(), Shape(), PlannerConfig().decision_step_s, (-12.0, -4.0, 0.0, 4.0, 8.0))
+    data = driver.to_json_dict()
+    data["config"]["gamma"] = 1.5
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(data))
+    with pytest.raises(ModelFileError, match=r"bad\.json: config\.gamma: must be in \(0, 1\], got 1\.5"):
+        PlanningDriver.load(path)

@@ -363,6 +363,9 @@ def read_encounters(path: str | os.PathLike):
         DemonstrationError: the file is missing or unreadable.
     """
     path = Path(path)
+    if path.is_dir():
+        raise DemonstrationError(f"{path}: a folder, not an encounter table (.parquet/.csv); real car-following "
+                                 "pairs (a folder of pair CSVs) go to --pairs")
     if not path.is_file():
         raise DemonstrationError(f"{path}: no such encounter file")
     try:

@@ -149,3 +149,13 @@ def test_kinematic_driver_encoding_sets_previous_action():
         nd = m.kinematic_next_state(s * 5 + 1, np.full(3, a), bins, 0.3, encoding="driver")
         np.testing.assert_array_equal(nd % 5, a)
         np.testing.assert_array_equal(nd // 5, m.kinematic_next_state(s, np.full(3, a), bins, 0.3))
+
+
+def test_a_folder_given_as_an_encounter_table_is_named_a_folder(tmp_path):
+    from irl.domains.merge.mdp import read_encounters
+    from irl.errors import DemonstrationError
+
+    with pytest.raises(DemonstrationError, match="a folder, not an encounter table"):
+        read_encounters(tmp_path)
+    with pytest.raises(DemonstrationError, match="no such encounter file"):
+        read_encounters(tmp_path / "missing.parquet")

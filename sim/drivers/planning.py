@@ -82,11 +82,18 @@ class PlanningDriverPolicy(PolicyDefaults):
         self._last.update(obs=obs, lp=lp, applied=applied, bins=actions_of(applied))
         return lp
 
-    def decide(self, obs: MergeObservation) -> tuple[int, float]:
-        """The driver's fitted decision rule at ``obs``: ``(paper action, acceleration ft/s^2)``,
-        the most likely fine acceleration as applied (:meth:`PlanningDriver.act` of the
-        observation, ``acc_prev``/``acc_C`` unknown read as 0, ``b_merged`` the observation's)
-        and its bin."""
+    def decide(self, obs: MergeObservation) -> tuple[int, float] | None:
+        """The driver's fitted decision rule at ``obs``: ``(paper action, acceleration ft/s^2)``.
+
+        A driver fitted by replay (``info["fit"] == "replay"``, ``merge-irl learn-driver --fit
+        replay``) was selected for what its most likely acceleration does: its rule is that
+        acceleration as applied (:meth:`PlanningDriver.act` of the observation, ``acc_prev``/
+        ``acc_C`` unknown read as 0, ``b_merged`` the observation's) and its bin. A driver fitted
+        by likelihood was fitted as the stochastic policy :meth:`probs`: None, and the controller
+        draws from it as the fit scored it.
+        """
+        if self.driver.info.get("fit") != "replay":
+            return None
         lp = self._fine_log_policy(obs)
         g = int(np.argmax(lp))
         return int(self._last["bins"][g]), float(self._last["applied"][g])

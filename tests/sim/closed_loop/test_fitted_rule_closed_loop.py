@@ -5,7 +5,7 @@ sign less often than when a bin is drawn from its likelihood model on the same s
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pandas as pd
@@ -50,7 +50,8 @@ def _sign_changes_per_100(dec: pd.DataFrame) -> float:
 @pytest.fixture(scope="module")
 def driver():
     d = encounter_decisions(planning_encounters(n=6))
-    return learn_planning_driver(d, selection=PlannerConfig(grid="g13", horizon_s=0.9))
+    fitted = learn_planning_driver(d, selection=PlannerConfig(grid="g13", horizon_s=0.9))
+    return replace(fitted, info={**fitted.info, "fit": "replay"})  # a replay-fitted driver's rule: act
 
 
 def test_a_planning_driver_applies_act_of_its_observations_and_flips_less(driver):

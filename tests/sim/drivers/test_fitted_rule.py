@@ -5,7 +5,7 @@ decision path called directly)."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pytest
@@ -26,7 +26,8 @@ from sim.drivers.policy import PolicyDefaults, PolicyError, UniformPolicy, fitte
 @pytest.fixture(scope="module")
 def driver():
     d = encounter_decisions(planning_encounters(n=6))
-    return learn_planning_driver(d, selection=PlannerConfig(grid="g13", horizon_s=0.9))
+    fitted = learn_planning_driver(d, selection=PlannerConfig(grid="g13", horizon_s=0.9))
+    return replace(fitted, info={**fitted.info, "fit": "replay"})  # a replay-fitted driver's rule: act
 
 
 def _random_obs(rng: np.random.Generator, n: int) -> list[MergeObservation]:
@@ -111,3 +112,12 @@ def test_a_bad_rule_answer_is_refused():
 
     with pytest.raises(PolicyError, match="decide must return"):
         fitted_decision(Bad(), _random_obs(np.random.default_rng(0), 1)[0])
+
+
+def test_a_driver_fitted_by_likelihood_is_driven_as_the_policy_it_was_fitted_as(driver):
+    """Without info['fit'] == 'replay' the fit selected the stochastic policy: decide is None and
+    the controller draws from probs."""
+    likelihood = PlanningDriverPolicy(replace(driver, info={k: v for k, v in driver.info.items() if k != "fit"}))
+    obs = MergeObservation(d_AC=60.0, d_AB=-20.0, v_AC=2.0, v_AB=1.0, b_is_truck=False, speed_A=50.0)
+    assert likelihood.decide(obs) is None
+    assert PlanningDriverPolicy(driver).decide(obs) is not None

@@ -68,7 +68,7 @@ def check_unambiguous(own: Sequence[Policy], others: Sequence[Policy]) -> None:
             raise PolicyError(
                 f"{origin or 'a policy'}: its name {p.name!r} is also {what} {p.name!r} of this evaluation; the report, "
                 f"the recordings and --fail-if could not tell them apart: give it a name of its own "
-                f"(--policy MODULE:CALLABLE:NAME, e.g. {p.name}-mine; --driver/--cf-model: rename the file)")
+                f"(--policy MODULE:CALLABLE:NAME, e.g. {p.name}-mine; --driver: rename the file)")
         first = seen.setdefault(p.name, p)
         if first is not p and _origin(first) != origin:
             raise PolicyError(

@@ -38,7 +38,7 @@ def register(subparsers) -> None:
                     "car-following model for its action at every decision, keep the labels whose action "
                     "is critical (default High Brake) and refit (DAgger). Writes cf-logit.json (round 0) "
                     "and cf-dagger.json (the last round; not with --rounds 0); evaluate them with 'merge-irl evaluate "
-                    "--cf-model'.")
+                    "--driver'.")
     p.add_argument("--train", required=True, metavar="ENCOUNTERS",
                    help="training encounter table (.parquet/.csv) with A's speed v_A (and, optional, the "
                         "lengths len_C and len_B: without them every leader is taken for a car), e.g. "
@@ -92,5 +92,5 @@ def run(args: argparse.Namespace) -> int:
     if not all(m.converged for m in models):
         print("warning: a fit did not converge (see 'converged' in the files); check the encounters' v_A and --l2",
               file=sys.stderr)
-    print(f"evaluate: merge-irl evaluate --cf-model {last} --scenario {args.scenario} --demos HELDOUT_ENCOUNTERS")
+    print(f"evaluate: merge-irl evaluate --driver {last} --scenario {args.scenario} --demos HELDOUT_ENCOUNTERS")
     return 0

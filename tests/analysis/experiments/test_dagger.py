@@ -107,7 +107,7 @@ def test_rounds_0_writes_the_logit_alone(tmp_path, capsys):
     assert main(["dagger", "--train", str(table), "--rounds", "0", "--no-progress", "--out", str(tmp_path / "o")]) == 0
     assert sorted(p.name for p in (tmp_path / "o").glob("*.json")) == ["cf-logit.json"]
     out = capsys.readouterr().out
-    assert "round 0" in out and "--cf-model " + str(tmp_path / "o" / "cf-logit.json") in out
+    assert "round 0" in out and "--driver " + str(tmp_path / "o" / "cf-logit.json") in out
 
 
 def test_cli_rejects_bad_input_in_one_line_before_sumo(tmp_path, capsys):
@@ -129,15 +129,15 @@ def test_cli_rejects_bad_input_in_one_line_before_sumo(tmp_path, capsys):
     assert e.value.code == 2
     bad = tmp_path / "bad.json"
     bad.write_text('{"format": "merge-irl-model/1"}')
-    assert main(["evaluate", "--cf-model", str(bad), "--baselines", "", "--out", str(tmp_path / "e")]) == 2
-    # --cf-model (an alias of --driver) reads through the driver-format registry: the file's own fault, named
+    assert main(["evaluate", "--driver", str(bad), "--baselines", "", "--out", str(tmp_path / "e")]) == 2
+    # --driver reads through the driver-format registry: the file's own fault, named
     assert "bad.json: method: missing" in capsys.readouterr().err and not (tmp_path / "e").exists()
     # a driver file where an IRL model.json is expected says which command takes it
     good = CarFollowingLogit.fit(car_following_decisions(_accelerating_demos())).save(tmp_path / "cf.json")
     assert main(["score", "--model", str(good), "--demos", str(table)]) == 2
     assert "merge-irl evaluate --driver" in capsys.readouterr().err
     # held-out demonstrations without v_A fail before any episode runs
-    assert main(["evaluate", "--cf-model", str(good), "--baselines", "", "--demos", str(table), "--episodes", "1",
+    assert main(["evaluate", "--driver", str(good), "--baselines", "", "--demos", str(table), "--episodes", "1",
                  "--no-progress", "--out", str(tmp_path / "e2")]) == 2
     assert "v_A" in capsys.readouterr().err and not (tmp_path / "e2").exists()  # nothing written
     # a label seed or duration the scenario rejects: before the round-0 fit and any SUMO run
@@ -167,7 +167,7 @@ def test_cli_trains_and_evaluate_drives_the_result(tmp_path, capsys):
     assert CarFollowingLogit.load(out / "cf-logit.json").info["dagger_round"] == 0
     assert "cf-dagger.json" in capsys.readouterr().out
     ev = tmp_path / "ev"
-    assert main(["evaluate", "--cf-model", str(out / "cf-dagger.json"), "--baselines", "", "--episodes", "1",
+    assert main(["evaluate", "--driver", str(out / "cf-dagger.json"), "--baselines", "", "--episodes", "1",
                  "--seed", "3", "--duration", "150", "--demos", str(table), "--no-rrd", "--no-progress",
                  "--out", str(ev)]) == 0
     metrics = json.loads((ev / "metrics.json").read_text())

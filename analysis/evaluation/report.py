@@ -198,7 +198,7 @@ def _summary(summary: dict[str, float] | None) -> str:
 def human_columns(recorded: RecordedComparison | None = None) -> tuple[Column, ...]:
     """:data:`HUMAN_COLUMNS`, and with ``recorded`` two more: each driver's Wasserstein-1
     distances to the recorded drivers (:mod:`analysis.evaluation.recorded`) and its own mean
-    |acceleration|, median gap and median time headway."""
+    absolute acceleration, median gap and median time headway."""
     if recorded is None:
         return HUMAN_COLUMNS
     drivers = recorded.drivers

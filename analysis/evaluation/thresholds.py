@@ -18,6 +18,7 @@ import json
 import math
 import operator
 import re
+import sys
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -216,3 +217,21 @@ def check_file(path: str | Path, thresholds: Iterable[str] | str) -> list[Breach
             unknown policy or metric name.
     """
     return check_thresholds(parse_thresholds(thresholds), metrics_from_file(path))
+
+
+def gate(thresholds: tuple[Threshold, ...], path: str | Path, *, err: Any = None) -> int:
+    """The command-line gate of ``merge-irl check-metrics`` and ``evaluate --fail-if``: each
+    breach of ``thresholds`` in the metrics file ``path`` as a ``FAIL ...`` line and each
+    threshold that held as its own line, on ``err`` (default stderr); 1 if any breach, else 0.
+
+    Raises:
+        ThresholdError: a missing or malformed metrics file, or an unknown policy or metric name.
+    """
+    out = sys.stderr if err is None else err
+    metrics = metrics_from_file(path)
+    breaches = check_thresholds(thresholds, metrics)
+    for b in breaches:
+        print(f"FAIL {b}", file=out)
+    for line in not_triggered(thresholds, metrics):
+        print(line, file=out)
+    return 1 if breaches else 0

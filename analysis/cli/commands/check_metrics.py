@@ -3,9 +3,8 @@
 from __future__ import annotations
 
 import argparse
-import sys
 
-from analysis.evaluation.thresholds import check_thresholds, metrics_from_file, not_triggered, parse_thresholds
+from analysis.evaluation.thresholds import gate, parse_thresholds
 
 
 def register(subparsers) -> None:
@@ -22,11 +21,4 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    thresholds = parse_thresholds(args.fail_if)
-    metrics = metrics_from_file(args.metrics)
-    breaches = check_thresholds(thresholds, metrics)
-    for b in breaches:
-        print(f"FAIL {b}", file=sys.stderr)
-    for line in not_triggered(thresholds, metrics):
-        print(line, file=sys.stderr)
-    return 1 if breaches else 0
+    return gate(parse_thresholds(args.fail_if), args.metrics)

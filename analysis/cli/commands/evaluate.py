@@ -24,7 +24,7 @@ from analysis.evaluation.outcome import write_report
 from analysis.evaluation.plan import plan_evaluation
 from analysis.evaluation.report import flag_lines, human_table, report_table
 from analysis.evaluation.run import run_plan
-from analysis.evaluation.thresholds import check_thresholds, metrics_from_file, not_triggered, parse_thresholds
+from analysis.evaluation.thresholds import gate, parse_thresholds
 from merge_irl.run_folder import locked
 from sim.closed_loop.config import HIGH_BRAKE_RULES, ControllerConfig
 from sim.drivers.baselines import check_baselines, left_out_baselines, training_action_acc
@@ -182,12 +182,4 @@ def _print_report(report, baselines: tuple[str, ...], train_demos, thresholds) -
     print(f"metrics: {report.metrics_json}")
     for name, path in report.rrd.items():
         print(f"rerun:   {path}  ({name}; open with: merge-irl view {path})")
-    if not thresholds:
-        return 0
-    metrics = metrics_from_file(report.metrics_json)
-    breaches = check_thresholds(thresholds, metrics)
-    for b in breaches:
-        print(f"FAIL {b}", file=sys.stderr)
-    for line in not_triggered(thresholds, metrics):
-        print(line, file=sys.stderr)
-    return 1 if breaches else 0
+    return gate(thresholds, report.metrics_json) if thresholds else 0

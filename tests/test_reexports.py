@@ -13,6 +13,8 @@ import ast
 import re
 from pathlib import Path
 
+from tools.house_figures import all_names, top_imports  # one reading of top imports and __all__
+
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("merge_irl", "sim", "irl", "scenarios", "analysis")
 
@@ -27,16 +29,6 @@ FACADES: dict[str, frozenset[str]] = {
 
 def _module_name(path: Path) -> str:
     return ".".join(path.relative_to(ROOT).with_suffix("").parts)
-
-
-def _top_imports(tree: ast.Module) -> list[str]:
-    names = []
-    for node in tree.body:
-        if isinstance(node, ast.ImportFrom) and node.module != "__future__":
-            names += [a.asname or a.name for a in node.names if a.name != "*"]
-        elif isinstance(node, ast.Import):
-            names += [a.asname or a.name.split(".")[0] for a in node.names]
-    return names
 
 
 def _annotation_strings(tree: ast.Module) -> set[str]:
@@ -56,18 +48,11 @@ def _used_names(tree: ast.Module) -> set[str]:
     return {n.id for n in ast.walk(tree) if isinstance(n, ast.Name)} | _annotation_strings(tree)
 
 
-def _all_names(tree: ast.Module) -> set[str]:
-    for n in tree.body:
-        if isinstance(n, ast.Assign) and any(isinstance(t, ast.Name) and t.id == "__all__" for t in n.targets):
-            return set(ast.literal_eval(n.value))
-    return set()
-
-
 def re_exports(source: str) -> set[str]:
     """The names ``source`` (a module's text) imports at its top and lists in ``__all__`` or never uses."""
     tree = ast.parse(source)
-    used, listed = _used_names(tree), _all_names(tree)
-    return {n for n in _top_imports(tree) if n in listed or n not in used}
+    used, listed = _used_names(tree), all_names(tree) or set()
+    return {n for n in top_imports(tree) if n in listed or n not in used}
 
 
 def _found() -> dict[str, set[str]]:

@@ -139,7 +139,7 @@ def _used_names(tree: ast.Module) -> set[str]:
     return used
 
 
-def _all_names(tree: ast.Module) -> set[str] | None:
+def all_names(tree: ast.Module) -> set[str] | None:
     """The names of the module's ``__all__``, or None where it declares none."""
     for n in tree.body:
         if isinstance(n, ast.Assign) and any(isinstance(t, ast.Name) and t.id == "__all__" for t in n.targets):
@@ -147,7 +147,7 @@ def _all_names(tree: ast.Module) -> set[str] | None:
     return None
 
 
-def _top_imports(tree: ast.Module) -> list[str]:
+def top_imports(tree: ast.Module) -> list[str]:
     names = []
     for node in tree.body:
         if isinstance(node, ast.ImportFrom) and node.module != "__future__":
@@ -166,7 +166,7 @@ def re_exports() -> tuple[str, str]:
         if path.name == "__init__.py":
             continue
         tree = ast.parse(path.read_text(encoding="utf-8"))
-        imported, public = _top_imports(tree), _all_names(tree)
+        imported, public = top_imports(tree), all_names(tree)
         if public is not None:
             if n := len(public & set(imported)):
                 declared[_rel(path)] = n

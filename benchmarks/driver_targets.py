@@ -39,7 +39,6 @@ import json
 import sys
 import tempfile
 import time
-import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -62,7 +61,7 @@ from analysis.calibration.corrections import (
 )
 from analysis.calibration.driver_eval import evaluate_driver, replay_pairs
 from analysis.calibration.models import SUMO_DEFAULTS
-from analysis.calibration.pairs import load_pairs, split_by_follower
+from analysis.calibration.pairs import load_split
 from analysis.calibration.params_file import load_result
 from analysis.evaluation.evaluate import evaluate
 from analysis.evaluation.intervals import poisson_rate_ci95, rate_ci95
@@ -338,10 +337,7 @@ def print_pairs(rows, corr, n_train, n_test, recorded_close) -> None:
 
 
 def pairs_table(args) -> dict[str, Any]:
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # the shared folder's duplicate files are named by load_pairs
-        pairs = load_pairs(args.pairs)
-    train, test = split_by_follower(pairs, args.holdout, args.seed)
+    pairs, train, test = load_split(args.pairs, args.holdout, args.seed)  # the folder's copies: not warned of
     cal = load_result(args.params) if args.params else None
     recorded_close = float(np.mean([float(np.min(p.spacing)) < CLOSE_GAP_M for p in test]))
     frames, _ = pair_frames(test)

@@ -22,13 +22,12 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import warnings
 from pathlib import Path
 
 import numpy as np
 
 from analysis.calibration.driver_eval import evaluate_driver, replay_pairs
-from analysis.calibration.pairs import load_pairs, split_by_follower
+from analysis.calibration.pairs import load_split
 from analysis.calibration.params_file import load_result
 from analysis.experiments.learn_driver import CLOSE_GAP_M, pair_frames
 from irl.planning.decisions import pair_decisions
@@ -45,10 +44,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--json", default=None, metavar="FILE")
     args = ap.parse_args(argv)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # the shared folder's duplicate files are named by load_pairs
-        pairs = load_pairs(args.pairs)
-    train, test = split_by_follower(pairs, args.holdout, args.seed)
+    pairs, train, test = load_split(args.pairs, args.holdout, args.seed)  # the folder's copies: not warned of
     cal = load_result(args.params) if args.params else None
     recorded_close = float(np.mean([float(np.min(p.spacing)) < CLOSE_GAP_M for p in test]))
     frames, groups = pair_frames(test)

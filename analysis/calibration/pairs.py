@@ -363,3 +363,21 @@ class PairBatch:
             mask=mask, lengths=np.array([len(p) for p in pairs], dtype=np.int64),
             order=order.astype(np.int64),
         )
+
+
+def load_split(path: str | Path, test_fraction: float, seed: int, *, quiet_duplicates: bool = True
+               ) -> tuple[tuple[CarFollowingPair, ...], tuple[CarFollowingPair, ...], tuple[CarFollowingPair, ...]]:
+    """``(pairs, train, test)``: every pair in ``path`` (:func:`load_pairs`, in its order) and
+    their :func:`split_by_follower`
+    (the split of ``calibrate fit --holdout`` and ``learn-driver --holdout`` at the same fraction
+    and seed). ``quiet_duplicates``: no :class:`DuplicatePairWarning` (a report that names the
+    copies elsewhere); every other warning is shown.
+
+    Raises:
+        as :func:`load_pairs` and :func:`split_by_follower`.
+    """
+    with warnings.catch_warnings():
+        if quiet_duplicates:
+            warnings.simplefilter("ignore", DuplicatePairWarning)
+        pairs = tuple(load_pairs(path))
+    return (pairs, *split_by_follower(pairs, test_fraction, seed))

@@ -123,3 +123,23 @@ def test_split_by_follower_refuses_bad_fractions_and_keeps_a_follower_on_each_si
     assert len(train) == 1 and len(test) == 3
     with pytest.raises(SpecError, match="1 follower\\(s\\) cannot be split"):
         split_by_follower(pairs[:1], 0.3, seed=0)
+
+
+def test_load_split_loads_then_splits_and_is_quiet_only_about_copies(tmp_path):
+    from analysis.calibration.pairs import load_split
+
+    for f in range(10, 14):
+        write_pair(tmp_path / f"ngsim_p1_runp1_f{f}_l9_00001.csv", seed=f)
+    shutil.copy(tmp_path / "ngsim_p1_runp1_f10_l9_00001.csv", tmp_path / "ngsim_p1_runp1_f10_l9_00002.csv")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        pairs, train, test = load_split(tmp_path, 0.5, 0)
+    def names(ps):
+        return [p.name for p in ps]
+
+    with pytest.warns(DuplicatePairWarning):
+        assert names(pairs) == names(load_pairs(tmp_path)) and len(pairs) == 5
+    want_train, want_test = split_by_follower(pairs, 0.5, 0)
+    assert (names(train), names(test)) == (names(want_train), names(want_test)) and train and test
+    with pytest.warns(DuplicatePairWarning):
+        load_split(tmp_path, 0.5, 0, quiet_duplicates=False)

@@ -14,12 +14,13 @@ Several sessions in one process: libsumo holds one simulation per process, so th
 session runs in libsumo (in the process, the fast path) and any session started while it is open
 runs the ``sumo`` binary as a child process through TraCI (the ``traci`` package, a connection
 of its own per session; :class:`TraciHandle` gives it libsumo's names). ``backend`` says which
-("libsumo" or "traci"). Both run the same SUMO version on the same inputs, so a seed gives the
-same run in either; TraCI costs a socket round trip per call, several times slower, so
-parallel runs still belong in processes of their own (one libsumo each), started with 'spawn':
-a process forked while a session is open inherits that session, and its own runs go through TraCI.
-This is what lets Gymnasium's and PettingZoo's checkers, which hold two environments at once,
-pass. Once the libsumo session is closed, the next session started takes libsumo again.
+(``"libsumo"`` or ``"traci"``; two threads starting sessions at once get one each). Both run the
+same SUMO version on the same inputs, so a seed gives the same run in either. TraCI costs a
+socket round trip per call, several times slower (an environment step about 6x), so parallel
+runs still belong in processes of their own (one libsumo each), started with 'spawn': a process
+forked while a session is open inherits that session, and its own runs go through TraCI. This is
+what lets Gymnasium's and PettingZoo's checkers, which hold two environments at once, pass. Once
+the libsumo session is closed, the next session started takes libsumo again.
 
 Recording: at each recorded frame the session reads every vehicle's position, speed and
 acceleration with direct calls (measured cheaper than per-vehicle subscriptions,
@@ -40,6 +41,7 @@ import os
 import shutil
 import subprocess
 import tempfile
+import threading
 import time
 from dataclasses import dataclass
 from itertools import chain, count
@@ -63,6 +65,8 @@ from sim.runtime.sumo_inputs import prepare_inputs, sumo_args, sumo_binary
 
 #: The session holding libsumo in this process (libsumo runs one simulation at a time), or None.
 _OPEN: SumoSession | None = None
+#: Held while a starting session claims libsumo.
+_CLAIM = threading.Lock()
 
 
 @dataclass(frozen=True)
@@ -198,7 +202,11 @@ class SumoSession:
             SimulationError: SUMO fails to start.
         """
         global _OPEN
-        if _OPEN is not None and not _OPEN._closed:
+        with _CLAIM:  # two threads starting at once: one takes libsumo, the other TraCI
+            take_libsumo = _OPEN is None or _OPEN._closed
+            if take_libsumo:
+                _OPEN = self
+        if not take_libsumo:
             self._ls = _start_traci(args, self.spec.name)
             self.backend = "traci"
             return self._ls
@@ -206,10 +214,13 @@ class SumoSession:
 
         try:
             ls.start(["sumo", *args])
-        except Exception as e:  # libsumo raises its own TraCIException / FatalTraCIError
+        except BaseException as e:  # libsumo raises its own TraCIException / FatalTraCIError
             _safe_close(ls)
+            _OPEN = None
+            if not isinstance(e, Exception):
+                raise
             raise SimulationError(f"SUMO failed to start scenario {self.spec.name!r}: {e}") from e
-        _OPEN, self._ls, self.backend = self, ls, "libsumo"
+        self._ls, self.backend = ls, "libsumo"
         return ls
 
     @property
@@ -383,18 +394,32 @@ class TraciHandle:
     classes ``TraCIException`` / ``FatalTraCIError`` (TraCI's own, raised by its calls).
 
     Attributes:
-        connection: the ``traci.connection.Connection`` (its SUMO is a child process).
+        connection: the ``traci.connection.Connection``.
+        process: its SUMO, a child process (``subprocess.Popen``).
     """
 
-    def __init__(self, connection: Any):
+    def __init__(self, connection: Any, process: subprocess.Popen[bytes]):
         import traci
 
         self.connection = connection
+        self.process = process
         self.TraCIException = traci.TraCIException
         self.FatalTraCIError = traci.FatalTraCIError
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self.connection, name)
+
+    def close(self) -> None:
+        """Close the connection and end its SUMO (killed if it has not ended within 10 s or the
+        connection was broken)."""
+        try:
+            self.connection.close(wait=False)
+        finally:
+            try:
+                self.process.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait()
 
 
 #: Tries to start SUMO through TraCI (a port taken between choosing it and SUMO binding it).
@@ -424,7 +449,7 @@ def _start_traci(args: list[str], name: str) -> TraciHandle:
         try:
             with contextlib.redirect_stdout(io.StringIO()):  # traci prints each retry
                 conn = traci.connect(port, _CONNECT_TRIES, "localhost", proc, _CONNECT_WAIT_S, label=label)
-            return TraciHandle(conn)
+            return TraciHandle(conn, proc)
         except (traci.TraCIException, traci.FatalTraCIError, OSError) as e:
             err = e
             if proc.poll() is None:

@@ -51,7 +51,7 @@ def test_a_second_session_runs_through_traci_alike_and_close_is_idempotent(tmp_p
         ctx_b = b.start()
         assert (a.backend, b.backend) == ("libsumo", "traci")
         assert a.sumo is a.context.sumo and b.sumo is ctx_b.sumo and b.sumo is not a.sumo
-        proc = b.sumo.connection._process  # the TraCI session's SUMO, a child process
+        proc = b.sumo.process  # the TraCI session's SUMO, a child process
         assert proc.poll() is None
         n = 0
         while (sa := a.step()) is not None:
@@ -77,6 +77,31 @@ def test_a_second_session_runs_through_traci_alike_and_close_is_idempotent(tmp_p
         with SumoSession(spec, 2, duration_s=70.0) as d:  # the first one's close freed libsumo
             d.start()
             assert d.backend == "libsumo" and d.step() is not None
+
+
+def test_two_threads_starting_sessions_at_once_share_the_backends(tmp_path):
+    import threading
+
+    spec = load_scenario("synthetic")
+    sessions = [SumoSession(spec, 1, duration_s=70.0) for _ in range(2)]
+    with cache_env(tmp_path):
+        build = threading.Barrier(2)
+
+        def start(s):
+            build.wait()
+            s.start()
+
+        threads = [threading.Thread(target=start, args=(s,)) for s in sessions]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        try:
+            assert sorted(s.backend for s in sessions) == ["libsumo", "traci"]
+            assert all(s.step() is not None for s in sessions)
+        finally:
+            for s in sessions:
+                s.close()
 
 
 def test_hooks_drive_a_traci_run_through_the_context_as_a_libsumo_run(tmp_path):

@@ -88,7 +88,7 @@ class Controller:
         self._b_seen_ramp: set[int] = set()
         self._rng: np.random.Generator | None = None
         self._every = 1
-        self._traci: Any = None  # the libsumo module (untyped), set by on_start
+        self._traci: Any = None  # the run's SUMO handle (RunContext.sumo, untyped), set by on_start
         self.n_teleports = 0  # teleports in the whole run, all vehicles
 
     @property
@@ -102,15 +102,13 @@ class Controller:
 
     # -- hook protocol -------------------------------------------------------------------
     def on_start(self, ctx: RunContext) -> None:
-        import libsumo
-
-        self._traci = libsumo
+        self._traci = ctx.sumo
         cfg = self.config
         self._every = max(1, int(round(self.decision_step_s / ctx.frame_s)))
         self._frame_s = ctx.frame_s
         seed = cfg.seed if cfg.seed is not None else int(ctx.seed)
         self._rng = np.random.default_rng(seed)
-        self.hand_over.start(ctx, libsumo)
+        self.hand_over.start(ctx, ctx.sumo)
 
     def on_step(self, ctx: RunContext, frame: FrameState) -> None:
         for c, ia, ib, ic in self.advance(frame):

@@ -48,7 +48,7 @@ class HandOver:
         self.merge_lane = RIGHTMOST_MAIN_LANE  # the run's site profile's, set by start
         self._handled_b: set[int] = set()
         self._frame_collisions: list[tuple[str, str]] = []  # (collider, victim) SUMO ids of the current frame
-        self._traci: Any = None  # the libsumo module (untyped), set by start
+        self._traci: Any = None  # the run's SUMO handle (untyped), set by start
         self._vehicle_id_of: Any = None
         self._ramp_lane = RAMP_LANE
         self._zone_start = 0.0
@@ -58,7 +58,7 @@ class HandOver:
 
     def start(self, ctx: RunContext, traci: Any) -> None:
         """Take the run's geometry, site lanes and frame length from ``ctx`` (at the run's start);
-        ``traci``: the libsumo module."""
+        ``traci``: the run's SUMO handle (``ctx.sumo``)."""
         cfg = self.config
         self._traci = traci
         self._hold_frames = cfg.hold_frames(ctx.frame_s)

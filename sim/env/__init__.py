@@ -36,9 +36,9 @@ ENV_ID = "MergeIRL/OnRampMerge-v0"
 MAX_EPISODE_STEPS = 200
 
 if ENV_ID not in gym.registry:
-    # no passive checker: when an environment's first reset raises (a second SUMO session refused in
-    # one process), Gymnasium's PassiveEnvChecker is left half-set and a later step fails with its own
-    # TypeError; the environment passes gymnasium.utils.env_checker.check_env in its tests
+    # no passive checker: when an environment's first reset raises (options it refuses, for example),
+    # Gymnasium's PassiveEnvChecker is left half-set and a later step fails with its own TypeError;
+    # the environment passes gymnasium.utils.env_checker.check_env, as users call it, in its tests
     gym.register(id=ENV_ID, entry_point="sim.env.merge_env:MergeEnv", max_episode_steps=MAX_EPISODE_STEPS,
                  disable_env_checker=True)
 

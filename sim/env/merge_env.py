@@ -49,8 +49,9 @@ or the dataclass). Rendering: ``render_mode="rgb_array"`` (:mod:`sim.env.render`
 Runs and seeds: ``reset(seed=s)`` starts a new SUMO run with seed ``s`` (the same seed gives the
 same episode for the same actions); ``reset()`` continues the current run to its next take-over,
 which saves SUMO's start and warm-up, and starts a new run (seed drawn from the environment's
-generator) when none is left. libsumo runs one simulation per process: use one environment per
-process, and ``gymnasium.vector.AsyncVectorEnv`` for several (see docs/environment.md).
+generator) when none is left. libsumo runs one simulation per process: an environment reset while
+another is open runs its SUMO through TraCI (several times slower; :mod:`sim.runtime.session`), so
+for several at speed use ``gymnasium.vector.AsyncVectorEnv``, one process each (docs/environment.md).
 """
 
 from __future__ import annotations

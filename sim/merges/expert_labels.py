@@ -65,9 +65,7 @@ class ExpertLabels:
         return pd.DataFrame(self.records, columns=list(ExpertLabel._fields))
 
     def on_start(self, ctx: RunContext) -> None:
-        import libsumo
-
-        self._sumo = libsumo
+        self._sumo = ctx.sumo
 
     def on_step(self, ctx: RunContext, frame: FrameState) -> None:
         if not self.ctl.decided:

@@ -1,8 +1,11 @@
 """Step hooks: user code called by :func:`sim.runtime.run.run_scenario` at every recorded frame.
 
-A hook sees the frame just recorded (NGSIM units: ft, ft/s, ft/s^2) and may call ``libsumo``
-to control vehicles (for example ``libsumo.vehicle.setSpeedMode(sid, 0)`` then
-``setAcceleration``); the commands take effect in the next simulation step.
+A hook sees the frame just recorded (NGSIM units: ft, ft/s, ft/s^2) and may call SUMO through
+the run's handle ``ctx.sumo`` to control vehicles (for example ``ctx.sumo.vehicle.setSpeedMode(sid, 0)``
+then ``setAcceleration``); the commands take effect in the next simulation step. The handle is
+the ``libsumo`` module for the process's first open run and a TraCI connection with the same
+calls for a run started while another is open (:mod:`sim.runtime.session`): a hook that imports
+``libsumo`` itself drives the wrong simulation in the second case.
 
 Call order for one run::
 
@@ -52,6 +55,9 @@ class RunContext:
         site: the lane coding of the run (:class:`sim.runtime.sites.SiteProfile`, from
             :func:`sim.runtime.sites.site_of`; I-80's by default): ``lane_id`` codes, the merge lane
             (I-80: 6) and the ramp lane (I-80: 7).
+        sumo: the run's SUMO handle (libsumo's calls: ``sumo.vehicle``, ``sumo.simulation``, ...,
+            and ``sumo.TraCIException``): the ``libsumo`` module or a
+            :class:`sim.runtime.session.TraciHandle` (module docstring).
     """
 
     spec: Any
@@ -66,6 +72,7 @@ class RunContext:
     sumo_id_of: Callable[[int], str | None] = field(repr=False)
     work_dir: str = ""
     site: SiteProfile = I80
+    sumo: Any = field(default=None, repr=False, compare=False)
 
 
 @dataclass(frozen=True)

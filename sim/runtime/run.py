@@ -14,8 +14,9 @@ Vehicle_ID: consecutive from 1 in insertion order, assigned when a vehicle first
 a recorded frame. Frame_ID = simulated time / 0.1 s; Global_Time = Frame_ID * 100 (ms since
 the simulation started). Frames before ``warmup_s`` are not recorded and not passed to hooks.
 
-libsumo allows one simulation per process at a time; ``run_scenario`` always closes it
-(the session's context manager, also on Ctrl-C), so runs can follow each other in one process.
+``run_scenario`` always closes its SUMO (the session's context manager, also on Ctrl-C), so runs
+can follow each other in one process; a run started while another session is open goes through
+TraCI (:mod:`sim.runtime.session`), and hooks call SUMO through ``ctx.sumo``.
 """
 
 from __future__ import annotations
@@ -52,7 +53,7 @@ def run_scenario(
     t0 = time.perf_counter()
     with SumoSession(spec, seed, duration_s=duration_s, work_dir=work_dir, progress=progress) as session:
         ctx = session.start()
-        import libsumo as ls  # loaded by start()
+        ls = ctx.sumo  # libsumo, or TraCI for a second run in this process
         started: list[StepHook] = []
         ok = False  # set once every step ran: hooks then commit their outputs
         try:
@@ -65,7 +66,7 @@ def run_scenario(
             ok = True
         except (KeyboardInterrupt, SimulationError):
             raise
-        except (ls.TraCIException, ls.FatalTraCIError) as e:  # a hook's libsumo call
+        except (ls.TraCIException, ls.FatalTraCIError) as e:  # a hook's SUMO call
             raise SimulationError(f"SUMO error in scenario {session.spec.name!r}: {e}") from e
         finally:
             for h in started:

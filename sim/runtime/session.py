@@ -7,13 +7,23 @@ of simulated time; the first call runs the warm-up) and returns a :class:`Sessio
 frame's :class:`~sim.runtime.hooks.FrameState` with SUMO's events since the previous frame; ``close()``
 closes SUMO and removes the temporary folder (idempotent; the context manager calls it, also on
 an error or Ctrl-C, and ``start`` does when it fails). Between two ``step()`` calls any code may call
-libsumo (``libsumo.vehicle.setAcceleration`` ...); the commands act in the next step.
+SUMO through the session's handle, :attr:`SumoSession.sumo` (also ``context.sumo``), e.g.
+``session.sumo.vehicle.setAcceleration(...)``; the commands act in the next step.
 
-libsumo holds one simulation per process: a second session started while one is open raises
-:class:`~sim.errors.SimulationError` (close the first; for parallel runs use processes).
+Several sessions in one process: libsumo holds one simulation per process, so the first open
+session runs in libsumo (in the process, the fast path) and any session started while it is open
+runs the ``sumo`` binary as a child process through TraCI (the ``traci`` package, a connection
+of its own per session; :class:`TraciHandle` gives it libsumo's names). ``backend`` says which
+(``"libsumo"`` or ``"traci"``; two threads starting sessions at once get one each). Both run the
+same SUMO version on the same inputs, so a seed gives the same run in either. TraCI costs a
+socket round trip per call, several times slower (an environment step about 6x), so parallel
+runs still belong in processes of their own (one libsumo each), started with 'spawn': a process
+forked while a session is open inherits that session, and its own runs go through TraCI. This is
+what lets Gymnasium's and PettingZoo's checkers, which hold two environments at once, pass. Once
+the libsumo session is closed, the next session started takes libsumo again.
 
 Recording: at each recorded frame the session reads every vehicle's position, speed and
-acceleration with direct libsumo calls (measured cheaper than per-vehicle subscriptions,
+acceleration with direct calls (measured cheaper than per-vehicle subscriptions,
 which SUMO updates at every step, and nothing to unsubscribe when a hook removes a vehicle);
 each frame becomes one read-only ``[V, 4]`` array (plus id, lane and static arrays, rebuilt
 only when the set of vehicles changes), which the frame state exposes as column views and
@@ -24,12 +34,17 @@ Coordinates, lanes and ids: as :mod:`sim.runtime.run` documents them (NGSIM unit
 
 from __future__ import annotations
 
+import contextlib
+import io
 import math
+import os
 import shutil
+import subprocess
 import tempfile
+import threading
 import time
 from dataclasses import dataclass
-from itertools import chain
+from itertools import chain, count
 from pathlib import Path
 from typing import Any
 
@@ -46,10 +61,12 @@ from sim.runtime.recorder import TrajectoryRecorder
 from sim.runtime.run_result import RunEvents
 from sim.runtime.schema import V_CLASS_AUTO, V_CLASS_TRUCK
 from sim.runtime.sites import site_of
-from sim.runtime.sumo_inputs import prepare_inputs, sumo_args
+from sim.runtime.sumo_inputs import prepare_inputs, sumo_args, sumo_binary
 
-#: The session whose SUMO is open in this process (libsumo: one at a time), or None.
+#: The session holding libsumo in this process (libsumo runs one simulation at a time), or None.
 _OPEN: SumoSession | None = None
+#: Held while a starting session claims libsumo.
+_CLAIM = threading.Lock()
 
 
 @dataclass(frozen=True)
@@ -80,7 +97,7 @@ class SessionStep:
 
 
 class SumoSession:
-    """One libsumo run of ``spec``, stepped from outside (see the module docstring).
+    """One SUMO run of ``spec``, stepped from outside (see the module docstring).
 
     Args:
         spec: the scenario.
@@ -90,8 +107,11 @@ class SumoSession:
             a bar on a terminal, lines elsewhere).
         record: keep every frame for :meth:`table` (the trajectory table); off for an environment.
 
+    Attributes:
+        backend: ``"libsumo"`` or ``"traci"`` once started (``""`` before; module docstring).
+
     Raises (from ``start`` / ``step``):
-        SimulationError: SUMO fails to start or to step, or another session is open in this process.
+        SimulationError: SUMO fails to start or to step.
     """
 
     def __init__(self, spec: ScenarioSpec, seed: int | None = None, *, duration_s: float | None = None,
@@ -107,6 +127,7 @@ class SumoSession:
         self._work_dir_arg = Path(work_dir) if work_dir is not None else None
         self._tmp: str | None = None
         self._ls: Any = None
+        self.backend = ""  # "libsumo" or "traci" once started (module docstring)
         self._started = self._closed = False
         self._step = 0
         self._teleports: list[tuple[float, str]] = []
@@ -131,23 +152,13 @@ class SumoSession:
         """Write the inputs, start SUMO and load the network; returns the run's context.
 
         Raises:
-            SimulationError: SUMO fails to start, the session was started before, or another
-                session is open in this process.
+            SimulationError: SUMO fails to start, or the session was started before.
         """
-        global _OPEN
         if self._started:
             raise SimulationError("SumoSession.start: this session was started already; make a new one")
-        if _OPEN is not None and not _OPEN._closed:
-            raise SimulationError("SumoSession.start: another SUMO session is open in this process "
-                                  "(libsumo runs one at a time); close it first (env.close(), session.close()), or "
-                                  "run each in a process of its own started with 'spawn' (e.g. gymnasium's "
-                                  "AsyncVectorEnv(..., context='spawn')): a process forked from this one inherits "
-                                  "its open session and is refused the same way")
         self._started = True
-        import libsumo as ls
-
-        self._ls = ls
         spec = self.spec
+        errors: tuple[type[BaseException], ...] = ()  # the backend's exceptions, once it is chosen
         try:
             site = site_of(spec)  # an unknown site fails before SUMO starts
             if self._work_dir_arg is None:
@@ -157,12 +168,8 @@ class SumoSession:
                 wd = self._work_dir_arg
                 wd.mkdir(parents=True, exist_ok=True)
             net, routes = prepare_inputs(spec, wd)
-            try:
-                ls.start(["sumo", *sumo_args(spec, net, routes)])
-            except Exception as e:  # libsumo raises its own TraCIException / FatalTraCIError
-                _safe_close(ls)
-                raise SimulationError(f"SUMO failed to start scenario {spec.name!r}: {e}") from e
-            _OPEN = self
+            ls = self._open(sumo_args(spec, net, routes))
+            errors = (ls.TraCIException, ls.FatalTraCIError)
             self._cls_of_type = type_class_map(spec)
             self._lane_of = LaneNumbering(spec.road.main_lanes, spec.road.lane_width_m * FT_PER_M, site)
             _, lane_shapes = lane_tables(ls, spec, site)
@@ -174,7 +181,7 @@ class SumoSession:
                 section_length_ft=spec.road.main_length_m * FT_PER_M,
                 vehicle_id_of=vid_of.get,
                 sumo_id_of=lambda v: sumo_ids[v - 1] if 1 <= v <= len(sumo_ids) else None,
-                work_dir=str(wd), site=site,
+                work_dir=str(wd), site=site, sumo=ls,
             )
             if self.progress:
                 from merge_irl.progress import progress_bar
@@ -182,10 +189,45 @@ class SumoSession:
                 self._bar = progress_bar(round(spec.simulation.duration_s), unit="sim s", desc=f"simulating {spec.name}")
         except BaseException as e:
             self.close()
-            if isinstance(e, ls.TraCIException | ls.FatalTraCIError):
+            if isinstance(e, errors):
                 raise SimulationError(f"SUMO error in scenario {spec.name!r}: {e}") from e
             raise
         return self.context
+
+    def _open(self, args: list[str]) -> Any:
+        """SUMO started with ``args``: in libsumo when no other session of this process holds it,
+        else through TraCI (module docstring); the handle (``self.sumo``) is set only on success.
+
+        Raises:
+            SimulationError: SUMO fails to start.
+        """
+        global _OPEN
+        with _CLAIM:  # two threads starting at once: one takes libsumo, the other TraCI
+            take_libsumo = _OPEN is None or _OPEN._closed
+            if take_libsumo:
+                _OPEN = self
+        if not take_libsumo:
+            self._ls = _start_traci(args, self.spec.name)
+            self.backend = "traci"
+            return self._ls
+        import libsumo as ls
+
+        try:
+            ls.start(["sumo", *args])
+        except BaseException as e:  # libsumo raises its own TraCIException / FatalTraCIError
+            _safe_close(ls)
+            _OPEN = None
+            if not isinstance(e, Exception):
+                raise
+            raise SimulationError(f"SUMO failed to start scenario {self.spec.name!r}: {e}") from e
+        self._ls, self.backend = ls, "libsumo"
+        return ls
+
+    @property
+    def sumo(self) -> Any:
+        """The handle of this session's SUMO (None before ``start``): the ``libsumo`` module, or a
+        :class:`TraciHandle` (module docstring); also ``context.sumo``."""
+        return self._ls
 
     def close(self) -> None:
         """Close SUMO and remove the temporary folder; safe to call again and before ``start``."""
@@ -197,7 +239,9 @@ class SumoSession:
             if self._bar is not None:
                 self._bar.close()
         finally:
-            if self._ls is not None and _OPEN is self:
+            if self.backend == "traci":
+                _safe_close(self._ls)
+            elif self._ls is not None and _OPEN is self:
                 _safe_close(self._ls)
                 _OPEN = None
             if self._tmp is not None:
@@ -342,3 +386,74 @@ def _safe_close(ls: Any) -> None:
         ls.close()
     except Exception:
         pass
+
+
+class TraciHandle:
+    """A TraCI connection with the names callers use on the ``libsumo`` module: the domains
+    (``vehicle``, ``simulation``, ``lane``, ...), ``simulationStep``, ``close`` and the exception
+    classes ``TraCIException`` / ``FatalTraCIError`` (TraCI's own, raised by its calls).
+
+    Attributes:
+        connection: the ``traci.connection.Connection``.
+        process: its SUMO, a child process (``subprocess.Popen``).
+    """
+
+    def __init__(self, connection: Any, process: subprocess.Popen[bytes]):
+        import traci
+
+        self.connection = connection
+        self.process = process
+        self.TraCIException = traci.TraCIException
+        self.FatalTraCIError = traci.FatalTraCIError
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.connection, name)
+
+    def close(self) -> None:
+        """Close the connection and end its SUMO (killed if it has not ended within 10 s or the
+        connection was broken)."""
+        try:
+            self.connection.close(wait=False)
+        finally:
+            try:
+                self.process.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait()
+
+
+#: Tries to start SUMO through TraCI (a port taken between choosing it and SUMO binding it).
+_TRACI_TRIES = 3
+#: Seconds between two attempts to connect to a starting SUMO, and the attempts (30 s in all).
+_CONNECT_WAIT_S, _CONNECT_TRIES = 0.02, 1500
+_TRACI_LABELS = count(1)
+
+
+def _start_traci(args: list[str], name: str) -> TraciHandle:
+    """The ``sumo`` binary started with ``args`` as a TraCI server, connected under a label of its
+    own (the module-level ``traci`` connection is left alone).
+
+    Raises:
+        SimulationError: SUMO fails to start or to accept the connection (its own message goes to
+            stderr).
+    """
+    import traci
+    from sumolib.miscutils import getFreeSocketPort
+
+    binary = sumo_binary("sumo")
+    label = f"merge-irl-session-{os.getpid()}-{next(_TRACI_LABELS)}"
+    err: Exception | None = None
+    for _ in range(_TRACI_TRIES):
+        port = getFreeSocketPort()
+        proc = subprocess.Popen([binary, *args, "--remote-port", str(port)], stdout=subprocess.DEVNULL)
+        try:
+            with contextlib.redirect_stdout(io.StringIO()):  # traci prints each retry
+                conn = traci.connect(port, _CONNECT_TRIES, "localhost", proc, _CONNECT_WAIT_S, label=label)
+            return TraciHandle(conn, proc)
+        except (traci.TraCIException, traci.FatalTraCIError, OSError) as e:
+            err = e
+            if proc.poll() is None:
+                proc.kill()
+            proc.wait()
+    raise SimulationError(f"SUMO failed to start scenario {name!r} through TraCI (a second session in this "
+                          f"process; SUMO's own message, if any, is on stderr): {err}") from err

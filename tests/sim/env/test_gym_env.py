@@ -46,8 +46,8 @@ def test_gymnasium_env_checker_passes_without_warnings(action_type):
             # but its advice: the continuous action is in m/s^2 by contract, not normalised
             # (gymnasium.wrappers.RescaleAction normalises it, docs/environment.md)
             warnings.filterwarnings("ignore", message=".*symmetric and normalized space.*")
-            # skip_render_check: the checker makes a second environment (a second SUMO) while the
-            # first is open, which libsumo refuses; rendering has its own test
+            # skip_render_check: both action types here; the checker as users call it, render and
+            # close checks included, runs in test_checkers.py
             check_env(env.unwrapped, skip_render_check=True)
     finally:
         env.close()

@@ -1,5 +1,6 @@
-"""The stepped SUMO session: frames and events from outside the loop, one session per process,
-close idempotent and on error; importing sim loads neither SUMO nor gymnasium."""
+"""The stepped SUMO session: frames and events from outside the loop, a second session in one
+process through TraCI with the same frames and hooks, close idempotent and on error; importing
+sim loads neither SUMO nor gymnasium."""
 
 from __future__ import annotations
 
@@ -41,23 +42,93 @@ def test_session_steps_frame_by_frame_and_reports_events(tmp_path):
     assert frames[-1].events.departed == events.departed > 0 and frames[-1].events.backlog >= 0
 
 
-def test_one_session_per_process_and_close_is_idempotent(tmp_path):
+def test_a_second_session_runs_through_traci_alike_and_close_is_idempotent(tmp_path):
     spec = load_scenario("synthetic")
     with cache_env(tmp_path):
-        a = SumoSession(spec, 1, duration_s=70.0)
+        a = SumoSession(spec, 1, duration_s=80.0)
         a.start()
-        with pytest.raises(SimulationError, match="another SUMO session is open"):
-            SumoSession(spec, 2, duration_s=70.0).start()
-        assert a.step() is not None
+        b = SumoSession(spec, 1, duration_s=80.0)  # while `a` holds libsumo
+        ctx_b = b.start()
+        assert (a.backend, b.backend) == ("libsumo", "traci")
+        assert a.sumo is a.context.sumo and b.sumo is ctx_b.sumo and b.sumo is not a.sumo
+        proc = b.sumo.process  # the TraCI session's SUMO, a child process
+        assert proc.poll() is None
+        n = 0
+        while (sa := a.step()) is not None:
+            sb = b.step()
+            assert sb is not None and sa.frame.sumo_ids == sb.frame.sumo_ids and sa.events == sb.events
+            np.testing.assert_array_equal(sa.frame.local_y, sb.frame.local_y)
+            np.testing.assert_array_equal(sa.frame.speed, sb.frame.speed)
+            n += 1
+        assert b.step() is None and n == 201
+        assert a.table().equals(b.table())
+        assert b.sumo.vehicle.getIDCount() > 0  # the handle takes libsumo's calls
+        with pytest.raises(b.sumo.TraCIException):
+            b.sumo.vehicle.getSpeed("no-such-car")
+        b.close()
+        b.close()
+        assert proc.poll() is not None  # closed with its session
         a.close()
         a.close()
         with pytest.raises(SimulationError, match="not running"):
             a.step()
-        b = SumoSession(spec, 2, duration_s=70.0)
-        b.close()  # before start: nothing to do
-        with SumoSession(spec, 2, duration_s=70.0) as c:  # the first one's close freed libsumo
-            c.start()
-            assert c.step() is not None
+        c = SumoSession(spec, 2, duration_s=70.0)
+        c.close()  # before start: nothing to do
+        with SumoSession(spec, 2, duration_s=70.0) as d:  # the first one's close freed libsumo
+            d.start()
+            assert d.backend == "libsumo" and d.step() is not None
+
+
+def test_two_threads_starting_sessions_at_once_share_the_backends(tmp_path):
+    import threading
+
+    spec = load_scenario("synthetic")
+    sessions = [SumoSession(spec, 1, duration_s=70.0) for _ in range(2)]
+    with cache_env(tmp_path):
+        build = threading.Barrier(2)
+
+        def start(s):
+            build.wait()
+            s.start()
+
+        threads = [threading.Thread(target=start, args=(s,)) for s in sessions]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        try:
+            assert sorted(s.backend for s in sessions) == ["libsumo", "traci"]
+            assert all(s.step() is not None for s in sessions)
+        finally:
+            for s in sessions:
+                s.close()
+
+
+def test_hooks_drive_a_traci_run_through_the_context_as_a_libsumo_run(tmp_path):
+    """The controller (its take-overs, releases and accelerations) and the expert labels call SUMO
+    through ``ctx.sumo``: a run started while another session is open is the libsumo run."""
+    from sim.closed_loop.config import ControllerConfig
+    from sim.closed_loop.controller import Controller
+    from sim.drivers.policy import ConstantPolicy
+    from sim.merges.expert_labels import ExpertLabels
+    from sim.runtime.run import run_scenario
+
+    spec = load_scenario("synthetic")
+
+    def run():
+        ctl = Controller(ConstantPolicy(0), ControllerConfig(decision_step_s=0.3))
+        labels = ExpertLabels(ctl)
+        res = run_scenario(spec, seed=4, duration_s=110.0, hooks=[ctl, labels])
+        return res.table, ctl.control_table(), labels.table()
+
+    with cache_env(tmp_path):
+        alone = run()
+        with SumoSession(spec, 1, duration_s=70.0) as holder:
+            holder.start()
+            beside = run()
+    assert len(alone[1]) >= 2 and len(alone[2]) > 0
+    for x, y in zip(alone, beside, strict=True):
+        assert x.equals(y)
 
 
 def test_an_error_inside_the_with_block_closes_sumo(tmp_path):
@@ -74,9 +145,9 @@ def test_an_error_inside_the_with_block_closes_sumo(tmp_path):
             assert again.step() is not None
 
 
-def test_importing_sim_loads_neither_libsumo_nor_gymnasium():
+def test_importing_sim_loads_neither_sumo_nor_gymnasium():
     code = ("import sys, sim, sim.runtime.session, sim.runtime.run, sim.closed_loop.controller, sim.drivers.observe; "
-            "print(sorted(m for m in ('libsumo', 'gymnasium') if m in sys.modules))")
+            "print(sorted(m for m in ('libsumo', 'traci', 'gymnasium') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip().splitlines()[-1] == "[]"
 

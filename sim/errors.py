@@ -11,3 +11,7 @@ class TrajectoryFormatError(SimError, ValueError):
 
 class SimulationError(SimError, RuntimeError):
     """SUMO failed or was interrupted."""
+
+
+class RewardError(SimError, ValueError):
+    """An environment reward returned something that is not one finite real number."""

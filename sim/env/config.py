@@ -22,6 +22,7 @@ from typing import Any
 from scenarios.spec.model import ScenarioSpec
 from sim.closed_loop.config import ControllerConfig
 from sim.drivers.formats import RewardFn
+from sim.env.rewards import check_reward_name
 
 #: ``units`` values: observations in feet and ft/s (NGSIM's, the project's) or metres and m/s.
 UNITS = ("ft", "si")
@@ -37,9 +38,10 @@ class MergeEnvConfig:
             :class:`~scenarios.spec.model.ScenarioSpec`.
         action_type: ``"discrete"`` (``Discrete(5)``, the merge actions) or ``"continuous"`` (A's
             acceleration in m/s^2, ``Box((1,))``).
-        reward: a task reward's name (:data:`sim.env.task_reward.TASK_REWARDS`: ``"task"``, the
-            default, ``"progress"``, ``"zero"``), a learned model file (a path; a ``str`` that is not a
-            reward name is a path), a callable ``(obs, action_bin, acc_ft_s2) -> float`` or None (0).
+        reward: a registered reward's name (:data:`sim.env.task_reward.TASK_REWARDS`: ``"task"``, the
+            default, ``"progress"``, ``"zero"``, and those of :func:`sim.env.rewards.register_reward`),
+            a learned model file (a path; a ``str`` with a directory part or a suffix, or that exists),
+            a callable ``(obs, action_bin, acc_ft_s2) -> float`` (:class:`sim.env.rewards.Reward`) or None (0).
         controller: the closed-loop controller's settings (decision step, take-over zone, hold,
             time limit, ``high_brake``); its ``seed`` is unused (the agent decides).
         run_s: simulated seconds of one SUMO run, warm-up included (s).
@@ -56,6 +58,8 @@ class MergeEnvConfig:
             numbers; ``max_agents`` < 1.
         TypeError: ``reward`` neither a name, a path, a callable nor None; ``controller`` not a
             :class:`~sim.closed_loop.config.ControllerConfig`.
+        merge_irl.registry.RegistryError: ``reward`` a string that is neither a registered name nor
+            like a path (``"fast"``: the names listed).
     """
 
     scenario: str | os.PathLike | ScenarioSpec = "synthetic"
@@ -82,6 +86,8 @@ class MergeEnvConfig:
         if not (r is None or isinstance(r, str | os.PathLike) or callable(r)):
             raise TypeError(f"reward must be a reward name, a model file path, a callable (obs, action_bin, "
                             f"acc_ft_s2) -> float or None, got {type(r).__name__} {r!r}")
+        if isinstance(r, str):
+            check_reward_name(r)  # a misspelled name is not read as a file
         if not isinstance(self.controller, ControllerConfig):
             raise TypeError(f"controller must be a sim.closed_loop.config.ControllerConfig, got "
                             f"{type(self.controller).__name__}")

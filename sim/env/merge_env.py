@@ -215,7 +215,7 @@ class MergeEnv(gym.Env):
                     return self._last_obs.copy(), reward, False, False, {**self._info(o), **step_info}
         terminated, truncated = end_flags(c)
         info = {**self._info(None), **step_info, "release_reason": c.reason, "collision_kind": c.collision_kind}
-        return self._last_obs.copy(), reward + self._core.outcome(c), terminated, truncated, info
+        return self._last_obs.copy(), reward + self._core.outcome_terms(c, info), terminated, truncated, info
 
     def render(self) -> np.ndarray | None:
         """The current frame, ``uint8[160, 960, 3]`` (``render_mode="rgb_array"``; None without a

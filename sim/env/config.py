@@ -22,6 +22,7 @@ from typing import Any
 from scenarios.spec.model import ScenarioSpec
 from sim.closed_loop.config import ControllerConfig
 from sim.drivers.formats import RewardFn
+from sim.env.observations import DEFAULT_OBSERVATION, ObservationFactory, observation_factory
 from sim.env.rewards import check_reward_name
 
 #: ``units`` values: observations in feet and ft/s (NGSIM's, the project's) or metres and m/s.
@@ -52,6 +53,10 @@ class MergeEnvConfig:
         max_agents: the multi-agent environment's agent slots (``possible_agents``): at most this
             many lag cars are controlled at once; a take-over with every slot taken is left to
             SUMO. Unused by the single-agent environment.
+        observation: what the agent sees, by name (:mod:`sim.env.observations`: ``"policy"``, the
+            default, the 7 policy columns; a module of that folder; ``"module:Class"`` of your own;
+            a name of :func:`~sim.env.observations.register_observation`) or a factory
+            ``(config) -> Observation``.
 
     Raises:
         ValueError: an unknown ``action_type``, ``units``; bounds not (negative, positive) finite
@@ -59,7 +64,7 @@ class MergeEnvConfig:
         TypeError: ``reward`` neither a name, a path, a callable nor None; ``controller`` not a
             :class:`~sim.closed_loop.config.ControllerConfig`.
         merge_irl.registry.RegistryError: ``reward`` a string that is neither a registered name nor
-            like a path (``"fast"``: the names listed).
+            like a path (``"fast"``: the names listed); an unknown ``observation`` name (the names listed).
     """
 
     scenario: str | os.PathLike | ScenarioSpec = "synthetic"
@@ -70,6 +75,7 @@ class MergeEnvConfig:
     acc_bounds_mps2: tuple[float, float] = (-9.0, 4.0)
     units: str = "ft"
     max_agents: int = 8
+    observation: str | ObservationFactory = DEFAULT_OBSERVATION
 
     def __post_init__(self) -> None:
         if self.action_type not in ACTION_TYPES:
@@ -91,6 +97,11 @@ class MergeEnvConfig:
         if not isinstance(self.controller, ControllerConfig):
             raise TypeError(f"controller must be a sim.closed_loop.config.ControllerConfig, got "
                             f"{type(self.controller).__name__}")
+        if isinstance(self.observation, str):
+            observation_factory(self.observation)  # an unknown name refused now, with the names
+        elif not callable(self.observation):
+            raise TypeError(f"observation must be a name or a factory (config) -> Observation, got "
+                            f"{type(self.observation).__name__}")
         if isinstance(self.max_agents, bool) or not isinstance(self.max_agents, int) or self.max_agents < 1:
             raise ValueError(f"max_agents must be an integer >= 1, got {self.max_agents!r}")
 

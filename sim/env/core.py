@@ -21,9 +21,10 @@ from merge_irl.units import FT_PER_M, M_PER_FT
 from sim.closed_loop.controller import Controller
 from sim.closed_loop.records import Control
 from sim.drivers.formats import RewardFn
-from sim.drivers.observe import POLICY_OBS_HIGH, POLICY_OBS_LOW, MergeObservation, lead_of, policy_observation
+from sim.drivers.observe import MergeObservation, lead_of
 from sim.drivers.policy import NO_LIKELIHOOD, PolicyDefaults
 from sim.env.config import MergeEnvConfig
+from sim.env.observations import make_observation
 from sim.env.rewards import build_reward, reward_parts, reward_value
 from sim.errors import RewardError
 from sim.runtime.hooks import FrameState
@@ -87,8 +88,9 @@ class EnvCore:
         acc5 = self.reward.action_acc_ft_s2 or ACTION_ACC_FT_S2
         self.agent = AgentPolicy(encoder, self.reward.state_encoding, tuple(float(x) for x in acc5))
         self.scale = config.obs_scale
-        self.observation_space = spaces.Box(POLICY_OBS_LOW * self.scale, POLICY_OBS_HIGH * self.scale,
-                                            dtype=np.float64)
+        #: what the agent sees (:mod:`sim.env.observations`, ``config.observation``)
+        self.observer = make_observation(config)
+        self.observation_space = self.observer.space()
         lo, hi = (float(x) for x in config.acc_bounds_mps2)
         self.action_space: spaces.Space[Any] = (
             spaces.Discrete(N_ACTIONS) if config.action_type == "discrete"
@@ -96,9 +98,9 @@ class EnvCore:
         self._acc_bounds = (lo, hi)
 
     def observation(self, obs: MergeObservation) -> np.ndarray:
-        """The policy observation ``[7]`` of ``obs`` in the config's units (a new array)."""
-        o = policy_observation(obs)
-        return o * self.scale if self.scale != 1.0 else o
+        """The agent's observation of ``obs`` (the config's :class:`~sim.env.observations.Observation`;
+        by default the policy observation ``[7]`` in the config's units), a new array."""
+        return self.observer.observe(obs)
 
     def start(self, seed: int) -> tuple[SumoSession, Controller]:
         """A new SUMO run of ``seed`` started, and its controller (the agent's)."""

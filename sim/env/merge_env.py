@@ -63,7 +63,6 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from irl.domains.merge.car_following import OBS_COLUMNS
 from sim.closed_loop.controller import Controller
 from sim.closed_loop.records import Control
 from sim.drivers.observe import POLICY_OBS_HIGH, POLICY_OBS_LOW, MergeObservation
@@ -139,7 +138,7 @@ class MergeEnv(gym.Env):
         self._pending: tuple[FrameState, int, int | None, MergeObservation] | None = None
         self._frame: FrameState | None = None  # the last frame the agent saw (for render())
         self._renderer: Any = None
-        self._last_obs = np.zeros(len(OBS_COLUMNS))
+        self._last_obs = np.zeros(self.observation_space.shape or ())
         self._run_seed = -1
         self._time_s = math.nan  # simulated time of the last frame the agent saw
 

@@ -202,7 +202,7 @@ class MergeParallelEnv(ParallelEnv):
                 c = self._live.pop(agent)
                 if st is not None and (o := core.observe_at_release(ctl, c, st.frame)) is not None:
                     last[agent] = core.observation(o)
-                obs[agent] = last.get(agent, np.zeros(core.observation_space.shape))
+                obs[agent] = last.get(agent, np.zeros(core.observation_space.shape or ()))
                 step_info = dict(step_infos.get(agent, {}))
                 rewards[agent] = rewards.get(agent, 0.0) + core.outcome_terms(c, step_info)
                 terms[agent], truncs[agent] = end_flags(c)

@@ -165,7 +165,7 @@ def register_reward(name: str, fn: RewardFn, *, replace: bool = False) -> None:
     if not callable(fn):
         raise TypeError(f"register_reward({name!r}, ...): a reward must be a callable (obs, action_bin, acc_ft_s2) "
                         f"-> float, got {type(fn).__name__}")
-    TASK_REWARDS.register(name, fn, replace=replace)  # type: ignore[arg-type]
+    TASK_REWARDS.register(name, fn, replace=replace)
 
 
 def load_reward(path: str | os.PathLike) -> RewardFn:

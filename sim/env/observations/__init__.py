@@ -91,7 +91,7 @@ def observation_factory(name: str) -> ObservationFactory:
         factory = resolve_ref(name)
         if not callable(factory):
             raise RegistryError(f"observation {name!r} is a {type(factory).__name__}, not a class or callable")
-        return factory  # type: ignore[no-any-return]
+        return factory
     if name in _folder_modules():
         importlib.import_module(f"{__name__}.{name}")
         if name not in OBSERVATIONS:

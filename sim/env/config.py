@@ -88,20 +88,11 @@ class MergeEnvConfig:
             lo = hi = math.nan
         if not (math.isfinite(lo) and math.isfinite(hi) and lo < 0 < hi):
             raise ValueError(f"acc_bounds_mps2 must be (negative, positive) m/s^2, got {self.acc_bounds_mps2!r}")
-        r = self.reward
-        if not (r is None or isinstance(r, str | os.PathLike) or callable(r)):
-            raise TypeError(f"reward must be a reward name, a model file path, a callable (obs, action_bin, "
-                            f"acc_ft_s2) -> float or None, got {type(r).__name__} {r!r}")
-        if isinstance(r, str):
-            check_reward_name(r)  # a misspelled name is not read as a file
+        _check_reward(self.reward)
         if not isinstance(self.controller, ControllerConfig):
             raise TypeError(f"controller must be a sim.closed_loop.config.ControllerConfig, got "
                             f"{type(self.controller).__name__}")
-        if isinstance(self.observation, str):
-            observation_factory(self.observation)  # an unknown name refused now, with the names
-        elif not callable(self.observation):
-            raise TypeError(f"observation must be a name or a factory (config) -> Observation, got "
-                            f"{type(self.observation).__name__}")
+        _check_observation(self.observation)
         if isinstance(self.max_agents, bool) or not isinstance(self.max_agents, int) or self.max_agents < 1:
             raise ValueError(f"max_agents must be an integer >= 1, got {self.max_agents!r}")
 
@@ -113,6 +104,23 @@ class MergeEnvConfig:
     def to_dict(self) -> dict[str, Any]:
         """The fields as a dict (HighwayEnv's ``default_config()`` shape)."""
         return {f.name: getattr(self, f.name) for f in fields(self)}
+
+
+def _check_reward(r: object) -> None:
+    """``MergeEnvConfig.reward``: a name (known, or like a path), a path, a callable or None."""
+    if not (r is None or isinstance(r, str | os.PathLike) or callable(r)):
+        raise TypeError(f"reward must be a reward name, a model file path, a callable (obs, action_bin, "
+                        f"acc_ft_s2) -> float or None, got {type(r).__name__} {r!r}")
+    if isinstance(r, str):
+        check_reward_name(r)  # a misspelled name is not read as a file
+
+
+def _check_observation(o: object) -> None:
+    """``MergeEnvConfig.observation``: a known name (the names listed otherwise) or a factory."""
+    if isinstance(o, str):
+        observation_factory(o)
+    elif not callable(o):
+        raise TypeError(f"observation must be a name or a factory (config) -> Observation, got {type(o).__name__}")
 
 
 def resolve_config(config: MergeEnvConfig | Mapping[str, Any] | None, overrides: Mapping[str, Any]) -> MergeEnvConfig:

@@ -137,3 +137,27 @@ def test_a_registered_reward_is_chosen_by_name_in_gym_make():
             env.close()
     finally:
         TASK_REWARDS.unregister("constant")
+
+
+@pytest.mark.sumo
+def test_the_multi_agent_env_names_each_agents_terms_too():
+    pytest.importorskip("pettingzoo")  # the [marl] extra
+    from sim.env import MergeParallelEnv
+
+    env = MergeParallelEnv(run_s=200.0, max_agents=4)
+    try:
+        env.reset(seed=1)
+        ended = 0
+        while env.agents:
+            _, rewards, terms, truncs, infos = env.step({a: 2 for a in env.agents})
+            for agent, info in infos.items():
+                if "rewards" not in info:  # an agent's first observation: it has not acted yet
+                    assert rewards[agent] == 0.0
+                    continue
+                assert sum(info["rewards"].values()) == pytest.approx(rewards[agent])
+                if terms[agent] or truncs[agent]:
+                    ended += 1
+                    assert "outcome" in info["rewards"]
+        assert ended >= 2
+    finally:
+        env.close()

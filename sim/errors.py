@@ -15,3 +15,7 @@ class SimulationError(SimError, RuntimeError):
 
 class RewardError(SimError, ValueError):
     """An environment reward returned something that is not one finite real number."""
+
+
+class ObservationError(SimError, ValueError):
+    """An environment observation returned an array that does not fit its own space's shape."""

@@ -26,7 +26,7 @@ from sim.drivers.policy import NO_LIKELIHOOD, PolicyDefaults
 from sim.env.config import MergeEnvConfig
 from sim.env.observations import make_observation
 from sim.env.rewards import build_reward, reward_parts, reward_value
-from sim.errors import RewardError
+from sim.errors import ObservationError, RewardError
 from sim.runtime.hooks import FrameState
 from sim.runtime.session import SumoSession
 
@@ -99,8 +99,19 @@ class EnvCore:
 
     def observation(self, obs: MergeObservation) -> np.ndarray:
         """The agent's observation of ``obs`` (the config's :class:`~sim.env.observations.Observation`;
-        by default the policy observation ``[7]`` in the config's units), a new array."""
-        return self.observer.observe(obs)
+        by default the policy observation ``[7]`` in the config's units), a new array.
+
+        Raises:
+            sim.errors.ObservationError: ``observe`` returned no array of its space's shape (the
+                observation named).
+        """
+        o = self.observer.observe(obs)
+        shape = self.observation_space.shape
+        if not isinstance(o, np.ndarray) or (shape is not None and o.shape != shape):
+            got = f"shape {o.shape}" if isinstance(o, np.ndarray) else type(o).__name__
+            raise ObservationError(f"observation {self.config.observation!r} returned {got}; its space() has "
+                                   f"shape {shape} (return a numpy array of that shape)")
+        return o
 
     def start(self, seed: int) -> tuple[SumoSession, Controller]:
         """A new SUMO run of ``seed`` started, and its controller (the agent's)."""

@@ -98,3 +98,34 @@ def test_an_observation_of_ones_own_module_or_registered_in_ones_code_runs(tmp_p
     finally:
         for name in ("speed-gap", "my_obs"):
             OBSERVATIONS.unregister(name)
+
+
+class WrongShape:
+    """Says two columns, returns three (or a list)."""
+
+    def __init__(self, config):
+        self.as_list = False
+
+    def space(self):
+        from gymnasium import spaces
+
+        return spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float64)
+
+    def observe(self, obs):
+        return [0.0, 0.0] if self.as_list else np.zeros(3)
+
+
+def test_an_observation_that_does_not_fit_its_own_space_is_refused_naming_it():
+    from sim.drivers.observe import MergeObservation
+    from sim.env.config import MergeEnvConfig as Config
+    from sim.env.core import EnvCore
+    from sim.errors import ObservationError
+
+    core = EnvCore(Config(observation=WrongShape, run_s=240.0))
+    obs = MergeObservation(d_AC=200.0, d_AB=-50.0, v_AC=0.0, v_AB=0.0, b_is_truck=False, speed_A=60.0)
+    with pytest.raises(ObservationError, match=r"observation <class .*WrongShape'> returned shape \(3,\); its space"):
+        core.observation(obs)
+    core.observer.as_list = True
+    with pytest.raises(ObservationError, match="returned list"):
+        core.observation(obs)
+    assert EnvCore(Config(run_s=240.0)).observation(obs).shape == (7,)

@@ -17,8 +17,10 @@ discrete actions' accelerations).
 
 What the environment reads of a reward is typed here: :class:`Reward` (the call, required),
 :class:`RewardWithTerms` (``terms``: the decision's named terms, ``info["rewards"]``),
-:class:`RewardWithOutcome` (``outcome``: added to the episode's last step); :func:`reward_parts`
-reads them, with their defaults, in one place. :func:`reward_value` checks every value a reward
+:class:`RewardWithOutcome` (``outcome``: added to the episode's last step),
+:class:`RewardOverStates` (``encoder``, ``state_encoding``) and
+:class:`RewardWithActionAccelerations` (``action_acc_ft_s2``); :func:`reward_parts` reads them,
+with their defaults, in one place. :func:`reward_value` checks every value a reward
 returns where it enters the environment, and :func:`register_reward` adds a reward by name.
 """
 
@@ -27,7 +29,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
@@ -38,8 +40,9 @@ from sim.drivers.observe import MergeObservation
 from sim.env.task_reward import TASK_REWARDS
 from sim.errors import RewardError
 
-__all__ = ["Reward", "RewardParts", "RewardWithOutcome", "RewardWithTerms", "build_reward", "load_reward",
-           "looks_like_path", "register_reward", "reward_parts", "reward_value"]
+__all__ = ["Reward", "RewardOverStates", "RewardParts", "RewardWithActionAccelerations", "RewardWithOutcome",
+           "RewardWithTerms", "build_reward", "load_reward", "looks_like_path", "register_reward", "reward_parts",
+           "reward_value"]
 
 
 @runtime_checkable
@@ -64,6 +67,24 @@ class RewardWithOutcome(Protocol):
     ``info["rewards"]``)."""
 
     def outcome(self, reason: str, collision_kind: str = "") -> float: ...
+
+
+@runtime_checkable
+class RewardOverStates(Protocol):
+    """A reward over discrete states (a tabular model's): the environment encodes each decision's
+    state with its ``encoder`` (:class:`~irl.domains.merge.bins.MergeBins`) and ``state_encoding``
+    (``"paper"`` or ``"driver"``), and ``info["state"]`` is that index."""
+
+    encoder: Any
+    state_encoding: str
+
+
+@runtime_checkable
+class RewardWithActionAccelerations(Protocol):
+    """A reward that brings the discrete actions' accelerations (``[5]`` ft/s^2), which the
+    environment applies for ``Discrete(5)`` actions."""
+
+    action_acc_ft_s2: tuple[float, ...]
 
 
 @dataclass(frozen=True)
@@ -92,13 +113,13 @@ def reward_parts(fn: RewardFn | None, name: str) -> RewardParts:
     """The :class:`RewardParts` of ``fn`` (its optional members read here, nowhere else)."""
     if fn is None:
         return RewardParts(None, name)
-    return RewardParts(
-        fn, name,
-        terms=fn.terms if isinstance(fn, RewardWithTerms) else None,
-        outcome=fn.outcome if isinstance(fn, RewardWithOutcome) else None,
-        encoder=getattr(fn, "encoder", None),
-        state_encoding=str(getattr(fn, "state_encoding", "paper") or "paper"),
-        action_acc_ft_s2=tuple(float(x) for x in (getattr(fn, "action_acc_ft_s2", ()) or ())))
+    parts = RewardParts(fn, name, terms=fn.terms if isinstance(fn, RewardWithTerms) else None,
+                        outcome=fn.outcome if isinstance(fn, RewardWithOutcome) else None)
+    if isinstance(fn, RewardOverStates):
+        parts = replace(parts, encoder=fn.encoder, state_encoding=str(fn.state_encoding or "paper"))
+    if isinstance(fn, RewardWithActionAccelerations):
+        parts = replace(parts, action_acc_ft_s2=tuple(float(x) for x in (fn.action_acc_ft_s2 or ())))
+    return parts
 
 
 def reward_value(value: object, where: str) -> float:

@@ -60,6 +60,24 @@ def test_the_protocols_say_what_a_reward_has():
     r = TaskReward()
     assert isinstance(r, Reward) and isinstance(r, RewardWithTerms) and isinstance(r, RewardWithOutcome)
     assert isinstance(lambda o, a, acc: 0.0, Reward) and not isinstance(lambda o, a, acc: 0.0, RewardWithTerms)
+    from types import SimpleNamespace
+
+    from irl.domains.merge.bins import MergeBins
+    from sim.env.rewards import reward_parts
+
+    class OverStates:
+        encoder = MergeBins.assumed_authors()
+        state_encoding = "driver"
+        action_acc_ft_s2 = (-10.0, -2.0, 0.0, 2.0, 6.0)
+
+        def __call__(self, obs, action_bin, acc_ft_s2):
+            return 0.0
+
+    parts = reward_parts(OverStates(), "mine")
+    assert parts.encoder is OverStates.encoder and parts.state_encoding == "driver"
+    assert parts.action_acc_ft_s2 == OverStates.action_acc_ft_s2 and parts.terms is None and parts.outcome is None
+    plain = reward_parts(SimpleNamespace(__call__=None), "x")
+    assert plain.encoder is None and plain.state_encoding == "paper" and plain.action_acc_ft_s2 == ()
 
 
 def test_register_reward_makes_a_name_and_refuses_what_is_not_callable():

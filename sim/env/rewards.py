@@ -144,8 +144,8 @@ def reward_value(value: object, where: str) -> float:
 def looks_like_path(text: str) -> bool:
     """Whether a ``reward=`` string is meant as a file: it has a directory part or a suffix
     (``model.json``, ``runs/x``), or such a file exists. A bare word (``"fast"``) is a name."""
-    return (os.sep in text or "/" in text or (os.altsep or "/") in text or bool(Path(text).suffix)
-            or Path(text).exists())
+    seps = {"/", os.sep, os.altsep or "/"}
+    return any(sep in text for sep in seps) or bool(Path(text).suffix) or Path(text).exists()
 
 
 def build_reward(reward: str | os.PathLike | RewardFn | None) -> RewardFn | None:

@@ -5,8 +5,8 @@ Every list of things the code chooses among by name is a :class:`Registry`: the 
 tabular baselines (:data:`irl.baselines.BASELINE_FITTERS`), the driver formats
 (:data:`sim.drivers.formats.FORMATS`, whose entries also carry each format's environment
 reward), the evaluation's baseline drivers (:data:`sim.drivers.baselines.BASELINES`), the
-site profiles (:data:`sim.runtime.sites.SITES`) and the environments' named rewards
-(:data:`sim.env.task_reward.TASK_REWARDS`).
+site profiles (:data:`sim.runtime.sites.SITES`), the environments' named rewards
+(:data:`sim.env.task_reward.TASK_REWARDS`) and observations (:data:`sim.env.observations.OBSERVATIONS`).
 
 An entry is the object itself or a ``"module:attr"`` string, imported the first time the entry is
 read (``registry[name]``, :meth:`Registry.values`, ...), so registering a built-in imports

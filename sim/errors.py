@@ -11,3 +11,11 @@ class TrajectoryFormatError(SimError, ValueError):
 
 class SimulationError(SimError, RuntimeError):
     """SUMO failed or was interrupted."""
+
+
+class RewardError(SimError, ValueError):
+    """An environment reward returned something that is not one finite real number."""
+
+
+class ObservationError(SimError, ValueError):
+    """An environment observation returned an array that does not fit its own space's shape."""

@@ -37,7 +37,8 @@ from sim.drivers.policy import PolicyError
 #: The acceleration edges between the five actions (ft/s^2), :func:`irl.domains.merge.actions.action_of`'s.
 ACTION_EDGES_FT_S2 = (-4.8, -0.6, 0.6, 4.8)
 
-__all__ = ["ACTION_EDGES_FT_S2", "ObsNormalized", "action_probs_fn", "gaussian_bin_probs", "with_vecnormalize"]
+__all__ = ["ACTION_EDGES_FT_S2", "ObsNormalized", "action_probs_fn", "check_vecnormalize", "gaussian_bin_probs",
+           "with_vecnormalize"]
 
 
 def gaussian_bin_probs(mean_mps2: np.ndarray, std_mps2: np.ndarray) -> np.ndarray:
@@ -118,11 +119,13 @@ class ObsNormalized:
 
 def with_vecnormalize(fn: Any, path: str | os.PathLike) -> ObsNormalized:
     """``fn`` behind the observation statistics of a ``VecNormalize.save`` file (a pickle;
-    Stable-Baselines3 must be importable to read it).
+    Stable-Baselines3 must be importable to read it), checked by :func:`check_vecnormalize`.
 
     Raises:
         FileNotFoundError: no such file.
-        PolicyError: not a ``VecNormalize`` pickle with observation statistics of 7 columns.
+        PolicyError: not a ``VecNormalize`` pickle with observation statistics of 7 columns, or
+            statistics that would put NaN or a constant into what the policy sees (the file and
+            the field named).
     """
     with open(path, "rb") as f:
         try:
@@ -133,9 +136,52 @@ def with_vecnormalize(fn: Any, path: str | os.PathLike) -> ObsNormalized:
     mean, var = getattr(rms, "mean", None), getattr(rms, "var", None)
     if mean is None or var is None or np.shape(mean) != (7,) or np.shape(var) != (7,):
         raise PolicyError(f"{path}: no observation statistics of 7 columns (VecNormalize.obs_rms) in it")
+    clip_obs, epsilon = getattr(vn, "clip_obs", 10.0), getattr(vn, "epsilon", 1e-8)
     if not getattr(vn, "norm_obs", True):
-        mean, var = np.zeros(7), np.ones(7) - 1e-8
-    return ObsNormalized(fn, mean, var, clip_obs=getattr(vn, "clip_obs", 10.0), epsilon=getattr(vn, "epsilon", 1e-8))
+        # VecNormalize without norm_obs passes observations through as they are: no scaling, no clip
+        return ObsNormalized(fn, np.zeros(7), np.ones(7) - 1e-8, clip_obs=np.inf, epsilon=1e-8)
+    check_vecnormalize(path, mean, var, getattr(rms, "count", 1.0), clip_obs, epsilon)
+    return ObsNormalized(fn, mean, var, clip_obs=clip_obs, epsilon=epsilon)
+
+
+def _real_array(value: Any) -> np.ndarray | None:
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        return None
+    return arr
+
+
+def check_vecnormalize(path: str | os.PathLike, mean: Any, var: Any, count: Any, clip_obs: Any, epsilon: Any) -> None:
+    """Refuse ``VecNormalize`` observation statistics the policy could not have been trained with.
+
+    ``mean``, ``var``: ``[7]`` (columns :data:`sim.drivers.observe.CONTINUOUS_NAMES`). A NaN mean or
+    a negative variance would put NaN into every observation the policy gets, an infinite variance
+    would turn that column into 0 at every decision.
+
+    Raises:
+        PolicyError: ``obs_rms.mean`` not finite; ``obs_rms.var`` not finite or negative;
+            ``obs_rms.count`` not a positive finite number; ``clip_obs`` not positive;
+            ``epsilon`` not a positive finite number (``path``, the field and the column named).
+    """
+    from sim.drivers.observe import CONTINUOUS_NAMES
+
+    for field_name, value, ok, want in (
+            ("obs_rms.mean", mean, np.isfinite, "finite numbers"),
+            ("obs_rms.var", var, lambda a: np.isfinite(a) & (a >= 0), "finite numbers >= 0")):
+        arr = _real_array(value)
+        if arr is None or arr.shape != (len(CONTINUOUS_NAMES),):
+            raise PolicyError(f"{path}: {field_name} must be {len(CONTINUOUS_NAMES)} numbers, got {value!r}")
+        bad = np.flatnonzero(~ok(arr))
+        if bad.size:
+            cols = ", ".join(f"{CONTINUOUS_NAMES[i]} {float(arr[i])}" for i in bad)
+            raise PolicyError(f"{path}: {field_name} must be {want}, got {cols}")
+    for field_name, value, allow_inf in (("obs_rms.count", count, False), ("clip_obs", clip_obs, True),
+                                         ("epsilon", epsilon, False)):
+        arr = _real_array(value)
+        if arr is None or arr.size != 1 or not (arr.item() > 0 and (allow_inf or np.isfinite(arr.item()))):
+            raise PolicyError(f"{path}: {field_name} must be a positive{'' if allow_inf else ' finite'} number, "
+                              f"got {value!r}")
 
 
 def heldout_probs_loglik(probs_fn: Callable[[np.ndarray], np.ndarray], obs: np.ndarray,

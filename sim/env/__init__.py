@@ -1,7 +1,9 @@
 """The merge as a Gymnasium environment (optional extra ``[gym]``: ``pip install -e '.[gym]'``) and
 as a PettingZoo ``ParallelEnv`` (extra ``[marl]``).
 
-Importing this package registers ``MergeIRL/OnRampMerge-v0``::
+Importing this package registers ``MergeIRL/OnRampMerge-v0``, as the installed package's Gymnasium
+entry point does on ``import gymnasium`` with Gymnasium 0.29 (:mod:`merge_irl.gym_plugin`; with
+1.x, which loads no plugins, ``gym.make("sim.env:MergeIRL/OnRampMerge-v0")`` imports this package)::
 
     import gymnasium as gym
     import sim.env  # registers the id
@@ -20,30 +22,20 @@ from __future__ import annotations
 
 from typing import Any
 
-import gymnasium as gym
-
+from merge_irl.gym_plugin import ENV_ID, MAX_EPISODE_STEPS, register_envs
 from sim.drivers.learned import TabularReward
 from sim.drivers.planning import PlanningReward
 from sim.env.config import MergeEnvConfig
 from sim.env.merge_env import MergeEnv, make_env
-from sim.env.rewards import load_reward
+from sim.env.observations import Observation, register_observation
+from sim.env.rewards import Reward, load_reward, register_reward
 from sim.env.task_reward import TASK_REWARDS, TaskReward
 
-#: The registered environment id.
-ENV_ID = "MergeIRL/OnRampMerge-v0"
-#: The spec's ``max_episode_steps``: the decisions of the controller's default time limit
-#: (``max_control_s`` 60 s at 0.3 s), where the controller itself truncates (``timeout``).
-MAX_EPISODE_STEPS = 200
+register_envs()  # MergeIRL/OnRampMerge-v0 (also Gymnasium's entry point: merge_irl.gym_plugin)
 
-if ENV_ID not in gym.registry:
-    # no passive checker: when an environment's first reset raises (options it refuses, for example),
-    # Gymnasium's PassiveEnvChecker is left half-set and a later step fails with its own TypeError;
-    # the environment passes gymnasium.utils.env_checker.check_env, as users call it, in its tests
-    gym.register(id=ENV_ID, entry_point="sim.env.merge_env:MergeEnv", max_episode_steps=MAX_EPISODE_STEPS,
-                 disable_env_checker=True)
-
-__all__ = ["ENV_ID", "MAX_EPISODE_STEPS", "MergeEnv", "MergeEnvConfig", "MergeParallelEnv", "PlanningReward",
-           "TASK_REWARDS", "TabularReward", "TaskReward", "load_reward", "make_env"]
+__all__ = ["ENV_ID", "MAX_EPISODE_STEPS", "MergeEnv", "MergeEnvConfig", "MergeParallelEnv", "Observation",
+           "PlanningReward", "Reward", "TASK_REWARDS", "TabularReward", "TaskReward", "load_reward", "make_env",
+           "register_observation", "register_reward"]
 
 
 def __getattr__(name: str) -> Any:

@@ -8,6 +8,7 @@ the environments hold the episode bookkeeping (one control, or one per agent).
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -20,11 +21,12 @@ from merge_irl.units import FT_PER_M, M_PER_FT
 from sim.closed_loop.controller import Controller
 from sim.closed_loop.records import Control
 from sim.drivers.formats import RewardFn
-from sim.drivers.observe import POLICY_OBS_HIGH, POLICY_OBS_LOW, MergeObservation, lead_of, policy_observation
+from sim.drivers.observe import MergeObservation, lead_of
 from sim.drivers.policy import NO_LIKELIHOOD, PolicyDefaults
 from sim.env.config import MergeEnvConfig
-from sim.env.rewards import load_reward
-from sim.env.task_reward import TASK_REWARDS
+from sim.env.observations import make_observation
+from sim.env.rewards import build_reward, reward_parts, reward_value
+from sim.errors import ObservationError, RewardError
 from sim.runtime.hooks import FrameState
 from sim.runtime.session import SumoSession
 
@@ -53,14 +55,11 @@ class AgentPolicy(PolicyDefaults):
         return NO_LIKELIHOOD
 
 
-def build_reward(reward: str | os.PathLike | RewardFn | None) -> RewardFn | None:
-    """The reward function of ``MergeEnvConfig.reward``: a name of
-    :data:`~sim.env.task_reward.TASK_REWARDS`, a model file, a callable, or None."""
-    if isinstance(reward, str) and reward in TASK_REWARDS:
-        return TASK_REWARDS[reward]
-    if isinstance(reward, str | os.PathLike):
-        return load_reward(Path(reward))
-    return reward
+def reward_name(reward: str | os.PathLike | RewardFn | None) -> str:
+    """How messages name ``MergeEnvConfig.reward``: its name or path, else the callable's name."""
+    if reward is None or isinstance(reward, str | os.PathLike):
+        return str(reward)
+    return str(getattr(reward, "__qualname__", None) or type(reward).__name__)
 
 
 class EnvCore:
@@ -80,15 +79,18 @@ class EnvCore:
             self.spec = load_scenario(config.scenario if isinstance(config.scenario, str) else Path(config.scenario))
         with_overrides(self.spec, duration_s=config.run_s)  # refuse a bad run_s now, not at the first reset
         self.reward_fn = build_reward(config.reward)
-        self.outcome_fn = getattr(self.reward_fn, "outcome", None)
+        self.reward = reward_parts(self.reward_fn, reward_name(config.reward))
+        self.outcome_fn = self.reward.outcome
+        #: how a reward's error names it and the environment
+        self.reward_where = f"reward {self.reward.name!r} of MergeEnv (scenario {self.spec.name!r})"
         # a reward over discrete states (a tabular model's) brings the bins to encode them with
-        encoder = getattr(self.reward_fn, "encoder", None) or MergeBins.assumed_authors()
-        acc5 = tuple(getattr(self.reward_fn, "action_acc_ft_s2", ()) or ACTION_ACC_FT_S2)
-        self.agent = AgentPolicy(encoder, str(getattr(self.reward_fn, "state_encoding", "paper") or "paper"),
-                                 tuple(float(x) for x in acc5))
+        encoder = self.reward.encoder or MergeBins.assumed_authors()
+        acc5 = self.reward.action_acc_ft_s2 or ACTION_ACC_FT_S2
+        self.agent = AgentPolicy(encoder, self.reward.state_encoding, tuple(float(x) for x in acc5))
         self.scale = config.obs_scale
-        self.observation_space = spaces.Box(POLICY_OBS_LOW * self.scale, POLICY_OBS_HIGH * self.scale,
-                                            dtype=np.float64)
+        #: what the agent sees (:mod:`sim.env.observations`, ``config.observation``)
+        self.observer = make_observation(config)
+        self.observation_space = self.observer.space()
         lo, hi = (float(x) for x in config.acc_bounds_mps2)
         self.action_space: spaces.Space[Any] = (
             spaces.Discrete(N_ACTIONS) if config.action_type == "discrete"
@@ -96,9 +98,20 @@ class EnvCore:
         self._acc_bounds = (lo, hi)
 
     def observation(self, obs: MergeObservation) -> np.ndarray:
-        """The policy observation ``[7]`` of ``obs`` in the config's units (a new array)."""
-        o = policy_observation(obs)
-        return o * self.scale if self.scale != 1.0 else o
+        """The agent's observation of ``obs`` (the config's :class:`~sim.env.observations.Observation`;
+        by default the policy observation ``[7]`` in the config's units), a new array.
+
+        Raises:
+            sim.errors.ObservationError: ``observe`` returned no array of its space's shape (the
+                observation named).
+        """
+        o = self.observer.observe(obs)
+        shape = self.observation_space.shape
+        if not isinstance(o, np.ndarray) or (shape is not None and o.shape != shape):
+            got = f"shape {o.shape}" if isinstance(o, np.ndarray) else type(o).__name__
+            raise ObservationError(f"observation {self.config.observation!r} returned {got}; its space() has "
+                                   f"shape {shape} (return a numpy array of that shape)")
+        return o
 
     def start(self, seed: int) -> tuple[SumoSession, Controller]:
         """A new SUMO run of ``seed`` started, and its controller (the agent's)."""
@@ -137,16 +150,53 @@ class EnvCore:
               action: Any) -> tuple[float, dict[str, Any]]:
         """Apply ``action`` (checked, :meth:`parse_action`) to control ``c`` through the controller;
         returns the decision's reward and the step's ``info`` entries (``action_bin``,
-        ``acc_ft_s2``, ``acc_mps2``)."""
+        ``acc_ft_s2``, ``acc_mps2``, ``rewards``: :meth:`reward_terms`).
+
+        Raises:
+            ValueError: a bad action (:meth:`parse_action`).
+            sim.errors.RewardError: the reward returned no finite real number (the reward and the
+                environment named).
+        """
         a, acc_cmd = self.parse_action(action)
         acc = ctl.apply(c, frame, ia, ic, obs, _EYE[a], a, acc_ft_s2=acc_cmd)
         applied = action_of(acc)
-        reward = float(self.reward_fn(obs, applied, acc)) if self.reward_fn is not None else 0.0
-        return reward, {"action_bin": applied, "acc_ft_s2": acc, "acc_mps2": acc * M_PER_FT}
+        reward = (reward_value(self.reward_fn(obs, applied, acc), self.reward_where)
+                  if self.reward_fn is not None else 0.0)
+        return reward, {"action_bin": applied, "acc_ft_s2": acc, "acc_mps2": acc * M_PER_FT,
+                        "rewards": self.reward_terms(obs, applied, acc, reward)}
+
+    def reward_terms(self, obs: MergeObservation, action_bin: int, acc_ft_s2: float, reward: float) -> dict[str, float]:
+        """The decision's reward by name (``info["rewards"]``): the reward's ``terms`` when it has
+        them (:class:`~sim.env.rewards.RewardWithTerms`), else ``{"reward": reward}``.
+
+        Raises:
+            sim.errors.RewardError: a term that is no finite real number, or terms not a mapping.
+        """
+        if self.reward.terms is None:
+            return {"reward": reward}
+        terms = self.reward.terms(obs, action_bin, acc_ft_s2)
+        if not isinstance(terms, Mapping):
+            raise RewardError(f"{self.reward_where}: terms() returned {type(terms).__name__}; expected a mapping "
+                              "name -> float")
+        return {str(k): reward_value(v, f"{self.reward_where}, term {k!r},") for k, v in terms.items()}
 
     def outcome(self, c: Control) -> float:
-        """The reward's term for how ``c`` ended (a task reward's collision penalty), else 0."""
-        return float(self.outcome_fn(c.reason, c.collision_kind)) if self.outcome_fn is not None else 0.0
+        """The reward's term for how ``c`` ended (a task reward's collision penalty), else 0.
+
+        Raises:
+            sim.errors.RewardError: ``outcome`` returned no finite real number.
+        """
+        if self.outcome_fn is None:
+            return 0.0
+        return reward_value(self.outcome_fn(c.reason, c.collision_kind), f"{self.reward_where}, outcome,")
+
+    def outcome_terms(self, c: Control, info: dict[str, Any]) -> float:
+        """:meth:`outcome` of ``c``, also added to ``info["rewards"]`` as ``"outcome"`` (when the
+        reward has one)."""
+        value = self.outcome(c)
+        if self.outcome_fn is not None:
+            info["rewards"] = {**info.get("rewards", {}), "outcome": value}
+        return value
 
     @staticmethod
     def observe_at_release(ctl: Controller, c: Control, frame: FrameState) -> MergeObservation | None:

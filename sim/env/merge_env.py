@@ -41,10 +41,15 @@ plus the reward's ``outcome(reason, collision_kind)`` (when it has one) on the s
 episode: by default the task reward ``"task"`` (:mod:`sim.env.task_reward`: progress, near-miss,
 comfort, a collision penalty); another name of :data:`sim.env.task_reward.TASK_REWARDS`, a model
 file (:mod:`sim.env.rewards`: a tabular IRL model's ``theta . phi(s, a)`` or a planning driver's
-step reward), a callable, or None (0: for imitation learners, which learn their own).
+step reward), a callable, or None (0: for imitation learners, which learn their own). Every value
+is checked where it enters (:func:`sim.env.rewards.reward_value`: one finite real number, else
+:class:`sim.errors.RewardError` naming the reward and the environment); ``info["rewards"]`` holds
+the step's reward by name (the reward's ``terms``, else ``{"reward": r}``; ``"outcome"`` on the
+last step), adding up to it.
 
 Settings: :class:`sim.env.config.MergeEnvConfig`, as keyword arguments or ``config=`` (a mapping
-or the dataclass). Rendering: ``render_mode="rgb_array"`` (:mod:`sim.env.render`).
+or the dataclass); ``observation=`` chooses what the agent sees by name (:mod:`sim.env.observations`;
+the spaces above are the default's, ``"policy"``). Rendering: ``render_mode="rgb_array"`` (:mod:`sim.env.render`).
 
 Runs and seeds: ``reset(seed=s)`` starts a new SUMO run with seed ``s`` (the same seed gives the
 same episode for the same actions); ``reset()`` continues the current run to its next take-over,
@@ -63,7 +68,6 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from irl.domains.merge.car_following import OBS_COLUMNS
 from sim.closed_loop.controller import Controller
 from sim.closed_loop.records import Control
 from sim.drivers.observe import POLICY_OBS_HIGH, POLICY_OBS_LOW, MergeObservation
@@ -111,6 +115,8 @@ class MergeEnv(gym.Env):
             ``controller`` not a :class:`~sim.closed_loop.config.ControllerConfig`.
         KeyError, FileNotFoundError, irl.errors.ModelFileError: a reward file that is missing or
             has no reward.
+        merge_irl.registry.RegistryError (a KeyError): an unknown reward or observation name (the
+            names listed).
         scenarios.errors.SpecError: an unknown scenario, or ``run_s`` not a possible and plausible
             duration for it (positive, longer than its warm-up, at most 6 h unless the spec allows
             implausible values).
@@ -139,7 +145,7 @@ class MergeEnv(gym.Env):
         self._pending: tuple[FrameState, int, int | None, MergeObservation] | None = None
         self._frame: FrameState | None = None  # the last frame the agent saw (for render())
         self._renderer: Any = None
-        self._last_obs = np.zeros(len(OBS_COLUMNS))
+        self._last_obs = np.zeros(self.observation_space.shape or ())
         self._run_seed = -1
         self._time_s = math.nan  # simulated time of the last frame the agent saw
 
@@ -187,6 +193,7 @@ class MergeEnv(gym.Env):
             RuntimeError: no episode is running (call ``reset``).
             ValueError: an action outside the action space (discrete: not one integer 0..4, a bool
                 or a fractional number included; continuous: not one finite number).
+            sim.errors.RewardError (a ValueError): the reward returned no finite real number.
         """
         if self._pending is None or self._control is None or self._ctl is None or self._session is None:
             raise RuntimeError("MergeEnv.step: no episode is running; call reset() first")
@@ -215,7 +222,7 @@ class MergeEnv(gym.Env):
                     return self._last_obs.copy(), reward, False, False, {**self._info(o), **step_info}
         terminated, truncated = end_flags(c)
         info = {**self._info(None), **step_info, "release_reason": c.reason, "collision_kind": c.collision_kind}
-        return self._last_obs.copy(), reward + self._core.outcome(c), terminated, truncated, info
+        return self._last_obs.copy(), reward + self._core.outcome_terms(c, info), terminated, truncated, info
 
     def render(self) -> np.ndarray | None:
         """The current frame, ``uint8[160, 960, 3]`` (``render_mode="rgb_array"``; None without a

@@ -202,11 +202,12 @@ class MergeParallelEnv(ParallelEnv):
                 c = self._live.pop(agent)
                 if st is not None and (o := core.observe_at_release(ctl, c, st.frame)) is not None:
                     last[agent] = core.observation(o)
-                obs[agent] = last.get(agent, np.zeros(core.observation_space.shape))
-                rewards[agent] = rewards.get(agent, 0.0) + core.outcome(c)
+                obs[agent] = last.get(agent, np.zeros(core.observation_space.shape or ()))
+                step_info = dict(step_infos.get(agent, {}))
+                rewards[agent] = rewards.get(agent, 0.0) + core.outcome_terms(c, step_info)
                 terms[agent], truncs[agent] = end_flags(c)
                 infos[agent] = {**self._info(c, None, frame_time=st.frame.time_s if st else np.nan),
-                                **step_infos.get(agent, {}), "release_reason": c.reason,
+                                **step_info, "release_reason": c.reason,
                                 "collision_kind": c.collision_kind}
             if st is None or due:
                 break

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 from merge_irl.registry import Registry
 from merge_irl.units import FT_PER_M
+from sim.drivers.formats import RewardFn
 from sim.drivers.observe import MergeObservation
 
 __all__ = ["TASK_REWARDS", "TaskReward", "ZeroReward", "task_reward"]
@@ -119,14 +120,15 @@ class ZeroReward:
         return "ZeroReward()"
 
 
-#: The rewards selectable by name (``reward="task"``); ``"task"`` is the environments' default.
-TASK_REWARDS: Registry[TaskReward | ZeroReward] = Registry("reward")
+#: The rewards selectable by name (``reward="task"``); ``"task"`` is the environments' default;
+#: :func:`sim.env.rewards.register_reward` adds others.
+TASK_REWARDS: Registry[RewardFn] = Registry("reward")
 TASK_REWARDS.register("task", TaskReward())
 TASK_REWARDS.register("progress", TaskReward(w_near_miss=0.0, w_comfort=0.0, w_jerk=0.0))
 TASK_REWARDS.register("zero", ZeroReward())
 
 
-def task_reward(name: str) -> TaskReward | ZeroReward:
+def task_reward(name: str) -> RewardFn:
     """The named reward of :data:`TASK_REWARDS`.
 
     Raises:

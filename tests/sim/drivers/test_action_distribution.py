@@ -86,3 +86,49 @@ def test_a_gaussian_acceleration_gives_each_action_its_bin_mass():
     p = gaussian_bin_probs(np.array([0.0, -3.0, 3.0]), np.array([0.05, 0.5, 0.5]))
     np.testing.assert_allclose(p.sum(axis=1), 1.0)
     assert np.argmax(p[0]) == 2 and np.argmax(p[1]) == 0 and np.argmax(p[2]) == 4
+
+
+def _stats_file(tmp_path, name="vn.pkl", **fields):
+    rms = {"mean": np.zeros(7), "var": np.ones(7), "count": 100.0, **{k: v for k, v in fields.items() if k in
+                                                                      ("mean", "var", "count")}}
+    stats = SimpleNamespace(obs_rms=SimpleNamespace(**rms), clip_obs=fields.get("clip_obs", 10.0),
+                            epsilon=fields.get("epsilon", 1e-8), norm_obs=fields.get("norm_obs", True))
+    path = tmp_path / name
+    path.write_bytes(pickle.dumps(stats))
+    return path
+
+
+def _with(i, value, base=1.0):
+    a = np.full(7, base)
+    a[i] = value
+    return a
+
+
+@pytest.mark.parametrize("fields,match", [
+    ({"mean": _with(0, np.nan, 0.0)}, r"obs_rms\.mean must be finite numbers, got d_AC nan"),
+    ({"mean": _with(4, np.inf, 0.0)}, r"obs_rms\.mean must be finite numbers, got v_A inf"),
+    ({"var": _with(1, -1.0)}, r"obs_rms\.var must be finite numbers >= 0, got v_AC -1\.0"),
+    ({"var": _with(0, np.inf)}, r"obs_rms\.var must be finite numbers >= 0, got d_AC inf"),
+    ({"var": _with(6, np.nan)}, r"obs_rms\.var must be finite numbers >= 0, got len_B nan"),
+    ({"var": np.array(["a"] * 7)}, r"obs_rms\.var must be 7 numbers"),
+    ({"count": 0.0}, r"obs_rms\.count must be a positive finite number, got 0\.0"),
+    ({"count": np.nan}, r"obs_rms\.count must be a positive finite number"),
+    ({"clip_obs": -1.0}, r"clip_obs must be a positive number, got -1\.0"),
+    ({"epsilon": 0.0}, r"epsilon must be a positive finite number, got 0\.0"),
+])
+def test_vecnormalize_statistics_that_would_poison_every_observation_are_refused(tmp_path, fields, match):
+    """Before: a NaN mean or a negative variance put NaN into every observation the policy got,
+    an infinite variance turned that column into 0 at every decision."""
+    path = _stats_file(tmp_path, **fields)
+    with pytest.raises(PolicyError, match=match) as e:
+        with_vecnormalize(lambda o: 2, path)
+    assert str(e.value).startswith(str(path)) and "\n" not in str(e.value)
+
+
+def test_vecnormalize_without_norm_obs_passes_observations_through(tmp_path):
+    path = _stats_file(tmp_path, norm_obs=False, var=_with(0, -1.0))  # statistics unused, so not checked
+    seen = []
+    wrapped = with_vecnormalize(lambda o: seen.append(np.array(o)) or 2, path)
+    obs = np.array([1000.0, 1.0, -50.0, 3.0, 90.0, 15.0, 15.0])
+    assert wrapped(obs) == 2
+    np.testing.assert_allclose(seen[-1], obs)  # not clipped at clip_obs either

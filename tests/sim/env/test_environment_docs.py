@@ -22,7 +22,7 @@ BLOCKS = [b.body for b in blocks(PAGE) if b.language == "python" and b.runs]  # 
 
 
 def test_the_page_has_its_examples():
-    assert len(BLOCKS) == 4
+    assert len(BLOCKS) == 5
 
 
 @pytest.mark.parametrize("index", range(len(BLOCKS)))
@@ -39,6 +39,8 @@ def test_example_runs(index, tmp_path):
         assert reason in ("merge_done", "collision", "left_section", "left_lane", "b_lost", "timeout") and float(time_s) > 60
     if index == 3:
         assert "vehicles at 70.0 s;" in out.stdout
+    if index == 4:  # an observation and a reward added by registration, in the environment
+        assert out.stdout.split("\n")[-2] == "(2,) ['reward'] True"
     if index == 2:  # the multi-agent run released its agents, some after a merge
         n, reasons = out.stdout.split(" agents released: ")
         assert int(n.split()[-1]) >= 2 and "merge_done" in reasons

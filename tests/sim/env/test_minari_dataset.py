@@ -13,7 +13,7 @@ import os
 import numpy as np
 import pandas as pd
 import pytest
-from extras import require_extra
+from extras import require_extra, require_imitation
 
 from sim.merges.transitions import TransitionsError, from_encounters
 
@@ -55,8 +55,8 @@ def bc_of_episodes(episodes):
 def test_transitions_written_to_minari_load_back_and_feed_behaviour_cloning(tmp_path, monkeypatch) -> None:
     minari = require_extra("minari", "rl")
     from irl.baselines import fit_baseline
-    from sim.env.minari_dataset import METADATA_KEY, write_minari
     from sim.env.merge_env import OBS_HIGH, OBS_LOW
+    from sim.env.minari_dataset import METADATA_KEY, write_minari
 
     t = from_encounters(encounter_table(), decision_step_s=0.3)
     ds = write_minari(t, "merge-irl/demos-v0", root=tmp_path / "data", provenance={"inputs": {"demos": "x"}})
@@ -175,3 +175,34 @@ def test_a_fixed_64_bit_seed_gives_the_same_collected_episodes(tmp_path, monkeyp
         np.testing.assert_array_equal(env.reset(seed=2**63 + 5)[0], a[0].observations[0])
     finally:
         env.close()
+
+
+@pytest.mark.imitation
+def test_imitations_behaviour_cloning_trains_on_a_loaded_minari_dataset(tmp_path, monkeypatch) -> None:
+    """In the imitation-bench environment: the loaded Minari episodes as imitation Trajectories,
+    and imitation 1.0.1's BC trained on them for a few batches."""
+    require_imitation()
+    minari = require_extra("minari", "rl")
+    import torch
+    from imitation.algorithms import bc
+    from imitation.data.types import Trajectory
+    from imitation.util import logger as imit_logger
+
+    from sim.env.minari_dataset import write_minari
+
+    t = from_encounters(encounter_table(sizes=(30, 24, 27, 21)), decision_step_s=0.3)
+    write_minari(t, "merge-irl/bc-v0", root=tmp_path / "data")
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "data"))
+    ds = minari.load_dataset("merge-irl/bc-v0")
+    demos = [Trajectory(obs=e.observations, acts=e.actions, infos=None, terminal=bool(e.terminations[-1]))
+             for e in ds.iterate_episodes()]
+    assert len(demos) == 4 and sum(len(d.acts) for d in demos) == t.n
+    torch.manual_seed(0)
+    trainer = bc.BC(observation_space=ds.observation_space, action_space=ds.action_space, demonstrations=demos,
+                    rng=np.random.default_rng(0), batch_size=8, device="cpu",
+                    custom_logger=imit_logger.configure(tmp_path / "log", ["csv"]))
+    before = [p.detach().clone() for p in trainer.policy.parameters()]
+    trainer.train(n_batches=6, progress_bar=False, log_interval=10**9)
+    assert any(not torch.equal(a, b) for a, b in zip(before, trainer.policy.parameters()))
+    acts, _ = trainer.policy.predict(demos[0].obs, deterministic=True)
+    assert acts.shape == (len(demos[0].obs),) and set(acts.tolist()) <= set(range(5))

@@ -33,19 +33,49 @@ import tempfile
 import warnings
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from irl.domains.merge.actions import ACTION_NAMES, N_ACTIONS
 from sim.drivers.observe import CONTINUOUS_UNITS
-from sim.merges.transitions import Transitions, TransitionsError
+from sim.errors import SimError
 
 #: Minari's storage format of the exported datasets.
 DATA_FORMAT = "arrow"
 #: The metadata key of this project's entries.
 METADATA_KEY = "merge_irl"
 _NAMESPACE_FILE = "namespace_metadata.json"
+
+
+class MinariExportError(SimError, ValueError):
+    """A dataset that cannot be written as asked (the message names the id or folder)."""
+
+
+class Transitions(Protocol):
+    """What :func:`write_minari` reads of :class:`sim.merges.transitions.Transitions` (``sim.env``
+    sits below ``sim.merges`` and does not import it)."""
+
+    @property
+    def acts(self) -> np.ndarray: ...
+
+    @property
+    def obs_names(self) -> tuple[str, ...]: ...
+
+    @property
+    def decision_step_s(self) -> float: ...
+
+    @property
+    def n(self) -> int: ...
+
+    @property
+    def n_episodes(self) -> int: ...
+
+    def episodes(self) -> list[np.ndarray]: ...
+
+    def policy_obs(self) -> np.ndarray: ...
+
+    def policy_next_obs(self) -> np.ndarray: ...
 
 
 def default_root() -> Path:
@@ -58,7 +88,7 @@ def check_dataset_id(dataset_id: str, root: str | os.PathLike | None = None, *, 
     """The folder ``dataset_id`` would be written to under ``root`` (default :func:`default_root`).
 
     Raises:
-        TransitionsError: an id not of Minari's form ``(namespace/)name-v(version)``, or a dataset
+        MinariExportError: an id not of Minari's form ``(namespace/)name-v(version)``, or a dataset
             of that id already in ``root`` and ``overwrite`` False.
     """
     from minari.dataset.minari_dataset import parse_dataset_id
@@ -66,12 +96,12 @@ def check_dataset_id(dataset_id: str, root: str | os.PathLike | None = None, *, 
     try:
         parse_dataset_id(dataset_id)
     except (ValueError, TypeError):  # Minari 0.5.4 raises TypeError for an id without its -v(version)
-        raise TransitionsError(f"--dataset-id {dataset_id!r}: not a Minari dataset id, (namespace/)name-v(version), "
-                               "e.g. merge-irl/demos-v0") from None
+        raise MinariExportError(f"dataset id {dataset_id!r}: not a Minari dataset id, (namespace/)name-v(version), "
+                                "e.g. merge-irl/demos-v0") from None
     target = Path(root if root is not None else default_root()) / dataset_id
     if target.exists() and not overwrite:
-        raise TransitionsError(f"{target}: a Minari dataset {dataset_id!r} exists already (give --overwrite to "
-                               "replace it, or another id)")
+        raise MinariExportError(f"{target}: a Minari dataset {dataset_id!r} exists already (replace it with "
+                                "--overwrite, overwrite=True in Python, or choose another id)")
     return target
 
 
@@ -113,7 +143,7 @@ def write_minari(t: Transitions, dataset_id: str, *, root: str | os.PathLike | N
         description: Minari's ``description`` (None: a line naming the counts).
 
     Raises:
-        TransitionsError: no transitions, a bad id or an existing one (:func:`check_dataset_id`).
+        MinariExportError: no transitions, a bad id or an existing one (:func:`check_dataset_id`).
         OSError: the folder cannot be written.
     """
     import gymnasium as gym
@@ -124,7 +154,7 @@ def write_minari(t: Transitions, dataset_id: str, *, root: str | os.PathLike | N
     from sim.env.merge_env import OBS_HIGH, OBS_LOW
 
     if not t.n:
-        raise TransitionsError(f"{dataset_id}: no transitions to write")
+        raise MinariExportError(f"{dataset_id}: no transitions to write")
     root_dir = Path(root) if root is not None else default_root()
     target = check_dataset_id(dataset_id, root_dir, overwrite=overwrite)
     root_dir.mkdir(parents=True, exist_ok=True)

@@ -15,7 +15,7 @@ import pandas as pd
 import pytest
 from extras import require_extra, require_imitation
 
-from sim.merges.transitions import TransitionsError, from_encounters
+from sim.merges.transitions import from_encounters
 
 
 def encounter_table(sizes=(10, 7, 6, 9), seed=0) -> pd.DataFrame:
@@ -88,18 +88,18 @@ def test_transitions_written_to_minari_load_back_and_feed_behaviour_cloning(tmp_
 
 def test_an_existing_id_is_refused_unless_overwritten_and_a_bad_id_leaves_nothing(tmp_path) -> None:
     require_extra("minari", "rl")
-    from sim.env.minari_dataset import write_minari
+    from sim.env.minari_dataset import MinariExportError, write_minari
 
     root = tmp_path / "data"
     t = from_encounters(encounter_table(), decision_step_s=0.3)
     write_minari(t, "demos-v0", root=root)
-    with pytest.raises(TransitionsError, match=r"demos-v0: a Minari dataset 'demos-v0' exists already .*--overwrite"):
+    with pytest.raises(MinariExportError, match=r"demos-v0: a Minari dataset .demos-v0. exists already \(replace it with --overwrite"):
         write_minari(t, "demos-v0", root=root)
     t2 = from_encounters(encounter_table(sizes=(12, 9)), decision_step_s=0.3)
     ds = write_minari(t2, "demos-v0", root=root, overwrite=True)
     assert ds.total_episodes == 2  # replaced whole
     for bad in ("demos", "a b-v0", "-v1"):
-        with pytest.raises(TransitionsError, match=r"not a Minari dataset id"):
+        with pytest.raises(MinariExportError, match=r"not a Minari dataset id"):
             write_minari(t, bad, root=root)
     assert sorted(os.listdir(root)) == ["demos-v0"]  # no hidden temporary folder left
 

@@ -155,7 +155,8 @@ def write_minari(t: Transitions, dataset_id: str, *, root: str | os.PathLike | N
 
     if not t.n:
         raise MinariExportError(f"{dataset_id}: no transitions to write")
-    root_dir = Path(root) if root is not None else default_root()
+    # absolute: Minari's arrow writer doubles a relative folder into the path it writes to
+    root_dir = (Path(root) if root is not None else default_root()).absolute()
     target = check_dataset_id(dataset_id, root_dir, overwrite=overwrite)
     root_dir.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=".merge-irl-export-", dir=root_dir))

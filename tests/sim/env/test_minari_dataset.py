@@ -9,6 +9,7 @@ seed the same episodes."""
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -86,11 +87,12 @@ def test_transitions_written_to_minari_load_back_and_feed_behaviour_cloning(tmp_
     assert sum(s.size for s in demos.states) == t.n
 
 
-def test_an_existing_id_is_refused_unless_overwritten_and_a_bad_id_leaves_nothing(tmp_path) -> None:
+def test_an_existing_id_is_refused_unless_overwritten_and_a_bad_id_leaves_nothing(tmp_path, monkeypatch) -> None:
     require_extra("minari", "rl")
     from sim.env.minari_dataset import MinariExportError, write_minari
 
-    root = tmp_path / "data"
+    monkeypatch.chdir(tmp_path)
+    root = Path("data")  # relative, as a command line gives it
     t = from_encounters(encounter_table(), decision_step_s=0.3)
     write_minari(t, "demos-v0", root=root)
     with pytest.raises(MinariExportError, match=r"demos-v0: a Minari dataset .demos-v0. exists already \(replace it with --overwrite"):

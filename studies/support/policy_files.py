@@ -10,7 +10,7 @@ Why this module: a policy is saved the documented way, Stable-Baselines3's ``pol
 changed to ``weights_only=True``; the constructor's arguments (gymnasium spaces, the activation and
 feature-extractor classes) are pickled Python objects, so both raise ``UnpicklingError: Weights
 only load failed``. :func:`load_policy` reads either file with ``weights_only=False``, as
-Stable-Baselines3 2.3 and later do themselves. That unpickles, which can run code: load only files
+Stable-Baselines3 2.9.2's own load does. That unpickles, which can run code: load only files
 you (or this project) wrote.
 """
 

@@ -138,7 +138,7 @@ def test_data_collector_records_the_environment_with_its_64_bit_seeds(tmp_path, 
         ds = env.create_dataset("merge-irl/collected-v0", algorithm_name="random", description="two episodes")
         seeds = [m["seed"] for m in ds.storage.get_episode_metadata([0, 1])]
         assert ds.total_episodes == 2 and all(isinstance(s, int) and s >= 0 for s in seeds)
-        assert max(seeds) >= SUMO_SEED_LIMIT  # a seed SUMO could not take as it is (2**-33 odds it is not)
+        assert max(seeds) >= SUMO_SEED_LIMIT  # a seed SUMO could not take as it is (both below 2**31: odds 2**-66)
         # minari_autoseed=False: the collector passes it on to reset, which reads it as no option
         obs, info = env.reset(options={"minari_autoseed": False})
         assert obs.shape == (7,)

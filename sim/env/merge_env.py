@@ -52,7 +52,8 @@ or the dataclass); ``observation=`` chooses what the agent sees by name (:mod:`s
 the spaces above are the default's, ``"policy"``). Rendering: ``render_mode="rgb_array"`` (:mod:`sim.env.render`).
 
 Runs and seeds: ``reset(seed=s)`` starts a new SUMO run with seed ``s`` (the same seed gives the
-same episode for the same actions); ``reset()`` continues the current run to its next take-over,
+same episode for the same actions; any integer ``s >= 0``, a seed of ``2**31`` or more run as
+the SUMO seed :func:`sim.env.seeds.sumo_seed` maps it to); ``reset()`` continues the current run to its next take-over,
 which saves SUMO's start and warm-up, and starts a new run (seed drawn from the environment's
 generator) when none is left. libsumo runs one simulation per process: an environment reset while
 another is open runs its SUMO through TraCI (several times slower; :mod:`sim.runtime.session`), so
@@ -73,6 +74,7 @@ from sim.closed_loop.records import Control
 from sim.drivers.observe import POLICY_OBS_HIGH, POLICY_OBS_LOW, MergeObservation
 from sim.env.config import MergeEnvConfig, resolve_config
 from sim.env.core import EnvCore, end_flags
+from sim.env.seeds import reset_seed, unread_options
 from sim.runtime.hooks import FrameState
 from sim.runtime.session import SumoSession
 
@@ -155,19 +157,25 @@ class MergeEnv(gym.Env):
         """Start the next episode: a new SUMO run with ``seed`` (given), or the current run's next
         take-over (a new run, seeded from the environment's generator, when none is left).
 
+        ``seed``: any integer ``>= 0`` (64-bit ones, as Minari's ``DataCollector`` draws, included),
+        run as the SUMO seed :func:`sim.env.seeds.sumo_seed` maps it to (itself below ``2**31``).
+
         Raises:
-            ValueError: ``options`` holds any key: this environment reads none (they used to be
-                ignored silently); the scenario, reward and driving are set when it is made.
+            sim.env.seeds.SeedError: ``seed`` a bool, a float, negative or not an integer.
+            ValueError: ``options`` holds any key but a data collector's own
+                (:data:`sim.env.seeds.COLLECTOR_OPTIONS`): this environment reads none (they used
+                to be ignored silently); the scenario, reward and driving are set when it is made.
             sim.errors.SimulationError: SUMO fails, or ``MAX_EMPTY_RUNS`` runs in a row have no take-over.
         """
-        if options:
-            raise ValueError(f"MergeEnv.reset: options {sorted(map(str, options))} are not read by this environment "
+        if unread := unread_options(options):
+            raise ValueError(f"MergeEnv.reset: options {unread} are not read by this environment "
                              "(it takes none); set the scenario, reward and action space when making it "
                              "(gymnasium.make('MergeIRL/OnRampMerge-v0', scenario=..., reward=...)) and the run "
                              "with reset(seed=...)")
-        super().reset(seed=seed)
-        if seed is not None:
-            self._start_run(int(seed))
+        checked = reset_seed(seed, "MergeEnv.reset")
+        super().reset(seed=checked.seed if checked is not None else None)
+        if checked is not None:
+            self._start_run(checked.sumo)
         elif self._session is None or self._session.done:
             self._start_run(self._draw_seed())
         elif self._control is not None and self._control.active:  # an episode left unfinished

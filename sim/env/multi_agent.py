@@ -38,6 +38,7 @@ from sim.drivers.observe import MergeObservation
 from sim.env.config import MergeEnvConfig, resolve_config
 from sim.env.core import EnvCore, end_flags
 from sim.env.merge_env import MAX_EMPTY_RUNS, RENDER_MODES, check_render_mode
+from sim.env.seeds import reset_seed
 from sim.runtime.hooks import FrameState
 from sim.runtime.session import SumoSession
 
@@ -91,14 +92,17 @@ class MergeParallelEnv(ParallelEnv):
     def reset(self, seed: int | None = None, options: dict[str, Any] | None = None
               ) -> tuple[dict[str, np.ndarray], dict[str, dict[str, Any]]]:
         """Start a new SUMO run (``seed``, else one drawn from the generator) and run it to the
-        first decision. Returns the first agents' observations and infos.
+        first decision. Returns the first agents' observations and infos. ``seed``: as
+        :class:`~sim.env.merge_env.MergeEnv`'s (:func:`sim.env.seeds.reset_seed`).
 
         Raises:
+            sim.env.seeds.SeedError: ``seed`` a bool, a float, negative or not an integer.
             sim.errors.SimulationError: SUMO fails, or ``MAX_EMPTY_RUNS`` runs in a row have no take-over.
         """
-        if seed is not None:
-            self._np_random, _ = seeding.np_random(int(seed))
-        run_seed = int(seed) if seed is not None else self._draw_seed()
+        checked = reset_seed(seed, "MergeParallelEnv.reset")  # the same rule as MergeEnv's (sim.env.seeds)
+        if checked is not None:
+            self._np_random, _ = seeding.np_random(checked.seed)
+        run_seed = checked.sumo if checked is not None else self._draw_seed()
         for _ in range(MAX_EMPTY_RUNS):
             self._start_run(run_seed)
             obs, _, _, _, infos = self._advance({}, {}, {})

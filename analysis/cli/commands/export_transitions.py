@@ -25,6 +25,9 @@ from sim.merges.transitions import (
 from sim.ngsim.io import read_ngsim, read_trajectories
 from sim.ngsim.smooth import SmoothingConfig
 
+#: The output formats: a transitions .npz (sim.merges.transitions.save) or a Minari dataset.
+FORMATS = ("npz", "minari")
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
@@ -36,8 +39,18 @@ def register(subparsers) -> None:
                     "(.parquet/.csv with the controller's decision columns) and write one .npz of transitions at the "
                     "decision step: obs and next_obs [N, 7] (d_AC, v_AC, d_AB, v_AB, v_A, len_C, len_B; ft, ft/s), "
                     "acts [N] (merge actions 0..4), acc_mps2 [N], dones [N], episode [N] (one per encounter or "
-                    "control), read back by sim.merges.transitions.load.")
-    p.add_argument("--out", required=True, metavar="FILE.npz", help="output file")
+                    "control), read back by sim.merges.transitions.load; or, with --format minari, a Minari dataset "
+                    "(minari.load_dataset; the rl extra) with the environment's spaces, rewards 0, terminations at "
+                    "each episode's end and the run's provenance in its metadata (sim.env.minari_dataset).")
+    p.add_argument("--format", choices=FORMATS, default="npz",
+                   help="npz: one .npz file (--out FILE.npz); minari: a Minari dataset --dataset-id under the "
+                        "folder --out (default MINARI_DATASETS_PATH, else ~/.minari/datasets) (default npz)")
+    p.add_argument("--out", default=None, metavar="PATH",
+                   help="the .npz file (--format npz, required), or the Minari datasets folder (--format minari)")
+    p.add_argument("--dataset-id", default=None, metavar="ID",
+                   help="--format minari: the dataset's id, (namespace/)name-v(version), e.g. merge-irl/demos-v0")
+    p.add_argument("--overwrite", action="store_true",
+                   help="--format minari: replace a dataset of the same id (else an existing id is refused)")
     p.add_argument("--decision-step-s", dest="decision_step_s", type=float, default=None,
                    help="seconds per decision (default 0.3; a decision log must have been decided at it)")
     # the older spelling of --decision-step-s: one release more, with a note
@@ -62,10 +75,42 @@ def _kind(columns) -> str:
     return ""
 
 
+def _check_output(args: argparse.Namespace) -> None:
+    """Refuse, before reading anything, an output that cannot be written as asked."""
+    if args.format == "npz":
+        if args.dataset_id is not None or args.overwrite:
+            raise TransitionsError("--dataset-id and --overwrite apply to --format minari only")
+        if args.out is None:
+            raise TransitionsError("--out FILE.npz is required (or give --format minari --dataset-id ID)")
+        if not str(args.out).endswith(".npz"):
+            raise TransitionsError(f"--out {args.out}: the file name must end in .npz")
+        return
+    if args.dataset_id is None:
+        raise TransitionsError("--format minari needs --dataset-id ID, e.g. merge-irl/demos-v0")
+    try:
+        from sim.env.minari_dataset import check_dataset_id
+
+        check_dataset_id(args.dataset_id, args.out, overwrite=args.overwrite)
+    except ImportError as e:
+        raise TransitionsError(f"--format minari needs Minari and Gymnasium ({e}): pip install -e '.[rl]'") from None
+
+
+def _write(t, args: argparse.Namespace) -> str:
+    """Write ``t`` as ``args`` ask; the path written."""
+    if args.format == "npz":
+        return str(save(t, args.out))
+    from merge_irl.provenance import provenance
+    from sim.env.minari_dataset import write_minari
+
+    paths = list(args.demos)
+    inputs = {("demos" if len(paths) == 1 else f"demos{i}"): p for i, p in enumerate(paths, start=1)}
+    ds = write_minari(t, args.dataset_id, root=args.out, overwrite=args.overwrite, provenance=provenance(inputs))
+    return str(ds.storage.data_path.parent)
+
+
 def run(args: argparse.Namespace) -> int:
     step = args.decision_step_s if args.decision_step_s is not None else DEFAULT_DECISION_STEP_S
-    if not str(args.out).endswith(".npz"):
-        raise TransitionsError(f"--out {args.out}: the file name must end in .npz")
+    _check_output(args)
     ngsim_options = args.location is not None or args.recording is not None or args.smooth
     if ngsim_options and not any(Path(d).suffix.lower() in (".csv", ".txt") for d in args.demos):
         raise TransitionsError("--location, --recording and --smooth apply to NGSIM .csv/.txt files only")
@@ -108,7 +153,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"{path}: {part.n} transitions, {part.n_episodes} episodes ({kind})", file=sys.stderr)
         parts.append(part)
     t = concatenate(parts)
-    out = save(t, args.out)
+    out = _write(t, args)
     print(f"{t.n} transitions, {t.n_episodes} episodes, obs [{t.n}, {len(t.obs_names)}] every {t.decision_step_s} s",
           file=sys.stderr)
     print(out)

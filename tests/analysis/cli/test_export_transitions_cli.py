@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from extras import require_extra
 from sim_testutil import short_run
 
 from analysis.cli.main import main
@@ -62,3 +63,42 @@ def test_a_run_folder_is_named_as_a_folder_not_as_missing(tmp_path, capsys) -> N
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and "a folder, not a file" in err, err
     assert str(run / "encounters.parquet") in err and not (tmp_path / "t.npz").exists()
+
+
+@pytest.mark.sumo
+def test_export_transitions_to_minari_of_a_real_run(tmp_path, capsys, monkeypatch) -> None:
+    """``--format minari``: a real run's encounters as a Minari dataset that minari.load_dataset
+    reads back (episodes, rewards, terminations, the input's provenance); an existing id refused
+    in one line (exit 2) until ``--overwrite``; ``--help`` names the format."""
+    minari = require_extra("minari", "rl")
+    from merge_irl.provenance import file_sha256
+
+    res = short_run(tmp_path, seed=11, duration_s=180.0)
+    enc = extract(res.table).frames
+    enc.to_parquet(tmp_path / "enc.parquet")
+    expected = from_encounters(enc)
+    argv = ["export-transitions", "--demos", str(tmp_path / "enc.parquet"), "--format", "minari",
+            "--dataset-id", "merge-irl/run11-v0", "--out", str(tmp_path / "minari")]
+    assert main(argv) == 0
+    assert capsys.readouterr().out.strip() == str(tmp_path / "minari" / "merge-irl" / "run11-v0")
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "minari"))
+    ds = minari.load_dataset("merge-irl/run11-v0")
+    assert ds.total_episodes == expected.n_episodes > 0 and ds.total_steps == expected.n
+    episodes = list(ds.iterate_episodes())
+    assert all(e.terminations[-1] and not e.terminations[:-1].any() and not e.rewards.any() for e in episodes)
+    np.testing.assert_array_equal(np.concatenate([e.actions for e in episodes]), expected.acts)
+    prov = ds.storage.metadata["merge_irl"]["provenance"]
+    assert prov["inputs"]["demos"]["sha256"] == file_sha256(tmp_path / "enc.parquet")
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "exists already" in err and "--overwrite" in err
+    assert main([*argv, "--overwrite"]) == 0
+    capsys.readouterr()
+    for bad, said in ((["--dataset-id", "nover"], "not a Minari dataset id"), ([], "needs --dataset-id")):
+        args = ["export-transitions", "--demos", str(tmp_path / "enc.parquet"), "--format", "minari", *bad,
+                "--out", str(tmp_path / "minari")]
+        assert main(args) == 2 and said in capsys.readouterr().err
+    assert sorted(p.name for p in (tmp_path / "minari").iterdir()) == ["merge-irl"]  # nothing else left
+    with pytest.raises(SystemExit):
+        main(["export-transitions", "--help"])
+    assert "--format {npz,minari}" in capsys.readouterr().out

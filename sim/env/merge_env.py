@@ -33,7 +33,9 @@ Termination (Gymnasium's terms): ``terminated`` when the controller releases A f
 merge itself (``merge_done``, ``collision``, ``left_section``, ``left_lane``, ``b_lost``,
 ``arrived``, ``removed``, ``teleported``); ``truncated`` at a time limit (``timeout``:
 ``max_control_s`` of :class:`~sim.closed_loop.config.ControllerConfig`; ``end_of_run``: the SUMO
-run reached ``run_s``). The last observation is A's at the release frame when A and B are still
+run reached ``run_s``; ``removed_externally``: A vanished between two ``step`` calls, removed by
+another TraCI client, a co-simulation or the user's code: that ``step`` applies nothing, runs no
+SUMO, returns the last observation and names A in ``info["a_id"]`` and ``info["a_sumo"]``). The last observation is A's at the release frame when A and B are still
 in the network, else the previous one.
 
 Reward: ``reward(obs, action_bin, acc_ft_s2)`` of the decision, returned by the step that applies it,
@@ -68,7 +70,7 @@ from sim.closed_loop.controller import Controller
 from sim.closed_loop.records import Control
 from sim.drivers.observe import POLICY_OBS_HIGH, POLICY_OBS_LOW, MergeObservation
 from sim.env.config import MergeEnvConfig, resolve_config
-from sim.env.core import EnvCore, end_flags
+from sim.env.core import EnvCore, end_flags, release_info
 from sim.runtime.hooks import FrameState
 from sim.runtime.session import SumoSession
 
@@ -192,6 +194,11 @@ class MergeEnv(gym.Env):
             raise RuntimeError("MergeEnv.step: no episode is running; call reset() first")
         c, ctl = self._control, self._ctl
         frame, ia, ic, obs = self._pending
+        if self._core.removed(self._session, [c]):  # A removed since the last step: nothing to apply
+            self._core.parse_action(action)  # an action outside the space is still refused
+            self._core.release_removed(ctl, c)
+            self._pending = None
+            return self._last_obs.copy(), self._core.outcome(c), *end_flags(c), {**self._info(None), **release_info(c)}
         reward, step_info = self._core.apply(ctl, c, frame, ia, ic, obs, action)
         self._pending = None
         while True:
@@ -214,7 +221,7 @@ class MergeEnv(gym.Env):
                     self._last_obs = self._core.observation(o)
                     return self._last_obs.copy(), reward, False, False, {**self._info(o), **step_info}
         terminated, truncated = end_flags(c)
-        info = {**self._info(None), **step_info, "release_reason": c.reason, "collision_kind": c.collision_kind}
+        info = {**self._info(None), **step_info, **release_info(c)}
         return self._last_obs.copy(), reward + self._core.outcome(c), terminated, truncated, info
 
     def render(self) -> np.ndarray | None:

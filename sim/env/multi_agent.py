@@ -5,7 +5,10 @@ takes a lag car A over for its merging car B and leaves when the controller rele
 reasons of :mod:`sim.closed_loop.controller`); its name is ``"A<a_id>_B<b_id>"`` (Vehicle_IDs:
 a car taken over again for another B is another agent). Every agent has the single-agent
 environment's spaces, observation, reward and ``info`` (:mod:`sim.env.merge_env`); the last
-step of an agent carries its ``release_reason`` and ``terminated`` / ``truncated`` as there.
+step of an agent carries its ``release_reason`` and ``terminated`` / ``truncated`` as there; an
+agent whose car vanished between two ``step`` calls (removed by another TraCI client, a
+co-simulation, the user's code) is done in the next ``step`` (``removed_externally``, truncated,
+its action ignored, ``info["a_sumo"]`` its SUMO id), the other agents step as usual.
 
 Decisions are on one clock: take-overs happen only on frames that are a multiple of the
 decision step (at most ``decision_step_s - 0.1`` s later than the closed loop's, which takes
@@ -36,7 +39,7 @@ from sim.closed_loop.controller import Controller
 from sim.closed_loop.records import Control
 from sim.drivers.observe import MergeObservation
 from sim.env.config import MergeEnvConfig, resolve_config
-from sim.env.core import EnvCore, end_flags
+from sim.env.core import EnvCore, end_flags, release_info
 from sim.env.merge_env import MAX_EMPTY_RUNS, RENDER_MODES, check_render_mode
 from sim.runtime.hooks import FrameState
 from sim.runtime.session import SumoSession
@@ -96,8 +99,8 @@ class MergeParallelEnv(ParallelEnv):
         Raises:
             sim.errors.SimulationError: SUMO fails, or ``MAX_EMPTY_RUNS`` runs in a row have no take-over.
         """
-        if seed is not None:
-            self._np_random, _ = seeding.np_random(int(seed))
+        if seed is not None:  # refused as MergeEnv refuses it (Gymnasium's check): a float, a negative
+            self._np_random, _ = seeding.np_random(seed)
         run_seed = int(seed) if seed is not None else self._draw_seed()
         for _ in range(MAX_EMPTY_RUNS):
             self._start_run(run_seed)
@@ -131,7 +134,13 @@ class MergeParallelEnv(ParallelEnv):
                              f"missing {missing}, not agents {extra}")
         rewards: dict[str, float] = {}
         step_infos: dict[str, dict[str, Any]] = {}
+        gone = {agent_name(c): c for c in self._core.removed(self._session, [self._live[a] for a in self.agents])}
+        for agent, c in gone.items():  # removed since the last step: released now, reported by _advance
+            self._core.parse_action(actions[agent])  # an action outside the space is still refused
+            self._core.release_removed(self._ctl, c)
         for agent in self.agents:
+            if agent in gone:
+                continue
             frame, ia, ic, obs = self._pending[agent]
             rewards[agent], step_infos[agent] = self._core.apply(self._ctl, self._live[agent], frame, ia, ic, obs,
                                                                  actions[agent])
@@ -187,7 +196,8 @@ class MergeParallelEnv(ParallelEnv):
             st = self._session.step()
             if st is None:  # the run is over: whoever is still controlled is truncated
                 for c in self._live.values():
-                    ctl.release(c, ctl.last_frame, "end_of_run", present=True)
+                    if c.active:
+                        ctl.release(c, ctl.last_frame, "end_of_run", present=True)
                 ended, due = list(self._live), []
             else:
                 frame = self._frame = st.frame
@@ -206,8 +216,7 @@ class MergeParallelEnv(ParallelEnv):
                 rewards[agent] = rewards.get(agent, 0.0) + core.outcome(c)
                 terms[agent], truncs[agent] = end_flags(c)
                 infos[agent] = {**self._info(c, None, frame_time=st.frame.time_s if st else np.nan),
-                                **step_infos.get(agent, {}), "release_reason": c.reason,
-                                "collision_kind": c.collision_kind}
+                                **step_infos.get(agent, {}), **release_info(c)}
             if st is None or due:
                 break
         names = {id(c): a for a, c in self._live.items()}

@@ -22,6 +22,7 @@ Run: ``python -m benchmarks.marl_bench [--scenario synthetic] [--sim-s 600] [--s
 from __future__ import annotations
 
 import argparse
+import functools
 import time
 from collections.abc import Callable
 
@@ -130,7 +131,7 @@ def main(argv=None) -> None:
         "env (MergeEnv)": lambda: single_env(spec, a.seed, a.sim_s, policy),
         "ParallelEnv, live agents": lambda: parallel_live(spec, a.seed, a.sim_s, policy)}
     for k in a.slots:
-        loops[f"slots x{k} (AgentSlots)"] = (lambda k=k: slots_loop(spec, a.seed, a.sim_s, policy, k))
+        loops[f"slots x{k} (AgentSlots)"] = functools.partial(slots_loop, spec, a.seed, a.sim_s, policy, k)
     runs: dict[str, list[dict[str, float]]] = {name: [] for name in loops}
     for _ in range(max(1, a.repeat)):  # alternating, so a busy moment of the machine hits all
         for name, fn in loops.items():

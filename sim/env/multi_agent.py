@@ -195,9 +195,7 @@ class MergeParallelEnv(ParallelEnv):
         while True:
             st = self._session.step()
             if st is None:  # the run is over: whoever is still controlled is truncated
-                for c in self._live.values():
-                    if c.active:
-                        ctl.release(c, ctl.last_frame, "end_of_run", present=True)
+                self._release_at_end()
                 ended, due = list(self._live), []
             else:
                 frame = self._frame = st.frame
@@ -233,6 +231,13 @@ class MergeParallelEnv(ParallelEnv):
         for gone in set(self._last_obs) - set(self._live):
             del self._last_obs[gone]
         return obs, rewards, terms, truncs, infos
+
+    def _release_at_end(self) -> None:
+        """Release every agent still controlled at the end of the run (``end_of_run``)."""
+        assert self._ctl is not None
+        for c in self._live.values():
+            if c.active:  # not one released in this step already (removed_externally)
+                self._ctl.release(c, self._ctl.last_frame, "end_of_run", present=True)
 
     def _info(self, c: Control, obs: MergeObservation | None, *, frame_time: float) -> dict[str, Any]:
         return {"state": obs.state if obs is not None else -1, "seed": self._run_seed, "time_s": float(frame_time),

@@ -16,7 +16,8 @@ Printed per loop: decisions (controlled steps), steps (policy calls), the live-a
 (decisions / (steps x slots): the rest is zero-padding), wall time, decisions per second and its
 ratio to the single-agent environment's (target: multi-agent >= 1.3x), and wall time per step
 against the live-agents-only loop's (what the padding costs per step).
-Run: ``python -m benchmarks.marl_bench [--scenario synthetic] [--sim-s 600] [--seed 1] [--repeat 3]``.
+``--policy zero`` sends Zero for every car without a network: the environments' own cost.
+Run: ``python -m benchmarks.marl_bench [--scenario synthetic] [--sim-s 600] [--seed 1] [--repeat 3] [--policy zero]``.
 """
 
 from __future__ import annotations
@@ -34,8 +35,11 @@ from scenarios.loader import load_scenario
 PolicyFn = Callable[[np.ndarray], np.ndarray]
 
 
-def make_policy(obs_space, act_space, seed: int) -> tuple[str, PolicyFn]:
-    """The policy every loop calls: SB3's default ``ActorCriticPolicy`` (``predict``), else numpy."""
+def make_policy(obs_space, act_space, seed: int, kind: str = "sb3") -> tuple[str, PolicyFn]:
+    """The policy every loop calls: SB3's default ``ActorCriticPolicy`` (``predict``), else numpy;
+    ``kind="zero"``: Zero for every car, no network (the environments' own cost)."""
+    if kind == "zero":
+        return "Zero for every car, no policy network", lambda obs: np.full(len(obs), 2)
     try:
         import torch
         from stable_baselines3.common.policies import ActorCriticPolicy
@@ -121,12 +125,14 @@ def main(argv=None) -> None:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--slots", type=int, nargs="+", default=[1, 2, 4], help="max_agents of the slots loops")
     ap.add_argument("--repeat", type=int, default=3, help="runs of each, alternating; the fastest is kept")
+    ap.add_argument("--policy", choices=("sb3", "zero"), default="sb3",
+                    help="sb3: SB3's default policy network (numpy without SB3); zero: Zero, no network")
     a = ap.parse_args(argv)
     spec = load_scenario(a.scenario)
     from sim.env import MergeEnv
 
     spaces = MergeEnv(spec, run_s=a.sim_s)  # its spaces (no SUMO started)
-    pname, policy = make_policy(spaces.observation_space, spaces.action_space, a.seed)
+    pname, policy = make_policy(spaces.observation_space, spaces.action_space, a.seed, a.policy)
     loops: dict[str, Callable[[], dict[str, float]]] = {
         "env (MergeEnv)": lambda: single_env(spec, a.seed, a.sim_s, policy),
         "ParallelEnv, live agents": lambda: parallel_live(spec, a.seed, a.sim_s, policy)}

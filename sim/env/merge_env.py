@@ -35,8 +35,9 @@ merge itself (``merge_done``, ``collision``, ``left_section``, ``left_lane``, ``
 ``max_control_s`` of :class:`~sim.closed_loop.config.ControllerConfig`; ``end_of_run``: the SUMO
 run reached ``run_s``; ``removed_externally``: A vanished between two ``step`` calls, removed by
 another TraCI client, a co-simulation or the user's code: that ``step`` applies nothing, runs no
-SUMO, returns the last observation and names A in ``info["a_id"]`` and ``info["a_sumo"]``). The last observation is A's at the release frame when A and B are still
-in the network, else the previous one.
+SUMO, returns the last observation and names A in ``info["a_id"]`` and ``info["a_sumo"]``).
+The last observation is A's at the release frame when A and B are still in the network, else
+the previous one.
 
 Reward: ``reward(obs, action_bin, acc_ft_s2)`` of the decision, returned by the step that applies it,
 plus the reward's ``outcome(reason, collision_kind)`` (when it has one) on the step that ends the

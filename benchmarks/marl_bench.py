@@ -15,7 +15,8 @@ pays per policy call is in the figures:
 Printed per loop: decisions (controlled steps), steps (policy calls), the live-agent share
 (decisions / (steps x slots): the rest is zero-padding), wall time, decisions per second and its
 ratio to the single-agent environment's (target: multi-agent >= 1.3x), and wall time per step
-against the live-agents-only loop's (what the padding costs per step).
+against the live-agents-only loop's; then the policy call alone on 1, 2, 4 rows (what the idle
+slots' rows cost per step, apart from the noise of SUMO's steps).
 ``--policy zero`` sends Zero for every car without a network: the environments' own cost.
 Run: ``python -m benchmarks.marl_bench [--scenario synthetic] [--sim-s 600] [--seed 1] [--repeat 3] [--policy zero]``.
 """
@@ -58,6 +59,18 @@ def make_policy(obs_space, act_space, seed: int, kind: str = "sb3") -> tuple[str
     def sb3_policy(obs: np.ndarray) -> np.ndarray:
         return policy.predict(obs, deterministic=False)[0]
     return "SB3 ActorCriticPolicy.predict (MLP 64-64)", sb3_policy
+
+
+def policy_call_ms(policy: PolicyFn, rows: list[int], n: int = 2000) -> dict[int, float]:
+    """Median ms of one policy call on ``k`` zero observations, per ``k`` of ``rows`` (interleaved)."""
+    times: dict[int, list[float]] = {k: [] for k in rows}
+    batches = {k: np.zeros((k, 7)) for k in rows}
+    for _ in range(n):
+        for k in rows:
+            t = time.perf_counter()
+            policy(batches[k])
+            times[k].append(time.perf_counter() - t)
+    return {k: 1e3 * float(np.median(v)) for k, v in times.items()}
 
 
 def single_env(spec, seed: int, sim_s: float, policy: PolicyFn) -> dict[str, float]:
@@ -157,6 +170,9 @@ def main(argv=None) -> None:
         share_s = f"{share:.0%}" if share == share else "all live"
         print(f"{name:28s}{int(r['decisions']):>10d}{int(r['steps']):>8d}{share_s:>12s}{r['wall']:>9.2f}"
               f"{dps:>13.0f}{dps / env_dps:>7.2f}x{ms:>9.3f}{ms / live_ms:>13.2f}x")
+    calls = policy_call_ms(policy, sorted({1, *a.slots}))
+    print("policy call alone (the padding's cost per step: the rows of idle slots), median of 2000 calls: "
+          + ", ".join(f"{k} rows {ms:.3f} ms" for k, ms in calls.items()))
     print("target: multi-agent decisions/s >= 1.3x the single-agent environment's; "
           "padding: a slots loop's ms/step against the live-agents-only loop's (same run, same decisions for "
           "the same cap)")

@@ -179,13 +179,10 @@ class EnvCore:
         return ctl.observe(c, frame, ia, ib, ic)
 
 
-def release_info(c: Control) -> dict[str, Any]:
-    """The ``info`` entries of the step that ends control ``c``: ``release_reason``,
-    ``collision_kind``, and ``a_sumo`` (A's SUMO id) when A was removed externally."""
-    info: dict[str, Any] = {"release_reason": c.reason, "collision_kind": c.collision_kind}
-    if c.reason == REMOVED_EXTERNALLY:
-        info["a_sumo"] = c.a_sumo
-    return info
+def removed_info(c: Control) -> dict[str, Any]:
+    """``{"a_sumo": A's SUMO id}`` when ``c`` ended as ``removed_externally``, else ``{}``: the
+    ``info`` entry naming the car that vanished."""
+    return {"a_sumo": c.a_sumo} if c.reason == REMOVED_EXTERNALLY else {}
 
 
 def end_flags(c: Control) -> tuple[bool, bool]:

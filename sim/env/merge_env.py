@@ -71,7 +71,7 @@ from sim.closed_loop.controller import Controller
 from sim.closed_loop.records import Control
 from sim.drivers.observe import POLICY_OBS_HIGH, POLICY_OBS_LOW, MergeObservation
 from sim.env.config import MergeEnvConfig, resolve_config
-from sim.env.core import EnvCore, end_flags, release_info
+from sim.env.core import EnvCore, end_flags, removed_info
 from sim.runtime.hooks import FrameState
 from sim.runtime.session import SumoSession
 
@@ -199,7 +199,9 @@ class MergeEnv(gym.Env):
             self._core.parse_action(action)  # an action outside the space is still refused
             self._core.release_removed(ctl, c)
             self._pending = None
-            return self._last_obs.copy(), self._core.outcome(c), *end_flags(c), {**self._info(None), **release_info(c)}
+            info = {**self._info(None), "release_reason": c.reason, "collision_kind": c.collision_kind,
+                    **removed_info(c)}
+            return self._last_obs.copy(), self._core.outcome(c), *end_flags(c), info
         reward, step_info = self._core.apply(ctl, c, frame, ia, ic, obs, action)
         self._pending = None
         while True:
@@ -222,7 +224,7 @@ class MergeEnv(gym.Env):
                     self._last_obs = self._core.observation(o)
                     return self._last_obs.copy(), reward, False, False, {**self._info(o), **step_info}
         terminated, truncated = end_flags(c)
-        info = {**self._info(None), **step_info, **release_info(c)}
+        info = {**self._info(None), **step_info, "release_reason": c.reason, "collision_kind": c.collision_kind}
         return self._last_obs.copy(), reward + self._core.outcome(c), terminated, truncated, info
 
     def render(self) -> np.ndarray | None:

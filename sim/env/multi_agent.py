@@ -39,7 +39,7 @@ from sim.closed_loop.controller import Controller
 from sim.closed_loop.records import Control
 from sim.drivers.observe import MergeObservation
 from sim.env.config import MergeEnvConfig, resolve_config
-from sim.env.core import EnvCore, end_flags, release_info
+from sim.env.core import EnvCore, end_flags, removed_info
 from sim.env.merge_env import MAX_EMPTY_RUNS, RENDER_MODES, check_render_mode
 from sim.runtime.hooks import FrameState
 from sim.runtime.session import SumoSession
@@ -214,7 +214,8 @@ class MergeParallelEnv(ParallelEnv):
                 rewards[agent] = rewards.get(agent, 0.0) + core.outcome(c)
                 terms[agent], truncs[agent] = end_flags(c)
                 infos[agent] = {**self._info(c, None, frame_time=st.frame.time_s if st else np.nan),
-                                **step_infos.get(agent, {}), **release_info(c)}
+                                **step_infos.get(agent, {}), "release_reason": c.reason,
+                                "collision_kind": c.collision_kind}
             if st is None or due:
                 break
         names = {id(c): a for a, c in self._live.items()}
@@ -241,4 +242,4 @@ class MergeParallelEnv(ParallelEnv):
 
     def _info(self, c: Control, obs: MergeObservation | None, *, frame_time: float) -> dict[str, Any]:
         return {"state": obs.state if obs is not None else -1, "seed": self._run_seed, "time_s": float(frame_time),
-                "a_id": c.a_id, "b_id": c.b_id}
+                "a_id": c.a_id, "b_id": c.b_id, **removed_info(c)}

@@ -30,7 +30,8 @@ back to SUMO) and records why, in :attr:`Control.reason <sim.closed_loop.records
 ``removed``     A vanished from the network for any other reason;
 ``b_lost``      B vanished before merging;
 ``timeout``     A was controlled for ``max_control_s``;
-``end_of_run``  the run ended first.
+``end_of_run``  the run ended first;
+``removed_externally`` (the environments of :mod:`sim.env` only) A vanished between two ``step`` calls.
 
 Who hit whom in a collision is in :attr:`Control.collision_kind <sim.closed_loop.records.Control.collision_kind>`
 (one of ``COLLISION_KINDS``). Settings: :mod:`sim.closed_loop.config`; records: :mod:`sim.closed_loop.records`;

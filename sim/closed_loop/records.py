@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 RELEASE_REASONS = (
     "merge_done", "left_section", "left_lane", "collision", "teleported", "arrived", "removed", "b_lost",
-    "timeout", "end_of_run",
+    "timeout", "end_of_run", "removed_externally",
 )
 
 

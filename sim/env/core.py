@@ -30,8 +30,12 @@ from sim.errors import ObservationError, RewardError
 from sim.runtime.hooks import FrameState
 from sim.runtime.session import SumoSession
 
-#: Release reasons that truncate an episode (a time limit); every other one terminates it.
-TRUNCATING_REASONS = frozenset({"timeout", "end_of_run"})
+#: The release reason of a controlled car that vanished between two ``step`` calls (removed by
+#: another TraCI client, a co-simulation or the user's code, not by SUMO during a step).
+REMOVED_EXTERNALLY = "removed_externally"
+#: Release reasons that truncate an episode (a time limit, or the car taken away from outside
+#: the task); every other one terminates it.
+TRUNCATING_REASONS = frozenset({"timeout", "end_of_run", REMOVED_EXTERNALLY})
 _EYE = np.eye(N_ACTIONS)
 
 
@@ -199,6 +203,22 @@ class EnvCore:
         return value
 
     @staticmethod
+    def removed(session: SumoSession, controls: list[Control]) -> list[Control]:
+        """The controls of ``controls`` whose A SUMO no longer knows: removed between two
+        ``step`` calls (by another TraCI client, a co-simulation, the user's code), after the
+        frame the environment observed it in; usually none. One ``vehicle.getIDList()`` call."""
+        if not controls:
+            return []
+        known = set(session.sumo.vehicle.getIDList())
+        return [c for c in controls if c.a_sumo not in known]
+
+    @staticmethod
+    def release_removed(ctl: Controller, c: Control) -> None:
+        """Release ``c`` (one of :meth:`removed`) as ``removed_externally`` at the last frame the
+        controller saw; A is gone, so nothing is handed back to SUMO."""
+        ctl.release(c, ctl.last_frame, REMOVED_EXTERNALLY, present=False)
+
+    @staticmethod
     def observe_at_release(ctl: Controller, c: Control, frame: FrameState) -> MergeObservation | None:
         """A's observation at the release frame, None when A or B has left the network."""
         rows = ctl.rows or dict(zip(frame.vehicle_id.tolist(), range(len(frame.sumo_ids))))
@@ -207,6 +227,12 @@ class EnvCore:
             return None
         ic = lead_of(frame, float(frame.local_y[ia]), lane=ctl.merge_lane, exclude=(ia, ib))
         return ctl.observe(c, frame, ia, ib, ic)
+
+
+def removed_info(c: Control) -> dict[str, Any]:
+    """``{"a_sumo": A's SUMO id}`` when ``c`` ended as ``removed_externally``, else ``{}``: the
+    ``info`` entry naming the car that vanished."""
+    return {"a_sumo": c.a_sumo} if c.reason == REMOVED_EXTERNALLY else {}
 
 
 def end_flags(c: Control) -> tuple[bool, bool]:

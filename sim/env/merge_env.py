@@ -33,8 +33,11 @@ Termination (Gymnasium's terms): ``terminated`` when the controller releases A f
 merge itself (``merge_done``, ``collision``, ``left_section``, ``left_lane``, ``b_lost``,
 ``arrived``, ``removed``, ``teleported``); ``truncated`` at a time limit (``timeout``:
 ``max_control_s`` of :class:`~sim.closed_loop.config.ControllerConfig`; ``end_of_run``: the SUMO
-run reached ``run_s``). The last observation is A's at the release frame when A and B are still
-in the network, else the previous one.
+run reached ``run_s``; ``removed_externally``: A vanished between two ``step`` calls, removed by
+another TraCI client, a co-simulation or the user's code: that ``step`` applies nothing, runs no
+SUMO, returns the last observation and names A in ``info["a_id"]`` and ``info["a_sumo"]``).
+The last observation is A's at the release frame when A and B are still in the network, else
+the previous one.
 
 Reward: ``reward(obs, action_bin, acc_ft_s2)`` of the decision, returned by the step that applies it,
 plus the reward's ``outcome(reason, collision_kind)`` (when it has one) on the step that ends the
@@ -73,7 +76,7 @@ from sim.closed_loop.controller import Controller
 from sim.closed_loop.records import Control
 from sim.drivers.observe import POLICY_OBS_HIGH, POLICY_OBS_LOW, MergeObservation
 from sim.env.config import MergeEnvConfig, resolve_config
-from sim.env.core import EnvCore, end_flags
+from sim.env.core import EnvCore, end_flags, removed_info
 from sim.env.seeds import reset_seed, unread_options
 from sim.runtime.hooks import FrameState
 from sim.runtime.session import SumoSession
@@ -207,6 +210,13 @@ class MergeEnv(gym.Env):
             raise RuntimeError("MergeEnv.step: no episode is running; call reset() first")
         c, ctl = self._control, self._ctl
         frame, ia, ic, obs = self._pending
+        if self._core.removed(self._session, [c]):  # A removed since the last step: nothing to apply
+            self._core.parse_action(action)  # an action outside the space is still refused
+            self._core.release_removed(ctl, c)
+            self._pending = None
+            info = {**self._info(None), "release_reason": c.reason, "collision_kind": c.collision_kind,
+                    **removed_info(c), "rewards": {}}
+            return self._last_obs.copy(), self._core.outcome_terms(c, info), *end_flags(c), info
         reward, step_info = self._core.apply(ctl, c, frame, ia, ic, obs, action)
         self._pending = None
         while True:

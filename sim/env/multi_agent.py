@@ -5,7 +5,10 @@ takes a lag car A over for its merging car B and leaves when the controller rele
 reasons of :mod:`sim.closed_loop.controller`); its name is ``"A<a_id>_B<b_id>"`` (Vehicle_IDs:
 a car taken over again for another B is another agent). Every agent has the single-agent
 environment's spaces, observation, reward and ``info`` (:mod:`sim.env.merge_env`); the last
-step of an agent carries its ``release_reason`` and ``terminated`` / ``truncated`` as there.
+step of an agent carries its ``release_reason`` and ``terminated`` / ``truncated`` as there; an
+agent whose car vanished between two ``step`` calls (removed by another TraCI client, a
+co-simulation, the user's code) is done in the next ``step`` (``removed_externally``, truncated,
+its action ignored, ``info["a_sumo"]`` its SUMO id), the other agents step as usual.
 
 Decisions are on one clock: take-overs happen only on frames that are a multiple of the
 decision step (at most ``decision_step_s - 0.1`` s later than the closed loop's, which takes
@@ -36,7 +39,7 @@ from sim.closed_loop.controller import Controller
 from sim.closed_loop.records import Control
 from sim.drivers.observe import MergeObservation
 from sim.env.config import MergeEnvConfig, resolve_config
-from sim.env.core import EnvCore, end_flags
+from sim.env.core import EnvCore, end_flags, removed_info
 from sim.env.merge_env import MAX_EMPTY_RUNS, RENDER_MODES, check_render_mode
 from sim.env.seeds import reset_seed
 from sim.runtime.hooks import FrameState
@@ -135,7 +138,13 @@ class MergeParallelEnv(ParallelEnv):
                              f"missing {missing}, not agents {extra}")
         rewards: dict[str, float] = {}
         step_infos: dict[str, dict[str, Any]] = {}
+        gone = {agent_name(c): c for c in self._core.removed(self._session, [self._live[a] for a in self.agents])}
+        for agent, c in gone.items():  # removed since the last step: released now, reported by _advance
+            self._core.parse_action(actions[agent])  # an action outside the space is still refused
+            self._core.release_removed(self._ctl, c)
         for agent in self.agents:
+            if agent in gone:
+                continue
             frame, ia, ic, obs = self._pending[agent]
             rewards[agent], step_infos[agent] = self._core.apply(self._ctl, self._live[agent], frame, ia, ic, obs,
                                                                  actions[agent])
@@ -190,8 +199,7 @@ class MergeParallelEnv(ParallelEnv):
         while True:
             st = self._session.step()
             if st is None:  # the run is over: whoever is still controlled is truncated
-                for c in self._live.values():
-                    ctl.release(c, ctl.last_frame, "end_of_run", present=True)
+                self._release_at_end()
                 ended, due = list(self._live), []
             else:
                 frame = self._frame = st.frame
@@ -230,6 +238,13 @@ class MergeParallelEnv(ParallelEnv):
             del self._last_obs[gone]
         return obs, rewards, terms, truncs, infos
 
+    def _release_at_end(self) -> None:
+        """Release every agent still controlled at the end of the run (``end_of_run``)."""
+        assert self._ctl is not None
+        for c in self._live.values():
+            if c.active:  # not one released in this step already (removed_externally)
+                self._ctl.release(c, self._ctl.last_frame, "end_of_run", present=True)
+
     def _info(self, c: Control, obs: MergeObservation | None, *, frame_time: float) -> dict[str, Any]:
         return {"state": obs.state if obs is not None else -1, "seed": self._run_seed, "time_s": float(frame_time),
-                "a_id": c.a_id, "b_id": c.b_id}
+                "a_id": c.a_id, "b_id": c.b_id, **removed_info(c)}

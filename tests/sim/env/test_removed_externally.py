@@ -66,21 +66,3 @@ def test_parallel_env_agent_removed_between_steps_is_done_and_the_others_go_on()
         assert env.agents == []
     finally:
         env.close()
-
-
-@pytest.mark.parametrize("seed", [9.7, -1, pytest.param(True, marks=pytest.mark.sumo)])
-def test_parallel_env_refuses_the_seeds_the_gymnasium_env_refuses(seed):
-    """9.7 and -1: the same error and message; True: taken by both (Gymnasium's check admits a bool)."""
-    outcomes = []
-    for make in (lambda: MergeEnv(**SHORT), lambda: MergeParallelEnv(**SHORT)):
-        env = make()
-        try:
-            env.reset(seed=seed)
-            outcomes.append(("ok", env._run_seed))
-        except Exception as e:  # noqa: BLE001  (the outcome compared)
-            outcomes.append((type(e).__name__, str(e)))
-        finally:
-            env.close()
-    assert outcomes[0] == outcomes[1]
-    if seed is not True:
-        assert outcomes[0][0] == "Error" and "Seed must be" in outcomes[0][1]

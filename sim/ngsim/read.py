@@ -34,7 +34,7 @@ import numpy as np
 import pandas as pd
 import pyarrow as pa
 
-from sim.errors import TrajectoryFormatError
+from sim.errors import TrajectoryFormatError, out_of_memory
 from sim.ngsim.assemble import assemble
 from sim.ngsim.format import NGSIM_COLUMNS
 from sim.ngsim.parse import iter_chunks, locate_bad_line, location_column, sniff
@@ -147,6 +147,7 @@ def read_ngsim(
         TrajectoryFormatError: naming file, line and column (see the module docstring);
             several sites or recordings and no choice (naming the column and what was found).
         FileNotFoundError: ``path`` does not exist.
+        InputTooLargeError: memory ran out (one line: the file, the allocation refused, what to do).
     """
     path = Path(path)
     if not path.is_file():
@@ -160,6 +161,23 @@ def read_ngsim(
             "applied; expected the newer public layout's Location column"
         )
     args = (path, layout, location, recording, lanes, frames, vehicles, chunksize, progress)
+    try:
+        return _load(args, smooth)
+    except MemoryError as e:
+        raise out_of_memory(e, str(path), memory_advice(path)) from None
+
+
+def memory_advice(path: Path) -> str:
+    """What to do when reading ``path`` ran out of memory: the reader needs about twice the file's
+    size (the kept rows as a table, once while they are assembled)."""
+    mb = path.stat().st_size / 1e6
+    return (f"reading this {mb:.0f} MB file needs about {2 * mb:.0f} MB free; free memory or raise the limit "
+            "(ulimit -v), or keep fewer rows (--location, --recording)")
+
+
+def _load(args: tuple, smooth: bool | SmoothingConfig) -> NgsimLoad:
+    """:func:`read_ngsim` after its argument checks (``args``: what :func:`_read_pass` takes)."""
+    path, layout, location, recording = args[:4]
     if recording is None:
         try:
             table, validator, rows_read, chunks, rec = _read_pass(*args, ordered=True)

@@ -36,6 +36,7 @@ from irl.planning.driver import PlanningDriver, learn_planning_driver, shape_of
 from irl.planning.model import LIKELIHOOD_ROAD_MODEL, PlannerConfig
 from irl.planning.replay_fit import ReplayFitConfig, fit_by_replay, fit_temperature
 from merge_irl.provenance import provenance
+from merge_irl.tables import is_parquet_dataset
 from merge_irl.units import FT_PER_M
 
 #: The criteria a driver can be fitted by (module docstring); ``auto``: replay when every source
@@ -72,7 +73,7 @@ def load_driver_demos(paths: Sequence[str | os.PathLike], *,
     for p in map(Path, paths):
         if not p.exists():
             raise DemonstrationError(f"{p}: no such file or directory")
-        if p.is_dir():
+        if p.is_dir() and not is_parquet_dataset(p):
             frames, groups = pair_frames(load_pairs(p))
             parts.append(pair_decisions(frames, decision_step_s, groups=groups, where=str(p)))
         else:
@@ -91,7 +92,8 @@ def resolve_fit(fit: str, paths: Sequence[str | os.PathLike]) -> str:
         raise DemonstrationError(f"learn-driver: --fit must be one of {FITS}, got {fit!r}")
     if fit != "auto":
         return fit
-    return "replay" if paths and all(Path(p).is_dir() for p in paths) else "likelihood"
+    pair_dirs = [p for p in paths if Path(p).is_dir() and not is_parquet_dataset(p)]
+    return "replay" if paths and len(pair_dirs) == len(paths) else "likelihood"
 
 
 def learn_driver(paths: Sequence[str | os.PathLike], out: str | os.PathLike | None = None, *, seed: int = 0,

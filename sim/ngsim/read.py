@@ -34,6 +34,7 @@ import numpy as np
 import pandas as pd
 import pyarrow as pa
 
+from merge_irl.tables import PARQUET_SUFFIXES, read_table
 from sim.errors import TrajectoryFormatError, out_of_memory
 from sim.ngsim.assemble import assemble
 from sim.ngsim.format import NGSIM_COLUMNS
@@ -312,28 +313,32 @@ def _sorted(table: pd.DataFrame) -> pd.DataFrame:
 
 
 def read_trajectories(path: str | os.PathLike, **kwargs) -> pd.DataFrame:
-    """A trajectory table from Parquet (simulated runs) or an NGSIM ``.csv`` / ``.txt`` file.
+    """A trajectory table from Parquet (simulated runs: a file, or a Parquet dataset folder of part
+    files, :func:`merge_irl.tables.read_table`) or an NGSIM ``.csv`` / ``.txt`` file.
 
     ``kwargs`` go to :func:`read_ngsim` for NGSIM files (ignored for Parquet).
 
     Raises:
         FileNotFoundError: a Parquet path that does not exist.
-        TrajectoryFormatError: an unknown suffix, or a file that is not a valid trajectory table
-            (the message names the file, and for NGSIM files the line and column).
+        TrajectoryFormatError: an unknown suffix, a folder holding no Parquet part files, or a file
+            that is not a valid trajectory table (the message names the file, and for NGSIM files
+            the line and column).
     """
     from sim.runtime.schema import conform
 
     path = Path(path)
     suffix = path.suffix.lower()
-    if suffix in (".parquet", ".pq"):
-        if not path.is_file():
+    if suffix in PARQUET_SUFFIXES or path.is_dir():
+        if not path.exists():
             raise FileNotFoundError(f"trajectory file not found: {path}")
         try:
-            return conform(pd.read_parquet(path))
+            return conform(read_table(path, error=TrajectoryFormatError))
+        except TrajectoryFormatError:
+            raise
         except (KeyError, ValueError, TypeError) as e:
-            raise TrajectoryFormatError(f"{path}: {e}") from e
+            raise TrajectoryFormatError(f"{path}: {' '.join(str(e).split())}") from e
     if suffix in (".csv", ".txt"):
         return read_ngsim(path, **kwargs).table
     raise TrajectoryFormatError(
-        f"{path}: unknown trajectory file type {suffix!r}; expected .parquet, .csv or .txt"
+        f"{path}: unknown trajectory file type {suffix!r}; expected .parquet, .csv or .txt, or a Parquet dataset folder"
     )

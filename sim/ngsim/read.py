@@ -36,7 +36,7 @@ import pyarrow as pa
 
 from merge_irl.tables import PARQUET_SUFFIXES, read_table
 from sim.errors import TrajectoryFormatError, out_of_memory
-from sim.ngsim.assemble import assemble
+from sim.ngsim.assemble import assemble, permute_rows, release_freed_memory, table_in_place
 from sim.ngsim.format import NGSIM_COLUMNS
 from sim.ngsim.parse import iter_chunks, locate_bad_line, location_column, sniff
 from sim.ngsim.recordings import RecordingTally, choose_location, choose_recording, normalise_location
@@ -282,25 +282,42 @@ def _read_pass(path, layout, location, recording, lanes, frames, vehicles, chunk
         choose_location(str(path), loc_col, loc_counts, location)
     rec = choose_recording(str(path), tally.recordings(), recording)
     if not ordered:
-        data = np.concatenate(parts, axis=1) if parts else np.empty((len(NGSIM_COLUMNS), 0))
+        data = _concatenate(parts)
         lines = np.concatenate(line_parts) if line_parts else np.empty(0, np.int64)
-        parts.clear()
         if rec is not None:
             off = np.concatenate(off_parts)
             sel = (off >= rec.offset_lo_ms) & (off <= rec.offset_hi_ms)
             data, lines = data[:, sel], lines[sel]
         order = np.lexsort((lines, data[_COL["Frame_ID"]], data[_COL["Vehicle_ID"]]))
-        data, lines = data[:, order], lines[order]
-        validator = ChunkValidator(str(path))
-        keep = validator.check(data, lines)
-        parts.append(data[:, filters(data, keep)])
-        del data
+        permute_rows(data, order)  # in place: one row's memory more, not a second copy
+        lines = lines[order]
+        del order
+        validator = ChunkValidator(str(path))  # again, in order now: chunk by chunk, bounding its temporaries
+        keep = filters(data, np.concatenate(
+            [validator.check(data[:, a:a + chunksize], lines[a:a + chunksize])
+             for a in range(0, data.shape[1], chunksize)] or [np.empty(0, dtype=bool)]))
+        data = data if keep.all() else data[:, keep]
     validator.check_units()
-    table = _sorted(assemble(parts))
+    table = _sorted(assemble(parts) if ordered else table_in_place(data))
     vehicle, frame, lane, x, y, speed = (table[c].to_numpy() for c in (
         "Vehicle_ID", "Frame_ID", "Lane_ID", "Local_X", "Local_Y", "v_Vel"))
     check_kinematic_units(vehicle, frame, lane, x, y, speed, str(path))
     return table, validator, rows_read, chunks, rec
+
+
+def _concatenate(parts: list[np.ndarray]) -> np.ndarray:
+    """The chunks (float64[18, k] each; the list is emptied) side by side, each freed once copied."""
+    n = sum(p.shape[1] for p in parts)
+    data = np.empty((len(NGSIM_COLUMNS), n), dtype=np.float64)
+    at = 0
+    parts.reverse()
+    while parts:
+        p = parts.pop()
+        data[:, at:at + p.shape[1]] = p
+        at += p.shape[1]
+        del p
+        release_freed_memory()  # each chunk's pages back to the system before the next is copied
+    return data
 
 
 def _sorted(table: pd.DataFrame) -> pd.DataFrame:

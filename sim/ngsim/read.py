@@ -296,13 +296,27 @@ def _read_pass(path, layout, location, recording, lanes, frames, vehicles, chunk
         keep = filters(data, np.concatenate(
             [validator.check(data[:, a:a + chunksize], lines[a:a + chunksize])
              for a in range(0, data.shape[1], chunksize)] or [np.empty(0, dtype=bool)]))
-        data = data if keep.all() else data[:, keep]
+        data = _kept(data, keep)
     validator.check_units()
     table = _sorted(assemble(parts) if ordered else table_in_place(data))
     vehicle, frame, lane, x, y, speed = (table[c].to_numpy() for c in (
         "Vehicle_ID", "Frame_ID", "Lane_ID", "Local_X", "Local_Y", "v_Vel"))
     check_kinematic_units(vehicle, frame, lane, x, y, speed, str(path))
     return table, validator, rows_read, chunks, rec
+
+
+def _kept(data: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """The columns ``keep`` (bool[N]) of ``data`` (float64[18, N]): ``data`` itself when all are
+    kept; moved left in place when most are (no second copy at the peak; the table then holds
+    ``data``'s memory); else a copy (at most half its size more, and the rest freed)."""
+    k = int(np.count_nonzero(keep))
+    if k == data.shape[1]:
+        return data
+    if 2 * k < data.shape[1]:
+        return data[:, keep]
+    for r in range(data.shape[0]):
+        data[r, :k] = data[r][keep]
+    return data[:, :k]
 
 
 def _concatenate(parts: list[np.ndarray]) -> np.ndarray:

@@ -33,3 +33,17 @@ def test_table_in_place_is_the_table_over_the_same_memory():
     pd.testing.assert_frame_equal(out, table)
     for c in ("Local_Y", "Vehicle_ID", "Global_Time"):  # views of data, not copies
         assert np.shares_memory(out[c].to_numpy(), data), c
+
+
+def test_unordered_rows_with_duplicates_and_a_lane_filter_read_as_the_sorted_file(tmp_path):
+    table = synthetic_table(n_vehicles=30, n_frames=40, seed=2)
+    sorted_path = write_ngsim_csv(table, tmp_path / "sorted.csv", precision="exact")
+    dup = pd.concat([table, table.iloc[::7]]).sample(frac=1.0, random_state=1)  # exact duplicates, any order
+    path = write_ngsim_csv_blocks([dup], tmp_path / "dup.csv", precision="exact")
+    load = read_ngsim(path, chunksize=101)  # most rows kept: moved left in place
+    assert load.report.duplicate_rows_dropped == len(table.iloc[::7])
+    pd.testing.assert_frame_equal(load.table, read_ngsim(sorted_path).table)
+    lanes = sorted(table["Lane_ID"].unique())[:2]  # fewer than half the rows kept: copied
+    filtered = read_ngsim(path, lanes=lanes, chunksize=101)
+    assert 0 < len(filtered.table) < len(table) / 2
+    pd.testing.assert_frame_equal(filtered.table, read_ngsim(sorted_path, lanes=lanes).table)

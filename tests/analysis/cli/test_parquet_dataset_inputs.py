@@ -69,3 +69,19 @@ def test_encounters_reads_part_files_as_the_file(tmp_path, capsys):
         assert "merges" in capsys.readouterr().err
     pd.testing.assert_frame_equal(outs[0][0], outs[1][0])
     pd.testing.assert_frame_equal(outs[0][1], outs[1][1])
+
+
+def test_a_folder_of_different_tables_is_refused_in_one_line(tmp_path, capsys):
+    run = tmp_path / "run"
+    run.mkdir()
+    _encounters().to_parquet(run / "encounters.parquet")
+    synthetic_table(n_vehicles=2).to_parquet(run / "trajectories.parquet")  # another table: not one dataset
+    out = tmp_path / "m.json"
+    assert main(["learn", "--method", "qavg", "--domain", "merge", "--demos", str(run), "--out", str(out),
+                 "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "its Parquet files are not the part files of one table" in err[0], err
+    assert main(["export-transitions", "--demos", str(run), "--out", str(tmp_path / "t.npz")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "a folder, not a file or a Parquet dataset folder" in err[0], err
+    assert not out.exists() and not (tmp_path / "t.npz").exists()

@@ -358,9 +358,52 @@ def newton_concave(evaluate: Callable[[np.ndarray], Evaluation], theta0: np.ndar
             if gain < ftol * max(1.0, abs(f)):
                 converged, message = True, f"Newton: gains below {ftol:.0e} relative after {it + 1} iterations"
                 break
+            stop = stalled(lls, thetas)
+            if stop is not None:
+                converged, message = False, f"Newton: {stop}"
+                break
     gnorm = float(np.max(np.abs(g)))
+    extra = {"outer_steps": float(len(lls) - 1), "grad_inf": gnorm}
+    if not converged and "weights diverge" in message:
+        extra["diverged"] = 1.0
     return AscentResult(theta, ev, np.array(lls), np.array(thetas).reshape(len(thetas), -1),
-                        converged, message, {"outer_steps": float(len(lls) - 1), "grad_inf": gnorm})
+                        converged, message, extra)
+
+
+#: :func:`stalled`: accepted steps looked back over, the gain over them (relative to ``max(1, |L|)``)
+#: below which L counts as no longer rising, and how far ``|theta|`` must have run from its start
+#: (``|theta| > STALL_THETA_RUN (1 + |theta_0|)``) or grown over the window (``STALL_THETA_GROWTH``x)
+#: for the stop to be called diverging weights rather than a stall.
+STALL_WINDOW = 5
+STALL_GAIN = 1e-12
+STALL_THETA_RUN = 1e6
+STALL_THETA_GROWTH = 2.0
+
+
+def stalled(lls: list[float], thetas: list[np.ndarray]) -> str | None:
+    """Why an ascent should stop although its rule is not met, or None: over the last
+    :data:`STALL_WINDOW` accepted steps L rose by less than :data:`STALL_GAIN` ``max(1, |L|)``
+    (rounding-level gains: the line search accepts steps that change nothing). Then, if
+    ``|theta|`` grew geometrically over the window or ran far from its start, the weights diverge
+    (the likelihood approaches a supremum at infinite weights: a separable or nearly separable
+    problem); else the ascent has stalled.
+
+    Args:
+        lls: L after each step (the start first); thetas: ``[K]`` weights after each step.
+    """
+    if len(lls) <= STALL_WINDOW:
+        return None
+    gain = lls[-1] - lls[-1 - STALL_WINDOW]
+    if gain > STALL_GAIN * max(1.0, abs(lls[-1])):
+        return None
+    n_now, n_then, n_0 = (float(np.linalg.norm(thetas[i])) for i in (-1, -1 - STALL_WINDOW, 0))
+    steps = len(lls) - 1
+    if n_now > STALL_THETA_RUN * (1.0 + n_0) or n_now > STALL_THETA_GROWTH * max(n_then, 1e-300):
+        return (f"weights diverge: L rose by {gain:.3g} over the last {STALL_WINDOW} of {steps} iterations while "
+                f"|theta| reached {n_now:.3g} (from {n_0:.3g}); the likelihood approaches its supremum at "
+                "infinite weights")
+    return f"stalled: L rose by {gain:.3g} over the last {STALL_WINDOW} of {steps} iterations"
+
 
 
 def recession_direction(diffs: np.ndarray, rel_tol: float = 1e-9) -> np.ndarray | None:

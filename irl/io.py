@@ -28,6 +28,7 @@ from irl.demonstrations import Demonstrations
 from irl.errors import DemonstrationError
 from merge_irl.atomic import write_atomic, write_text_atomic
 from merge_irl.json_file import validate
+from merge_irl.tables import PARQUET_SUFFIXES
 
 _DIGITS = re.compile(r"(\d+)")
 
@@ -53,7 +54,11 @@ def trajectory_files(path: str | os.PathLike) -> list[Path]:
     files = sorted((p for p in path.iterdir() if p.is_file() and p.suffix == ".txt"),
                    key=lambda p: natural_key(p.name))
     if not files:
-        raise DemonstrationError(f"{path}: directory holds no trajectory files (*.txt)")
+        tables = any(p.suffix.lower() in PARQUET_SUFFIXES for p in path.rglob("*"))
+        raise DemonstrationError(
+            f"{path}: directory holds no trajectory files (*.txt)"
+            + ("; its Parquet files are not the part files of one table (they differ in columns or are unreadable)"
+               if tables else ""))
     return files
 
 

@@ -29,6 +29,7 @@ from irl.errors import ConfigError, DemonstrationError
 from irl.io import load_feature_names, load_npz
 from irl.transitions import SuccessorModel, TransitionModel, estimate_transitions, model_successors
 from merge_irl.registry import Registry, RegistryError
+from merge_irl.tables import is_parquet_dataset
 from merge_irl.units import FRAME_S
 
 
@@ -145,7 +146,9 @@ def model_free_options(problem: Problem, config, **settings) -> dict:
 
 
 def _is_text_format(path: Path) -> bool:
-    return path.is_dir() or path.suffix == ".txt"
+    """The authors' text format: a ``.txt`` file or a folder of them (a folder of Parquet part
+    files is an encounter table)."""
+    return (path.is_dir() and not is_parquet_dataset(path)) or path.suffix == ".txt"
 
 
 def load_merge_demos(path: str | os.PathLike | Sequence[str | os.PathLike], bins: MergeBins | None, *,

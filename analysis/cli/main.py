@@ -24,11 +24,14 @@ from analysis.cli.commands import COMMANDS, module_name
 from irl.errors import IRLError
 from merge_irl.provenance import version_line
 from scenarios.errors import ScenarioError
-from sim.errors import SimError
+from sim.errors import SimError, out_of_memory
 
 #: Errors that are the user's input at fault: printed as one line, exit status 2 (SimError
 #: includes analysis' own, :class:`analysis.errors.AnalysisError`).
 USER_ERRORS: tuple[type[BaseException], ...] = (IRLError, ScenarioError, SimError, FileNotFoundError)
+
+#: What to do when a command runs out of memory (one line, as the other errors).
+_MEMORY_ADVICE = "free memory or raise the limit (ulimit -v), or give smaller inputs"
 
 
 def build_parser(*, load_all: bool = False) -> argparse.ArgumentParser:
@@ -124,6 +127,9 @@ def main(argv: list[str] | None = None) -> int:
         return int(args.func(args) or 0)
     except USER_ERRORS as e:
         print(f"merge-irl {args.command}: error: {e}", file=sys.stderr)
+        return 2
+    except MemoryError as e:  # not raised as InputTooLargeError naming its input: name the command
+        print(f"merge-irl {args.command}: error: {out_of_memory(e, 'this run', _MEMORY_ADVICE)}", file=sys.stderr)
         return 2
     except OSError as e:  # permission, full disk, a path that is a file, a locked output folder
         print(f"merge-irl {args.command}: error: {os_error_line(e)}", file=sys.stderr)

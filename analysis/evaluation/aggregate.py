@@ -13,7 +13,8 @@ Definitions beyond the per-episode ones (:mod:`analysis.evaluation.metrics`):
   ``emergency_brakings_A`` / ``_B`` / ``_follower``: the same events by role (they add up to
   ``emergency_brakings``; the threshold and its tolerance: :class:`~analysis.evaluation.metrics.MetricsConfig`).
 * ``a_into_c`` / ``a_into_b``: of ``a_collisions``, those where A ran into its lead car C / into
-  the merging car B (:data:`sim.closed_loop.records.COLLISION_KINDS`), counted apart.
+  the merging car B (:data:`sim.closed_loop.records.COLLISION_KINDS`), counted apart;
+  ``a_collision_kinds``: ``a_collisions`` by every kind (they add up to ``a_collisions``).
 * ``close_to_c`` / ``close_to_c_rate`` with ``close_to_c_ci95``: the controlled As that came
   closer than 2 m bumper to bumper to their lead car C, their share of the controlled As and its
   Wilson 95 % interval (:mod:`analysis.evaluation.human_likeness`).
@@ -84,6 +85,7 @@ class AggregateMetrics:
     emergency_brakings_A: int = 0
     emergency_brakings_B: int = 0
     emergency_brakings_follower: int = 0
+    a_collision_kinds: dict[str, int] = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -124,9 +126,12 @@ def aggregate(
         raise ValueError(f"aggregate: episodes of several policies {sorted(names)}")
     counts = np.sum([e.action_counts for e in episodes], axis=0)
     reasons: dict[str, int] = {}
+    kinds: dict[str, int] = {}
     for e in episodes:
         for k, v in e.release_reasons.items():
             reasons[k] = reasons.get(k, 0) + v
+        for k, v in e.a_collision_kinds.items():
+            kinds[k] = kinds.get(k, 0) + v
     merges = sum(e.n_merges for e in episodes)
     n_controls = sum(e.n_controls for e in episodes)
     a_coll = sum(e.a_collisions for e in episodes)
@@ -157,7 +162,7 @@ def aggregate(
         js_divergence=js_divergence(counts, demo_action_counts) if demo_action_counts is not None else float("nan"),
         heldout_loglik=heldout[0] if heldout else float("nan"),
         heldout_loglik_per_step=heldout[1] if heldout else float("nan"),
-        release_reasons=reasons,
+        release_reasons=reasons, a_collision_kinds=kinds,
         a_collision_rate=rate, a_collision_ci95=(lo, hi), n_decisions=n_dec, safety_interventions=n_int,
         intervention_rate=n_int / n_dec if n_dec else float("nan"),
         need_brakes=sum(e.need_brakes for e in episodes),

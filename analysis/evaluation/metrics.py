@@ -112,6 +112,7 @@ class EpisodeMetrics:
     emergency_brakings_A: int = 0
     emergency_brakings_B: int = 0
     emergency_brakings_follower: int = 0
+    a_collision_kinds: dict[str, int] = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -248,7 +249,24 @@ def episode_metrics(
         safety_interventions=int(decisions["filtered"].astype(bool).sum()) if "filtered" in decisions else 0,
         need_brakes=int(decisions["need_brake"].astype(bool).sum()) if "need_brake" in decisions else 0,
         close_to_c=int(np.sum(min_gaps_to_c(t, wins, merge_lane) < config.close_gap_m * FT_PER_M)),
+        a_collision_kinds=a_collision_kinds(controls),
     )
+
+
+def a_collision_kinds(controls: pd.DataFrame) -> dict[str, int]:
+    """The distinct collision pairs that ended a control episode (``a_collisions``) by who hit whom
+    (:data:`~sim.closed_loop.records.COLLISION_KINDS`; a pair takes the kind of its first release,
+    "unknown" without the column), so the counts add up to ``a_collisions`` exactly."""
+    if not len(controls):
+        return {}
+    ended = controls[controls["reason"] == "collision"]
+    kinds = (ended["collision_kind"].astype(str).replace("", "unknown") if "collision_kind" in ended
+             else pd.Series("unknown", index=ended.index))
+    if "collision_pair" in ended:
+        pairs = ended["collision_pair"].astype(str)
+        first = ~pairs.duplicated() | (pairs == "")  # an unnamed pair counts each time, as in _a_collisions
+        kinds = kinds[first.to_numpy()]
+    return {str(k): int(v) for k, v in kinds.value_counts().sort_index().items()}
 
 
 def _a_collisions(controls: pd.DataFrame, kind: str | None = None) -> int:

@@ -22,6 +22,7 @@ from analysis.evaluation.recorded import W1_KEYS, RecordedComparison, RecordedDr
 from irl.domains.merge.actions import ACTION_NAMES, N_ACTIONS
 from merge_irl.atomic import write_text_atomic
 from merge_irl.provenance import provenance_markdown
+from sim.closed_loop.records import COLLISION_KINDS
 
 
 def _fmt(x, nd=2) -> str:
@@ -247,18 +248,66 @@ def emergency_line(metrics) -> str:
 
 
 def collision_bound_line(aggs: dict[str, AggregateMetrics]) -> str:
-    """How little the episodes can bound: the Wilson 95 % upper bound of the A collision rate of
-    a driver with 0 A collisions in the fewest As any policy had (and the rule of three, 3 / n,
-    Hanley & Lippman-Hand 1983); "" when no A was controlled."""
+    """How little the episodes can bound, said as the hypothetical it is: the Wilson 95 % upper
+    bound of the A collision rate a policy *would* have with 0 A collisions in the fewest As any
+    policy had (and the rule of three, 3 / n, Hanley & Lippman-Hand 1983), then which policies
+    here had 0 A collisions and which had some (those are bounded by their own interval, not by
+    this); "" when no A was controlled."""
     ns = [a.n_controls for a in aggs.values() if a.n_controls > 0]
     if not ns:
         return ""
     n = min(ns)
     episodes = max(a.n_episodes for a in aggs.values())
     _, _, high = rate_ci95(0, n)
-    return (f"What {episodes} episode(s) can show: 0 A collisions in {n} As (the fewest of any policy here) bounds "
-            f"the A collision rate only below {high:.1%} (Wilson 95 % upper bound; rule of three 3/{n} = "
-            f"{3 / n:.1%}); more episodes (--episodes) bound it tighter.")
+    line = (f"What {episodes} episode(s) can show at best (a hypothetical, no policy's result): a policy with 0 A "
+            f"collisions in {n} As (the fewest As of any policy here) would bound its A collision rate only below "
+            f"{high:.1%} (Wilson 95 % upper bound; rule of three 3/{n} = {3 / n:.1%}); more episodes (--episodes) "
+            "bound it tighter.")
+    zero = [f"{name} 0/{a.n_controls} (below {rate_ci95(0, a.n_controls)[2]:.1%})"
+            for name, a in aggs.items() if a.n_controls > 0 and a.a_collisions == 0]
+    some = [f"{name} {a.a_collisions}/{a.n_controls}" for name, a in aggs.items() if a.a_collisions > 0]
+    if zero:
+        line += f" With 0 A collisions here: {', '.join(zero)}."
+    if some:
+        line += (f" With A collisions ({', '.join(some)}) a policy is bounded by its own interval in column "
+                 "'A collisions / As [95 % CI]', not by this.")
+    return line
+
+
+def collision_count_lines(aggs: dict[str, AggregateMetrics]) -> list[str]:
+    """How the collision counts of the report relate, one line per policy with any: the A
+    collisions (distinct pairs, the count of the tables) by who hit whom, the control episodes they
+    ended (release reason ``collision``; a pair ends several when a later take-over of the same A
+    ends at once on it), and the whole run's colliding pairs; [] when no policy had a collision."""
+    out = []
+    for name, a in aggs.items():
+        releases = a.release_reasons.get("collision", 0)
+        if not (a.collisions or a.a_collisions or releases):
+            continue
+        kinds = " + ".join(f"{v} {k}" for k, v in sorted(a.a_collision_kinds.items(), key=_kind_order) if v)
+        line = f"- {name}: {a.a_collisions} A collision(s) (distinct colliding pairs with A; the tables' count)"
+        if kinds and sum(a.a_collision_kinds.values()) == a.a_collisions:
+            line += f" = {kinds}"
+        repeat = releases - a.a_collisions
+        line += f"; they ended {releases} control episode(s) (release reason collision)"
+        if repeat > 0:
+            line += (f" = {a.a_collisions} + {repeat} later take-over(s) of the same A that ended at once on a pair "
+                     "already counted (SUMO keeps colliding cars overlapping)")
+        other = a.collisions - a.a_collisions
+        line += (f"; the whole run: {a.collisions} distinct colliding pair(s) = {a.a_collisions} with a controlled A + "
+                 f"{other} without.")
+        out.append(line)
+    return out
+
+
+def _collision_counts_block(aggs: dict[str, AggregateMetrics]) -> list[str]:
+    """report.md's lines of :func:`collision_count_lines` under their heading (none without collisions)."""
+    lines = collision_count_lines(aggs)
+    return ["Collision counts, reconciled:", "", *lines, ""] if lines else []
+
+
+def _kind_order(item: tuple[str, int]) -> int:
+    return COLLISION_KINDS.index(item[0]) if item[0] in COLLISION_KINDS else len(COLLISION_KINDS)
 
 
 def flag_lines(aggs: dict[str, AggregateMetrics]) -> list[str]:
@@ -360,6 +409,7 @@ def write_outputs(out: Path, aggs, by_policy, held, *, scenario, seed, episodes,
         "",
         collision_bound_line(aggs),
         "",
+        *_collision_counts_block(aggs),
         emergency_line(metrics),
         "",
         column_legend(emergency_decel_m_s2=metrics.emergency_decel_m_s2,

@@ -33,6 +33,7 @@ from irl.unvisited_states import apply_unvisited_rule, visited_states
 from merge_irl.provenance import provenance as provenance_record
 from merge_irl.provenance import write_timings
 from merge_irl.run_folder import check_writable, locked
+from merge_irl.tables import is_parquet_dataset
 
 
 def merge_config(base: IRLConfig | None = None, *, beta: float | None = None, l2: float | None = None,
@@ -69,7 +70,8 @@ def merge_features(demos_paths, features: str | None = None) -> str:
     if features is not None:
         return features
     paths = [demos_paths] if isinstance(demos_paths, (str, os.PathLike)) else list(demos_paths)
-    return "paper" if any(Path(d).is_dir() or Path(d).suffix == ".txt" for d in paths) else "driver"
+    text = [d for d in paths if (Path(d).is_dir() and not is_parquet_dataset(d)) or Path(d).suffix == ".txt"]
+    return "paper" if text else "driver"
 
 
 def merge_encoding(features) -> str:

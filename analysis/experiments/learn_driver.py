@@ -20,6 +20,7 @@ layout of ``analysis.calibration.pairs``: C the recorded leader, no B). Two crit
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Callable, Sequence
 from dataclasses import replace
@@ -36,6 +37,7 @@ from irl.planning.driver import PlanningDriver, learn_planning_driver, shape_of
 from irl.planning.model import LIKELIHOOD_ROAD_MODEL, PlannerConfig
 from irl.planning.replay_fit import ReplayFitConfig, fit_by_replay, fit_temperature
 from merge_irl.provenance import provenance
+from merge_irl.tables import is_parquet_dataset
 from merge_irl.units import FT_PER_M
 
 #: The criteria a driver can be fitted by (module docstring); ``auto``: replay when every source
@@ -72,7 +74,7 @@ def load_driver_demos(paths: Sequence[str | os.PathLike], *,
     for p in map(Path, paths):
         if not p.exists():
             raise DemonstrationError(f"{p}: no such file or directory")
-        if p.is_dir():
+        if p.is_dir() and not is_parquet_dataset(p):
             frames, groups = pair_frames(load_pairs(p))
             parts.append(pair_decisions(frames, decision_step_s, groups=groups, where=str(p)))
         else:
@@ -91,7 +93,8 @@ def resolve_fit(fit: str, paths: Sequence[str | os.PathLike]) -> str:
         raise DemonstrationError(f"learn-driver: --fit must be one of {FITS}, got {fit!r}")
     if fit != "auto":
         return fit
-    return "replay" if paths and all(Path(p).is_dir() for p in paths) else "likelihood"
+    pair_dirs = [p for p in paths if Path(p).is_dir() and not is_parquet_dataset(p)]
+    return "replay" if paths and len(pair_dirs) == len(paths) else "likelihood"
 
 
 def learn_driver(paths: Sequence[str | os.PathLike], out: str | os.PathLike | None = None, *, seed: int = 0,
@@ -112,12 +115,44 @@ def learn_driver(paths: Sequence[str | os.PathLike], out: str | os.PathLike | No
     selection = "heldout" if select else PlannerConfig(decision_step_s=decisions.decision_step_s,
                                                         road_model=LIKELIHOOD_ROAD_MODEL)
     driver = learn_planning_driver(decisions, seed=seed, selection=selection, log=log)
+    driver.info["stopped"] = "converged" if driver.converged else f"iteration cap ({driver.info.get('n_iter')} iterations)"
+    vals = [t["val_ll"] for t in driver.info.get("selection", []) if math.isfinite(t["val_ll"])]
+    _flag_heldout(driver.info, max(vals) if vals else None, "the selection's validation followers")
     inputs = {("demos" if len(paths) == 1 else f"demos{i}"): p for i, p in enumerate(paths, start=1)}
     driver.info["provenance"] = provenance(inputs)
     driver.info["demos"] = [str(p) for p in paths]
     if out is not None:
         driver.save(out)
     return driver
+
+
+def _flag_heldout(info: dict, ll_per_decision: float | None, what: str) -> None:
+    """``info["flags"]`` and ``info["flagged_heldout"]``: ``evaluate``'s check of a held-out
+    likelihood per decision (:func:`analysis.evaluation.outcome.heldout_flags`: below uniform
+    actions' is flagged); ``what`` names the held-out data."""
+    from analysis.evaluation.outcome import heldout_flags
+
+    flags = heldout_flags(None if ll_per_decision is None else (math.nan, ll_per_decision))
+    info["flags"] = list(flags)
+    if flags:
+        info["flagged_heldout"] = {"data": what, "ll_per_decision": ll_per_decision}
+
+
+def flag_lines(driver: PlanningDriver) -> list[str]:
+    """One warning line per reason not to trust ``driver`` (empty: none): a fit that did not
+    converge (``info["stopped"]`` says why it stopped) and a held-out likelihood below uniform
+    actions' (``info["flags"]``, as ``evaluate`` flags a policy)."""
+    from analysis.evaluation.outcome import UNIFORM_LL_PER_STEP
+
+    out = []
+    if not driver.converged:
+        out.append(f"WARNING: the fit did not converge (stopped: {driver.info.get('stopped', 'unknown')})")
+    h = driver.info.get("flagged_heldout")
+    if driver.info.get("flags") and h:
+        out.append(f"WARNING: flagged ({', '.join(driver.info['flags'])}): the held-out log-likelihood per decision "
+                   f"on {h['data']}, {h['ll_per_decision']:.3f}, is below uniform actions' ({UNIFORM_LL_PER_STEP:.3f}): "
+                   "the driver predicts them worse than chance; do not rank or deploy it without checking")
+    return out
 
 
 def heldout_report(driver: PlanningDriver, pairs, *, decision_step_s: float) -> dict[str, float]:
@@ -174,14 +209,15 @@ def learn_driver_by_replay(pair_dirs: Sequence[str | os.PathLike], out: str | os
     log(f"{len(train)} training pairs of {len({p.group for p in train})} followers ({dec.n} decisions)"
         + (f", {len(test)} held-out pairs of {len({p.group for p in test})} followers" if test else ""))
     fit = fit_by_replay(replay_pairs(train), shape_of(dec), dec.action_acc_ft_s2(), cfg, log=log)
+    stopped = "converged" if fit.converged else f"budget ({fit.n_evals} replays of max_evals {cfg.max_evals})"
     log(f"replay fit: {fit.objective:.3f} m (from {fit.start_objective:.3f} m) after {fit.n_evals} replays, "
-        f"{fit.seconds:.0f} s{'' if fit.converged else ' (stopped at its budget)'}")
+        f"{fit.seconds:.0f} s{'' if fit.converged else ' (stopped at its budget: not converged)'}")
     driver, ll = fit_temperature(fit.driver, dec)
     log(f"temperature {driver.config.temperature:.3g}: training LL {ll:.4f} per decision")
     info: dict = {**driver.info, "n_decisions": dec.n, "seed": seed, "holdout": holdout,
                   "train_pairs": len(train), "replay_params": fit.params,
                   "train_median_rmse_m": float(np.median(fit.result.rmse_m)),
-                  "train_collisions": int(fit.result.collided.sum())}
+                  "train_collisions": int(fit.result.collided.sum()), "stopped": stopped}
     if test:
         info["heldout"] = heldout_report(driver, test, decision_step_s=decision_step_s)
         h = info["heldout"]
@@ -190,10 +226,11 @@ def learn_driver_by_replay(pair_dirs: Sequence[str | os.PathLike], out: str | os
             f"({h['idm_defaults_mean_rmse_m']:.2f}), collisions {h['collisions']}, closer than {CLOSE_GAP_M:g} m "
             f"{100 * h['close_share']:.0f} % (recorded {100 * h['recorded_close_share']:.0f} %), LL "
             f"{h['ll_per_decision']:.3f} per decision")
+    _flag_heldout(info, info["heldout"]["ll_per_decision"] if test else None, "the held-out pairs")
     info["provenance"] = provenance({("demos" if len(pair_dirs) == 1 else f"demos{i}"): p
                                      for i, p in enumerate(pair_dirs, start=1)})
     info["demos"] = [str(p) for p in pair_dirs]
-    driver = replace(driver, loglik=ll * dec.n, info=info)
+    driver = replace(driver, loglik=ll * dec.n, converged=fit.converged, info=info)
     if out is not None:
         driver.save(out)
     return driver

@@ -155,7 +155,14 @@ def _fit_exact(demos: Demonstrations, config: IRLConfig, theta: np.ndarray, prog
             f"{asc.message}, but the gradient there is {g_scaled:.3g} per unit of feature spread "
             f"(|g|_inf = {g_orig:.3g} on the original scale) > {tol:.3g}: not an optimum"))
     message = asc.message
-    if unbounded and direction is not None:
+    diverged = bool(asc.extra.get("diverged")) and not unbounded
+    extra["diverged"] = float(diverged)
+    if diverged:
+        # stopped early (irl.ascent.stalled): the run-away weights are the finding, not a cap
+        message = (f"weights unbounded in practice: {asc.message}. The LP finds no exact separating direction "
+                   "(the data are separable up to rounding, or a feature barely varies between actions); "
+                   "the weights are not an optimum. Set l2 > 0 for finite weights.")
+    elif unbounded and direction is not None:
         d = direction / np.linalg.norm(direction)
         message = (f"weights unbounded: the demonstrations are separable along direction "
                    f"{np.array2string(d, precision=3)} (L never decreases along it), so L has no "
@@ -163,7 +170,7 @@ def _fit_exact(demos: Demonstrations, config: IRLConfig, theta: np.ndarray, prog
                    f"Set l2 > 0 for finite weights. ({asc.message})")
     elif separable:
         message = f"{asc.message}; finite only thanks to l2 = {config.l2} (data are separable)"
-    return asc, unbounded, message, extra
+    return asc, unbounded or diverged, message, extra
 
 
 class FaithfulQAvg(PlannedSweeps):

@@ -34,8 +34,9 @@ import numpy as np
 import pandas as pd
 import pyarrow as pa
 
-from sim.errors import TrajectoryFormatError
-from sim.ngsim.assemble import assemble
+from merge_irl.tables import PARQUET_SUFFIXES, read_table
+from sim.errors import TrajectoryFormatError, out_of_memory
+from sim.ngsim.assemble import assemble, permute_rows, release_freed_memory, table_in_place
 from sim.ngsim.format import NGSIM_COLUMNS
 from sim.ngsim.parse import iter_chunks, locate_bad_line, location_column, sniff
 from sim.ngsim.recordings import RecordingTally, choose_location, choose_recording, normalise_location
@@ -147,6 +148,7 @@ def read_ngsim(
         TrajectoryFormatError: naming file, line and column (see the module docstring);
             several sites or recordings and no choice (naming the column and what was found).
         FileNotFoundError: ``path`` does not exist.
+        InputTooLargeError: memory ran out (one line: the file, the allocation refused, what to do).
     """
     path = Path(path)
     if not path.is_file():
@@ -160,6 +162,23 @@ def read_ngsim(
             "applied; expected the newer public layout's Location column"
         )
     args = (path, layout, location, recording, lanes, frames, vehicles, chunksize, progress)
+    try:
+        return _load(args, smooth)
+    except MemoryError as e:
+        raise out_of_memory(e, str(path), memory_advice(path)) from None
+
+
+def memory_advice(path: Path) -> str:
+    """What to do when reading ``path`` ran out of memory: the reader needs about twice the file's
+    size (the kept rows as a table, once while they are assembled)."""
+    mb = path.stat().st_size / 1e6
+    return (f"reading this {mb:.0f} MB file needs about {2 * mb:.0f} MB free; free memory or raise the limit "
+            "(ulimit -v), or keep fewer rows (--location, --recording)")
+
+
+def _load(args: tuple, smooth: bool | SmoothingConfig) -> NgsimLoad:
+    """:func:`read_ngsim` after its argument checks (``args``: what :func:`_read_pass` takes)."""
+    path, layout, location, recording = args[:4]
     if recording is None:
         try:
             table, validator, rows_read, chunks, rec = _read_pass(*args, ordered=True)
@@ -263,25 +282,56 @@ def _read_pass(path, layout, location, recording, lanes, frames, vehicles, chunk
         choose_location(str(path), loc_col, loc_counts, location)
     rec = choose_recording(str(path), tally.recordings(), recording)
     if not ordered:
-        data = np.concatenate(parts, axis=1) if parts else np.empty((len(NGSIM_COLUMNS), 0))
+        data = _concatenate(parts)
         lines = np.concatenate(line_parts) if line_parts else np.empty(0, np.int64)
-        parts.clear()
         if rec is not None:
             off = np.concatenate(off_parts)
             sel = (off >= rec.offset_lo_ms) & (off <= rec.offset_hi_ms)
             data, lines = data[:, sel], lines[sel]
         order = np.lexsort((lines, data[_COL["Frame_ID"]], data[_COL["Vehicle_ID"]]))
-        data, lines = data[:, order], lines[order]
-        validator = ChunkValidator(str(path))
-        keep = validator.check(data, lines)
-        parts.append(data[:, filters(data, keep)])
-        del data
+        permute_rows(data, order)  # in place: one row's memory more, not a second copy
+        lines = lines[order]
+        del order
+        validator = ChunkValidator(str(path))  # again, in order now: chunk by chunk, bounding its temporaries
+        keep = filters(data, np.concatenate(
+            [validator.check(data[:, a:a + chunksize], lines[a:a + chunksize])
+             for a in range(0, data.shape[1], chunksize)] or [np.empty(0, dtype=bool)]))
+        data = _kept(data, keep)
     validator.check_units()
-    table = _sorted(assemble(parts))
+    table = _sorted(assemble(parts) if ordered else table_in_place(data))
     vehicle, frame, lane, x, y, speed = (table[c].to_numpy() for c in (
         "Vehicle_ID", "Frame_ID", "Lane_ID", "Local_X", "Local_Y", "v_Vel"))
     check_kinematic_units(vehicle, frame, lane, x, y, speed, str(path))
     return table, validator, rows_read, chunks, rec
+
+
+def _kept(data: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """The columns ``keep`` (bool[N]) of ``data`` (float64[18, N]): ``data`` itself when all are
+    kept; moved left in place when most are (no second copy at the peak; the table then holds
+    ``data``'s memory); else a copy (at most half its size more, and the rest freed)."""
+    k = int(np.count_nonzero(keep))
+    if k == data.shape[1]:
+        return data
+    if 2 * k < data.shape[1]:
+        return data[:, keep]
+    for r in range(data.shape[0]):
+        data[r, :k] = data[r][keep]
+    return data[:, :k]
+
+
+def _concatenate(parts: list[np.ndarray]) -> np.ndarray:
+    """The chunks (float64[18, k] each; the list is emptied) side by side, each freed once copied."""
+    n = sum(p.shape[1] for p in parts)
+    data = np.empty((len(NGSIM_COLUMNS), n), dtype=np.float64)
+    at = 0
+    parts.reverse()
+    while parts:
+        p = parts.pop()
+        data[:, at:at + p.shape[1]] = p
+        at += p.shape[1]
+        del p
+        release_freed_memory()  # each chunk's pages back to the system before the next is copied
+    return data
 
 
 def _sorted(table: pd.DataFrame) -> pd.DataFrame:
@@ -294,28 +344,32 @@ def _sorted(table: pd.DataFrame) -> pd.DataFrame:
 
 
 def read_trajectories(path: str | os.PathLike, **kwargs) -> pd.DataFrame:
-    """A trajectory table from Parquet (simulated runs) or an NGSIM ``.csv`` / ``.txt`` file.
+    """A trajectory table from Parquet (simulated runs: a file, or a Parquet dataset folder of part
+    files, :func:`merge_irl.tables.read_table`) or an NGSIM ``.csv`` / ``.txt`` file.
 
     ``kwargs`` go to :func:`read_ngsim` for NGSIM files (ignored for Parquet).
 
     Raises:
         FileNotFoundError: a Parquet path that does not exist.
-        TrajectoryFormatError: an unknown suffix, or a file that is not a valid trajectory table
-            (the message names the file, and for NGSIM files the line and column).
+        TrajectoryFormatError: an unknown suffix, a folder holding no Parquet part files, or a file
+            that is not a valid trajectory table (the message names the file, and for NGSIM files
+            the line and column).
     """
     from sim.runtime.schema import conform
 
     path = Path(path)
     suffix = path.suffix.lower()
-    if suffix in (".parquet", ".pq"):
-        if not path.is_file():
+    if suffix in PARQUET_SUFFIXES or path.is_dir():
+        if not path.exists():
             raise FileNotFoundError(f"trajectory file not found: {path}")
         try:
-            return conform(pd.read_parquet(path))
+            return conform(read_table(path, error=TrajectoryFormatError))
+        except TrajectoryFormatError:
+            raise
         except (KeyError, ValueError, TypeError) as e:
-            raise TrajectoryFormatError(f"{path}: {e}") from e
+            raise TrajectoryFormatError(f"{path}: {' '.join(str(e).split())}") from e
     if suffix in (".csv", ".txt"):
         return read_ngsim(path, **kwargs).table
     raise TrajectoryFormatError(
-        f"{path}: unknown trajectory file type {suffix!r}; expected .parquet, .csv or .txt"
+        f"{path}: unknown trajectory file type {suffix!r}; expected .parquet, .csv or .txt, or a Parquet dataset folder"
     )

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from merge_irl.atomic import write_text_atomic
-from sim.errors import TrajectoryFormatError
+from sim.errors import TrajectoryFormatError, out_of_memory
 from sim.merges.encounters import EncounterWindow, extract
 from sim.ngsim.io import read_ngsim, read_trajectories
 from sim.ngsim.smooth import SmoothingConfig
@@ -86,7 +86,12 @@ def run(args: argparse.Namespace) -> int:
         site = SITES[report.location]
     else:
         site = I80
-    enc = extract(table, window=EncounterWindow(args.max_frames_before, args.frames_after), site=site)
+    try:
+        enc = extract(table, window=EncounterWindow(args.max_frames_before, args.frames_after), site=site)
+    except MemoryError as e:
+        raise out_of_memory(e, f"{src}: finding merges in {len(table)} rows",
+                            "free memory or raise the limit (ulimit -v), or keep fewer rows "
+                            "(--location, --recording)") from None
     out.parent.mkdir(parents=True, exist_ok=True)
     merges = out.with_name(out.stem + ".merges.parquet")
     written = [write_parquet(enc.frames, out), write_parquet(enc.merges, merges)]

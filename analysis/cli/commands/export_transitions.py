@@ -7,12 +7,10 @@ import argparse
 import sys
 from pathlib import Path
 
-import pandas as pd
-import pyarrow.parquet as pq
-
 from analysis.cli.commands._arg_types import DeprecatedAlias
 from analysis.cli.options import demos_option
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S, read_encounters
+from merge_irl.tables import is_parquet_dataset, read_table, table_columns
 from merge_irl.units import FRAME_S
 from sim.merges.transitions import (
     TransitionsError,
@@ -108,6 +106,28 @@ def _write(t, args: argparse.Namespace) -> str:
     return str(ds.storage.data_path.parent)
 
 
+def _source_kind(path: Path) -> str:
+    """What ``path`` holds (:func:`_kind`; a ``.txt`` file is an NGSIM file), "" if none of them.
+
+    Raises:
+        TransitionsError: a missing or unreadable path, a folder without Parquet part files, or
+            an unknown suffix.
+    """
+    if path.is_dir() and not is_parquet_dataset(path):
+        hint = f" (e.g. {path / 'encounters.parquet'})" if (path / "encounters.parquet").is_file() else ""
+        raise TransitionsError(f"{path}: a folder, not a file or a Parquet dataset folder; give its tables{hint}")
+    if not path.exists():
+        raise TransitionsError(f"{path}: no such file")
+    if not path.is_dir() and path.suffix.lower() not in (".parquet", ".pq", ".csv", ".txt"):
+        raise TransitionsError(f"{path}: expected a .parquet, .csv or .txt file, or a Parquet dataset folder")
+    if path.suffix.lower() == ".txt" and not path.is_dir():
+        return "trajectories"
+    try:
+        return _kind(table_columns(path, error=TransitionsError))
+    except Exception as e:  # pyarrow and pandas raise many types for unreadable files
+        raise TransitionsError(f"{path}: cannot read ({type(e).__name__}: {' '.join(str(e).split())})") from None
+
+
 def run(args: argparse.Namespace) -> int:
     step = args.decision_step_s if args.decision_step_s is not None else DEFAULT_DECISION_STEP_S
     _check_output(args)
@@ -116,35 +136,20 @@ def run(args: argparse.Namespace) -> int:
         raise TransitionsError("--location, --recording and --smooth apply to NGSIM .csv/.txt files only")
     parts = []
     for path in map(Path, args.demos):
-        if path.is_dir():
-            hint = f" (e.g. {path / 'encounters.parquet'})" if (path / "encounters.parquet").is_file() else ""
-            raise TransitionsError(f"{path}: a folder, not a file; give its tables{hint}")
-        if not path.is_file():
-            raise TransitionsError(f"{path}: no such file")
-        if path.suffix.lower() not in (".parquet", ".pq", ".csv", ".txt"):
-            raise TransitionsError(f"{path}: expected a .parquet, .csv or .txt file")
-        if path.suffix.lower() == ".txt":
-            kind = "trajectories"
-        else:
-            try:
-                head = (pq.read_schema(path).names if path.suffix.lower() in (".parquet", ".pq")
-                        else list(pd.read_csv(path, nrows=0).columns))
-            except Exception as e:  # pyarrow and pandas raise many types for unreadable files
-                raise TransitionsError(f"{path}: cannot read ({type(e).__name__}: {' '.join(str(e).split())})") from None
-            kind = _kind(head)
+        kind = _source_kind(path)
         if not kind:
             raise TransitionsError(f"{path}: neither an encounter table (encounter_id), a decision log (a_id, speed_A, "
                                    "action) nor an NGSIM trajectory file (Vehicle_ID, Frame_ID, Local_Y, Lane_ID)")
         if kind == "encounters":
             part = from_encounters(read_encounters(path), decision_step_s=step, where=str(path))
         elif kind == "decisions":
-            log = pd.read_parquet(path) if path.suffix.lower() in (".parquet", ".pq") else pd.read_csv(path)
+            log = read_table(path, error=TransitionsError)
             part = from_decisions(log, where=str(path))
             if abs(part.decision_step_s - step) > FRAME_S / 2:
                 raise TransitionsError(f"{path}: decided every {part.decision_step_s} s, not every {step} s "
                                        "(give --decision-step-s)")
             part = from_decisions(log, decision_step_s=step, where=str(path))
-        elif path.suffix.lower() in (".csv", ".txt"):
+        elif path.suffix.lower() in (".csv", ".txt") and not path.is_dir():
             load = read_ngsim(path, location=args.location, recording=args.recording,
                               smooth=SmoothingConfig() if args.smooth else False)
             part = from_trajectories(load.table, decision_step_s=step, where=str(path))

@@ -7,7 +7,7 @@ import sys
 
 from analysis.cli.commands._arg_types import DeprecatedFlag
 from analysis.cli.options import PROGRESS, demos_option, seed_option
-from analysis.experiments.learn_driver import learn_driver, learn_driver_by_replay, resolve_fit
+from analysis.experiments.learn_driver import flag_lines, learn_driver, learn_driver_by_replay, resolve_fit
 from irl.domains.merge.mdp import DEFAULT_DECISION_STEP_S
 from irl.errors import DemonstrationError
 from irl.planning.replay_fit import ReplayFitConfig
@@ -81,4 +81,6 @@ def run(args: argparse.Namespace) -> int:
               f"({h['idm_defaults_mean_rmse_m']:.2f} m), collisions {h['collisions']}, LL {h['ll_per_decision']:.3f}")
     print(f"  weights: {weights}")
     print(f"  wrote {args.out}")
+    for line in flag_lines(driver):
+        print(line, file=sys.stderr)
     return 0

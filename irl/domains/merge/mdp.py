@@ -29,6 +29,7 @@ from irl.domains.merge.states import N_STATES, VARIABLES, n_states, split_driver
 from irl.errors import ConfigError, DemonstrationError
 from irl.io import load_text_trajectories
 from irl.transitions import SuccessorModel, estimate_transitions
+from merge_irl.tables import is_parquet_dataset, read_table
 from merge_irl.units import FRAME_S
 
 #: Default decision step (s) at which merge demonstrations are resampled: the controller's.
@@ -357,21 +358,21 @@ def load(path) -> Demonstrations:
 
 
 def read_encounters(path: str | os.PathLike):
-    """An encounter table from Parquet (``.parquet``/``.pq``) or CSV (anything else).
+    """An encounter table from Parquet (a ``.parquet``/``.pq`` file or a Parquet dataset folder of
+    part files, :func:`merge_irl.tables.read_table`) or CSV (anything else).
 
     Raises:
-        DemonstrationError: the file is missing or unreadable.
+        DemonstrationError: the file is missing or unreadable, or a folder holds no Parquet part files.
     """
     path = Path(path)
-    if path.is_dir():
-        raise DemonstrationError(f"{path}: a folder, not an encounter table (.parquet/.csv); real car-following "
-                                 "pairs (a folder of pair CSVs) go to --pairs")
-    if not path.is_file():
+    if path.is_dir() and not is_parquet_dataset(path):
+        raise DemonstrationError(f"{path}: a folder, not an encounter table (.parquet/.csv or a Parquet dataset "
+                                 "folder of part files); real car-following pairs (a folder "
+                                 "of pair CSVs) go to --pairs")
+    if not path.exists():
         raise DemonstrationError(f"{path}: no such encounter file")
     try:
-        if path.suffix.lower() in (".parquet", ".pq"):
-            return pd.read_parquet(path)
-        return pd.read_csv(path)
+        return read_table(path, error=DemonstrationError)
     except Exception as e:  # pandas/pyarrow raise many types for unreadable files
         reason = " ".join(str(e).split())  # pandas' messages may end in a newline: one line
         raise DemonstrationError(f"{path}: cannot read encounter table ({type(e).__name__}: {reason})") from None

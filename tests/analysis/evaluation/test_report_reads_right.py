@@ -11,7 +11,7 @@ import pytest
 
 from analysis.evaluation.aggregate import aggregate, rate_ci95
 from analysis.evaluation.metrics import EpisodeMetrics, MetricsConfig, episode_metrics
-from analysis.evaluation.report import COLUMNS, collision_bound_line, column_legend, report_table
+from analysis.evaluation.report import COLUMNS, collision_bound_line, collision_count_lines, column_legend, report_table
 
 
 def _controls(rows):
@@ -70,3 +70,42 @@ def test_what_a_few_episodes_can_bound_is_computed_from_the_count():
     assert re.search(r"below 10\.\d%", line)  # Wilson's bound for 0/33 is 10.4 %
     assert collision_bound_line({"a": agg(0)}) == ""
     assert rate_ci95(0, 300)[2] == pytest.approx(0.0126, abs=5e-4)  # more As bound it tighter
+
+
+def test_the_collision_counts_are_one_count_with_the_others_reconciled():
+    controls = _controls([
+        (1, 5, "m.7", 10, 11, "collision", -1, None, True, 40.0, 2, 0, 0, "A into C", "m.7>r.3"),
+        (1, 6, "m.7", 11, 11, "collision", -1, None, True, 35.0, 0, 0, 0, "A into C", "m.7>r.3"),
+        (2, 8, "m.9", 10, 11, "collision", -1, None, True, 30.0, 1, 0, 0, "A into B", "m.9>b.4"),
+        (2, 9, "m.9", 11, 11, "collision", -1, None, True, 30.0, 1, 0, 0, "other into A", "r.5>m.9"),
+    ])
+    m = episode_metrics(_table(), controls, pd.DataFrame({"action": [2, 2, 1, 3]}), policy="p", seed=1,
+                        section_length_ft=2000.0, collisions=5, config=MetricsConfig())
+    assert m.a_collision_kinds == {"A into B": 1, "A into C": 1, "other into A": 1}
+    assert sum(m.a_collision_kinds.values()) == m.a_collisions == 3
+    agg = aggregate([m, m])  # two seeds: the counts add
+    assert agg.a_collision_kinds == {"A into B": 2, "A into C": 2, "other into A": 2}
+    (line,) = collision_count_lines({"p": agg, "calm": aggregate([EpisodeMetrics(
+        "calm", 1, 12, 4, 0, 0, 0, 0, 0, 5.0, 1.0, 20.0, 60.0, (1, 0, 0, 0, 0), 0.1)])})
+    assert line == ("- p: 6 A collision(s) (distinct colliding pairs with A; the tables' count) = 2 A into C + 2 A into "
+                    "B + 2 other into A; they ended 8 control episode(s) (release reason collision) = 6 + 2 later "
+                    "take-over(s) of the same A that ended at once on a pair already counted (SUMO keeps colliding "
+                    "cars overlapping); the whole run: 10 distinct colliding pair(s) = 6 with a controlled A + 4 "
+                    "without.")
+    assert agg.release_reasons["collision"] == 8 and agg.collisions == 10
+
+
+def test_the_zero_collision_bound_is_a_hypothetical_never_beside_collisions_unqualified():
+    def agg(name, n_controls, a_coll):
+        return aggregate([EpisodeMetrics(name, 1, n_controls, 0, a_coll, a_coll, 0, 0, 0, 5.0, np.nan, np.nan,
+                                         np.nan, (0,) * 5, np.nan)])
+
+    line = collision_bound_line({"qavg": agg("qavg", 136, 11), "sumo": agg("sumo", 140, 0)})
+    assert line.startswith("What 1 episode(s) can show at best (a hypothetical, no policy's result): a policy with 0 "
+                           "A collisions in 136 As")
+    assert f"would bound its A collision rate only below {rate_ci95(0, 136)[2]:.1%}" in line
+    assert f"With 0 A collisions here: sumo 0/140 (below {rate_ci95(0, 140)[2]:.1%})." in line
+    assert ("With A collisions (qavg 11/136) a policy is bounded by its own interval in column 'A collisions / As "
+            "[95 % CI]', not by this.") in line
+    only_some = collision_bound_line({"qavg": agg("qavg", 136, 11)})
+    assert "With 0 A collisions here" not in only_some and "qavg 11/136" in only_some

@@ -12,6 +12,8 @@ import pandas as pd
 import pytest
 
 from analysis.cli.main import main
+from analysis.evaluation.outcome import UNIFORM_LL_PER_STEP
+from analysis.experiments.learn_driver import flag_lines
 from irl.planning.decisions import encounter_decisions
 from irl.planning.driver import PLANNER_FORMAT, PlanningDriver
 
@@ -54,7 +56,8 @@ def test_learn_driver_on_pairs_then_calibrate_evaluate_scores_it(tmp_path, capsy
     assert main(["learn-driver", "--demos", str(pairs), "--out", str(drv), "--no-selection", "--no-progress"]) == 0
     out, err = capsys.readouterr()
     assert "wrote" in out and "per decision" in out
-    assert err == ""  # --no-progress: no progress lines
+    # --no-progress: no progress lines; the default budget of 100 replays ends this fit, which is said
+    assert err.splitlines() == ["WARNING: the fit did not converge (stopped: budget (100 replays of max_evals 100))"]
     driver = PlanningDriver.load(drv)
     assert json.loads(drv.read_text())["format"] == PLANNER_FORMAT
     assert driver.info["n_decisions"] > 100 and np.isfinite(driver.loglik)
@@ -120,6 +123,15 @@ def test_learn_driver_fits_real_pairs_by_replay_with_a_held_out_split(tmp_path, 
     h = drv.info["heldout"]
     assert h["pairs"] > 0 and np.isfinite(h["median_rmse_m"]) and np.isfinite(h["idm_defaults_median_rmse_m"])
     assert 0 <= h["close_share"] <= 1 and h["ll_per_decision"] < 0
+    # 4 replays is the optimiser's budget, not its tolerance: said, and written as not converged
+    assert not drv.converged and drv.info["stopped"] == "budget (4 replays of max_evals 4)"
+    assert json.loads(out.read_text())["converged"] is False
+    assert "(stopped at its budget: not converged)" in captured.err and "NOT converged" in captured.out
+    assert "WARNING: the fit did not converge (stopped: budget" in captured.err
+    # the held-out likelihood is checked as evaluate checks a policy's
+    below = h["ll_per_decision"] < UNIFORM_LL_PER_STEP
+    assert drv.info["flags"] == (["heldout_worse_than_uniform"] if below else [])
+    assert ("heldout_worse_than_uniform" in captured.err) == below
     w = dict(zip(drv.feature_names, drv.theta))
     assert w["gap_track_C"] < 0 and w["gap_track_B"] == w["gap_track_C"]  # the merging car: the lead car's rule
     # the held-out followers are the ones calibrate fit --holdout 0.3 --seed 0 holds out
@@ -137,3 +149,18 @@ def test_learn_driver_refuses_replay_of_an_encounter_table_and_holdout_without_r
     assert main(["learn-driver", "--demos", str(table), "--holdout", "0.3", "--out", str(tmp_path / "d.json")]) == 2
     assert "goes with --fit replay" in capsys.readouterr().err
     assert not (tmp_path / "d.json").exists()
+
+
+def test_a_held_out_likelihood_below_uniform_is_flagged_as_evaluate_flags_it():
+    from analysis.experiments.learn_driver import _flag_heldout
+
+    info: dict = {}
+    _flag_heldout(info, -2.0, "the held-out pairs")  # below log 1/5 = -1.609
+    assert info["flags"] == ["heldout_worse_than_uniform"]
+    lines = flag_lines(type("D", (), {"converged": True, "info": info})())
+    assert len(lines) == 1 and "-2.000, is below uniform actions' (-1.609)" in lines[0]
+    ok: dict = {}
+    _flag_heldout(ok, -1.0, "the held-out pairs")
+    assert ok["flags"] == [] and flag_lines(type("D", (), {"converged": True, "info": ok})()) == []
+    _flag_heldout(ok, None, "nothing held out")
+    assert ok["flags"] == []

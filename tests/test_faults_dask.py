@@ -146,6 +146,13 @@ def _assert_cleaned(out: Path) -> None:
         assert left == []
 
 
+def _assert_nothing_created(out: Path) -> None:
+    """A sweep that never reached a scheduler created nothing: no ``--out`` (no ``.sweep-store/``,
+    ``sweep.csv`` nor ``sweep.timings.json``) and no lock beside it."""
+    assert not out.exists(), sorted(p.name for p in out.iterdir())
+    assert not (out.parent / f".{out.name}.lock").exists()
+
+
 def _one_line_exit_2(proc: subprocess.CompletedProcess | subprocess.Popen, err: str) -> str:
     lines = err.strip().splitlines()
     assert proc.returncode == 2 and len(lines) == 1, err
@@ -166,7 +173,7 @@ def test_a_port_that_is_not_a_dask_scheduler_fails_in_one_line(tmp_path, listene
     assert f"tcp://{address}" in line
     assert ("no answer within 2 s" in line) if listener.mode == "silent" else ("Dask's protocol" in line)
     assert time.time() - t0 < 60
-    _assert_cleaned(out)
+    _assert_nothing_created(out)
 
 
 @pytest.mark.parametrize("listener", ["silent"], indirect=True)
@@ -178,7 +185,7 @@ def test_with_progress_lines_an_unusable_scheduler_is_still_one_line(tmp_path, l
             if a != "--no-progress"]
     proc = subprocess.run(argv, env=_env(tmp_path), capture_output=True, text=True, timeout=120)
     assert "no answer within 2 s" in _one_line_exit_2(proc, proc.stderr)
-    _assert_cleaned(out)
+    _assert_nothing_created(out)
 
 
 @pytest.mark.parametrize("listener", ["silent"], indirect=True)
@@ -204,7 +211,19 @@ def test_nothing_listening_fails_in_one_line(tmp_path):
     proc = subprocess.run(_generate(out, f"dask://127.0.0.1:{port}", "--dask-connect-timeout", "2"),
                           env=_env(tmp_path), capture_output=True, text=True, timeout=120)
     assert f"tcp://127.0.0.1:{port}" in _one_line_exit_2(proc, proc.stderr)
-    _assert_cleaned(out)
+    _assert_nothing_created(out)
+
+
+def test_a_failed_connect_keeps_what_was_in_out_and_adds_nothing(tmp_path):
+    """An --out that holds a file already: it is kept, and nothing of the sweep is added."""
+    out = tmp_path / "sweep"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    proc = subprocess.run(_generate(out, f"dask://127.0.0.1:{_free_port()}", "--dask-connect-timeout", "2"),
+                          env=_env(tmp_path), capture_output=True, text=True, timeout=120)
+    _one_line_exit_2(proc, proc.stderr)
+    assert sorted(p.name for p in out.iterdir()) == ["notes.txt"]
+    assert (out / "notes.txt").read_text() == "mine"
 
 
 @pytest.mark.parametrize("listener", ["silent"], indirect=True)
@@ -411,3 +430,62 @@ def test_a_killed_scheduler_is_named_and_what_finished_is_kept(tmp_path):
     # what finished is kept: the same sweep on a serial executor reruns only the slow task
     again = run_sweep(tasks[:1], seed=1, executor="serial", store=store, progress=False)
     assert again.n_cached == 1 and again.n_run == 0
+
+
+# -- TLS and protocol mismatches, each named for what it is --------------------------------------------
+
+def _tls_line(tmp_path: Path, out: Path, executor: str, *tls: str, env: dict | None = None) -> str:
+    proc = subprocess.run(_generate(out, executor, "--dask-connect-timeout", "10", *tls),
+                          env=env or _env(tmp_path), capture_output=True, text=True, timeout=120)
+    line = _one_line_exit_2(proc, proc.stderr)
+    _assert_nothing_created(out)
+    return line
+
+
+def test_protocol_mismatches_are_named(tmp_path):
+    """A TLS client against a plain TCP scheduler, and a plain client against a TLS scheduler."""
+    cert, key = _self_signed(tmp_path)
+    tls = ["--dask-tls-ca-file", str(cert), "--dask-tls-cert", str(cert), "--dask-tls-key", str(key)]
+    with _dask(tmp_path, workers=0) as (address, _):
+        hostport = address[len("tcp://"):]
+        line = _tls_line(tmp_path, tmp_path / "a", f"tls://{hostport}", *tls)
+        assert f"Dask scheduler at tls://{hostport} does not speak TLS" in line
+        assert f"dask://{hostport}" in line and "certificate" not in line
+    sec = ["--tls-ca-file", str(cert), "--tls-cert", str(cert), "--tls-key", str(key)]
+    with _dask(tmp_path, workers=0, tls=sec) as (address, _):
+        hostport = address[len("tls://"):]
+        line = _tls_line(tmp_path, tmp_path / "b", f"dask://{hostport}")
+        assert f"Dask scheduler at tcp://{hostport} speaks TLS" in line and f"tls://{hostport}" in line
+
+
+def test_tls_files_are_checked_before_connecting(tmp_path):
+    """Nothing listens at the address: each file problem is named before any connection."""
+    cert, key = _self_signed(tmp_path)
+    (tmp_path / "other").mkdir()
+    other, other_key = _self_signed(tmp_path / "other")
+    address = f"tls://127.0.0.1:{_free_port()}"
+    # a key/certificate mismatch
+    line = _tls_line(tmp_path, tmp_path / "a", address, "--dask-tls-ca-file", str(cert), "--dask-tls-cert",
+                     str(cert), "--dask-tls-key", str(other_key))
+    assert (f"the key {other_key} (--dask-tls-key / distributed.comm.tls.client.key) does not match the certificate "
+            f"{cert} (--dask-tls-cert / distributed.comm.tls.client.cert)") in line
+    # a CA file that is not a certificate, a key file that is not a key
+    notes = tmp_path / "notes.txt"
+    notes.write_text("not a certificate\n")
+    line = _tls_line(tmp_path, tmp_path / "b", address, "--dask-tls-ca-file", str(notes), "--dask-tls-cert",
+                     str(cert), "--dask-tls-key", str(key))
+    assert f"{notes} (--dask-tls-ca-file / distributed.comm.tls.ca-file): not a PEM certificate" in line
+    line = _tls_line(tmp_path, tmp_path / "c", address, "--dask-tls-ca-file", str(cert), "--dask-tls-cert",
+                     str(cert), "--dask-tls-key", str(notes))
+    assert f"the key {notes} (--dask-tls-key / distributed.comm.tls.client.key) is not a PEM private key" in line
+    # missing files: given on the command line, and from Dask's configuration
+    proc = subprocess.run(_generate(tmp_path / "d", address, "--dask-tls-ca-file", str(cert), "--dask-tls-cert",
+                                    str(cert), "--dask-tls-key", str(tmp_path / "gone.key")),
+                          env=_env(tmp_path), capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and proc.stderr.strip().splitlines() == [
+        f"merge-irl generate: error: --dask-tls-key {tmp_path / 'gone.key'}: no such file"], proc.stderr
+    env = dict(_env(tmp_path), DASK_DISTRIBUTED__COMM__TLS__CA_FILE=str(cert),
+               DASK_DISTRIBUTED__COMM__TLS__CLIENT__CERT=str(cert),
+               DASK_DISTRIBUTED__COMM__TLS__CLIENT__KEY=str(tmp_path / "gone.key"))
+    line = _tls_line(tmp_path, tmp_path / "e", address, env=env)
+    assert f"{tmp_path / 'gone.key'} (--dask-tls-key / distributed.comm.tls.client.key): no such file" in line

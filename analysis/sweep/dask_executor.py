@@ -17,6 +17,7 @@ certificates ``distributed.comm.tls.ca-file``, ``distributed.comm.tls.client.cer
 from __future__ import annotations
 
 import asyncio
+import os
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -61,7 +62,64 @@ def security_for(address: str, settings: DaskSettings):
             raise DaskUnavailable(
                 f"Dask scheduler {address}: TLS needs {' and '.join(missing)} (or Dask's configuration "
                 "distributed.comm.tls.ca-file / distributed.comm.tls.client.cert)")
+        check_tls_files(address, security, settings)
     return security
+
+
+#: Each TLS file of :class:`distributed.security.Security`: its option and Dask's configuration key.
+_TLS_FILES = (("tls_ca_file", "tls_ca_file", "--dask-tls-ca-file", "distributed.comm.tls.ca-file"),
+              ("tls_client_cert", "tls_cert", "--dask-tls-cert", "distributed.comm.tls.client.cert"),
+              ("tls_client_key", "tls_key", "--dask-tls-key", "distributed.comm.tls.client.key"))
+
+
+def check_tls_files(address: str, security, settings: DaskSettings) -> None:
+    """Load the CA file, the client's certificate and its key as the TLS handshake will, before
+    connecting, so that a missing or unreadable file and a key that is not the certificate's are
+    named as such (instead of a handshake failure blamed on the scheduler).
+
+    Raises:
+        DaskUnavailable: a file is missing, is no PEM certificate (CA, certificate) or key, or
+            the key does not match the certificate (one line naming the files and options).
+    """
+    import ssl
+
+    where = f"Dask scheduler {address}: TLS"
+    named: dict[str, str] = {}
+    for field, given, option, key in _TLS_FILES:
+        path = getattr(security, field, None)
+        if not path:
+            continue
+        named[field] = f"{path} ({option if getattr(settings, given) else option + ' / ' + key})"
+        if not os.path.isfile(path):
+            raise DaskUnavailable(f"{where}: {named[field]}: no such file")
+    ctx = ssl.SSLContext(ssl.PROTOCOL_TLS_CLIENT)
+    for field in ("tls_ca_file", "tls_client_cert"):
+        if field in named:
+            try:
+                ctx.load_verify_locations(cafile=getattr(security, field))
+            except (ssl.SSLError, ValueError, UnicodeDecodeError) as e:
+                raise DaskUnavailable(f"{where}: {named[field]}: not a PEM certificate ({_ssl_reason(e)})") from None
+    cert, key = security.tls_client_cert, getattr(security, "tls_client_key", None)
+    try:
+        ctx.load_cert_chain(cert, key)
+    except ssl.SSLError as e:
+        raise DaskUnavailable(_key_problem(where, e, named)) from None
+
+
+def _key_problem(where: str, e: BaseException, named: dict[str, str]) -> str:
+    """The line for a client certificate and key that :meth:`ssl.SSLContext.load_cert_chain` refused."""
+    cert = named["tls_client_cert"]
+    key = named.get("tls_client_key")
+    if "KEY_VALUES_MISMATCH" in str(e) or "key values mismatch" in str(e):
+        return f"{where}: the key {key or '(appended to the certificate)'} does not match the certificate {cert}"
+    if key is None:
+        return (f"{where}: no private key in the certificate file {cert} and no --dask-tls-key "
+                f"({_ssl_reason(e)})")
+    return f"{where}: the key {key} is not a PEM private key ({_ssl_reason(e)})"
+
+
+def _ssl_reason(e: BaseException) -> str:
+    return str(getattr(e, "reason", None) or _one_line(e))
 
 
 def check_scheduler(address: str, settings: DaskSettings, security) -> None:
@@ -85,17 +143,86 @@ def check_scheduler(address: str, settings: DaskSettings, security) -> None:
     where = f"Dask scheduler {address}"
     try:
         info = _run(lambda: asyncio.wait_for(identity(), settings.connect_timeout_s))
-    except TimeoutError:
-        raise DaskUnavailable(f"{where}: no answer within {settings.connect_timeout_s:g} s "
-                              "(--dask-connect-timeout); is a Dask scheduler listening there?") from None
-    except OSError as e:  # refused (after retries until the timeout), reset, TLS handshake
-        tls = tls_problem(e, address, security)
-        raise DaskUnavailable(f"{where}: {tls}" if tls else f"{where}: not reachable ({_one_line(e)})") from None
-    except Exception as e:  # noqa: BLE001 - a reply in another protocol (HTTP read as a frame size: MemoryError)
-        raise DaskUnavailable(f"{where}: what answers does not speak Dask's protocol (a web server or another "
-                              f"service on that port?): {_one_line(e)}") from None
+    except Exception as e:  # noqa: BLE001 - each named by _connect_problem
+        raise DaskUnavailable(_connect_problem(e, address, settings, security)) from None
     if not isinstance(info, dict) or info.get("type") != "Scheduler":
         raise DaskUnavailable(f"{where}: what answers is not a Dask scheduler ({str(info)[:100]})")
+
+
+def _connect_problem(e: BaseException, address: str, settings: DaskSettings, security) -> str:
+    """The line for a failed first contact with ``address``: a protocol mismatch (TLS against
+    plain TCP or the reverse, :func:`protocol_mismatch`), no answer in time, a refused or broken
+    connection, a failed TLS handshake (:func:`tls_problem`) or another protocol."""
+    where = f"Dask scheduler {address}"
+    mismatch = protocol_mismatch(address, min(settings.connect_timeout_s, PROBE_TIMEOUT_S))
+    if mismatch:
+        return mismatch
+    if isinstance(e, TimeoutError):
+        return (f"{where}: no answer within {settings.connect_timeout_s:g} s (--dask-connect-timeout); is a Dask "
+                "scheduler listening there?")
+    if isinstance(e, OSError):  # refused (after retries until the timeout), reset, TLS handshake
+        tls = tls_problem(e, address, security)
+        return f"{where}: {tls}" if tls else f"{where}: not reachable ({_one_line(e)})"
+    # a reply in another protocol (HTTP read as a frame size: MemoryError)
+    return (f"{where}: what answers does not speak Dask's protocol (a web server or another service on that "
+            f"port?): {_one_line(e)}")
+
+
+#: Seconds (at most) of each look, after a failed contact, for the other protocol on the port.
+PROBE_TIMEOUT_S = 3.0
+
+
+def protocol_mismatch(address: str, timeout_s: float) -> str:
+    """After a failed contact: ``""``, or the line saying that ``address`` is asked in the wrong
+    protocol: a ``tls://`` address where a Dask scheduler answers in plain TCP, or a ``tcp://``
+    address where the peer answers a TLS handshake (certificates unchecked: only whether it
+    speaks TLS)."""
+    scheme, _, rest = address.partition("://")
+    host, _, port = rest.rpartition(":")
+    if scheme == "tls" and _answers_plain_dask(f"tcp://{rest}", timeout_s):
+        return (f"Dask scheduler at {address} does not speak TLS: it answers in plain TCP; use --executor "
+                f"dask://{rest} (a network you trust only), or start the scheduler with --protocol tls")
+    if scheme == "tcp" and _speaks_tls(host.strip("[]"), int(port), timeout_s):
+        return (f"Dask scheduler at {address} speaks TLS, not plain TCP: use --executor tls://{rest} with its "
+                "certificates (--dask-tls-ca-file, --dask-tls-cert, --dask-tls-key)")
+    return ""
+
+
+def _answers_plain_dask(address: str, timeout_s: float) -> bool:
+    """Whether a Dask scheduler answers at the plain ``tcp://`` ``address`` within ``timeout_s``."""
+    from distributed.core import rpc
+
+    async def identity() -> Any:
+        r = rpc(address, timeout=timeout_s)
+        try:
+            return await r.identity()
+        finally:
+            await r.close_rpc()
+
+    try:
+        info = _run(lambda: asyncio.wait_for(identity(), timeout_s))
+    except Exception:  # noqa: BLE001 - no plain Dask there
+        return False
+    return isinstance(info, dict) and info.get("type") == "Scheduler"
+
+
+def _speaks_tls(host: str, port: int, timeout_s: float) -> bool:
+    """Whether the peer at ``host:port`` completes a TLS handshake or answers it with a TLS alert
+    (its certificate is not checked: this only tells the protocol)."""
+    import socket
+    import ssl
+
+    ctx = ssl.SSLContext(ssl.PROTOCOL_TLS_CLIENT)
+    ctx.check_hostname = False
+    ctx.verify_mode = ssl.CERT_NONE
+    try:
+        with socket.create_connection((host, port), timeout=timeout_s) as raw, \
+                ctx.wrap_socket(raw, server_hostname=host):
+            return True
+    except ssl.SSLError as e:
+        return "alert" in str(e).lower()
+    except OSError:  # refused, reset, no answer in time
+        return False
 
 
 def tls_problem(e: BaseException, address: str, security) -> str:

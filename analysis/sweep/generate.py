@@ -31,6 +31,7 @@ import pandas as pd
 
 from analysis.sweep import ResultStore, SweepReport, Task, derive_seed, run_sweep, task_digest
 from analysis.sweep.store import NOT_IN_DIGEST
+from analysis.sweep.sweep import check_executor
 from merge_irl.atomic import write_atomic
 from merge_irl.provenance import provenance, text_digest, write_timings
 from merge_irl.run_folder import locked, remove_stale_locks, remove_temporaries
@@ -148,6 +149,17 @@ def generate_tasks(
     return tasks
 
 
+def _runs_to_do(tasks: Sequence[Task], out: Path) -> bool:
+    """Whether some task has no stored record with its outputs in place (read only: nothing is
+    created)."""
+    store = ResultStore(out / STORE_DIR, create=False)
+    for t in tasks:
+        record = store.get(task_digest(t.func_name, t.config, derive_seed(SWEEP_SEED, t.key)))
+        if record is None or not _outputs_are_the_records(Path(t.config.run_dir), record["result"], t.config):
+            return True
+    return False
+
+
 def _forget_missing_outputs(tasks: Sequence[Task], store: ResultStore) -> int:
     """Drop store records whose run folder lost a file or holds another run's files (a sweep
     with another duration or encounter rule wrote into the same folder since), so those runs
@@ -238,6 +250,8 @@ def generate_many(
     check_rule(encounter_rule)
     tasks = generate_tasks(spec, seeds, demand_scales, out, duration_s=duration_s, csv=csv,
                            encounter_rule=encounter_rule)
+    if _runs_to_do(tasks, out):  # an unusable Dask scheduler: one error, nothing created in ``out``
+        check_executor(executor)
     with locked(out):
         out.mkdir(parents=True, exist_ok=True)
         remove_temporaries(out)

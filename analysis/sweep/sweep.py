@@ -419,6 +419,20 @@ def _run_process_pool(todo: Sequence[_Pending], finish, workers: int,
             _run_isolated(p, finish)
 
 
+def check_executor(executor: str | ExecutorSpec) -> None:
+    """Before creating any output: for ``dask://`` / ``tls://``, ask the scheduler who it is
+    (what :func:`run_sweep` does before running anything); other executors need no check.
+
+    Raises:
+        ValueError: ``executor`` does not parse.
+        DaskUnavailable: the scheduler does not answer, is not one, or the TLS files are missing,
+            unreadable or do not match (:mod:`analysis.sweep.dask_executor`).
+    """
+    spec = parse_executor(executor) if isinstance(executor, str) else executor
+    if spec.kind == "dask":
+        _check_dask_scheduler(spec)
+
+
 def _check_dask_scheduler(spec: ExecutorSpec) -> None:
     """Ask the scheduler of ``dask://``/``tls://`` who it is (``DaskUnavailable`` otherwise)."""
     from analysis.sweep.dask_executor import check_scheduler, security_for, settings_from_config

@@ -489,3 +489,51 @@ def test_tls_files_are_checked_before_connecting(tmp_path):
                DASK_DISTRIBUTED__COMM__TLS__CLIENT__KEY=str(tmp_path / "gone.key"))
     line = _tls_line(tmp_path, tmp_path / "e", address, env=env)
     assert f"{tmp_path / 'gone.key'} (--dask-tls-key / distributed.comm.tls.client.key): no such file" in line
+
+
+# -- Ctrl-C on a Dask sweep: the runs in flight stop on the workers ------------------------------------
+
+def _own_group_default_sigint() -> None:
+    """The child leads a process group of its own (as a background job does), with Ctrl-C's default."""
+    os.setpgrp()
+    default_sigint()
+
+
+@pytest.mark.sumo
+def test_ctrl_c_stops_the_runs_in_flight_on_the_workers(tmp_path):
+    """Two runs in flight on two workers, SIGINT to the client's process group: exit 130 in one
+    line; the runs stop on the workers (before, they went on and published their folders into
+    --out half a minute after the client exited, unrecorded, their locks left meanwhile). After a
+    wait longer than a run takes, --out holds only what sweep.csv records and no lock anywhere."""
+    out = tmp_path / "sweep"
+    with _dask(tmp_path, workers=2) as (address, workers):
+        argv = _generate(out, address.replace("tcp://", "dask://"))
+        argv[argv.index("--seeds") + 1] = "1,2"
+        argv[argv.index("--duration") + 1] = "1200"
+        proc = subprocess.Popen(argv, env=_env(tmp_path), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                preexec_fn=_own_group_default_sigint)
+        try:
+            _wait_for(lambda: out.exists() and len([p for p in out.iterdir() if p.name.endswith(".tmpdir")]) == 2,
+                      120, "both runs started on the workers")
+            time.sleep(1.0)
+            t0 = time.time()
+            os.killpg(proc.pid, signal.SIGINT)
+            _, err = proc.communicate(timeout=60)
+            stopped_after = time.time() - t0
+        finally:
+            _stop(proc)
+        assert proc.returncode == 130, err
+        assert err.strip().splitlines() == ["merge-irl generate: interrupted"], err
+        assert stopped_after < 30
+        # a run of 1200 simulated s takes ~15 s here: wait longer, with the workers alive
+        time.sleep(30)
+        assert all(w.poll() is None for w in workers)
+    recorded = set()
+    if (out / "sweep.csv").exists():
+        import pandas as pd
+
+        recorded = set(pd.read_csv(out / "sweep.csv")["run"])
+    runs = {p.name for p in out.iterdir() if p.is_dir() and not p.name.startswith(".")}
+    assert runs == recorded, (runs, recorded)
+    assert [p for p in tmp_path.rglob("*.lock")] == []
+    assert [p.name for p in out.iterdir() if p.name.endswith(".tmpdir")] == []

@@ -17,19 +17,28 @@ certificates ``distributed.comm.tls.ca-file``, ``distributed.comm.tls.client.cer
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import os
 import threading
 import time
+import uuid
 from collections.abc import Callable, Sequence
 from typing import Any
 
 from analysis.sweep.executors import DEFAULT_STALL_TIMEOUT_S, DaskSettings, DaskUnavailable, ExecutorSpec
+from merge_irl.cancel import cancellable
 
 #: Dask configuration key of :attr:`DaskSettings.stall_timeout_s` (a number of seconds or a
 #: duration such as ``"5m"``); environment variable ``DASK_MERGE_IRL__STALL_TIMEOUT``.
 STALL_TIMEOUT_KEY = "merge-irl.stall-timeout"
 #: Seconds between two looks at the scheduler for the stall check.
 POLL_S = 0.25
+#: Seconds that Ctrl-C waits for the sweep's tasks running on workers to stop (they poll the
+#: sweep's stop event between SUMO steps and before publishing, :mod:`merge_irl.cancel`); runs
+#: that finished meanwhile are recorded, the rest cancelled.
+STOP_WAIT_S = 10.0
+#: Seconds to wait for the scheduler's answer to each of Ctrl-C's requests.
+ASK_TIMEOUT_S = 5.0
 
 
 def settings_from_config() -> DaskSettings:
@@ -318,12 +327,14 @@ def run_dask(todo: Sequence[Any], finish: Callable[[Any, dict], bool], spec: Exe
     futures: dict[str, Any] = {}
     pending: dict[str, Any] = {}
     n_done = [0]  # tasks finished in this call
+    stop_name = f"merge-irl-stop-{uuid.uuid4().hex}"  # the sweep's stop event (call_stoppable)
 
     def submit(p):
         # Dask itself reschedules a task whose worker died (up to its allowed-failures);
         # an exception or KilledWorker comes back here and is retried once like elsewhere.
         key = f"{p.task.key}-{p.digest[:12]}-{p.attempts}"
-        fut = client.submit(call_task, p.task.func, p.task.config, p.seed, key=key, pure=False)
+        fut = client.submit(call_stoppable, call_task, p.task.func, p.task.config, p.seed, stop_name, key=key,
+                            pure=False)
         futures[key] = p
         pending[key] = fut
         return fut
@@ -367,12 +378,11 @@ def run_dask(todo: Sequence[Any], finish: Callable[[Any, dict], bool], spec: Exe
                         f"run on a worker for {settings.stall_timeout_s:g} s (--dask-stall-timeout); "
                         "are its workers alive?")
             time.sleep(POLL_S)
-    except BaseException:
+    except BaseException as e:
         if pending:
-            try:
-                client.cancel(list(pending.values()), force=True)
-            except Exception:  # noqa: BLE001 - the scheduler may be gone; nothing more to do
-                pass
+            gone = isinstance(e, DaskUnavailable) and "went away" in str(e)
+            stop_in_flight(client, stop_name, pending, lambda key, record: finish(futures[key], record),
+                           wait_s=STOP_WAIT_S if isinstance(e, KeyboardInterrupt) else 0.0, ask=not gone)
         raise
     finally:
         client.close(timeout=5)
@@ -396,3 +406,77 @@ def _any_running(client, pending: dict[str, Any]) -> bool:
     except Exception:  # noqa: BLE001 - a scheduler that is reconnecting: count as no progress
         return False
     return any(str(k) in pending for keys in processing.values() for k in keys)
+
+
+def call_stoppable(call_task: Callable, func: Callable, config: Any, seed: int, stop_name: str) -> dict[str, Any]:
+    """On a Dask worker: ``call_task(func, config, seed)`` that stops once its sweep is stopped.
+
+    The task polls (:func:`merge_irl.cancel.cancellable`) whether the sweep's Dask ``Event``
+    ``stop_name`` is set (Ctrl-C in the client) or the scheduler has released this task (the
+    client cancelled it or went away); a SUMO run then stops between two steps and publishes
+    nothing, and its record says ``Cancelled``. A worker thread cannot be killed from outside:
+    this is how a cancelled run ends instead of publishing its folder after the client exited.
+    """
+    stop = _stop_check(stop_name)
+    if stop():
+        return {"ok": False, "error": "Cancelled: the sweep was stopped before this task started",
+                "retry": False, "wall_time_s": 0.0}
+    with cancellable(stop):
+        return call_task(func, config, seed)
+
+
+def _stop_check(stop_name: str) -> Callable[[], bool]:
+    """Whether this worker task should stop: the sweep's stop event set, or the task released."""
+    from distributed import get_client, get_worker
+    from distributed.worker import thread_state
+
+    key = getattr(thread_state, "key", None)
+    try:
+        worker = get_worker()
+    except ValueError:  # not on a worker (a test calling it directly)
+        worker = None
+
+    def stop() -> bool:
+        if worker is not None and key is not None:
+            ts = worker.state.tasks.get(key)
+            if ts is None or ts.state == "cancelled":
+                return True
+        try:
+            client = get_client()
+            return bool(client.sync(client.scheduler.event_is_set, name=stop_name, callback_timeout=ASK_TIMEOUT_S))
+        except Exception:  # noqa: BLE001 - the scheduler unreachable for now: go on (released tasks stop above)
+            return False
+
+    return stop
+
+
+def stop_in_flight(client, stop_name: str, pending: dict[str, Any], record: Callable[[str, dict], Any], *,
+                   wait_s: float, ask: bool = True) -> None:
+    """Stop the sweep's unfinished tasks ``pending`` (key -> future): set its stop event (the
+    tasks running notice it, :func:`call_stoppable`), cancel those not yet on a worker, wait up
+    to ``wait_s`` s for the running ones to end, hand each that finished meanwhile to
+    ``record(key, record)`` (so that a run published meanwhile is recorded), and cancel the rest.
+    ``ask``: False when the scheduler is gone (nothing is asked of it)."""
+    from distributed import wait
+
+    try:
+        if ask:
+            with contextlib.suppress(Exception):
+                client.sync(client.scheduler.event_set, name=stop_name, callback_timeout=ASK_TIMEOUT_S)
+            running = set()
+            with contextlib.suppress(Exception):
+                processing = client.sync(client.scheduler.processing, workers=None, callback_timeout=ASK_TIMEOUT_S)
+                running = {str(k) for keys in processing.values() for k in keys} & set(pending)
+            with contextlib.suppress(Exception):
+                client.cancel([f for k, f in pending.items() if k not in running], force=True)
+            if running and wait_s > 0:
+                with contextlib.suppress(Exception):  # distributed's TimeoutError
+                    wait([pending[k] for k in running], timeout=wait_s)
+        for key, fut in list(pending.items()):
+            if fut.status == "finished":
+                result = fut.result()
+                if isinstance(result, dict) and result.get("ok"):
+                    record(key, result)
+    finally:
+        with contextlib.suppress(Exception):
+            client.cancel(list(pending.values()), force=True)

@@ -33,6 +33,7 @@ from analysis.sweep import ResultStore, SweepReport, Task, derive_seed, run_swee
 from analysis.sweep.store import NOT_IN_DIGEST
 from analysis.sweep.sweep import check_executor
 from merge_irl.atomic import write_atomic
+from merge_irl.cancel import CancelHook
 from merge_irl.provenance import provenance, text_digest, write_timings
 from merge_irl.run_folder import locked, remove_stale_locks, remove_temporaries
 from scenarios.spec.model import ScenarioSpec
@@ -94,7 +95,9 @@ def generate_one(config: GenerateRun, seed: int) -> dict:
     """
     spec = with_overrides(
         spec_from_toml(config.spec_toml, source="<sweep spec>"), seed=config.seed, duration_s=config.duration_s, demand_scale=config.demand_scale)
-    res = generate(spec, config.run_dir, csv=config.csv, progress=False, encounter_rule=config.encounter_rule)
+    # CancelHook: on a Dask worker, a run whose sweep was interrupted stops between two steps
+    res = generate(spec, config.run_dir, csv=config.csv, progress=False, encounter_rule=config.encounter_rule,
+                   hooks=(CancelHook(),))
     sim = res.simulation
     return {
         "run": Path(config.run_dir).name,

@@ -499,6 +499,50 @@ def _own_group_default_sigint() -> None:
     default_sigint()
 
 
+def _runs_and_records(out: Path) -> tuple[set[str], set[str]]:
+    """The run folders in ``out`` and the runs ``sweep.csv`` records."""
+    recorded = set()
+    if (out / "sweep.csv").exists():
+        import pandas as pd
+
+        recorded = set(pd.read_csv(out / "sweep.csv")["run"])
+    return {p.name for p in out.iterdir() if p.is_dir() and not p.name.startswith(".")}, recorded
+
+
+def _two_runs_in_flight(tmp_path: Path, out: Path, address: str) -> subprocess.Popen:
+    """``generate`` of two 1200-s runs on ``address``, in a process group of its own; returns once
+    both runs are simulating on the workers (their staging folders exist)."""
+    argv = _generate(out, address.replace("tcp://", "dask://"))
+    argv[argv.index("--seeds") + 1] = "1,2"
+    argv[argv.index("--duration") + 1] = "1200"
+    proc = subprocess.Popen(argv, env=_env(tmp_path), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=_own_group_default_sigint)
+    try:
+        _wait_for(lambda: out.exists() and len([p for p in out.iterdir() if p.name.endswith(".tmpdir")]) == 2,
+                  120, "both runs started on the workers")
+    except BaseException:
+        _stop(proc)
+        raise
+    time.sleep(1.0)
+    return proc
+
+
+@pytest.mark.sumo
+def test_a_killed_client_s_runs_stop_on_the_workers(tmp_path):
+    """The client SIGKILLed with two runs in flight: the scheduler releases its tasks and the runs
+    stop on the workers; nothing is published, no run's lock or staging folder is left."""
+    out = tmp_path / "sweep"
+    with _dask(tmp_path, workers=2) as (address, workers):
+        proc = _two_runs_in_flight(tmp_path, out, address)
+        proc.kill()
+        proc.communicate(timeout=30)
+        time.sleep(30)  # longer than a run takes, with the workers alive
+        assert all(w.poll() is None for w in workers)
+    runs, _ = _runs_and_records(out)
+    assert runs == set()
+    assert [p.name for p in out.iterdir() if p.name.endswith((".lock", ".tmpdir"))] == []
+
+
 @pytest.mark.sumo
 def test_ctrl_c_stops_the_runs_in_flight_on_the_workers(tmp_path):
     """Two runs in flight on two workers, SIGINT to the client's process group: exit 130 in one
@@ -507,15 +551,8 @@ def test_ctrl_c_stops_the_runs_in_flight_on_the_workers(tmp_path):
     wait longer than a run takes, --out holds only what sweep.csv records and no lock anywhere."""
     out = tmp_path / "sweep"
     with _dask(tmp_path, workers=2) as (address, workers):
-        argv = _generate(out, address.replace("tcp://", "dask://"))
-        argv[argv.index("--seeds") + 1] = "1,2"
-        argv[argv.index("--duration") + 1] = "1200"
-        proc = subprocess.Popen(argv, env=_env(tmp_path), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                preexec_fn=_own_group_default_sigint)
+        proc = _two_runs_in_flight(tmp_path, out, address)
         try:
-            _wait_for(lambda: out.exists() and len([p for p in out.iterdir() if p.name.endswith(".tmpdir")]) == 2,
-                      120, "both runs started on the workers")
-            time.sleep(1.0)
             t0 = time.time()
             os.killpg(proc.pid, signal.SIGINT)
             _, err = proc.communicate(timeout=60)
@@ -528,12 +565,7 @@ def test_ctrl_c_stops_the_runs_in_flight_on_the_workers(tmp_path):
         # a run of 1200 simulated s takes ~15 s here: wait longer, with the workers alive
         time.sleep(30)
         assert all(w.poll() is None for w in workers)
-    recorded = set()
-    if (out / "sweep.csv").exists():
-        import pandas as pd
-
-        recorded = set(pd.read_csv(out / "sweep.csv")["run"])
-    runs = {p.name for p in out.iterdir() if p.is_dir() and not p.name.startswith(".")}
+    runs, recorded = _runs_and_records(out)
     assert runs == recorded, (runs, recorded)
     assert [p for p in tmp_path.rglob("*.lock")] == []
     assert [p.name for p in out.iterdir() if p.name.endswith(".tmpdir")] == []

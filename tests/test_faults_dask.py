@@ -562,7 +562,7 @@ def test_ctrl_c_stops_the_runs_in_flight_on_the_workers(tmp_path):
         assert proc.returncode == 130, err
         assert err.strip().splitlines() == ["merge-irl generate: interrupted"], err
         assert stopped_after < 30
-        # a run of 1200 simulated s takes ~15 s here: wait longer, with the workers alive
+        # a run of 1200 simulated s takes ~10 s alone here: wait longer, with the workers alive
         time.sleep(30)
         assert all(w.poll() is None for w in workers)
     runs, recorded = _runs_and_records(out)

@@ -94,11 +94,11 @@ def check_tls_files(address: str, security, settings: DaskSettings) -> None:
 
     where = f"Dask scheduler {address}: TLS"
     named: dict[str, str] = {}
-    for field, given, option, key in _TLS_FILES:
+    for field, given, option, config_key in _TLS_FILES:
         path = getattr(security, field, None)
         if not path:
             continue
-        named[field] = f"{path} ({option if getattr(settings, given) else option + ' / ' + key})"
+        named[field] = f"{path} ({option if getattr(settings, given) else option + ' / ' + config_key})"
         if not os.path.isfile(path):
             raise DaskUnavailable(f"{where}: {named[field]}: no such file")
     ctx = ssl.SSLContext(ssl.PROTOCOL_TLS_CLIENT)
@@ -443,7 +443,9 @@ def _stop_check(stop_name: str) -> Callable[[], bool]:
                 return True
         try:
             client = get_client()
-            return bool(client.sync(client.scheduler.event_is_set, name=stop_name, callback_timeout=ASK_TIMEOUT_S))
+            scheduler = client.scheduler
+            return scheduler is not None and bool(
+                client.sync(scheduler.event_is_set, name=stop_name, callback_timeout=ASK_TIMEOUT_S))
         except Exception:  # noqa: BLE001 - the scheduler unreachable for now: go on (released tasks stop above)
             return False
 

@@ -155,6 +155,8 @@ def generate_tasks(
 def _runs_to_do(tasks: Sequence[Task], out: Path) -> bool:
     """Whether some task has no stored record with its outputs in place (read only: nothing is
     created)."""
+    if not (out / STORE_DIR).is_dir():
+        return True
     store = ResultStore(out / STORE_DIR, create=False)
     for t in tasks:
         record = store.get(task_digest(t.func_name, t.config, derive_seed(SWEEP_SEED, t.key)))

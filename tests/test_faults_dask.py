@@ -432,6 +432,21 @@ def test_a_killed_scheduler_is_named_and_what_finished_is_kept(tmp_path):
     assert again.n_cached == 1 and again.n_run == 0
 
 
+@pytest.mark.sumo
+def test_a_finished_sweep_needs_no_scheduler(tmp_path):
+    """Every run stored and in place: the same command on a dask:// address where nothing listens
+    asks no scheduler and succeeds from the store."""
+    out = tmp_path / "sweep"
+    first = _generate(out, "serial")
+    first[first.index("--duration") + 1] = "70"
+    done = subprocess.run(first, env=_env(tmp_path), capture_output=True, text=True, timeout=180)
+    assert done.returncode == 0, done.stderr
+    again = [a if a != "serial" else f"dask://127.0.0.1:{_free_port()}" for a in first]
+    proc = subprocess.run(again, env=_env(tmp_path), capture_output=True, text=True, timeout=180)
+    assert proc.returncode == 0, proc.stderr
+    assert "1 from the store, 0 run" in proc.stderr
+
+
 # -- TLS and protocol mismatches, each named for what it is --------------------------------------------
 
 def _tls_line(tmp_path: Path, out: Path, executor: str, *tls: str, env: dict | None = None) -> str:

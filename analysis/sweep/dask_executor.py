@@ -310,6 +310,8 @@ def run_dask(todo: Sequence[Any], finish: Callable[[Any, dict], bool], spec: Exe
             then have been handed to ``finish``, so a store keeps them).
         KeyboardInterrupt: Ctrl-C; the sweep's tasks are cancelled on the scheduler.
     """
+    if not todo:  # every task stored: no scheduler needed (none is asked, no cluster started)
+        return
     try:
         from distributed import Client, LocalCluster, as_completed
     except ImportError as e:  # pragma: no cover - depends on the install

@@ -542,16 +542,29 @@ def _two_runs_in_flight(tmp_path: Path, out: Path, address: str) -> subprocess.P
     return proc
 
 
+def _wait_until_workers_idle(address: str, timeout: float = 180) -> None:
+    """Until no worker of ``address`` executes a task (a run that was not stopped goes on to its
+    end, and publishes, before this returns)."""
+    from distributed import Client
+
+    def executing(dask_worker) -> int:
+        return dask_worker.state.executing_count
+
+    with Client(address, timeout=30) as client:
+        _wait_for(lambda: not any(client.run(executing).values()), timeout, "the workers idle")
+
+
 @pytest.mark.sumo
 def test_a_killed_client_s_runs_stop_on_the_workers(tmp_path):
     """The client SIGKILLed with two runs in flight: the scheduler releases its tasks and the runs
-    stop on the workers; nothing is published, no run's lock or staging folder is left."""
+    stop on the workers; once the workers are idle nothing is published, no run's lock or staging
+    folder is left."""
     out = tmp_path / "sweep"
     with _dask(tmp_path, workers=2) as (address, workers):
         proc = _two_runs_in_flight(tmp_path, out, address)
         proc.kill()
         proc.communicate(timeout=30)
-        time.sleep(30)  # longer than a run takes, with the workers alive
+        _wait_until_workers_idle(address)
         assert all(w.poll() is None for w in workers)
     runs, _ = _runs_and_records(out)
     assert runs == set()
@@ -562,8 +575,8 @@ def test_a_killed_client_s_runs_stop_on_the_workers(tmp_path):
 def test_ctrl_c_stops_the_runs_in_flight_on_the_workers(tmp_path):
     """Two runs in flight on two workers, SIGINT to the client's process group: exit 130 in one
     line; the runs stop on the workers (before, they went on and published their folders into
-    --out half a minute after the client exited, unrecorded, their locks left meanwhile). After a
-    wait longer than a run takes, --out holds only what sweep.csv records and no lock anywhere."""
+    --out after the client exited, unrecorded, their locks left meanwhile). Once the
+    workers are idle, --out holds only what sweep.csv records and no lock anywhere."""
     out = tmp_path / "sweep"
     with _dask(tmp_path, workers=2) as (address, workers):
         proc = _two_runs_in_flight(tmp_path, out, address)
@@ -577,8 +590,7 @@ def test_ctrl_c_stops_the_runs_in_flight_on_the_workers(tmp_path):
         assert proc.returncode == 130, err
         assert err.strip().splitlines() == ["merge-irl generate: interrupted"], err
         assert stopped_after < 30
-        # a run of 1200 simulated s takes ~10 s alone here: wait longer, with the workers alive
-        time.sleep(30)
+        _wait_until_workers_idle(address)  # a run not stopped would have published by then
         assert all(w.poll() is None for w in workers)
     runs, recorded = _runs_and_records(out)
     assert runs == recorded, (runs, recorded)

@@ -596,3 +596,30 @@ def test_ctrl_c_stops_the_runs_in_flight_on_the_workers(tmp_path):
     assert runs == recorded, (runs, recorded)
     assert [p for p in tmp_path.rglob("*.lock")] == []
     assert [p.name for p in out.iterdir() if p.name.endswith(".tmpdir")] == []
+
+
+@pytest.mark.sumo
+def test_ctrl_c_stops_evaluation_episodes_on_the_workers(tmp_path):
+    """``evaluate`` on Dask, two episodes on two workers (the first one recording), SIGINT: the
+    episodes stop on the workers (idle within 20 s of the client's exit); no recording (final or
+    partial) is in --out."""
+    out = tmp_path / "ev"
+    with _dask(tmp_path, workers=2) as (address, workers):
+        proc = subprocess.Popen([sys.executable, "-m", "analysis", "evaluate", "--baselines", "sumo", "--episodes", "2",
+                                 "--duration", "2400", "--executor", address.replace("tcp://", "dask://"),
+                                 "--no-progress", "--out", str(out)], env=_env(tmp_path), stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True, preexec_fn=_own_group_default_sigint)
+        try:
+            _wait_for(lambda: len(list(out.glob("rerun/.*.partial"))) == 1, 120, "the first episode recording")
+            time.sleep(1.0)
+            os.killpg(proc.pid, signal.SIGINT)
+            _, err = proc.communicate(timeout=60)
+        finally:
+            _stop(proc)
+        assert proc.returncode == 130, err
+        assert err.strip().splitlines()[-1] == "merge-irl evaluate: interrupted", err
+        # the episodes stopped (an episode of 2400 simulated s runs on for a minute when not stopped)
+        _wait_until_workers_idle(address, timeout=20)
+        assert all(w.poll() is None for w in workers)
+    left = sorted(str(p.relative_to(out)) for p in out.rglob("*")) if out.exists() else []
+    assert [p for p in left if p.endswith((".rrd", ".partial"))] == [], left

@@ -28,6 +28,7 @@ from collections.abc import Collection, Iterator
 from pathlib import Path
 
 from merge_irl.atomic import temporary_path
+from merge_irl.cancel import check_cancelled
 
 #: Names of the hidden temporaries of :mod:`merge_irl.atomic` and of staging folders.
 TEMPORARY_NAME = re.compile(r"^\..+\.[0-9a-f]{8}\.tmp[^/]*$")
@@ -189,9 +190,14 @@ def publish(stage: str | os.PathLike, final: str | os.PathLike) -> Path:
     hidden temporary name and removed after the new set is in place, so ``final`` never holds
     a mix of both.
 
+    A run that has been cancelled (:mod:`merge_irl.cancel`: its sweep was interrupted) is asked
+    once more here, and publishes nothing.
+
     Raises:
         OSError: if a rename fails (``final`` then keeps its previous content, or is absent).
+        Cancelled: the run was cancelled (``stage`` is left to its caller, as on any error).
     """
+    check_cancelled(now=True)
     stage, final = Path(os.path.abspath(stage)), Path(os.path.abspath(final))
     try:
         os.rename(stage, final)  # absent, or an empty folder: replaced in one step

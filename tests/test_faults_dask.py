@@ -146,6 +146,13 @@ def _assert_cleaned(out: Path) -> None:
         assert left == []
 
 
+def _assert_nothing_created(out: Path) -> None:
+    """A sweep that never reached a scheduler created nothing: no ``--out`` (no ``.sweep-store/``,
+    ``sweep.csv`` nor ``sweep.timings.json``) and no lock beside it."""
+    assert not out.exists(), sorted(p.name for p in out.iterdir())
+    assert not (out.parent / f".{out.name}.lock").exists()
+
+
 def _one_line_exit_2(proc: subprocess.CompletedProcess | subprocess.Popen, err: str) -> str:
     lines = err.strip().splitlines()
     assert proc.returncode == 2 and len(lines) == 1, err
@@ -166,7 +173,7 @@ def test_a_port_that_is_not_a_dask_scheduler_fails_in_one_line(tmp_path, listene
     assert f"tcp://{address}" in line
     assert ("no answer within 2 s" in line) if listener.mode == "silent" else ("Dask's protocol" in line)
     assert time.time() - t0 < 60
-    _assert_cleaned(out)
+    _assert_nothing_created(out)
 
 
 @pytest.mark.parametrize("listener", ["silent"], indirect=True)
@@ -178,7 +185,7 @@ def test_with_progress_lines_an_unusable_scheduler_is_still_one_line(tmp_path, l
             if a != "--no-progress"]
     proc = subprocess.run(argv, env=_env(tmp_path), capture_output=True, text=True, timeout=120)
     assert "no answer within 2 s" in _one_line_exit_2(proc, proc.stderr)
-    _assert_cleaned(out)
+    _assert_nothing_created(out)
 
 
 @pytest.mark.parametrize("listener", ["silent"], indirect=True)
@@ -204,7 +211,19 @@ def test_nothing_listening_fails_in_one_line(tmp_path):
     proc = subprocess.run(_generate(out, f"dask://127.0.0.1:{port}", "--dask-connect-timeout", "2"),
                           env=_env(tmp_path), capture_output=True, text=True, timeout=120)
     assert f"tcp://127.0.0.1:{port}" in _one_line_exit_2(proc, proc.stderr)
-    _assert_cleaned(out)
+    _assert_nothing_created(out)
+
+
+def test_a_failed_connect_keeps_what_was_in_out_and_adds_nothing(tmp_path):
+    """An --out that holds a file already: it is kept, and nothing of the sweep is added."""
+    out = tmp_path / "sweep"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    proc = subprocess.run(_generate(out, f"dask://127.0.0.1:{_free_port()}", "--dask-connect-timeout", "2"),
+                          env=_env(tmp_path), capture_output=True, text=True, timeout=120)
+    _one_line_exit_2(proc, proc.stderr)
+    assert sorted(p.name for p in out.iterdir()) == ["notes.txt"]
+    assert (out / "notes.txt").read_text() == "mine"
 
 
 @pytest.mark.parametrize("listener", ["silent"], indirect=True)
@@ -411,3 +430,196 @@ def test_a_killed_scheduler_is_named_and_what_finished_is_kept(tmp_path):
     # what finished is kept: the same sweep on a serial executor reruns only the slow task
     again = run_sweep(tasks[:1], seed=1, executor="serial", store=store, progress=False)
     assert again.n_cached == 1 and again.n_run == 0
+
+
+@pytest.mark.sumo
+def test_a_finished_sweep_needs_no_scheduler(tmp_path):
+    """Every run stored and in place: the same command on a dask:// address where nothing listens
+    asks no scheduler and succeeds from the store."""
+    out = tmp_path / "sweep"
+    first = _generate(out, "serial")
+    first[first.index("--duration") + 1] = "70"
+    done = subprocess.run(first, env=_env(tmp_path), capture_output=True, text=True, timeout=180)
+    assert done.returncode == 0, done.stderr
+    again = [a if a != "serial" else f"dask://127.0.0.1:{_free_port()}" for a in first]
+    proc = subprocess.run(again, env=_env(tmp_path), capture_output=True, text=True, timeout=180)
+    assert proc.returncode == 0, proc.stderr
+    assert "1 from the store, 0 run" in proc.stderr
+
+
+# -- TLS and protocol mismatches, each named for what it is --------------------------------------------
+
+def _tls_line(tmp_path: Path, out: Path, executor: str, *tls: str, env: dict | None = None) -> str:
+    proc = subprocess.run(_generate(out, executor, "--dask-connect-timeout", "10", *tls),
+                          env=env or _env(tmp_path), capture_output=True, text=True, timeout=120)
+    line = _one_line_exit_2(proc, proc.stderr)
+    _assert_nothing_created(out)
+    return line
+
+
+def test_protocol_mismatches_are_named(tmp_path):
+    """A TLS client against a plain TCP scheduler, and a plain client against a TLS scheduler."""
+    cert, key = _self_signed(tmp_path)
+    tls = ["--dask-tls-ca-file", str(cert), "--dask-tls-cert", str(cert), "--dask-tls-key", str(key)]
+    with _dask(tmp_path, workers=0) as (address, _):
+        hostport = address[len("tcp://"):]
+        line = _tls_line(tmp_path, tmp_path / "a", f"tls://{hostport}", *tls)
+        assert f"Dask scheduler at tls://{hostport} does not speak TLS" in line
+        assert f"dask://{hostport}" in line and "certificate" not in line
+    sec = ["--tls-ca-file", str(cert), "--tls-cert", str(cert), "--tls-key", str(key)]
+    with _dask(tmp_path, workers=0, tls=sec) as (address, _):
+        hostport = address[len("tls://"):]
+        line = _tls_line(tmp_path, tmp_path / "b", f"dask://{hostport}")
+        assert f"Dask scheduler at tcp://{hostport} speaks TLS" in line and f"tls://{hostport}" in line
+
+
+def test_tls_files_are_checked_before_connecting(tmp_path):
+    """Nothing listens at the address: each file problem is named before any connection."""
+    cert, key = _self_signed(tmp_path)
+    (tmp_path / "other").mkdir()
+    other, other_key = _self_signed(tmp_path / "other")
+    address = f"tls://127.0.0.1:{_free_port()}"
+    # a key/certificate mismatch
+    line = _tls_line(tmp_path, tmp_path / "a", address, "--dask-tls-ca-file", str(cert), "--dask-tls-cert",
+                     str(cert), "--dask-tls-key", str(other_key))
+    assert (f"the key {other_key} (--dask-tls-key / distributed.comm.tls.client.key) does not match the certificate "
+            f"{cert} (--dask-tls-cert / distributed.comm.tls.client.cert)") in line
+    # a CA file that is not a certificate, a key file that is not a key
+    notes = tmp_path / "notes.txt"
+    notes.write_text("not a certificate\n")
+    line = _tls_line(tmp_path, tmp_path / "b", address, "--dask-tls-ca-file", str(notes), "--dask-tls-cert",
+                     str(cert), "--dask-tls-key", str(key))
+    assert f"{notes} (--dask-tls-ca-file / distributed.comm.tls.ca-file): not a PEM certificate" in line
+    line = _tls_line(tmp_path, tmp_path / "c", address, "--dask-tls-ca-file", str(cert), "--dask-tls-cert",
+                     str(cert), "--dask-tls-key", str(notes))
+    assert f"the key {notes} (--dask-tls-key / distributed.comm.tls.client.key) is not a PEM private key" in line
+    # missing files: given on the command line, and from Dask's configuration
+    proc = subprocess.run(_generate(tmp_path / "d", address, "--dask-tls-ca-file", str(cert), "--dask-tls-cert",
+                                    str(cert), "--dask-tls-key", str(tmp_path / "gone.key")),
+                          env=_env(tmp_path), capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and proc.stderr.strip().splitlines() == [
+        f"merge-irl generate: error: --dask-tls-key {tmp_path / 'gone.key'}: no such file"], proc.stderr
+    env = dict(_env(tmp_path), DASK_DISTRIBUTED__COMM__TLS__CA_FILE=str(cert),
+               DASK_DISTRIBUTED__COMM__TLS__CLIENT__CERT=str(cert),
+               DASK_DISTRIBUTED__COMM__TLS__CLIENT__KEY=str(tmp_path / "gone.key"))
+    line = _tls_line(tmp_path, tmp_path / "e", address, env=env)
+    assert f"{tmp_path / 'gone.key'} (--dask-tls-key / distributed.comm.tls.client.key): no such file" in line
+
+
+# -- Ctrl-C on a Dask sweep: the runs in flight stop on the workers ------------------------------------
+
+def _own_group_default_sigint() -> None:
+    """The child leads a process group of its own (as a background job does), with Ctrl-C's default."""
+    os.setpgrp()
+    default_sigint()
+
+
+def _runs_and_records(out: Path) -> tuple[set[str], set[str]]:
+    """The run folders in ``out`` and the runs ``sweep.csv`` records."""
+    recorded = set()
+    if (out / "sweep.csv").exists():
+        import pandas as pd
+
+        recorded = set(pd.read_csv(out / "sweep.csv")["run"])
+    return {p.name for p in out.iterdir() if p.is_dir() and not p.name.startswith(".")}, recorded
+
+
+def _two_runs_in_flight(tmp_path: Path, out: Path, address: str) -> subprocess.Popen:
+    """``generate`` of two 1200-s runs on ``address``, in a process group of its own; returns once
+    both runs are simulating on the workers (their staging folders exist)."""
+    argv = _generate(out, address.replace("tcp://", "dask://"))
+    argv[argv.index("--seeds") + 1] = "1,2"
+    argv[argv.index("--duration") + 1] = "1200"
+    proc = subprocess.Popen(argv, env=_env(tmp_path), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=_own_group_default_sigint)
+    try:
+        _wait_for(lambda: out.exists() and len([p for p in out.iterdir() if p.name.endswith(".tmpdir")]) == 2,
+                  120, "both runs started on the workers")
+    except BaseException:
+        _stop(proc)
+        raise
+    time.sleep(1.0)
+    return proc
+
+
+def _wait_until_workers_idle(address: str, timeout: float = 180) -> None:
+    """Until no worker of ``address`` executes a task (a run that was not stopped goes on to its
+    end, and publishes, before this returns)."""
+    from distributed import Client
+
+    def executing(dask_worker) -> int:
+        return dask_worker.state.executing_count
+
+    with Client(address, timeout=30) as client:
+        _wait_for(lambda: not any(client.run(executing).values()), timeout, "the workers idle")
+
+
+@pytest.mark.sumo
+def test_a_killed_client_s_runs_stop_on_the_workers(tmp_path):
+    """The client SIGKILLed with two runs in flight: the scheduler releases its tasks and the runs
+    stop on the workers; once the workers are idle nothing is published, no run's lock or staging
+    folder is left."""
+    out = tmp_path / "sweep"
+    with _dask(tmp_path, workers=2) as (address, workers):
+        proc = _two_runs_in_flight(tmp_path, out, address)
+        proc.kill()
+        proc.communicate(timeout=30)
+        _wait_until_workers_idle(address)
+        assert all(w.poll() is None for w in workers)
+    runs, _ = _runs_and_records(out)
+    assert runs == set()
+    assert [p.name for p in out.iterdir() if p.name.endswith((".lock", ".tmpdir"))] == []
+
+
+@pytest.mark.sumo
+def test_ctrl_c_stops_the_runs_in_flight_on_the_workers(tmp_path):
+    """Two runs in flight on two workers, SIGINT to the client's process group: exit 130 in one
+    line; the runs stop on the workers (before, they went on and published their folders into
+    --out after the client exited, unrecorded, their locks left meanwhile). Once the
+    workers are idle, --out holds only what sweep.csv records and no lock anywhere."""
+    out = tmp_path / "sweep"
+    with _dask(tmp_path, workers=2) as (address, workers):
+        proc = _two_runs_in_flight(tmp_path, out, address)
+        try:
+            t0 = time.time()
+            os.killpg(proc.pid, signal.SIGINT)
+            _, err = proc.communicate(timeout=60)
+            stopped_after = time.time() - t0
+        finally:
+            _stop(proc)
+        assert proc.returncode == 130, err
+        assert err.strip().splitlines() == ["merge-irl generate: interrupted"], err
+        assert stopped_after < 30
+        _wait_until_workers_idle(address)  # a run not stopped would have published by then
+        assert all(w.poll() is None for w in workers)
+    runs, recorded = _runs_and_records(out)
+    assert runs == recorded, (runs, recorded)
+    assert [p for p in tmp_path.rglob("*.lock")] == []
+    assert [p.name for p in out.iterdir() if p.name.endswith(".tmpdir")] == []
+
+
+@pytest.mark.sumo
+def test_ctrl_c_stops_evaluation_episodes_on_the_workers(tmp_path):
+    """``evaluate`` on Dask, two episodes on two workers (the first one recording), SIGINT: the
+    episodes stop on the workers (idle within 20 s of the client's exit); no recording (final or
+    partial) is in --out."""
+    out = tmp_path / "ev"
+    with _dask(tmp_path, workers=2) as (address, workers):
+        proc = subprocess.Popen([sys.executable, "-m", "analysis", "evaluate", "--baselines", "sumo", "--episodes", "2",
+                                 "--duration", "2400", "--executor", address.replace("tcp://", "dask://"),
+                                 "--no-progress", "--out", str(out)], env=_env(tmp_path), stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True, preexec_fn=_own_group_default_sigint)
+        try:
+            _wait_for(lambda: len(list(out.glob("rerun/.*.partial"))) == 1, 120, "the first episode recording")
+            time.sleep(1.0)
+            os.killpg(proc.pid, signal.SIGINT)
+            _, err = proc.communicate(timeout=60)
+        finally:
+            _stop(proc)
+        assert proc.returncode == 130, err
+        assert err.strip().splitlines()[-1] == "merge-irl evaluate: interrupted", err
+        # the episodes stopped (an episode of 2400 simulated s runs on for a minute when not stopped)
+        _wait_until_workers_idle(address, timeout=20)
+        assert all(w.poll() is None for w in workers)
+    left = sorted(str(p.relative_to(out)) for p in out.rglob("*")) if out.exists() else []
+    assert [p for p in left if p.endswith((".rrd", ".partial"))] == [], left

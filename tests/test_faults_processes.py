@@ -182,3 +182,22 @@ def test_failed_sweep_prints_no_traceback_after_its_lines(tmp_path):
     log = out / "sweep.failures.log"
     assert f"tracebacks: {log}" in proc.stderr
     assert "Traceback" in log.read_text()
+
+
+@pytest.mark.sumo
+def test_workers_killed_on_a_blocked_policy_leave_no_temporary_folders(tmp_path):
+    """``evaluate`` on ``process:2`` with a policy that never answers: the time-out aborts the
+    sweep and the parent kills both workers mid-simulation; their SUMO run folders
+    (``merge-irl-run-*``, in the workers' temporary directory) are removed with the pool's."""
+    rules = tmp_path / "rules.py"
+    rules.write_text("import time\n\n\ndef hang(obs):\n    while True:\n        time.sleep(0.5)\n")
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    env = dict(os.environ, TMPDIR=str(tmp), MERGE_IRL_CACHE=str(tmp_path / "cache"))
+    proc = subprocess.run([sys.executable, "-m", "analysis", "evaluate", "--policy", f"{rules}:hang", "--baselines",
+                           "sumo", "--episodes", "2", "--duration", "90", "--policy-timeout", "2", "--executor",
+                           "process:2", "--no-progress", "--out", str(tmp_path / "ev")],
+                          env=env, capture_output=True, text=True, timeout=240)
+    assert proc.returncode == 2 and "no action within 2 s" in proc.stderr, proc.stderr
+    left = sorted(p.name for p in tmp.iterdir())
+    assert left == [], left

@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.evaluation.metrics import EpisodeMetrics, MetricsConfig, episode_metrics
+from merge_irl.cancel import CancelHook
 from merge_irl.units import FT_PER_M
 from scenarios.loader import load_scenario
 from sim.closed_loop.config import ControllerConfig
@@ -131,7 +132,8 @@ def run_episode_task(spec: EpisodeSpec, seed: int) -> dict:
     counts = None if spec.demo_action_counts is None else np.asarray(spec.demo_action_counts, dtype=np.int64)
     return run_episode(spec.scenario, spec.policy, spec.seed, duration_s=spec.duration_s,
                        controller=spec.controller, metrics=spec.metrics, demo_action_counts=counts,
-                       rrd_path=spec.rrd_path, keep_table=spec.keep_table).to_dict()
+                       rrd_path=spec.rrd_path, keep_table=spec.keep_table,
+                       extra_hooks=(CancelHook(),)).to_dict()  # a Dask task whose sweep stopped: stop here
 
 
 def run_episode(

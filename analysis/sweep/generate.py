@@ -31,7 +31,9 @@ import pandas as pd
 
 from analysis.sweep import ResultStore, SweepReport, Task, derive_seed, run_sweep, task_digest
 from analysis.sweep.store import NOT_IN_DIGEST
+from analysis.sweep.sweep import check_executor
 from merge_irl.atomic import write_atomic
+from merge_irl.cancel import CancelHook
 from merge_irl.provenance import provenance, text_digest, write_timings
 from merge_irl.run_folder import locked, remove_stale_locks, remove_temporaries
 from scenarios.spec.model import ScenarioSpec
@@ -93,7 +95,9 @@ def generate_one(config: GenerateRun, seed: int) -> dict:
     """
     spec = with_overrides(
         spec_from_toml(config.spec_toml, source="<sweep spec>"), seed=config.seed, duration_s=config.duration_s, demand_scale=config.demand_scale)
-    res = generate(spec, config.run_dir, csv=config.csv, progress=False, encounter_rule=config.encounter_rule)
+    # CancelHook: on a Dask worker, a run whose sweep was interrupted stops between two steps
+    res = generate(spec, config.run_dir, csv=config.csv, progress=False, encounter_rule=config.encounter_rule,
+                   hooks=(CancelHook(),))
     sim = res.simulation
     return {
         "run": Path(config.run_dir).name,
@@ -146,6 +150,19 @@ def generate_tasks(
                               run=name, encounter_rule=encounter_rule, run_dir=str(out / name))
             tasks.append(Task(key=name, func=generate_one, config=cfg))
     return tasks
+
+
+def _runs_to_do(tasks: Sequence[Task], out: Path) -> bool:
+    """Whether some task has no stored record with its outputs in place (read only: nothing is
+    created)."""
+    if not (out / STORE_DIR).is_dir():
+        return True
+    store = ResultStore(out / STORE_DIR, create=False)
+    for t in tasks:
+        record = store.get(task_digest(t.func_name, t.config, derive_seed(SWEEP_SEED, t.key)))
+        if record is None or not _outputs_are_the_records(Path(t.config.run_dir), record["result"], t.config):
+            return True
+    return False
 
 
 def _forget_missing_outputs(tasks: Sequence[Task], store: ResultStore) -> int:
@@ -238,6 +255,8 @@ def generate_many(
     check_rule(encounter_rule)
     tasks = generate_tasks(spec, seeds, demand_scales, out, duration_s=duration_s, csv=csv,
                            encounter_rule=encounter_rule)
+    if _runs_to_do(tasks, out):  # an unusable Dask scheduler: one error, nothing created in ``out``
+        check_executor(executor)
     with locked(out):
         out.mkdir(parents=True, exist_ok=True)
         remove_temporaries(out)

@@ -51,9 +51,12 @@ class ResultStore:
     parse is treated as missing (and reported by :meth:`get` returning ``None``).
     """
 
-    def __init__(self, root: str | os.PathLike) -> None:
+    def __init__(self, root: str | os.PathLike, *, create: bool = True) -> None:
+        """``create``: make the folder (and its parents) if missing; False: only read (:meth:`get`
+        finds nothing in a missing folder)."""
         self.root = Path(root)
-        self.root.mkdir(parents=True, exist_ok=True)
+        if create:
+            self.root.mkdir(parents=True, exist_ok=True)
 
     def remove_temporaries(self) -> int:
         """Remove hidden temporary files left by writes that were killed; returns how many.

@@ -5,7 +5,9 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import os
+import shutil
 import signal
+import tempfile
 import time
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -281,6 +283,26 @@ def _single_threaded_workers():
             os.environ.pop(k, None)
 
 
+@contextlib.contextmanager
+def _worker_tmpdir():
+    """Spawned workers' temporary folders (a SUMO run's ``merge-irl-run-*``) go under one hidden
+    folder of this pool (``TMPDIR`` while it lives), removed once its workers have ended: a worker
+    killed mid-run (Ctrl-C, a failure that aborts the sweep, a crash) cannot remove its own. This
+    process keeps its own temporary directory (looked up, and cached by :mod:`tempfile`, first)."""
+    tempfile.gettempdir()
+    root = tempfile.mkdtemp(prefix="merge-irl-sweep-")
+    before = os.environ.get("TMPDIR")
+    os.environ["TMPDIR"] = root
+    try:
+        yield root
+    finally:
+        if before is None:
+            os.environ.pop("TMPDIR", None)
+        else:
+            os.environ["TMPDIR"] = before
+        shutil.rmtree(root, ignore_errors=True)
+
+
 def _pool(workers: int, ctx) -> ProcessPoolExecutor:
     """A process pool whose workers die with this process (:func:`die_with_parent`)."""
     return ProcessPoolExecutor(workers, mp_context=ctx, initializer=die_with_parent, initargs=(os.getpid(),))
@@ -312,7 +334,7 @@ def _run_isolated(p: _Pending, finish) -> None:
     """Run one task alone in a fresh process until it succeeds or runs out of retries."""
     ctx = multiprocessing.get_context("spawn")
     while True:
-        with _single_threaded_workers(), _pool(1, ctx) as pool:
+        with _worker_tmpdir(), _single_threaded_workers(), _pool(1, ctx) as pool:
             try:
                 record = pool.submit(call_task, p.task.func, p.task.config, p.seed).result()
             except BrokenProcessPool as e:
@@ -359,7 +381,7 @@ def _run_process_pool(todo: Sequence[_Pending], finish, workers: int,
         in_flight: dict[Future, _Pending] = {}
         crashed: list[_Pending] = []
         procs: dict[int, multiprocessing.process.BaseProcess] = {}  # the pool's workers, for _death_cause
-        with _single_threaded_workers(), _pool(workers, ctx) as pool:
+        with _worker_tmpdir(), _single_threaded_workers(), _pool(workers, ctx) as pool:
             try:
                 while queue or in_flight:
                     while queue and len(in_flight) < workers:
@@ -395,6 +417,20 @@ def _run_process_pool(todo: Sequence[_Pending], finish, workers: int,
                 raise
         for p in crashed:  # the pool-wide crash is not counted: it cannot be attributed
             _run_isolated(p, finish)
+
+
+def check_executor(executor: str | ExecutorSpec) -> None:
+    """Before creating any output: for ``dask://`` / ``tls://``, ask the scheduler who it is
+    (what :func:`run_sweep` does before running anything); other executors need no check.
+
+    Raises:
+        ValueError: ``executor`` does not parse.
+        DaskUnavailable: the scheduler does not answer, is not one, or the TLS files are missing,
+            unreadable or do not match (:mod:`analysis.sweep.dask_executor`).
+    """
+    spec = parse_executor(executor) if isinstance(executor, str) else executor
+    if spec.kind == "dask":
+        _check_dask_scheduler(spec)
 
 
 def _check_dask_scheduler(spec: ExecutorSpec) -> None:

@@ -46,7 +46,7 @@ def register(subparsers) -> None:
                         help=f"also train the car-following logit driver cf-dagger ({WITH_DAGGER_ROUNDS} DAgger rounds) "
                              "and evaluate it beside the others: the driver that meets the closed-loop targets, but its "
                              "rounds need SUMO's High Brake labels in the states it reaches (15 SUMO runs of 240 s per "
-                             "round), about as long again as the rest of the demo (default: left out)")
+                             "round), about half of the demo's wall time with them (default: left out)")
     dagger.add_argument("--dagger-rounds", type=non_negative_int, default=None, metavar="N",
                         help="as --with-dagger with N DAgger rounds (0: cf-dagger not trained, the default)")
     p.add_argument("--encounter-rule", choices=ENCOUNTER_RULES, default=ENCOUNTER_RULES[0],

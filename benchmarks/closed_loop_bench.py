@@ -154,8 +154,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"  rerun logging per vehicle-frame  {us_log:7.2f} us  (target < 10)")
     if parts:
         bc = med(bare_cpu)
-        cpu = {**{k: med([p[k] for p in parts]) for k in parts[0]}, "closed loop + rerun": o["cpu"]}
-        print("  CPU time / bare CPU, by part:    " + ", ".join(f"{k} {v:.2f} s ({v / bc:.2f}x)" for k, v in cpu.items())
+        by_part = {**{k: med([p[k] for p in parts]) for k in parts[0]}, "closed loop + rerun": o["cpu"]}
+        print("  CPU time / bare CPU, by part:    " + ", ".join(f"{k} {v:.2f} s ({v / bc:.2f}x)" for k, v in by_part.items())
               + f"; bare {bc:.2f} s")
     return 0
 

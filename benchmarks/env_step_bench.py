@@ -10,7 +10,8 @@ Same scenario, seed and simulated time, Zero (action 2) at every decision:
   controlled lag car an agent, Zero for each (target: decisions per second at least 1.3x
   the single-agent environment's, within 1.1x of the closed loop per decision);
 * ``env x1`` / ``env x2 (AsyncVectorEnv)``: one and two worker processes, one SUMO each (target:
-  two at least 1.6x one's steps per second on 2 idle cores).
+  two at least 1.6x one's steps per second on 2 idle cores), with the load average, and the most
+  lock-stepped workers could gain (:func:`lockstep_bound`: each worker's calls replayed alone).
 
 Printed per decision: wall time, and the overhead (wall time outside ``simulationStep``, i.e.
 Python: reading frames, the controller, the environment); the time inside ``env.step()`` alone
@@ -25,6 +26,7 @@ Run: ``python -m benchmarks.env_step_bench [--sim-s 600] [--seed 1] [--repeat 3]
 from __future__ import annotations
 
 import argparse
+import os
 import time
 
 import numpy as np
@@ -113,6 +115,49 @@ def vector_episodes(spec_name: str, seed: int, steps: int, workers: int = 2) -> 
         envs.close()
 
 
+def worker_calls(spec_name: str, seed: int, steps: int) -> tuple[np.ndarray, np.ndarray]:
+    """One vector worker's calls replayed alone in this process: ``steps`` calls as
+    ``AsyncVectorEnv`` makes them (``step(Zero)``; the call after an episode's end is its reset,
+    Gymnasium's next-step autoreset), after ``reset(seed)``. Returns ``(frames [steps], wall s
+    [steps])``: the simulated frames each call ran (deterministic) and its wall time."""
+    from sim.env import MergeEnv
+
+    env = MergeEnv(spec_name, run_s=3600.0)
+    try:
+        env.reset(seed=seed)
+        frames, walls = np.zeros(steps), np.zeros(steps)
+        ended = False
+        for k in range(steps):
+            session = env._session
+            s0 = session._step if session is not None else 0
+            t = time.perf_counter()
+            if ended:
+                env.reset()
+                ended = False
+            else:
+                _, _, term, trunc, _ = env.step(ZERO)
+                ended = bool(term or trunc)
+            walls[k] = time.perf_counter() - t
+            now = env._session
+            frames[k] = (now._step if now is not None else 0) - (s0 if now is session else 0)
+        return frames, walls
+    finally:
+        env.close()
+
+
+def lockstep_bound(spec_name: str, seed: int, steps: int) -> tuple[float, float]:
+    """The most two lock-stepped workers (seeds ``seed``, ``seed + 1``) can gain over one (seed
+    ``seed``) in steps per second: every vector step waits for the slower call, so two workers
+    take ``sum(max(a, b))`` for ``2 * steps`` steps where one takes ``sum(a)`` for ``steps``, with
+    no cost of their own. Returns ``(from simulated frames, from wall times)``: the first counts a
+    call's cost as the frames it simulated plus one (the call itself), independent of the
+    machine's load; the second the calls' wall times here."""
+    fa, wa = worker_calls(spec_name, seed, steps)
+    fb, wb = worker_calls(spec_name, seed + 1, steps)
+    fa, fb = fa + 1.0, fb + 1.0
+    return 2 * fa.sum() / np.maximum(fa, fb).sum(), 2 * wa.sum() / np.maximum(wa, wb).sum()
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenario", default="synthetic")
@@ -158,8 +203,12 @@ def main(argv=None) -> None:
           f"{dps['ma']:.0f} vs env {dps['env']:.0f} ({dps['ma'] / dps['env']:.2f}x, target >= 1.3x) and closed loop "
           f"{dps['cl']:.0f} (per decision {dps['cl'] / dps['ma']:.2f}x the closed loop's time, target <= 1.1x)")
     sps = {w: w * a.vector_steps / vec[w][0] for w in vec}
+    bound_frames, bound_wall = lockstep_bound(a.scenario, a.seed, a.vector_steps)
     print(f"AsyncVectorEnv steps/s: 1 worker {sps[1]:.0f}, 2 workers {sps[2]:.0f} ({sps[2] / sps[1]:.2f}x, "
-          f"target >= 1.6x on 2 idle cores)")
+          f"target >= 1.6x on 2 idle cores); load average {os.getloadavg()[0]:.1f}")
+    print(f"  lock-step bound of 2 workers / 1 (each vector step waits for the slower worker; resets run SUMO "
+          f"to the next take-over): {bound_frames:.2f}x from simulated frames per call, {bound_wall:.2f}x from "
+          f"the calls' wall times here")
 
 
 if __name__ == "__main__":

@@ -20,6 +20,8 @@ from sim.merges.rules import ENCOUNTER_RULES, check_rule
 CF_DRIVER = "cf-dagger"
 #: The name of the planning driver (learned from the demonstrations alone) in the demo's reports.
 PLANNER_DRIVER = "planner"
+#: DAgger rounds of ``cf-dagger`` with ``merge-irl demo --with-dagger`` (the demo trains none by default).
+WITH_DAGGER_ROUNDS = DaggerConfig.rounds
 
 
 @dataclass(frozen=True)
@@ -64,10 +66,11 @@ class DemoConfig:
             (:mod:`analysis.experiments.dagger`, its other settings the defaults of
             :class:`~analysis.experiments.dagger.DaggerConfig`, so the driver equals ``merge-irl dagger``'s
             on the same encounters), trained after the IRL methods and evaluated beside them;
-            0: not trained. Default ``DaggerConfig.rounds`` (4): ``cf-dagger`` is the default
-            learned driver, the one that meets the closed-loop targets (no collision by its As in
-            30 episodes on two seed sets; docs/closed-loop.md). The 4 rounds took 19-21 s of a
-            29-31 s demo on 2 idle cores (2026-12-02; 54 s at load average 2).
+            0 (the default): not trained. ``merge-irl demo --with-dagger`` sets
+            :data:`WITH_DAGGER_ROUNDS` (``DaggerConfig.rounds``, 4): ``cf-dagger`` is the learned
+            driver that meets the closed-loop targets (no collision by its As in 30 episodes on two
+            seed sets; docs/closed-loop.md), but its rounds need SUMO's labels in the states it
+            reaches and took 23 s of a 45-49 s demo on 2 idle cores, so the default demo leaves it out.
         encounter_rule: how the data runs become demonstrations (:mod:`sim.merges.demonstrators`;
             default ``in-lane``: SUMO's drivers observed as the controller observes them, A's lane
             held while observed, so that they are what the commanded drivers can do).
@@ -90,7 +93,7 @@ class DemoConfig:
     gamma: float = 0.0
     l2: float = 1.0
     fit_seed: int = 0
-    dagger_rounds: int = DaggerConfig.rounds
+    dagger_rounds: int = 0
     encounter_rule: str = ENCOUNTER_RULES[0]
     workers: int = 2
     executor: str | None = None

@@ -20,11 +20,12 @@ from scenarios.spec.model import ScenarioSpec
 
 #: The measurements the constants come from: (what, simulated seconds, CPU seconds user + system of
 #: every process, wall seconds, 1-minute load average), on the 2-core development machine,
-#: 2026-12-03, fresh network cache (``MERGE_IRL_CACHE`` an empty folder), other people's jobs running.
+#: 2026-12-03 (``--with-dagger`` was then the default), fresh network cache (``MERGE_IRL_CACHE`` an
+#: empty folder), other people's jobs running.
 MEASURED = (
-    ("merge-irl demo", 20880.0, 165.5, 331.5, 11.4),  # the load rose from 0.5 to 11.4 during the run
-    ("merge-irl demo --dagger-rounds 0", 5400.0, 41.5, 201.5, 11.4),  # about 11 throughout
-    ("merge-irl demo", 20880.0, 104.2, 99.9, 2.9),  # 2.5 at the start, 3.3 at the end
+    ("merge-irl demo --with-dagger", 20880.0, 165.5, 331.5, 11.4),  # the load rose from 0.5 to 11.4 during the run
+    ("merge-irl demo", 5400.0, 41.5, 201.5, 11.4),  # the default demo (no DAgger); load about 11 throughout
+    ("merge-irl demo --with-dagger", 20880.0, 104.2, 99.9, 2.9),  # 2.5 at the start, 3.3 at the end
 )
 #: CPU seconds of the demo's fixed part (imports, worker start-up, IRL and planner fits): the
 #: measurements put it at about 0, so the simulated seconds carry it all.

@@ -11,9 +11,9 @@
    settings of ``merge-irl learn`` on encounter tables (driver features and state encoding,
    beta 1: :func:`analysis.experiments.learn.merge_config`) and gamma ``DemoConfig.gamma`` (0, chosen by
    held-out log-likelihood), one ``model.json`` each; then the car-following logit driver
-   ``cf-dagger``, the default learned driver (``DemoConfig.dagger_rounds`` DAgger rounds,
-   ``analysis.experiments.dagger``; 0: left out);
-4. **re-inject and evaluate**: every model and ``cf-dagger`` drive the lag cars A of new
+   ``cf-dagger`` (``DemoConfig.dagger_rounds`` DAgger rounds, ``analysis.experiments.dagger``;
+   0, the default: left out; ``merge-irl demo --with-dagger``: 4);
+4. **re-inject and evaluate**: every model (and ``cf-dagger``) drive the lag cars A of new
    episodes (other seeds), beside SUMO's own driver and the baselines uniform, marginal, markov
    and bc (``analysis.evaluation``: planned, run and reported), with the held-out encounters for the held-out
    log-likelihood and the Wasserstein distances;

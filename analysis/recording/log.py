@@ -141,9 +141,10 @@ class RerunLogger:
         self._gy: list[np.ndarray] = []
         self._len: list[np.ndarray] = []
         self._wid: list[np.ndarray] = []
-        self._roles: list[np.ndarray] = []
+        self._lanes: list[np.ndarray] = []  # without a controller: roles come from the lanes
         self._ids: list[np.ndarray] = []
-        self._labels: list[np.ndarray] = []
+        self._marks: list[tuple[int, int]] = []  # (row in the buffer, role id): the controller's A, B, C
+        self._n_buffered = 0  # vehicle rows buffered
         self._foci: list[np.ndarray] = []
 
     @property
@@ -167,17 +168,20 @@ class RerunLogger:
 
     def on_step(self, ctx: RunContext, frame: FrameState) -> None:
         n = len(frame.sumo_ids)
-        roles = self._roles_of(frame)
         if self.log_vehicles:
-            # the frame's arrays are read-only and never reused: keep references, not copies
+            # the frame's arrays are read-only and never reused: keep references, not copies;
+            # roles and labels are built for the whole buffer in _flush
             self._gx.append(frame.global_x)
             self._gy.append(frame.global_y)
             self._len.append(frame.length)
             self._wid.append(frame.width)
-            self._roles.append(roles)
             self._ids.append(frame.vehicle_id)
-            self._labels.append(self._labels_of(roles, frame.vehicle_id))
-            self._foci.append(self._focus_of(frame, roles))
+            if self.controller is None:
+                self._lanes.append(frame.lane_id)
+            else:
+                self._mark_roles(frame)
+            self._foci.append(self._focus)
+            self._n_buffered += n
             self._lens.append(n)
             self._steps.append(int(frame.frame))
             self._times.append(float(frame.time_s))
@@ -209,31 +213,38 @@ class RerunLogger:
             self._rec = None
 
     # -- internals ----------------------------------------------------------------------
-    def _roles_of(self, frame: FrameState) -> np.ndarray:
-        roles = np.zeros(len(frame.sumo_ids), dtype=np.uint16)
-        if self.controller is None:
-            roles[frame.lane_id == self._ramp_lane] = ROLE_IDS["B"]
-            return roles
+    def _mark_roles(self, frame: FrameState) -> None:
+        """Buffers the controller's roles of the frame (A, B, C rows; the others are "other") and
+        moves the focus to the current merge: the centre (mirrored frame, ft) of its car A, the
+        controlled A of the lowest Vehicle_ID; the focus stays where it was between merges."""
         a_role = ROLE_IDS["A"] if getattr(self.controller.policy, "controls", True) else ROLE_IDS["A observed"]
+        base = self._n_buffered
+        a_rows = []
         for row, role in self.controller.role_rows.items():
-            roles[row] = a_role if role == "A" else ROLE_IDS[role]
-        return roles
-
-    @staticmethod
-    def _labels_of(roles: np.ndarray, ids: np.ndarray) -> np.ndarray:
-        """``[n]`` object array: "A 12" etc. on A, B and C, "" on the others."""
-        labels = np.full(roles.size, "", dtype=object)
-        for i in np.flatnonzero(roles):
-            labels[i] = f"{ROLE_LABELS[roles[i]]} {int(ids[i])}"
-        return labels
-
-    def _focus_of(self, frame: FrameState, roles: np.ndarray) -> np.ndarray:
-        """Centre (mirrored frame, ft) of the current merge's car A; the last one between merges."""
-        a_rows = np.flatnonzero((roles == ROLE_IDS["A"]) | (roles == ROLE_IDS["A observed"]))
-        if a_rows.size:
-            i = a_rows[np.argmin(frame.vehicle_id[a_rows])]
+            if role == "A":
+                a_rows.append(row)
+                self._marks.append((base + row, a_role))
+            else:
+                self._marks.append((base + row, ROLE_IDS[role]))
+        if a_rows:
+            vid = frame.vehicle_id
+            i = min(a_rows, key=lambda r: int(vid[r]))
             self._focus = np.array([float(frame.global_x[i]) - 0.5 * float(frame.length[i]), -float(frame.global_y[i])])
-        return self._focus
+
+    def _buffered_roles(self, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Role ids ``uint16[n]`` of the buffered vehicle rows and their labels (``[n]`` object
+        array: "A 12" etc. on A, B and C, "" on the others)."""
+        roles = np.zeros(ids.size, dtype=np.uint16)
+        if self.controller is None:
+            roles[np.concatenate(self._lanes) == self._ramp_lane] = ROLE_IDS["B"]
+        elif self._marks:
+            rows, role_ids = zip(*self._marks)
+            roles[list(rows)] = role_ids
+        labels = np.full(roles.size, "", dtype=object)
+        marked = np.flatnonzero(roles)
+        for i, r, v in zip(marked.tolist(), roles[marked].tolist(), ids[marked].tolist()):
+            labels[i] = f"{ROLE_LABELS[r]} {v}"
+        return roles, labels
 
     def _controls(self) -> tuple[list[int], tuple[int, int] | None]:
         """Controlled cars' ids (in order of take-over) and the first take-over's frame range."""
@@ -272,7 +283,7 @@ class RerunLogger:
             return
         lens = np.asarray(self._lens)
         ids = np.concatenate(self._ids)
-        roles = np.concatenate(self._roles)
+        roles, labels = self._buffered_roles(ids)
         length = np.concatenate(self._len)
         n = length.size
         centers = np.empty((n, 2), dtype=np.float32)
@@ -283,7 +294,7 @@ class RerunLogger:
         half[:, 1] = 0.5 * np.concatenate(self._wid)
         cols = [
             *rr.Boxes2D.columns(centers=centers, half_sizes=half, class_ids=roles, colors=ROLE_RGBA_U32[roles],
-                                labels=pa.array(np.concatenate(self._labels), type=pa.string())).partition(lens),
+                                labels=pa.array(labels, type=pa.string())).partition(lens),
             # the viewer hides the labels of entities with many instances; the others' labels are ""
             *rr.Boxes2D.columns(show_labels=[True] * lens.size),
             # an arrow array, not numpy: rerun turns a numpy column into one Python list per value

@@ -1,8 +1,9 @@
 """``merge-irl demo``: the whole pipeline on the default scenario, in one command.
 
-Generate synthetic merges, learn Q-Avg (MLIRL, Q-SM, REIRL on request) and the car-following logit
-driver cf-dagger (DAgger), re-inject the learned drivers into SUMO, evaluate them against SUMO's own
-driver and the trivial baselines, write the report
+Generate synthetic merges, learn Q-Avg (MLIRL, Q-SM, REIRL on request), the planning driver and, with
+``--with-dagger``, the car-following logit driver cf-dagger (DAgger: SUMO's labels, about half of the
+demo's time, so left out by default), re-inject the learned drivers into SUMO, evaluate them against
+SUMO's own driver and the trivial baselines, write the report
 and the ``.rrd`` log, and print where they are. See :func:`analysis.demo.pipeline.run_demo`.
 """
 
@@ -13,7 +14,7 @@ from dataclasses import replace
 
 from analysis.cli.commands._arg_types import non_negative_int, positive_int
 from analysis.cli.options import DASK, EPISODES, EXECUTOR, PROGRESS, WORKERS, apply_dask_options, executor_from_args
-from analysis.demo.config import DemoConfig
+from analysis.demo.config import WITH_DAGGER_ROUNDS, DemoConfig
 from analysis.demo.pipeline import run_demo
 from analysis.sweep.executors import default_workers
 from scenarios.loader import load_scenario
@@ -24,9 +25,9 @@ from sim.merges.rules import ENCOUNTER_RULES
 def register(subparsers) -> None:
     p = subparsers.add_parser(
         "demo", parents=[EPISODES, WORKERS, EXECUTOR, PROGRESS, DASK],
-        description="Generate synthetic merges, learn with Q-Avg (--methods adds MLIRL, Q-SM, REIRL) and train the "
-                    "car-following logit driver cf-dagger (--dagger-rounds), re-inject the learned drivers into "
-                    "SUMO, evaluate them beside SUMO's driver and the baselines uniform, marginal, markov and bc, "
+        description="Generate synthetic merges, learn with Q-Avg (--methods adds MLIRL, Q-SM, REIRL) and the "
+                    "planning driver (--with-dagger adds the car-following logit driver cf-dagger, trained with "
+                    "DAgger on SUMO's labels), re-inject the learned drivers into SUMO, evaluate them beside SUMO's driver and the baselines uniform, marginal, markov and bc, "
                     "write report.md, metrics.json and a rerun .rrd; print where they are.")
     p.add_argument("--out", default=None, metavar="DIR", help="output folder (default: ./runs/demo)")
     p.add_argument("--scenario", default="synthetic", metavar="NAME|FILE.toml",
@@ -40,11 +41,14 @@ def register(subparsers) -> None:
                    help="held-out data runs (consecutive seeds) whose demonstrations score the drivers (held-out "
                         "log-likelihood, Wasserstein distances; default 1: one run is a noisy reference for the "
                         "distances, 10 rank the drivers, see docs/closed-loop.md)")
-    p.add_argument("--dagger-rounds", type=non_negative_int, default=None, metavar="N",
-                   help="DAgger rounds of the car-following logit driver cf-dagger, the default learned driver "
-                        "(SUMO's High Brake labels in the states it reaches: 15 SUMO runs of 240 s per round, most of "
-                        "the demo's CPU time), evaluated beside the others (default 4; 0: not trained, the demo then "
-                        "needs about a quarter of the CPU time)")
+    dagger = p.add_mutually_exclusive_group()
+    dagger.add_argument("--with-dagger", action="store_true",
+                        help=f"also train the car-following logit driver cf-dagger ({WITH_DAGGER_ROUNDS} DAgger rounds) "
+                             "and evaluate it beside the others: the driver that meets the closed-loop targets, but its "
+                             "rounds need SUMO's High Brake labels in the states it reaches (15 SUMO runs of 240 s per "
+                             "round), about half of the demo's wall time with them (default: left out)")
+    dagger.add_argument("--dagger-rounds", type=non_negative_int, default=None, metavar="N",
+                        help="as --with-dagger with N DAgger rounds (0: cf-dagger not trained, the default)")
     p.add_argument("--encounter-rule", choices=ENCOUNTER_RULES, default=ENCOUNTER_RULES[0],
                    help="how the data runs become demonstrations (default in-lane: as the closed-loop controller "
                         "observes SUMO's drivers, A's lane held; see merge-irl generate --help)")
@@ -60,8 +64,8 @@ def run(args: argparse.Namespace) -> int:
     config = replace(config, eval_episodes=args.episodes)
     if args.methods:
         config = replace(config, methods=tuple(m.strip() for m in args.methods.split(",") if m.strip()))
-    if args.dagger_rounds is not None:
-        config = replace(config, dagger_rounds=args.dagger_rounds)
+    if args.dagger_rounds is not None or args.with_dagger:
+        config = replace(config, dagger_rounds=WITH_DAGGER_ROUNDS if args.with_dagger else args.dagger_rounds)
     # every core unless --workers or --executor says otherwise, as every command's --workers
     config = replace(config, workers=args.workers or default_workers(), executor=executor_from_args(args))
     apply_dask_options(args)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from analysis.cli.main import main
-from analysis.demo.config import DemoConfig, check_dagger_seeds
+from analysis.demo.config import WITH_DAGGER_ROUNDS, DemoConfig, check_dagger_seeds
 from irl.errors import ConfigError
 from sim.errors import SimError
 
@@ -64,10 +64,10 @@ def test_the_demo_says_how_long_it_will_take():
     from scenarios.loader import load_scenario
 
     spec = load_scenario("synthetic")
-    cfg = DemoConfig()
+    cfg = DemoConfig(dagger_rounds=WITH_DAGGER_ROUNDS)  # merge-irl demo --with-dagger
     # the model's simulated seconds are those of the measured runs, and its CPU time theirs within 10 %
     assert simulated_seconds(cfg, spec) == MEASURED[0][1] == MEASURED[2][1]
-    assert simulated_seconds(DemoConfig(dagger_rounds=0), spec) == MEASURED[1][1]
+    assert simulated_seconds(DemoConfig(), spec) == MEASURED[1][1]  # the default demo: no DAgger
     for _, sim_s, cpu_s, _, load in MEASURED:
         assert abs((CPU_PER_SIM_S + CPU_PER_SIM_S_PER_LOAD * load) * sim_s - cpu_s) / cpu_s < 0.1
     idle = estimate(cfg, spec, cores=2, load=0.0)
@@ -81,3 +81,27 @@ def test_the_demo_says_how_long_it_will_take():
     line = busy.line()
     assert "\n" not in line and line.startswith("merge-irl demo: expect about") and "load average now 11.4" in line
     assert "cores idle" in idle.line()
+
+
+@pytest.mark.parametrize(("flags", "rounds"), [((), 0), (("--with-dagger",), WITH_DAGGER_ROUNDS),
+                                               (("--dagger-rounds", "2"), 2)])
+def test_cli_trains_cf_dagger_only_when_asked(tmp_path, monkeypatch, flags, rounds):
+    """The default demo leaves DAgger's labelling runs out; --with-dagger (or --dagger-rounds N) adds them."""
+    import analysis.cli.commands.demo as demo_cmd
+
+    seen: list[DemoConfig] = []
+
+    def fake_run_demo(out, config, **kw):
+        seen.append(config)
+        raise KeyboardInterrupt  # stop before any work; the CLI exits 130
+
+    monkeypatch.setattr(demo_cmd, "run_demo", fake_run_demo)
+    code = main(["demo", *flags, "--out", str(tmp_path / "d")])
+    assert code == 130 and [c.dagger_rounds for c in seen] == [rounds]
+
+
+def test_cli_rejects_with_dagger_beside_dagger_rounds(tmp_path, capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["demo", "--with-dagger", "--dagger-rounds", "2", "--out", str(tmp_path / "d")])
+    assert e.value.code == 2 and "--dagger-rounds" in capsys.readouterr().err
+    assert not (tmp_path / "d").exists()

@@ -380,3 +380,43 @@ def test_the_merge_view_reads_at_a_glance(logged):
     labels = [list(x) for x in bars["Boxes2D:labels"]]
     assert all(len(x) == 5 for x in labels) and labels[0] == [f"{h:.2f}" for h in heights[0]]
     assert FOLLOW_HALF_FT[0] <= 200.0  # about 350 ft of road: lanes and cars readable
+
+
+def _roles_by_row(path):
+    """{(step, Vehicle_ID): (class id, label)} of ``/world/vehicles``."""
+    out = {}
+    for b in read_entities(path)["/world/vehicles"]:
+        for s, ids, cls, lab in zip(b.column("step").to_pylist(), b.column("vehicle_id").to_pylist(),
+                                    b.column("Boxes2D:class_ids").to_pylist(), b.column("Boxes2D:labels").to_pylist()):
+            out.update({(int(s), int(v)): (int(k), lb) for v, k, lb in zip(ids, cls, lab)})
+    return out
+
+
+@pytest.mark.sumo
+def test_roles_and_labels_do_not_depend_on_the_buffer(tmp_path):
+    """Roles and labels are built per buffer when it is sent: a buffer of 7 frames (many sends,
+    the controller's rows offset in each) logs what one of 600 does; without a controller the
+    ramp lane's vehicles are B."""
+    from analysis.recording.log import RerunLogger
+    from sim.closed_loop.controller import Controller
+    from sim.runtime.run import run_scenario
+
+    spec = load_scenario("synthetic")
+    q = np.random.default_rng(7).normal(size=(1250, 5))
+    policy = LearnedPolicy(q - np.log(np.exp(q).sum(axis=1, keepdims=True)), MergeBins.from_dict(EDGES), name="random-q")
+    logged = {}
+    for every in (7, 600):
+        ctl = Controller(policy)
+        path = tmp_path / f"every{every}.rrd"
+        run_scenario(spec, duration_s=120.0, hooks=[ctl, RerunLogger(path, controller=ctl, flush_every=every)])
+        logged[every] = _roles_by_row(path)
+    assert logged[7] == logged[600]
+    assert {k for k, _ in logged[7].values()} >= {ROLE_IDS["A"], ROLE_IDS["B"], ROLE_IDS["C"]}
+    path = tmp_path / "no-controller.rrd"
+    res = run_scenario(spec, duration_s=120.0, hooks=[RerunLogger(path, flush_every=7)])
+    roles = _roles_by_row(path)
+    lane = dict(zip(zip(res.table.Frame_ID, res.table.Vehicle_ID), res.table.Lane_ID))
+    assert roles.keys() == lane.keys()
+    ramp = [k for k, v in lane.items() if v == 7]
+    assert ramp and all(roles[k] == (ROLE_IDS["B"], f"B {k[1]}") for k in ramp)
+    assert all(roles[k] == (ROLE_IDS["other"], "") for k, v in lane.items() if v != 7)

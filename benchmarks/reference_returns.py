@@ -130,8 +130,9 @@ def ppo_rows(scenario: str, seeds: Sequence[int], run_s: float, budgets: Sequenc
         wall += time.perf_counter() - t
         done = budget
         train.close()  # libsumo is free again for the evaluation
+        act = model.predict
         out[f"ppo@{budget}"] = (returns_of(lambda: MergeEnv(scenario, run_s=run_s), seeds,
-                                           lambda o: int(model.predict(o, deterministic=True)[0])), wall)
+                                           lambda o, act=act: int(act(o, deterministic=True)[0])), wall)
     return out
 
 

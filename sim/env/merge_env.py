@@ -142,6 +142,11 @@ class MergeEnv(gym.Env):
         self._last_obs = np.zeros(len(OBS_COLUMNS))
         self._run_seed = -1
         self._time_s = math.nan  # simulated time of the last frame the agent saw
+        #: Called as ``listener(ctx, controller, frame)`` with every frame of an episode, from the
+        #: take-over to the release, once the controller is done with it (A's decision in that frame
+        #: applied): what a step hook after the controller sees in the closed loop
+        #: (:class:`analysis.recording.episodes.RecordRerun` writes the episodes to rerun so).
+        self.frame_listeners: list[Callable[[Any, Controller, FrameState], None]] = []
 
     # -- Gymnasium API --------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -194,6 +199,7 @@ class MergeEnv(gym.Env):
         frame, ia, ic, obs = self._pending
         reward, step_info = self._core.apply(ctl, c, frame, ia, ic, obs, action)
         self._pending = None
+        self._tell(frame)
         while True:
             st = self._session.step()
             if st is None:
@@ -206,6 +212,7 @@ class MergeEnv(gym.Env):
                 o = self._core.observe_at_release(ctl, c, st.frame)
                 if o is not None:
                     self._last_obs = self._core.observation(o)
+                self._tell(st.frame)
                 break
             for dc, ia2, ib2, ic2 in due:
                 if dc is c:
@@ -213,6 +220,7 @@ class MergeEnv(gym.Env):
                     self._pending = (st.frame, ia2, ic2, o)
                     self._last_obs = self._core.observation(o)
                     return self._last_obs.copy(), reward, False, False, {**self._info(o), **step_info}
+            self._tell(st.frame)
         terminated, truncated = end_flags(c)
         info = {**self._info(None), **step_info, "release_reason": c.reason, "collision_kind": c.collision_kind}
         return self._last_obs.copy(), reward + self._core.outcome(c), terminated, truncated, info
@@ -248,6 +256,11 @@ class MergeEnv(gym.Env):
         super().close()
 
     # -- internals ------------------------------------------------------------------------
+    def _tell(self, frame: FrameState) -> None:
+        for listener in self.frame_listeners:
+            assert self._session is not None and self._ctl is not None
+            listener(self._session.context, self._ctl, frame)
+
     def _draw_seed(self) -> int:
         return int(self.np_random.integers(0, 2**31 - 1))
 

@@ -3,7 +3,9 @@
 For each scenario (default ``synthetic`` and ``i80``) and each driver, one episode per evaluation
 seed (``reset(seed=s)``: a new SUMO run, its first take-over), the return (the sum of the default
 task reward ``"task"`` over the episode, :mod:`sim.env.task_reward`) is recorded; the table gives
-its mean and the 95 % interval of the mean (Student's t over the seeds) per driver:
+its mean and the 95 % interval of the mean (Student's t over the seeds) per driver, with the
+mean episode length (decisions of 0.3 s) and the episodes that ended in A's collision. The task
+reward is paid per decision, so a return also grows with the episode's length:
 
 * ``zero``: action 2 (Zero, no acceleration) at every decision;
 * ``random``: a uniform draw of the five actions (``numpy.random.default_rng(seed)``);
@@ -42,26 +44,27 @@ def run_s_of(scenario: str, extra_s: float) -> float:
     return float(load_scenario(scenario).simulation.warmup_s) + extra_s
 
 
-def episode_return(env: Any, seed: int, act: Act, reset: Callable[[], None] | None = None) -> tuple[float, int]:
-    """``(return, decisions)`` of the episode ``env.reset(seed=seed)`` starts, ``act(obs)`` choosing."""
+def episode_return(env: Any, seed: int, act: Act, reset: Callable[[], None] | None = None
+                   ) -> tuple[float, int, bool]:
+    """``(return, decisions, collided)`` of the episode ``env.reset(seed=seed)`` starts, ``act(obs)`` choosing."""
     obs, _ = env.reset(seed=seed)
     if reset is not None:
         reset()
-    total, n, done = 0.0, 0, False
+    total, n, done, info = 0.0, 0, False, {}
     while not done:
-        obs, r, terminated, truncated, _ = env.step(act(obs))
+        obs, r, terminated, truncated, info = env.step(act(obs))
         total += float(r)
         n += 1
         done = terminated or truncated or n >= 200
-    return total, n
+    return total, n, info.get("release_reason") == "collision"
 
 
 def returns_of(make: Callable[[], Any], seeds: Sequence[int], act: Act,
-               reset: Callable[[], None] | None = None) -> list[float]:
-    """One episode return per seed, in one environment (closed at the end)."""
+               reset: Callable[[], None] | None = None) -> list[tuple[float, int, bool]]:
+    """``(return, decisions, collided)`` of one episode per seed, in one environment (closed at the end)."""
     env = make()
     try:
-        return [episode_return(env, s, act, reset)[0] for s in seeds]
+        return [episode_return(env, s, act, reset) for s in seeds]
     finally:
         env.close()
 
@@ -78,7 +81,8 @@ def interval(x: Sequence[float]) -> tuple[float, float, float]:
     return m, m - h, m + h
 
 
-def baseline_rows(scenario: str, seeds: Sequence[int], run_s: float, planner: str | None) -> dict[str, list[float]]:
+def baseline_rows(scenario: str, seeds: Sequence[int], run_s: float,
+                  planner: str | None) -> dict[str, list[tuple[float, int, bool]]]:
     """The returns of ``zero``, ``random``, ``sumo`` and (with a file) ``planner``."""
     from sim.env import MergeEnv
 
@@ -110,13 +114,13 @@ def baseline_rows(scenario: str, seeds: Sequence[int], run_s: float, planner: st
 
 
 def ppo_rows(scenario: str, seeds: Sequence[int], run_s: float, budgets: Sequence[int],
-             ppo_seed: int) -> dict[str, tuple[list[float], float]]:
+             ppo_seed: int) -> dict[str, tuple[list[tuple[float, int, bool]], float]]:
     """``ppo@N``: returns and training wall seconds per budget (one model, trained on)."""
     from stable_baselines3 import PPO
 
     from sim.env import MergeEnv
 
-    out: dict[str, tuple[list[float], float]] = {}
+    out: dict[str, tuple[list[tuple[float, int, bool]], float]] = {}
     model: Any = None
     done, wall = 0, 0.0
     for budget in sorted(budgets):
@@ -150,20 +154,26 @@ def main(argv: Sequence[str] | None = None) -> None:
     if any(b <= 0 for b in a.ppo_budgets):
         ap.error(f"--ppo-budgets: every budget must be a positive number of steps, got {a.ppo_budgets}")
     print(f"task-reward return per episode, mean [95% t-interval] over seeds {a.seeds}; PPO seed {a.ppo_seed}")
-    print("| scenario | driver | mean return | 95% interval | train wall s |")
-    print("|---|---|---|---|---|")
+    print("| scenario | driver | mean return | 95% interval | decisions per episode | collisions | train wall s |")
+    print("|---|---|---|---|---|---|---|")
     for scenario in a.scenarios:
         run_s = run_s_of(scenario, a.extra_s)
         t = time.perf_counter()
-        rows: dict[str, tuple[list[float], float]] = {
-            k: (v, math.nan) for k, v in baseline_rows(scenario, a.seeds, run_s, a.planner).items()}
-        if not a.skip_ppo:
-            rows.update(ppo_rows(scenario, a.seeds, run_s, a.ppo_budgets, a.ppo_seed))
-        for name, (ret, wall) in rows.items():
-            m, lo, hi = interval(ret)
+        for name, (eps, wall) in scenario_rows(scenario, a, run_s).items():
+            m, lo, hi = interval([e[0] for e in eps])
             w = f"{wall:.0f}" if math.isfinite(wall) else ""
-            print(f"| {scenario} | {name} | {m:.2f} | [{lo:.2f}, {hi:.2f}] | {w} |", flush=True)
+            print(f"| {scenario} | {name} | {m:.2f} | [{lo:.2f}, {hi:.2f}] | {np.mean([e[1] for e in eps]):.1f} "
+                  f"| {sum(e[2] for e in eps)}/{len(eps)} | {w} |", flush=True)
         print(f"<!-- {scenario}: {time.perf_counter() - t:.0f} s wall in all -->", flush=True)
+
+
+def scenario_rows(scenario: str, a: argparse.Namespace,
+                  run_s: float) -> dict[str, tuple[list[tuple[float, int, bool]], float]]:
+    """Every driver's episodes on ``scenario`` (and PPO's training wall time; nan for the others)."""
+    rows = {k: (v, math.nan) for k, v in baseline_rows(scenario, a.seeds, run_s, a.planner).items()}
+    if not a.skip_ppo:
+        rows.update(ppo_rows(scenario, a.seeds, run_s, a.ppo_budgets, a.ppo_seed))
+    return rows
 
 
 if __name__ == "__main__":

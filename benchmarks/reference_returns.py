@@ -134,10 +134,13 @@ def ppo_rows(scenario: str, seeds: Sequence[int], run_s: float, budgets: Sequenc
         wall += time.perf_counter() - t
         done = budget
         train.close()  # libsumo is free again for the evaluation
-        act = model.predict
-        out[f"ppo@{budget}"] = (returns_of(lambda: MergeEnv(scenario, run_s=run_s), seeds,
-                                           lambda o, act=act: int(act(o, deterministic=True)[0])), wall)
+        out[f"ppo@{budget}"] = (returns_of(lambda: MergeEnv(scenario, run_s=run_s), seeds, deterministic(model)), wall)
     return out
+
+
+def deterministic(model: Any) -> Act:
+    """The action of an SB3 ``model`` at ``obs``: its most likely one."""
+    return lambda obs: int(model.predict(obs, deterministic=True)[0])
 
 
 def main(argv: Sequence[str] | None = None) -> None:

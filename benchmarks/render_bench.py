@@ -27,6 +27,7 @@ def main(argv=None) -> None:
         frames = []
         for _ in range(a.frames):
             _, _, terminated, truncated, _ = env.step(2)
+            assert env._ctl is not None
             frames.append((env._frame, dict(env._ctl.role_rows)))
             if terminated or truncated:
                 env.reset()

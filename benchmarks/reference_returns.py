@@ -15,7 +15,9 @@ reward is paid per decision, so a return also grows with the episode's length:
   acceleration applied as a continuous action (as it drives in the closed loop);
 * ``ppo@N``: Stable-Baselines3 PPO (``MlpPolicy``, default settings, ``seed=--ppo-seed``) trained
   for N steps on the scenario (``run_s`` 1800 s runs; ``reset()`` continues a run), then its
-  deterministic action. Budgets grow in one model: ``ppo@10240`` continues ``ppo@2048``.
+  deterministic action. Budgets grow in one model: ``ppo@10240`` continues ``ppo@2048``. PPO
+  collects whole rollouts of ``n_steps`` (2048), so a budget is rounded up to a multiple of
+  2048: the row names the steps actually trained.
 
 Episodes end at the controller's release or its time limit (``max_control_s``, 200 decisions).
 Run: ``python -m benchmarks.reference_returns [--scenarios synthetic i80] [--seeds 0 1 2 3 4 5 6 7]
@@ -122,19 +124,22 @@ def ppo_rows(scenario: str, seeds: Sequence[int], run_s: float, budgets: Sequenc
 
     out: dict[str, tuple[list[tuple[float, int, bool]], float]] = {}
     model: Any = None
-    done, wall = 0, 0.0
+    wall = 0.0
     for budget in sorted(budgets):
+        if model is not None and model.num_timesteps >= budget:
+            continue  # reached already (a budget rounded up past the next one)
         train = MergeEnv(scenario, run_s=1800.0)
         if model is None:
             model = PPO("MlpPolicy", train, seed=ppo_seed, verbose=0)
         else:
             model.set_env(train)
         t = time.perf_counter()
-        model.learn(total_timesteps=budget - done, reset_num_timesteps=done == 0)
+        model.learn(total_timesteps=budget - model.num_timesteps, reset_num_timesteps=model.num_timesteps == 0)
         wall += time.perf_counter() - t
-        done = budget
         train.close()  # libsumo is free again for the evaluation
-        out[f"ppo@{budget}"] = (returns_of(lambda: MergeEnv(scenario, run_s=run_s), seeds, deterministic(model)), wall)
+        # PPO collects whole rollouts of n_steps (2048): a budget is rounded up to a multiple of it
+        out[f"ppo@{model.num_timesteps}"] = (
+            returns_of(lambda: MergeEnv(scenario, run_s=run_s), seeds, deterministic(model)), wall)
     return out
 
 

@@ -133,6 +133,7 @@ def ppo_rows(scenario: str, seeds: Sequence[int], run_s: float, budgets: Sequenc
             model = PPO("MlpPolicy", train, seed=ppo_seed, verbose=0)
         else:
             model.set_env(train)
+            model.get_env().seed(ppo_seed + model.num_timesteps)  # the new runs' seeds: fixed, not drawn
         t = time.perf_counter()
         model.learn(total_timesteps=budget - model.num_timesteps, reset_num_timesteps=model.num_timesteps == 0)
         wall += time.perf_counter() - t

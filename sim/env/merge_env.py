@@ -228,7 +228,8 @@ class MergeEnv(gym.Env):
     def render(self) -> np.ndarray | None:
         """The current frame, ``uint8[160, 960, 3]`` (``render_mode="rgb_array"``; None without a
         render mode or before the first ``reset``): the section's lanes, A red, B orange, C blue,
-        the others grey (:class:`sim.env.render.TopDownRenderer`)."""
+        the others grey, each of A, B, C lettered, under a header with the clock, the legend and
+        a scale bar (:class:`sim.env.render.TopDownRenderer`)."""
         if self.render_mode is None or self._frame is None or self._session is None or self._ctl is None:
             return None
         if self._renderer is None:

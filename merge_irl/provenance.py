@@ -8,7 +8,10 @@ Every result file the CLI writes (``model.json``, ``metrics.json``, ``report.md`
      "git_commit": "8cda119...",        # only when the code runs from a git checkout
      "git_dirty": false,                # ditto: tracked files differ from that commit
      "inputs": {"demos": {"path": "enc.parquet", "sha256": "..."}},
-     "models": {"qavg": {"path": "models/qavg.json", "sha256": "..."}, "sumo": null}}
+     "models": {"qavg": {"path": "models/qavg.json", "sha256": "..."}, "sumo": null},
+     # only when a policy loads files the user named (evaluate --policy-weights, --policy-vecnormalize)
+     "policy_files": {"ppo": {"weights": {"path": "ppo.zip", "sha256": "..."},
+                              "vecnormalize": {"path": "vn.pkl", "sha256": "..."}}}}
 
 The record is a pure function of the code, the installed packages and the input files'
 contents: two identical runs write it byte for byte the same. Wall-clock times are kept out of
@@ -134,6 +137,7 @@ def provenance(
     inputs: Mapping[str, str | os.PathLike | None] | None = None,
     models: Mapping[str, str | os.PathLike | None] | None = None,
     *,
+    policy_files: Mapping[str, Mapping[str, str | os.PathLike]] | None = None,
     extra: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """The provenance record of an output (see the module docstring).
@@ -143,6 +147,9 @@ def provenance(
             left out); each becomes :func:`path_digest`.
         models: policy name -> its model file (digested like ``inputs``), or None for a policy
             without one (the SUMO and uniform baselines, a model passed as an object).
+        policy_files: policy name -> role (``"weights"``, ``"vecnormalize"``, ...) -> a file the
+            policy loads besides its model or module (its weights, its normalisation statistics),
+            digested like ``inputs``; left out when empty.
         extra: further JSON-ready entries (e.g. ``{"scenario_sha256": ...}``), merged last.
 
     Raises:
@@ -155,6 +162,10 @@ def provenance(
     record["inputs"] = {k: path_digest(v) for k, v in (inputs or {}).items() if v is not None}
     if models is not None:
         record["models"] = {k: None if v is None else path_digest(v) for k, v in models.items()}
+    loads = {name: {role: path_digest(f) for role, f in files.items()} for name, files in (policy_files or {}).items()
+             if files}
+    if loads:
+        record["policy_files"] = loads
     record.update(extra or {})
     return record
 
@@ -177,8 +188,11 @@ def provenance_markdown(record: Mapping[str, Any]) -> str:
         lines.append(f"- input {role}: `{d['path']}` sha256 {d['sha256']}")
     for name, d in (record.get("models") or {}).items():
         lines.append(f"- policy {name}: " + ("no model file" if d is None else f"`{d['path']}` sha256 {d['sha256']}"))
+    for name, files in (record.get("policy_files") or {}).items():
+        for role, d in files.items():
+            lines.append(f"- policy {name} loads {role}: `{d['path']}` sha256 {d['sha256']}")
     for key, value in record.items():
-        if key not in ("merge_irl", "sumo", "git_commit", "git_dirty", "inputs", "models"):
+        if key not in ("merge_irl", "sumo", "git_commit", "git_dirty", "inputs", "models", "policy_files"):
             lines.append(f"- {key}: {value}")
     return "\n".join(lines)
 

@@ -67,6 +67,9 @@ class EvaluationConfig:
         pairs: a folder of recorded car-following pairs (:func:`analysis.calibration.pairs.load_pairs`,
             e.g. NGSIM I-80): the ``recorded drivers`` row of the human-likeness table and every
             driver's W1 distances to it (:mod:`analysis.evaluation.recorded`); None: no such row.
+        policy_weights: files the callable policies (``--policy``) load, e.g. a Stable-Baselines3
+            ``.zip``: their SHA-256 goes into the provenance (``policy_files``) of every callable
+            policy, with its ``VecNormalize`` statistics file.
     """
 
     scenario: Any
@@ -86,6 +89,7 @@ class EvaluationConfig:
     progress: bool = True
     allow_implausible: bool = False
     pairs: str | os.PathLike[str] | None = None
+    policy_weights: tuple[str | os.PathLike[str], ...] = ()
 
     def __post_init__(self) -> None:
         # one spec given alone (a path, a SavedModel, a driver) is a list of one, not a string's

@@ -13,8 +13,9 @@ no episode runs; :func:`analysis.evaluation.run.run_plan` runs the plan and
 from __future__ import annotations
 
 import math
+import os
 import warnings
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -126,7 +127,8 @@ def plan_evaluation(config: EvaluationConfig) -> EvaluationPlan:
     shared: dict = {}  # what several policies' held-out scoring shares (Policy.heldout_inputs)
     scores = {p.name: policy_heldout_loglik(p, held, step, cache=shared) if held is not None else None for p in pols}
     # the files as read, before the work: a driver's file, else its source (a callable's module), else None
-    prov = evaluation_provenance({p.name: f or p.source or None for p, f in zip(pols, files)}, config, spec)
+    prov = evaluation_provenance({p.name: f or p.source or None for p, f in zip(pols, files)}, config, spec,
+                                 policy_files=policy_files(pols, config.policy_weights))
     return EvaluationPlan(config, spec, tuple(pols), baselines, controller, executor, held, scores, prov, recorded)
 
 
@@ -174,9 +176,26 @@ def _fixed_step(controller: ControllerConfig, pols: list[Policy]) -> ControllerC
     return controller
 
 
-def evaluation_provenance(files: Mapping[str, Any], config: EvaluationConfig, spec) -> dict:
+def policy_files(pols: Sequence[Any], weights: Sequence[str | os.PathLike]) -> dict[str, dict[str, Any]]:
+    """Policy name -> role -> file, of the files each callable policy (one with ``obs_stats``,
+    :class:`sim.drivers.callables.DriverFromCallable`) loads: ``weights`` (``weights1``,
+    ``weights2``, ... when several) and its ``vecnormalize`` statistics; other policies: none."""
+    roles = {"weights": weights[0]} if len(weights) == 1 else {f"weights{i}": w for i, w in enumerate(weights, 1)}
+    out: dict[str, dict[str, Any]] = {}
+    for p in pols:
+        if not hasattr(p, "obs_stats"):
+            continue
+        files = {**roles, **({"vecnormalize": p.obs_stats} if p.obs_stats else {})}
+        if files:
+            out[p.name] = files
+    return out
+
+
+def evaluation_provenance(files: Mapping[str, Any], config: EvaluationConfig, spec, *,
+                          policy_files: Mapping[str, Mapping[str, Any]] | None = None) -> dict:
     """:func:`merge_irl.provenance.provenance` of an evaluation: each policy's file (``files``),
-    the held-out and training demonstrations, pairs folder and scenario files read, and the SHA-256 of the
+    the files a callable policy loads (``policy_files``: :func:`policy_files`), the held-out and
+    training demonstrations, pairs folder and scenario files read, and the SHA-256 of the
     scenario actually simulated (its TOML)."""
     scenario = config.scenario
     scenario_file = scenario if isinstance(scenario, (str, Path)) and Path(scenario).is_file() else None
@@ -185,5 +204,5 @@ def evaluation_provenance(files: Mapping[str, Any], config: EvaluationConfig, sp
         else {"demos": demos[0] if isinstance(demos, tuple) else None if isinstance(demos, pd.DataFrame) else demos}
     train_file = None if isinstance(config.train_demos, pd.DataFrame) else config.train_demos
     inputs = {**held, "train_demos": train_file, "scenario": scenario_file, "pairs": config.pairs}
-    return provenance(inputs, dict(files),
+    return provenance(inputs, dict(files), policy_files=policy_files,
                       extra={"scenario_sha256": text_digest(spec.to_toml())})

@@ -153,6 +153,11 @@ class MergeEnv(gym.Env):
         self._last_obs = np.zeros(self.observation_space.shape or ())
         self._run_seed = -1
         self._time_s = math.nan  # simulated time of the last frame the agent saw
+        #: Called as ``listener(ctx, controller, frame)`` with every frame of an episode, from the
+        #: take-over to the release, once the controller is done with it (A's decision in that frame
+        #: applied): what a step hook after the controller sees in the closed loop
+        #: (:class:`analysis.recording.episodes.RecordRerun` writes the episodes to rerun so).
+        self.frame_listeners: list[Callable[[Any, Controller, FrameState], None]] = []
 
     # -- Gymnasium API --------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -219,6 +224,7 @@ class MergeEnv(gym.Env):
             return self._last_obs.copy(), self._core.outcome_terms(c, info), *end_flags(c), info
         reward, step_info = self._core.apply(ctl, c, frame, ia, ic, obs, action)
         self._pending = None
+        self._tell(frame)
         while True:
             st = self._session.step()
             if st is None:
@@ -231,6 +237,7 @@ class MergeEnv(gym.Env):
                 o = self._core.observe_at_release(ctl, c, st.frame)
                 if o is not None:
                     self._last_obs = self._core.observation(o)
+                self._tell(st.frame)
                 break
             for dc, ia2, ib2, ic2 in due:
                 if dc is c:
@@ -238,6 +245,7 @@ class MergeEnv(gym.Env):
                     self._pending = (st.frame, ia2, ic2, o)
                     self._last_obs = self._core.observation(o)
                     return self._last_obs.copy(), reward, False, False, {**self._info(o), **step_info}
+            self._tell(st.frame)
         terminated, truncated = end_flags(c)
         info = {**self._info(None), **step_info, "release_reason": c.reason, "collision_kind": c.collision_kind}
         return self._last_obs.copy(), reward + self._core.outcome_terms(c, info), terminated, truncated, info
@@ -245,7 +253,8 @@ class MergeEnv(gym.Env):
     def render(self) -> np.ndarray | None:
         """The current frame, ``uint8[160, 960, 3]`` (``render_mode="rgb_array"``; None without a
         render mode or before the first ``reset``): the section's lanes, A red, B orange, C blue,
-        the others grey (:class:`sim.env.render.TopDownRenderer`)."""
+        the others grey, each of A, B, C lettered, under a header with the clock, the legend and
+        a scale bar (:class:`sim.env.render.TopDownRenderer`)."""
         if self.render_mode is None or self._frame is None or self._session is None or self._ctl is None:
             return None
         if self._renderer is None:
@@ -273,6 +282,11 @@ class MergeEnv(gym.Env):
         super().close()
 
     # -- internals ------------------------------------------------------------------------
+    def _tell(self, frame: FrameState) -> None:
+        for listener in self.frame_listeners:
+            assert self._session is not None and self._ctl is not None
+            listener(self._session.context, self._ctl, frame)
+
     def _draw_seed(self) -> int:
         return int(self.np_random.integers(0, 2**31 - 1))
 

@@ -70,6 +70,21 @@ def test_record_lists_versions_inputs_and_models(tmp_path):
     json.dumps(r)  # JSON-ready
 
 
+def test_files_a_policy_loads_are_digested_per_policy_and_listed(tmp_path):
+    w, vn = tmp_path / "w.zip", tmp_path / "vn.pkl"
+    w.write_bytes(b"weights")
+    vn.write_bytes(b"stats")
+    rec = prov.provenance(policy_files={"ppo": {"weights": w, "vecnormalize": vn}, "rule": {}})
+    assert rec["policy_files"] == {"ppo": {"weights": {"path": str(w), "sha256": hashlib.sha256(b"weights").hexdigest()},
+                                           "vecnormalize": {"path": str(vn), "sha256": hashlib.sha256(b"stats").hexdigest()}}}
+    md = prov.provenance_markdown(rec)
+    assert f"- policy ppo loads weights: `{w}` sha256 {hashlib.sha256(b'weights').hexdigest()}" in md
+    assert "policy_files" not in md  # listed, not dumped
+    assert "policy_files" not in prov.provenance(policy_files={"rule": {}})  # nothing loaded: no entry
+    with pytest.raises(FileNotFoundError, match="no such input file"):
+        prov.provenance(policy_files={"ppo": {"weights": tmp_path / "gone.zip"}})
+
+
 def test_installed_version_is_the_source_version():
     meta = tomllib.loads((ROOT / "pyproject.toml").read_text())
     assert prov.package_version() == meta["project"]["version"]

@@ -74,6 +74,10 @@ def register(subparsers) -> None:
                    help="a Stable-Baselines3 VecNormalize.save file: its observation statistics normalise what "
                         "every --policy sees. A --policy exposing its action distribution (SB3's get_distribution, "
                         "a probs(obs) method) gets a held-out log-likelihood")
+    p.add_argument("--policy-weights", action="append", default=[], metavar="FILE",
+                   help="a file the --policy callables load (their weights, e.g. the Stable-Baselines3 .zip; "
+                        "repeatable): its SHA-256 is recorded in the provenance of every --policy, with the "
+                        "--policy-vecnormalize file's")
     p.add_argument("--policy-timeout", type=float, default=None, metavar="SECONDS",
                    help="seconds one decision of a --policy callable may take before the evaluation stops with an "
                         "error naming it (default 60: no honest policy needs that long)")
@@ -149,12 +153,22 @@ def evaluation_config(args: argparse.Namespace) -> EvaluationConfig:
         args.scenario, args.episodes, args.seed, out, drivers=(*args.driver, *_callable_policies(args)),
         baselines=baselines, duration_s=args.duration, demos=_demos(args.demos), train_demos=args.train_demos,
         controller=controller, executor=executor, rrd=not args.no_rrd, progress=not args.no_progress,
-        allow_implausible=args.allow_implausible, pairs=args.pairs)
+        allow_implausible=args.allow_implausible, pairs=args.pairs, policy_weights=_policy_weights(args))
 
 
 def _demos(paths: list[str] | None) -> str | tuple[str, ...] | None:
     """``--demos``: one path, or several read as one set."""
     return None if not paths else paths[0] if len(paths) == 1 else tuple(paths)
+
+
+def _policy_weights(args: argparse.Namespace) -> tuple[str, ...]:
+    """``--policy-weights``: files, each checked to exist (with ``--policy`` only)."""
+    if args.policy_weights and not args.policy:
+        raise AnalysisError("--policy-weights: give the --policy that loads them")
+    for f in args.policy_weights:
+        if not Path(f).is_file():
+            raise AnalysisError(f"--policy-weights {f}: no such file")
+    return tuple(args.policy_weights)
 
 
 def _callable_policies(args: argparse.Namespace) -> list:

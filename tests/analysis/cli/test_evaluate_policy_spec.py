@@ -105,3 +105,49 @@ def test_the_documented_rule_reaches_its_free_road_branch_on_a_policy_observatio
         exec(source, ns)  # noqa: S102
         fast = policy_rows(np.array([[np.nan, np.nan, -30.0, 0.0, 110.0, np.nan, 15.0]]))[0]  # 33.5 m/s
         assert ns["cth"](fast) < 0  # towards 28 m/s: slower, not the 1.5 m/s^2 of a 300 m gap
+
+
+@pytest.mark.sumo
+def test_the_files_a_policy_loads_are_digested_in_the_provenance(tmp_path):
+    import hashlib
+    import pickle
+    from types import SimpleNamespace
+
+    from analysis.cli.main import main
+
+    rule = tmp_path / "rules.py"
+    rule.write_text(CTH_RULE)
+    weights = tmp_path / "ppo_merge.zip"
+    weights.write_bytes(b"not really a zip, the bytes count")
+    stats = tmp_path / "vecnormalize.pkl"  # what with_vecnormalize reads of a VecNormalize.save file
+    stats.write_bytes(pickle.dumps(SimpleNamespace(obs_rms=SimpleNamespace(mean=np.zeros(7), var=np.ones(7)),
+                                                   norm_obs=True, clip_obs=1e6, epsilon=1e-8)))
+    out = tmp_path / "ev"
+    assert main(["evaluate", "--policy", f"{rule}:cth", "--policy-weights", str(weights),
+                 "--policy-vecnormalize", str(stats), "--baselines", "sumo", "--episodes", "1", "--duration", "90",
+                 "--executor", "serial", "--no-rrd", "--no-progress", "--out", str(out)]) == 0
+    prov = json.loads((out / "metrics.json").read_text())["provenance"]
+
+    def sha(p):
+        return hashlib.sha256(p.read_bytes()).hexdigest()
+
+    assert prov["policy_files"] == {"cth": {"weights": {"path": str(weights), "sha256": sha(weights)},
+                                            "vecnormalize": {"path": str(stats), "sha256": sha(stats)}}}
+    assert prov["models"]["cth"]["sha256"] == sha(rule) and prov["models"]["sumo"] is None
+    md = (out / "report.md").read_text()
+    assert f"- policy cth loads weights: `{weights}` sha256 {sha(weights)}" in md
+    assert f"- policy cth loads vecnormalize: `{stats}` sha256 {sha(stats)}" in md
+
+
+def test_policy_weights_that_are_missing_or_without_a_policy_exit_2(tmp_path, capsys):
+    from analysis.cli.main import main
+
+    rule = tmp_path / "rules.py"
+    rule.write_text(CTH_RULE)
+    for args, said in (([f"--policy={rule}:cth", "--policy-weights", str(tmp_path / "nope.zip")],
+                        f"--policy-weights {tmp_path / 'nope.zip'}: no such file"),
+                       (["--policy-weights", str(rule)], "--policy-weights: give the --policy that loads them")):
+        assert main(["evaluate", *args, "--baselines", "sumo", "--out", str(tmp_path / "x")]) == 2
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and said in err, err
+        assert not (tmp_path / "x").exists()

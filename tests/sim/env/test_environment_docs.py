@@ -22,7 +22,7 @@ BLOCKS = [b.body for b in blocks(PAGE) if b.language == "python" and b.runs]  # 
 
 
 def test_the_page_has_its_examples():
-    assert len(BLOCKS) == 5
+    assert len(BLOCKS) == 6
 
 
 @pytest.mark.parametrize("index", range(len(BLOCKS)))
@@ -37,10 +37,13 @@ def test_example_runs(index, tmp_path):
     if index == 0:  # the episode ended with a release reason and a time
         reason, time_s = out.stdout.split()[-2:]
         assert reason in ("merge_done", "collision", "left_section", "left_lane", "b_lost", "timeout") and float(time_s) > 60
-    if index == 3:
+    if index == 4:
         assert "vehicles at 70.0 s;" in out.stdout
-    if index == 4:  # an observation and a reward added by registration, in the environment
+    if index == 5:  # an observation and a reward added by registration, in the environment
         assert out.stdout.split("\n")[-2] == "(2,) ['reward'] True"
-    if index == 2:  # the multi-agent run released its agents, some after a merge
+    if index == 2:  # two episodes, each its own recording
+        assert out.stdout.split() == ["episodes/episode-0.rrd", "episodes/episode-1.rrd"]
+        assert all((tmp_path / "episodes" / f"episode-{k}.rrd").stat().st_size > 1000 for k in (0, 1))
+    if index == 3:  # the multi-agent run released its agents, some after a merge
         n, reasons = out.stdout.split(" agents released: ")
         assert int(n.split()[-1]) >= 2 and "merge_done" in reasons

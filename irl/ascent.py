@@ -372,7 +372,7 @@ def newton_concave(evaluate: Callable[[np.ndarray], Evaluation], theta0: np.ndar
 
 #: :func:`stalled`: accepted steps looked back over, the gain over them (relative to ``max(1, |L|)``)
 #: below which L counts as no longer rising, and how far ``|theta|`` must have run from its start
-#: (``|theta| > STALL_THETA_RUN (1 + |theta_0|)``) or grown over the window (``STALL_THETA_GROWTH``x)
+#: (``|theta| > STALL_THETA_RUN (1 + |theta_0|)``) or grown over the window (``STALL_THETA_GROWTH`` times)
 #: for the stop to be called diverging weights rather than a stall.
 STALL_WINDOW = 5
 STALL_GAIN = 1e-12

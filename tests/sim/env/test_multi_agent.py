@@ -174,6 +174,9 @@ def slot_episodes(venv, steps, rng):
 
 
 def test_slot_episodes_count_each_cars_controlled_steps_and_return_and_keep_release_and_seat_apart():
+    from tests.extras import require_extra
+
+    require_extra("stable_baselines3", "rl")  # SuperSuit's SB3 vector wrapper imports it
     import supersuit as ss
 
     venv = ss.concat_vec_envs_v1(AgentSlotsVectorEnv(max_agents=2, **SHORT), 1, base_class="stable_baselines3")
